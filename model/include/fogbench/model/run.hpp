@@ -1,0 +1,50 @@
+// A recorded thermal run of one gyro: the signals every model computation reads.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace fogbench::model {
+
+// The profile phase a sample belongs to. `settle` samples precede the run proper.
+enum class Phase : std::uint8_t { unknown = 0, settle, hold, heating, cooling };
+
+std::string_view to_string(Phase p);
+std::optional<Phase> phase_from_string(std::string_view s);
+
+// Quality flags of one sample (bit set), as stored by the daemon and exported in CSV.
+namespace flag {
+inline constexpr std::uint8_t missing = 1u << 0;       // a signal was not read this second
+inline constexpr std::uint8_t frames_lost = 1u << 1;   // the gyro's sequence counter skipped
+inline constexpr std::uint8_t out_of_range = 1u << 2;  // a reading outside its plausible range
+inline constexpr std::uint8_t link_gap = 1u << 3;      // the chamber link was down
+}  // namespace flag
+
+// Column vectors of equal length (optional ones are empty when not recorded).
+struct RunData {
+  std::string name;                  // where it came from: a file name, "run 12", "sim exp1"
+  std::vector<double> time_s;        // sample time, s since the run's start (1 Hz nominal)
+  std::vector<double> gyro_dph;      // gyro output, deg/h
+  std::vector<double> t1_c;          // coil-centre thermistor, degC
+  std::vector<double> t2_c;          // coil outer-wall thermistor, degC
+  std::vector<double> setpoint_c;    // chamber setpoint, degC (optional)
+  std::vector<double> chamber_c;     // chamber air process value, degC (optional)
+  std::vector<Phase> phase;          // profile phase of each sample (optional)
+  std::vector<int> step;             // profile step index of each sample (optional)
+  std::vector<std::uint8_t> flags;   // quality flags, see `flag` (optional: all good)
+
+  std::size_t size() const { return time_s.size(); }
+  bool has_setpoint() const { return !setpoint_c.empty(); }
+  bool has_chamber() const { return !chamber_c.empty(); }
+  bool has_phase() const { return !phase.empty(); }
+  bool has_step() const { return !step.empty(); }
+  bool has_flags() const { return !flags.empty(); }
+  // True when sample i carries any quality flag.
+  bool flagged(std::size_t i) const { return !flags.empty() && flags[i] != 0; }
+};
+
+}  // namespace fogbench::model
