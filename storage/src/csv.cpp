@@ -1,0 +1,708 @@
+// Reads and writes the run CSV. One pass over the text: lines are found with memchr and cells
+// parsed in place with std::from_chars, so a million-row file costs no allocation per cell.
+#include "fogbench/storage/csv.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cassert>
+#include <cerrno>
+#include <charconv>
+#include <climits>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <memory>
+#include <system_error>
+
+namespace fogbench::storage {
+
+std::string_view to_string(CsvErrc code) {
+  switch (code) {
+    case CsvErrc::io: return "io";
+    case CsvErrc::bad_option: return "bad_option";
+    case CsvErrc::empty: return "empty";
+    case CsvErrc::duplicate_column: return "duplicate_column";
+    case CsvErrc::missing_column: return "missing_column";
+    case CsvErrc::field_count: return "field_count";
+    case CsvErrc::bad_quote: return "bad_quote";
+    case CsvErrc::not_a_number: return "not_a_number";
+    case CsvErrc::not_finite: return "not_finite";
+    case CsvErrc::bad_value: return "bad_value";
+    case CsvErrc::no_data: return "no_data";
+    case CsvErrc::time_not_increasing: return "time_not_increasing";
+    case CsvErrc::time_uneven: return "time_uneven";
+  }
+  return "unknown";
+}
+
+namespace {
+
+// The role of a file column; the order is that of csv_columns() and of to_csv's output.
+enum Role : int {
+  r_time, r_gyro, r_t1, r_t2, r_setpoint, r_chamber, r_phase, r_step, r_flags, r_count,
+  r_ignore = -1
+};
+constexpr int kRequired = 4;
+constexpr std::array<std::string_view, r_count> kNames = {
+    "time_s", "gyro_dph", "t1_c", "t2_c", "setpoint_c", "chamber_c", "phase", "step", "flags"};
+
+// Even spacing tolerance, as a fraction of the median step: loose enough for time written
+// with %.3f at 1 Hz, tight enough to catch a skipped or doubled sample.
+constexpr double kSpacingTolerance = 0.01;
+// A resampling interval between source samples wider than this many median steps is a gap.
+constexpr double kGapSteps = 1.5;
+// Resampling onto more points than this is surely a unit mistake (ms given as s).
+constexpr double kMaxResampledRows = 1e8;
+
+std::string_view trim(std::string_view s) {
+  while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t')) s.remove_suffix(1);
+  return s;
+}
+
+std::string format_number(double v) {
+  char buf[32];
+  auto res = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, res.ptr);
+}
+
+// Physical lines of a text, without the '\n' and a trailing '\r'; numbered from 1.
+class Lines {
+ public:
+  explicit Lines(std::string_view text) : text_(text) {
+    // A UTF-8 byte order mark, as spreadsheet programs write, is not part of the first name.
+    if (text_.starts_with("\xEF\xBB\xBF")) pos_ = 3;
+  }
+
+  bool next(std::string_view& line) {
+    if (pos_ >= text_.size()) return false;
+    const char* begin = text_.data() + pos_;
+    const std::size_t rest = text_.size() - pos_;
+    const auto* nl = static_cast<const char*>(std::memchr(begin, '\n', rest));
+    std::size_t len = nl ? static_cast<std::size_t>(nl - begin) : rest;
+    pos_ += len + (nl ? 1 : 0);
+    ++line_no_;
+    if (len > 0 && begin[len - 1] == '\r') --len;
+    line = std::string_view(begin, len);
+    return true;
+  }
+  std::size_t line_no() const { return line_no_; }
+
+ private:
+  std::string_view text_;
+  std::size_t pos_ = 0;
+  std::size_t line_no_ = 0;
+};
+
+bool is_blank_or_comment(std::string_view line) {
+  for (char c : line) {
+    if (c == ' ' || c == '\t') continue;
+    return c == '#';
+  }
+  return true;
+}
+
+// The fields of one line. A field may be quoted ("a,b"), as spreadsheets write names with
+// commas; the view excludes the outer quotes but keeps doubled quotes doubled (numbers never
+// contain them; header names are unescaped by the caller).
+class Fields {
+ public:
+  explicit Fields(std::string_view line) : line_(line) {}
+
+  bool next(std::string_view& field) {
+    if (done_) return false;
+    const std::size_t n = line_.size();
+    std::size_t p = pos_;
+    while (p < n && (line_[p] == ' ' || line_[p] == '\t')) ++p;
+    if (p < n && line_[p] == '"') return next_quoted(p, field);
+    const char* start = line_.data() + pos_;
+    const auto* comma = static_cast<const char*>(std::memchr(start, ',', n - pos_));
+    if (comma == nullptr) {
+      field = trim(line_.substr(pos_));
+      done_ = true;
+    } else {
+      const auto len = static_cast<std::size_t>(comma - start);
+      field = trim(line_.substr(pos_, len));
+      pos_ += len + 1;
+    }
+    return true;
+  }
+  bool bad_quote() const { return bad_quote_; }
+  bool quoted() const { return quoted_; }
+
+ private:
+  bool next_quoted(std::size_t open, std::string_view& field) {
+    const std::size_t n = line_.size();
+    std::size_t q = open + 1;
+    for (;;) {
+      q = line_.find('"', q);
+      if (q == std::string_view::npos) return fail_quote();
+      if (q + 1 < n && line_[q + 1] == '"') {
+        q += 2;
+        continue;
+      }
+      break;
+    }
+    field = line_.substr(open + 1, q - open - 1);
+    quoted_ = true;
+    std::size_t r = q + 1;
+    while (r < n && (line_[r] == ' ' || line_[r] == '\t')) ++r;
+    if (r == n) {
+      done_ = true;
+    } else if (line_[r] == ',') {
+      pos_ = r + 1;
+    } else {
+      return fail_quote();  // text after the closing quote
+    }
+    return true;
+  }
+  bool fail_quote() {
+    bad_quote_ = true;
+    done_ = true;
+    return false;
+  }
+
+  std::string_view line_;
+  std::size_t pos_ = 0;
+  bool done_ = false;
+  bool bad_quote_ = false;
+  bool quoted_ = false;
+};
+
+enum class Num { ok, not_a_number, not_finite, out_of_range };
+
+Num parse_double(std::string_view s, double& out) {
+  if (!s.empty() && s.front() == '+') s.remove_prefix(1);  // from_chars rejects a plus sign
+  if (s.empty()) return Num::not_a_number;
+  const char* end = s.data() + s.size();
+  auto [ptr, ec] = std::from_chars(s.data(), end, out);
+  if (ec == std::errc::result_out_of_range && ptr == end) {
+    // from_chars reports underflow (1e-400) like overflow; underflow is just a tiny number,
+    // so ask strtod, which rounds it to zero. Rare, so the copy does not matter.
+    const std::string copy(s);
+    out = std::strtod(copy.c_str(), nullptr);
+    return std::isfinite(out) ? Num::ok : Num::out_of_range;
+  }
+  if (ec != std::errc{} || ptr != end) return Num::not_a_number;
+  if (!std::isfinite(out)) return Num::not_finite;
+  return Num::ok;
+}
+
+template <class Int>
+Num parse_int(std::string_view s, Int& out) {
+  if (!s.empty() && s.front() == '+') s.remove_prefix(1);
+  if (s.empty()) return Num::not_a_number;
+  const char* end = s.data() + s.size();
+  auto [ptr, ec] = std::from_chars(s.data(), end, out);
+  if (ec == std::errc::result_out_of_range) return Num::out_of_range;
+  if (ec != std::errc{} || ptr != end) return Num::not_a_number;
+  return Num::ok;
+}
+
+std::string join_names(const std::vector<std::string>& names) {
+  std::string out;
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    if (i) out += ',';
+    out += names[i].empty() ? "(empty)" : names[i];
+    if (out.size() > 400 && i + 1 < names.size()) {
+      out += ",... (" + std::to_string(names.size()) + " columns)";
+      break;
+    }
+  }
+  return out;
+}
+
+class Parser {
+ public:
+  Parser(std::string_view text, const CsvOptions& options)
+      : text_(text),
+        options_(options),
+        source_(options.source_name.empty() ? "<csv>" : options.source_name) {}
+
+  std::expected<model::RunData, CsvError> run() {
+    if (auto ok = check_options(); !ok) return std::unexpected(ok.error());
+    Lines lines(text_);
+    if (auto ok = read_header(lines); !ok) return std::unexpected(ok.error());
+    if (auto ok = read_rows(lines); !ok) return std::unexpected(ok.error());
+    if (data_.size() == 0)
+      return fail(CsvErrc::no_data, 0, 0, "no data rows after the header on line " +
+                                                  std::to_string(header_line_));
+    if (options_.resample_s) return resample(*options_.resample_s);
+    if (auto ok = check_spacing(); !ok) return std::unexpected(ok.error());
+    return std::move(data_);
+  }
+
+ private:
+  std::unexpected<CsvError> fail(CsvErrc code, std::size_t line, std::size_t field,
+                                 std::string what) const {
+    CsvError e;
+    e.code = code;
+    e.source = source_;
+    e.line = line;
+    e.column = field;
+    e.message = source_;
+    if (line) e.message += ":" + std::to_string(line);
+    e.message += ": ";
+    if (field) {
+      e.column_name = field <= names_.size() ? names_[field - 1] : std::string();
+      e.message += "column " + std::to_string(field) + " '" + e.column_name + "'";
+      const int role = field <= role_of_.size() ? role_of_[field - 1] : r_ignore;
+      if (role != r_ignore && kNames[role] != e.column_name)
+        e.message += " (" + std::string(kNames[role]) + ")";
+      e.message += ": ";
+    }
+    e.message += what;
+    return std::unexpected(std::move(e));
+  }
+
+  std::expected<void, CsvError> check_options() {
+    if (const auto& dt = options_.resample_s; dt && !(std::isfinite(*dt) && *dt > 0))
+      return fail(CsvErrc::bad_option, 0, 0,
+                  "resample interval must be a positive number of seconds, got " +
+                      format_number(*dt));
+    for (std::size_t i = 0; i < options_.column_map.size(); ++i) {
+      const ColumnMapping& m = options_.column_map[i];
+      const std::string spec = m.canonical + "=" + m.header;
+      const auto* it = std::find(kNames.begin(), kNames.end(), m.canonical);
+      if (it == kNames.end())
+        return fail(CsvErrc::bad_option, 0, 0,
+                    "--map " + spec + ": '" + m.canonical +
+                        "' is not a fogbench column (time_s,gyro_dph,t1_c,t2_c,setpoint_c,"
+                        "chamber_c,phase,step,flags)");
+      if (m.header.empty())
+        return fail(CsvErrc::bad_option, 0, 0, "--map " + spec + ": empty header name");
+      for (std::size_t j = 0; j < i; ++j) {
+        const ColumnMapping& o = options_.column_map[j];
+        if (o.canonical == m.canonical)
+          return fail(CsvErrc::bad_option, 0, 0,
+                      "--map names " + m.canonical + " twice (=" + o.header + " and =" +
+                          m.header + ")");
+        if (o.header == m.header)
+          return fail(CsvErrc::bad_option, 0, 0,
+                      "--map gives column '" + m.header + "' to both " + o.canonical + " and " +
+                          m.canonical);
+      }
+    }
+    return {};
+  }
+
+  std::expected<void, CsvError> read_header(Lines& lines) {
+    std::string_view line;
+    bool found = false;
+    while (lines.next(line)) {
+      if (is_blank_or_comment(line)) continue;
+      found = true;
+      break;
+    }
+    if (!found)
+      return fail(CsvErrc::empty, 0, 0,
+                  "empty file: no header row (expected at least time_s,gyro_dph,t1_c,t2_c)");
+    header_line_ = lines.line_no();
+
+    Fields fields(line);
+    std::string_view f;
+    while (fields.next(f)) {
+      std::string name(f);
+      if (fields.quoted()) {  // undo the doubling of quotes inside a quoted name
+        std::size_t p = 0;
+        while ((p = name.find("\"\"", p)) != std::string::npos) name.erase(p++, 1);
+      }
+      names_.push_back(std::move(name));
+    }
+    role_of_.assign(names_.size(), r_ignore);
+    if (fields.bad_quote())
+      return fail(CsvErrc::bad_quote, header_line_, names_.size() + 1,
+                  "unterminated quoted name in the header");
+
+    for (std::size_t i = 0; i < names_.size(); ++i) {
+      if (names_[i].empty()) continue;  // a trailing comma's empty column is just ignored
+      for (std::size_t j = 0; j < i; ++j)
+        if (names_[j] == names_[i])
+          return fail(CsvErrc::duplicate_column, header_line_, i + 1,
+                      "duplicate column name, also column " + std::to_string(j + 1));
+    }
+
+    field_of_.fill(-1);
+    auto find = [&](std::string_view name) -> int {
+      for (std::size_t i = 0; i < names_.size(); ++i)
+        if (names_[i] == name) return static_cast<int>(i);
+      return -1;
+    };
+    // Mapped columns first: an explicit --map wins over a column that happens to carry the
+    // canonical name.
+    for (const ColumnMapping& m : options_.column_map) {
+      const auto role = static_cast<int>(
+          std::find(kNames.begin(), kNames.end(), m.canonical) - kNames.begin());
+      const int i = find(m.header);
+      if (i < 0)
+        return fail(CsvErrc::missing_column, header_line_, 0,
+                    "column '" + m.header + "' (named by --map " + m.canonical + "=" + m.header +
+                        ") not found; the header has: " + join_names(names_));
+      field_of_[role] = i;
+      role_of_[i] = role;
+    }
+    for (int role = 0; role < r_count; ++role) {
+      if (field_of_[role] >= 0) continue;
+      const int i = find(kNames[role]);
+      if (i >= 0 && role_of_[i] == r_ignore) {
+        field_of_[role] = i;
+        role_of_[i] = role;
+      } else if (role < kRequired) {
+        return fail(CsvErrc::missing_column, header_line_, 0,
+                    "required column '" + std::string(kNames[role]) +
+                        "' not found; the header has: " + join_names(names_) +
+                        "; if the file names it differently, use --map " +
+                        std::string(kNames[role]) + "=<name in the file>");
+      }
+    }
+    return {};
+  }
+
+  std::expected<void, CsvError> read_rows(Lines& lines) {
+    // One row per remaining line at most: reserving that bound avoids regrowth, and the excess
+    // is small next to the data.
+    const auto rows = static_cast<std::size_t>(
+        std::count(text_.begin(), text_.end(), '\n') + 1);
+    data_.name = source_;
+    std::vector<double>* doubles[r_count] = {&data_.time_s, &data_.gyro_dph, &data_.t1_c,
+                                             &data_.t2_c,   &data_.setpoint_c, &data_.chamber_c};
+    for (int role = 0; role <= r_chamber; ++role)
+      if (field_of_[role] >= 0) doubles[role]->reserve(rows);
+    if (field_of_[r_phase] >= 0) data_.phase.reserve(rows);
+    if (field_of_[r_step] >= 0) data_.step.reserve(rows);
+    if (field_of_[r_flags] >= 0) data_.flags.reserve(rows);
+
+    const std::size_t expected_fields = names_.size();
+    const std::size_t time_field = static_cast<std::size_t>(field_of_[r_time]) + 1;
+    double prev_time = 0;
+    std::size_t prev_line = 0;
+    std::string_view line;
+    while (lines.next(line)) {
+      if (is_blank_or_comment(line)) continue;
+      const std::size_t ln = lines.line_no();
+      Fields fields(line);
+      std::string_view cell;
+      std::size_t i = 0;
+      while (fields.next(cell)) {
+        if (i >= expected_fields) {
+          std::size_t n = i + 1;
+          while (fields.next(cell)) ++n;
+          return fail(CsvErrc::field_count, ln, 0,
+                      std::to_string(n) + " fields but the header (line " +
+                          std::to_string(header_line_) + ") has " +
+                          std::to_string(expected_fields));
+        }
+        const int role = role_of_[i];
+        ++i;
+        if (role == r_ignore) continue;
+        if (auto ok = parse_cell(role, cell, ln, i, doubles); !ok) return ok;
+      }
+      if (fields.bad_quote())
+        return fail(CsvErrc::bad_quote, ln, i + 1, "unterminated quoted field");
+      if (i < expected_fields)
+        return fail(CsvErrc::field_count, ln, 0,
+                    "too few fields: " + std::to_string(i) + " but the header (line " +
+                        std::to_string(header_line_) + ") has " +
+                        std::to_string(expected_fields) + "; first missing: column " +
+                        std::to_string(i + 1) + " '" + names_[i] + "'");
+      const double t = data_.time_s.back();
+      if (data_.time_s.size() > 1 && !(t > prev_time))
+        return fail(CsvErrc::time_not_increasing, ln, time_field,
+                    format_number(t) + " is not after " + format_number(prev_time) +
+                        " on line " + std::to_string(prev_line) +
+                        "; time must be strictly increasing");
+      prev_time = t;
+      prev_line = ln;
+    }
+    return {};
+  }
+
+  std::expected<void, CsvError> parse_cell(int role, std::string_view cell, std::size_t ln,
+                                           std::size_t field, std::vector<double>* doubles[]) {
+    if (role <= r_chamber) {
+      double v;
+      switch (parse_double(cell, v)) {
+        case Num::ok: doubles[role]->push_back(v); return {};
+        case Num::not_a_number: return fail(CsvErrc::not_a_number, ln, field, not_a_number(cell));
+        case Num::not_finite:
+          return fail(CsvErrc::not_finite, ln, field,
+                      "'" + std::string(cell) + "' is not a finite number");
+        case Num::out_of_range:
+          return fail(CsvErrc::not_finite, ln, field,
+                      "'" + std::string(cell) + "' is out of the range of a double");
+      }
+    }
+    if (role == r_phase) {
+      auto p = model::phase_from_string(cell);
+      if (!p)
+        return fail(CsvErrc::bad_value, ln, field,
+                    "unknown phase '" + std::string(cell) +
+                        "' (expected settle, hold, heating, cooling or unknown)");
+      data_.phase.push_back(*p);
+      return {};
+    }
+    if (role == r_step) {
+      int v;
+      switch (parse_int(cell, v)) {
+        case Num::ok: data_.step.push_back(v); return {};
+        case Num::out_of_range:
+          return fail(CsvErrc::bad_value, ln, field,
+                      "step " + std::string(cell) + " is out of the range of an int");
+        default:
+          return fail(CsvErrc::not_a_number, ln, field,
+                      "not an integer: '" + std::string(cell) + "'");
+      }
+    }
+    // flags
+    unsigned v;
+    const Num r = parse_int(cell, v);
+    if (r == Num::ok && v <= 0xFFu) {
+      data_.flags.push_back(static_cast<std::uint8_t>(v));
+      return {};
+    }
+    if (r == Num::ok || r == Num::out_of_range)
+      return fail(CsvErrc::bad_value, ln, field,
+                  "flags " + std::string(cell) + " is not a bit set of 0..255");
+    return fail(CsvErrc::not_a_number, ln, field, "not an integer: '" + std::string(cell) + "'");
+  }
+
+  static std::string not_a_number(std::string_view cell) {
+    if (cell.empty()) return "empty cell, expected a number";
+    return "not a number: '" + std::string(cell) + "'";
+  }
+
+  // The physical line of data row `row` (0-based), found again only on the error path so the
+  // fast path keeps no per-row bookkeeping.
+  std::size_t line_of_row(std::size_t row) const {
+    Lines lines(text_);
+    std::string_view line;
+    while (lines.line_no() < header_line_ && lines.next(line)) {
+    }
+    std::size_t k = 0;
+    while (lines.next(line)) {
+      if (is_blank_or_comment(line)) continue;
+      if (k++ == row) return lines.line_no();
+    }
+    return 0;
+  }
+
+  double median_step() const {
+    const auto& t = data_.time_s;
+    std::vector<double> d(t.size() - 1);
+    for (std::size_t i = 1; i < t.size(); ++i) d[i - 1] = t[i] - t[i - 1];
+    auto mid = d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2);
+    std::nth_element(d.begin(), mid, d.end());
+    return *mid;
+  }
+
+  std::expected<void, CsvError> check_spacing() {
+    const auto& t = data_.time_s;
+    if (t.size() < 3) return {};  // one step is its own median
+    const double median = median_step();
+    const double tolerance = kSpacingTolerance * median;
+    for (std::size_t i = 1; i < t.size(); ++i) {
+      const double step = t[i] - t[i - 1];
+      if (std::fabs(step - median) <= tolerance) continue;
+      return fail(CsvErrc::time_uneven, line_of_row(i),
+                  static_cast<std::size_t>(field_of_[r_time]) + 1,
+                  "time step " + format_number(step) + " s (" + format_number(t[i - 1]) +
+                      " on line " + std::to_string(line_of_row(i - 1)) + " -> " +
+                      format_number(t[i]) + ") but the median step is " +
+                      format_number(median) +
+                      " s (tolerance 1%); time must be evenly spaced, or import with "
+                      "resampling (resample_s)");
+    }
+    return {};
+  }
+
+  std::expected<model::RunData, CsvError> resample(double dt) {
+    const model::RunData& in = data_;
+    const std::size_t n = in.size();
+    if (n < 2) return std::move(data_);
+    const double t0 = in.time_s.front();
+    const double span = in.time_s.back() - t0;
+    const double points = std::floor(span / dt + 1e-9) + 1;
+    if (points > kMaxResampledRows)
+      return fail(CsvErrc::bad_option, 0, 0,
+                  "resampling " + format_number(span) + " s every " + format_number(dt) +
+                      " s would make " + format_number(points) + " rows; is the interval in s?");
+    const auto m = static_cast<std::size_t>(points);
+    const double gap = kGapSteps * median_step();
+
+    model::RunData out;
+    out.name = in.name;
+    out.time_s.resize(m);
+    std::vector<double> model::RunData::*const numeric[] = {
+        &model::RunData::gyro_dph, &model::RunData::t1_c, &model::RunData::t2_c,
+        &model::RunData::setpoint_c, &model::RunData::chamber_c};
+    for (std::size_t c = 0; c < std::size(numeric); ++c)
+      if (!(in.*numeric[c]).empty()) (out.*numeric[c]).resize(m);
+    if (in.has_phase()) out.phase.resize(m);
+    if (in.has_step()) out.step.resize(m);
+    out.flags.assign(m, 0);
+    bool any_gap = false;
+
+    std::size_t j = 0;  // the last source sample at or before the grid time
+    for (std::size_t k = 0; k < m; ++k) {
+      const double t = t0 + static_cast<double>(k) * dt;
+      out.time_s[k] = t;
+      while (j + 1 < n && in.time_s[j + 1] <= t) ++j;
+      double w = 0;
+      bool in_gap = false;
+      if (j + 1 < n) {
+        const double width = in.time_s[j + 1] - in.time_s[j];
+        w = std::clamp((t - in.time_s[j]) / width, 0.0, 1.0);
+        in_gap = width > gap && w > 0;
+      }
+      for (std::size_t c = 0; c < std::size(numeric); ++c) {
+        const auto& src = in.*numeric[c];
+        if (src.empty()) continue;
+        const double a = src[j];
+        (out.*numeric[c])[k] = w == 0 ? a : a + w * (src[j + 1] - a);
+      }
+      if (in.has_phase()) out.phase[k] = in.phase[j];
+      if (in.has_step()) out.step[k] = in.step[j];
+      std::uint8_t f = in.has_flags() ? in.flags[j] : 0;
+      if (in_gap) {
+        f |= model::flag::missing;
+        any_gap = true;
+      }
+      out.flags[k] = f;
+    }
+    if (!in.has_flags() && !any_gap) out.flags.clear();
+    return out;
+  }
+
+  std::string_view text_;
+  const CsvOptions& options_;
+  std::string source_;
+  std::size_t header_line_ = 0;
+  std::vector<std::string> names_;  // the header's names, by field
+  std::vector<int> role_of_;        // the Role of each field
+  std::array<int, r_count> field_of_{};  // the 0-based field of each Role, -1 when absent
+  model::RunData data_;
+};
+
+CsvError io_error(const std::filesystem::path& path, std::string what) {
+  CsvError e;
+  e.code = CsvErrc::io;
+  e.source = path.string();
+  e.message = "cannot " + what + " '" + path.string() + "': " + std::strerror(errno);
+  return e;
+}
+
+struct FileCloser {
+  void operator()(std::FILE* f) const { std::fclose(f); }
+};
+
+}  // namespace
+
+const std::vector<std::string_view>& csv_columns() {
+  static const std::vector<std::string_view> names(kNames.begin(), kNames.end());
+  return names;
+}
+
+std::expected<ColumnMapping, CsvError> parse_column_mapping(std::string_view spec) {
+  const std::size_t eq = spec.find('=');
+  if (eq == std::string_view::npos || eq == 0 || eq + 1 == spec.size()) {
+    CsvError e;
+    e.code = CsvErrc::bad_option;
+    e.message = "--map " + std::string(spec) +
+                ": expected canonical=header, e.g. --map gyro_dph=Rate";
+    return std::unexpected(std::move(e));
+  }
+  return ColumnMapping{std::string(trim(spec.substr(0, eq))),
+                       std::string(trim(spec.substr(eq + 1)))};
+}
+
+std::expected<model::RunData, CsvError> parse_csv(std::string_view text,
+                                                  const CsvOptions& options) {
+  return Parser(text, options).run();
+}
+
+std::expected<model::RunData, CsvError> read_csv_file(const std::filesystem::path& path,
+                                                      const CsvOptions& options) {
+  std::unique_ptr<std::FILE, FileCloser> f(std::fopen(path.c_str(), "rb"));
+  if (!f) return std::unexpected(io_error(path, "open"));
+  std::string text;
+  std::error_code ec;
+  if (const auto size = std::filesystem::file_size(path, ec); !ec)
+    text.reserve(static_cast<std::size_t>(size));
+  char buf[1 << 16];
+  std::size_t got;
+  while ((got = std::fread(buf, 1, sizeof buf, f.get())) > 0) text.append(buf, got);
+  if (std::ferror(f.get())) return std::unexpected(io_error(path, "read"));
+  CsvOptions named = options;
+  if (named.source_name.empty()) named.source_name = path.string();
+  return parse_csv(text, named);
+}
+
+std::string to_csv(const model::RunData& run) {
+  const std::size_t n = run.size();
+  auto fits = [n](const auto& column) { return column.empty() || column.size() == n; };
+  assert(run.gyro_dph.size() == n && run.t1_c.size() == n && run.t2_c.size() == n);
+  assert(fits(run.setpoint_c) && fits(run.chamber_c) && fits(run.phase) && fits(run.step) &&
+         fits(run.flags));
+  (void)fits;
+
+  std::string out = "time_s,gyro_dph,t1_c,t2_c";
+  if (run.has_setpoint()) out += ",setpoint_c";
+  if (run.has_chamber()) out += ",chamber_c";
+  if (run.has_phase()) out += ",phase";
+  if (run.has_step()) out += ",step";
+  if (run.has_flags()) out += ",flags";
+  out += '\n';
+  out.reserve(out.size() + n * 96);
+
+  char buf[64];
+  auto put = [&](auto v) {
+    auto res = std::to_chars(buf, buf + sizeof buf, v);
+    out.append(buf, res.ptr);
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    put(run.time_s[i]);
+    out += ',';
+    put(run.gyro_dph[i]);
+    out += ',';
+    put(run.t1_c[i]);
+    out += ',';
+    put(run.t2_c[i]);
+    if (run.has_setpoint()) {
+      out += ',';
+      put(run.setpoint_c[i]);
+    }
+    if (run.has_chamber()) {
+      out += ',';
+      put(run.chamber_c[i]);
+    }
+    if (run.has_phase()) {
+      out += ',';
+      out += model::to_string(run.phase[i]);
+    }
+    if (run.has_step()) {
+      out += ',';
+      put(run.step[i]);
+    }
+    if (run.has_flags()) {
+      out += ',';
+      put(static_cast<unsigned>(run.flags[i]));
+    }
+    out += '\n';
+  }
+  return out;
+}
+
+std::expected<void, CsvError> write_csv_file(const std::filesystem::path& path,
+                                             const model::RunData& run) {
+  const std::string text = to_csv(run);
+  std::unique_ptr<std::FILE, FileCloser> f(std::fopen(path.c_str(), "wb"));
+  if (!f) return std::unexpected(io_error(path, "create"));
+  if (std::fwrite(text.data(), 1, text.size(), f.get()) != text.size())
+    return std::unexpected(io_error(path, "write"));
+  // fclose flushes the last buffer; its failure (a full disk) is a failed write too.
+  if (std::fclose(f.release()) != 0) return std::unexpected(io_error(path, "write"));
+  return {};
+}
+
+}  // namespace fogbench::storage

@@ -1,0 +1,436 @@
+// Tests of the run CSV: the accepted format, every error with its line and column, column
+// mapping, resampling, and the exact round trip to_csv -> parse_csv.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <unistd.h>
+
+#include "fogbench/storage/csv.hpp"
+
+using namespace fogbench;
+using storage::CsvErrc;
+using storage::CsvOptions;
+using Catch::Matchers::Contains;
+
+namespace {
+
+CsvOptions named(std::string name = "run.csv") {
+  CsvOptions o;
+  o.source_name = std::move(name);
+  return o;
+}
+
+storage::CsvError parse_error(std::string_view text, const CsvOptions& options = named()) {
+  auto r = storage::parse_csv(text, options);
+  REQUIRE_FALSE(r.has_value());
+  return r.error();
+}
+
+std::filesystem::path temp_path(const std::string& name) {
+  auto dir = std::filesystem::temp_directory_path() /
+             ("fogbench_csv_test_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  return dir / name;
+}
+
+}  // namespace
+
+TEST_CASE("csv: the four required columns parse to exact doubles", "[csv]") {
+  auto r = storage::parse_csv(
+      "time_s,gyro_dph,t1_c,t2_c\n"
+      "0,0.125,20.5,20.25\n"
+      "1,-0.0625,21,20.75\n",
+      named());
+  REQUIRE(r.has_value());
+  CHECK(r->name == "run.csv");
+  CHECK(r->time_s == std::vector<double>{0, 1});
+  CHECK(r->gyro_dph == std::vector<double>{0.125, -0.0625});
+  CHECK(r->t1_c == std::vector<double>{20.5, 21});
+  CHECK(r->t2_c == std::vector<double>{20.25, 20.75});
+  CHECK_FALSE(r->has_setpoint());
+  CHECK_FALSE(r->has_chamber());
+  CHECK_FALSE(r->has_phase());
+  CHECK_FALSE(r->has_step());
+  CHECK_FALSE(r->has_flags());
+}
+
+TEST_CASE("csv: columns in any order, optional ones read, unknown ones ignored", "[csv]") {
+  auto r = storage::parse_csv(
+      "flags,operator,t2_c,phase,gyro_dph,step,chamber_c,time_s,setpoint_c,t1_c\n"
+      "0,ann,20.1,settle,0.5,0,19.9,10,20,20.2\n"
+      "5,ann,20.3,heating,0.6,3,25.5,11,30,20.4\n",
+      named());
+  REQUIRE(r.has_value());
+  CHECK(r->time_s == std::vector<double>{10, 11});
+  CHECK(r->gyro_dph == std::vector<double>{0.5, 0.6});
+  CHECK(r->t1_c == std::vector<double>{20.2, 20.4});
+  CHECK(r->t2_c == std::vector<double>{20.1, 20.3});
+  CHECK(r->setpoint_c == std::vector<double>{20, 30});
+  CHECK(r->chamber_c == std::vector<double>{19.9, 25.5});
+  CHECK(r->phase == std::vector<model::Phase>{model::Phase::settle, model::Phase::heating});
+  CHECK(r->step == std::vector<int>{0, 3});
+  CHECK(r->flags == std::vector<std::uint8_t>{0, 5});
+}
+
+TEST_CASE("csv: comments, blank lines, CRLF, a BOM, spaces and quotes are accepted", "[csv]") {
+  auto r = storage::parse_csv(
+      "\xEF\xBB\xBF# exported by fogctl\r\n"
+      "\r\n"
+      "time_s, gyro_dph ,t1_c,t2_c,\"note, with comma\"\r\n"
+      "  # a comment between rows\r\n"
+      "0,1.5,20,21,\"a, b\"\r\n"
+      "\r\n"
+      "1, +2.5 ,20,21,x\r\n"
+      "# trailing comment",
+      named());
+  REQUIRE(r.has_value());
+  CHECK(r->time_s == std::vector<double>{0, 1});
+  CHECK(r->gyro_dph == std::vector<double>{1.5, 2.5});
+}
+
+TEST_CASE("csv: --map names columns the file calls differently", "[csv]") {
+  auto m = storage::parse_column_mapping("gyro_dph=Rate");
+  REQUIRE(m.has_value());
+  CHECK(m->canonical == "gyro_dph");
+  CHECK(m->header == "Rate");
+
+  CsvOptions o = named();
+  o.column_map = {{"gyro_dph", "Rate"}, {"time_s", "t"}, {"t1_c", "T_coil"}};
+  auto r = storage::parse_csv(
+      "t,Rate,T_coil,t2_c,gyro_dph\n"
+      "0,1.5,20,21,99\n"
+      "1,2.5,22,23,99\n",
+      o);
+  REQUIRE(r.has_value());
+  // The mapping wins over a column that merely carries the canonical name.
+  CHECK(r->gyro_dph == std::vector<double>{1.5, 2.5});
+  CHECK(r->t1_c == std::vector<double>{20, 22});
+
+  SECTION("swapping two columns") {
+    CsvOptions swap = named();
+    swap.column_map = {{"t1_c", "t2_c"}, {"t2_c", "t1_c"}};
+    auto s = storage::parse_csv("time_s,gyro_dph,t1_c,t2_c\n0,0,1,2\n", swap);
+    REQUIRE(s.has_value());
+    CHECK(s->t1_c == std::vector<double>{2});
+    CHECK(s->t2_c == std::vector<double>{1});
+  }
+  SECTION("a malformed --map argument") {
+    auto bad = storage::parse_column_mapping("gyro_dph");
+    REQUIRE_FALSE(bad.has_value());
+    CHECK(bad.error().code == CsvErrc::bad_option);
+    CHECK_THAT(bad.error().message, Contains("gyro_dph=Rate"));
+  }
+  SECTION("an unknown canonical name") {
+    CsvOptions bad = named();
+    bad.column_map = {{"gyro", "Rate"}};
+    auto e = parse_error("time_s,Rate,t1_c,t2_c\n0,0,0,0\n", bad);
+    CHECK(e.code == CsvErrc::bad_option);
+    CHECK_THAT(e.message, Contains("'gyro' is not a fogbench column"));
+  }
+  SECTION("a canonical name mapped twice") {
+    CsvOptions bad = named();
+    bad.column_map = {{"gyro_dph", "Rate"}, {"gyro_dph", "R2"}};
+    CHECK(parse_error("time_s,Rate,t1_c,t2_c\n0,0,0,0\n", bad).code == CsvErrc::bad_option);
+  }
+  SECTION("a mapped column absent from the header") {
+    CsvOptions bad = named();
+    bad.column_map = {{"gyro_dph", "Rate"}};
+    auto e = parse_error("# c\ntime_s,gyro,t1_c,t2_c\n0,0,0,0\n", bad);
+    CHECK(e.code == CsvErrc::missing_column);
+    CHECK(e.line == 2);
+    CHECK_THAT(e.message, Contains("'Rate'"));
+    CHECK_THAT(e.message, Contains("--map gyro_dph=Rate"));
+    CHECK_THAT(e.message, Contains("time_s,gyro,t1_c,t2_c"));
+  }
+}
+
+TEST_CASE("csv: every error names its place", "[csv][errors]") {
+  SECTION("empty file") {
+    auto e = parse_error("");
+    CHECK(e.code == CsvErrc::empty);
+    CHECK(e.line == 0);
+    CHECK_THAT(e.message, Contains("run.csv: empty file"));
+  }
+  SECTION("only comments and blank lines") {
+    CHECK(parse_error("# nothing\n\n  \n# here\n").code == CsvErrc::empty);
+  }
+  SECTION("a header but no data rows") {
+    auto e = parse_error("# x\ntime_s,gyro_dph,t1_c,t2_c\n# y\n");
+    CHECK(e.code == CsvErrc::no_data);
+    CHECK_THAT(e.message, Contains("no data rows after the header on line 2"));
+  }
+  SECTION("missing required column: named, header listed, --map suggested") {
+    auto e = parse_error("time_s,Rate,t1_c,t2_c\n0,0,0,0\n");
+    CHECK(e.code == CsvErrc::missing_column);
+    CHECK(e.line == 1);
+    CHECK_THAT(e.message, Contains("'gyro_dph'"));
+    CHECK_THAT(e.message, Contains("time_s,Rate,t1_c,t2_c"));
+    CHECK_THAT(e.message, Contains("--map gyro_dph="));
+  }
+  SECTION("duplicate header name") {
+    auto e = parse_error("time_s,gyro_dph,t1_c,t2_c,t1_c\n0,0,0,0,0\n");
+    CHECK(e.code == CsvErrc::duplicate_column);
+    CHECK(e.line == 1);
+    CHECK(e.column == 5);
+    CHECK(e.column_name == "t1_c");
+    CHECK_THAT(e.message, Contains("also column 3"));
+  }
+  SECTION("a cell that is not a number") {
+    auto e = parse_error(
+        "time_s,gyro_dph,t1_c,t2_c\n"
+        "0,0,0,0\n"
+        "# comment\n"
+        "1,1.2.3,0,0\n");
+    CHECK(e.code == CsvErrc::not_a_number);
+    CHECK(e.line == 4);
+    CHECK(e.column == 2);
+    CHECK(e.column_name == "gyro_dph");
+    CHECK(e.message == "run.csv:4: column 2 'gyro_dph': not a number: '1.2.3'");
+  }
+  SECTION("a mapped column is named by both names") {
+    CsvOptions o = named();
+    o.column_map = {{"gyro_dph", "Rate"}};
+    auto e = parse_error("time_s,Rate,t1_c,t2_c\n0,x,0,0\n", o);
+    CHECK(e.column == 2);
+    CHECK(e.column_name == "Rate");
+    CHECK_THAT(e.message, Contains("column 2 'Rate' (gyro_dph): not a number: 'x'"));
+  }
+  SECTION("an empty cell") {
+    auto e = parse_error("time_s,gyro_dph,t1_c,t2_c\n0,0,,0\n");
+    CHECK(e.code == CsvErrc::not_a_number);
+    CHECK(e.line == 2);
+    CHECK(e.column == 3);
+    CHECK_THAT(e.message, Contains("empty cell"));
+  }
+  SECTION("nan, inf and overflow") {
+    auto nan = parse_error("time_s,gyro_dph,t1_c,t2_c\n0,0,0,0\n1,0,0,nan\n");
+    CHECK(nan.code == CsvErrc::not_finite);
+    CHECK(nan.line == 3);
+    CHECK(nan.column == 4);
+    CHECK_THAT(nan.message, Contains("'nan' is not a finite number"));
+    auto inf = parse_error("time_s,gyro_dph,t1_c,t2_c\n0,-inf,0,0\n");
+    CHECK(inf.code == CsvErrc::not_finite);
+    CHECK(inf.column == 2);
+    auto big = parse_error("time_s,gyro_dph,t1_c,t2_c\n0,1e400,0,0\n");
+    CHECK(big.code == CsvErrc::not_finite);
+    CHECK_THAT(big.message, Contains("1e400"));
+    // Underflow is not an error: the nearest double is zero.
+    auto tiny = storage::parse_csv("time_s,gyro_dph,t1_c,t2_c\n0,1e-400,0,0\n", named());
+    REQUIRE(tiny.has_value());
+    CHECK(tiny->gyro_dph[0] == 0.0);
+  }
+  SECTION("a row with too few fields") {
+    auto e = parse_error("time_s,gyro_dph,t1_c,t2_c\n0,0,0,0\n1,0,0\n");
+    CHECK(e.code == CsvErrc::field_count);
+    CHECK(e.line == 3);
+    CHECK_THAT(e.message, Contains("too few fields: 3"));
+    CHECK_THAT(e.message, Contains("'t2_c'"));
+  }
+  SECTION("a row with too many fields") {
+    auto e = parse_error("time_s,gyro_dph,t1_c,t2_c\n0,0,0,0,7,8\n");
+    CHECK(e.code == CsvErrc::field_count);
+    CHECK(e.line == 2);
+    CHECK_THAT(e.message, Contains("6 fields but the header (line 1) has 4"));
+  }
+  SECTION("an unterminated quote") {
+    auto e = parse_error("time_s,gyro_dph,t1_c,t2_c,note\n0,0,0,0,\"open\n");
+    CHECK(e.code == CsvErrc::bad_quote);
+    CHECK(e.line == 2);
+    CHECK(e.column == 5);
+  }
+  SECTION("time equal to the previous row's") {
+    auto e = parse_error("time_s,gyro_dph,t1_c,t2_c\n0,0,0,0\n1,0,0,0\n\n1,0,0,0\n");
+    CHECK(e.code == CsvErrc::time_not_increasing);
+    CHECK(e.line == 5);
+    CHECK(e.column == 1);
+    CHECK_THAT(e.message, Contains("1 is not after 1 on line 3"));
+  }
+  SECTION("time going backwards, in a non-first column") {
+    auto e = parse_error("gyro_dph,time_s,t1_c,t2_c\n0,5,0,0\n0,4,0,0\n");
+    CHECK(e.code == CsvErrc::time_not_increasing);
+    CHECK(e.line == 3);
+    CHECK(e.column == 2);
+  }
+  SECTION("time not evenly spaced") {
+    // Steps 1,1,1,2,1: the median is 1 s; the 2 s step ends on row 5 (line 6).
+    auto e = parse_error(
+        "time_s,gyro_dph,t1_c,t2_c\n0,0,0,0\n1,0,0,0\n2,0,0,0\n3,0,0,0\n5,0,0,0\n6,0,0,0\n");
+    CHECK(e.code == CsvErrc::time_uneven);
+    CHECK(e.line == 6);
+    CHECK(e.column == 1);
+    CHECK_THAT(e.message, Contains("time step 2 s (3 on line 5 -> 5)"));
+    CHECK_THAT(e.message, Contains("median step is 1 s"));
+  }
+  SECTION("spacing within 1% is even") {
+    // %.3f time at 1 Hz with 5 ms jitter: 0.5% of the step.
+    auto r = storage::parse_csv(
+        "time_s,gyro_dph,t1_c,t2_c\n0.000,0,0,0\n1.005,0,0,0\n2.000,0,0,0\n3.001,0,0,0\n",
+        named());
+    CHECK(r.has_value());
+  }
+  SECTION("an unknown phase") {
+    auto e = parse_error("time_s,gyro_dph,t1_c,t2_c,phase\n0,0,0,0,ramp\n");
+    CHECK(e.code == CsvErrc::bad_value);
+    CHECK(e.line == 2);
+    CHECK(e.column == 5);
+    CHECK_THAT(e.message, Contains("unknown phase 'ramp'"));
+  }
+  SECTION("a step that is not an integer") {
+    auto e = parse_error("time_s,gyro_dph,t1_c,t2_c,step\n0,0,0,0,1.5\n");
+    CHECK(e.code == CsvErrc::not_a_number);
+    CHECK(e.column == 5);
+    CHECK_THAT(e.message, Contains("not an integer: '1.5'"));
+  }
+  SECTION("flags out of 0..255") {
+    auto e = parse_error("time_s,gyro_dph,t1_c,t2_c,flags\n0,0,0,0,256\n");
+    CHECK(e.code == CsvErrc::bad_value);
+    CHECK(e.column == 5);
+  }
+  SECTION("a bad resample interval") {
+    CsvOptions o = named();
+    o.resample_s = 0.0;
+    CHECK(parse_error("time_s,gyro_dph,t1_c,t2_c\n0,0,0,0\n", o).code == CsvErrc::bad_option);
+  }
+}
+
+TEST_CASE("csv: resampling onto an even grid", "[csv][resample]") {
+  CsvOptions o = named();
+  o.resample_s = 1.0;
+  // Source samples at 0, 0.5, 2, 3 s. Grid 0,1,2,3 s.
+  auto r = storage::parse_csv(
+      "time_s,gyro_dph,t1_c,t2_c,setpoint_c,phase,step,flags\n"
+      "0,0,10,20,5,settle,0,0\n"
+      "0.5,1,11,20,5,hold,1,2\n"
+      "2,4,14,23,5,heating,2,0\n"
+      "3,4,15,23,5,heating,2,0\n",
+      o);
+  REQUIRE(r.has_value());
+  CHECK(r->time_s == std::vector<double>{0, 1, 2, 3});
+  // t=1 lies a third of the way from 0.5 (gyro 1) to 2 (gyro 4): 1 + (1/3)*3 = 2.
+  CHECK(r->gyro_dph[1] == Approx(2.0).epsilon(1e-12));
+  // t1: 11 + (1/3)*3 = 12; t2: 20 + (1/3)*3 = 21.
+  CHECK(r->t1_c[1] == Approx(12.0).epsilon(1e-12));
+  CHECK(r->t2_c[1] == Approx(21.0).epsilon(1e-12));
+  CHECK(r->setpoint_c == std::vector<double>{5, 5, 5, 5});
+  // Grid points on a source sample copy it exactly.
+  CHECK(r->gyro_dph[0] == 0);
+  CHECK(r->gyro_dph[2] == 4);
+  // Categorical columns come from the nearest previous sample (0.5 s for t=1).
+  CHECK(r->phase == std::vector<model::Phase>{model::Phase::settle, model::Phase::hold,
+                                              model::Phase::heating, model::Phase::heating});
+  CHECK(r->step == std::vector<int>{0, 1, 2, 2});
+  // Source steps 0.5, 1.5, 1: median 1, gap threshold 1.5 s, so the 1.5 s interval is no gap.
+  CHECK(r->flags == std::vector<std::uint8_t>{0, 2, 0, 0});
+
+  SECTION("points inside a gap are flagged missing") {
+    CsvOptions g = named();
+    g.resample_s = 1.0;
+    // Steps 1,1,3,1,1: median 1 s; the 3 s gap holds grid points 3 and 4.
+    auto s = storage::parse_csv(
+        "time_s,gyro_dph,t1_c,t2_c\n0,0,0,0\n1,1,0,0\n2,2,0,0\n5,5,0,0\n6,6,0,0\n7,7,0,0\n",
+        g);
+    REQUIRE(s.has_value());
+    CHECK(s->size() == 8);
+    CHECK(s->gyro_dph[3] == Approx(3.0).epsilon(1e-12));
+    CHECK(s->flags == std::vector<std::uint8_t>{0, 0, 0, model::flag::missing,
+                                                model::flag::missing, 0, 0, 0});
+  }
+  SECTION("evenly spaced input gets no flags column") {
+    CsvOptions g = named();
+    g.resample_s = 0.5;
+    auto s = storage::parse_csv("time_s,gyro_dph,t1_c,t2_c\n0,0,0,0\n1,1,0,0\n2,4,0,0\n", g);
+    REQUIRE(s.has_value());
+    CHECK(s->time_s == std::vector<double>{0, 0.5, 1, 1.5, 2});
+    CHECK(s->gyro_dph == std::vector<double>{0, 0.5, 1, 2.5, 4});
+    CHECK_FALSE(s->has_flags());
+  }
+}
+
+TEST_CASE("csv: to_csv -> parse_csv reproduces the run exactly", "[csv][roundtrip]") {
+  std::mt19937_64 rng(12345);
+  std::uniform_real_distribution<double> u(-1e3, 1e3);
+  model::RunData run;
+  run.name = "generated";
+  const int n = 2000;
+  for (int i = 0; i < n; ++i) {
+    run.time_s.push_back(0.25 * i + 1e-6);  // not representable with %.3f
+    run.gyro_dph.push_back(u(rng) * 1e-7);  // tiny values need all 17 digits
+    run.t1_c.push_back(u(rng));
+    run.t2_c.push_back(u(rng));
+    run.setpoint_c.push_back(std::round(u(rng)));
+    run.chamber_c.push_back(-0.0);
+    run.phase.push_back(static_cast<model::Phase>(i % 5));
+    run.step.push_back(i / 7 - 3);
+    run.flags.push_back(static_cast<std::uint8_t>(i % 256));
+  }
+  const std::string text = storage::to_csv(run);
+  CHECK(text.starts_with("time_s,gyro_dph,t1_c,t2_c,setpoint_c,chamber_c,phase,step,flags\n"));
+  auto back = storage::parse_csv(text, named("generated"));
+  REQUIRE(back.has_value());
+  CHECK(back->time_s == run.time_s);
+  CHECK(back->gyro_dph == run.gyro_dph);
+  CHECK(back->t1_c == run.t1_c);
+  CHECK(back->t2_c == run.t2_c);
+  CHECK(back->setpoint_c == run.setpoint_c);
+  REQUIRE(back->chamber_c.size() == run.chamber_c.size());
+  CHECK(std::signbit(back->chamber_c[0]));
+  CHECK(back->phase == run.phase);
+  CHECK(back->step == run.step);
+  CHECK(back->flags == run.flags);
+  CHECK(storage::to_csv(*back) == text);
+
+  SECTION("only the columns the run has are written") {
+    model::RunData small;
+    small.time_s = {0, 1};
+    small.gyro_dph = {0.1, 0.2};
+    small.t1_c = {1, 2};
+    small.t2_c = {3, 4};
+    small.step = {7, 8};
+    CHECK(storage::to_csv(small) == "time_s,gyro_dph,t1_c,t2_c,step\n0,0.1,1,3,7\n1,0.2,2,4,8\n");
+  }
+}
+
+TEST_CASE("csv: files", "[csv][file]") {
+  SECTION("a missing file is an error naming it") {
+    auto r = storage::read_csv_file("/nonexistent/dir/run.csv");
+    REQUIRE_FALSE(r.has_value());
+    CHECK(r.error().code == CsvErrc::io);
+    CHECK_THAT(r.error().message, Contains("'/nonexistent/dir/run.csv'"));
+    CHECK_THAT(r.error().message, Contains("No such file"));
+  }
+  SECTION("a directory is an error") {
+    auto r = storage::read_csv_file(std::filesystem::temp_directory_path());
+    REQUIRE_FALSE(r.has_value());
+    CHECK(r.error().code == CsvErrc::io);
+  }
+  SECTION("write then read; errors carry the path as source") {
+    model::RunData run;
+    run.time_s = {0, 1, 2};
+    run.gyro_dph = {0.1, 0.2, 0.3};
+    run.t1_c = {20, 21, 22};
+    run.t2_c = {20, 20.5, 21};
+    const auto path = temp_path("rt.csv");
+    REQUIRE(storage::write_csv_file(path, run).has_value());
+    auto back = storage::read_csv_file(path);
+    REQUIRE(back.has_value());
+    CHECK(back->name == path.string());
+    CHECK(back->gyro_dph == run.gyro_dph);
+
+    std::ofstream(path) << "time_s,gyro_dph,t1_c,t2_c\n0,0,0,x\n";
+    auto bad = storage::read_csv_file(path);
+    REQUIRE_FALSE(bad.has_value());
+    CHECK(bad.error().source == path.string());
+    CHECK_THAT(bad.error().message, Contains(path.string() + ":2: column 4 't2_c'"));
+    std::filesystem::remove_all(path.parent_path());
+  }
+  SECTION("writing into a missing directory is an error") {
+    model::RunData run;
+    auto r = storage::write_csv_file("/nonexistent/dir/out.csv", run);
+    REQUIRE_FALSE(r.has_value());
+    CHECK(r.error().code == CsvErrc::io);
+    CHECK_THAT(r.error().message, Contains("/nonexistent/dir/out.csv"));
+  }
+}
