@@ -206,15 +206,17 @@ class LineParser {
   std::expected<Value, ProfileError> rate(std::string_view rule, const Token& after) {
     auto r = positive("a rate", rule, after);
     if (!r) return r;
-    double per_min = 0.0;
+    double min_per_unit = 0.0;  // divide, so that 180 C/h is exactly 3 degC/min
     if (!at_end()) {
       const auto u = tokens_[pos_].text;
-      if (u == "C/min" || u == "degC/min") per_min = 1.0;
-      if (u == "C/h" || u == "degC/h") per_min = 1.0 / 60.0;
+      if (u == "C/min" || u == "degC/min") min_per_unit = 1.0;
+      if (u == "C/h" || u == "degC/h") min_per_unit = 60.0;
     }
-    if (per_min == 0.0) return Unexpected(expected_after("a rate unit 'C/min' or 'C/h'", r->tok));
+    if (min_per_unit == 0.0) {
+      return Unexpected(expected_after("a rate unit 'C/min' or 'C/h'", r->tok));
+    }
     ++pos_;
-    r->v *= per_min;
+    r->v /= min_per_unit;
     return r;
   }
 
