@@ -78,29 +78,34 @@ bool Executor::settled_now(const SettleStep& s, const Readings& r, std::string* 
     return false;
   };
   // Channel numbering matches Sample::values_c: 0 the chamber, then t1, t2 of every unit.
+  // Names are only built for a message, not at every call.
   struct Channel {
     std::size_t index;
     double value_c;
-    std::string name;
+  };
+  auto name = [](std::size_t index) {
+    if (index == 0) return std::string("chamber");
+    const std::size_t unit = (index - 1) / 2;
+    return "unit " + std::to_string(unit) +
+           (index % 2 == 1 ? " coil centre (T1)" : " coil outer wall (T2)");
   };
   std::vector<Channel> channels;
   if (s.on == SettleOn::chamber) {
-    channels.push_back({0, r.chamber_c, "chamber"});
+    channels.push_back({0, r.chamber_c});
   } else {
     if (r.coils.empty()) return no("no coil readings");
     for (std::size_t u = 0; u < r.coils.size(); ++u) {
-      const std::string unit = "unit " + std::to_string(u);
-      channels.push_back({1 + 2 * u, r.coils[u].t1_c, unit + " coil centre (T1)"});
-      channels.push_back({2 + 2 * u, r.coils[u].t2_c, unit + " coil outer wall (T2)"});
+      channels.push_back({1 + 2 * u, r.coils[u].t1_c});
+      channels.push_back({2 + 2 * u, r.coils[u].t2_c});
     }
   }
   // Band first: it is the criterion an engineer checks first when a settle does not end.
   for (const Channel& c : channels) {
     // A missing reading proves nothing about stability, so it counts as out of band.
-    if (!std::isfinite(c.value_c)) return no(c.name + " has no reading");
+    if (!std::isfinite(c.value_c)) return no(name(c.index) + " has no reading");
     const double off_c = std::abs(c.value_c - setpoint_c_);
     if (!(off_c <= s.band_c)) {
-      return no(c.name + " " + format_fixed(c.value_c, 3) + " degC is " + format_fixed(off_c, 3) +
+      return no(name(c.index) + " " + format_fixed(c.value_c, 3) + " degC is " + format_fixed(off_c, 3) +
                 " degC from the setpoint " + format_number(setpoint_c_) + " degC (band " +
                 format_number(s.band_c) + " degC)");
     }
@@ -109,11 +114,11 @@ bool Executor::settled_now(const SettleStep& s, const Readings& r, std::string* 
     for (const Channel& c : channels) {
       const auto slope = slope_c_per_min(c.index);
       if (!slope) {
-        return no(c.name + " slope not known yet (needs " + format_number(slope_min_span_s) +
+        return no(name(c.index) + " slope not known yet (needs " + format_number(slope_min_span_s) +
                   " s of readings)");
       }
       if (!(std::abs(*slope) < *s.max_slope_c_per_min)) {
-        return no(c.name + " slope " + format_fixed(*slope, 4) + " degC/min is not under " +
+        return no(name(c.index) + " slope " + format_fixed(*slope, 4) + " degC/min is not under " +
                   format_number(*s.max_slope_c_per_min) + " degC/min");
       }
     }
