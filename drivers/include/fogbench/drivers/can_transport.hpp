@@ -1,0 +1,63 @@
+// Where gyro CAN frames come from, chosen by a configuration string, all feeding the same
+// decode/filter/average path (GyroBus):
+//   can:can0             SocketCAN raw socket, kernel filter on the units' ids
+//   unix:/path           AF_UNIX SOCK_SEQPACKET, one 16-byte struct can_frame per datagram; the
+//                        driver connects, the mock bench listens
+//   replay:file.log      a candump -l log, replayed at the pace of its timestamps;
+//                        replay:file.log?speed=10 ten times faster, ?speed=0 as fast as read
+#pragma once
+
+#include <linux/can.h>
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "fogbench/drivers/error.hpp"
+
+namespace fogbench::drivers {
+
+// A non-blocking source of frames with a file descriptor an event loop can wait on.
+class CanTransport {
+ public:
+  virtual ~CanTransport() = default;
+
+  // Readable when read() has frames to give.
+  virtual int fd() const noexcept = 0;
+  // Appends the frames available now, without blocking; 0 when there are none. Fails with
+  // connection when the peer or interface is gone, end_of_stream when a replay has ended.
+  virtual Result<std::size_t> read(std::vector<::can_frame>& out) = 0;
+  // Datagrams of the wrong size or log lines that were not a frame, since opening.
+  virtual std::uint64_t malformed() const noexcept = 0;
+  virtual std::string describe() const = 0;
+};
+
+struct TransportSpec {
+  enum class Kind { socketcan, unix_seqpacket, replay };
+  Kind kind = Kind::unix_seqpacket;
+  std::string target;  // interface name, socket path, or log file
+  double speed = 1.0;  // replay only: 1 as recorded, 0 as fast as read
+};
+
+// Parses "can:IFACE", "unix:PATH", "replay:FILE[?speed=N]"; a `config` error otherwise.
+Result<TransportSpec> parse_transport_spec(std::string_view spec);
+
+// Monotonic time for replay pacing; empty means std::chrono::steady_clock.
+using MonotonicClock = std::function<std::chrono::nanoseconds()>;
+
+Result<std::unique_ptr<CanTransport>> open_socketcan(const std::string& interface,
+                                                     std::span<const std::uint16_t> node_ids);
+Result<std::unique_ptr<CanTransport>> open_unix_seqpacket(const std::string& path);
+Result<std::unique_ptr<CanTransport>> open_replay(const std::string& file, double speed,
+                                                  MonotonicClock clock = {});
+// `node_ids` feed the kernel filter where there is one (SocketCAN); the others deliver all.
+Result<std::unique_ptr<CanTransport>> open_transport(const TransportSpec& spec,
+                                                     std::span<const std::uint16_t> node_ids,
+                                                     MonotonicClock clock = {});
+
+}  // namespace fogbench::drivers

@@ -1,0 +1,90 @@
+// Configuration of the drivers (chamber, thermistor module, gyro bus, units under test) and its
+// parsing from JSON; every refusal names the field ("units[1].gyro.node_id: expected an integer
+// 1..2047"). The JSON shape is documented with examples in docs/drivers.md.
+#pragma once
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "fogbench/drivers/backoff.hpp"
+#include "fogbench/drivers/error.hpp"
+#include "fogbench/drivers/register_map.hpp"
+#include "fogbench/drivers/sample_accumulator.hpp"
+#include "fogbench/drivers/thermistor_conversion.hpp"
+
+namespace fogbench::drivers {
+
+// Where a Modbus device is and how patiently to talk to it.
+struct ModbusEndpoint {
+  enum class Transport { tcp, rtu };
+  Transport transport = Transport::tcp;
+  std::string host = "127.0.0.1";  // tcp: name or address
+  std::uint16_t port = 502;        // tcp
+  std::string device;              // rtu: serial device, e.g. /dev/ttyUSB0
+  int baud = 19200;                // rtu
+  char parity = 'N';               // rtu: 'N', 'E' or 'O'
+  int data_bits = 8;               // rtu
+  int stop_bits = 1;               // rtu
+  int unit_id = 1;                 // Modbus unit (slave) id, 1..247
+  int response_timeout_ms = 1000;  // per request; also bounds a TCP connect
+  BackoffConfig backoff;           // between reconnection attempts
+
+  // "tcp 127.0.0.1:1502 unit 1" or "rtu /dev/ttyUSB0 19200 8N1 unit 1", for messages.
+  std::string describe() const;
+};
+
+struct LimitsC {
+  double min_c = 0;
+  double max_c = 0;
+};
+
+struct ChamberConfig {
+  ModbusEndpoint modbus;
+  RegisterMap map;
+  std::string map_file;                  // where the map came from ("" when inline)
+  LimitsC pv_limits_c{-90.0, 200.0};     // a process value outside is implausible (bring-up)
+  LimitsC setpoint_limits_c{-70.0, 180.0};  // setpoints outside are refused before writing
+};
+
+struct ThermistorModuleConfig {
+  ModbusEndpoint modbus;
+};
+
+// One unit under test: its gyro on the CAN bus and its coil thermistors on the input module.
+struct UnitConfig {
+  std::string serial;
+  GyroChannelConfig gyro;
+  ThermistorChannelConfig t1;  // coil centre
+  ThermistorChannelConfig t2;  // coil outer wall
+};
+
+struct GyroBusConfig {
+  std::string transport;  // "can:can0", "unix:/run/fogbench/can.sock", "replay:file.log[?speed=N]"
+};
+
+struct DriversConfig {
+  ChamberConfig chamber;
+  ThermistorModuleConfig thermistors;
+  GyroBusConfig gyro_bus;
+  std::vector<UnitConfig> units;
+};
+
+Result<ModbusEndpoint> parse_modbus_endpoint(const nlohmann::json& value, const std::string& path);
+Result<GyroChannelConfig> parse_gyro_channel(const nlohmann::json& value, const std::string& path);
+Result<UnitConfig> parse_unit_config(const nlohmann::json& value, const std::string& path);
+
+// "map" is an inline map object or a file name, resolved against `map_dir` when relative.
+Result<ChamberConfig> parse_chamber_config(const nlohmann::json& value, const std::string& path,
+                                           const std::filesystem::path& map_dir);
+
+// The whole {"chamber", "thermistors", "gyro_bus", "units"} object, with the checks that span
+// units: distinct serials and node ids, no two thermistor channels on one register.
+Result<DriversConfig> parse_drivers_config(const nlohmann::json& value,
+                                           const std::filesystem::path& map_dir,
+                                           const std::string& path = "");
+
+}  // namespace fogbench::drivers

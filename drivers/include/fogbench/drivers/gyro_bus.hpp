@@ -1,0 +1,63 @@
+// The gyros of every unit under test on one CAN bus: a transport, the user-space id filter, and
+// one SampleAccumulator per unit. The daemon waits on fd(), calls read_frames() when it is
+// readable, and close_samples() once per sample period (1 s).
+#pragma once
+
+#include <linux/can.h>
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "fogbench/drivers/can_transport.hpp"
+#include "fogbench/drivers/config.hpp"
+#include "fogbench/drivers/error.hpp"
+#include "fogbench/drivers/sample_accumulator.hpp"
+
+namespace fogbench::drivers {
+
+struct BusSample {
+  std::vector<GyroSample> units;     // in the order of the unit configs
+  std::uint32_t frames_foreign = 0;  // ids of no unit, extended, remote or error frames
+  std::uint64_t malformed_total = 0; // transport-level: datagrams or log lines not a frame
+};
+
+class GyroBus {
+ public:
+  // Takes an open transport (tests and benchmarks inject one). Node ids must be distinct and
+  // 1..2047 (parse_drivers_config guarantees it; asserted here).
+  GyroBus(std::unique_ptr<CanTransport> transport, std::vector<GyroChannelConfig> units);
+
+  // Opens the configured transport for these units.
+  static Result<GyroBus> open(const GyroBusConfig& config, std::vector<GyroChannelConfig> units,
+                              MonotonicClock clock = {});
+
+  int fd() const noexcept { return transport_->fd(); }
+
+  // Replaces `frames` with the frames available now (non-blocking) and routes each to its unit.
+  // The frames are handed back so the caller may record them raw. Errors are the transport's:
+  // connection (reopen() later) or end_of_stream (a replay ended).
+  Result<std::size_t> read_frames(std::vector<::can_frame>& frames);
+
+  // The single decode/filter/average path every transport feeds.
+  void route(const ::can_frame& frame) noexcept;
+
+  // Closes the current sample of every unit and starts the next.
+  BusSample close_samples();
+
+  // Reopens the transport after a connection error, keeping the accumulators (and so the
+  // sequence tracking: the frames missed meanwhile are counted as lost).
+  Result<void> reopen(const GyroBusConfig& config, MonotonicClock clock = {});
+
+  std::size_t unit_count() const noexcept { return accumulators_.size(); }
+  const CanTransport& transport() const noexcept { return *transport_; }
+
+ private:
+  std::unique_ptr<CanTransport> transport_;
+  std::vector<SampleAccumulator> accumulators_;
+  std::array<std::int16_t, CAN_SFF_MASK + 1> unit_of_id_;  // -1: no unit has this id
+  std::uint32_t foreign_ = 0;
+};
+
+}  // namespace fogbench::drivers

@@ -1,0 +1,67 @@
+// Averaging of one gyro's CAN frames into 1 s samples, with the frame accounting a drift run needs
+// (lost, corrupt, foreign, repeated). Pure: the caller feeds frames and decides when a sample ends.
+#pragma once
+
+#include <linux/can.h>
+
+#include <cstdint>
+#include <optional>
+
+namespace fogbench::drivers {
+
+// What the 32-bit counts of a frame mean.
+enum class GyroMode {
+  rate,       // an angular rate: rate_dph = counts * scale_dph_per_count
+  increment,  // the angle turned since the previous frame: deg = counts * scale_deg_per_count
+};
+
+struct GyroChannelConfig {
+  std::uint16_t node_id = 0;       // standard CAN id of the unit's frames, 1..2047
+  GyroMode mode = GyroMode::rate;
+  double scale_dph_per_count = 0;  // rate mode
+  double scale_deg_per_count = 0;  // increment mode
+  double frame_rate_hz = 0;        // increment mode: the gyro's nominal output rate
+
+  // The mean of the counts of a sample's frames as a rate in deg/h. In increment mode the mean
+  // increment per frame times the nominal frame rate: a lost frame then leaves the rate unbiased,
+  // where summing the increments over the second would read low by one frame's worth.
+  double mean_counts_to_rate_dph(double mean_counts) const noexcept;
+};
+
+// One closed sample. frames + frames_corrupt + frames_lost is the number of frames the gyro sent
+// in the interval (as far as the sequence counter can tell, i.e. fewer than 256 missing in a row).
+struct GyroSample {
+  std::uint16_t node_id = 0;
+  std::optional<double> rate_dph;    // mean over the frames used; empty when none was usable
+  std::uint32_t frames = 0;          // well-formed frames with this id, usable or not
+  std::uint32_t frames_used = 0;     // averaged: `valid` status bit set and not a repeat
+  std::uint32_t frames_lost = 0;     // sequence gaps not accounted for by corrupt frames
+  std::uint32_t frames_corrupt = 0;  // this id, but wrong DLC or bad CRC
+  std::uint32_t frames_foreign = 0;  // another id, or not a standard data frame
+  std::uint32_t frames_repeated = 0; // same sequence number as the frame before: not averaged
+  std::uint8_t status_or = 0;        // OR of the status bytes of the well-formed frames
+  std::int64_t sum_counts = 0;       // of the frames used (exact; the mean is this / frames_used)
+};
+
+class SampleAccumulator {
+ public:
+  explicit SampleAccumulator(GyroChannelConfig config) noexcept;
+
+  // Accounts one frame. Never fails: a frame that cannot be used is counted, not returned.
+  void add(const ::can_frame& frame) noexcept;
+
+  // Returns the sample accumulated since the previous close and starts the next one. The
+  // sequence tracking carries over, so a frame lost across the boundary is counted once.
+  GyroSample close() noexcept;
+
+  const GyroChannelConfig& config() const noexcept { return config_; }
+
+ private:
+  GyroChannelConfig config_;
+  GyroSample current_;
+  bool have_sequence_ = false;
+  std::uint8_t last_sequence_ = 0;
+  std::uint32_t corrupt_since_good_ = 0;  // explains sequence gaps: a corrupt frame is not lost
+};
+
+}  // namespace fogbench::drivers

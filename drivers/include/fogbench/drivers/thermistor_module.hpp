@@ -1,0 +1,56 @@
+// The Modbus input module that reads the coil thermistors (T1 centre, T2 outer wall) of every
+// unit under test. Blocking, like the chamber: the daemon runs it on a worker thread.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "fogbench/drivers/config.hpp"
+#include "fogbench/drivers/error.hpp"
+#include "fogbench/drivers/modbus_link.hpp"
+
+namespace fogbench::drivers {
+
+// A sensor that cannot be read (open circuit, short, out of range, refused by the module) is an
+// error value naming the unit and the sensor, never a number.
+struct CoilTemperatures {
+  std::string serial;
+  Result<double> t1_c;  // coil centre
+  Result<double> t2_c;  // coil outer wall
+};
+
+class ThermistorModule {
+ public:
+  ThermistorModule(ThermistorModuleConfig config, std::vector<UnitConfig> units,
+                   ModbusLink::Clock clock = {});
+
+  // Reads every unit's two sensors, in unit order. Contiguous registers go in one request. A
+  // link failure (timeout, connection) fails the whole call; a request the module refuses fails
+  // only the sensors it covers.
+  Result<std::vector<CoilTemperatures>> read_all();
+
+  // Requests one read_all() makes (for the operator: fewer is better on a slow RTU line).
+  std::size_t request_count() const noexcept { return blocks_.size(); }
+  ModbusLink& link() noexcept { return link_; }
+
+ private:
+  struct Sensor {
+    std::size_t unit = 0;
+    int which = 1;  // 1 or 2
+    std::size_t block = 0;
+    std::size_t offset = 0;  // of its first word in the block
+  };
+  struct Block {
+    RegisterFunction function = RegisterFunction::input;
+    std::uint16_t address = 0;
+    std::uint16_t count = 0;
+  };
+
+  ThermistorModuleConfig config_;
+  std::vector<UnitConfig> units_;
+  ModbusLink link_;
+  std::vector<Sensor> sensors_;
+  std::vector<Block> blocks_;
+};
+
+}  // namespace fogbench::drivers

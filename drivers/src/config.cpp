@@ -1,0 +1,305 @@
+// Parsing of the drivers' configuration from JSON, with field-path errors.
+#include "fogbench/drivers/config.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <map>
+
+#include "json_fields.hpp"
+
+namespace fogbench::drivers {
+
+using detail::config_error;
+using detail::index_path;
+using detail::join_path;
+using nlohmann::json;
+
+#define FOGBENCH_TRY(var, expr)                      \
+  auto var = (expr);                                 \
+  if (!var) return std::unexpected(var.error())
+
+std::string ModbusEndpoint::describe() const {
+  std::string out;
+  if (transport == Transport::tcp) {
+    out = "tcp " + host + ":" + std::to_string(port);
+  } else {
+    out = "rtu " + device + " " + std::to_string(baud) + " " + std::to_string(data_bits) +
+          parity + std::to_string(stop_bits);
+  }
+  return out + " unit " + std::to_string(unit_id);
+}
+
+Result<ModbusEndpoint> parse_modbus_endpoint(const json& value, const std::string& path) {
+  if (auto ok = detail::expect_object(value, path); !ok) return std::unexpected(ok.error());
+  if (auto ok = detail::expect_known_keys(
+          value, path,
+          {"transport", "host", "port", "device", "baud", "parity", "data_bits", "stop_bits",
+           "unit_id", "response_timeout_ms", "backoff"});
+      !ok) {
+    return std::unexpected(ok.error());
+  }
+  ModbusEndpoint ep;
+  FOGBENCH_TRY(transport, detail::get_string(value, path, "transport"));
+  if (*transport == "tcp") {
+    ep.transport = ModbusEndpoint::Transport::tcp;
+    FOGBENCH_TRY(host, detail::get_string(value, path, "host"));
+    if (host->empty()) return config_error(join_path(path, "host"), "must not be empty");
+    ep.host = *host;
+    FOGBENCH_TRY(port, detail::get_int_or(value, path, "port", 1, 65535, 502));
+    ep.port = static_cast<std::uint16_t>(*port);
+    for (auto k : {"device", "baud", "parity", "data_bits", "stop_bits"}) {
+      if (value.contains(k)) return config_error(join_path(path, k), "only for transport 'rtu'");
+    }
+  } else if (*transport == "rtu") {
+    ep.transport = ModbusEndpoint::Transport::rtu;
+    FOGBENCH_TRY(device, detail::get_string(value, path, "device"));
+    if (device->empty()) return config_error(join_path(path, "device"), "must not be empty");
+    ep.device = *device;
+    FOGBENCH_TRY(baud, detail::get_int_or(value, path, "baud", 300, 4000000, 19200));
+    ep.baud = static_cast<int>(*baud);
+    FOGBENCH_TRY(parity, detail::get_string_or(value, path, "parity", "none"));
+    if (*parity == "none") {
+      ep.parity = 'N';
+    } else if (*parity == "even") {
+      ep.parity = 'E';
+    } else if (*parity == "odd") {
+      ep.parity = 'O';
+    } else {
+      return config_error(join_path(path, "parity"),
+                          "unknown parity '" + *parity + "' (expected none, even, odd)");
+    }
+    FOGBENCH_TRY(data_bits, detail::get_int_or(value, path, "data_bits", 7, 8, 8));
+    ep.data_bits = static_cast<int>(*data_bits);
+    FOGBENCH_TRY(stop_bits, detail::get_int_or(value, path, "stop_bits", 1, 2, 1));
+    ep.stop_bits = static_cast<int>(*stop_bits);
+    for (auto k : {"host", "port"}) {
+      if (value.contains(k)) return config_error(join_path(path, k), "only for transport 'tcp'");
+    }
+  } else {
+    return config_error(join_path(path, "transport"),
+                        "unknown transport '" + *transport + "' (expected tcp, rtu)");
+  }
+  // 0 is broadcast and 248..255 are reserved by the Modbus specification.
+  FOGBENCH_TRY(unit_id, detail::get_int_or(value, path, "unit_id", 1, 247, 1));
+  ep.unit_id = static_cast<int>(*unit_id);
+  FOGBENCH_TRY(timeout, detail::get_int_or(value, path, "response_timeout_ms", 1, 60000, 1000));
+  ep.response_timeout_ms = static_cast<int>(*timeout);
+
+  if (auto it = value.find("backoff"); it != value.end()) {
+    const auto bp = join_path(path, "backoff");
+    if (auto ok = detail::expect_object(*it, bp); !ok) return std::unexpected(ok.error());
+    if (auto ok = detail::expect_known_keys(*it, bp, {"initial_ms", "max_ms", "multiplier"}); !ok) {
+      return std::unexpected(ok.error());
+    }
+    FOGBENCH_TRY(initial, detail::get_int_or(*it, bp, "initial_ms", 1, 3600000, ep.backoff.initial_ms));
+    FOGBENCH_TRY(max, detail::get_int_or(*it, bp, "max_ms", 1, 3600000, ep.backoff.max_ms));
+    FOGBENCH_TRY(mult, detail::get_number_or(*it, bp, "multiplier", ep.backoff.multiplier));
+    if (*max < *initial) {
+      return config_error(join_path(bp, "max_ms"), "must be at least initial_ms (" +
+                                                       std::to_string(*initial) + ")");
+    }
+    if (*mult < 1.0 || *mult > 10.0) {
+      return config_error(join_path(bp, "multiplier"), "expected a number 1..10");
+    }
+    ep.backoff = {*initial, *max, *mult};
+  }
+  return ep;
+}
+
+namespace {
+
+Result<LimitsC> parse_limits(const json& value, const std::string& path, std::string_view key,
+                             LimitsC fallback) {
+  FOGBENCH_TRY(range, detail::get_range_or(value, path, key, {fallback.min_c, fallback.max_c}));
+  return LimitsC{range->min, range->max};
+}
+
+}  // namespace
+
+Result<ChamberConfig> parse_chamber_config(const json& value, const std::string& path,
+                                           const std::filesystem::path& map_dir) {
+  if (auto ok = detail::expect_object(value, path); !ok) return std::unexpected(ok.error());
+  if (auto ok = detail::expect_known_keys(value, path,
+                                          {"modbus", "map", "pv_limits_c", "setpoint_limits_c"});
+      !ok) {
+    return std::unexpected(ok.error());
+  }
+  ChamberConfig cfg;
+  const auto mp = join_path(path, "modbus");
+  if (!value.contains("modbus")) return config_error(mp, "missing (expected an object)");
+  FOGBENCH_TRY(modbus, parse_modbus_endpoint(value["modbus"], mp));
+  cfg.modbus = *modbus;
+
+  const auto map_path = join_path(path, "map");
+  auto map_it = value.find("map");
+  if (map_it == value.end()) {
+    return config_error(map_path, "missing (expected a map file name or an inline map object)");
+  }
+  if (map_it->is_string()) {
+    std::filesystem::path file = map_it->get<std::string>();
+    if (file.is_relative()) file = map_dir / file;
+    auto map = load_register_map(file.string());
+    if (!map) return config_error(map_path, map.error().message);
+    cfg.map = *map;
+    cfg.map_file = file.string();
+  } else {
+    FOGBENCH_TRY(map, parse_register_map(*map_it, map_path));
+    cfg.map = *map;
+  }
+  FOGBENCH_TRY(pv, parse_limits(value, path, "pv_limits_c", cfg.pv_limits_c));
+  cfg.pv_limits_c = *pv;
+  FOGBENCH_TRY(sp, parse_limits(value, path, "setpoint_limits_c", cfg.setpoint_limits_c));
+  cfg.setpoint_limits_c = *sp;
+  return cfg;
+}
+
+Result<GyroChannelConfig> parse_gyro_channel(const json& value, const std::string& path) {
+  if (auto ok = detail::expect_object(value, path); !ok) return std::unexpected(ok.error());
+  if (auto ok = detail::expect_known_keys(
+          value, path,
+          {"node_id", "mode", "scale_dph_per_count", "scale_deg_per_count", "frame_rate_hz"});
+      !ok) {
+    return std::unexpected(ok.error());
+  }
+  GyroChannelConfig g;
+  FOGBENCH_TRY(node, detail::get_int(value, path, "node_id", 1, 2047));
+  g.node_id = static_cast<std::uint16_t>(*node);
+  FOGBENCH_TRY(mode, detail::get_string_or(value, path, "mode", "rate"));
+  auto nonzero = [&](std::string_view key) -> Result<double> {
+    FOGBENCH_TRY(v, detail::get_number(value, path, key));
+    if (*v == 0.0) return config_error(join_path(path, key), "must not be 0");
+    return *v;
+  };
+  auto forbid = [&](std::string_view key, std::string_view mode_name) -> Result<void> {
+    if (value.contains(key)) {
+      return config_error(join_path(path, key), "not used in mode '" + std::string(mode_name) + "'");
+    }
+    return {};
+  };
+  if (*mode == "rate") {
+    g.mode = GyroMode::rate;
+    FOGBENCH_TRY(scale, nonzero("scale_dph_per_count"));
+    g.scale_dph_per_count = *scale;
+    if (auto ok = forbid("scale_deg_per_count", "rate"); !ok) return std::unexpected(ok.error());
+    if (auto ok = forbid("frame_rate_hz", "rate"); !ok) return std::unexpected(ok.error());
+  } else if (*mode == "increment") {
+    g.mode = GyroMode::increment;
+    FOGBENCH_TRY(scale, nonzero("scale_deg_per_count"));
+    g.scale_deg_per_count = *scale;
+    FOGBENCH_TRY(rate, detail::get_number(value, path, "frame_rate_hz"));
+    if (*rate <= 0.0) return config_error(join_path(path, "frame_rate_hz"), "must be positive");
+    g.frame_rate_hz = *rate;
+    if (auto ok = forbid("scale_dph_per_count", "increment"); !ok) {
+      return std::unexpected(ok.error());
+    }
+  } else {
+    return config_error(join_path(path, "mode"),
+                        "unknown mode '" + *mode + "' (expected rate, increment)");
+  }
+  return g;
+}
+
+Result<UnitConfig> parse_unit_config(const json& value, const std::string& path) {
+  if (auto ok = detail::expect_object(value, path); !ok) return std::unexpected(ok.error());
+  if (auto ok = detail::expect_known_keys(value, path, {"serial", "gyro", "thermistors"}); !ok) {
+    return std::unexpected(ok.error());
+  }
+  UnitConfig unit;
+  FOGBENCH_TRY(serial, detail::get_string(value, path, "serial"));
+  if (serial->empty()) return config_error(join_path(path, "serial"), "must not be empty");
+  unit.serial = *serial;
+  const auto gp = join_path(path, "gyro");
+  if (!value.contains("gyro")) return config_error(gp, "missing (expected an object)");
+  FOGBENCH_TRY(gyro, parse_gyro_channel(value["gyro"], gp));
+  unit.gyro = *gyro;
+
+  const auto tp = join_path(path, "thermistors");
+  auto th = value.find("thermistors");
+  if (th == value.end()) return config_error(tp, "missing (expected {\"t1\": ..., \"t2\": ...})");
+  if (auto ok = detail::expect_object(*th, tp); !ok) return std::unexpected(ok.error());
+  if (auto ok = detail::expect_known_keys(*th, tp, {"t1", "t2"}); !ok) {
+    return std::unexpected(ok.error());
+  }
+  for (auto [key, target] : {std::pair{"t1", &unit.t1}, std::pair{"t2", &unit.t2}}) {
+    const auto cp = join_path(tp, key);
+    if (!th->contains(key)) return config_error(cp, "missing (expected an object)");
+    FOGBENCH_TRY(ch, parse_thermistor_channel((*th)[key], cp));
+    *target = *ch;
+  }
+  return unit;
+}
+
+Result<DriversConfig> parse_drivers_config(const json& value, const std::filesystem::path& map_dir,
+                                           const std::string& path) {
+  if (auto ok = detail::expect_object(value, path); !ok) return std::unexpected(ok.error());
+  if (auto ok = detail::expect_known_keys(value, path,
+                                          {"chamber", "thermistors", "gyro_bus", "units"});
+      !ok) {
+    return std::unexpected(ok.error());
+  }
+  DriversConfig cfg;
+  for (auto key : {"chamber", "thermistors", "gyro_bus", "units"}) {
+    if (!value.contains(key)) return config_error(join_path(path, key), "missing");
+  }
+  FOGBENCH_TRY(chamber, parse_chamber_config(value["chamber"], join_path(path, "chamber"), map_dir));
+  cfg.chamber = std::move(*chamber);
+
+  {
+    const auto tp = join_path(path, "thermistors");
+    const json& t = value["thermistors"];
+    if (auto ok = detail::expect_object(t, tp); !ok) return std::unexpected(ok.error());
+    if (auto ok = detail::expect_known_keys(t, tp, {"modbus"}); !ok) return std::unexpected(ok.error());
+    if (!t.contains("modbus")) return config_error(join_path(tp, "modbus"), "missing (expected an object)");
+    FOGBENCH_TRY(modbus, parse_modbus_endpoint(t["modbus"], join_path(tp, "modbus")));
+    cfg.thermistors.modbus = *modbus;
+  }
+  {
+    const auto bp = join_path(path, "gyro_bus");
+    const json& b = value["gyro_bus"];
+    if (auto ok = detail::expect_object(b, bp); !ok) return std::unexpected(ok.error());
+    if (auto ok = detail::expect_known_keys(b, bp, {"transport"}); !ok) return std::unexpected(ok.error());
+    FOGBENCH_TRY(transport, detail::get_string(b, bp, "transport"));
+    cfg.gyro_bus.transport = *transport;
+  }
+
+  const auto up = join_path(path, "units");
+  const json& units = value["units"];
+  if (!units.is_array() || units.empty()) return config_error(up, "expected a non-empty array");
+  std::map<std::string, std::size_t> serials;
+  std::map<int, std::size_t> node_ids;
+  struct Placed {
+    std::string path;
+    RegisterSpec reg;
+  };
+  std::vector<Placed> channels;
+  for (std::size_t i = 0; i < units.size(); ++i) {
+    const auto p = index_path(up, i);
+    FOGBENCH_TRY(unit, parse_unit_config(units[i], p));
+    if (auto [it, fresh] = serials.emplace(unit->serial, i); !fresh) {
+      return config_error(join_path(p, "serial"), "'" + unit->serial + "' is already used by " +
+                                                      index_path(up, it->second));
+    }
+    if (auto [it, fresh] = node_ids.emplace(unit->gyro.node_id, i); !fresh) {
+      return config_error(join_path(join_path(p, "gyro"), "node_id"),
+                          std::to_string(unit->gyro.node_id) + " is already used by " +
+                              index_path(up, it->second));
+    }
+    for (auto [key, ch] : {std::pair{"t1", &unit->t1}, std::pair{"t2", &unit->t2}}) {
+      const auto cp = join_path(join_path(p, "thermistors"), key);
+      for (const auto& other : channels) {
+        const RegisterSpec& a = ch->reg;
+        const RegisterSpec& b = other.reg;
+        if (a.function == b.function && a.address < b.address + b.width() &&
+            b.address < a.address + a.width()) {
+          return config_error(join_path(cp, "address"), a.describe() + " overlaps " + other.path +
+                                                            " (" + b.describe() + ")");
+        }
+      }
+      channels.push_back({cp, ch->reg});
+    }
+    cfg.units.push_back(std::move(*unit));
+  }
+  return cfg;
+}
+
+}  // namespace fogbench::drivers

@@ -1,0 +1,63 @@
+// Per-unit averaging of gyro frames into samples and the accounting of unusable frames.
+#include "fogbench/drivers/sample_accumulator.hpp"
+
+#include <algorithm>
+
+#include "fogbench/drivers/can_frame.hpp"
+
+namespace fogbench::drivers {
+
+double GyroChannelConfig::mean_counts_to_rate_dph(double mean_counts) const noexcept {
+  if (mode == GyroMode::rate) return mean_counts * scale_dph_per_count;
+  return mean_counts * scale_deg_per_count * frame_rate_hz * 3600.0;
+}
+
+SampleAccumulator::SampleAccumulator(GyroChannelConfig config) noexcept : config_(config) {
+  current_.node_id = config_.node_id;
+}
+
+void SampleAccumulator::add(const ::can_frame& frame) noexcept {
+  if ((frame.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_ERR_FLAG)) != 0 ||
+      (frame.can_id & CAN_SFF_MASK) != config_.node_id) {
+    ++current_.frames_foreign;
+    return;
+  }
+  const auto decoded = can::decode(frame);
+  if (!decoded) {
+    ++current_.frames_corrupt;
+    ++corrupt_since_good_;
+    return;
+  }
+  ++current_.frames;
+  current_.status_or |= decoded->status;
+  if (have_sequence_) {
+    const auto step = static_cast<std::uint8_t>(decoded->sequence - last_sequence_);
+    if (step == 0) {
+      // A repeat (a retransmission or a stuck counter) carries no new measurement.
+      ++current_.frames_repeated;
+      return;
+    }
+    const std::uint32_t gap = static_cast<std::uint8_t>(step - 1);
+    current_.frames_lost += gap - std::min(gap, corrupt_since_good_);
+  }
+  have_sequence_ = true;
+  last_sequence_ = decoded->sequence;
+  corrupt_since_good_ = 0;
+  if (decoded->status & can::status::valid) {
+    current_.sum_counts += decoded->counts;
+    ++current_.frames_used;
+  }
+}
+
+GyroSample SampleAccumulator::close() noexcept {
+  GyroSample out = current_;
+  if (out.frames_used > 0) {
+    const double mean = static_cast<double>(out.sum_counts) / out.frames_used;
+    out.rate_dph = config_.mean_counts_to_rate_dph(mean);
+  }
+  current_ = GyroSample{};
+  current_.node_id = config_.node_id;
+  return out;
+}
+
+}  // namespace fogbench::drivers
