@@ -32,6 +32,11 @@ std::string format_number(double value) {
   if (std::isnan(value)) return "nan";
   if (std::isinf(value)) return value > 0 ? "inf" : "-inf";
   char buf[64];
+  // Whole numbers as integers ("2000000 ohm" reads better than "2e+06 ohm"); others shortest.
+  if (std::fabs(value) < 1e15 && std::floor(value) == value) {
+    auto [end, ec] = std::to_chars(buf, buf + sizeof buf, static_cast<long long>(value));
+    if (ec == std::errc{}) return std::string(buf, end);
+  }
   auto [end, ec] = std::to_chars(buf, buf + sizeof buf, value);
   if (ec != std::errc{}) return "?";
   return std::string(buf, end);

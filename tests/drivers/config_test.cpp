@@ -1,0 +1,147 @@
+// Parsing of the drivers' configuration: the shipped example, and refusals naming the field.
+#include <catch2/catch.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <fstream>
+
+#include "fogbench/drivers/config.hpp"
+
+using namespace fogbench::drivers;
+using nlohmann::json;
+
+namespace {
+
+const std::filesystem::path map_dir = FOGBENCH_SOURCE_DIR "/drivers/maps";
+
+json example() {
+  std::ifstream in(FOGBENCH_SOURCE_DIR "/drivers/examples/mock-bench.json");
+  REQUIRE(in);
+  return json::parse(in);
+}
+
+std::string error_of(const json& j) {
+  auto r = parse_drivers_config(j, map_dir);
+  REQUIRE_FALSE(r.has_value());
+  CHECK(r.error().code == ErrorCode::config);
+  return r.error().message;
+}
+
+}  // namespace
+
+TEST_CASE("the example configuration of the mock bench parses") {
+  auto cfg = parse_drivers_config(example(), map_dir);
+  REQUIRE(cfg.has_value());
+  CHECK(cfg->chamber.modbus.transport == ModbusEndpoint::Transport::tcp);
+  CHECK(cfg->chamber.modbus.port == 1502);
+  CHECK(cfg->chamber.modbus.response_timeout_ms == 500);
+  CHECK(cfg->chamber.map.name == "fogbench mock chamber");
+  CHECK(cfg->chamber.map_file == (map_dir / "mock.json").string());
+  CHECK(cfg->chamber.setpoint_limits_c.max_c == 150);
+  CHECK(cfg->thermistors.modbus.unit_id == 2);
+  CHECK(cfg->gyro_bus.transport == "unix:/tmp/fogbench-mock-can.sock");
+  REQUIRE(cfg->units.size() == 2);
+  CHECK(cfg->units[0].serial == "FOG-0001");
+  CHECK(cfg->units[0].gyro.node_id == 257);
+  CHECK(cfg->units[0].gyro.scale_dph_per_count == 0.0001);
+  CHECK(cfg->units[1].gyro.mode == GyroMode::increment);
+  CHECK(cfg->units[1].gyro.frame_rate_hz == 8000);
+  CHECK(cfg->units[1].t2.kind == ThermistorKind::ntc);
+  CHECK(cfg->units[1].t2.reg.address == 102);
+}
+
+TEST_CASE("a node id out of range names the unit and field") {
+  json j = example();
+  j["units"][1]["gyro"]["node_id"] = 4096;
+  CHECK(error_of(j) == "units[1].gyro.node_id: expected an integer 1..2047 (got 4096)");
+  j["units"][1]["gyro"]["node_id"] = "0x102";
+  CHECK(error_of(j) == "units[1].gyro.node_id: expected an integer 1..2047 (got a string)");
+}
+
+TEST_CASE("units must not share a node id, a serial or a thermistor register") {
+  json j = example();
+  j["units"][1]["gyro"]["node_id"] = 257;
+  CHECK(error_of(j) == "units[1].gyro.node_id: 257 is already used by units[0]");
+
+  j = example();
+  j["units"][1]["serial"] = "FOG-0001";
+  CHECK(error_of(j) == "units[1].serial: 'FOG-0001' is already used by units[0]");
+
+  j = example();
+  j["units"][1]["thermistors"]["t1"]["address"] = 0;  // a float32 at input 0..1 over unit 0's T1, T2
+  CHECK(error_of(j) ==
+        "units[1].thermistors.t1.address: input 0..1 (float32, high_first) overlaps "
+        "units[0].thermistors.t1 (input 0 (int16))");
+}
+
+TEST_CASE("gyro mode fields") {
+  json j = example();
+  j["units"][1]["gyro"].erase("frame_rate_hz");
+  CHECK(error_of(j) == "units[1].gyro.frame_rate_hz: missing (expected a number)");
+  j = example();
+  j["units"][0]["gyro"]["mode"] = "angle";
+  CHECK(error_of(j) == "units[0].gyro.mode: unknown mode 'angle' (expected rate, increment)");
+  j = example();
+  j["units"][0]["gyro"]["frame_rate_hz"] = 100;
+  CHECK(error_of(j) == "units[0].gyro.frame_rate_hz: not used in mode 'rate'");
+}
+
+TEST_CASE("modbus endpoint fields") {
+  json j = example();
+  j["chamber"]["modbus"]["transport"] = "udp";
+  CHECK(error_of(j) == "chamber.modbus.transport: unknown transport 'udp' (expected tcp, rtu)");
+  j = example();
+  j["chamber"]["modbus"]["unit_id"] = 0;
+  CHECK(error_of(j) == "chamber.modbus.unit_id: expected an integer 1..247 (got 0)");
+  j = example();
+  j["thermistors"]["modbus"]["backoff"] = {{"initial_ms", 1000}, {"max_ms", 10}};
+  CHECK(error_of(j) == "thermistors.modbus.backoff.max_ms: must be at least initial_ms (1000)");
+
+  auto rtu = parse_modbus_endpoint(json::parse(R"({"transport": "rtu", "device": "/dev/ttyUSB0",
+      "baud": 9600, "parity": "even", "stop_bits": 1, "unit_id": 3})"), "chamber.modbus");
+  REQUIRE(rtu.has_value());
+  CHECK(rtu->parity == 'E');
+  CHECK(rtu->describe() == "rtu /dev/ttyUSB0 9600 8E1 unit 3");
+  auto mixed = parse_modbus_endpoint(json::parse(R"({"transport": "rtu", "device": "/dev/ttyS0",
+      "host": "10.0.0.1"})"), "chamber.modbus");
+  REQUIRE_FALSE(mixed.has_value());
+  CHECK(mixed.error().message == "chamber.modbus.host: only for transport 'tcp'");
+}
+
+TEST_CASE("chamber map by file or inline, with errors under chamber.map") {
+  json j = example();
+  j["chamber"]["map"] = "no-such.json";
+  CHECK(error_of(j).starts_with("chamber.map: "));
+
+  j = example();
+  j["chamber"]["map"] = json::parse(R"({"registers": {
+      "setpoint": {"function": "holding", "address": 0, "type": "int24"}}})");
+  // Presence is checked before types: the first missing register is named.
+  CHECK(error_of(j) ==
+        "chamber.map.registers.process_value: missing (required: setpoint, process_value, run, alarm)");
+  // With every required register present, the type error surfaces with its full path.
+  j["chamber"]["map"] = json::parse(R"({"registers": {
+      "setpoint": {"function": "holding", "address": 0, "type": "int24"},
+      "process_value": {"function": "input", "address": 0, "type": "int16"},
+      "run": {"function": "coil", "address": 0},
+      "alarm": {"function": "discrete", "address": 0}}})");
+  CHECK(error_of(j) ==
+        "chamber.map.registers.setpoint.type: unknown type 'int24' (expected int16, uint16, int32, "
+        "uint32, float32)");
+
+  j = example();
+  j["chamber"]["setpoint_limits_c"] = {{"min", 100}, {"max", -10}};
+  CHECK(error_of(j) == "chamber.setpoint_limits_c: min (100) must be below max (-10)");
+}
+
+TEST_CASE("top-level sections") {
+  json j = example();
+  j.erase("gyro_bus");
+  CHECK(error_of(j) == "gyro_bus: missing");
+  j = example();
+  j["units"] = json::array();
+  CHECK(error_of(j) == "units: expected a non-empty array");
+  j = example();
+  j["chamberr"] = 1;
+  CHECK(error_of(j).starts_with("chamberr: unknown field"));
+}

@@ -1,0 +1,167 @@
+// Averaging gyro frames into samples and the accounting of lost, corrupt, foreign and repeated
+// frames.
+#include <catch2/catch.hpp>
+
+#include "fogbench/drivers/can_frame.hpp"
+#include "fogbench/drivers/sample_accumulator.hpp"
+
+using namespace fogbench::drivers;
+
+namespace {
+
+constexpr std::uint16_t id = 0x101;
+constexpr std::uint8_t ok = can::status::valid;
+
+GyroChannelConfig rate_unit() {
+  GyroChannelConfig c;
+  c.node_id = id;
+  c.mode = GyroMode::rate;
+  c.scale_dph_per_count = 0.001;  // 1 count = 0.001 deg/h
+  return c;
+}
+
+can_frame frame(std::uint8_t seq, std::int32_t counts, std::uint8_t status = ok) {
+  return can::encode({id, counts, seq, status});
+}
+
+}  // namespace
+
+TEST_CASE("a sample's rate is the mean of its frames times the scale") {
+  SampleAccumulator acc(rate_unit());
+  // counts 1000, 2000, 3000, 6000: mean 3000 counts * 0.001 deg/h = 3.0 deg/h.
+  acc.add(frame(0, 1000));
+  acc.add(frame(1, 2000));
+  acc.add(frame(2, 3000));
+  acc.add(frame(3, 6000));
+  const GyroSample s = acc.close();
+  CHECK(s.node_id == id);
+  CHECK(s.frames == 4);
+  CHECK(s.frames_used == 4);
+  CHECK(s.frames_lost == 0);
+  CHECK(s.sum_counts == 12000);
+  REQUIRE(s.rate_dph.has_value());
+  CHECK(*s.rate_dph == Approx(3.0).epsilon(1e-12));
+  CHECK(s.status_or == ok);
+}
+
+TEST_CASE("closing resets the counts and starts an empty sample") {
+  SampleAccumulator acc(rate_unit());
+  acc.add(frame(0, 10));
+  (void)acc.close();
+  const GyroSample empty = acc.close();
+  CHECK(empty.frames == 0);
+  CHECK(empty.sum_counts == 0);
+  CHECK_FALSE(empty.rate_dph.has_value());  // no frame: no rate, not 0 deg/h
+}
+
+TEST_CASE("increment mode: mean increment per frame times the frame rate") {
+  GyroChannelConfig c;
+  c.node_id = id;
+  c.mode = GyroMode::increment;
+  c.scale_deg_per_count = 1e-6;  // 1 count = 1e-6 deg
+  c.frame_rate_hz = 1000;
+  SampleAccumulator acc(c);
+  // Mean increment 5 counts = 5e-6 deg per frame; at 1000 frames/s that is 5e-3 deg/s,
+  // times 3600 s/h = 18 deg/h. The lost frame (sequence 2) does not bias the mean.
+  acc.add(frame(0, 4));
+  acc.add(frame(1, 6));
+  acc.add(frame(3, 5));
+  const GyroSample s = acc.close();
+  CHECK(s.frames_lost == 1);
+  REQUIRE(s.rate_dph.has_value());
+  CHECK(*s.rate_dph == Approx(18.0).epsilon(1e-12));
+}
+
+TEST_CASE("a skipped sequence number counts as one lost frame") {
+  SampleAccumulator acc(rate_unit());
+  acc.add(frame(10, 1));
+  acc.add(frame(11, 1));
+  acc.add(frame(13, 1));  // 12 missing
+  acc.add(frame(17, 1));  // 14, 15, 16 missing
+  const GyroSample s = acc.close();
+  CHECK(s.frames == 4);
+  CHECK(s.frames_lost == 1 + 3);
+}
+
+TEST_CASE("the sequence wraps from 255 to 0 without a loss") {
+  SampleAccumulator acc(rate_unit());
+  acc.add(frame(254, 1));
+  acc.add(frame(255, 1));
+  acc.add(frame(0, 1));
+  acc.add(frame(1, 1));
+  CHECK(acc.close().frames_lost == 0);
+  // 254 -> 1 across the wrap: 255 and 0 missing, (1 - 254 - 1) mod 256 = 2.
+  SampleAccumulator gap(rate_unit());
+  gap.add(frame(254, 1));
+  gap.add(frame(1, 1));
+  CHECK(gap.close().frames_lost == 2);
+}
+
+TEST_CASE("sequence tracking continues across a sample boundary") {
+  SampleAccumulator acc(rate_unit());
+  acc.add(frame(100, 1));
+  (void)acc.close();
+  acc.add(frame(102, 1));  // 101 was lost between the samples: counted in the second
+  const GyroSample s = acc.close();
+  CHECK(s.frames_lost == 1);
+}
+
+TEST_CASE("a corrupt frame is counted as corrupt and not again as lost") {
+  SampleAccumulator acc(rate_unit());
+  acc.add(frame(0, 100));
+  can_frame bad = frame(1, 100);
+  bad.data[2] ^= 0x10;  // a flipped bit: CRC fails
+  acc.add(bad);
+  can_frame short_frame = frame(2, 100);
+  short_frame.can_dlc = 6;  // wrong DLC
+  acc.add(short_frame);
+  acc.add(frame(3, 100));
+  acc.add(frame(5, 100));  // 4 really missing
+  const GyroSample s = acc.close();
+  CHECK(s.frames == 3);
+  CHECK(s.frames_corrupt == 2);
+  // Gaps: 0->3 is 2 frames, both explained by the corrupt ones; 3->5 is 1, unexplained.
+  CHECK(s.frames_lost == 1);
+  // The corrupt frames' counts are not averaged: mean of three 100s.
+  CHECK(s.sum_counts == 300);
+}
+
+TEST_CASE("foreign ids, extended and remote frames are counted as foreign") {
+  SampleAccumulator acc(rate_unit());
+  acc.add(frame(0, 1));
+  acc.add(can::encode({0x102, 1, 1, ok}));  // another unit's id
+  can_frame ext = frame(1, 1);
+  ext.can_id |= CAN_EFF_FLAG;  // same low bits, but an extended id
+  acc.add(ext);
+  can_frame rtr = frame(1, 1);
+  rtr.can_id |= CAN_RTR_FLAG;
+  acc.add(rtr);
+  const GyroSample s = acc.close();
+  CHECK(s.frames == 1);
+  CHECK(s.frames_foreign == 3);
+  CHECK(s.frames_corrupt == 0);
+}
+
+TEST_CASE("frames without the valid bit are counted but not averaged; status bits are ORed") {
+  SampleAccumulator acc(rate_unit());
+  acc.add(frame(0, 1000, ok));
+  acc.add(frame(1, 999999, can::status::light_source_fault));  // not valid
+  acc.add(frame(2, 3000, ok | can::status::warming_up));
+  const GyroSample s = acc.close();
+  CHECK(s.frames == 3);
+  CHECK(s.frames_used == 2);
+  REQUIRE(s.rate_dph.has_value());
+  CHECK(*s.rate_dph == Approx(2.0));  // (1000 + 3000) / 2 * 0.001
+  CHECK(s.status_or == (ok | can::status::light_source_fault | can::status::warming_up));
+}
+
+TEST_CASE("a repeated sequence number is counted and not averaged twice") {
+  SampleAccumulator acc(rate_unit());
+  acc.add(frame(7, 1000));
+  acc.add(frame(7, 1000));
+  acc.add(frame(8, 1000));
+  const GyroSample s = acc.close();
+  CHECK(s.frames_repeated == 1);
+  CHECK(s.frames_used == 2);
+  CHECK(s.frames_lost == 0);
+}
