@@ -142,7 +142,7 @@ TEST_CASE("foreign ids, extended and remote frames are counted as foreign") {
   CHECK(s.frames_corrupt == 0);
 }
 
-TEST_CASE("frames without the valid bit are counted but not averaged; status bits are ORed") {
+TEST_CASE("frames without the valid bit are counted but not averaged, and status bits are ORed") {
   SampleAccumulator acc(rate_unit());
   acc.add(frame(0, 1000, ok));
   acc.add(frame(1, 999999, can::status::light_source_fault));  // not valid
