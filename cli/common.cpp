@@ -1,0 +1,115 @@
+// Loading runs, models and profiles for fogctl.
+#include "common.hpp"
+
+#include <chrono>
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
+#include <ctime>
+#include <fstream>
+#include <sstream>
+
+#include "fogbench/model/json.hpp"
+#include "fogbench/storage/csv.hpp"
+
+namespace fogbench::cli {
+
+std::expected<model::RunData, std::string> load_run(const std::string& path, const RunInput& in) {
+  storage::CsvOptions o;
+  o.resample_s = in.resample_s;
+  for (const auto& m : in.maps) {
+    auto cm = storage::parse_column_mapping(m);
+    if (!cm) return std::unexpected("--map " + m + ": " + cm.error().message);
+    o.column_map.push_back(*cm);
+  }
+  auto r = storage::read_csv_file(path, o);
+  if (!r) return std::unexpected(r.error().message);
+  return std::move(*r);
+}
+
+namespace {
+std::expected<std::string, std::string> read_file(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) return std::unexpected(path + ": cannot open (" + std::strerror(errno) + ")");
+  std::ostringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+}  // namespace
+
+std::expected<model::Model, std::string> load_model(const std::string& path) {
+  auto text = read_file(path);
+  if (!text) return std::unexpected(text.error());
+  auto m = model::model_from_text(*text);
+  if (!m) return std::unexpected(path + ": not a fogbench model: " + m.error());
+  return m;
+}
+
+std::expected<void, std::string> write_text(const std::string& path, const std::string& text) {
+  // Write beside the target and rename, so an interrupted write never leaves half a file.
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+    if (!f) return std::unexpected(path + ": cannot write (" + std::strerror(errno) + ")");
+    f << text;
+    f.flush();
+    if (!f) return std::unexpected(path + ": write failed (" + std::strerror(errno) + ")");
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) return std::unexpected(path + ": " + ec.message());
+  return {};
+}
+
+std::vector<std::filesystem::path> profile_dirs() {
+  std::vector<std::filesystem::path> dirs;
+  if (const char* env = std::getenv("FOGBENCH_PROFILE_DIR"); env && *env) dirs.emplace_back(env);
+  std::string builtin = FOGBENCH_PROFILE_DIRS;
+  std::size_t b = 0;
+  while (b <= builtin.size()) {
+    const std::size_t e = builtin.find(':', b);
+    const std::string d = builtin.substr(b, e == std::string::npos ? std::string::npos : e - b);
+    if (!d.empty()) dirs.emplace_back(d);
+    if (e == std::string::npos) break;
+    b = e + 1;
+  }
+  return dirs;
+}
+
+std::expected<profiles::Profile, std::string> load_profile(const std::string& name) {
+  std::filesystem::path path = name;
+  if (!std::filesystem::exists(path)) {
+    bool found = false;
+    for (const auto& d : profile_dirs()) {
+      for (const auto& candidate : {d / name, d / (name + ".profile")}) {
+        if (std::filesystem::is_regular_file(candidate)) {
+          path = candidate;
+          found = true;
+          break;
+        }
+      }
+      if (found) break;
+    }
+    if (!found) {
+      std::string where;
+      for (const auto& d : profile_dirs()) where += " " + d.string();
+      return std::unexpected("profile '" + name + "': no such file, and no shipped profile of that name in:" + where);
+    }
+  }
+  auto text = read_file(path.string());
+  if (!text) return std::unexpected(text.error());
+  auto p = profiles::parse_profile(*text, path.filename().string());
+  if (!p) return std::unexpected(p.error().to_string() + "\n" + p.error().excerpt());
+  return std::move(*p);
+}
+
+std::string now_iso8601() {
+  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+}  // namespace fogbench::cli

@@ -1,0 +1,22 @@
+// fogctl: the command-line client of fogbench and its offline analysis tool.
+#include <CLI/CLI.hpp>
+#include <iostream>
+
+#include "common.hpp"
+#include "offline.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{"fogctl: fibre-optic gyro thermal-drift qualification (fogbench " FOGBENCH_VERSION ")"};
+  app.set_version_flag("--version", std::string(FOGBENCH_VERSION));
+  app.require_subcommand(1);
+  int code = fogbench::cli::kExitOk;
+  fogbench::cli::add_offline_commands(app, code);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // --help and --version exit 0; a usage error exits 2 with CLI11's message.
+    const int rc = app.exit(e);
+    return rc == 0 ? 0 : fogbench::cli::kExitError;
+  }
+  return code;
+}

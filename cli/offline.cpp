@@ -1,0 +1,234 @@
+// simulate, fit and verify: the model core from the command line.
+#include "offline.hpp"
+
+#include <CLI/CLI.hpp>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "fogbench/model/json.hpp"
+#include "fogbench/storage/csv.hpp"
+#include "simulate_profile.hpp"
+#include "table.hpp"
+
+namespace fogbench::cli {
+
+int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err) {
+  auto profile = load_profile(o.profile);
+  if (!profile) {
+    err << "fogctl simulate: " << profile.error() << "\n";
+    return kExitError;
+  }
+  sim::SimConfig cfg;
+  cfg.seed = o.seed;
+  cfg.units[0].serial = o.serial;
+  for (const auto& e : o.effects) cfg.units[0].effects += (cfg.units[0].effects.empty() ? "" : " + ") + e;
+  if (!cfg.units[0].effects.empty()) {
+    if (auto l = model::parse_terms(cfg.units[0].effects); !l) {
+      err << "fogctl simulate: --effect: " << l.error().pretty() << "\n";
+      return kExitError;
+    }
+  }
+  auto progress = [&](double t, double total) {
+    if (!o.quiet && !o.json) err << "\rsimulating " << profile->source_name << ": " << static_cast<int>(100.0 * t / std::max(1.0, total)) << "%" << std::flush;
+  };
+  auto r = simulate_profile(*profile, cfg, progress);
+  if (!o.quiet && !o.json) err << "\r" << std::string(40, ' ') << "\r";
+  if (!r) {
+    err << "fogctl simulate: " << r.error() << "\n";
+    return kExitError;
+  }
+  const model::RunData& run = r->units.front();
+  if (!o.output.empty()) {
+    if (auto w = storage::write_csv_file(o.output, run); !w) {
+      err << "fogctl simulate: " << w.error().message << "\n";
+      return kExitError;
+    }
+  } else {
+    out << storage::to_csv(run);
+    return kExitOk;
+  }
+  if (o.json) {
+    out << nlohmann::json{{"profile", profile->source_name}, {"seed", o.seed}, {"samples", run.size()},
+                          {"settle_s", r->settle_s}, {"effects", cfg.units[0].effects}, {"output", o.output}}
+               .dump()
+        << "\n";
+  } else {
+    out << "simulated " << profile->source_name << " (seed " << o.seed << (cfg.units[0].effects.empty() ? "" : ", effect " + cfg.units[0].effects)
+        << "): " << run.size() << " samples after a " << static_cast<long>(r->settle_s) << " s settle -> " << o.output << "\n";
+  }
+  return kExitOk;
+}
+
+namespace {
+
+std::string describe_model(const model::Model& m) {
+  std::string s;
+  s += "model (" + std::string(to_string(m.method)) + " method) fitted on " + m.fitted_on.name + ": " +
+       std::to_string(m.fitted_on.n_samples) + " samples, " + std::to_string(static_cast<long>(m.fitted_on.duration_s)) + " s\n\n";
+  Table t({"term", "lag_s", "coef", "se (1 sigma)", "unit"});
+  t.add({"mu0", "", fixed(m.mu0_dph, 3), fixed(m.mu0_se, 3), "deg/h"});
+  for (const auto& ft : m.terms)
+    t.add({ft.name(), std::to_string(ft.term.lag.seconds) + (ft.term.lag.automatic ? " (auto)" : ""), fixed(ft.coef, 4),
+           fixed(ft.se, 4), coef_unit(*ft.term.expr)});
+  s += t.str();
+  s += "\nnoise: AR(" + std::to_string(m.ar.size()) + ")";
+  for (std::size_t i = 0; i < m.ar.size(); ++i) s += "  k" + std::to_string(i + 1) + " " + fixed(m.ar[i], 4);
+  s += "  sigma_a " + fixed(m.sigma_a_dph, 4) + " deg/h\n";
+  s += "fit:   " + std::to_string(m.fit.n_used) + " samples used, " + std::to_string(m.fit.n_outliers) + " outliers (3 sigma), " +
+       std::to_string(m.fit.n_flagged) + " flagged samples skipped";
+  if (m.method == model::Method::paper)
+    s += "; opening hold " + std::to_string(m.fit.n_hold) + " s, " + (m.fit.stationary ? "stationary" : "NOT stationary");
+  else
+    s += "; " + std::to_string(m.fit.iterations) + " iterations" + (m.fit.converged ? "" : " (NOT converged)");
+  s += "\n       residual whiteness: Ljung-Box Q " + fixed(m.fit.ljung_box_q, 1) + ", p " + fixed(m.fit.ljung_box_p, 3) +
+       (m.fit.ljung_box_p < 0.01 ? "  (not white: the AR order or the terms may be missing something)" : "") + "\n";
+  // The paper's two betas are close to collinear on steady ramps: say so when it shows.
+  for (std::size_t a = 1; a < m.fit.coef_corr.size(); ++a)
+    for (std::size_t b = a + 1; b < m.fit.coef_corr.size(); ++b)
+      if (std::abs(m.fit.coef_corr[a][b]) > 0.9)
+        s += "note:  the coefficients of " + m.terms[a - 1].name() + " and " + m.terms[b - 1].name() +
+             " are correlated (r = " + fixed(m.fit.coef_corr[a][b], 2) +
+             "): this run barely tells them apart, only their combination is well determined\n";
+  return s;
+}
+
+}  // namespace
+
+int run_fit(const FitCommandOptions& o, std::ostream& out, std::ostream& err) {
+  auto terms = model::parse_terms(o.terms);
+  if (!terms) {
+    err << "fogctl fit: --terms: " << terms.error().pretty() << "\n";
+    return kExitError;
+  }
+  model::FitOptions fo;
+  const std::string method = o.method.empty() ? (terms->paper ? "paper" : "joint") : o.method;
+  auto m = model::method_from_string(method);
+  if (!m) {
+    err << "fogctl fit: --method: expected paper or joint, found '" << method << "'\n";
+    return kExitError;
+  }
+  fo.method = *m;
+  fo.max_lag_s = o.max_lag_s;
+  fo.tref_c = o.tref_c;
+  fo.ar_order = o.ar_order;
+  auto run = load_run(o.run, o.input);
+  if (!run) {
+    err << "fogctl fit: " << run.error() << "\n";
+    return kExitError;
+  }
+  auto model = model::fit(*run, *terms, fo);
+  if (!model) {
+    err << "fogctl fit: " << o.run << ": " << model.error().message << "\n";
+    return kExitError;
+  }
+  model->created_at = now_iso8601();
+  const nlohmann::json j = model::to_json(*model);
+  if (!o.output.empty()) {
+    if (auto w = write_text(o.output, j.dump(2) + "\n"); !w) {
+      err << "fogctl fit: " << w.error() << "\n";
+      return kExitError;
+    }
+  }
+  if (o.json) {
+    out << j.dump() << "\n";
+  } else {
+    out << describe_model(*model);
+    if (!o.output.empty()) out << "\nmodel written to " << o.output << "\n";
+  }
+  return kExitOk;
+}
+
+int run_verify(const VerifyOptions& o, std::ostream& out, std::ostream& err) {
+  auto m = load_model(o.model);
+  if (!m) {
+    err << "fogctl verify: " << m.error() << "\n";
+    return kExitError;
+  }
+  if (!(o.threshold > 0.0 && o.threshold < 1.0)) {
+    err << "fogctl verify: --threshold must be between 0 and 1 (a ratio of std), got " << o.threshold << "\n";
+    return kExitError;
+  }
+  nlohmann::json results = nlohmann::json::array();
+  Table t({"run", "est mean", "meas mean", "est std", "meas std", "comp std", "comp/raw", "verdict"});
+  Table ph({"run", "phase", "samples", "meas std", "comp std", "comp/raw"});
+  bool all_pass = true;
+  for (const auto& path : o.runs) {
+    auto run = load_run(path, o.input);
+    if (!run) {
+      err << "fogctl verify: " << run.error() << "\n";
+      return kExitError;
+    }
+    auto v = model::verify(*m, *run, o.threshold);
+    if (!v) {
+      err << "fogctl verify: " << path << ": " << v.error().message << "\n";
+      return kExitError;
+    }
+    all_pass = all_pass && v->pass;
+    nlohmann::json j = model::to_json(*v);
+    j["run"] = path;
+    results.push_back(j);
+    t.add({path, fixed(v->run.est_mean), fixed(v->run.meas_mean), fixed(v->run.est_std), fixed(v->run.meas_std),
+           fixed(v->run.comp_std), fixed(100.0 * v->run.ratio, 1) + "%", v->pass ? "pass" : "FAIL"});
+    for (const auto& p : v->phases)
+      ph.add({path, std::string(to_string(p.phase)), std::to_string(p.stats.n), fixed(p.stats.meas_std),
+              fixed(p.stats.comp_std), fixed(100.0 * p.stats.ratio, 1) + "%"});
+  }
+  if (o.json) {
+    if (results.size() == 1) {
+      out << results[0].dump() << "\n";
+    } else {
+      out << nlohmann::json{{"runs", results}, {"pass", all_pass}, {"threshold", o.threshold}}.dump() << "\n";
+    }
+  } else {
+    out << "Table 1 (deg/h): model " << o.model << " (" << m->terms_string() << "), pass when comp/raw < "
+        << fixed(100.0 * o.threshold, 0) << "%\n\n"
+        << t.str() << "\nper phase:\n" << ph.str();
+  }
+  return all_pass ? kExitOk : kExitFailed;
+}
+
+namespace {
+
+void add_run_input(CLI::App* c, RunInput& in) {
+  c->add_option("--map", in.maps, "Column of another name: canonical=header, e.g. gyro_dph=Rate (repeatable)");
+  c->add_option("--resample", in.resample_s, "Resample unevenly spaced time onto this step, s");
+}
+
+}  // namespace
+
+void add_offline_commands(CLI::App& app, int& code) {
+  static SimulateOptions sim;
+  auto* s = app.add_subcommand("simulate", "Simulate a thermal run of a gyro on the mock bench's physics, to CSV");
+  s->add_option("--profile", sim.profile, "exp1, exp2, exp3, qualification or a profile file")->required();
+  s->add_option("--effect", sim.effects, "Extra drift in the term language with its coefficient, e.g. \"0.05*T1\" (repeatable)");
+  s->add_option("--seed", sim.seed, "Random seed (same seed, same run)");
+  s->add_option("--serial", sim.serial, "Serial number of the simulated gyro");
+  s->add_option("-o,--output", sim.output, "Write the run's CSV here (default: standard output)");
+  s->add_flag("--json", sim.json, "Print a JSON summary");
+  s->add_flag("-q,--quiet", sim.quiet, "No progress line");
+  s->callback([&] { code = run_simulate(sim, std::cout, std::cerr); });
+
+  static FitCommandOptions fit;
+  auto* f = app.add_subcommand("fit", "Fit the drift model on a run (CSV)");
+  f->add_option("run", fit.run, "The run's CSV file")->required();
+  f->add_option("--terms", fit.terms, "Terms, e.g. \"d(T1)@auto + grad@auto\", or paper (default)");
+  f->add_option("--method", fit.method, "paper (two-step, shared lag) or joint (regression with AR errors); default: paper for `paper`, joint otherwise");
+  f->add_option("--max-lag", fit.max_lag_s, "Longest lag searched for @auto terms, s");
+  f->add_option("--tref", fit.tref_c, "Reference temperature, degC");
+  f->add_option("--ar-order", fit.ar_order, "Order p of the AR noise");
+  f->add_option("-o,--output", fit.output, "Write the model's JSON here");
+  f->add_flag("--json", fit.json, "Print the model as one JSON object");
+  add_run_input(f, fit.input);
+  f->callback([&] { code = run_fit(fit, std::cout, std::cerr); });
+
+  static VerifyOptions ver;
+  auto* v = app.add_subcommand("verify", "Compensate runs with a model: the paper's Table 1 and pass/fail");
+  v->add_option("--model", ver.model, "The model's JSON file")->required();
+  v->add_option("runs", ver.runs, "The runs' CSV files")->required();
+  v->add_option("--threshold", ver.threshold, "Pass when compensated std / raw std is under this (default 0.2)");
+  v->add_flag("--json", ver.json, "Print one JSON object");
+  add_run_input(v, ver.input);
+  v->callback([&] { code = run_verify(ver, std::cout, std::cerr); });
+}
+
+}  // namespace fogbench::cli

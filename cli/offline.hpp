@@ -1,0 +1,54 @@
+// fogctl's offline commands on CSV files: simulate, fit, verify. Each is a function of its
+// options writing to the given streams and returning the exit code, so tests call it directly.
+#pragma once
+
+#include <iosfwd>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common.hpp"
+
+namespace CLI {
+class App;
+}
+
+namespace fogbench::cli {
+
+struct SimulateOptions {
+  std::string profile;                 // exp1|exp2|exp3|FILE
+  std::vector<std::string> effects;    // extra drift terms with coefficients, e.g. "0.05*T1"
+  std::uint64_t seed = 1;
+  std::string output;                  // -o run.csv
+  std::string serial = "SIM-0001";
+  bool json = false;
+  bool quiet = false;
+};
+int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err);
+
+struct FitCommandOptions {
+  std::string run;                     // run.csv
+  std::string terms = "paper";         // term list or `paper`
+  std::string method;                  // paper|joint (default: paper for `paper`, else joint)
+  int max_lag_s = 600;
+  double tref_c = 20.0;
+  int ar_order = 2;
+  std::string output;                  // -o model.json
+  bool json = false;
+  RunInput input;
+};
+int run_fit(const FitCommandOptions& o, std::ostream& out, std::ostream& err);
+
+struct VerifyOptions {
+  std::string model;
+  std::vector<std::string> runs;
+  double threshold = 0.2;
+  bool json = false;
+  RunInput input;
+};
+int run_verify(const VerifyOptions& o, std::ostream& out, std::ostream& err);
+
+// Registers the offline commands on the app; `code` receives the exit code of the one run.
+void add_offline_commands(CLI::App& app, int& code);
+
+}  // namespace fogbench::cli

@@ -1,0 +1,47 @@
+// Plain-text table rendering for fogctl's human output.
+#include "table.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace fogbench::cli {
+namespace {
+bool numeric(const std::string& s) {
+  return !s.empty() && (std::isdigit(static_cast<unsigned char>(s[0])) || s[0] == '-' || s[0] == '+') &&
+         s.find_first_not_of("0123456789+-.e%") == std::string::npos;
+}
+}  // namespace
+
+std::string Table::str() const {
+  std::vector<std::size_t> width(header_.size(), 0);
+  for (std::size_t c = 0; c < header_.size(); ++c) width[c] = header_[c].size();
+  for (const auto& r : rows_)
+    for (std::size_t c = 0; c < r.size() && c < width.size(); ++c) width[c] = std::max(width[c], r[c].size());
+  auto line = [&](const std::vector<std::string>& r, bool head) {
+    std::string s;
+    for (std::size_t c = 0; c < width.size(); ++c) {
+      const std::string cell = c < r.size() ? r[c] : "";
+      const std::size_t pad = width[c] - cell.size();
+      const bool right = !head && numeric(cell);
+      if (c) s += "  ";
+      s += right ? std::string(pad, ' ') + cell : cell + (c + 1 < width.size() ? std::string(pad, ' ') : "");
+    }
+    return s + "\n";
+  };
+  std::string out = line(header_, true);
+  std::size_t total = 0;
+  for (std::size_t w : width) total += w;
+  out += std::string(total + 2 * (width.size() - 1), '-') + "\n";
+  for (const auto& r : rows_) out += line(r, false);
+  return out;
+}
+
+std::string fixed(double v, int digits) {
+  if (std::isnan(v)) return "-";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+  return buf;
+}
+
+}  // namespace fogbench::cli

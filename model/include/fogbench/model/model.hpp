@@ -1,0 +1,154 @@
+// The drift model of the paper and its generalisation:
+//   (1 - k1 q^-1 - ... - kp q^-p) (y(t) - mu0 - sum_j beta_j term_j(t - lag_j)) = a_t
+// fitted by the paper's two-step method or jointly (regression with AR errors), used to
+// predict the drift from temperatures alone and to compensate the gyro output.
+#pragma once
+
+#include <cstddef>
+#include <expected>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "fogbench/model/run.hpp"
+#include "fogbench/model/stats.hpp"
+#include "fogbench/model/terms.hpp"
+
+namespace fogbench::model {
+
+enum class Method { paper, joint };
+std::string_view to_string(Method m);
+std::optional<Method> method_from_string(std::string_view s);
+
+// A fitted term: the term, its lag in s, its coefficient and standard error.
+struct FittedTerm {
+  Term term;             // term.lag.seconds holds the fitted lag; term.lag.automatic whether it was searched
+  double coef = 0.0;     // deg/h per unit of the term (see coef_unit)
+  double se = 0.0;       // 1-sigma standard error of coef, same unit
+  std::string name() const { return to_string(term, false); }
+};
+
+// What data a model was fitted on.
+struct FittedOn {
+  std::string name;
+  std::size_t n_samples = 0;
+  double duration_s = 0.0;
+  double t1_min_c = 0.0, t1_max_c = 0.0;
+  std::string fingerprint;  // FNV-1a 64 of the gyro and temperature columns, hex
+};
+
+struct FitStats {
+  std::size_t n_used = 0;       // samples in the regression
+  std::size_t n_outliers = 0;   // gyro samples removed by the 3-sigma rule
+  std::size_t n_flagged = 0;    // samples skipped for their quality flags
+  std::size_t n_hold = 0;       // samples of the opening hold (paper method)
+  double rss = 0.0;             // residual sum of squares of the final regression, (deg/h)^2
+  double bic = 0.0;             // n ln(rss/n) + k ln n of the innovations
+  double trend_r2 = 0.0;        // share of the (smoothed) drift variance the trend explains
+  bool stationary = true;       // the hold passed the paper's stationarity check
+  double ljung_box_q = 0.0;     // whiteness of the AR residuals (hold for paper, run for joint)
+  double ljung_box_p = 1.0;
+  int iterations = 0;           // joint: Cochrane-Orcutt iterations
+  bool converged = true;
+  std::vector<std::vector<double>> coef_corr;  // correlation matrix of [mu0, beta_1..m]
+};
+
+struct Model {
+  Method method = Method::paper;
+  std::vector<FittedTerm> terms;
+  bool shared_lag = false;      // one lag for all @auto terms (the paper's model)
+  double mu0_dph = 0.0;         // constant bias, deg/h
+  double mu0_se = 0.0;
+  std::vector<double> ar;       // k1..kp
+  double sigma_a_dph = 0.0;     // innovation std, deg/h
+  double tref_c = 20.0;         // temperatures enter the terms as T - tref_c
+  int max_lag_s = 600;
+  int smooth_s = 61;            // paper method: trend smoother width, s
+  int hold_s = 600;             // paper method: opening hold used in step 1, s
+  FitStats fit;
+  FittedOn fitted_on;
+  std::string created_at;       // ISO 8601, set by the caller (model/ reads no clock)
+  std::string note;             // free text, e.g. "added T1 after diagnose"
+  std::shared_ptr<const Model> parent;  // the model this one was refined from
+
+  std::string terms_string() const;  // e.g. "d(T1)@38 + grad@38"
+};
+
+struct FitOptions {
+  Method method = Method::paper;
+  int ar_order = 2;             // p of AR(p)
+  int max_lag_s = 600;          // @auto lags are searched over 0..max_lag_s
+  double tref_c = 20.0;
+  int smooth_s = 61;            // paper: centred moving average width for the trend, s (odd)
+  int hold_s = 600;             // paper: length of the opening hold used for step 1, s
+  double outlier_sigma = 3.0;   // Pauta rule threshold
+  int max_iterations = 30;      // joint: Cochrane-Orcutt iterations at most
+  double tolerance = 1e-7;      // joint: relative change of the coefficients that ends iteration
+  // Checks the options, naming the violated constraint.
+  std::expected<void, std::string> validate() const;
+};
+
+// Every failure of a fit, with a message a user can act on.
+struct FitError {
+  enum class Code { bad_options, too_short, bad_term, missing_signal, collinear, degenerate, uneven_time };
+  Code code;
+  std::string message;
+};
+std::string_view to_string(FitError::Code c);
+
+// Fits the terms on one run. The run's quality-flagged samples are skipped (and counted).
+std::expected<Model, FitError> fit(const RunData& run, const TermList& terms, const FitOptions& options = {});
+
+// The trend mu(t) = mu0 + sum beta_j term_j(t - lag_j), deg/h, from temperatures alone.
+// Before the run's start a lagged term takes its first value (runs open with a steady hold).
+std::expected<std::vector<double>, FitError> predict(const Model& m, const RunData& run);
+
+// Evaluates every term of the model on a run, lag applied: columns of the regression.
+std::expected<std::vector<std::vector<double>>, FitError> regressors(const Model& m, const RunData& run);
+
+// Table 1 of the paper for one set of samples, plus the compensated/raw ratio.
+struct Table1 {
+  std::size_t n = 0;
+  double est_mean = 0.0;   // mean of the prediction mu(t), deg/h
+  double meas_mean = 0.0;  // mean of the measured output, deg/h
+  double est_std = 0.0;    // std of the prediction, deg/h
+  double meas_std = 0.0;   // std of the measured output, deg/h
+  double comp_std = 0.0;   // std of measured - predicted, deg/h
+  double ratio = 0.0;      // comp_std / meas_std
+};
+
+struct PhaseTable {
+  Phase phase;
+  Table1 stats;
+};
+
+struct Verification {
+  Table1 run;                       // the whole run
+  std::vector<PhaseTable> phases;   // hold, heating, cooling (those present)
+  std::size_t n_outliers = 0;       // measured samples beyond 3 sigma of the compensated residual, excluded
+  std::size_t n_flagged = 0;        // samples skipped for their quality flags
+  double threshold = 0.2;
+  bool pass = false;                // run.ratio < threshold
+};
+
+// Compensates a run with the model and computes Table 1, whole and per phase.
+std::expected<Verification, FitError> verify(const Model& m, const RunData& run, double threshold = 0.2);
+Table1 table1(std::span<const double> measured, std::span<const double> predicted);
+
+// The phase of every sample: the run's own phase column when recorded, else from the
+// setpoint's rate, else the chamber's, else T1's (|rate| under 0.05, 0.1, 0.1 degC/min = hold).
+std::vector<Phase> derive_phases(const RunData& run);
+
+// Temperatures of a run as deviations from tref_c, with flagged temperature samples bridged
+// by linear interpolation (so a bad reading does not spread through the derivative filter).
+struct RunSignals {
+  std::vector<double> t1, t2, ta;
+  Signals view() const { return Signals{t1, t2, ta, 1.0}; }
+};
+std::expected<RunSignals, FitError> run_signals(const RunData& run, double tref_c);
+
+// Canonical key of a term for comparisons (expression without lag).
+std::string term_key(const Term& t);
+
+}  // namespace fogbench::model

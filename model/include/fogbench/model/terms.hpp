@@ -1,0 +1,94 @@
+// The term language of shared/TERMS.md: what users type to name a model's terms, e.g.
+// `d(T1)@auto + grad@auto`, `T1*d(T1)@40`, `0.05*T1` (a simulated effect with its coefficient).
+// A parser whose errors give the position and what was expected, a canonical printer, and
+// evaluation of any term over a run's signals.
+#pragma once
+
+#include <cstddef>
+#include <expected>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace fogbench::model {
+
+enum class Signal { T1, T2, Ta, grad };
+
+// One node of an expression. Immutable once parsed; shared between copies of a model.
+struct Expr {
+  enum class Kind { number, signal, d, dd, up, down, lp, pow, mul, add, sub, neg, delay };
+  Kind kind = Kind::number;
+  double value = 0.0;        // number: the value; lp: tau in s
+  Signal signal = Signal::T1;
+  int power = 1;             // pow: the integer exponent
+  int delay_s = 0;           // delay: N seconds
+  std::shared_ptr<const Expr> a, b;
+};
+using ExprPtr = std::shared_ptr<const Expr>;
+
+// The lag of a model term: fixed (seconds) or estimated by the fit within [0, max_lag_s].
+struct Lag {
+  bool automatic = false;
+  int seconds = 0;  // fixed lag, or the estimate once fitted
+  bool operator==(const Lag&) const = default;
+};
+
+// A term of a model: expression and lag. `coef` is the coefficient written in front of it
+// (effects for the simulator: `0.05*T1`); a model's fitted coefficients live in the model.
+struct Term {
+  ExprPtr expr;
+  Lag lag;
+  double coef = 1.0;
+  bool coef_given = false;  // the text had a numeric factor
+};
+
+struct TermList {
+  std::vector<Term> terms;
+  bool paper = false;  // written as `paper`: d(T1)@auto + grad@auto with one shared lag
+};
+
+struct ParseError {
+  std::size_t position = 0;  // 0-based offset into the text
+  std::string message;       // what was expected and what was found
+  std::string text;          // the text parsed
+  // "expected ... at position N" followed by the text and a caret line under the position.
+  std::string pretty() const;
+};
+
+// Parses a sum of terms. `paper` alone expands to the paper's model.
+std::expected<TermList, ParseError> parse_terms(std::string_view text);
+// Parses exactly one term (no top-level `+`).
+std::expected<Term, ParseError> parse_term(std::string_view text);
+
+// Canonical spelling (no spaces, the names of TERMS.md): used to compare terms and in JSON.
+std::string to_string(const Expr& e);
+// The term with its lag: `d(T1)@auto`, `grad@38`, `T1` (lag 0 is not written).
+std::string to_string(const Term& t, bool with_lag = true);
+std::string to_string(const TermList& l);
+// Unit of a coefficient multiplying this expression, to give deg/h: e.g. "deg/h per degC/min".
+std::string coef_unit(const Expr& e);
+// Signals the expression reads (Ta needs the chamber temperature recorded).
+bool uses_signal(const Expr& e, Signal s);
+
+// The signals a term is evaluated over: temperatures as deviations from Tref, degC, at dt_s.
+struct Signals {
+  std::span<const double> t1;  // T1 - Tref, degC
+  std::span<const double> t2;  // T2 - Tref, degC
+  std::span<const double> ta;  // Ta - Tref, degC (empty when not recorded)
+  double dt_s = 1.0;
+  std::size_t size() const { return t1.size(); }
+};
+
+// Half-width of the derivative window, s: d(x) is the least-squares slope over a centred
+// window of 2*30+1 = 61 samples (first-order Savitzky-Golay), in degC/min; at the ends of the
+// run the window is cut to the samples available.
+inline constexpr int kDerivativeHalfWidth = 30;
+std::vector<double> derivative_per_min(std::span<const double> x, double dt_s, int half_width = kDerivativeHalfWidth);
+
+// Evaluates an expression (without the term's own lag) at every sample.
+std::expected<std::vector<double>, std::string> evaluate(const Expr& e, const Signals& s);
+
+}  // namespace fogbench::model

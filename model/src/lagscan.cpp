@@ -1,0 +1,168 @@
+// FFT cross-correlations for the lag scan, on FFTW (a plan per length, cached).
+#include "lagscan.hpp"
+
+#include <fftw3.h>
+
+#include <algorithm>
+#include <cassert>
+#include <map>
+#include <memory>
+#include <mutex>
+
+namespace fogbench::model::detail {
+namespace {
+
+// FFTW's planner is not thread-safe; its execute functions are. Plans are made once per
+// length under this mutex and reused with fftw_malloc'ed arrays (same alignment) forever.
+struct Plans {
+  fftw_plan r2c, c2r;
+};
+std::mutex plan_mutex;
+std::map<std::size_t, Plans>& plan_cache() {
+  static std::map<std::size_t, Plans> cache;
+  return cache;
+}
+
+const Plans& plans_for(std::size_t m) {
+  std::lock_guard lock(plan_mutex);
+  auto& cache = plan_cache();
+  auto it = cache.find(m);
+  if (it != cache.end()) return it->second;
+  auto* in = static_cast<double*>(fftw_malloc(sizeof(double) * m));
+  auto* out = static_cast<fftw_complex*>(fftw_malloc(sizeof(fftw_complex) * (m / 2 + 1)));
+  const int len = static_cast<int>(m);
+  Plans p{fftw_plan_dft_r2c_1d(len, in, out, FFTW_ESTIMATE), fftw_plan_dft_c2r_1d(len, out, in, FFTW_ESTIMATE)};
+  fftw_free(in);
+  fftw_free(out);
+  return cache.emplace(m, p).first->second;
+}
+
+// Smallest length >= n whose prime factors are 2, 3, 5 and 7 (FFTW is fast on those).
+std::size_t good_length(std::size_t n) {
+  for (std::size_t m = std::max<std::size_t>(n, 2);; ++m) {
+    std::size_t r = m;
+    for (std::size_t p : {2u, 3u, 5u, 7u})
+      while (r % p == 0) r /= p;
+    if (r == 1) return m;
+  }
+}
+
+// Work arrays for one transform length, kept per thread: allocating and faulting in fresh
+// pages for every transform cost as much as the transform itself.
+struct Buffers {
+  explicit Buffers(std::size_t m)
+      : real(static_cast<double*>(fftw_malloc(sizeof(double) * m))),
+        cplx(static_cast<fftw_complex*>(fftw_malloc(sizeof(fftw_complex) * (m / 2 + 1)))) {}
+  ~Buffers() {
+    fftw_free(real);
+    fftw_free(cplx);
+  }
+  Buffers(const Buffers&) = delete;
+  Buffers& operator=(const Buffers&) = delete;
+  double* real;
+  fftw_complex* cplx;
+};
+
+Buffers& buffers_for(std::size_t m) {
+  thread_local std::size_t size = 0;
+  thread_local std::unique_ptr<Buffers> b;
+  if (size != m) {
+    b = std::make_unique<Buffers>(m);
+    size = m;
+  }
+  return *b;
+}
+
+Spectrum forward(std::span<const double> x, std::size_t m) {
+  assert(x.size() <= m);
+  Buffers& b = buffers_for(m);
+  std::copy(x.begin(), x.end(), b.real);
+  std::fill(b.real + x.size(), b.real + m, 0.0);
+  fftw_execute_dft_r2c(plans_for(m).r2c, b.real, b.cplx);
+  Spectrum s(m / 2 + 1);
+  for (std::size_t f = 0; f < s.size(); ++f) s[f] = {b.cplx[f][0], b.cplx[f][1]};
+  return s;
+}
+
+// c[k] = sum_t u(t) x(t + k) for k = 0..kmax, from X and U.
+std::vector<double> correlate(const Spectrum& x, const Spectrum& u, std::size_t m, std::size_t kmax) {
+  Buffers& b = buffers_for(m);
+  for (std::size_t f = 0; f < x.size(); ++f) {
+    const std::complex<double> p = x[f] * std::conj(u[f]);
+    b.cplx[f][0] = p.real();
+    b.cplx[f][1] = p.imag();
+  }
+  fftw_execute_dft_c2r(plans_for(m).c2r, b.cplx, b.real);
+  std::vector<double> c(kmax + 1);
+  const double scale = 1.0 / static_cast<double>(m);
+  for (std::size_t k = 0; k <= kmax; ++k) c[k] = b.real[k] * scale;
+  return c;
+}
+
+}  // namespace
+
+Lagged make_lagged(std::span<const double> x, int max_lag) {
+  Lagged l;
+  l.ext.assign(static_cast<std::size_t>(max_lag), x.empty() ? 0.0 : x[0]);
+  l.ext.insert(l.ext.end(), x.begin(), x.end());
+  return l;
+}
+
+std::vector<double> lagged_column(const Lagged& x, std::size_t n, int max_lag, int lag) {
+  assert(lag >= 0 && lag <= max_lag);
+  const auto off = static_cast<std::size_t>(max_lag - lag);
+  return std::vector<double>(x.ext.begin() + static_cast<std::ptrdiff_t>(off),
+                             x.ext.begin() + static_cast<std::ptrdiff_t>(off + n));
+}
+
+LagScanner::LagScanner(std::size_t n, int max_lag, std::vector<double> w)
+    : n_(n), max_lag_(max_lag), m_(good_length(n + static_cast<std::size_t>(max_lag))), w_(std::move(w)) {
+  assert(w_.size() == n_);
+  for (std::size_t t = 0; t < n_; ++t)
+    if (w_[t] == 0.0) zeros_.push_back(t);
+  // Sparse corrections cost |zeros| * L; past N/(8 log N) or so an FFT is cheaper.
+  sparse_zeros_ = zeros_.size() * static_cast<std::size_t>(max_lag_ + 1) < 4 * n_;
+  if (!sparse_zeros_) w_spec_ = forward(w_, m_);
+}
+
+const Spectrum& LagScanner::spec_of(const Lagged& x) const {
+  if (x.spec.empty()) x.spec = forward(x.ext, m_);
+  return x.spec;
+}
+
+Spectrum LagScanner::spectrum_of_target(std::span<const double> u) const { return forward(u, m_); }
+
+std::vector<double> LagScanner::corr(const Lagged& x, const Spectrum& u_spec) const {
+  const auto L = static_cast<std::size_t>(max_lag_);
+  const std::vector<double> c = correlate(spec_of(x), u_spec, m_, L);
+  std::vector<double> out(L + 1);
+  for (std::size_t i = 0; i <= L; ++i) out[i] = c[L - i];  // lag i is shift k = L - i
+  return out;
+}
+
+std::vector<double> LagScanner::corr(const Lagged& x, std::span<const double> u) const {
+  return corr(x, spectrum_of_target(u));
+}
+
+std::vector<double> LagScanner::wsum(std::span<const double> v) const {
+  const auto L = static_cast<std::size_t>(max_lag_);
+  assert(v.size() == n_ + L);
+  std::vector<double> out(L + 1);
+  if (!sparse_zeros_) {
+    const std::vector<double> c = correlate(forward(v, m_), w_spec_, m_, L);
+    for (std::size_t i = 0; i <= L; ++i) out[i] = c[L - i];
+    return out;
+  }
+  // All-ones window sums from prefix sums, minus the samples of weight zero.
+  std::vector<double> prefix(v.size() + 1, 0.0);
+  for (std::size_t j = 0; j < v.size(); ++j) prefix[j + 1] = prefix[j] + v[j];
+  for (std::size_t i = 0; i <= L; ++i) {
+    const std::size_t k = L - i;
+    double s = prefix[k + n_] - prefix[k];
+    for (std::size_t t : zeros_) s -= v[t + k];
+    out[i] = s;
+  }
+  return out;
+}
+
+}  // namespace fogbench::model::detail

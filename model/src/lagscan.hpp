@@ -1,0 +1,53 @@
+// Internal: the lag scan. For a regressor x delayed by i seconds, i = 0..L, every sum the
+// normal equations need is a cross-correlation of x with a fixed series, so all lags cost a
+// few FFTs (O(N log N)) instead of one least-squares solve per lag (O(N L)).
+#pragma once
+
+#include <complex>
+#include <cstddef>
+#include <span>
+#include <vector>
+
+namespace fogbench::model::detail {
+
+using Spectrum = std::vector<std::complex<double>>;
+
+// A regressor extended at the front by L copies of its first value (the steady hold before
+// the run), so that x(t - i) = ext[t + L - i] exists for every t >= 0 and i <= L.
+struct Lagged {
+  std::vector<double> ext;      // length N + L
+  mutable Spectrum spec;        // FFT of ext, computed on first use
+};
+Lagged make_lagged(std::span<const double> x, int max_lag);
+// The column x(t - lag), t = 0..N-1.
+std::vector<double> lagged_column(const Lagged& x, std::size_t n, int max_lag, int lag);
+
+class LagScanner {
+ public:
+  // w: the weight of each sample t = 0..N-1 (0 or 1: skipped samples have 0).
+  LagScanner(std::size_t n, int max_lag, std::vector<double> w);
+
+  std::size_t n() const { return n_; }
+  int max_lag() const { return max_lag_; }
+  const std::vector<double>& weights() const { return w_; }
+
+  // C[i] = sum_t u(t) x(t - i) for i = 0..L, u already weighted (length N).
+  std::vector<double> corr(const Lagged& x, std::span<const double> u) const;
+  // The same with u's spectrum computed once for several regressors.
+  Spectrum spectrum_of_target(std::span<const double> u) const;
+  std::vector<double> corr(const Lagged& x, const Spectrum& u_spec) const;
+  // S[i] = sum_t w(t) v(t - i) for an extended series v (length N + L).
+  std::vector<double> wsum(std::span<const double> v_ext) const;
+
+ private:
+  const Spectrum& spec_of(const Lagged& x) const;
+  std::size_t n_;
+  int max_lag_;
+  std::size_t m_;                    // FFT length >= N + L
+  std::vector<double> w_;
+  std::vector<std::size_t> zeros_;   // samples with weight 0 (sparse corrections)
+  bool sparse_zeros_ = true;
+  Spectrum w_spec_;                  // for dense weights
+};
+
+}  // namespace fogbench::model::detail

@@ -1,0 +1,195 @@
+// Step-1 statistics of the paper: outliers, stationarity, AR(p), ACF/PACF, Ljung-Box.
+#include "fogbench/model/stats.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+namespace fogbench::model {
+
+double mean(std::span<const double> x) {
+  if (x.empty()) return 0.0;
+  return std::accumulate(x.begin(), x.end(), 0.0) / static_cast<double>(x.size());
+}
+
+double stddev(std::span<const double> x) {
+  if (x.size() < 2) return 0.0;
+  const double m = mean(x);
+  double ss = 0.0;
+  for (double v : x) ss += (v - m) * (v - m);
+  return std::sqrt(ss / static_cast<double>(x.size() - 1));
+}
+
+OutlierResult outliers_3sigma(std::span<const double> x, double k_sigma) {
+  OutlierResult r;
+  r.keep.assign(x.size(), true);
+  r.mean = mean(x);
+  r.sigma = stddev(x);
+  if (r.sigma <= 0.0) return r;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (std::abs(x[i] - r.mean) > k_sigma * r.sigma) {
+      r.keep[i] = false;
+      ++r.removed;
+    }
+  }
+  return r;
+}
+
+StationarityResult stationarity_check(std::span<const double> y, int m) {
+  StationarityResult r;
+  r.m = m;
+  if (m < 2 || y.size() < static_cast<std::size_t>(2 * m)) return r;
+  const std::size_t len = y.size() / static_cast<std::size_t>(m);
+  for (int i = 0; i < m; ++i) {
+    auto sub = y.subspan(static_cast<std::size_t>(i) * len, len);
+    const double mu = mean(sub);
+    double var = 0.0;
+    for (double v : sub) var += (v - mu) * (v - mu);
+    var /= static_cast<double>(len);
+    r.gamma.push_back(mu + var);
+  }
+  const double gbar = mean(r.gamma);
+  for (double g : r.gamma) (g > gbar ? r.m1 : r.m2)++;
+  r.stationary = std::abs(r.m1 - r.m2) <= std::max(1, m / 5);
+  return r;
+}
+
+std::expected<ArFit, std::string> fit_ar(std::span<const double> y, int p) {
+  if (p < 1) return std::unexpected("AR order must be at least 1, got " + std::to_string(p));
+  const auto n = static_cast<Eigen::Index>(y.size());
+  // N >> p keeps X'X non-singular (paper, after eq. 12); ask for at least 10 rows per coefficient.
+  if (n < p + 10 * p)
+    return std::unexpected("AR(" + std::to_string(p) + ") needs at least " + std::to_string(11 * p) +
+                           " samples, got " + std::to_string(n));
+  const Eigen::Index rows = n - p;
+  Eigen::MatrixXd X(rows, p);
+  Eigen::VectorXd Y(rows);
+  for (Eigen::Index t = p; t < n; ++t) {
+    Y(t - p) = y[static_cast<std::size_t>(t)];
+    for (int j = 0; j < p; ++j) X(t - p, j) = y[static_cast<std::size_t>(t - 1 - j)];
+  }
+  const Eigen::MatrixXd XtX = X.transpose() * X;
+  Eigen::LDLT<Eigen::MatrixXd> ldlt(XtX);
+  if (ldlt.info() != Eigen::Success || ldlt.rcond() < 1e-12)
+    return std::unexpected("AR fit: the series is constant or degenerate (X'X is singular)");
+  const Eigen::VectorXd XtY = X.transpose() * Y;
+  const Eigen::VectorXd theta = ldlt.solve(XtY);
+  ArFit r;
+  r.k.assign(theta.data(), theta.data() + p);
+  r.sigma_a2 = std::max(0.0, (Y.dot(Y) - XtY.dot(theta)) / static_cast<double>(n));
+  const Eigen::VectorXd a = Y - X * theta;
+  r.residuals.assign(a.data(), a.data() + rows);
+  return r;
+}
+
+std::vector<double> ar_filter(std::span<const double> x, std::span<const double> k) {
+  std::vector<double> out(x.size());
+  const std::size_t p = k.size();
+  for (std::size_t t = 0; t < x.size(); ++t) {
+    double v = x[t];
+    for (std::size_t j = 0; j < p; ++j) v -= k[j] * (t >= j + 1 ? x[t - j - 1] : x[0]);
+    out[t] = v;
+  }
+  return out;
+}
+
+std::vector<double> acf(std::span<const double> x, int max_lag) {
+  std::vector<double> r;
+  const std::size_t n = x.size();
+  if (n < 2 || max_lag < 1) return r;
+  const double m = mean(x);
+  double c0 = 0.0;
+  for (double v : x) c0 += (v - m) * (v - m);
+  const int h = std::min<int>(max_lag, static_cast<int>(n) - 1);
+  r.reserve(static_cast<std::size_t>(h));
+  for (int k = 1; k <= h; ++k) {
+    double c = 0.0;
+    for (std::size_t t = 0; t + static_cast<std::size_t>(k) < n; ++t)
+      c += (x[t] - m) * (x[t + static_cast<std::size_t>(k)] - m);
+    r.push_back(c0 > 0.0 ? c / c0 : 0.0);
+  }
+  return r;
+}
+
+std::vector<double> pacf(std::span<const double> x, int max_lag) {
+  const std::vector<double> r = acf(x, max_lag);
+  const std::size_t h = r.size();
+  std::vector<double> out(h), phi(h + 1, 0.0), prev(h + 1, 0.0);
+  double v = 1.0;
+  for (std::size_t k = 1; k <= h; ++k) {
+    double num = r[k - 1];
+    for (std::size_t j = 1; j < k; ++j) num -= prev[j] * r[k - j - 1];
+    const double pk = v > 0.0 ? num / v : 0.0;
+    phi[k] = pk;
+    for (std::size_t j = 1; j < k; ++j) phi[j] = prev[j] - pk * prev[k - j];
+    v *= (1.0 - pk * pk);
+    out[k - 1] = pk;
+    prev = phi;
+  }
+  return out;
+}
+
+LjungBox ljung_box(std::span<const double> e, int lags, int fitted_params) {
+  LjungBox lb;
+  const auto n = static_cast<double>(e.size());
+  const std::vector<double> r = acf(e, lags);
+  lb.lags = static_cast<int>(r.size());
+  lb.dof = std::max(1, lb.lags - fitted_params);
+  for (std::size_t k = 1; k <= r.size(); ++k) lb.q += r[k - 1] * r[k - 1] / (n - static_cast<double>(k));
+  lb.q *= n * (n + 2.0);
+  lb.p_value = chi2_sf(lb.q, lb.dof);
+  return lb;
+}
+
+Whiteness whiteness(std::span<const double> e, int max_lag, int fitted_params) {
+  Whiteness w;
+  w.acf = acf(e, max_lag);
+  w.pacf = pacf(e, max_lag);
+  w.band = white_band(e.size());
+  for (double v : w.acf) w.acf_outside += std::abs(v) > w.band;
+  for (double v : w.pacf) w.pacf_outside += std::abs(v) > w.band;
+  w.lb = ljung_box(e, max_lag, fitted_params);
+  return w;
+}
+
+// Q(a,x) by the series for P when x < a+1 and Lentz's continued fraction otherwise
+// (Numerical Recipes 6.2); both converge to double precision within a few hundred terms.
+double gamma_q(double a, double x) {
+  if (x <= 0.0) return 1.0;
+  if (a <= 0.0) return 0.0;
+  const double gln = std::lgamma(a);
+  constexpr double eps = 1e-15;
+  if (x < a + 1.0) {
+    double ap = a, sum = 1.0 / a, del = sum;
+    for (int n = 0; n < 10000; ++n) {
+      ap += 1.0;
+      del *= x / ap;
+      sum += del;
+      if (std::abs(del) < std::abs(sum) * eps) break;
+    }
+    const double p = sum * std::exp(-x + a * std::log(x) - gln);
+    return std::clamp(1.0 - p, 0.0, 1.0);
+  }
+  constexpr double tiny = 1e-300;
+  double b = x + 1.0 - a, c = 1.0 / tiny, d = 1.0 / b, h = d;
+  for (int i = 1; i < 10000; ++i) {
+    const double an = -i * (i - a);
+    b += 2.0;
+    d = an * d + b;
+    if (std::abs(d) < tiny) d = tiny;
+    c = b + an / c;
+    if (std::abs(c) < tiny) c = tiny;
+    d = 1.0 / d;
+    const double del = d * c;
+    h *= del;
+    if (std::abs(del - 1.0) < eps) break;
+  }
+  return std::clamp(std::exp(-x + a * std::log(x) - gln) * h, 0.0, 1.0);
+}
+
+double chi2_sf(double x, double dof) { return gamma_q(0.5 * dof, 0.5 * x); }
+
+}  // namespace fogbench::model

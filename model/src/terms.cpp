@@ -1,0 +1,516 @@
+// Parser, printer and evaluator of the term language (shared/TERMS.md).
+//
+// Grammar (whitespace ignored):
+//   list    := 'paper' | ['-'] summand (('+' | '-') summand)*
+//   summand := product ['@' (INTEGER ['s'] | 'auto')]
+//   product := power ('*' power)*
+//   power   := primary ['^' INTEGER]
+//   primary := NUMBER | SIGNAL | FUNC '(' expr [',' NUMBER] ')' | '(' expr ')'
+//   expr    := product-with-delays joined by + and - (inside parentheses only)
+// Numbers multiplying a summand form its coefficient; the rest is the term.
+#include "fogbench/model/terms.hpp"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <sstream>
+
+namespace fogbench::model {
+namespace {
+
+using K = Expr::Kind;
+
+ExprPtr make(K k, ExprPtr a = nullptr, ExprPtr b = nullptr) {
+  auto e = std::make_shared<Expr>();
+  e->kind = k;
+  e->a = std::move(a);
+  e->b = std::move(b);
+  return e;
+}
+
+class Parser {
+ public:
+  explicit Parser(std::string_view text) : s_(text) {}
+
+  std::expected<TermList, ParseError> list() {
+    skip();
+    TermList out;
+    if (peek_word() == "paper") {
+      pos_ += 5;
+      skip();
+      if (!at_end()) return fail("expected the end after 'paper'");
+      out.paper = true;
+      for (auto spec : {"d(T1)", "grad"}) {
+        Parser p(spec);
+        auto t = p.summand(1.0);
+        t->lag.automatic = true;
+        out.terms.push_back(*t);
+      }
+      return out;
+    }
+    double sign = 1.0;
+    if (peek() == '-') {
+      sign = -1.0;
+      ++pos_;
+    } else if (peek() == '+') {
+      ++pos_;
+    }
+    for (;;) {
+      auto t = summand(sign);
+      if (!t) return std::unexpected(t.error());
+      out.terms.push_back(std::move(*t));
+      skip();
+      if (at_end()) break;
+      if (peek() == '+') sign = 1.0;
+      else if (peek() == '-') sign = -1.0;
+      else return fail("expected '+', '-', '*', '@' or the end");
+      ++pos_;
+    }
+    return out;
+  }
+
+  std::expected<Term, ParseError> summand(double sign) {
+    skip();
+    Term t;
+    t.coef = sign;
+    t.coef_given = sign < 0.0;
+    ExprPtr term;
+    for (;;) {
+      auto f = power();
+      if (!f) return std::unexpected(f.error());
+      if ((*f)->kind == K::number) {
+        t.coef *= (*f)->value;
+        t.coef_given = true;
+      } else {
+        term = term ? mul(term, *f) : *f;
+      }
+      skip();
+      if (peek() != '*') break;
+      ++pos_;
+    }
+    if (!term) return fail("expected a term (a signal such as T1, or a function such as d(T1)), found only a number");
+    t.expr = term;
+    skip();
+    if (peek() == '@') {
+      ++pos_;
+      skip();
+      if (peek_word() == "auto") {
+        pos_ += 4;
+        t.lag.automatic = true;
+      } else {
+        auto n = integer("a lag in seconds or 'auto' after '@'");
+        if (!n) return std::unexpected(n.error());
+        t.lag.seconds = *n;
+        if (peek() == 's') ++pos_;
+      }
+    }
+    return t;
+  }
+
+  bool at_end() {
+    skip();
+    return pos_ >= s_.size();
+  }
+
+  ParseError error(std::string msg) const { return ParseError{pos_, std::move(msg), std::string(s_)}; }
+  std::unexpected<ParseError> fail(std::string expected) const {
+    std::string found = pos_ < s_.size() ? "'" + std::string(s_.substr(pos_, 1)) + "'" : "the end";
+    return std::unexpected(error(expected + ", found " + found));
+  }
+
+ private:
+  static ExprPtr mul(ExprPtr a, ExprPtr b) { return make(K::mul, std::move(a), std::move(b)); }
+
+  std::expected<ExprPtr, ParseError> expr() {
+    auto lhs = delayed_product();
+    if (!lhs) return lhs;
+    ExprPtr e = *lhs;
+    for (;;) {
+      skip();
+      char c = peek();
+      if (c != '+' && c != '-') return e;
+      ++pos_;
+      auto rhs = delayed_product();
+      if (!rhs) return rhs;
+      e = make(c == '+' ? K::add : K::sub, e, *rhs);
+    }
+  }
+
+  std::expected<ExprPtr, ParseError> delayed_product() {
+    skip();
+    bool neg = false;
+    if (peek() == '-') {
+      neg = true;
+      ++pos_;
+    }
+    auto p = power();
+    if (!p) return p;
+    ExprPtr e = *p;
+    for (;;) {
+      skip();
+      if (peek() != '*') break;
+      ++pos_;
+      auto f = power();
+      if (!f) return f;
+      e = mul(e, *f);
+    }
+    skip();
+    if (peek() == '@') {
+      ++pos_;
+      skip();
+      if (peek_word() == "auto") return fail("'@auto' is allowed only at the end of a whole term, not inside a function");
+      auto n = integer("a lag in seconds after '@'");
+      if (!n) return std::unexpected(n.error());
+      if (peek() == 's') ++pos_;
+      auto d = make(K::delay, e);
+      std::const_pointer_cast<Expr>(d)->delay_s = *n;
+      e = d;
+    }
+    return neg ? make(K::neg, e) : e;
+  }
+
+  std::expected<ExprPtr, ParseError> power() {
+    auto p = primary();
+    if (!p) return p;
+    skip();
+    if (peek() != '^') return p;
+    ++pos_;
+    skip();
+    auto n = integer("an integer exponent after '^'");
+    if (!n) return std::unexpected(n.error());
+    if (*n < 1 || *n > 4) return std::unexpected(error("exponent must be 1 to 4, got " + std::to_string(*n)));
+    if ((*p)->kind == K::number) {
+      auto e = make(K::number);
+      std::const_pointer_cast<Expr>(e)->value = std::pow((*p)->value, *n);
+      return e;
+    }
+    auto e = make(K::pow, *p);
+    std::const_pointer_cast<Expr>(e)->power = *n;
+    return e;
+  }
+
+  std::expected<ExprPtr, ParseError> primary() {
+    skip();
+    const std::size_t start = pos_;
+    char c = peek();
+    if (c == '(') {
+      ++pos_;
+      auto e = expr();
+      if (!e) return e;
+      skip();
+      if (peek() != ')') return fail("expected ')' to close the '(' at position " + std::to_string(start));
+      ++pos_;
+      return e;
+    }
+    if (std::isdigit(static_cast<unsigned char>(c)) || c == '.') {
+      auto v = number();
+      if (!v) return std::unexpected(v.error());
+      auto e = make(K::number);
+      std::const_pointer_cast<Expr>(e)->value = *v;
+      return e;
+    }
+    std::string_view w = peek_word();
+    if (w.empty()) return fail("expected a signal (T1, T2, Ta, grad), a function (d, dd, up, down, lp), a number or '('");
+    pos_ += w.size();
+    if (w == "T1" || w == "T2" || w == "Ta" || w == "grad") {
+      auto e = make(K::signal);
+      std::const_pointer_cast<Expr>(e)->signal = w == "T1" ? Signal::T1 : w == "T2" ? Signal::T2 : w == "Ta" ? Signal::Ta : Signal::grad;
+      return e;
+    }
+    K k;
+    if (w == "d") k = K::d;
+    else if (w == "dd") k = K::dd;
+    else if (w == "up") k = K::up;
+    else if (w == "down") k = K::down;
+    else if (w == "lp") k = K::lp;
+    else {
+      pos_ = start;
+      return std::unexpected(error("unknown name '" + std::string(w) +
+                                   "': expected a signal (T1, T2, Ta, grad) or a function (d, dd, up, down, lp)"));
+    }
+    skip();
+    if (peek() != '(') return fail("expected '(' after '" + std::string(w) + "'");
+    ++pos_;
+    auto arg = expr();
+    if (!arg) return arg;
+    auto e = make(k, *arg);
+    skip();
+    if (k == K::lp) {
+      if (peek() != ',') return fail("expected ',' and a time constant in seconds: lp(x, tau)");
+      ++pos_;
+      skip();
+      auto tau = number();
+      if (!tau) return std::unexpected(tau.error());
+      if (!(*tau > 0.0)) return std::unexpected(error("lp time constant must be positive, got " + std::to_string(*tau)));
+      std::const_pointer_cast<Expr>(e)->value = *tau;
+      skip();
+    }
+    if (peek() != ')') return fail("expected ')' to close '" + std::string(w) + "('");
+    ++pos_;
+    return e;
+  }
+
+  std::expected<double, ParseError> number() {
+    skip();
+    const char* b = s_.data() + pos_;
+    const char* end = s_.data() + s_.size();
+    double v = 0.0;
+    auto [p, ec] = std::from_chars(b, end, v);
+    if (ec != std::errc() || p == b) return fail("expected a number");
+    pos_ += static_cast<std::size_t>(p - b);
+    return v;
+  }
+
+  std::expected<int, ParseError> integer(const std::string& what) {
+    skip();
+    const char* b = s_.data() + pos_;
+    int v = 0;
+    auto [p, ec] = std::from_chars(b, s_.data() + s_.size(), v);
+    if (ec != std::errc() || p == b) return fail("expected " + what);
+    if (v < 0) return std::unexpected(error("a lag cannot be negative"));
+    if (v > 86400) return std::unexpected(error("lag of " + std::to_string(v) + " s is longer than a day"));
+    pos_ += static_cast<std::size_t>(p - b);
+    return v;
+  }
+
+  void skip() {
+    while (pos_ < s_.size() && std::isspace(static_cast<unsigned char>(s_[pos_]))) ++pos_;
+  }
+  char peek() const { return pos_ < s_.size() ? s_[pos_] : '\0'; }
+  std::string_view peek_word() const {
+    std::size_t e = pos_;
+    while (e < s_.size() && (std::isalnum(static_cast<unsigned char>(s_[e])) || s_[e] == '_')) ++e;
+    if (e == pos_ || std::isdigit(static_cast<unsigned char>(s_[pos_]))) return {};
+    return s_.substr(pos_, e - pos_);
+  }
+
+  std::string_view s_;
+  std::size_t pos_ = 0;
+};
+
+std::string fmt_number(double v) {
+  std::ostringstream o;
+  o.precision(12);
+  o << v;
+  return o.str();
+}
+
+int precedence(const Expr& e) {
+  switch (e.kind) {
+    case K::add: case K::sub: return 1;
+    case K::mul: return 2;
+    case K::neg: return 2;
+    case K::delay: return 2;
+    case K::pow: return 3;
+    default: return 4;
+  }
+}
+
+std::string wrap(const Expr& e, int min_prec) {
+  std::string s = to_string(e);
+  return precedence(e) < min_prec ? "(" + s + ")" : s;
+}
+
+}  // namespace
+
+std::string ParseError::pretty() const {
+  return message + " at position " + std::to_string(position + 1) + "\n  " + text + "\n  " +
+         std::string(position, ' ') + "^";
+}
+
+std::expected<TermList, ParseError> parse_terms(std::string_view text) {
+  Parser p(text);
+  if (p.at_end()) return std::unexpected(ParseError{0, "expected a term, found an empty text", std::string(text)});
+  return p.list();
+}
+
+std::expected<Term, ParseError> parse_term(std::string_view text) {
+  auto l = parse_terms(text);
+  if (!l) return std::unexpected(l.error());
+  if (l->terms.size() != 1)
+    return std::unexpected(ParseError{0, "expected exactly one term, found " + std::to_string(l->terms.size()), std::string(text)});
+  return l->terms.front();
+}
+
+std::string to_string(const Expr& e) {
+  switch (e.kind) {
+    case K::number: return fmt_number(e.value);
+    case K::signal:
+      switch (e.signal) {
+        case Signal::T1: return "T1";
+        case Signal::T2: return "T2";
+        case Signal::Ta: return "Ta";
+        case Signal::grad: return "grad";
+      }
+      return "?";
+    case K::d: return "d(" + to_string(*e.a) + ")";
+    case K::dd: return "dd(" + to_string(*e.a) + ")";
+    case K::up: return "up(" + to_string(*e.a) + ")";
+    case K::down: return "down(" + to_string(*e.a) + ")";
+    case K::lp: return "lp(" + to_string(*e.a) + "," + fmt_number(e.value) + ")";
+    case K::pow: return wrap(*e.a, 4) + "^" + std::to_string(e.power);
+    case K::mul: return wrap(*e.a, 2) + "*" + wrap(*e.b, 3);
+    case K::add: return to_string(*e.a) + "+" + wrap(*e.b, 2);
+    case K::sub: return to_string(*e.a) + "-" + wrap(*e.b, 2);
+    case K::neg: return "-" + wrap(*e.a, 3);
+    case K::delay: return wrap(*e.a, 3) + "@" + std::to_string(e.delay_s);
+  }
+  return "?";
+}
+
+std::string to_string(const Term& t, bool with_lag) {
+  std::string s = to_string(*t.expr);
+  if (t.expr->kind == K::add || t.expr->kind == K::sub) s = "(" + s + ")";
+  if (!with_lag) return s;
+  if (t.lag.automatic) return s + "@auto";
+  if (t.lag.seconds != 0) return s + "@" + std::to_string(t.lag.seconds);
+  return s;
+}
+
+std::string to_string(const TermList& l) {
+  if (l.paper) return "paper";
+  std::string s;
+  for (const auto& t : l.terms) {
+    if (!s.empty()) s += " + ";
+    s += to_string(t);
+  }
+  return s;
+}
+
+namespace {
+// Unit of an expression's value as a string of degC powers and per-minute powers.
+struct Unit {
+  int temp = 0;     // power of degC
+  int per_min = 0;  // power of 1/min
+};
+Unit unit_of(const Expr& e) {
+  switch (e.kind) {
+    case K::number: return {};
+    case K::signal: return {1, 0};
+    case K::d: { auto u = unit_of(*e.a); u.per_min += 1; return u; }
+    case K::dd: { auto u = unit_of(*e.a); u.per_min += 2; return u; }
+    case K::up: case K::down: case K::lp: case K::neg: case K::delay: return unit_of(*e.a);
+    case K::pow: { auto u = unit_of(*e.a); u.temp *= e.power; u.per_min *= e.power; return u; }
+    case K::mul: { auto a = unit_of(*e.a), b = unit_of(*e.b); return {a.temp + b.temp, a.per_min + b.per_min}; }
+    case K::add: case K::sub: return unit_of(*e.a);
+  }
+  return {};
+}
+}  // namespace
+
+std::string coef_unit(const Expr& e) {
+  const Unit u = unit_of(e);
+  std::string s;
+  if (u.temp == 1) s = "degC";
+  else if (u.temp > 1) s = "degC^" + std::to_string(u.temp);
+  if (u.per_min == 1) s += "/min";
+  else if (u.per_min > 1) s += "/min^" + std::to_string(u.per_min);
+  if (s.empty()) return "deg/h";
+  return "deg/h per " + s;
+}
+
+bool uses_signal(const Expr& e, Signal s) {
+  if (e.kind == K::signal) return e.signal == s || (s != Signal::Ta && e.signal == Signal::grad && (s == Signal::T1 || s == Signal::T2));
+  return (e.a && uses_signal(*e.a, s)) || (e.b && uses_signal(*e.b, s));
+}
+
+std::vector<double> derivative_per_min(std::span<const double> x, double dt_s, int half_width) {
+  const std::size_t n = x.size();
+  std::vector<double> out(n, 0.0);
+  if (n < 2) return out;
+  // Prefix sums of x and i*x give each window's least-squares slope in O(1).
+  std::vector<double> sx(n + 1, 0.0), six(n + 1, 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    sx[i + 1] = sx[i] + x[i];
+    six[i + 1] = six[i] + static_cast<double>(i) * x[i];
+  }
+  const auto h = static_cast<std::size_t>(std::max(1, half_width));
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t lo = i >= h ? i - h : 0;
+    const std::size_t hi = std::min(n - 1, i + h);
+    const double m = static_cast<double>(hi - lo + 1);
+    const double st = 0.5 * (static_cast<double>(lo) + static_cast<double>(hi)) * m;  // sum of indices
+    // sum of squared indices over [lo, hi]
+    auto sq = [](double k) { return k * (k + 1.0) * (2.0 * k + 1.0) / 6.0; };
+    const double stt = sq(static_cast<double>(hi)) - (lo ? sq(static_cast<double>(lo) - 1.0) : 0.0);
+    const double sxw = sx[hi + 1] - sx[lo];
+    const double sixw = six[hi + 1] - six[lo];
+    const double den = stt - st * st / m;
+    const double slope_per_sample = den > 0.0 ? (sixw - st * sxw / m) / den : 0.0;
+    out[i] = slope_per_sample * 60.0 / dt_s;
+  }
+  return out;
+}
+
+std::expected<std::vector<double>, std::string> evaluate(const Expr& e, const Signals& s) {
+  const std::size_t n = s.size();
+  auto sub = [&](const Expr& x) { return evaluate(x, s); };
+  switch (e.kind) {
+    case K::number: return std::vector<double>(n, e.value);
+    case K::signal: {
+      if (e.signal == Signal::T1) return std::vector<double>(s.t1.begin(), s.t1.end());
+      if (e.signal == Signal::T2) return std::vector<double>(s.t2.begin(), s.t2.end());
+      if (e.signal == Signal::Ta) {
+        if (s.ta.size() != n) return std::unexpected(std::string("term uses Ta, the chamber air temperature, which this run did not record (no chamber_c column)"));
+        return std::vector<double>(s.ta.begin(), s.ta.end());
+      }
+      std::vector<double> g(n);
+      for (std::size_t i = 0; i < n; ++i) g[i] = s.t1[i] - s.t2[i];
+      return g;
+    }
+    case K::d: case K::dd: {
+      auto v = sub(*e.a);
+      if (!v) return v;
+      auto d1 = derivative_per_min(*v, s.dt_s);
+      if (e.kind == K::dd) d1 = derivative_per_min(d1, s.dt_s);
+      return d1;
+    }
+    case K::up: case K::down: {
+      auto v = sub(*e.a);
+      if (!v) return v;
+      for (double& x : *v) x = e.kind == K::up ? std::max(x, 0.0) : std::min(x, 0.0);
+      return v;
+    }
+    case K::lp: {
+      auto v = sub(*e.a);
+      if (!v || v->empty()) return v;
+      // Exact discretisation of a first-order lag for a signal held over each step.
+      const double alpha = 1.0 - std::exp(-s.dt_s / e.value);
+      double y = (*v)[0];
+      for (double& x : *v) x = y = y + alpha * (x - y);
+      return v;
+    }
+    case K::pow: {
+      auto v = sub(*e.a);
+      if (!v) return v;
+      for (double& x : *v) x = std::pow(x, e.power);
+      return v;
+    }
+    case K::neg: {
+      auto v = sub(*e.a);
+      if (!v) return v;
+      for (double& x : *v) x = -x;
+      return v;
+    }
+    case K::mul: case K::add: case K::sub: {
+      auto a = sub(*e.a);
+      if (!a) return a;
+      auto b = sub(*e.b);
+      if (!b) return b;
+      for (std::size_t i = 0; i < n; ++i)
+        (*a)[i] = e.kind == K::mul ? (*a)[i] * (*b)[i] : e.kind == K::add ? (*a)[i] + (*b)[i] : (*a)[i] - (*b)[i];
+      return a;
+    }
+    case K::delay: {
+      auto v = sub(*e.a);
+      if (!v) return v;
+      const auto lag = static_cast<std::size_t>(std::lround(e.delay_s / s.dt_s));
+      std::vector<double> out(n);
+      for (std::size_t i = 0; i < n; ++i) out[i] = (*v)[i >= lag ? i - lag : 0];
+      return out;
+    }
+  }
+  return std::unexpected(std::string("internal: unknown expression kind"));
+}
+
+}  // namespace fogbench::model

@@ -1,0 +1,176 @@
+// Physics of the chamber, the coil and the gyro; see sim.hpp.
+#include "fogbench/sim/sim.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace fogbench::sim {
+namespace {
+
+// One exact step of a first-order lag y' = (x - y)/tau over dt for x held constant.
+double lag_step(double y, double x, double tau_s, double dt_s) { return x + (y - x) * std::exp(-dt_s / tau_s); }
+
+int history_needed(const model::Expr& e) {
+  using K = model::Expr::Kind;
+  int own = 0;
+  switch (e.kind) {
+    case K::d: own = 2 * model::kDerivativeHalfWidth; break;
+    case K::dd: own = 4 * model::kDerivativeHalfWidth; break;
+    case K::lp: own = static_cast<int>(8.0 * e.value); break;
+    case K::delay: own = e.delay_s; break;
+    default: break;
+  }
+  return own + std::max(e.a ? history_needed(*e.a) : 0, e.b ? history_needed(*e.b) : 0);
+}
+
+}  // namespace
+
+std::expected<DriftLaw, std::string> make_drift_law(const UnitParams& u) {
+  DriftLaw law;
+  law.mu0_dph = u.gyro.mu0_dph;
+  law.tref_c = u.gyro.tref_c;
+  for (const auto& [what, text] : {std::pair{"gyro terms", u.gyro.terms}, std::pair{"effect", u.effects}}) {
+    if (text.empty()) continue;
+    auto l = model::parse_terms(text);
+    if (!l) return std::unexpected(std::string(what) + " '" + text + "': " + l.error().pretty());
+    for (auto t : l->terms) {
+      if (t.lag.automatic) return std::unexpected(std::string(what) + ": a simulated term needs a fixed lag, not @auto: '" + model::to_string(t) + "'");
+      law.history_s = std::max(law.history_s, history_needed(*t.expr) + t.lag.seconds);
+      law.terms.push_back(std::move(t));
+    }
+  }
+  return law;
+}
+
+std::expected<std::vector<double>, std::string> drift_series(const DriftLaw& law, std::span<const double> t1_c,
+                                                             std::span<const double> t2_c, std::span<const double> ta_c) {
+  const std::size_t n = t1_c.size();
+  std::vector<double> t1(n), t2(n), ta(ta_c.size());
+  for (std::size_t i = 0; i < n; ++i) {
+    t1[i] = t1_c[i] - law.tref_c;
+    t2[i] = t2_c[i] - law.tref_c;
+  }
+  for (std::size_t i = 0; i < ta.size(); ++i) ta[i] = ta_c[i] - law.tref_c;
+  const model::Signals s{t1, t2, ta, 1.0};
+  std::vector<double> d(n, law.mu0_dph);
+  for (const auto& t : law.terms) {
+    auto v = model::evaluate(*t.expr, s);
+    if (!v) return std::unexpected(v.error());
+    const auto lag = static_cast<std::size_t>(t.lag.seconds);
+    for (std::size_t i = 0; i < n; ++i) d[i] += t.coef * (*v)[i >= lag ? i - lag : 0];
+  }
+  return d;
+}
+
+std::expected<World, std::string> World::create(const SimConfig& cfg) {
+  if (cfg.units.empty()) return std::unexpected(std::string("the simulation needs at least one unit"));
+  World w;
+  w.cfg_ = cfg;
+  w.rng_.seed(cfg.seed);
+  w.air_c_ = cfg.start_c;
+  for (const auto& u : cfg.units) {
+    auto law = make_drift_law(u);
+    if (!law) return std::unexpected("unit " + u.serial + ": " + law.error());
+    if (u.coil.wall_tau_s <= 0 || u.coil.core_tau_s <= 0) return std::unexpected("unit " + u.serial + ": coil time constants must be positive");
+    UnitState st;
+    st.law = std::move(*law);
+    st.t1 = st.t2 = cfg.start_c;
+    w.window_ = std::max<std::size_t>(w.window_, static_cast<std::size_t>(st.law.history_s) + 2 * model::kDerivativeHalfWidth + 64);
+    w.units_.push_back(std::move(st));
+  }
+  return w;
+}
+
+double World::gyro_noise(UnitState& u, const UnitParams& p) {
+  std::normal_distribution<double> a(0.0, p.gyro.sigma_a_dph);
+  const double k1 = p.gyro.ar.size() > 0 ? p.gyro.ar[0] : 0.0;
+  const double k2 = p.gyro.ar.size() > 1 ? p.gyro.ar[1] : 0.0;
+  const double n = k1 * u.n1 + k2 * u.n2 + a(rng_);
+  u.n2 = u.n1;
+  u.n1 = n;
+  double spike = 0.0;
+  if (std::uniform_real_distribution<double>(0.0, 1.0)(rng_) < p.gyro.outlier_rate_per_s)
+    spike = (std::uniform_real_distribution<double>(0.0, 1.0)(rng_) < 0.5 ? -1.0 : 1.0) * p.gyro.outlier_dph;
+  return n + spike;
+}
+
+double World::chamber_reading_c() {
+  return air_c_ + std::normal_distribution<double>(0.0, cfg_.chamber.air_noise_c)(rng_);
+}
+
+void World::step(double setpoint_c) {
+  // Air: first-order lag to the setpoint, its rate capped by the chamber's capacity.
+  const double target = lag_step(air_c_, setpoint_c, cfg_.chamber.air_tau_s, 1.0);
+  const double cap = cfg_.chamber.max_rate_c_per_min / 60.0;
+  air_c_ += std::clamp(target - air_c_, -cap, cap);
+  time_s_ += 1.0;
+  for (std::size_t i = 0; i < units_.size(); ++i) {
+    auto& u = units_[i];
+    const auto& p = cfg_.units[i];
+    u.t2 = lag_step(u.t2, air_c_, p.coil.wall_tau_s, 1.0);
+    u.t1 = lag_step(u.t1, u.t2, p.coil.core_tau_s, 1.0);
+    u.h1.push_back(u.t1);
+    u.h2.push_back(u.t2);
+    u.ha.push_back(air_c_);
+    if (u.h1.size() > 2 * window_) {  // keep a trailing window: amortised O(1) per step
+      const auto drop = static_cast<std::ptrdiff_t>(u.h1.size() - window_);
+      for (auto* h : {&u.h1, &u.h2, &u.ha}) h->erase(h->begin(), h->begin() + drop);
+    }
+    // The drift of the newest second from the trailing window; terms whose lag is shorter
+    // than a centred filter's half-width see the window's one-sided edge (as a run's end does).
+    double drift = u.law.mu0_dph;
+    if (auto d = drift_series(u.law, u.h1, u.h2, u.ha)) drift = d->back();
+    std::normal_distribution<double> tn(0.0, p.coil.t_noise_c);
+    u.last.t1_c = u.t1 + tn(rng_);
+    u.last.t2_c = u.t2 + tn(rng_);
+    u.last.noise_dph = gyro_noise(u, p);
+    u.last.gyro_dph = drift + u.last.noise_dph;
+  }
+}
+
+std::expected<std::vector<model::RunData>, std::string> simulate(const SimConfig& cfg,
+                                                                 const std::vector<SetpointSample>& program) {
+  auto world = World::create(cfg);
+  if (!world) return std::unexpected(world.error());
+  const std::size_t n = program.size();
+  const std::size_t nu = cfg.units.size();
+  std::vector<model::RunData> runs(nu);
+  std::vector<std::vector<double>> t1(nu), t2(nu), noise(nu);
+  std::vector<double> air(n);
+  for (std::size_t u = 0; u < nu; ++u) {
+    runs[u].name = cfg.units[u].serial;
+    for (auto* v : {&runs[u].time_s, &runs[u].gyro_dph, &runs[u].t1_c, &runs[u].t2_c, &runs[u].setpoint_c, &runs[u].chamber_c}) v->reserve(n);
+  }
+  // The sample at time t describes the second that ended at t, as the daemon records it.
+  for (std::size_t i = 0; i < n; ++i) {
+    world->step(program[i].setpoint_c);
+    air[i] = world->air_c();
+    const double reading = world->chamber_reading_c();
+    for (std::size_t u = 0; u < nu; ++u) {
+      auto& r = runs[u];
+      const auto s = world->sample(u);
+      r.time_s.push_back(static_cast<double>(i));
+      r.t1_c.push_back(s.t1_c);
+      r.t2_c.push_back(s.t2_c);
+      r.setpoint_c.push_back(program[i].setpoint_c);
+      r.chamber_c.push_back(reading);
+      r.phase.push_back(program[i].phase);
+      r.step.push_back(program[i].step);
+      t1[u].push_back(world->true_t1_c(u));
+      t2[u].push_back(world->true_t2_c(u));
+      noise[u].push_back(s.noise_dph);
+    }
+  }
+  // Offline the drift is evaluated over the whole run with centred filters, exactly as the
+  // model computes its terms; the noise is the same realisation the streaming gyro had.
+  for (std::size_t u = 0; u < nu; ++u) {
+    auto law = make_drift_law(cfg.units[u]);
+    auto exact = drift_series(*law, t1[u], t2[u], air);
+    if (!exact) return std::unexpected("unit " + cfg.units[u].serial + ": " + exact.error());
+    runs[u].gyro_dph.resize(n);
+    for (std::size_t i = 0; i < n; ++i) runs[u].gyro_dph[i] = (*exact)[i] + noise[u][i];
+  }
+  return runs;
+}
+
+}  // namespace fogbench::sim
