@@ -1,0 +1,196 @@
+// The store's migration scripts and the header checks made on open.
+#include "schema.hpp"
+
+#include <cstdio>
+#include <string>
+
+namespace fogbench::storage::detail {
+namespace {
+
+// Version 1: what a run records. Samples are keyed by (run, unit, time) WITHOUT ROWID, so a
+// unit's samples lie together in time order and the key is the only index.
+constexpr const char* kRecording = R"sql(
+CREATE TABLE runs (
+  id            INTEGER PRIMARY KEY,
+  created_at    TEXT NOT NULL,
+  profile_name  TEXT NOT NULL,
+  profile_text  TEXT NOT NULL DEFAULT '',
+  purpose       TEXT NOT NULL CHECK (purpose IN ('fit', 'verify')),
+  state         TEXT NOT NULL DEFAULT 'pending'
+                CHECK (state IN ('pending', 'settling', 'running', 'completed', 'aborted',
+                                 'failed', 'interrupted')),
+  state_reason  TEXT NOT NULL DEFAULT '',
+  config_json   TEXT NOT NULL DEFAULT '{}' CHECK (json_valid(config_json)),
+  started_at    TEXT,
+  ended_at      TEXT,
+  time_scale    REAL NOT NULL DEFAULT 1.0 CHECK (time_scale > 0)
+);
+CREATE INDEX runs_state ON runs (state);
+
+CREATE TABLE run_units (
+  run_id      INTEGER NOT NULL REFERENCES runs (id) ON DELETE CASCADE,
+  unit_index  INTEGER NOT NULL CHECK (unit_index >= 0),
+  serial      TEXT NOT NULL,
+  PRIMARY KEY (run_id, unit_index)
+) WITHOUT ROWID;
+CREATE INDEX run_units_serial ON run_units (serial);
+
+CREATE TABLE samples (
+  run_id      INTEGER NOT NULL,
+  unit_index  INTEGER NOT NULL,
+  t_s         REAL NOT NULL,
+  wall_time   REAL,
+  setpoint_c  REAL,
+  chamber_c   REAL,
+  gyro_dph    REAL,
+  frames      INTEGER,
+  t1_c        REAL,
+  t2_c        REAL,
+  phase       INTEGER CHECK (phase BETWEEN 0 AND 4),
+  step        INTEGER,
+  flags       INTEGER CHECK (flags BETWEEN 0 AND 255),
+  PRIMARY KEY (run_id, unit_index, t_s),
+  FOREIGN KEY (run_id, unit_index) REFERENCES run_units (run_id, unit_index) ON DELETE CASCADE
+) WITHOUT ROWID;
+
+CREATE TABLE run_events (
+  id      INTEGER PRIMARY KEY,
+  run_id  INTEGER NOT NULL REFERENCES runs (id) ON DELETE CASCADE,
+  t_s     REAL,
+  at      TEXT NOT NULL,
+  kind    TEXT NOT NULL
+          CHECK (kind IN ('state', 'phase', 'command', 'alarm', 'fault', 'note')),
+  detail  TEXT NOT NULL DEFAULT '{}' CHECK (json_valid(detail))
+);
+CREATE INDEX run_events_run ON run_events (run_id, id);
+
+-- For people at the sqlite3 shell: samples with the phase by name.
+CREATE VIEW sample_view AS
+SELECT run_id, unit_index, t_s, wall_time, setpoint_c, chamber_c, gyro_dph, frames, t1_c, t2_c,
+       CASE phase WHEN 0 THEN 'unknown' WHEN 1 THEN 'settle' WHEN 2 THEN 'hold'
+                  WHEN 3 THEN 'heating' WHEN 4 THEN 'cooling' END AS phase,
+       step, flags
+FROM samples;
+)sql";
+
+// Version 2: fitted models, versioned per serial, and the verifications of them.
+constexpr const char* kModels = R"sql(
+CREATE TABLE models (
+  id          INTEGER PRIMARY KEY,
+  serial      TEXT NOT NULL,
+  version     INTEGER NOT NULL CHECK (version >= 1),
+  run_id      INTEGER REFERENCES runs (id) ON DELETE SET NULL,
+  parent_id   INTEGER REFERENCES models (id),
+  created_at  TEXT NOT NULL,
+  model_json  TEXT NOT NULL CHECK (json_valid(model_json)),
+  method      TEXT NOT NULL DEFAULT '',
+  terms       TEXT NOT NULL DEFAULT '',
+  UNIQUE (serial, version)
+);
+CREATE INDEX models_parent ON models (parent_id);
+
+CREATE TABLE verifications (
+  id           INTEGER PRIMARY KEY,
+  run_id       INTEGER NOT NULL,
+  unit_index   INTEGER NOT NULL,
+  model_id     INTEGER NOT NULL REFERENCES models (id),
+  created_at   TEXT NOT NULL,
+  result_json  TEXT NOT NULL CHECK (json_valid(result_json)),
+  pass         INTEGER NOT NULL CHECK (pass IN (0, 1)),
+  FOREIGN KEY (run_id, unit_index) REFERENCES run_units (run_id, unit_index) ON DELETE CASCADE
+);
+CREATE INDEX verifications_run ON verifications (run_id);
+CREATE INDEX verifications_model ON verifications (model_id);
+)sql";
+
+constexpr Migration kMigrations[] = {
+    {1, "recording tables", kRecording},
+    {2, "models and verifications", kModels},
+};
+
+StoreResult<std::int64_t> query_int(Database& db, const std::string& sql, std::string_view what) {
+  sqlite3_stmt* stmt = nullptr;
+  int rc = sqlite3_prepare_v2(db.handle(), sql.c_str(), -1, &stmt, nullptr);
+  if (rc != SQLITE_OK) return std::unexpected(db.error(rc, what));
+  rc = sqlite3_step(stmt);
+  std::int64_t value = 0;
+  if (rc == SQLITE_ROW) value = sqlite3_column_int64(stmt, 0);
+  const bool ok = rc == SQLITE_ROW || rc == SQLITE_DONE;
+  auto err = ok ? StoreError{} : db.error(rc, what);
+  sqlite3_finalize(stmt);
+  if (!ok) return std::unexpected(std::move(err));
+  return value;
+}
+
+}  // namespace
+
+std::span<const Migration> migrations() { return kMigrations; }
+int current_version() { return kMigrations[std::size(kMigrations) - 1].version; }
+
+StoreResult<int> inspect_schema(Database& db) {
+  // The first read of the header: a file that is not a database fails here, untouched.
+  auto app = query_int(db, "PRAGMA application_id", "read the header");
+  if (!app) return std::unexpected(app.error());
+  auto version = query_int(db, "PRAGMA user_version", "read the schema version");
+  if (!version) return std::unexpected(version.error());
+  auto objects = query_int(db, "SELECT count(*) FROM sqlite_schema", "read the schema");
+  if (!objects) return std::unexpected(objects.error());
+
+  const std::string name = "'" + db.path().string() + "'";
+  if (*app != 0 && *app != kApplicationId) {
+    char id[16];
+    std::snprintf(id, sizeof id, "0x%08llX", static_cast<unsigned long long>(*app & 0xFFFFFFFF));
+    return std::unexpected(db.error(
+        StoreErrc::not_fogbench,
+        "refusing a SQLite database of another application (application_id " +
+            std::string(id) + ")"));
+  }
+  // Every fogbench version stamps application_id in its first migration, so tables without
+  // it belong to someone else.
+  if (*app == 0 && (*objects != 0 || *version != 0))
+    return std::unexpected(db.error(StoreErrc::not_fogbench,
+                                    "refusing a SQLite database that is not a fogbench store "
+                                    "(it has tables but no fogbench application_id)"));
+  if (*version > current_version())
+    return std::unexpected(db.error(
+        StoreErrc::schema_too_new,
+        "schema version " + std::to_string(*version) + " is newer than this fogbench knows (" +
+            std::to_string(current_version()) +
+            "); it was written by a newer fogbench: use that, this one will not touch it"));
+  return static_cast<int>(*version);
+}
+
+StoreResult<int> migrate(Database& db, int from_version) {
+  int version = from_version;
+  for (const Migration& m : kMigrations) {
+    if (m.version <= version) continue;
+    const std::string what = "migrate schema " + std::to_string(m.version - 1) + " -> " +
+                             std::to_string(m.version) + " (" + std::string(m.what) + ")";
+    Transaction tx(db);
+    if (auto ok = tx.begin(what); !ok) return std::unexpected(ok.error());
+    // Another process may have migrated while this one waited for the write lock.
+    auto now = query_int(db, "PRAGMA user_version", what);
+    if (!now) return std::unexpected(now.error());
+    if (*now >= m.version) {
+      version = static_cast<int>(*now);
+      continue;  // the transaction rolls back: nothing was written
+    }
+    auto fail = [&](StoreError e) {
+      e.code = e.code == StoreErrc::sqlite ? StoreErrc::migration_failed : e.code;
+      return std::unexpected(std::move(e));
+    };
+    if (auto ok = db.exec(m.sql, what); !ok) return fail(ok.error());
+    if (auto ok = db.exec("PRAGMA user_version = " + std::to_string(m.version), what); !ok)
+      return fail(ok.error());
+    if (m.version == 1) {
+      if (auto ok = db.exec("PRAGMA application_id = " + std::to_string(kApplicationId), what);
+          !ok)
+        return fail(ok.error());
+    }
+    if (auto ok = tx.commit(what); !ok) return fail(ok.error());
+    version = m.version;
+  }
+  return version;
+}
+
+}  // namespace fogbench::storage::detail
