@@ -238,17 +238,31 @@ std::expected<void, FitError> check_collinear(const std::vector<std::vector<doub
       for (std::size_t t = 0; t < n; ++t) c += w[t] * (cols[a][t] - mean[a]) * (cols[b][t] - mean[b]);
       R(a, b) = R(b, a) = c / (sw * sd[a] * sd[b]);
     }
-  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(R);
-  if (es.eigenvalues()(0) > 1e-8) return {};
-  const Eigen::VectorXd v = es.eigenvectors().col(0);
+  auto min_eig = [](const Eigen::MatrixXd& M) {
+    return M.rows() == 0 ? 1.0 : Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(M, Eigen::EigenvaluesOnly).eigenvalues()(0);
+  };
+  constexpr double singular = 1e-8;
+  if (min_eig(R) > singular) return {};
+  // A term takes part in the dependency when leaving it out makes the rest independent.
   std::string who;
   int count = 0;
   for (std::size_t j = 0; j < m; ++j) {
-    if (std::abs(v(static_cast<Eigen::Index>(j))) > 0.1) {
+    Eigen::MatrixXd S(m - 1, m - 1);
+    for (std::size_t a = 0, ra = 0; a < m; ++a) {
+      if (a == j) continue;
+      for (std::size_t b = 0, rb = 0; b < m; ++b) {
+        if (b == j) continue;
+        S(static_cast<Eigen::Index>(ra), static_cast<Eigen::Index>(rb)) = R(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b));
+        ++rb;
+      }
+      ++ra;
+    }
+    if (min_eig(S) > singular) {
       who += (count ? ", '" : "'") + names[j] + "'";
       ++count;
     }
   }
+  if (count == 0) who = "(several groups of)";
   return fail(FitError::Code::collinear, "terms " + who + " are collinear on this run (one is a combination of the "
                                          "others), so their coefficients cannot be separated: drop one of them");
 }

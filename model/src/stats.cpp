@@ -53,7 +53,7 @@ StationarityResult stationarity_check(std::span<const double> y, int m) {
   }
   const double gbar = mean(r.gamma);
   for (double g : r.gamma) (g > gbar ? r.m1 : r.m2)++;
-  r.stationary = std::abs(r.m1 - r.m2) <= std::max(1, m / 5);
+  r.stationary = 10 * std::abs(r.m1 - r.m2) <= 6 * m;
   return r;
 }
 

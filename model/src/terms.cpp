@@ -71,6 +71,12 @@ class Parser {
 
   std::expected<Term, ParseError> summand(double sign) {
     skip();
+    // A sign of its own: `T1 + -0.3*T2`.
+    while (peek() == '-' || peek() == '+') {
+      if (peek() == '-') sign = -sign;
+      ++pos_;
+      skip();
+    }
     Term t;
     t.coef = sign;
     t.coef_given = sign < 0.0;
@@ -176,9 +182,13 @@ class Parser {
     if (peek() != '^') return p;
     ++pos_;
     skip();
+    const std::size_t at = pos_;
     auto n = integer("an integer exponent after '^'");
     if (!n) return std::unexpected(n.error());
-    if (*n < 1 || *n > 4) return std::unexpected(error("exponent must be 1 to 4, got " + std::to_string(*n)));
+    if (*n < 1 || *n > 4) {
+      pos_ = at;
+      return std::unexpected(error("exponent must be 1 to 4, got " + std::to_string(*n)));
+    }
     if ((*p)->kind == K::number) {
       auto e = make(K::number);
       std::const_pointer_cast<Expr>(e)->value = std::pow((*p)->value, *n);

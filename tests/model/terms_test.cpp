@@ -1,0 +1,136 @@
+// The term language: parsing, errors with positions, canonical spelling, evaluation.
+#include <catch2/catch.hpp>
+#include <cmath>
+
+#include "fogbench/model/terms.hpp"
+
+using namespace fogbench::model;
+
+TEST_CASE("paper expands to the paper's two terms with automatic lags") {
+  auto l = parse_terms("paper");
+  REQUIRE(l);
+  CHECK(l->paper);
+  REQUIRE(l->terms.size() == 2);
+  CHECK(to_string(l->terms[0]) == "d(T1)@auto");
+  CHECK(to_string(l->terms[1]) == "grad@auto");
+}
+
+TEST_CASE("every form of TERMS.md parses and prints canonically") {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"d(T1)@auto + grad@auto", "d(T1)@auto + grad@auto"},
+      {"T1", "T1"},
+      {"T1^2", "T1^2"},
+      {"T2 + d( T2 )", "T2 + d(T2)"},
+      {"d(grad)", "d(grad)"},
+      {"dd(T1)", "dd(T1)"},
+      {"T1*d(T1)@40", "T1*d(T1)@40"},
+      {"up(d(T1)) + down(d(T1))", "up(d(T1)) + down(d(T1))"},
+      {"Ta + d(Ta)@12s", "Ta + d(Ta)@12"},
+      {"lp(T1, 300)", "lp(T1,300)"},
+      {"d(T1)@0", "d(T1)"},
+  };
+  for (const auto& [in, out] : cases) {
+    INFO(in);
+    auto l = parse_terms(in);
+    REQUIRE(l);
+    CHECK(to_string(*l) == out);
+    // The canonical spelling parses back to itself.
+    auto again = parse_terms(to_string(*l));
+    REQUIRE(again);
+    CHECK(to_string(*again) == out);
+  }
+}
+
+TEST_CASE("coefficients in front of terms: effects for the simulator") {
+  auto l = parse_terms("0.05*T1 - 2.5*d(T1)@38 + -0.387*grad@38");
+  REQUIRE(l);
+  REQUIRE(l->terms.size() == 3);
+  CHECK(l->terms[0].coef == Approx(0.05));
+  CHECK(l->terms[1].coef == Approx(-2.5));
+  CHECK(l->terms[1].lag.seconds == 38);
+  CHECK(l->terms[2].coef == Approx(-0.387));
+  CHECK(to_string(*l->terms[1].expr) == "d(T1)");
+}
+
+TEST_CASE("parse errors give the position and what was expected") {
+  struct Case {
+    const char* text;
+    std::size_t position;
+    const char* needle;
+  };
+  const Case cases[] = {
+      {"T3", 0, "unknown name 'T3'"},
+      {"d(T1", 4, "expected ')'"},
+      {"T1 +", 4, "expected a signal"},
+      {"d(T1)@", 6, "expected a lag in seconds or 'auto'"},
+      {"T1 T2", 3, "expected '+', '-', '*', '@' or the end"},
+      {"lp(T1)", 5, "expected ',' and a time constant"},
+      {"2*3", 3, "found only a number"},
+      {"d(T1@auto)", 5, "'@auto' is allowed only at the end"},
+      {"T1^9", 3, "exponent must be 1 to 4"},
+      {"", 0, "empty"},
+  };
+  for (const auto& c : cases) {
+    INFO(c.text);
+    auto l = parse_terms(c.text);
+    REQUIRE_FALSE(l);
+    CHECK(l.error().position == c.position);
+    CHECK_THAT(l.error().message, Catch::Contains(c.needle));
+    // pretty() shows the text and a caret under the position.
+    CHECK_THAT(l.error().pretty(), Catch::Contains(std::string(c.position, ' ') + "^"));
+  }
+}
+
+TEST_CASE("units of coefficients") {
+  CHECK(coef_unit(*parse_term("d(T1)")->expr) == "deg/h per degC/min");
+  CHECK(coef_unit(*parse_term("grad")->expr) == "deg/h per degC");
+  CHECK(coef_unit(*parse_term("T1^2")->expr) == "deg/h per degC^2");
+  CHECK(coef_unit(*parse_term("dd(T1)")->expr) == "deg/h per degC/min^2");
+  CHECK(coef_unit(*parse_term("T1*d(T1)")->expr) == "deg/h per degC^2/min");
+}
+
+TEST_CASE("derivative of a ramp is its slope in degC/min, also at the ends") {
+  // x = 0.5 degC per sample (1 s): 30 degC/min. A least-squares slope of a straight line is
+  // exact for any window, so also where the window is cut at the ends.
+  std::vector<double> x(500);
+  for (std::size_t i = 0; i < x.size(); ++i) x[i] = 0.5 * static_cast<double>(i);
+  const auto d = derivative_per_min(x, 1.0);
+  for (double v : d) CHECK(v == Approx(30.0));
+}
+
+TEST_CASE("evaluation of operators over signals") {
+  const std::size_t n = 400;
+  std::vector<double> t1(n), t2(n, 1.0);
+  for (std::size_t i = 0; i < n; ++i) t1[i] = i < 200 ? 0.0 : (static_cast<double>(i) - 200.0) / 60.0;  // 1 degC/min from t=200
+  Signals s{t1, t2, {}, 1.0};
+  auto grad = evaluate(*parse_term("grad")->expr, s);
+  REQUIRE(grad);
+  CHECK((*grad)[300] == Approx(t1[300] - 1.0));
+  // d(T1) well inside the ramp (window 270..330 all on the ramp) is 1 degC/min, 0 well before.
+  auto d = evaluate(*parse_term("d(T1)")->expr, s);
+  CHECK((*d)[300] == Approx(1.0));
+  CHECK((*d)[100] == Approx(0.0).margin(1e-12));
+  // up() keeps heating, down() keeps cooling.
+  auto down = evaluate(*parse_term("down(d(T1))")->expr, s);
+  CHECK((*down)[300] == Approx(0.0));
+  // A fixed delay inside an expression: T1@60 at t=300 is T1 at t=240.
+  auto del = evaluate(*parse_term("(T1@60)")->expr, s);
+  CHECK((*del)[300] == Approx(t1[240]));
+  // lp of a step: after one time constant, 1 - 1/e of the way (exact discretisation).
+  std::vector<double> step(n, 0.0);
+  for (std::size_t i = 100; i < n; ++i) step[i] = 1.0;
+  Signals ss{step, t2, {}, 1.0};
+  auto lp = evaluate(*parse_term("lp(T1, 50)")->expr, ss);
+  CHECK((*lp)[149] == Approx(1.0 - std::exp(-50.0 / 50.0)));
+  // Squares and products.
+  auto sq = evaluate(*parse_term("T1^2")->expr, s);
+  CHECK((*sq)[320] == Approx(t1[320] * t1[320]));
+}
+
+TEST_CASE("a term on Ta fails clearly when the run has no chamber temperature") {
+  std::vector<double> t(100, 0.0);
+  Signals s{t, t, {}, 1.0};
+  auto v = evaluate(*parse_term("d(Ta)")->expr, s);
+  REQUIRE_FALSE(v);
+  CHECK_THAT(v.error(), Catch::Contains("chamber_c"));
+}
