@@ -183,6 +183,15 @@ TEST_CASE("store: a new file gets the current schema, WAL and the fogbench id", 
                       "'") == 1);
 }
 
+TEST_CASE("store: an in-memory database works (no WAL file to make)", "[store][schema]") {
+  Store s = open_ok(":memory:");
+  CHECK(s.schema_version() == Store::current_schema_version());
+  const auto run = s.create_run(two_unit_run()).value();
+  const SampleRow rows[] = {sample(0, 0)};
+  REQUIRE(s.append_samples(run, rows).has_value());
+  CHECK(s.count_samples(run).value() == 1);
+}
+
 TEST_CASE("store: migration from version 0 and version 1", "[store][schema]") {
   TempDir tmp;
   SECTION("version 0: an existing empty SQLite file") {
