@@ -1,0 +1,42 @@
+// Dispatch of the command protocol (docs/protocol.md): a request line in, a reply message out,
+// without any socket. The server owns the connections; this maps JSON to JSON, so the unit tests
+// and the golden transcripts in tests/golden/ replay it directly.
+#pragma once
+
+#include <string_view>
+
+#include <nlohmann/json.hpp>
+
+#include "fogbench/daemon/station.hpp"
+
+namespace fogbench::daemon {
+
+inline constexpr int kProtocolVersion = 1;
+
+// What a connection carries between requests.
+struct SessionState {
+  bool subscribed = false;  // receives "sample" and "event" messages
+};
+
+class Handler {
+ public:
+  explicit Handler(Station& station) : station_(station) {}
+
+  // The first message on every connection.
+  static nlohmann::json hello();
+  // Parses a line and dispatches it; never throws, whatever the line holds.
+  nlohmann::json handle_line(std::string_view line, SessionState& session);
+  nlohmann::json handle(const nlohmann::json& request, SessionState& session);
+
+  static nlohmann::json reply(const nlohmann::json& id, nlohmann::json result);
+  static nlohmann::json error(const nlohmann::json& id, ErrorCode code, const std::string& message);
+  // The reply to a line over kMaxLineBytes; the connection is closed after it.
+  static nlohmann::json too_long();
+
+ private:
+  ApiResult<nlohmann::json> dispatch(const std::string& cmd, const nlohmann::json& req,
+                                     SessionState& session);
+  Station& station_;
+};
+
+}  // namespace fogbench::daemon

@@ -1,0 +1,38 @@
+// fogbenchd's event loop: one Boost.Asio io_context that owns the signal set, the command
+// socket acceptors and sessions, the acquisition schedule and the gyro bus descriptor, plus the
+// one worker thread that libmodbus's blocking calls force (chamber and thermistors).
+#pragma once
+
+#include <expected>
+#include <memory>
+#include <string>
+
+#include "fogbench/daemon/config.hpp"
+
+namespace fogbench::daemon {
+
+struct ServerOptions {
+  double time_scale = 1.0;  // daemon seconds per wall second; > 1 only when simulated
+};
+
+class Server {
+ public:
+  Server(DaemonConfig config, ServerOptions options);
+  ~Server();
+  Server(const Server&) = delete;
+  Server& operator=(const Server&) = delete;
+
+  // Opens the store, recovers interrupted runs and binds the sockets. Errors say what failed.
+  std::expected<void, std::string> start();
+  // Runs until SIGTERM or SIGINT (or stop()); returns when the chamber has been sent to its
+  // safe setpoint and every connection is closed. 0 on a clean stop.
+  int run();
+  // Asks the loop to stop as on SIGTERM (thread-safe).
+  void stop();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace fogbench::daemon

@@ -1,0 +1,167 @@
+// The station: one chamber, its units and the run in progress. It owns the run state machine
+// (pending -> settling -> running -> completed | aborted | failed), turns each second's readings
+// into stored samples, commands the setpoint from the profile executor, and fits or verifies
+// models when a run completes. No I/O besides the store and no clock: the server passes the
+// daemon time and the readings, so tests drive whole runs in milliseconds.
+#pragma once
+
+#include <cstdint>
+#include <expected>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "fogbench/daemon/config.hpp"
+#include "fogbench/profiles/executor.hpp"
+#include "fogbench/profiles/profile.hpp"
+#include "fogbench/storage/store.hpp"
+
+namespace fogbench::daemon {
+
+// The protocol's error codes: stable strings, documented in docs/protocol.md.
+enum class ErrorCode {
+  bad_json,         // the line is not JSON
+  bad_request,      // JSON, but not a request: missing or mistyped field
+  unknown_command,  // no such cmd
+  not_found,        // no such run, unit, model, profile
+  busy,             // a run is active
+  invalid_profile,  // the profile does not parse
+  limits,           // the profile leaves the chamber's limits
+  unknown_serial,   // a serial not configured on this bench, or without a model to verify
+  internal,         // storage or analysis failed; the daemon keeps running
+};
+std::string_view to_string(ErrorCode c);
+
+struct ApiError {
+  ErrorCode code;
+  std::string message;
+};
+template <class T>
+using ApiResult = std::expected<T, ApiError>;
+
+inline std::unexpected<ApiError> api_error(ErrorCode c, std::string message) {
+  return std::unexpected(ApiError{c, std::move(message)});
+}
+
+// One configured unit's readings at one tick; an empty optional was not read.
+struct UnitReading {
+  std::optional<double> gyro_dph;
+  std::uint32_t frames = 0;
+  std::uint32_t frames_lost = 0;
+  std::optional<double> t1_c;
+  std::optional<double> t2_c;
+  bool out_of_range = false;  // a sensor or the gyro reported a value outside its range
+};
+
+// Everything read in one acquisition period.
+struct TickInput {
+  double wall_time = 0.0;                    // unix time, s
+  std::optional<double> chamber_c;           // process value (air)
+  std::optional<double> chamber_setpoint_c;  // as read back from the controller
+  bool chamber_alarm = false;
+  bool chamber_link_down = false;            // the chamber could not be polled this period
+  std::vector<UnitReading> units;            // one per configured unit, in config order
+};
+
+struct TickOutput {
+  double setpoint_c = 0.0;  // the setpoint the chamber should hold now
+};
+
+class Station {
+ public:
+  // Called with each "sample" and "event" message as it happens (subscribers).
+  using Publish = std::function<void(const nlohmann::json&)>;
+  // UTC now, ISO 8601 (models' created_at). Tests inject a fixed one.
+  using WallClock = std::function<std::string()>;
+
+  Station(DaemonConfig config, storage::Store& store, double time_scale = 1.0,
+          WallClock wall_clock = {});
+
+  void set_publisher(Publish p) { publish_ = std::move(p); }
+
+  // Start-up: runs left in settling or running by a crash become interrupted.
+  ApiResult<std::vector<std::int64_t>> recover();
+
+  // Checks and creates a run in state pending; it starts at the next tick. `command` is the
+  // request as received, stored as the run's first command event.
+  ApiResult<std::int64_t> start_run(const std::string& profile_name,
+                                    const std::vector<std::string>& serials,
+                                    const std::string& purpose, const nlohmann::json& command);
+  // Ends the active run as aborted; the chamber goes back to the safe setpoint at the next tick.
+  ApiResult<std::int64_t> abort_run(const std::string& reason, const nlohmann::json& command);
+
+  // One acquisition period: clock_s is the daemon's time in daemon seconds (k * 1 s at tick k).
+  TickOutput tick(double clock_s, const TickInput& in);
+
+  // The daemon is stopping: an active run ends as aborted with this reason.
+  void shutdown(const std::string& reason);
+
+  nlohmann::json status() const;
+  std::optional<std::int64_t> active_run_id() const;
+
+  // Profiles: by name from the profile directory, or from text; limits checked.
+  ApiResult<profiles::Profile> load_profile(const std::string& name, std::string* text = nullptr) const;
+  ApiResult<profiles::Profile> check_profile_text(const std::string& text,
+                                                  const std::string& source) const;
+  std::vector<std::string> profile_names() const;
+
+  // Analysis of a stored run's unit (index in the run). terms/method empty: the configured.
+  ApiResult<nlohmann::json> fit_unit(std::int64_t run_id, int unit_index, const std::string& terms,
+                                     const std::string& method);
+  ApiResult<nlohmann::json> verify_unit(std::int64_t run_id, int unit_index,
+                                        std::optional<std::int64_t> model_id);
+
+  storage::Store& store() { return store_; }
+  const DaemonConfig& config() const { return config_; }
+  double time_scale() const { return time_scale_; }
+  // Records an operator command in the audit trail of a run.
+  void audit(std::int64_t run_id, const nlohmann::json& command);
+
+ private:
+  struct ActiveRun {
+    std::int64_t id = 0;
+    storage::Purpose purpose = storage::Purpose::fit;
+    std::string profile_name;
+    std::vector<std::string> serials;
+    std::vector<std::size_t> config_index;  // of each run unit in config_.drivers.units
+    storage::RunState state = storage::RunState::pending;
+    std::unique_ptr<profiles::Executor> executor;
+    double start_clock_s = 0.0;
+    double elapsed_s = 0.0;
+    profiles::ExecutorStatus last;
+    std::optional<profiles::Phase> phase;
+    std::size_t step = 0;
+    bool alarm = false;
+    bool link_down = false;
+  };
+
+  void transition(ActiveRun& run, storage::RunState to, const std::string& reason,
+                  std::optional<double> t_s);
+  void event(std::int64_t run_id, storage::EventKind kind, const nlohmann::json& detail,
+             std::optional<double> t_s);
+  void finish(storage::RunState to, const std::string& reason);
+  void analyse(std::int64_t run_id, storage::Purpose purpose, const std::vector<std::string>& serials);
+  void emit(const nlohmann::json& message) {
+    if (publish_) publish_(message);
+  }
+
+  DaemonConfig config_;
+  storage::Store& store_;
+  double time_scale_ = 1.0;
+  WallClock wall_clock_;
+  Publish publish_;
+  std::optional<ActiveRun> run_;
+  double setpoint_c_ = 0.0;      // the setpoint commanded now
+  double clock_s_ = 0.0;         // last tick's daemon time
+  std::optional<TickInput> last_input_;
+  std::int64_t ticks_ = 0;
+};
+
+// ISO 8601 UTC now, to the second.
+std::string iso8601_now();
+
+}  // namespace fogbench::daemon

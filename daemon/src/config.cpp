@@ -1,0 +1,189 @@
+// Parsing of fogbenchd's configuration file, field by field, with errors that name the field.
+#include "fogbench/daemon/config.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "fogbench/model/model.hpp"
+#include "fogbench/model/terms.hpp"
+
+namespace fogbench::daemon {
+namespace {
+
+using nlohmann::json;
+using Err = std::unexpected<std::string>;
+
+std::string join(const std::string& path, const std::string& key) {
+  return path.empty() ? key : path + "." + key;
+}
+
+// Unknown keys are refused so that a typo is an error, not a silently ignored setting.
+std::expected<void, std::string> only_keys(const json& obj, const std::string& path,
+                                           std::set<std::string> allowed) {
+  for (const auto& [key, value] : obj.items()) {
+    if (!allowed.contains(key)) return Err(join(path, key) + ": unknown field");
+  }
+  return {};
+}
+
+std::expected<double, std::string> number(const json& obj, const std::string& path,
+                                          const std::string& key) {
+  if (!obj.contains(key)) return Err(join(path, key) + ": missing");
+  const json& v = obj.at(key);
+  if (!v.is_number() || !std::isfinite(v.get<double>()))
+    return Err(join(path, key) + ": expected a number");
+  return v.get<double>();
+}
+
+std::expected<std::string, std::string> string(const json& obj, const std::string& path,
+                                               const std::string& key) {
+  if (!obj.contains(key)) return Err(join(path, key) + ": missing");
+  const json& v = obj.at(key);
+  if (!v.is_string() || v.get<std::string>().empty())
+    return Err(join(path, key) + ": expected a non-empty string");
+  return v.get<std::string>();
+}
+
+std::filesystem::path resolve(const std::filesystem::path& base, const std::string& p) {
+  std::filesystem::path path(p);
+  return path.is_absolute() ? path : base / path;
+}
+
+}  // namespace
+
+std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
+                                                             const std::filesystem::path& base_dir) {
+  if (!j.is_object()) return Err("configuration: expected a JSON object");
+  if (auto ok = only_keys(j, "", {"simulated", "storage", "socket", "chamber_limits",
+                                  "safe_setpoint_c", "profile_dir", "map_dir", "analysis",
+                                  "drivers"});
+      !ok)
+    return Err(ok.error());
+  DaemonConfig c;
+  c.source = j;
+
+  if (j.contains("simulated")) {
+    if (!j["simulated"].is_boolean()) return Err("simulated: expected true or false");
+    c.simulated = j["simulated"].get<bool>();
+  }
+
+  if (!j.contains("storage") || !j["storage"].is_object())
+    return Err("storage: expected an object {\"path\": ...}");
+  {
+    const json& s = j["storage"];
+    if (auto ok = only_keys(s, "storage", {"path", "synchronous"}); !ok) return Err(ok.error());
+    auto path = string(s, "storage", "path");
+    if (!path) return Err(path.error());
+    c.storage_path = *path == ":memory:" ? std::filesystem::path(*path) : resolve(base_dir, *path);
+    if (s.contains("synchronous")) {
+      const json& v = s["synchronous"];
+      if (v == "full") c.storage_synchronous_full = true;
+      else if (v == "normal") c.storage_synchronous_full = false;
+      else return Err("storage.synchronous: expected \"full\" or \"normal\"");
+    }
+  }
+
+  if (j.contains("socket")) {
+    const json& s = j["socket"];
+    if (!s.is_object()) return Err("socket: expected an object");
+    if (auto ok = only_keys(s, "socket", {"path", "tcp_port"}); !ok) return Err(ok.error());
+    if (s.contains("path")) {
+      auto path = string(s, "socket", "path");
+      if (!path) return Err(path.error());
+      c.socket.unix_path = resolve(base_dir, *path);
+    }
+    if (s.contains("tcp_port") && !s["tcp_port"].is_null()) {
+      const json& v = s["tcp_port"];
+      if (!v.is_number_integer() || v.get<long long>() < 1 || v.get<long long>() > 65535)
+        return Err("socket.tcp_port: expected an integer 1..65535");
+      c.socket.tcp_port = static_cast<std::uint16_t>(v.get<long long>());
+    }
+  }
+
+  if (!j.contains("chamber_limits") || !j["chamber_limits"].is_object())
+    return Err("chamber_limits: expected an object {\"min_c\", \"max_c\", \"max_rate_c_per_min\"}");
+  {
+    const json& l = j["chamber_limits"];
+    if (auto ok = only_keys(l, "chamber_limits", {"min_c", "max_c", "max_rate_c_per_min"}); !ok)
+      return Err(ok.error());
+    auto lo = number(l, "chamber_limits", "min_c");
+    if (!lo) return Err(lo.error());
+    auto hi = number(l, "chamber_limits", "max_c");
+    if (!hi) return Err(hi.error());
+    auto rate = number(l, "chamber_limits", "max_rate_c_per_min");
+    if (!rate) return Err(rate.error());
+    if (*lo > *hi) return Err("chamber_limits.min_c: greater than max_c");
+    if (*rate <= 0) return Err("chamber_limits.max_rate_c_per_min: expected a positive number");
+    c.limits = {*lo, *hi, *rate};
+  }
+
+  {
+    auto safe = number(j, "", "safe_setpoint_c");
+    if (!safe) return Err(safe.error());
+    if (*safe < c.limits.min_c || *safe > c.limits.max_c)
+      return Err("safe_setpoint_c: outside chamber_limits");
+    c.safe_setpoint_c = *safe;
+  }
+
+  {
+    auto dir = string(j, "", "profile_dir");
+    if (!dir) return Err(dir.error());
+    c.profile_dir = resolve(base_dir, *dir);
+  }
+
+  if (j.contains("analysis")) {
+    const json& a = j["analysis"];
+    if (!a.is_object()) return Err("analysis: expected an object");
+    if (auto ok = only_keys(a, "analysis", {"terms", "method", "verify_threshold"}); !ok)
+      return Err(ok.error());
+    if (a.contains("terms")) {
+      auto t = string(a, "analysis", "terms");
+      if (!t) return Err(t.error());
+      if (auto parsed = model::parse_terms(*t); !parsed)
+        return Err("analysis.terms: not a term list");
+      c.analysis.terms = *t;
+    }
+    if (a.contains("method")) {
+      auto m = string(a, "analysis", "method");
+      if (!m) return Err(m.error());
+      if (!model::method_from_string(*m)) return Err("analysis.method: expected \"paper\" or \"joint\"");
+      c.analysis.method = *m;
+    }
+    if (a.contains("verify_threshold")) {
+      auto t = number(a, "analysis", "verify_threshold");
+      if (!t) return Err(t.error());
+      if (*t <= 0) return Err("analysis.verify_threshold: expected a positive number");
+      c.analysis.verify_threshold = *t;
+    }
+  }
+
+  std::filesystem::path map_dir = base_dir;
+  if (j.contains("map_dir")) {
+    auto d = string(j, "", "map_dir");
+    if (!d) return Err(d.error());
+    map_dir = resolve(base_dir, *d);
+  }
+  if (!j.contains("drivers")) return Err("drivers: missing");
+  auto drv = drivers::parse_drivers_config(j["drivers"], map_dir, "drivers");
+  if (!drv) return Err(drv.error().message);
+  if (drv->units.empty()) return Err("drivers.units: expected at least one unit");
+  c.drivers = std::move(*drv);
+  return c;
+}
+
+std::expected<DaemonConfig, std::string> load_daemon_config(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) return Err(file.string() + ": cannot be read");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  json j = json::parse(ss.str(), nullptr, false);
+  if (j.is_discarded()) return Err(file.string() + ": not valid JSON");
+  auto base = std::filesystem::absolute(file).parent_path();
+  auto c = parse_daemon_config(j, base);
+  if (!c) return Err(file.string() + ": " + c.error());
+  return c;
+}
+
+}  // namespace fogbench::daemon

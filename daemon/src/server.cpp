@@ -1,0 +1,587 @@
+// The Asio server of fogbenchd. Everything runs on one io_context thread except the chamber and
+// thermistor I/O: libmodbus only has blocking calls, so those run on a worker thread (its own
+// io_context used as a job queue) that posts each result back to the loop. The store (SQLite)
+// stays on the loop thread: one commit per second, and a Store is single-threaded.
+#include "fogbench/daemon/server.hpp"
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <boost/asio.hpp>
+#include <chrono>
+#include <cmath>
+#include <deque>
+#include <iostream>
+#include <list>
+#include <thread>
+
+#include <spdlog/spdlog.h>
+
+#include "fogbench/daemon/framing.hpp"
+#include "fogbench/daemon/handler.hpp"
+#include "fogbench/daemon/station.hpp"
+#include "fogbench/drivers/chamber.hpp"
+#include "fogbench/drivers/gyro_bus.hpp"
+#include "fogbench/drivers/thermistor_module.hpp"
+
+namespace fogbench::daemon {
+
+namespace asio = boost::asio;
+using nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+// A write that does not finish in this long means the client stopped reading: it is dropped.
+constexpr auto kWriteDeadline = std::chrono::seconds(10);
+// A subscriber that falls this far behind is dropped rather than buffering without bound.
+constexpr std::size_t kMaxQueuedBytes = 16u << 20;
+// The chamber is sent to its safe setpoint on the way out; this long at most.
+constexpr auto kShutdownDeadline = std::chrono::seconds(5);
+
+class SessionBase {
+ public:
+  virtual ~SessionBase() = default;
+  virtual void push(const std::shared_ptr<const std::string>& line) = 0;
+  virtual void close() = 0;
+  virtual bool subscribed() const = 0;
+};
+
+template <class Socket>
+class Session : public SessionBase, public std::enable_shared_from_this<Session<Socket>> {
+ public:
+  Session(Socket socket, Handler& handler, std::string peer)
+      : socket_(std::move(socket)), timer_(socket_.get_executor()), handler_(handler), peer_(std::move(peer)) {}
+
+  void start() {
+    send(std::make_shared<const std::string>(Handler::hello().dump() + "\n"));
+    read();
+  }
+
+  void push(const std::shared_ptr<const std::string>& line) override {
+    if (state_.subscribed) send(line);
+  }
+  bool subscribed() const override { return state_.subscribed; }
+
+  void close() override {
+    if (closed_) return;
+    closed_ = true;
+    boost::system::error_code ec;
+    socket_.shutdown(Socket::shutdown_both, ec);
+    socket_.close(ec);
+    timer_.cancel();
+  }
+
+ private:
+  void read() {
+    auto self = this->shared_from_this();
+    socket_.async_read_some(asio::buffer(buf_), [this, self](boost::system::error_code ec, std::size_t n) {
+      if (ec || closed_) {
+        close();
+        return;
+      }
+      splitter_.feed(std::string_view(buf_.data(), n));
+      std::string line;
+      for (;;) {
+        const auto st = splitter_.next(line);
+        if (st == LineSplitter::Status::incomplete) break;
+        if (st == LineSplitter::Status::too_long) {
+          spdlog::warn("client {}: line over {} bytes; closing", peer_, kMaxLineBytes);
+          send(std::make_shared<const std::string>(Handler::too_long().dump() + "\n"));
+          close_after_write_ = true;
+          return;
+        }
+        if (line.empty()) continue;
+        send(std::make_shared<const std::string>(handler_.handle_line(line, state_).dump() + "\n"));
+      }
+      read();
+    });
+  }
+
+  void send(std::shared_ptr<const std::string> line) {
+    if (closed_) return;
+    queued_bytes_ += line->size();
+    if (queued_bytes_ > kMaxQueuedBytes) {
+      spdlog::warn("client {}: {} bytes unread; dropping it", peer_, queued_bytes_);
+      close();
+      return;
+    }
+    queue_.push_back(std::move(line));
+    if (queue_.size() == 1) write();
+  }
+
+  void write() {
+    auto self = this->shared_from_this();
+    timer_.expires_after(kWriteDeadline);
+    timer_.async_wait([this, self](boost::system::error_code ec) {
+      if (!ec) {
+        spdlog::warn("client {}: write deadline passed; closing", peer_);
+        close();
+      }
+    });
+    asio::async_write(socket_, asio::buffer(*queue_.front()),
+                      [this, self](boost::system::error_code ec, std::size_t) {
+                        timer_.cancel();
+                        if (ec || closed_) {
+                          close();
+                          return;
+                        }
+                        queued_bytes_ -= queue_.front()->size();
+                        queue_.pop_front();
+                        if (!queue_.empty()) write();
+                        else if (close_after_write_) close();
+                      });
+  }
+
+  Socket socket_;
+  asio::steady_timer timer_;
+  Handler& handler_;
+  std::string peer_;
+  SessionState state_;
+  LineSplitter splitter_;
+  std::array<char, 65536> buf_{};
+  std::deque<std::shared_ptr<const std::string>> queue_;
+  std::size_t queued_bytes_ = 0;
+  bool closed_ = false;
+  bool close_after_write_ = false;
+};
+
+// What the worker read from the chamber and the thermistor module at one poll.
+struct DeviceReading {
+  std::optional<double> chamber_c;
+  std::optional<double> chamber_setpoint_c;
+  bool alarm = false;
+  bool chamber_ok = false;
+  std::string chamber_error;
+  bool thermistors_ok = false;
+  std::string thermistor_error;
+  std::vector<UnitReading> coils;  // t1_c, t2_c and out_of_range only
+};
+
+}  // namespace
+
+struct Server::Impl {
+  DaemonConfig config;
+  ServerOptions options;
+  asio::io_context io;
+  asio::signal_set signals{io, SIGTERM, SIGINT};
+  std::optional<asio::local::stream_protocol::acceptor> unix_acceptor;
+  std::optional<asio::ip::tcp::acceptor> tcp_acceptor;
+  std::list<std::weak_ptr<SessionBase>> sessions;
+
+  std::optional<storage::Store> store;
+  std::unique_ptr<Station> station;
+  std::unique_ptr<Handler> handler;
+
+  // The worker: a job queue on its own thread. The chamber and module are touched only there.
+  asio::io_context wio;
+  std::optional<asio::executor_work_guard<asio::io_context::executor_type>> wguard;
+  std::thread wthread;
+  std::unique_ptr<drivers::Chamber> chamber;
+  std::unique_ptr<drivers::ThermistorModule> thermistors;
+
+  // The gyro bus: read on the loop through its fd.
+  std::optional<drivers::GyroBus> bus;
+  asio::posix::stream_descriptor gyro_sd{io};
+  asio::steady_timer gyro_retry{io};
+  std::vector<::can_frame> frames;
+  bool gyro_logged_down = false;
+
+  // The acquisition schedule: half-period slots from t0; even slots close a sample, odd slots
+  // poll the Modbus devices, so the temperatures are read mid-way through the gyro's averaging
+  // window and are fresh at the next tick.
+  asio::steady_timer timer{io};
+  Clock::time_point t0;
+  std::int64_t slot = 0;
+  std::chrono::nanoseconds half_period{};
+  std::uint64_t poll_seq = 0;      // polls started
+  std::uint64_t poll_done_seq = 0; // polls whose result has arrived
+  bool poll_in_flight = false;
+  std::optional<DeviceReading> reading;  // of poll poll_done_seq
+  std::uint64_t reading_used_seq = 0;
+  std::optional<double> written_setpoint_c;
+  bool write_in_flight = false;
+  std::int64_t late_ticks = 0;
+
+  bool stopping = false;
+  asio::steady_timer shutdown_timer{io};
+  int exit_code = 0;
+
+  Impl(DaemonConfig c, ServerOptions o) : config(std::move(c)), options(o) {}
+
+  // --- command socket
+  template <class Socket>
+  void accept_session(Socket socket, std::string peer) {
+    auto s = std::make_shared<Session<Socket>>(std::move(socket), *handler, peer);
+    sessions.push_back(s);
+    s->start();
+  }
+
+  void accept_unix() {
+    unix_acceptor->async_accept([this](boost::system::error_code ec, asio::local::stream_protocol::socket s) {
+      if (stopping) return;
+      if (!ec) accept_session(std::move(s), "unix");
+      else spdlog::warn("accept on the unix socket: {}", ec.message());
+      accept_unix();
+    });
+  }
+
+  void accept_tcp() {
+    tcp_acceptor->async_accept([this](boost::system::error_code ec, asio::ip::tcp::socket s) {
+      if (stopping) return;
+      if (!ec) {
+        boost::system::error_code e2;
+        auto ep = s.remote_endpoint(e2);
+        accept_session(std::move(s), e2 ? std::string("tcp") : ep.address().to_string() + ":" + std::to_string(ep.port()));
+      } else {
+        spdlog::warn("accept on tcp: {}", ec.message());
+      }
+      accept_tcp();
+    });
+  }
+
+  void publish(const json& message) {
+    auto line = std::make_shared<const std::string>(message.dump() + "\n");
+    for (auto it = sessions.begin(); it != sessions.end();) {
+      if (auto s = it->lock()) {
+        s->push(line);
+        ++it;
+      } else {
+        it = sessions.erase(it);
+      }
+    }
+    if (message.value("type", "") == "event") spdlog::info("event: {}", message.dump());
+  }
+
+  // --- worker jobs
+  void post_write_setpoint(double sp_c) {
+    if (write_in_flight) return;  // the next tick retries with the then-current setpoint
+    write_in_flight = true;
+    asio::post(wio, [this, sp_c] {
+      auto r = chamber->write_setpoint_c(sp_c);
+      std::string err = r ? "" : r.error().to_string();
+      asio::post(io, [this, sp_c, err] {
+        write_in_flight = false;
+        if (err.empty()) {
+          written_setpoint_c = sp_c;
+        } else {
+          spdlog::warn("setpoint {} C not written: {}", sp_c, err);
+        }
+      });
+    });
+  }
+
+  void post_poll() {
+    if (poll_in_flight) return;  // the previous poll is still blocked in libmodbus
+    poll_in_flight = true;
+    const auto seq = ++poll_seq;
+    asio::post(wio, [this, seq] {
+      DeviceReading d;
+      if (auto r = chamber->poll()) {
+        d.chamber_ok = true;
+        d.chamber_c = r->process_value_c;
+        d.chamber_setpoint_c = r->setpoint_c;
+        d.alarm = r->alarm;
+      } else {
+        d.chamber_error = r.error().to_string();
+      }
+      d.coils.resize(config.drivers.units.size());
+      if (auto t = thermistors->read_all()) {
+        d.thermistors_ok = true;
+        for (std::size_t i = 0; i < t->size() && i < d.coils.size(); ++i) {
+          const auto& c = (*t)[i];
+          auto take = [&](const drivers::Result<double>& v, std::optional<double>& out) {
+            if (v) out = *v;
+            else if (v.error().code == drivers::ErrorCode::out_of_range) d.coils[i].out_of_range = true;
+          };
+          take(c.t1_c, d.coils[i].t1_c);
+          take(c.t2_c, d.coils[i].t2_c);
+        }
+      } else {
+        d.thermistor_error = t.error().to_string();
+      }
+      asio::post(io, [this, seq, d = std::move(d)]() mutable {
+        poll_in_flight = false;
+        poll_done_seq = seq;
+        reading = std::move(d);
+      });
+    });
+  }
+
+  // --- gyro bus
+  std::vector<drivers::GyroChannelConfig> gyro_channels() const {
+    std::vector<drivers::GyroChannelConfig> g;
+    for (const auto& u : config.drivers.units) g.push_back(u.gyro);
+    return g;
+  }
+
+  void open_gyro() {
+    if (stopping) return;
+    drivers::Result<void> ok;
+    if (!bus) {
+      auto b = drivers::GyroBus::open(config.drivers.gyro_bus, gyro_channels());
+      if (b) bus.emplace(std::move(*b));
+      else ok = std::unexpected(b.error());
+    } else {
+      ok = bus->reopen(config.drivers.gyro_bus);
+    }
+    if (!ok) {
+      if (!gyro_logged_down) spdlog::warn("gyro bus: {}; retrying every second", ok.error().to_string());
+      gyro_logged_down = true;
+      gyro_retry.expires_after(std::chrono::seconds(1));
+      gyro_retry.async_wait([this](boost::system::error_code ec) {
+        if (!ec) open_gyro();
+      });
+      return;
+    }
+    gyro_logged_down = false;
+    spdlog::info("gyro bus: {}", bus->transport().describe());
+    boost::system::error_code ec;
+    gyro_sd.assign(bus->fd(), ec);
+    if (ec) spdlog::error("gyro bus fd: {}", ec.message());
+    wait_gyro();
+  }
+
+  void wait_gyro() {
+    gyro_sd.async_wait(asio::posix::stream_descriptor::wait_read, [this](boost::system::error_code ec) {
+      if (ec || stopping) return;
+      // Bounded per turn so a flood of frames cannot starve the sockets and the schedule.
+      for (int i = 0; i < 16; ++i) {
+        auto n = bus->read_frames(frames);
+        if (!n) {
+          spdlog::warn("gyro bus: {}", n.error().to_string());
+          (void)gyro_sd.release();  // the bus owns and closes the fd
+          gyro_retry.expires_after(std::chrono::seconds(1));
+          gyro_retry.async_wait([this](boost::system::error_code e) {
+            if (!e) open_gyro();
+          });
+          return;
+        }
+        if (*n == 0) break;
+      }
+      wait_gyro();
+    });
+  }
+
+  // --- acquisition schedule
+  void schedule() {
+    // Absolute deadlines, t0 + slot * half_period: a late wake-up never shifts the next one.
+    timer.expires_at(t0 + slot * half_period);
+    timer.async_wait([this](boost::system::error_code ec) {
+      if (ec || stopping) return;
+      on_slot();
+    });
+  }
+
+  void on_slot() {
+    const auto now = Clock::now();
+    // Far behind (the loop was blocked, e.g. by a long fit): skip ahead rather than replay a
+    // burst of empty seconds.
+    const auto behind = (now - (t0 + slot * half_period)) / half_period;
+    if (behind > 20) {
+      spdlog::warn("acquisition {} half-periods late; skipping ahead", behind);
+      slot += behind & ~std::int64_t{1};
+    }
+    if (slot % 2 == 1) {
+      post_poll();
+    } else {
+      tick(slot / 2);
+    }
+    ++slot;
+    schedule();
+  }
+
+  void tick(std::int64_t k) {
+    TickInput in;
+    in.wall_time = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+    in.units.resize(config.drivers.units.size());
+    if (bus) {
+      auto s = bus->close_samples();
+      for (std::size_t i = 0; i < s.units.size() && i < in.units.size(); ++i) {
+        in.units[i].gyro_dph = s.units[i].rate_dph;
+        in.units[i].frames = s.units[i].frames;
+        in.units[i].frames_lost = s.units[i].frames_lost;
+      }
+    }
+    // Only a reading from the poll of the last half-period counts: an older one is stale.
+    const bool fresh = reading && poll_done_seq == poll_seq && poll_done_seq != reading_used_seq;
+    if (fresh) {
+      reading_used_seq = poll_done_seq;
+      in.chamber_c = reading->chamber_c;
+      in.chamber_setpoint_c = reading->chamber_setpoint_c;
+      in.chamber_alarm = reading->alarm;
+      in.chamber_link_down = !reading->chamber_ok;
+      for (std::size_t i = 0; i < in.units.size() && i < reading->coils.size(); ++i) {
+        in.units[i].t1_c = reading->coils[i].t1_c;
+        in.units[i].t2_c = reading->coils[i].t2_c;
+        in.units[i].out_of_range = reading->coils[i].out_of_range;
+      }
+    } else {
+      in.chamber_link_down = true;
+    }
+    const TickOutput out = station->tick(static_cast<double>(k), in);
+    if (!written_setpoint_c || *written_setpoint_c != out.setpoint_c) post_write_setpoint(out.setpoint_c);
+  }
+
+  // --- stopping
+  void begin_stop(const std::string& why) {
+    if (stopping) return;
+    stopping = true;
+    spdlog::info("stopping: {}", why);
+    station->shutdown("fogbenchd stopping: " + why);
+    boost::system::error_code ec;
+    timer.cancel();
+    gyro_retry.cancel();
+    signals.cancel();
+    if (unix_acceptor) unix_acceptor->close(ec);
+    if (tcp_acceptor) tcp_acceptor->close(ec);
+    for (auto& w : sessions)
+      if (auto s = w.lock()) s->close();
+    sessions.clear();
+    if (gyro_sd.is_open()) (void)gyro_sd.release();
+    // The last job: the safe setpoint. Its completion, or the deadline, ends the loop.
+    const double safe = config.safe_setpoint_c;
+    shutdown_timer.expires_after(kShutdownDeadline);
+    shutdown_timer.async_wait([this](boost::system::error_code e) {
+      if (!e) {
+        spdlog::error("the chamber did not confirm the safe setpoint within the deadline");
+        exit_code = 1;
+        io.stop();
+      }
+    });
+    asio::post(wio, [this, safe] {
+      auto r = chamber->write_setpoint_c(safe);
+      std::string err = r ? "" : r.error().to_string();
+      asio::post(io, [this, safe, err] {
+        if (err.empty()) spdlog::info("chamber left at the safe setpoint {} C", safe);
+        else {
+          spdlog::error("safe setpoint {} C not written: {}", safe, err);
+          exit_code = 1;
+        }
+        shutdown_timer.cancel();
+        io.stop();
+      });
+    });
+  }
+};
+
+Server::Server(DaemonConfig config, ServerOptions options)
+    : impl_(std::make_unique<Impl>(std::move(config), options)) {}
+
+Server::~Server() {
+  if (impl_ && impl_->wthread.joinable()) {
+    impl_->wguard.reset();
+    impl_->wio.stop();
+    impl_->wthread.join();
+  }
+  if (impl_ && impl_->unix_acceptor) {
+    std::error_code ec;
+    std::filesystem::remove(impl_->config.socket.unix_path, ec);
+  }
+}
+
+std::expected<void, std::string> Server::start() {
+  Impl& m = *impl_;
+  storage::OpenOptions so;
+  so.synchronous_full = m.config.storage_synchronous_full;
+  auto store = storage::Store::open(m.config.storage_path, so);
+  if (!store) return std::unexpected("storage: " + store.error().message);
+  m.store.emplace(std::move(*store));
+  m.station = std::make_unique<Station>(m.config, *m.store, m.options.time_scale);
+  m.handler = std::make_unique<Handler>(*m.station);
+  m.station->set_publisher([&m](const json& msg) { m.publish(msg); });
+  auto rec = m.station->recover();
+  if (!rec) return std::unexpected("storage: " + rec.error().message);
+  for (auto id : *rec) spdlog::warn("run {} was in progress when the daemon stopped: marked interrupted", id);
+
+  // The command socket, mode 0660: the group of the socket is the operators' group.
+  const auto& path = m.config.socket.unix_path;
+  std::error_code fec;
+  std::filesystem::create_directories(path.parent_path(), fec);
+  std::filesystem::remove(path, fec);  // a stale socket from a crash
+  try {
+    m.unix_acceptor.emplace(m.io, asio::local::stream_protocol::endpoint(path.string()));
+  } catch (const boost::system::system_error& e) {
+    return std::unexpected("socket " + path.string() + ": " + e.what());
+  }
+  if (::chmod(path.c_str(), 0660) != 0) spdlog::warn("chmod 0660 {}: {}", path.string(), std::strerror(errno));
+  if (m.config.socket.tcp_port) {
+    try {
+      m.tcp_acceptor.emplace(m.io, asio::ip::tcp::endpoint(asio::ip::make_address("127.0.0.1"), *m.config.socket.tcp_port));
+    } catch (const boost::system::system_error& e) {
+      return std::unexpected("socket tcp 127.0.0.1:" + std::to_string(*m.config.socket.tcp_port) + ": " + e.what());
+    }
+  }
+
+  m.chamber = std::make_unique<drivers::Chamber>(m.config.drivers.chamber);
+  m.thermistors = std::make_unique<drivers::ThermistorModule>(m.config.drivers.thermistors, m.config.drivers.units);
+  m.wguard.emplace(m.wio.get_executor());
+  m.wthread = std::thread([&m] { m.wio.run(); });
+  return {};
+}
+
+int Server::run() {
+  Impl& m = *impl_;
+  m.signals.async_wait([&m](boost::system::error_code ec, int sig) {
+    if (!ec) m.begin_stop(sig == SIGTERM ? "SIGTERM" : "SIGINT");
+  });
+  m.accept_unix();
+  if (m.tcp_acceptor) m.accept_tcp();
+
+  // Start-up: the chamber goes to its safe setpoint and runs, before anything else is asked.
+  const double safe = m.config.safe_setpoint_c;
+  asio::post(m.wio, [&m, safe] {
+    auto report = m.chamber->bring_up();
+    std::string msg = report ? report->to_string() : report.error().to_string();
+    auto w = m.chamber->write_setpoint_c(safe);
+    auto r = m.chamber->set_running(true);
+    std::string err = !w ? w.error().to_string() : (!r ? r.error().to_string() : "");
+    asio::post(m.io, [&m, msg, err, safe] {
+      spdlog::info("chamber bring-up:\n{}", msg);
+      if (err.empty()) {
+        m.written_setpoint_c = safe;
+        spdlog::info("chamber at the safe setpoint {} C", safe);
+      } else {
+        spdlog::warn("chamber not yet at the safe setpoint: {} (retried every second)", err);
+      }
+    });
+  });
+  m.open_gyro();
+
+  m.half_period = std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(0.5e9 / m.options.time_scale)));
+  m.t0 = Clock::now() + 2 * m.half_period;
+  m.slot = -1;  // the first poll comes half a period before the first tick
+  m.schedule();
+
+  spdlog::info("listening on {}{}; time scale {}", m.config.socket.unix_path.string(),
+               m.config.socket.tcp_port ? " and 127.0.0.1:" + std::to_string(*m.config.socket.tcp_port) : "",
+               m.options.time_scale);
+  // One line on stdout when ready, for scripts and tests that start the daemon.
+  std::cout << json{{"ready", true}, {"socket", m.config.socket.unix_path.string()},
+                    {"tcp_port", m.config.socket.tcp_port ? json(*m.config.socket.tcp_port) : json(nullptr)},
+                    {"pid", ::getpid()}, {"time_scale", m.options.time_scale}}
+                   .dump()
+            << std::endl;
+
+  for (;;) {
+    try {
+      m.io.run();
+      break;
+    } catch (const std::exception& e) {
+      // A bug escaped a handler: log it and keep serving (gpsd's "soldier on").
+      spdlog::error("event loop: {}", e.what());
+    }
+  }
+  m.wguard.reset();
+  m.wthread.join();
+  std::error_code ec;
+  std::filesystem::remove(m.config.socket.unix_path, ec);
+  m.unix_acceptor.reset();
+  return m.exit_code;
+}
+
+void Server::stop() {
+  asio::post(impl_->io, [this] { impl_->begin_stop("stop requested"); });
+}
+
+}  // namespace fogbench::daemon

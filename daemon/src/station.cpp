@@ -1,0 +1,492 @@
+// The run state machine, the per-second samples and the automatic fit or verification.
+#include "fogbench/daemon/station.hpp"
+
+#include <cassert>
+#include <chrono>
+#include <cmath>
+#include <ctime>
+#include <fstream>
+#include <regex>
+#include <sstream>
+
+#include "fogbench/model/json.hpp"
+#include "fogbench/model/model.hpp"
+#include "fogbench/model/terms.hpp"
+
+namespace fogbench::daemon {
+
+using nlohmann::json;
+using storage::RunState;
+
+std::string_view to_string(ErrorCode c) {
+  switch (c) {
+    case ErrorCode::bad_json: return "bad_json";
+    case ErrorCode::bad_request: return "bad_request";
+    case ErrorCode::unknown_command: return "unknown_command";
+    case ErrorCode::not_found: return "not_found";
+    case ErrorCode::busy: return "busy";
+    case ErrorCode::invalid_profile: return "invalid_profile";
+    case ErrorCode::limits: return "limits";
+    case ErrorCode::unknown_serial: return "unknown_serial";
+    case ErrorCode::internal: return "internal";
+  }
+  return "internal";
+}
+
+std::string iso8601_now() {
+  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+namespace {
+
+ApiError from_store(const storage::StoreError& e) {
+  if (e.code == storage::StoreErrc::not_found) return {ErrorCode::not_found, e.message};
+  return {ErrorCode::internal, std::string(storage::to_string(e.code)) + ": " + e.message};
+}
+
+model::Phase to_model_phase(profiles::Phase p) {
+  switch (p) {
+    case profiles::Phase::settle: return model::Phase::settle;
+    case profiles::Phase::hold: return model::Phase::hold;
+    case profiles::Phase::heating: return model::Phase::heating;
+    case profiles::Phase::cooling: return model::Phase::cooling;
+  }
+  return model::Phase::unknown;
+}
+
+// A JSON number, or null for a value not read (JSON has no NaN).
+json num(std::optional<double> v) {
+  if (!v || !std::isfinite(*v)) return nullptr;
+  return *v;
+}
+double or_nan(std::optional<double> v) { return v ? *v : storage::kNoValue; }
+
+// Readings outside these are implausible for a coil or a gyro on a drift bench.
+constexpr double kCoilMinC = -100.0, kCoilMaxC = 200.0;
+constexpr double kGyroMaxAbsDph = 1.0e5;
+
+bool valid_profile_name(const std::string& name) {
+  static const std::regex re("[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}");
+  return std::regex_match(name, re);
+}
+
+}  // namespace
+
+Station::Station(DaemonConfig config, storage::Store& store, double time_scale, WallClock wall_clock)
+    : config_(std::move(config)),
+      store_(store),
+      time_scale_(time_scale),
+      wall_clock_(wall_clock ? std::move(wall_clock) : WallClock(iso8601_now)),
+      setpoint_c_(config_.safe_setpoint_c) {}
+
+ApiResult<std::vector<std::int64_t>> Station::recover() {
+  auto ids = store_.mark_interrupted_runs("daemon restarted: the run was in progress when it stopped");
+  if (!ids) return std::unexpected(from_store(ids.error()));
+  return *ids;
+}
+
+std::optional<std::int64_t> Station::active_run_id() const {
+  if (!run_) return std::nullopt;
+  return run_->id;
+}
+
+std::vector<std::string> Station::profile_names() const {
+  std::vector<std::string> names;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(config_.profile_dir, ec)) {
+    if (e.path().extension() == ".profile") names.push_back(e.path().stem().string());
+  }
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+ApiResult<profiles::Profile> Station::check_profile_text(const std::string& text,
+                                                         const std::string& source) const {
+  auto p = profiles::parse_profile(text, source);
+  if (!p) return api_error(ErrorCode::invalid_profile, p.error().to_string());
+  if (auto ok = profiles::check_limits(*p, config_.limits); !ok)
+    return api_error(ErrorCode::limits, ok.error().to_string());
+  return std::move(*p);
+}
+
+ApiResult<profiles::Profile> Station::load_profile(const std::string& name, std::string* text) const {
+  if (!valid_profile_name(name))
+    return api_error(ErrorCode::bad_request, "profile: expected a name of letters, digits, '_', '-' or '.'");
+  const auto path = config_.profile_dir / (name + ".profile");
+  std::ifstream in(path);
+  if (!in) return api_error(ErrorCode::not_found, "profile " + name + ": not in " + config_.profile_dir.string());
+  std::stringstream ss;
+  ss << in.rdbuf();
+  auto p = check_profile_text(ss.str(), name + ".profile");
+  if (p && text) *text = ss.str();
+  return p;
+}
+
+void Station::event(std::int64_t run_id, storage::EventKind kind, const json& detail,
+                    std::optional<double> t_s) {
+  // An event that cannot be stored is still published: the audit trail's loss is logged by the
+  // caller of the store (the daemon keeps running).
+  (void)store_.add_event(run_id, kind, detail.dump(), t_s);
+  emit({{"type", "event"}, {"run_id", run_id}, {"t_s", num(t_s)},
+        {"kind", std::string(storage::to_string(kind))}, {"detail", detail}});
+}
+
+void Station::audit(std::int64_t run_id, const json& command) {
+  std::optional<double> t_s;
+  if (run_ && run_->id == run_id) t_s = run_->elapsed_s;
+  event(run_id, storage::EventKind::command, command, t_s);
+}
+
+void Station::transition(ActiveRun& run, RunState to, const std::string& reason,
+                         std::optional<double> t_s) {
+  const RunState from = run.state;
+  run.state = to;
+  (void)store_.set_run_state(run.id, to, reason, t_s);
+  emit({{"type", "event"}, {"run_id", run.id}, {"t_s", num(t_s)}, {"kind", "state"},
+        {"detail", {{"from", std::string(storage::to_string(from))},
+                    {"to", std::string(storage::to_string(to))}, {"reason", reason}}}});
+}
+
+ApiResult<std::int64_t> Station::start_run(const std::string& profile_name,
+                                           const std::vector<std::string>& serials,
+                                           const std::string& purpose_text, const json& command) {
+  if (run_) return api_error(ErrorCode::busy, "run " + std::to_string(run_->id) + " is " +
+                                                  std::string(storage::to_string(run_->state)));
+  auto purpose = storage::purpose_from_string(purpose_text);
+  if (!purpose) return api_error(ErrorCode::bad_request, "purpose: expected \"fit\" or \"verify\"");
+  if (serials.empty()) return api_error(ErrorCode::bad_request, "units: expected at least one serial");
+
+  std::vector<std::size_t> index;
+  for (std::size_t i = 0; i < serials.size(); ++i) {
+    for (std::size_t j = 0; j < i; ++j)
+      if (serials[j] == serials[i]) return api_error(ErrorCode::bad_request, "units: " + serials[i] + " given twice");
+    const auto& units = config_.drivers.units;
+    auto it = std::find_if(units.begin(), units.end(), [&](const auto& u) { return u.serial == serials[i]; });
+    if (it == units.end())
+      return api_error(ErrorCode::unknown_serial, "unit " + serials[i] + ": not configured on this bench");
+    index.push_back(static_cast<std::size_t>(it - units.begin()));
+    if (*purpose == storage::Purpose::verify) {
+      auto m = store_.current_model(serials[i]);
+      if (!m) return std::unexpected(from_store(m.error()));
+      if (!*m) return api_error(ErrorCode::unknown_serial, "unit " + serials[i] + ": no model to verify");
+    }
+  }
+
+  std::string text;
+  auto profile = load_profile(profile_name, &text);
+  if (!profile) return std::unexpected(profile.error());
+
+  storage::NewRun nr;
+  nr.profile_name = profile_name;
+  nr.profile_text = text;
+  nr.purpose = *purpose;
+  nr.config_json = config_.source.dump();
+  nr.time_scale = time_scale_;
+  nr.unit_serials = serials;
+  auto id = store_.create_run(nr);
+  if (!id) return std::unexpected(from_store(id.error()));
+
+  ActiveRun run;
+  run.id = *id;
+  run.purpose = *purpose;
+  run.profile_name = profile_name;
+  run.serials = serials;
+  run.config_index = std::move(index);
+  run.executor = std::make_unique<profiles::Executor>(std::move(*profile));
+  run_ = std::move(run);
+  event(*id, storage::EventKind::command, command, std::nullopt);
+  return *id;
+}
+
+ApiResult<std::int64_t> Station::abort_run(const std::string& reason, const json& command) {
+  if (!run_) return api_error(ErrorCode::not_found, "no run is active");
+  const auto id = run_->id;
+  event(id, storage::EventKind::command, command, run_->elapsed_s);
+  finish(RunState::aborted, reason);
+  return id;
+}
+
+void Station::shutdown(const std::string& reason) {
+  if (run_) finish(RunState::aborted, reason);
+  setpoint_c_ = config_.safe_setpoint_c;
+}
+
+void Station::finish(RunState to, const std::string& reason) {
+  assert(run_);
+  ActiveRun& run = *run_;
+  transition(run, to, reason, run.elapsed_s);
+  const auto id = run.id;
+  const auto purpose = run.purpose;
+  const auto serials = run.serials;
+  run_.reset();
+  setpoint_c_ = config_.safe_setpoint_c;
+  if (to == RunState::completed) analyse(id, purpose, serials);
+}
+
+void Station::analyse(std::int64_t run_id, storage::Purpose purpose,
+                      const std::vector<std::string>& serials) {
+  for (std::size_t i = 0; i < serials.size(); ++i) {
+    const int unit = static_cast<int>(i);
+    json detail = {{"analysis", std::string(storage::to_string(purpose))}, {"unit", unit},
+                   {"serial", serials[i]}};
+    if (purpose == storage::Purpose::fit) {
+      auto r = fit_unit(run_id, unit, "", "");
+      if (r) {
+        detail["model_id"] = (*r)["model_id"];
+        detail["ok"] = true;
+      } else {
+        detail["ok"] = false;
+        detail["error"] = r.error().message;
+      }
+    } else {
+      auto r = verify_unit(run_id, unit, std::nullopt);
+      if (r) {
+        detail["verification_id"] = (*r)["verification_id"];
+        detail["pass"] = (*r)["pass"];
+        detail["ok"] = true;
+      } else {
+        detail["ok"] = false;
+        detail["error"] = r.error().message;
+      }
+    }
+    event(run_id, storage::EventKind::note, detail, std::nullopt);
+  }
+}
+
+ApiResult<json> Station::fit_unit(std::int64_t run_id, int unit_index, const std::string& terms_text,
+                                  const std::string& method_text) {
+  auto detail = store_.get_run(run_id);
+  if (!detail) return std::unexpected(from_store(detail.error()));
+  if (unit_index < 0 || unit_index >= static_cast<int>(detail->run.units.size()))
+    return api_error(ErrorCode::not_found, "run " + std::to_string(run_id) + " has no unit " +
+                                               std::to_string(unit_index));
+  const std::string serial = detail->run.units[static_cast<std::size_t>(unit_index)].serial;
+  const std::string tt = terms_text.empty() ? config_.analysis.terms : terms_text;
+  auto terms = model::parse_terms(tt);
+  if (!terms) return api_error(ErrorCode::bad_request, "terms: not a term list: " + tt);
+  model::FitOptions opt;
+  const std::string mt = method_text.empty() ? config_.analysis.method : method_text;
+  auto method = model::method_from_string(mt);
+  if (!method) return api_error(ErrorCode::bad_request, "method: expected \"paper\" or \"joint\"");
+  opt.method = *method;
+  auto data = store_.export_run(run_id, unit_index);
+  if (!data) return std::unexpected(from_store(data.error()));
+  auto m = model::fit(*data, *terms, opt);
+  if (!m)
+    return api_error(ErrorCode::internal, "fit failed (" + std::string(model::to_string(m.error().code)) +
+                                              "): " + m.error().message);
+  m->created_at = wall_clock_();
+  auto parent = store_.current_model(serial);
+  if (!parent) return std::unexpected(from_store(parent.error()));
+  storage::NewModel nm;
+  nm.serial = serial;
+  nm.run_id = run_id;
+  if (*parent) nm.parent_id = (*parent)->id;
+  json mj = model::to_json(*m);
+  nm.model_json = mj.dump();
+  nm.method = std::string(model::to_string(m->method));
+  nm.terms = m->terms_string();
+  auto ref = store_.put_model(nm);
+  if (!ref) return std::unexpected(from_store(ref.error()));
+  return json{{"model_id", ref->id}, {"version", ref->version}, {"serial", serial},
+              {"run_id", run_id}, {"unit", unit_index},
+              {"parent_id", nm.parent_id ? json(*nm.parent_id) : json(nullptr)},
+              {"terms", nm.terms}, {"method", nm.method}, {"model", mj}};
+}
+
+ApiResult<json> Station::verify_unit(std::int64_t run_id, int unit_index,
+                                     std::optional<std::int64_t> model_id) {
+  auto detail = store_.get_run(run_id);
+  if (!detail) return std::unexpected(from_store(detail.error()));
+  if (unit_index < 0 || unit_index >= static_cast<int>(detail->run.units.size()))
+    return api_error(ErrorCode::not_found, "run " + std::to_string(run_id) + " has no unit " +
+                                               std::to_string(unit_index));
+  const std::string serial = detail->run.units[static_cast<std::size_t>(unit_index)].serial;
+  storage::ModelRecord rec;
+  if (model_id) {
+    auto r = store_.get_model(*model_id);
+    if (!r) return std::unexpected(from_store(r.error()));
+    rec = *r;
+  } else {
+    auto r = store_.current_model(serial);
+    if (!r) return std::unexpected(from_store(r.error()));
+    if (!*r) return api_error(ErrorCode::unknown_serial, "unit " + serial + ": no model to verify");
+    rec = **r;
+  }
+  auto m = model::model_from_text(rec.model_json);
+  if (!m) return api_error(ErrorCode::internal, "model " + std::to_string(rec.id) + ": " + m.error());
+  auto data = store_.export_run(run_id, unit_index);
+  if (!data) return std::unexpected(from_store(data.error()));
+  auto v = model::verify(*m, *data, config_.analysis.verify_threshold);
+  if (!v)
+    return api_error(ErrorCode::internal, "verification failed (" +
+                                              std::string(model::to_string(v.error().code)) + "): " +
+                                              v.error().message);
+  json vj = model::to_json(*v);
+  storage::NewVerification nv{run_id, unit_index, rec.id, vj.dump(), v->pass};
+  auto id = store_.put_verification(nv);
+  if (!id) return std::unexpected(from_store(id.error()));
+  return json{{"verification_id", *id}, {"run_id", run_id}, {"unit", unit_index},
+              {"serial", serial}, {"model_id", rec.id}, {"pass", v->pass}, {"result", vj}};
+}
+
+TickOutput Station::tick(double clock_s, const TickInput& in) {
+  clock_s_ = clock_s;
+  last_input_ = in;
+  ++ticks_;
+  if (!run_) return {setpoint_c_};
+  ActiveRun& run = *run_;
+
+  if (run.state == RunState::pending) {
+    run.start_clock_s = clock_s;
+    transition(run, RunState::settling, "run started", 0.0);
+  }
+  run.elapsed_s = clock_s - run.start_clock_s;
+  const double t_s = run.elapsed_s;
+
+  // Alarms and link faults are recorded on their edges, not every second.
+  if (in.chamber_alarm != run.alarm) {
+    run.alarm = in.chamber_alarm;
+    event(run.id, storage::EventKind::alarm, {{"alarm", in.chamber_alarm}, {"source", "chamber"}}, t_s);
+  }
+  if (in.chamber_link_down != run.link_down) {
+    run.link_down = in.chamber_link_down;
+    event(run.id, storage::EventKind::fault,
+          {{"chamber_link", in.chamber_link_down ? "down" : "up"}}, t_s);
+  }
+
+  profiles::Readings readings;
+  readings.chamber_c = in.chamber_c ? *in.chamber_c : std::nan("");
+  for (std::size_t ci : run.config_index) {
+    const UnitReading* u = ci < in.units.size() ? &in.units[ci] : nullptr;
+    readings.coils.push_back({u && u->t1_c ? *u->t1_c : std::nan(""), u && u->t2_c ? *u->t2_c : std::nan("")});
+  }
+  const profiles::ExecutorStatus st = run.executor->update(t_s, readings);
+  run.last = st;
+
+  if (run.state == RunState::settling && st.phase != profiles::Phase::settle && !st.failed)
+    transition(run, RunState::running, st.step_index == 0 ? "profile started" : "settled", t_s);
+  if (!run.phase || *run.phase != st.phase || run.step != st.step_index) {
+    run.phase = st.phase;
+    run.step = st.step_index;
+    event(run.id, storage::EventKind::phase,
+          {{"phase", std::string(profiles::to_string(st.phase))}, {"step", st.step_index},
+           {"line", st.step_line}},
+          t_s);
+  }
+
+  std::vector<storage::SampleRow> rows;
+  rows.reserve(run.config_index.size());
+  for (std::size_t i = 0; i < run.config_index.size(); ++i) {
+    const std::size_t ci = run.config_index[i];
+    const UnitReading u = ci < in.units.size() ? in.units[ci] : UnitReading{};
+    storage::SampleRow r;
+    r.unit_index = static_cast<int>(i);
+    r.t_s = t_s;
+    r.wall_time = in.wall_time;
+    // The setpoint recorded is the one commanded for this second: the profile's.
+    r.setpoint_c = st.setpoint_c;
+    r.chamber_c = or_nan(in.chamber_c);
+    r.gyro_dph = or_nan(u.gyro_dph);
+    r.frames = u.frames;
+    r.t1_c = or_nan(u.t1_c);
+    r.t2_c = or_nan(u.t2_c);
+    r.phase = to_model_phase(st.phase);
+    r.step = static_cast<int>(st.step_index);
+    std::uint8_t f = 0;
+    if (!u.gyro_dph || !u.t1_c || !u.t2_c || !in.chamber_c) f |= model::flag::missing;
+    if (u.frames_lost > 0) f |= model::flag::frames_lost;
+    bool oor = u.out_of_range;
+    for (auto t : {u.t1_c, u.t2_c})
+      if (t && (*t < kCoilMinC || *t > kCoilMaxC)) oor = true;
+    if (u.gyro_dph && std::abs(*u.gyro_dph) > kGyroMaxAbsDph) oor = true;
+    if (oor) f |= model::flag::out_of_range;
+    if (in.chamber_link_down) f |= model::flag::link_gap;
+    r.flags = f;
+    rows.push_back(r);
+  }
+  auto stored = store_.append_samples(run.id, rows);
+
+  json base = {{"type", "sample"}, {"run_id", run.id}, {"t_s", t_s},
+               {"state", std::string(storage::to_string(run.state))},
+               {"phase", std::string(profiles::to_string(st.phase))}, {"step", st.step_index},
+               {"elapsed_s", t_s}, {"remaining_s", st.remaining_s}, {"setpoint_c", st.setpoint_c},
+               {"chamber_c", num(in.chamber_c)}};
+  for (const auto& r : rows) {
+    json m = base;
+    m["unit"] = r.unit_index;
+    m["serial"] = run.serials[static_cast<std::size_t>(r.unit_index)];
+    m["gyro_dph"] = num(std::isfinite(r.gyro_dph) ? std::optional(r.gyro_dph) : std::nullopt);
+    m["frames"] = r.frames.value_or(0);
+    m["t1_c"] = num(std::isfinite(r.t1_c) ? std::optional(r.t1_c) : std::nullopt);
+    m["t2_c"] = num(std::isfinite(r.t2_c) ? std::optional(r.t2_c) : std::nullopt);
+    m["flags"] = r.flags;
+    emit(m);
+  }
+
+  if (!stored) {
+    // Samples that cannot be stored make the run worthless: end it rather than run on blind.
+    finish(RunState::failed, "storing samples failed: " + stored.error().message);
+  } else if (st.failed) {
+    finish(RunState::failed, st.failure_reason);
+  } else if (st.finished) {
+    finish(RunState::completed, "profile finished");
+  } else {
+    setpoint_c_ = st.setpoint_c;
+  }
+  return {setpoint_c_};
+}
+
+json Station::status() const {
+  json s;
+  s["version"] = FOGBENCH_DAEMON_VERSION;
+  s["simulated"] = config_.simulated;
+  s["time_scale"] = time_scale_;
+  s["clock_s"] = clock_s_;
+  s["setpoint_c"] = setpoint_c_;
+  s["safe_setpoint_c"] = config_.safe_setpoint_c;
+  s["limits"] = {{"min_c", config_.limits.min_c}, {"max_c", config_.limits.max_c},
+                 {"max_rate_c_per_min", config_.limits.max_rate_c_per_min}};
+  json chamber = {{"chamber_c", nullptr}, {"setpoint_c", nullptr}, {"alarm", false}, {"link", "unknown"}};
+  json units = json::array();
+  for (std::size_t i = 0; i < config_.drivers.units.size(); ++i) {
+    json u = {{"serial", config_.drivers.units[i].serial}, {"gyro_dph", nullptr},
+              {"frames", 0}, {"t1_c", nullptr}, {"t2_c", nullptr}};
+    if (last_input_ && i < last_input_->units.size()) {
+      const auto& r = last_input_->units[i];
+      u["gyro_dph"] = num(r.gyro_dph);
+      u["frames"] = r.frames;
+      u["t1_c"] = num(r.t1_c);
+      u["t2_c"] = num(r.t2_c);
+    }
+    units.push_back(u);
+  }
+  if (last_input_) {
+    chamber = {{"chamber_c", num(last_input_->chamber_c)},
+               {"setpoint_c", num(last_input_->chamber_setpoint_c)},
+               {"alarm", last_input_->chamber_alarm},
+               {"link", last_input_->chamber_link_down ? "down" : "up"}};
+  }
+  s["chamber"] = chamber;
+  s["units"] = units;
+  if (run_) {
+    const auto& r = *run_;
+    s["run"] = {{"id", r.id}, {"state", std::string(storage::to_string(r.state))},
+                {"profile", r.profile_name}, {"purpose", std::string(storage::to_string(r.purpose))},
+                {"units", r.serials}, {"elapsed_s", r.elapsed_s},
+                {"remaining_s", r.executor ? json(r.last.remaining_s) : json(nullptr)},
+                {"phase", r.phase ? json(std::string(profiles::to_string(*r.phase))) : json(nullptr)},
+                {"step", r.step}};
+    if (r.state == RunState::pending) s["run"]["remaining_s"] = r.executor->profile().nominal_duration_s();
+  } else {
+    s["run"] = nullptr;
+  }
+  return s;
+}
+
+}  // namespace fogbench::daemon
