@@ -4,6 +4,7 @@
 
 #include "common.hpp"
 #include "offline.hpp"
+#include "workbench.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{"fogctl: fibre-optic gyro thermal-drift qualification (fogbench " FOGBENCH_VERSION ")"};
@@ -11,6 +12,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   int code = fogbench::cli::kExitOk;
   fogbench::cli::add_offline_commands(app, code);
+  fogbench::cli::add_workbench_commands(app, code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

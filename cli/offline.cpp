@@ -9,6 +9,7 @@
 #include "fogbench/storage/csv.hpp"
 #include "simulate_profile.hpp"
 #include "table.hpp"
+#include "workbench.hpp"
 
 namespace fogbench::cli {
 
@@ -218,8 +219,22 @@ void add_offline_commands(CLI::App& app, int& code) {
   f->add_option("--ar-order", fit.ar_order, "Order p of the AR noise");
   f->add_option("-o,--output", fit.output, "Write the model's JSON here");
   f->add_flag("--json", fit.json, "Print the model as one JSON object");
+  // The workbench's "add it": the model's terms plus one, refitted with the model's method.
+  static FitAddOptions add;
+  f->add_option("--model", add.model, "With --add: the model to extend (its terms, method and options)");
+  f->add_option("--add", add.add, "With --model: the term to add, e.g. \"T1\" or \"lp(T1,300)@auto\"");
   add_run_input(f, fit.input);
-  f->callback([&] { code = run_fit(fit, std::cout, std::cerr); });
+  f->callback([&] {
+    if (add.model.empty() && add.add.empty()) {
+      code = run_fit(fit, std::cout, std::cerr);
+      return;
+    }
+    add.run = fit.run;
+    add.output = fit.output;
+    add.json = fit.json;
+    add.input = fit.input;
+    code = run_fit_add(add, std::cout, std::cerr);
+  });
 
   static VerifyOptions ver;
   auto* v = app.add_subcommand("verify", "Compensate runs with a model: the paper's Table 1 and pass/fail");

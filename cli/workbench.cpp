@@ -1,0 +1,313 @@
+// compare, diagnose, fit --add and lineage: the model workbench from the command line.
+#include "workbench.hpp"
+
+#include <CLI/CLI.hpp>
+#include <cmath>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "fogbench/model/json.hpp"
+#include "fogbench/model/workbench.hpp"
+#include "table.hpp"
+
+namespace fogbench::cli {
+namespace wb = model::workbench;
+
+namespace {
+
+std::string pct(double v) { return std::isfinite(v) ? fixed(100.0 * v, 1) + "%" : "-"; }
+
+// Loads every run, naming the file in the error.
+std::expected<std::vector<model::RunData>, std::string> load_runs(const std::vector<std::string>& paths, const RunInput& in) {
+  std::vector<model::RunData> runs;
+  for (const auto& p : paths) {
+    auto r = load_run(p, in);
+    if (!r) return std::unexpected(r.error());
+    runs.push_back(std::move(*r));
+  }
+  return runs;
+}
+
+std::string step_name(int s) { return s < 0 ? "-" : std::to_string(s); }
+
+}  // namespace
+
+int run_compare(const CompareCommandOptions& o, std::ostream& out, std::ostream& err) {
+  auto m = load_model(o.model);
+  if (!m) {
+    err << "fogctl compare: " << m.error() << "\n";
+    return kExitError;
+  }
+  wb::CompareOptions co;
+  co.k_sigma = o.k_sigma;
+  co.smooth_s = o.smooth_s;
+  co.min_duration_s = o.min_duration_s;
+  if (auto v = co.validate(); !v) {
+    err << "fogctl compare: " << v.error() << "\n";
+    return kExitError;
+  }
+  nlohmann::json results = nlohmann::json::array();
+  std::string text;
+  bool adequate = true;
+  for (const auto& path : o.runs) {
+    auto run = load_run(path, o.input);
+    if (!run) {
+      err << "fogctl compare: " << run.error() << "\n";
+      return kExitError;
+    }
+    auto c = wb::compare(*m, *run, co);
+    if (!c) {
+      err << "fogctl compare: " << c.error().message << "\n";
+      return kExitError;
+    }
+    adequate = adequate && c->adequate();
+    results.push_back(wb::to_json(*c, o.series));
+    const auto& v = c->verification;
+    text += "run " + path + ": " + std::to_string(v.run.n) + " samples, measured std " + fixed(v.run.meas_std, 3) +
+            " deg/h, compensated std " + fixed(v.run.comp_std, 3) + " deg/h (" + pct(v.run.ratio) + " of raw)\n\n";
+    Table t({"part", "samples", "est mean", "meas mean", "est std", "meas std", "comp std", "comp/raw"});
+    auto row = [&](const std::string& name, const model::Table1& s) {
+      t.add({name, std::to_string(s.n), fixed(s.est_mean, 3), fixed(s.meas_mean, 3), fixed(s.est_std, 3),
+             fixed(s.meas_std, 3), fixed(s.comp_std, 3), pct(s.ratio)});
+    };
+    row("whole run", v.run);
+    for (const auto& p : v.phases) row(std::string(to_string(p.phase)), p.stats);
+    for (const auto& s : c->steps)
+      row("step " + std::to_string(s.step) + " (" + std::string(to_string(s.phase)) + ", " + fixed(s.start_s, 0) + " s)", s.stats);
+    text += t.str();
+    if (c->failures.empty()) {
+      text += "\nno interval where the model fails (smoothed residual beyond " + fixed(co.k_sigma, 1) + " sigma_a = " +
+              fixed(c->threshold_dph, 3) + " deg/h for " + fixed(co.min_duration_s, 0) + " s or more)\n\n";
+    } else {
+      text += "\nthe model FAILS in " + std::to_string(c->failures.size()) + " interval(s): smoothed residual beyond " +
+              fixed(co.k_sigma, 1) + " sigma_a = " + fixed(c->threshold_dph, 3) + " deg/h for " + fixed(co.min_duration_s, 0) +
+              " s or more\n";
+      Table f({"phase", "step", "start s", "dur s", "mean err", "peak err", "T1 degC", "T2 degC", "Ta degC", "dT1/dt C/min", "grad degC"});
+      for (const auto& x : c->failures)
+        f.add({std::string(to_string(x.phase)), step_name(x.step), fixed(x.start_s, 0), fixed(x.duration_s, 0),
+               fixed(x.mean_err_dph, 3), fixed(x.peak_err_dph, 3), fixed(x.t1_c, 2), fixed(x.t2_c, 2), fixed(x.ta_c, 2),
+               fixed(x.rate_c_per_min, 3), fixed(x.grad_c, 3)});
+      text += f.str() + "(errors in deg/h: measured - predicted)\n\n";
+    }
+  }
+  if (o.json) {
+    out << nlohmann::json{{"model", o.model}, {"terms", m->terms_string()}, {"runs", results}, {"adequate", adequate}}.dump() << "\n";
+  } else {
+    out << "compare: model " << o.model << " (" << m->terms_string() << ")\n\n" << text;
+  }
+  return adequate ? kExitOk : kExitFailed;
+}
+
+int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostream& err) {
+  auto m = load_model(o.model);
+  if (!m) {
+    err << "fogctl diagnose: " << m.error() << "\n";
+    return kExitError;
+  }
+  auto runs = load_runs(o.runs, o.input);
+  if (!runs) {
+    err << "fogctl diagnose: " << runs.error() << "\n";
+    return kExitError;
+  }
+  wb::DiagnoseOptions dopt;
+  dopt.extra_terms = o.candidates;
+  auto d = wb::diagnose(*m, runs->front(), std::span<const model::RunData>(*runs).subspan(1), dopt);
+  if (!d) {
+    err << "fogctl diagnose: " << d.error().message << "\n";
+    return kExitError;
+  }
+  if (o.json) {
+    out << wb::to_json(*d).dump() << "\n";
+    return d->adequate ? kExitOk : kExitFailed;
+  }
+  out << "diagnose: model " << o.model << " (" << d->model_terms << ", " << d->method << " method) refitted on " << d->fit_run;
+  if (d->base_refitted_on_other_run) out << " (the model was fitted on other data: " << m->fitted_on.name << ")";
+  out << "\n\n" << d->summary << "\n\n";
+  out << "coefficients (1 sigma):\n";
+  Table ct({"term", "coef", "se", "unit"});
+  for (const auto& c : d->coefs) ct.add({c.term, fixed(c.coef, 4), fixed(c.se, 4), c.unit});
+  out << ct.str();
+  for (const auto& p : d->collinear_coefs)
+    out << "collinear: " << p.a << " and " << p.b << " (r = " << fixed(p.r, 3) << "): " << p.why << "\n";
+  const auto& w = d->whiteness;
+  out << "\nresidual (prewhitened by the model's AR): Ljung-Box Q " << fixed(w.lb.q, 1) << " on " << w.lb.dof << " dof, p "
+      << fixed(w.lb.p_value, 4) << (w.white() ? " (white)" : " (NOT white)") << "; ACF outside +-" << fixed(w.band, 3) << ": "
+      << w.acf_outside << " of " << w.acf.size() << " lags, PACF " << w.pacf_outside << "\n\n";
+  out << "candidates, best first (rms = compensated std, deg/h; held-out: the refitted model applied unchanged):\n";
+  std::vector<std::string> head{"#", "term", "effect", "rms fit", "fall", "dBIC", "p"};
+  for (const auto& h : d->held_out_runs) head.push_back("rms " + h);
+  head.push_back("verdict");
+  Table t(head);
+  int rank = 0;
+  std::string skipped;
+  for (const auto& c : d->candidates) {
+    if (!c.evaluated) {
+      skipped += "  " + c.term + " (" + c.effect + "): " + c.skipped + "\n";
+      continue;
+    }
+    std::vector<std::string> row{std::to_string(++rank), c.term, c.effect, fixed(c.rms_before_dph, 3) + " -> " + fixed(c.rms_after_dph, 3),
+                                 pct(c.fall), fixed(c.delta_bic, 1), c.p_value < 1e-4 ? "<1e-4" : fixed(c.p_value, 4)};
+    for (const auto& h : c.held_out)
+      row.push_back(h.scored ? fixed(h.rms_before_dph, 3) + " -> " + fixed(h.rms_after_dph, 3) : "skipped");
+    row.push_back(!c.detected ? "-" : rank == 1 ? "MISSING" : "helps too");
+    t.add(row);
+  }
+  out << t.str();
+  for (const auto& c : d->candidates)
+    for (const auto& h : c.held_out)
+      if (!h.scored) out << "note: " << c.term << " not scored on " << h.run << ": " << h.skipped << "\n";
+  if (!skipped.empty()) out << "skipped:\n" << skipped;
+  for (const auto& c : d->candidates)
+    if (c.detected && !c.collinear_with.empty()) {
+      out << "look-alikes: " << c.term << " cannot be told from";
+      for (const auto& x : c.collinear_with) out << " " << x;
+      out << " on these runs: " << c.separate_by << "\n";
+    }
+  if (!d->candidates.empty() && d->candidates.front().detected) {
+    const auto& b = d->candidates.front();
+    out << "\nwhy " << b.expr << ": " << b.explanation << "\n";
+    out << "add it: fogctl fit --model " << o.model << " --add \"" << b.expr << "\" " << o.runs.front() << " -o model2.json\n";
+  }
+  out << "\ncross-correlation of the prewhitened residual with each regressor (lags 0.." << (d->ccf.empty() || d->ccf[0].r.empty() ? 0 : d->ccf[0].r.size() - 1)
+      << " s, band +-" << (d->ccf.empty() ? "-" : fixed(d->ccf[0].band, 3)) << "):\n";
+  Table x({"term", "peak r", "at lag s", "lags outside band"});
+  for (const auto& c : d->ccf)
+    x.add({c.term, fixed(c.peak_r, 3), std::to_string(c.peak_lag_s), std::to_string(c.outside) + " of " + std::to_string(c.r.size())});
+  out << x.str() << "\nrule: " << d->rule << "\n";
+  return d->adequate ? kExitOk : kExitFailed;
+}
+
+int run_fit_add(const FitAddOptions& o, std::ostream& out, std::ostream& err) {
+  if (o.model.empty() || o.add.empty()) {
+    err << "fogctl fit: --model and --add go together: --model M --add TERM refits M's terms plus TERM\n";
+    return kExitError;
+  }
+  auto m = load_model(o.model);
+  if (!m) {
+    err << "fogctl fit: " << m.error() << "\n";
+    return kExitError;
+  }
+  auto run = load_run(o.run, o.input);
+  if (!run) {
+    err << "fogctl fit: " << run.error() << "\n";
+    return kExitError;
+  }
+  auto r = wb::add_term(*m, *run, o.add);
+  if (!r) {
+    err << "fogctl fit: " << r.error().message << "\n";
+    return kExitError;
+  }
+  r->model.created_at = now_iso8601();
+  const nlohmann::json j = model::to_json(r->model);
+  if (!o.output.empty()) {
+    if (auto w = write_text(o.output, j.dump(2) + "\n"); !w) {
+      err << "fogctl fit: " << w.error() << "\n";
+      return kExitError;
+    }
+  }
+  if (o.json) {
+    out << j.dump() << "\n";
+    return kExitOk;
+  }
+  const auto before = model::verify(*m, *run);
+  const auto after = model::verify(r->model, *run);
+  out << "added " << r->added << ": " << r->model.terms_string() << " (" << to_string(r->model.method) << " method), parent "
+      << m->terms_string() << "\n\n";
+  Table t({"term", "lag_s", "coef", "se (1 sigma)", "unit"});
+  t.add({"mu0", "", fixed(r->model.mu0_dph, 3), fixed(r->model.mu0_se, 3), "deg/h"});
+  for (const auto& ft : r->model.terms)
+    t.add({ft.name(), std::to_string(ft.term.lag.seconds), fixed(ft.coef, 4), fixed(ft.se, 4), coef_unit(*ft.term.expr)});
+  out << t.str();
+  if (before && after)
+    out << "\ncompensated std on " << o.run << ": " << fixed(before->run.comp_std, 3) << " -> " << fixed(after->run.comp_std, 3)
+        << " deg/h; BIC " << fixed(m->fit.bic, 1) << " -> " << fixed(r->model.fit.bic, 1) << "\n";
+  if (!o.output.empty()) out << "model written to " << o.output << "\n";
+  return kExitOk;
+}
+
+int run_lineage(const LineageOptions& o, std::ostream& out, std::ostream& err) {
+  auto m = load_model(o.model);
+  if (!m) {
+    err << "fogctl lineage: " << m.error() << "\n";
+    return kExitError;
+  }
+  auto runs = load_runs(o.runs, o.input);
+  if (!runs) {
+    err << "fogctl lineage: " << runs.error() << "\n";
+    return kExitError;
+  }
+  const wb::Lineage l = wb::lineage(*m, *runs);
+  if (o.json) {
+    out << wb::to_json(l).dump() << "\n";
+    return kExitOk;
+  }
+  out << "lineage of " << o.model << ", root first: compensated std, deg/h\n\n";
+  std::vector<std::string> head{"#", "terms"};
+  for (const auto& r : o.runs) head.push_back(r);
+  head.push_back("note");
+  Table t(head);
+  for (std::size_t i = 0; i < l.steps.size(); ++i) {
+    const auto& s = l.steps[i];
+    std::vector<std::string> row{std::to_string(i), s.terms};
+    for (double v : s.comp_std_dph) row.push_back(fixed(v, 3));
+    row.push_back(s.note);
+    t.add(row);
+  }
+  out << t.str();
+  for (std::size_t i = 0; i < l.steps.size(); ++i)
+    for (std::size_t r = 0; r < l.steps[i].errors.size(); ++r)
+      if (!l.steps[i].errors[r].empty()) out << "step " << i << " on " << o.runs[r] << ": " << l.steps[i].errors[r] << "\n";
+  return kExitOk;
+}
+
+namespace {
+
+void add_run_input(CLI::App* c, RunInput& in) {
+  c->add_option("--map", in.maps, "Column of another name: canonical=header, e.g. gyro_dph=Rate (repeatable)");
+  c->add_option("--resample", in.resample_s, "Resample unevenly spaced time onto this step, s");
+}
+
+}  // namespace
+
+void add_workbench_commands(CLI::App& app, int& code) {
+  static CompareCommandOptions cmp;
+  auto* c = app.add_subcommand("compare", "Where a model fails on runs: Table 1 per phase and step, failing intervals");
+  c->add_option("--model", cmp.model, "The model's JSON file")->required();
+  c->add_option("runs", cmp.runs, "The runs' CSV files")->required();
+  c->add_option("--k-sigma", cmp.k_sigma, "Failing where the smoothed residual is beyond k sigma_a (default 3)");
+  c->add_option("--smooth", cmp.smooth_s, "Residual smoother width, s, odd (default 61)");
+  c->add_option("--min-duration", cmp.min_duration_s, "Shortest failing interval reported, s (default 60)");
+  c->add_flag("--json", cmp.json, "Print one JSON object");
+  c->add_flag("--series", cmp.series, "With --json: include the measured, predicted and residual series");
+  add_run_input(c, cmp.input);
+  c->callback([&] { code = run_compare(cmp, std::cout, std::cerr); });
+
+  static DiagnoseCommandOptions dia;
+  auto* d = app.add_subcommand("diagnose", "Why a model fails: whiteness, coefficients, and the missing effect from the library");
+  d->add_option("--model", dia.model, "The model's JSON file")->required();
+  d->add_option("runs", dia.runs, "The fit run's CSV, then held-out runs")->required();
+  d->add_option("--candidate", dia.candidates, "A further candidate term beyond the library (repeatable)");
+  d->add_flag("--json", dia.json, "Print one JSON object");
+  add_run_input(d, dia.input);
+  d->callback([&] { code = run_diagnose(dia, std::cout, std::cerr); });
+
+  static LineageOptions lin;
+  auto* l = app.add_subcommand("lineage", "The error of each model of a lineage (root first) on runs");
+  l->add_option("model", lin.model, "The model's JSON file")->required();
+  l->add_option("runs", lin.runs, "The runs' CSV files")->required();
+  l->add_flag("--json", lin.json, "Print one JSON object");
+  add_run_input(l, lin.input);
+  l->callback([&] { code = run_lineage(lin, std::cout, std::cerr); });
+
+  static ReportOptions rep;
+  auto* r = app.add_subcommand("report", "One self-contained HTML report: profile, drift, residual, diagnosis, lineage, qualification");
+  r->add_option("--model", rep.model, "The model's JSON file")->required();
+  r->add_option("runs", rep.runs, "The fit run's CSV, then held-out runs")->required();
+  r->add_option("-o,--output", rep.output, "The HTML file to write")->required();
+  r->add_option("--threshold", rep.threshold, "Pass when compensated std / raw std is under this (default 0.2)");
+  r->add_option("--max-points", rep.max_points, "Plotted samples per series at most (default 3000)");
+  add_run_input(r, rep.input);
+  r->callback([&] { code = run_report(rep, std::cout, std::cerr); });
+}
+
+}  // namespace fogbench::cli

@@ -1,0 +1,71 @@
+// fogctl's model workbench: compare, diagnose, fit --add, lineage and report. Each command is
+// a function of its options writing to the given streams and returning the exit code
+// (0 done and adequate, 1 the model fails or misses an effect, 2 an error).
+#pragma once
+
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include "common.hpp"
+
+namespace CLI {
+class App;
+}
+
+namespace fogbench::cli {
+
+struct CompareCommandOptions {
+  std::string model;
+  std::vector<std::string> runs;
+  double k_sigma = 3.0;          // failing where the smoothed residual is beyond k sigma_a
+  int smooth_s = 61;             // residual smoother width, s (odd)
+  double min_duration_s = 60.0;  // shortest failing interval reported, s
+  bool json = false;
+  bool series = false;           // --json: include the measured/predicted/residual series
+  RunInput input;
+};
+int run_compare(const CompareCommandOptions& o, std::ostream& out, std::ostream& err);
+
+struct DiagnoseCommandOptions {
+  std::string model;
+  std::vector<std::string> runs;        // the fit run first, then held-out runs
+  std::vector<std::string> candidates;  // extra candidate terms beyond the library
+  bool json = false;
+  RunInput input;
+};
+int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostream& err);
+
+// fogctl fit --model M --add TERM run.csv -o M2.json
+struct FitAddOptions {
+  std::string model;
+  std::string add;
+  std::string run;
+  std::string output;
+  bool json = false;
+  RunInput input;
+};
+int run_fit_add(const FitAddOptions& o, std::ostream& out, std::ostream& err);
+
+struct LineageOptions {
+  std::string model;
+  std::vector<std::string> runs;
+  bool json = false;
+  RunInput input;
+};
+int run_lineage(const LineageOptions& o, std::ostream& out, std::ostream& err);
+
+struct ReportOptions {
+  std::string model;
+  std::vector<std::string> runs;  // the fit run first, then held-out runs
+  std::string output;             // report.html
+  double threshold = 0.2;         // pass when compensated std / raw std is under this
+  std::size_t max_points = 3000;  // plotted samples per series at most
+  RunInput input;
+};
+int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err);
+
+// Registers compare, diagnose, lineage and report on the app.
+void add_workbench_commands(CLI::App& app, int& code);
+
+}  // namespace fogbench::cli

@@ -1,0 +1,241 @@
+// The model workbench (issue 5): see where a drift model fails on runs (compare), learn which
+// physical effect is missing (diagnose, over the effects library of shared/TERMS.md), add it
+// (add_term) and follow the error falling along a model's lineage. Pure: results are values
+// with to_json for the CLI's --json and the daemon's socket.
+#pragma once
+
+#include <cstddef>
+#include <limits>
+#include <expected>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "fogbench/model/model.hpp"
+
+namespace fogbench::model::workbench {
+
+// ---------------------------------------------------------------------------------------
+// The effects library: data, not code paths. A new effect is one entry.
+struct Effect {
+  std::string term;         // in the term language, without lag: "T1", "lp(T1,300)"
+  std::string name;         // the physical effect, as a report names it
+  std::string explanation;  // one line a gyro engineer would accept
+  std::string separated_by; // the profile step on which this term moves unlike its look-alikes
+};
+const std::vector<Effect>& effects_library();
+// The library entry of a term (by canonical spelling), if any.
+const Effect* find_effect(std::string_view canonical_term);
+
+// ---------------------------------------------------------------------------------------
+// compare: a model against a run.
+struct CompareOptions {
+  double k_sigma = 3.0;          // an interval fails where |smoothed residual| > k_sigma * sigma_a
+  int smooth_s = 61;             // centred moving average of the residual before the test, s (odd)
+  double min_duration_s = 60.0;  // shorter excursions are not reported, s
+  std::expected<void, std::string> validate() const;
+};
+
+// A stretch of the run where the model's error stays beyond the threshold.
+struct FailInterval {
+  Phase phase = Phase::unknown;  // the phase of most of its samples
+  int step = -1;                 // the profile step at its start (-1 when not recorded)
+  double start_s = 0.0, duration_s = 0.0;
+  double mean_err_dph = 0.0;     // mean of measured - predicted over the interval, deg/h
+  double peak_err_dph = 0.0;     // smoothed error of largest magnitude (signed), deg/h
+  double t1_c = 0.0, t2_c = 0.0; // mean coil temperatures over it, degC
+  double ta_c = 0.0;             // mean chamber air, degC (NaN when not recorded)
+  double rate_c_per_min = 0.0;   // mean dT1/dt, degC/min
+  double grad_c = 0.0;           // mean T1 - T2, degC
+};
+
+struct StepTable {
+  int step = 0;
+  Phase phase = Phase::unknown;  // the phase of most of its samples
+  double start_s = 0.0, duration_s = 0.0;
+  Table1 stats;
+};
+
+struct RunComparison {
+  std::string run;                 // the run's name
+  std::vector<double> time_s;      // sample times, s
+  std::vector<double> measured_dph, predicted_dph, residual_dph;  // deg/h; residual = measured - predicted
+  std::vector<double> residual_smooth_dph;  // the residual through the compare smoother, deg/h
+  std::vector<double> t1_c, t2_c, ta_c;     // temperatures for plots, degC (ta_c empty when not recorded)
+  std::vector<Phase> phase;        // of every sample (derive_phases)
+  Verification verification;       // Table 1 of the run and per phase (the core's verify)
+  std::vector<StepTable> steps;    // Table 1 per profile step (empty without a step column)
+  double threshold_dph = 0.0;      // k_sigma * sigma_a, deg/h
+  std::vector<FailInterval> failures;
+  bool adequate() const { return failures.empty(); }
+};
+
+std::expected<RunComparison, FitError> compare(const Model& m, const RunData& run, const CompareOptions& o = {});
+
+// ---------------------------------------------------------------------------------------
+// diagnose: why a model fails, and which effect of the library is missing.
+struct DiagnoseOptions {
+  // A candidate is detected when, refitted with the model, all of these hold:
+  double max_delta_bic = -10.0;        // BIC falls by more than 10 ("very strong" on Kass-Raftery's scale)
+  double max_p_value = 1e-3;           // its coefficient is significant (two-sided, t from its se)
+  double min_fit_fall = 0.02;          // compensated std on the fit run falls by at least 2%
+  double min_held_out_fall = 0.01;     // ... and on every held-out run by at least 1%
+  double min_fit_fall_alone = 0.05;    // without held-out runs: at least 5% on the fit run
+  double max_delta_bic_alone = -40.0;  // ... and BIC falls by more than 40
+  // Two detected candidates are indistinguishable when their columns, with the model's own
+  // terms regressed out, correlate beyond this on the fit run and both give a similar fall.
+  double collinear_r = 0.95;
+  // Look-alikes whose BIC differ by less than this cannot be ranked by the data (6: below
+  // "strong" evidence on Kass and Raftery's scale); the library's order ranks them.
+  double tie_bic = 6.0;
+  int ccf_max_lag_s = 600;             // cross-correlations over lags 0..this, s
+  int whiteness_lags = 20;
+  int lag_iterations = 4;              // rescans of a candidate's lag after the model's lags move
+  bool second_lags = true;             // also try each model term again at a second lag
+  std::vector<std::string> extra_terms;  // further candidates beyond the library (term language)
+};
+
+struct CrossCorrelation {
+  std::string term;                 // canonical spelling
+  std::vector<double> r;            // r[i]: prewhitened residual against the term delayed by i s
+  double band = 0.0;                // +-2/sqrt(N)
+  int peak_lag_s = 0;               // lag of largest |r|
+  double peak_r = 0.0;
+  int outside = 0;                  // lags outside the band
+};
+
+struct HeldOutScore {
+  std::string run;
+  double rms_before_dph = 0.0, rms_after_dph = 0.0;  // compensated std, deg/h
+  bool scored = false;
+  std::string skipped;              // why not scored (e.g. the run lacks Ta)
+};
+
+struct Candidate {
+  std::string term;                 // canonical, with its lag: "T1@12"
+  std::string expr;                 // canonical, without lag: "T1"
+  std::string effect;               // physical name
+  std::string explanation;
+  int lag_s = 0;
+  bool evaluated = false;
+  std::string skipped;              // why it was not evaluated
+  double rms_before_dph = 0.0, rms_after_dph = 0.0;  // compensated std on the fit run, deg/h
+  double fall = 0.0;                // 1 - rms_after/rms_before on the fit run
+  double delta_bic = 0.0;           // bic_with - bic_without (lag search counted); negative is better
+  double coef = 0.0, se = 0.0;      // of the new term, deg/h per unit (see unit)
+  std::string unit;
+  double t = 0.0, p_value = 1.0;    // t = coef/se, two-sided normal p
+  std::vector<HeldOutScore> held_out;
+  double held_out_fall = 0.0;       // the smallest fall over scored held-out runs (0 when none)
+  bool detected = false;
+  std::string verdict;              // one line: why detected or not
+  std::vector<std::string> collinear_with;  // detected candidates it cannot be told from
+  std::string separate_by;          // the profile step that would separate them
+};
+
+struct CoefInfo {
+  std::string term;                 // "mu0" or the term with its lag
+  double coef = 0.0, se = 0.0;
+  std::string unit;
+};
+
+struct CollinearPair {
+  std::string a, b;
+  double r = 0.0;                   // correlation of the two coefficients' estimates
+  std::string why;
+};
+
+struct Diagnosis {
+  std::string fit_run;
+  std::vector<std::string> held_out_runs;
+  std::string model_terms;          // the base model refitted on the fit run
+  std::string method;
+  bool base_refitted_on_other_run = false;  // the model given was fitted on other data
+  double rms_fit_dph = 0.0;         // compensated std of the base model on the fit run
+  Whiteness whiteness;              // of the prewhitened residual on the fit run
+  std::vector<CoefInfo> coefs;      // of the base model
+  std::vector<std::vector<double>> coef_corr;  // [mu0, terms...]
+  std::vector<CollinearPair> collinear_coefs;  // |r| > 0.9 among the model's coefficients
+  std::vector<CrossCorrelation> ccf;           // one per library term
+  std::vector<Candidate> candidates;           // best first: detected by fall, then the rest
+  bool adequate = true;             // no candidate detected
+  std::string rule;                 // the detection rule in words
+  std::string summary;              // one paragraph for people
+};
+
+// Diagnoses `m` (its terms refitted on `fit_run` with its method and options) against the
+// library; held-out runs score each candidate's refitted model unchanged.
+std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_run, std::span<const RunData> held_out,
+                                            const DiagnoseOptions& o = {});
+
+// ---------------------------------------------------------------------------------------
+// add: the model's terms plus one, refitted with the same method and options on a run.
+// `term` in the term language; `@auto` with the paper method (one shared lag) is resolved by
+// the lag scan of the model's residual, so the new term does not move the paper's lag.
+struct AddResult {
+  Model model;                      // parent and note set; created_at left to the caller
+  std::string added;                // the term as fitted, with its lag
+};
+std::expected<AddResult, FitError> add_term(const Model& m, const RunData& run, std::string_view term);
+
+// The model's fit options (method, lags, smoothing) as recorded in it.
+FitOptions options_of(const Model& m);
+// The model's terms as typed for a refit: fitted lags of @auto terms become @auto again.
+TermList terms_of(const Model& m);
+
+// ---------------------------------------------------------------------------------------
+// lineage: the error of each model of the chain on each run, root first.
+struct LineageStep {
+  std::string terms;
+  std::string note;
+  std::string created_at;
+  std::string fitted_on;
+  std::vector<double> comp_std_dph;   // per run, NaN where the model cannot run (message in errors)
+  std::vector<std::string> errors;    // per run, empty when fine
+};
+struct Lineage {
+  std::vector<std::string> runs;
+  std::vector<LineageStep> steps;
+};
+Lineage lineage(const Model& m, std::span<const RunData> runs);
+
+// ---------------------------------------------------------------------------------------
+// The qualification summary in the terms of IEEE Std 952-1997 (thermal sensitivities).
+struct Sensitivity {
+  std::string term, unit;
+  double coef = 0.0, se = 0.0;      // 1 sigma
+};
+struct QualRun {
+  std::string run;
+  bool held_out = false;
+  double meas_std_dph = 0.0, comp_std_dph = 0.0, ratio = 0.0;
+  double hysteresis_dph = std::numeric_limits<double>::quiet_NaN();  // heating - cooling at equal T1
+  double peak_ramp_excursion_dph = 0.0;  // largest |smoothed output - mu0| on ramps
+  bool pass = false;
+};
+struct Qualification {
+  std::vector<Sensitivity> sensitivities;
+  double mu0_dph = 0.0, mu0_se = 0.0;
+  std::vector<QualRun> runs;
+  double threshold = 0.2;
+  bool pass = false;                // every run compensated under threshold of its raw std
+};
+Qualification qualify(const Model& m, std::span<const RunData> runs, std::span<const bool> held_out, double threshold = 0.2);
+
+// ---------------------------------------------------------------------------------------
+nlohmann::json to_json(const FailInterval& f);
+nlohmann::json to_json(const RunComparison& c, bool with_series = false);
+nlohmann::json to_json(const Candidate& c);
+nlohmann::json to_json(const Diagnosis& d);
+nlohmann::json to_json(const Lineage& l);
+nlohmann::json to_json(const Qualification& q);
+
+// Helpers shared with the report: at most `max_points` samples of a series, keeping the
+// extremes of each bucket so that peaks survive (min and max per bucket, in time order).
+std::vector<std::size_t> decimate_indices(std::span<const double> y, std::size_t max_points);
+// Centred moving average of width w samples (shrunk at the ends).
+std::vector<double> moving_average(std::span<const double> x, int w);
+
+}  // namespace fogbench::model::workbench

@@ -1,0 +1,676 @@
+// diagnose and add: which effect of the library a model misses, scored by refitting the model
+// with each candidate (same method) on the fit run and applying it unchanged to held-out runs.
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <optional>
+
+#include "fogbench/model/workbench.hpp"
+#include "lagscan.hpp"
+
+namespace fogbench::model::workbench {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+std::unexpected<FitError> fail(FitError::Code c, std::string msg) { return std::unexpected(FitError{c, std::move(msg)}); }
+
+std::string with_lag(const std::string& expr, int lag_s) { return lag_s ? expr + "@" + std::to_string(lag_s) : expr; }
+
+// Samples a regression may use: not flagged, finite output.
+std::vector<double> good_weights(const RunData& run) {
+  std::vector<double> w(run.size(), 1.0);
+  for (std::size_t t = 0; t < run.size(); ++t)
+    if (run.flagged(t) || !std::isfinite(run.gyro_dph[t])) w[t] = 0.0;
+  return w;
+}
+
+std::vector<double> lagged(std::span<const double> x, int lag) {
+  const std::size_t n = x.size(), l = static_cast<std::size_t>(std::max(0, lag));
+  std::vector<double> c(n);
+  for (std::size_t t = 0; t < n; ++t) c[t] = x[t >= l ? t - l : 0];
+  return c;
+}
+
+// The lag scan of a candidate x against the output with the base model's columns B (at their
+// fitted lags, intercept included) held in the regression. With u the residual of y on B,
+// Frisch-Waugh gives the fall of SSE from adding x(t - i):
+//   gain(i) = (x_i' W u)^2 / (x_i' W x_i - x_i' W B (B' W B)^-1 B' W x_i)
+// and every sum over t is, for all lags at once, a cross-correlation by FFT (lagscan.hpp).
+class CandidateScan {
+ public:
+  CandidateScan(std::span<const double> y, const std::vector<std::vector<double>>& base_cols, std::vector<double> w, int max_lag)
+      : sc_(y.size(), max_lag, w), w_(std::move(w)), L_(max_lag) {
+    const std::size_t n = y.size();
+    cols_.push_back(std::vector<double>(n, 1.0));
+    for (const auto& c : base_cols) cols_.push_back(c);
+    const auto k = static_cast<Eigen::Index>(cols_.size());
+    Eigen::MatrixXd G(k, k);
+    Eigen::VectorXd b(k);
+    for (Eigen::Index a = 0; a < k; ++a) {
+      double s = 0.0;
+      for (std::size_t t = 0; t < n; ++t) s += w_[t] * cols_[a][t] * y[t];
+      b(a) = s;
+      for (Eigen::Index c = a; c < k; ++c) {
+        double g = 0.0;
+        for (std::size_t t = 0; t < n; ++t) g += w_[t] * cols_[a][t] * cols_[c][t];
+        G(a, c) = G(c, a) = g;
+      }
+    }
+    ldlt_.compute(G);
+    ok_ = ldlt_.info() == Eigen::Success && ldlt_.rcond() > 1e-14;
+    if (!ok_) return;
+    const Eigen::VectorXd th = ldlt_.solve(b);
+    u_.assign(y.begin(), y.end());
+    for (std::size_t t = 0; t < n; ++t)
+      for (Eigen::Index a = 0; a < k; ++a) u_[t] -= th(a) * cols_[a][t];
+    std::vector<double> wu(n);
+    for (std::size_t t = 0; t < n; ++t) wu[t] = w_[t] * u_[t];
+    u_spec_ = sc_.spectrum_of_target(wu);
+    for (std::size_t a = 1; a < cols_.size(); ++a) {
+      std::vector<double> wc(n);
+      for (std::size_t t = 0; t < n; ++t) wc[t] = w_[t] * cols_[a][t];
+      col_spec_.push_back(sc_.spectrum_of_target(wc));
+    }
+  }
+  bool ok() const { return ok_; }
+  const std::vector<double>& residual() const { return u_; }
+
+  // The lag in [0, max_lag] of largest gain, skipping |lag - avoid| < avoid_half_width.
+  std::optional<int> best_lag(std::span<const double> x, std::optional<int> avoid = {}, int avoid_half_width = 0) const {
+    if (!ok_) return std::nullopt;
+    const detail::Lagged lx = detail::make_lagged(x, L_);
+    const std::size_t k = cols_.size();
+    std::vector<std::vector<double>> cxb(k);
+    cxb[0] = sc_.wsum(lx.ext);
+    for (std::size_t a = 1; a < k; ++a) cxb[a] = sc_.corr(lx, col_spec_[a - 1]);
+    const std::vector<double> cxu = sc_.corr(lx, u_spec_);
+    std::vector<double> sq(lx.ext.size());
+    for (std::size_t j = 0; j < sq.size(); ++j) sq[j] = lx.ext[j] * lx.ext[j];
+    const std::vector<double> cxx = sc_.wsum(sq);
+    std::optional<int> best;
+    double best_gain = -1.0;
+    Eigen::VectorXd v(static_cast<Eigen::Index>(k));
+    for (int i = 0; i <= L_; ++i) {
+      if (avoid && std::abs(i - *avoid) < avoid_half_width) continue;
+      const auto li = static_cast<std::size_t>(i);
+      for (std::size_t a = 0; a < k; ++a) v(static_cast<Eigen::Index>(a)) = cxb[a][li];
+      const double den = cxx[li] - v.dot(ldlt_.solve(v));
+      // A column (nearly) inside the span of the model's own: nothing new at this lag.
+      if (!(den > 1e-9 * std::max(1.0, cxx[li]))) continue;
+      const double gain = cxu[li] * cxu[li] / den;
+      if (gain > best_gain) {
+        best_gain = gain;
+        best = i;
+      }
+    }
+    return best;
+  }
+
+  // x with the base columns regressed out (for correlations between candidates).
+  std::vector<double> partial(std::span<const double> x) const {
+    const std::size_t n = x.size(), k = cols_.size();
+    Eigen::VectorXd b(static_cast<Eigen::Index>(k));
+    for (std::size_t a = 0; a < k; ++a) {
+      double s = 0.0;
+      for (std::size_t t = 0; t < n; ++t) s += w_[t] * cols_[a][t] * x[t];
+      b(static_cast<Eigen::Index>(a)) = s;
+    }
+    const Eigen::VectorXd th = ldlt_.solve(b);
+    std::vector<double> r(x.begin(), x.end());
+    for (std::size_t t = 0; t < n; ++t)
+      for (std::size_t a = 0; a < k; ++a) r[t] -= th(static_cast<Eigen::Index>(a)) * cols_[a][t];
+    return r;
+  }
+
+ private:
+  detail::LagScanner sc_;
+  std::vector<double> w_;
+  int L_;
+  std::vector<std::vector<double>> cols_;
+  Eigen::LDLT<Eigen::MatrixXd> ldlt_;
+  bool ok_ = false;
+  std::vector<double> u_;
+  detail::Spectrum u_spec_;
+  std::vector<detail::Spectrum> col_spec_;
+};
+
+double weighted_corr(std::span<const double> a, std::span<const double> b, std::span<const double> w) {
+  double sw = 0, ma = 0, mb = 0;
+  for (std::size_t t = 0; t < a.size(); ++t) {
+    sw += w[t];
+    ma += w[t] * a[t];
+    mb += w[t] * b[t];
+  }
+  ma /= sw;
+  mb /= sw;
+  double sab = 0, saa = 0, sbb = 0;
+  for (std::size_t t = 0; t < a.size(); ++t) {
+    sab += w[t] * (a[t] - ma) * (b[t] - mb);
+    saa += w[t] * (a[t] - ma) * (a[t] - ma);
+    sbb += w[t] * (b[t] - mb) * (b[t] - mb);
+  }
+  return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 0.0;
+}
+
+// The candidate's column on a run: the expression evaluated and delayed.
+std::expected<std::vector<double>, std::string> column(const Term& t, const RunSignals& s, int lag) {
+  auto v = evaluate(*t.expr, s.view());
+  if (!v) return std::unexpected(v.error());
+  return lagged(*v, lag);
+}
+
+// Compensated std of a model on a run (Table 1's comp std), or the reason it cannot run.
+std::expected<double, std::string> comp_std(const Model& m, const RunData& run) {
+  auto v = verify(m, run);
+  if (!v) return std::unexpected(v.error().message);
+  return v->run.comp_std;
+}
+
+// The model's terms with @auto terms frozen at their fitted lags.
+std::vector<Term> frozen_terms(const Model& m) {
+  std::vector<Term> out;
+  for (const auto& ft : m.terms) {
+    Term t = ft.term;
+    t.lag.automatic = false;
+    out.push_back(t);
+  }
+  return out;
+}
+
+int auto_lag_params(const Model& m) {
+  int n = 0;
+  for (const auto& ft : m.terms) n += ft.term.lag.automatic;
+  return m.method == Method::paper ? std::min(n, 1) : n;  // the paper method shares one lag
+}
+
+bool has_key(const Model& m, const std::string& key) {
+  for (const auto& ft : m.terms)
+    if (term_key(ft.term) == key) return true;
+  return false;
+}
+
+// The base terms plus one at a fixed lag; when the new term is a model term again, the
+// model's lags are frozen (the fit cannot separate the same term at two searched lags).
+// Returns the terms and how many lag parameters were estimated outside the fit.
+std::pair<TermList, int> extended_terms(const Model& base, const Term& extra, bool lag_scanned) {
+  TermList tl;
+  const bool repeat = has_key(base, term_key(extra));
+  tl.terms = repeat ? frozen_terms(base) : terms_of(base).terms;
+  tl.terms.push_back(extra);
+  return {tl, (lag_scanned ? 1 : 0) + (repeat ? auto_lag_params(base) : 0)};
+}
+
+std::string fmt(double v, int digits) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+  return buf;
+}
+
+struct FitRun {
+  RunSignals sig;
+  std::vector<double> w;
+  std::vector<std::vector<double>> base_cols;  // the base model's regressors at fitted lags
+};
+
+}  // namespace
+
+FitOptions options_of(const Model& m) {
+  FitOptions o;
+  o.method = m.method;
+  o.ar_order = std::max<int>(1, static_cast<int>(m.ar.size()));
+  o.max_lag_s = m.max_lag_s;
+  o.tref_c = m.tref_c;
+  o.smooth_s = m.smooth_s;
+  o.hold_s = m.hold_s;
+  return o;
+}
+
+TermList terms_of(const Model& m) {
+  TermList tl;
+  for (const auto& ft : m.terms) tl.terms.push_back(ft.term);
+  tl.paper = m.method == Method::paper && m.shared_lag && m.terms.size() == 2 && term_key(m.terms[0].term) == "d(T1)" &&
+             term_key(m.terms[1].term) == "grad";
+  return tl;
+}
+
+std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_run, std::span<const RunData> held_out,
+                                            const DiagnoseOptions& o) {
+  Diagnosis d;
+  d.fit_run = fit_run.name;
+  for (const auto& h : held_out) d.held_out_runs.push_back(h.name);
+  const FitOptions fo = options_of(m);
+  // The base: the model's terms refitted on the fit run, so that every candidate is compared
+  // with the same method on the same data (BIC compares models of one run only).
+  auto base = fit(fit_run, terms_of(m), fo);
+  if (!base) return std::unexpected(FitError{base.error().code, "fit run " + fit_run.name + ": " + base.error().message});
+  d.base_refitted_on_other_run = !m.fitted_on.fingerprint.empty() && m.fitted_on.fingerprint != base->fitted_on.fingerprint;
+  d.model_terms = base->terms_string();
+  d.method = std::string(to_string(base->method));
+  auto rms0 = comp_std(*base, fit_run);
+  if (!rms0) return fail(FitError::Code::degenerate, "fit run " + fit_run.name + ": " + rms0.error());
+  d.rms_fit_dph = *rms0;
+
+  // Coefficients, their standard errors and correlations.
+  d.coefs.push_back({"mu0", base->mu0_dph, base->mu0_se, "deg/h"});
+  for (const auto& ft : base->terms)
+    d.coefs.push_back({with_lag(ft.name(), ft.term.lag.seconds), ft.coef, ft.se, coef_unit(*ft.term.expr)});
+  d.coef_corr = base->fit.coef_corr;
+  for (std::size_t a = 1; a < d.coef_corr.size(); ++a)
+    for (std::size_t b = a + 1; b < d.coef_corr.size(); ++b) {
+      const double r = d.coef_corr[a][b];
+      if (std::abs(r) <= 0.9) continue;
+      const std::string ka = term_key(base->terms[a - 1].term), kb = term_key(base->terms[b - 1].term);
+      std::string why = "this run barely tells them apart: only their combination is well determined";
+      if ((ka == "d(T1)" && kb == "grad") || (ka == "grad" && kb == "d(T1)"))
+        why = "on steady ramps the coil's gradient follows its rate (on a two-node coil grad = -core_tau * dT1/dt "
+              "exactly), so the two betas are collinear: a hold right after a fast ramp, where the gradient decays "
+              "while the rate is zero, separates them";
+      d.collinear_coefs.push_back({d.coefs[a].term, d.coefs[b].term, r, why});
+    }
+
+  FitRun fr;
+  {
+    auto s = run_signals(fit_run, base->tref_c);
+    if (!s) return std::unexpected(s.error());
+    fr.sig = std::move(*s);
+  }
+  fr.w = good_weights(fit_run);
+  auto bc = regressors(*base, fit_run);
+  if (!bc) return std::unexpected(bc.error());
+  fr.base_cols = std::move(*bc);
+
+  // Whiteness of the residual prewhitened by the model's AR filter.
+  auto mu = predict(*base, fit_run);
+  if (!mu) return std::unexpected(mu.error());
+  const std::size_t n = fit_run.size();
+  std::vector<double> e(n);
+  for (std::size_t t = 0; t < n; ++t) e[t] = fr.w[t] != 0.0 ? fit_run.gyro_dph[t] - (*mu)[t] : 0.0;
+  // Outliers (3 sigma) would dominate a correlation: they get weight 0 (value 0 in e).
+  std::vector<double> wccf = fr.w;
+  {
+    std::vector<double> r;
+    for (std::size_t t = 0; t < n; ++t)
+      if (fr.w[t] != 0.0) r.push_back(e[t]);
+    const OutlierResult ro = outliers_3sigma(r, 3.0);
+    std::size_t j = 0;
+    for (std::size_t t = 0; t < n; ++t)
+      if (fr.w[t] != 0.0 && !ro.keep[j++]) {
+        wccf[t] = 0.0;
+        e[t] = 0.0;
+      }
+  }
+  std::vector<double> a = ar_filter(e, base->ar);
+  {
+    std::vector<double> used;
+    for (std::size_t t = base->ar.size(); t < n; ++t)
+      if (wccf[t] != 0.0) used.push_back(a[t]);
+    d.whiteness = whiteness(used, o.whiteness_lags, static_cast<int>(base->ar.size()));
+  }
+
+  // Cross-correlations (MATLAB resid style): residual and regressor both through the
+  // model's AR filter; the prewhitened residual is white when the model is adequate, and
+  // then the sample CCF of it with any series independent of it lies in +-2/sqrt(N).
+  const int Lc = std::max(0, std::min<int>(o.ccf_max_lag_s, static_cast<int>(n) / 2));
+  {
+    double sw = 0.0, ma = 0.0;
+    for (std::size_t t = 0; t < n; ++t) {
+      sw += wccf[t];
+      ma += wccf[t] * a[t];
+    }
+    ma /= std::max(1.0, sw);
+    std::vector<double> wa(n);
+    double saa = 0.0;
+    for (std::size_t t = 0; t < n; ++t) {
+      wa[t] = wccf[t] * (a[t] - ma);
+      saa += wa[t] * (a[t] - ma);
+    }
+    detail::LagScanner sc(n, Lc, wccf);
+    const detail::Spectrum aspec = sc.spectrum_of_target(wa);
+    for (const auto& eff : effects_library()) {
+      auto t = parse_term(eff.term);
+      if (!t) continue;
+      auto x = evaluate(*t->expr, fr.sig.view());
+      if (!x) continue;
+      std::vector<double> xf = ar_filter(*x, base->ar);
+      const double mx = std::accumulate(xf.begin(), xf.end(), 0.0) / static_cast<double>(n);
+      double sxx = 0.0;
+      for (double& v : xf) {
+        v -= mx;
+        sxx += v * v;
+      }
+      CrossCorrelation cc;
+      cc.term = to_string(*t->expr);
+      cc.band = white_band(static_cast<std::size_t>(sw));
+      if (!(sxx > 0.0) || !(saa > 0.0)) {
+        d.ccf.push_back(cc);
+        continue;
+      }
+      const std::vector<double> c = sc.corr(detail::make_lagged(xf, Lc), aspec);
+      cc.r.resize(c.size());
+      for (std::size_t i = 0; i < c.size(); ++i) {
+        cc.r[i] = c[i] / std::sqrt(saa * sxx);
+        if (std::abs(cc.r[i]) > cc.band) ++cc.outside;
+        if (std::abs(cc.r[i]) > std::abs(cc.peak_r)) {
+          cc.peak_r = cc.r[i];
+          cc.peak_lag_s = static_cast<int>(i);
+        }
+      }
+      d.ccf.push_back(std::move(cc));
+    }
+  }
+
+  // Held-out runs: the base model as fitted, applied unchanged.
+  std::vector<std::expected<double, std::string>> held_before;
+  for (const auto& h : held_out) held_before.push_back(comp_std(*base, h));
+
+  // The candidates: the library's terms the model lacks, each model term again at a second
+  // lag, and any extra terms asked for.
+  struct Cand {
+    Term term;
+    std::string expr, effect, explanation;
+    bool repeat = false;
+  };
+  std::vector<Cand> cands;
+  auto push = [&](const std::string& text, std::string effect, std::string expl, bool repeat) {
+    auto t = parse_term(text);
+    if (!t) return;
+    Cand c{*t, to_string(*t->expr), std::move(effect), std::move(expl), repeat};
+    c.term.coef = 1.0;
+    c.term.coef_given = false;
+    for (const auto& x : cands)
+      if (x.expr == c.expr && x.repeat == c.repeat) return;
+    cands.push_back(std::move(c));
+  };
+  for (const auto& eff : effects_library()) {
+    auto t = parse_term(eff.term);
+    if (t && !has_key(*base, to_string(*t->expr))) push(eff.term, eff.name, eff.explanation, false);
+  }
+  if (o.second_lags)
+    for (const auto& ft : base->terms) {
+      const std::string k = term_key(ft.term);
+      const Effect* eff = find_effect(k);
+      push(k, "a second thermal path: " + (eff ? eff->name : k) + " again at another delay",
+           "heat reaches the fibre by more than one path (through the flange and through the housing), each with its own delay",
+           true);
+    }
+  for (const auto& x : o.extra_terms) {
+    auto t = parse_term(x);
+    if (!t) return fail(FitError::Code::bad_term, "extra candidate: " + t.error().pretty());
+    const std::string k = to_string(*t->expr);
+    if (has_key(*base, k)) continue;
+    const Effect* eff = find_effect(k);
+    push(x, eff ? eff->name : "user term " + k, eff ? eff->explanation : "", false);
+  }
+
+  CandidateScan scan(fit_run.gyro_dph, fr.base_cols, fr.w, fo.max_lag_s);
+  const double ln_n = std::log(static_cast<double>(std::max<std::size_t>(base->fit.n_used, 2)));
+  std::vector<std::vector<double>> partial_cols(cands.size());
+  for (std::size_t ci = 0; ci < cands.size(); ++ci) {
+    const Cand& cd = cands[ci];
+    Candidate c;
+    c.expr = cd.expr;
+    c.effect = cd.effect;
+    c.explanation = cd.explanation;
+    c.unit = coef_unit(*cd.term.expr);
+    c.rms_before_dph = d.rms_fit_dph;
+    c.term = cd.expr + (cd.repeat ? "@auto (second lag)" : "@auto");
+    if (uses_signal(*cd.term.expr, Signal::Ta) && !fit_run.has_chamber()) {
+      c.skipped = "needs Ta, the chamber air temperature, which the fit run " + fit_run.name + " did not record (no chamber_c column)";
+      d.candidates.push_back(std::move(c));
+      continue;
+    }
+    auto x = evaluate(*cd.term.expr, fr.sig.view());
+    if (!x) {
+      c.skipped = x.error();
+      d.candidates.push_back(std::move(c));
+      continue;
+    }
+    std::optional<int> avoid;
+    if (cd.repeat)
+      for (const auto& ft : base->terms)
+        if (term_key(ft.term) == cd.expr) avoid = ft.term.lag.seconds;
+    // Within the derivative window (30 s) of the model's own lag the same term is nearly
+    // the same column: a second path must be further away to mean anything.
+    const auto lag = scan.best_lag(*x, avoid, kDerivativeHalfWidth);
+    if (!lag) {
+      c.skipped = "no lag in 0.." + std::to_string(fo.max_lag_s) + " s adds anything the model's terms do not already hold";
+      d.candidates.push_back(std::move(c));
+      continue;
+    }
+    // The candidate's lag was scanned with the model's terms at the lags they had without
+    // it; the refit moves those lags, so scan again with the refitted model's columns until
+    // the lag settles (coordinate descent on the lags, as the joint fit does).
+    Term t = cd.term;
+    t.lag = Lag{false, *lag};
+    auto [tl, extra_params] = extended_terms(*base, t, true);
+    auto m2 = fit(fit_run, tl, fo);
+    for (int it = 0; it < o.lag_iterations && m2 && !cd.repeat; ++it) {
+      auto cols = regressors(*m2, fit_run);
+      if (!cols) break;
+      cols->pop_back();
+      CandidateScan rescan(fit_run.gyro_dph, *cols, fr.w, fo.max_lag_s);
+      const auto lag2 = rescan.best_lag(*x);
+      if (!lag2 || *lag2 == t.lag.seconds) break;
+      Term t2 = t;
+      t2.lag.seconds = *lag2;
+      auto [tl2, ep2] = extended_terms(*base, t2, true);
+      auto m3 = fit(fit_run, tl2, fo);
+      if (!m3 || m3->fit.bic >= m2->fit.bic) break;
+      t = t2;
+      m2 = std::move(m3);
+    }
+    // A lag is a parameter: the term without delay costs ln(n) less in BIC, and is the
+    // simpler explanation when the runs hardly tell the two apart.
+    if (m2 && t.lag.seconds != 0 && !cd.repeat) {
+      Term t0 = t;
+      t0.lag.seconds = 0;
+      auto [tl0, ep0] = extended_terms(*base, t0, false);
+      auto m0 = fit(fit_run, tl0, fo);
+      if (m0 && m0->fit.bic + ep0 * ln_n <= m2->fit.bic + extra_params * ln_n) {
+        t = t0;
+        m2 = std::move(m0);
+        extra_params = ep0;
+      }
+    }
+    c.lag_s = t.lag.seconds;
+    c.term = with_lag(cd.expr, t.lag.seconds);
+    if (!m2) {
+      c.skipped = (cd.repeat ? "the same term at a second lag cannot be separated on this run: " : "refit failed: ") + m2.error().message;
+      d.candidates.push_back(std::move(c));
+      continue;
+    }
+    c.evaluated = true;
+    auto after = comp_std(*m2, fit_run);
+    c.rms_after_dph = after ? *after : kNaN;
+    c.fall = c.rms_before_dph > 0.0 ? 1.0 - c.rms_after_dph / c.rms_before_dph : 0.0;
+    c.delta_bic = m2->fit.bic + extra_params * ln_n - base->fit.bic;
+    const FittedTerm& nt = m2->terms.back();
+    c.coef = nt.coef;
+    c.se = nt.se;
+    c.t = nt.se > 0.0 ? nt.coef / nt.se : 0.0;
+    c.p_value = std::erfc(std::abs(c.t) / std::sqrt(2.0));
+    double min_fall = std::numeric_limits<double>::infinity();
+    int scored = 0;
+    for (std::size_t h = 0; h < held_out.size(); ++h) {
+      HeldOutScore hs;
+      hs.run = held_out[h].name;
+      if (!held_before[h]) {
+        hs.skipped = "the model does not run on it: " + held_before[h].error();
+      } else if (uses_signal(*cd.term.expr, Signal::Ta) && !held_out[h].has_chamber()) {
+        hs.skipped = "needs Ta, the chamber air temperature, which " + held_out[h].name + " did not record (no chamber_c column)";
+      } else if (auto ha = comp_std(*m2, held_out[h]); !ha) {
+        hs.skipped = ha.error();
+      } else {
+        hs.scored = true;
+        hs.rms_before_dph = *held_before[h];
+        hs.rms_after_dph = *ha;
+        min_fall = std::min(min_fall, hs.rms_before_dph > 0.0 ? 1.0 - hs.rms_after_dph / hs.rms_before_dph : 0.0);
+        ++scored;
+      }
+      c.held_out.push_back(hs);
+    }
+    c.held_out_fall = scored ? min_fall : 0.0;
+    const bool significant = c.p_value < o.max_p_value;
+    if (scored > 0) {
+      c.detected = c.delta_bic < o.max_delta_bic && significant && c.fall >= o.min_fit_fall && c.held_out_fall >= o.min_held_out_fall;
+    } else {
+      c.detected = c.delta_bic < o.max_delta_bic_alone && significant && c.fall >= o.min_fit_fall_alone;
+    }
+    if (c.detected) {
+      c.verdict = "missing: compensated std falls " + fmt(100.0 * c.fall, 1) + "% on the fit run" +
+                  (scored ? " and at least " + fmt(100.0 * c.held_out_fall, 1) + "% on every held-out run" : "") +
+                  ", delta BIC " + fmt(c.delta_bic, 1);
+    } else {
+      std::string why;
+      if (!(c.delta_bic < (scored ? o.max_delta_bic : o.max_delta_bic_alone))) why = "BIC does not fall enough (" + fmt(c.delta_bic, 1) + ")";
+      else if (!significant) why = "its coefficient is not significant (p " + fmt(c.p_value, 4) + ")";
+      else if (c.fall < (scored ? o.min_fit_fall : o.min_fit_fall_alone)) why = "the fit run's compensated std falls only " + fmt(100.0 * c.fall, 1) + "%";
+      else why = "it does not hold up on held-out data (the smallest fall there is " + fmt(100.0 * c.held_out_fall, 1) + "%)";
+      c.verdict = "not needed: " + why;
+    }
+    {
+      auto col = column(t, fr.sig, t.lag.seconds);
+      if (col) partial_cols[d.candidates.size()] = scan.partial(*col);
+    }
+    d.candidates.push_back(std::move(c));
+  }
+
+  // Collinear look-alikes among the detected: their columns, with the model's terms regressed
+  // out, correlate so that these profiles cannot tell one from the other.
+  for (std::size_t i = 0; i < d.candidates.size(); ++i) {
+    auto& ci = d.candidates[i];
+    if (!ci.detected || partial_cols[i].empty()) continue;
+    for (std::size_t j = 0; j < d.candidates.size(); ++j) {
+      const auto& cj = d.candidates[j];
+      if (i == j || !cj.detected || partial_cols[j].empty()) continue;
+      const double r = weighted_corr(partial_cols[i], partial_cols[j], fr.w);
+      if (std::abs(r) < o.collinear_r) continue;
+      ci.collinear_with.push_back(cj.term);
+      if (ci.separate_by.empty()) {
+        const Effect* ea = find_effect(ci.expr);
+        const Effect* eb = find_effect(cj.expr);
+        const std::string how = ea ? ea->separated_by : eb ? eb->separated_by : "a profile step where the two move differently";
+        ci.separate_by = how + " separates " + ci.expr + " from " + cj.expr + " (their columns correlate at r = " + fmt(r, 3) + " here)";
+      }
+    }
+  }
+
+  // Ranking: the detected first, each group by delta BIC, the skipped last.
+  std::stable_sort(d.candidates.begin(), d.candidates.end(), [](const Candidate& x, const Candidate& y) {
+    auto rank = [](const Candidate& c) { return c.detected ? 0 : c.evaluated ? 1 : 2; };
+    if (rank(x) != rank(y)) return rank(x) < rank(y);
+    if (rank(x) < 2) return x.delta_bic < y.delta_bic;
+    return false;
+  });
+  // Look-alikes the data cannot rank (BIC within o.tie_bic of the best, columns collinear):
+  // the first of them in the library, which lists effects from the most direct (the coil's
+  // own temperature) to the most remote (the air, slow paths), is named first.
+  if (!d.candidates.empty() && d.candidates.front().detected) {
+    auto lib_index = [](const Candidate& c) {
+      const auto& lib = effects_library();
+      for (std::size_t i = 0; i < lib.size(); ++i)
+        if (c.expr == lib[i].term && c.term.find("second") == std::string::npos) return i;
+      return lib.size();
+    };
+    const Candidate& top = d.candidates.front();
+    std::size_t pick = 0;
+    for (std::size_t i = 1; i < d.candidates.size(); ++i) {
+      const Candidate& c = d.candidates[i];
+      if (!c.detected || c.delta_bic - top.delta_bic >= o.tie_bic) continue;
+      if (std::find(top.collinear_with.begin(), top.collinear_with.end(), c.term) == top.collinear_with.end()) continue;
+      if (lib_index(c) < lib_index(d.candidates[pick])) pick = i;
+    }
+    if (pick) std::rotate(d.candidates.begin(), d.candidates.begin() + static_cast<std::ptrdiff_t>(pick),
+                          d.candidates.begin() + static_cast<std::ptrdiff_t>(pick) + 1);
+  }
+  d.adequate = d.candidates.empty() || !d.candidates.front().detected;
+  d.rule = held_out.empty()
+               ? "detected when, refitted with the model: delta BIC < " + fmt(o.max_delta_bic_alone, 0) + ", p < " +
+                     fmt(o.max_p_value, 4) + " and the compensated std of the fit run falls by at least " +
+                     fmt(100.0 * o.min_fit_fall_alone, 0) + "% (stricter: no held-out run was given)"
+               : "detected when, refitted with the model: delta BIC < " + fmt(o.max_delta_bic, 0) + ", p < " +
+                     fmt(o.max_p_value, 4) + ", the compensated std of the fit run falls by at least " +
+                     fmt(100.0 * o.min_fit_fall, 0) + "% and that of every held-out run by at least " +
+                     fmt(100.0 * o.min_held_out_fall, 0) + "% (the refitted model applied unchanged)";
+  if (d.adequate) {
+    d.summary = "No effect of the library improves the model " + d.model_terms + " on these runs: it is adequate (compensated std " +
+                fmt(d.rms_fit_dph, 3) + " deg/h on " + d.fit_run + ").";
+  } else {
+    const Candidate& b = d.candidates.front();
+    d.summary = "Missing effect: " + b.effect + ", term " + b.term + ". Adding it takes the compensated std on " + d.fit_run +
+                " from " + fmt(b.rms_before_dph, 3) + " to " + fmt(b.rms_after_dph, 3) + " deg/h";
+    for (const auto& h : b.held_out)
+      if (h.scored) d.summary += ", on " + h.run + " from " + fmt(h.rms_before_dph, 3) + " to " + fmt(h.rms_after_dph, 3);
+    d.summary += ".";
+    if (!b.collinear_with.empty()) {
+      d.summary += " These profiles cannot tell it from";
+      for (std::size_t i = 0; i < b.collinear_with.size(); ++i) d.summary += (i ? ", " : " ") + b.collinear_with[i];
+      d.summary += ": " + b.separate_by + ".";
+    }
+  }
+  if (!d.whiteness.white() && d.adequate)
+    d.summary += " The residual is not white (Ljung-Box p " + fmt(d.whiteness.lb.p_value, 4) +
+                 "): something outside the library, or the noise order, may be missing.";
+  return d;
+}
+
+std::expected<AddResult, FitError> add_term(const Model& m, const RunData& run, std::string_view text) {
+  auto parsed = parse_term(text);
+  if (!parsed) return fail(FitError::Code::bad_term, "--add: " + parsed.error().pretty());
+  Term t = *parsed;
+  if (t.coef_given) return fail(FitError::Code::bad_term, "--add '" + std::string(text) + "': give the term without a coefficient (the fit estimates it)");
+  t.coef = 1.0;
+  const std::string key = to_string(*t.expr);
+  for (const auto& ft : m.terms)
+    if (term_key(ft.term) == key && (t.lag.automatic || ft.term.lag.automatic || ft.term.lag.seconds == t.lag.seconds))
+      return fail(FitError::Code::bad_term, "the model already has the term " + key + " (" + m.terms_string() +
+                                                "); to add it again as a second thermal path give it a fixed lag other than " +
+                                                std::to_string(ft.term.lag.seconds) + " s, e.g. " + key + "@" +
+                                                std::to_string(ft.term.lag.seconds + 120));
+  if (uses_signal(*t.expr, Signal::Ta) && !run.has_chamber())
+    return fail(FitError::Code::missing_signal, "term " + key + " needs Ta, the chamber air temperature, which " + run.name +
+                                                    " did not record (no chamber_c column)");
+  const FitOptions fo = options_of(m);
+  bool scanned = false;
+  // The paper method gives all @auto terms one shared lag: the new term gets its own lag
+  // from the scan instead, so that adding it does not move the paper's lag.
+  if (t.lag.automatic && fo.method == Method::paper) {
+    auto base = fit(run, terms_of(m), fo);
+    if (!base) return std::unexpected(FitError{base.error().code, run.name + ": " + base.error().message});
+    auto cols = regressors(*base, run);
+    if (!cols) return std::unexpected(cols.error());
+    auto sig = run_signals(run, fo.tref_c);
+    if (!sig) return std::unexpected(sig.error());
+    auto x = evaluate(*t.expr, sig->view());
+    if (!x) return fail(FitError::Code::missing_signal, "term " + key + ": " + x.error());
+    CandidateScan scan(run.gyro_dph, *cols, good_weights(run), fo.max_lag_s);
+    const auto lag = scan.best_lag(*x);
+    if (!lag) return fail(FitError::Code::collinear, "term " + key + " adds nothing at any lag in 0.." + std::to_string(fo.max_lag_s) +
+                                                         " s that the model's terms do not already hold");
+    t.lag = Lag{false, *lag};
+    scanned = true;
+  }
+  TermList tl;
+  if (has_key(m, key)) {
+    tl.terms = frozen_terms(m);
+  } else {
+    tl = terms_of(m);
+    tl.paper = false;
+  }
+  tl.terms.push_back(t);
+  auto m2 = fit(run, tl, fo);
+  if (!m2) return std::unexpected(FitError{m2.error().code, run.name + ": " + m2.error().message});
+  AddResult r;
+  r.model = std::move(*m2);
+  r.model.parent = std::make_shared<const Model>(m);
+  const FittedTerm& nt = r.model.terms.back();
+  r.added = with_lag(nt.name(), nt.term.lag.seconds);
+  r.model.note = "added " + r.added + (scanned ? " (lag from the residual's lag scan)" : "") + " to " + m.terms_string() +
+                 ", refitted on " + run.name + " (" + std::string(to_string(fo.method)) + " method)";
+  return r;
+}
+
+}  // namespace fogbench::model::workbench
