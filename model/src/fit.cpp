@@ -50,18 +50,15 @@ ScanResult scan(const LagScanner& sc, std::span<const double> y, const Spectrum*
     wy[t] = w[t] * y[t];
     ywy += wy[t] * y[t];
   }
-  Eigen::MatrixXd Gff(nf, nf);
-  Eigen::VectorXd bf(nf);
-  for (std::size_t a = 0; a < nf; ++a) {
-    double s = 0.0;
-    for (std::size_t t = 0; t < n; ++t) s += wy[t] * fixed[a].at(t);
-    bf(a) = s;
-    for (std::size_t b = a; b < nf; ++b) {
-      double g = 0.0;
-      for (std::size_t t = 0; t < n; ++t) g += w[t] * fixed[a].at(t) * fixed[b].at(t);
-      Gff(a, b) = Gff(b, a) = g;
-    }
-  }
+  // The fixed block in one vectorised product: F' W F and F' W y.
+  Eigen::MatrixXd F(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(nf));
+  for (std::size_t a = 0; a < nf; ++a)
+    for (std::size_t t = 0; t < n; ++t) F(static_cast<Eigen::Index>(t), static_cast<Eigen::Index>(a)) = fixed[a].at(t);
+  const Eigen::Map<const Eigen::VectorXd> wv(w.data(), static_cast<Eigen::Index>(n));
+  const Eigen::Map<const Eigen::VectorXd> wyv(wy.data(), static_cast<Eigen::Index>(n));
+  const Eigen::MatrixXd WF = F.array().colwise() * wv.array();
+  const Eigen::MatrixXd Gff = F.transpose() * WF;
+  const Eigen::VectorXd bf = F.transpose() * wyv;
   // Lag-dependent sums, each for all lags at once.
   std::vector<std::vector<double>> cvy(nv), gvv(nv * nv);
   std::vector<std::vector<std::vector<double>>> cvf(nv, std::vector<std::vector<double>>(nf));
@@ -141,29 +138,35 @@ std::vector<double> smooth(std::span<const double> y, std::span<const double> w,
   return out;
 }
 
-// AR(p) by least squares over the rows whose p+1 samples all have weight 1.
+// AR(p) by least squares over the rows whose p+1 samples all have weight 1, accumulating
+// the p x p normal equations in one pass (no design matrix: N is large, p is small).
 std::expected<ArFit, std::string> fit_ar_rows(std::span<const double> e, std::span<const double> w, int p) {
-  std::vector<std::size_t> rows;
-  for (std::size_t t = static_cast<std::size_t>(p); t < e.size(); ++t) {
-    bool ok = true;
-    for (int j = 0; j <= p && ok; ++j) ok = w[t - static_cast<std::size_t>(j)] != 0.0;
-    if (ok) rows.push_back(t);
+  const auto pu = static_cast<std::size_t>(p);
+  Eigen::MatrixXd XtX = Eigen::MatrixXd::Zero(p, p);
+  Eigen::VectorXd XtY = Eigen::VectorXd::Zero(p);
+  double yty = 0.0;
+  std::size_t rows = 0;
+  std::size_t run = 0;  // consecutive good samples ending at t
+  std::vector<double> lagv(pu);
+  for (std::size_t t = 0; t < e.size(); ++t) {
+    run = w[t] != 0.0 ? run + 1 : 0;
+    if (run <= pu) continue;
+    for (std::size_t j = 0; j < pu; ++j) lagv[j] = e[t - 1 - j];
+    for (std::size_t a = 0; a < pu; ++a) {
+      XtY(static_cast<Eigen::Index>(a)) += lagv[a] * e[t];
+      for (std::size_t b = a; b < pu; ++b) XtX(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) += lagv[a] * lagv[b];
+    }
+    yty += e[t] * e[t];
+    ++rows;
   }
-  if (rows.size() < static_cast<std::size_t>(11 * p))
-    return std::unexpected("too few consecutive good samples for AR(" + std::to_string(p) + ")");
-  Eigen::MatrixXd X(static_cast<Eigen::Index>(rows.size()), p);
-  Eigen::VectorXd Y(static_cast<Eigen::Index>(rows.size()));
-  for (std::size_t r = 0; r < rows.size(); ++r) {
-    Y(static_cast<Eigen::Index>(r)) = e[rows[r]];
-    for (int j = 0; j < p; ++j) X(static_cast<Eigen::Index>(r), j) = e[rows[r] - 1 - static_cast<std::size_t>(j)];
-  }
-  Eigen::LDLT<Eigen::MatrixXd> ldlt(X.transpose() * X);
+  if (rows < 11 * pu) return std::unexpected("too few consecutive good samples for AR(" + std::to_string(p) + ")");
+  XtX = XtX.selfadjointView<Eigen::Upper>();
+  Eigen::LDLT<Eigen::MatrixXd> ldlt(XtX);
   if (ldlt.info() != Eigen::Success || ldlt.rcond() < 1e-14) return std::unexpected(std::string("degenerate residual series"));
-  const Eigen::VectorXd XtY = X.transpose() * Y;
   const Eigen::VectorXd th = ldlt.solve(XtY);
   ArFit r;
   r.k.assign(th.data(), th.data() + p);
-  r.sigma_a2 = std::max(0.0, (Y.dot(Y) - XtY.dot(th)) / static_cast<double>(rows.size()));
+  r.sigma_a2 = std::max(0.0, (yty - XtY.dot(th)) / static_cast<double>(rows));
   return r;
 }
 
@@ -402,22 +405,19 @@ void finish_stats(Model& m, const Evaluated& ev, std::span<const double> y, std:
     w[t] = ok ? 1.0 : 0.0;
   }
   const std::size_t k = 1 + nt;
-  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(k, k);
+  // G = X' W X of the prewhitened design [1 - sum k, cols], as one vectorised product.
+  Eigen::MatrixXd X(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(k));
+  X.col(0).setConstant(1.0 - ksum);
+  for (std::size_t j = 0; j < nt; ++j)
+    X.col(static_cast<Eigen::Index>(j + 1)) = Eigen::Map<const Eigen::VectorXd>(cols[j].data(), static_cast<Eigen::Index>(n));
+  const Eigen::Map<const Eigen::VectorXd> wv(w.data(), static_cast<Eigen::Index>(n));
+  const Eigen::MatrixXd WX = X.array().colwise() * wv.array();
+  Eigen::MatrixXd G = X.transpose() * WX;
   double rss = 0.0, nw = 0.0;
-  std::vector<double> rowv(k);
-  std::vector<double> a_used;
-  a_used.reserve(n);
   for (std::size_t t = 0; t < n; ++t) {
-    if (w[t] == 0.0) continue;
-    rowv[0] = 1.0 - ksum;
-    for (std::size_t j = 0; j < nt; ++j) rowv[j + 1] = cols[j][t];
-    for (std::size_t r = 0; r < k; ++r)
-      for (std::size_t c = r; c < k; ++c) G(r, c) += rowv[r] * rowv[c];
-    rss += a[t] * a[t];
-    nw += 1.0;
-    a_used.push_back(a[t]);
+    rss += w[t] * a[t] * a[t];
+    nw += w[t];
   }
-  G = G.selfadjointView<Eigen::Upper>();
   const double nparams = static_cast<double>(k + p + static_cast<std::size_t>(n_auto_lags));
   const double s2 = nw > nparams ? rss / (nw - nparams) : 0.0;
   Eigen::LDLT<Eigen::MatrixXd> ldlt(G);
@@ -673,6 +673,7 @@ std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<T
   // Cochrane-Orcutt: AR(p) of the residual, prewhiten, refit (lags included), until stable.
   bool converged = false;
   bool search_lags = true;
+  std::vector<double> k_at_search(static_cast<std::size_t>(p), 0.0);
   int it = 0;
   std::vector<double> wf(n);
   for (; it < o.max_iterations && !converged; ++it) {
@@ -700,9 +701,15 @@ std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<T
     double change = 0.0;
     for (std::size_t j = 0; j <= nt; ++j) change = std::max(change, std::abs(theta[j] - old[j]) / std::max(1e-6, std::abs(theta[j])));
     for (std::size_t j = 0; j < k.size(); ++j) change = std::max(change, std::abs(k_new[j] - k[j]));
+    // Confirm the lags once the coefficients have settled, unless the whitening has barely
+    // changed since they were searched (AR coefficients within 0.01: the lag sums differ by
+    // less than the noise).
+    double k_drift = 0.0;
+    for (std::size_t j = 0; j < k_new.size(); ++j) k_drift = std::max(k_drift, std::abs(k_new[j] - k_at_search[j]));
+    if (search_lags) k_at_search = k_new;
     k = k_new;
     const bool settled = change < o.tolerance && lag == old_lag;
-    converged = settled && (search_lags || n_auto == 0);
+    converged = settled && (search_lags || n_auto == 0 || k_drift < 0.01);
     search_lags = settled && !converged;
     residual(e);
     double rss = 0.0, cnt = 0.0;

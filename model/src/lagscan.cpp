@@ -154,7 +154,9 @@ std::vector<double> LagScanner::wsum(std::span<const double> v) const {
     return out;
   }
   // All-ones window sums from prefix sums, minus the samples of weight zero.
-  std::vector<double> prefix(v.size() + 1, 0.0);
+  thread_local std::vector<double> prefix;
+  prefix.resize(v.size() + 1);
+  prefix[0] = 0.0;
   for (std::size_t j = 0; j < v.size(); ++j) prefix[j + 1] = prefix[j] + v[j];
   for (std::size_t i = 0; i <= L; ++i) {
     const std::size_t k = L - i;
