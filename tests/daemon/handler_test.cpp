@@ -1,0 +1,138 @@
+// The command handler without a socket: hello, replies, and every error code of the protocol.
+#include "fixture.hpp"
+
+#include "fogbench/daemon/framing.hpp"
+#include "fogbench/daemon/handler.hpp"
+
+using namespace fogbench;
+using namespace fogbench::daemon;
+using namespace fogbench::daemon::test;
+using nlohmann::json;
+
+namespace {
+struct Rig {
+  storage::Store store = memory_store();
+  Station station{golden_config(), store};
+  Handler handler{station};
+  SessionState session;
+  json send(const std::string& line) { return handler.handle_line(line, session); }
+  std::string code(const std::string& line) {
+    json r = send(line);
+    REQUIRE(r["type"] == "reply");
+    if (!r.contains("error")) return "ok";
+    CHECK(r["error"]["message"].is_string());
+    return r["error"]["code"];
+  }
+};
+}  // namespace
+
+TEST_CASE("handler: hello names the protocol") {
+  json h = Handler::hello();
+  CHECK(h["type"] == "hello");
+  CHECK(h["protocol"] == 1);
+  CHECK(h["max_line_bytes"] == kMaxLineBytes);
+}
+
+TEST_CASE("handler: a reply carries the request's id, number or string") {
+  Rig r;
+  json a = r.send(R"({"id":41,"cmd":"status"})");
+  CHECK(a["id"] == 41);
+  CHECK(a["type"] == "reply");
+  CHECK(a["result"]["run"].is_null());
+  CHECK(a["result"]["units"].size() == 2);
+  json b = r.send(R"({"id":"abc","cmd":"run.list"})");
+  CHECK(b["id"] == "abc");
+  CHECK(b["result"]["runs"].empty());
+}
+
+TEST_CASE("handler: error codes of malformed requests") {
+  Rig r;
+  CHECK(r.code("{not json") == "bad_json");
+  CHECK(r.code("") == "bad_json");
+  CHECK(r.code("[1,2]") == "bad_request");
+  CHECK(r.code(R"({"cmd":"status"})") == "bad_request");           // no id
+  CHECK(r.code(R"({"id":[1],"cmd":"status"})") == "bad_request");  // id of the wrong type
+  CHECK(r.code(R"({"id":1})") == "bad_request");                   // no cmd
+  CHECK(r.code(R"({"id":1,"cmd":7})") == "bad_request");
+  CHECK(r.code(R"({"id":1,"cmd":"launch"})") == "unknown_command");
+  CHECK(r.send("{not json")["id"].is_null());
+  CHECK(r.send(R"({"id":9,"cmd":"launch"})")["id"] == 9);
+}
+
+TEST_CASE("handler: error codes of run commands, and refusals that store nothing") {
+  Rig r;
+  CHECK(r.code(R"({"id":1,"cmd":"run.start","units":["FOG-0001"]})") == "bad_request");  // no profile
+  CHECK(r.code(R"({"id":1,"cmd":"run.start","profile":"short"})") == "bad_request");     // no units
+  CHECK(r.code(R"({"id":1,"cmd":"run.start","profile":"short","units":"FOG-0001"})") == "bad_request");
+  CHECK(r.code(R"({"id":1,"cmd":"run.start","profile":"short","units":[1]})") == "bad_request");
+  CHECK(r.code(R"({"id":1,"cmd":"run.start","profile":3,"units":["FOG-0001"]})") == "bad_request");
+  CHECK(r.code(R"({"id":1,"cmd":"run.start","profile":"short","units":["FOG-0001"],"purpose":"x"})") == "bad_request");
+  CHECK(r.code(R"({"id":1,"cmd":"run.start","profile":"short","units":["FOG-0001"],"purpose":"verify"})") == "unknown_serial");
+  CHECK(r.code(R"({"id":1,"cmd":"run.start","profile":"short","units":["FOG-7"]})") == "unknown_serial");
+  CHECK(r.code(R"({"id":1,"cmd":"run.start","profile":"hot","units":["FOG-0001"]})") == "limits");
+  CHECK(r.code(R"({"id":1,"cmd":"run.start","profile":"broken","units":["FOG-0001"]})") == "invalid_profile");
+  CHECK(r.code(R"({"id":1,"cmd":"run.start","profile":"gone","units":["FOG-0001"]})") == "not_found");
+  CHECK(r.code(R"({"id":1,"cmd":"run.abort"})") == "not_found");
+  CHECK(r.store.list_runs()->empty());
+
+  CHECK(r.code(R"({"id":2,"cmd":"run.start","profile":"short","units":["FOG-0001"]})") == "ok");
+  CHECK(r.code(R"({"id":3,"cmd":"run.start","profile":"short","units":["FOG-0002"]})") == "busy");
+  CHECK(r.code(R"({"id":4,"cmd":"model.fit","run_id":1})") == "busy");  // still running
+  CHECK(r.code(R"({"id":5,"cmd":"run.abort","run_id":99})") == "not_found");
+  CHECK(r.code(R"({"id":6,"cmd":"run.abort","reason":"test"})") == "ok");
+  CHECK(r.store.get_run(1)->run.state_reason == "aborted by operator: test");
+}
+
+TEST_CASE("handler: error codes of queries") {
+  Rig r;
+  CHECK(r.code(R"({"id":1,"cmd":"run.get"})") == "bad_request");
+  CHECK(r.code(R"({"id":1,"cmd":"run.get","run_id":"1"})") == "bad_request");
+  CHECK(r.code(R"({"id":1,"cmd":"run.get","run_id":0})") == "bad_request");
+  CHECK(r.code(R"({"id":1,"cmd":"run.get","run_id":5})") == "not_found");
+  CHECK(r.code(R"({"id":1,"cmd":"run.samples","run_id":5})") == "not_found");
+  CHECK(r.code(R"({"id":1,"cmd":"run.samples","run_id":1,"limit":0})") == "bad_request");
+  CHECK(r.code(R"({"id":1,"cmd":"run.list","state":"sleeping"})") == "bad_request");
+  CHECK(r.code(R"({"id":1,"cmd":"run.list","limit":"ten"})") == "bad_request");
+  CHECK(r.code(R"({"id":1,"cmd":"model.get"})") == "bad_request");
+  CHECK(r.code(R"({"id":1,"cmd":"model.get","serial":"FOG-0001"})") == "not_found");
+  CHECK(r.code(R"({"id":1,"cmd":"model.get","model_id":3})") == "not_found");
+  CHECK(r.code(R"({"id":1,"cmd":"model.fit"})") == "bad_request");
+  CHECK(r.code(R"({"id":1,"cmd":"model.fit","run_id":4})") == "not_found");
+  CHECK(r.code(R"({"id":1,"cmd":"model.verify","run_id":4})") == "not_found");
+  CHECK(r.code(R"({"id":1,"cmd":"profile.validate"})") == "bad_request");
+  CHECK(r.code(R"({"id":1,"cmd":"profile.validate","name":"hot"})") == "limits");
+  CHECK(r.code(R"({"id":1,"cmd":"profile.validate","text":"setpoint 20 C\nhold 1 min\n"})") == "ok");
+  CHECK(r.code(R"({"id":1,"cmd":"profile.validate","text":"hold\n"})") == "invalid_profile");
+}
+
+TEST_CASE("handler: samples page through a stored run, by unit index or serial") {
+  Rig r;
+  SyntheticBench bench(2);
+  REQUIRE(r.code(R"({"id":1,"cmd":"run.start","profile":"short","units":["FOG-0001","FOG-0002"]})") == "ok");
+  for (int i = 0; i < 30; ++i) r.station.tick(i, bench.step(20));
+  json page = r.send(R"({"id":2,"cmd":"run.samples","run_id":1,"unit":"FOG-0002","offset":10,"limit":5})");
+  REQUIRE(page.contains("result"));
+  CHECK(page["result"]["unit"] == 1);
+  CHECK(page["result"]["total"] == 30);
+  REQUIRE(page["result"]["samples"].size() == 5);
+  CHECK(page["result"]["samples"][0]["t_s"] == 10.0);
+  CHECK(page["result"]["samples"][0]["phase"] == "hold");
+  CHECK(r.code(R"({"id":3,"cmd":"run.samples","run_id":1,"unit":2})") == "not_found");
+  CHECK(r.code(R"({"id":3,"cmd":"run.samples","run_id":1,"unit":"FOG-0009"})") == "not_found");
+  CHECK(r.code(R"({"id":3,"cmd":"run.samples","run_id":1,"unit":true})") == "bad_request");
+}
+
+TEST_CASE("handler: subscribe marks the session") {
+  Rig r;
+  CHECK(!r.session.subscribed);
+  CHECK(r.code(R"({"id":1,"cmd":"subscribe"})") == "ok");
+  CHECK(r.session.subscribed);
+}
+
+TEST_CASE("handler: deeply nested or huge input is an error reply, not a crash") {
+  Rig r;
+  CHECK(r.code(std::string(100000, '[')) == "bad_json");
+  CHECK(r.code(R"({"id":1,"cmd":"run.list","limit":1e308})") == "bad_request");
+  CHECK(r.code(R"({"id":1,"cmd":"run.get","run_id":-1})") == "bad_request");
+  CHECK(Handler::too_long()["error"]["code"] == "bad_request");
+}
