@@ -157,23 +157,31 @@ std::expected<RunComparison, FitError> compare(const Model& m, const RunData& ru
   c.ta_c = run.chamber_c;
   c.phase = derive_phases(run);
   c.verification = std::move(*ver);
-  // Weights: flagged, non-finite and 3-sigma outlying samples do not count (as in verify).
+  // Weights: flagged, non-finite and outlying samples do not count. An outlier is a spike
+  // about the smoothed residual (3 sigma of the deviations from it), not a sample of a
+  // sustained error: the 3-sigma rule on the residual itself would drop the very samples
+  // where the model fails.
   std::vector<double> w(n, 1.0);
-  std::vector<double> r;
   for (std::size_t t = 0; t < n; ++t) {
     c.residual_dph[t] = run.gyro_dph[t] - c.predicted_dph[t];
     if (run.flagged(t) || !std::isfinite(c.residual_dph[t]) || c.phase[t] == Phase::settle) w[t] = 0.0;
-    else r.push_back(c.residual_dph[t]);
-  }
-  {
-    const OutlierResult ro = outliers_3sigma(r, 3.0);
-    std::size_t j = 0;
-    for (std::size_t t = 0; t < n; ++t)
-      if (w[t] != 0.0 && !ro.keep[j++]) w[t] = 0.0;
   }
   std::vector<double> rz(c.residual_dph);
   for (std::size_t t = 0; t < n; ++t)
     if (w[t] == 0.0) rz[t] = 0.0;
+  {
+    const std::vector<double> s0 = weighted_average(rz, w, o.smooth_s);
+    std::vector<double> dev;
+    for (std::size_t t = 0; t < n; ++t)
+      if (w[t] != 0.0) dev.push_back(rz[t] - s0[t]);
+    const OutlierResult ro = outliers_3sigma(dev, 3.0);
+    std::size_t j = 0;
+    for (std::size_t t = 0; t < n; ++t)
+      if (w[t] != 0.0 && !ro.keep[j++]) {
+        w[t] = 0.0;
+        rz[t] = 0.0;
+      }
+  }
   c.residual_smooth_dph = weighted_average(rz, w, o.smooth_s);
 
   // Table 1 per profile step: contiguous stretches of one step value.
