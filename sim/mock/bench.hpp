@@ -1,0 +1,60 @@
+// The mock bench: sim::World stepped on a clock K times faster than real time and served as the
+// bench's hardware. One object owns everything: the Modbus TCP listeners and their clients
+// (chamber controller and thermistor module, libmodbus in a poll() loop on the calling thread),
+// the gyros' CAN bus (an AF_UNIX SOCK_SEQPACKET socket it listens on, one struct can_frame per
+// datagram), the control socket, the signal handling, and a clock thread that steps the physics
+// and sends the frames. No client can block the clock: the two threads share only the served
+// registers, the fault state and a status snapshot, under one mutex, and the list of CAN
+// clients, under another. Described for users in docs/mock-bench.md.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <expected>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "fogbench/sim/sim.hpp"
+#include "layout.hpp"
+
+namespace fogbench::mock {
+
+struct BenchConfig {
+  Endpoints where;                 // ports 0: ephemeral, resolved by create()
+  bool gateway = false;            // the thermistor module answers on the chamber's port
+  std::string control_path;        // empty: no control socket
+  double time_scale = 1.0;         // simulated seconds per wall second
+  double duration_s = 0;           // stop after this many simulated seconds; 0: when told
+  double frame_noise_dph = 0.5;    // per-frame gyro noise, 1 sigma, zero-mean over each second
+  sim::SimConfig sim;              // the physics; sim.units in the order of `units`
+  std::vector<UnitLayout> units;
+  ServedMap map;
+  std::vector<nlohmann::json> start_faults;  // fault commands applied before serving
+};
+
+class Bench {
+ public:
+  // Checks the configuration, builds the world, binds every socket and blocks SIGINT and SIGTERM
+  // in the calling thread (run() takes them from a signalfd). Call before starting any thread.
+  static std::expected<std::unique_ptr<Bench>, std::string> create(BenchConfig config);
+  ~Bench();
+  Bench(const Bench&) = delete;
+  Bench& operator=(const Bench&) = delete;
+
+  // What is served, for the one JSON line on stdout: ports, socket paths, units and their node
+  // ids, and a drivers configuration that reads all of it.
+  nlohmann::json ready_line() const;
+
+  // Starts the clock and serves until SIGINT/SIGTERM, {"cmd":"stop"} or the configured
+  // duration; then closes every socket and removes the socket files. Returns the exit status.
+  int run();
+
+  struct Impl;
+
+ private:
+  explicit Bench(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace fogbench::mock

@@ -1,0 +1,53 @@
+// The control protocol's framing and dispatch; see control.hpp.
+#include "control.hpp"
+
+namespace fogbench::mock {
+
+using nlohmann::json;
+
+std::optional<std::string> LineBuffer::next_line() {
+  const auto nl = data_.find('\n');
+  if (nl == std::string::npos) return std::nullopt;
+  std::string line = data_.substr(0, nl);
+  data_.erase(0, nl + 1);
+  if (!line.empty() && line.back() == '\r') line.pop_back();
+  return line;
+}
+
+bool LineBuffer::overflowed() const noexcept {
+  const auto nl = data_.find('\n');
+  return (nl == std::string::npos ? data_.size() : nl) > max_control_line;
+}
+
+std::string handle_line(std::string_view line, ControlHandler& handler) {
+  auto error = [](const std::string& message) { return json{{"ok", false}, {"error", message}}.dump(); };
+  if (line.size() > max_control_line) {
+    return error("request longer than " + std::to_string(max_control_line) + " bytes");
+  }
+  json request;
+  try {
+    request = json::parse(line);
+  } catch (const json::exception& e) {
+    return error(std::string("not JSON: ") + e.what());
+  }
+  if (!request.is_object() || !request.contains("cmd") || !request["cmd"].is_string()) {
+    return error("expected an object with a \"cmd\" string");
+  }
+  const auto cmd = request["cmd"].get<std::string>();
+  if (cmd == "fault") {
+    if (auto ok = handler.fault(request); !ok) return error(ok.error());
+    return json{{"ok", true}}.dump();
+  }
+  if (cmd == "status") {
+    json reply = {{"ok", true}, {"version", control_protocol_version}};
+    reply.update(handler.status());
+    return reply.dump();
+  }
+  if (cmd == "stop") {
+    handler.stop();
+    return json{{"ok", true}}.dump();
+  }
+  return error("unknown cmd '" + cmd + "' (known: fault, status, stop)");
+}
+
+}  // namespace fogbench::mock

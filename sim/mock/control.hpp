@@ -1,0 +1,51 @@
+// The control protocol of the mock bench, without I/O: newline-delimited JSON requests on a
+// unix stream socket, one JSON reply line each. The framing (LineBuffer) and the dispatch
+// (handle_line) never touch a socket, so both are tested on strings.
+//
+//   {"cmd":"fault","name":"freeze_pv","on":true}   -> {"ok":true}
+//   {"cmd":"status"}                               -> {"ok":true,"time_s":...,...}
+//   {"cmd":"stop"}                                 -> {"ok":true}, then the bench stops
+//   anything else                                  -> {"ok":false,"error":"..."}
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <expected>
+#include <optional>
+#include <string>
+#include <string_view>
+
+namespace fogbench::mock {
+
+inline constexpr int control_protocol_version = 1;
+// A request line longer than this is refused and the connection closed.
+inline constexpr std::size_t max_control_line = 4096;
+
+// Splits a byte stream into lines ("\n", an optional "\r" before it dropped).
+class LineBuffer {
+ public:
+  void append(std::string_view bytes) { data_.append(bytes); }
+  // The next complete line, if any.
+  std::optional<std::string> next_line();
+  // True when the pending, incomplete line is already longer than max_control_line.
+  bool overflowed() const noexcept;
+
+ private:
+  std::string data_;
+};
+
+// What the bench does for each request.
+class ControlHandler {
+ public:
+  virtual ~ControlHandler() = default;
+  // Applies a fault command ({"cmd":"fault",...}); an error message when refused.
+  virtual std::expected<void, std::string> fault(const nlohmann::json& command) = 0;
+  // The status fields (merged into {"ok":true,...}).
+  virtual nlohmann::json status() = 0;
+  virtual void stop() = 0;
+};
+
+// Parses one request line, dispatches it and returns the reply line (without "\n").
+std::string handle_line(std::string_view line, ControlHandler& handler);
+
+}  // namespace fogbench::mock

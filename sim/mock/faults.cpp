@@ -1,0 +1,275 @@
+// Fault names, commands and state; see faults.hpp.
+#include "faults.hpp"
+
+#include <charconv>
+#include <cmath>
+#include <set>
+
+#include "fogbench/drivers/error.hpp"
+
+namespace fogbench::mock {
+
+using nlohmann::json;
+
+namespace {
+
+// The main parameter of each fault: the VALUE of the command-line form.
+std::optional<std::string_view> main_parameter(FaultKind kind) {
+  switch (kind) {
+    case FaultKind::stall_modbus: return "ms";
+    case FaultKind::lose_frames:
+    case FaultKind::corrupt_frames: return "fraction";
+    case FaultKind::lose_burst: return "count";
+    case FaultKind::gyro_spike: return "dph";
+    case FaultKind::open_thermistor: return "sensor";
+    default: return std::nullopt;
+  }
+}
+
+std::set<std::string_view> fields_of(FaultKind kind) {
+  std::set<std::string_view> f = {"cmd", "name", "on"};
+  switch (kind) {
+    case FaultKind::refuse_modbus:
+    case FaultKind::drop_modbus: f.insert("device"); break;
+    case FaultKind::stall_modbus: f.insert({"device", "ms"}); break;
+    case FaultKind::freeze_pv:
+    case FaultKind::alarm: break;
+    case FaultKind::lose_frames:
+    case FaultKind::corrupt_frames: f.insert({"unit", "fraction"}); break;
+    case FaultKind::lose_burst: f.insert({"unit", "count"}); break;
+    case FaultKind::open_thermistor: f.insert({"unit", "sensor"}); break;
+    case FaultKind::gyro_spike: f.insert({"unit", "dph", "duration_s"}); break;
+  }
+  return f;
+}
+
+std::expected<double, std::string> number_field(const json& c, const char* key, double min, double max) {
+  const auto& v = c.at(key);
+  if (!v.is_number()) return std::unexpected(std::string(key) + ": expected a number");
+  const double x = v.get<double>();
+  if (!std::isfinite(x) || x < min || x > max) {
+    return std::unexpected(std::string(key) + ": expected " + drivers::format_number(min) + ".." + drivers::format_number(max) +
+                           " (got " + v.dump() + ")");
+  }
+  return x;
+}
+
+}  // namespace
+
+std::string_view to_string(FaultKind kind) noexcept {
+  switch (kind) {
+    case FaultKind::refuse_modbus: return "refuse_modbus";
+    case FaultKind::drop_modbus: return "drop_modbus";
+    case FaultKind::stall_modbus: return "stall_modbus";
+    case FaultKind::freeze_pv: return "freeze_pv";
+    case FaultKind::alarm: return "alarm";
+    case FaultKind::lose_frames: return "lose_frames";
+    case FaultKind::lose_burst: return "lose_burst";
+    case FaultKind::corrupt_frames: return "corrupt_frames";
+    case FaultKind::open_thermistor: return "open_thermistor";
+    case FaultKind::gyro_spike: return "gyro_spike";
+  }
+  return "?";
+}
+
+std::optional<FaultKind> parse_fault_kind(std::string_view name) noexcept {
+  for (auto k : all_fault_kinds) {
+    if (to_string(k) == name) return k;
+  }
+  return std::nullopt;
+}
+
+std::string_view to_string(Device device) noexcept {
+  return device == Device::chamber ? "chamber" : "thermistors";
+}
+
+std::expected<FaultCommand, std::string> parse_fault_command(const json& c, const std::vector<std::string>& serials) {
+  if (!c.is_object()) return std::unexpected(std::string("a fault command is a JSON object"));
+  if (!c.contains("name") || !c["name"].is_string()) return std::unexpected(std::string("name: expected a fault name"));
+  const auto name = c["name"].get<std::string>();
+  auto kind = parse_fault_kind(name);
+  if (!kind) {
+    std::string known;
+    for (auto k : all_fault_kinds) known += (known.empty() ? "" : ", ") + std::string(to_string(k));
+    return std::unexpected("unknown fault '" + name + "' (known: " + known + ")");
+  }
+  FaultCommand cmd;
+  cmd.kind = *kind;
+  const auto fields = fields_of(*kind);
+  for (const auto& [key, value] : c.items()) {
+    if (!fields.contains(key)) {
+      std::string known;
+      for (auto f : fields) {
+        if (f != "cmd" && f != "name") known += (known.empty() ? "" : ", ") + std::string(f);
+      }
+      return std::unexpected(name + ": unknown field '" + key + "' (known: " + known + ")");
+    }
+  }
+  if (c.contains("on")) {
+    if (!c["on"].is_boolean()) return std::unexpected(name + ": on: expected true or false");
+    cmd.on = c["on"].get<bool>();
+  }
+  if (c.contains("device")) {
+    const auto& d = c["device"];
+    if (d == "chamber") cmd.device = Device::chamber;
+    else if (d == "thermistors") cmd.device = Device::thermistors;
+    else if (d != "all") return std::unexpected(name + ": device: expected chamber, thermistors or all (got " + d.dump() + ")");
+  }
+  if (c.contains("unit")) {
+    const auto& u = c["unit"];
+    if (u.is_number_integer() && u.get<std::int64_t>() >= 0 && static_cast<std::size_t>(u.get<std::int64_t>()) < serials.size()) {
+      cmd.unit = static_cast<std::size_t>(u.get<std::int64_t>());
+    } else if (u.is_string()) {
+      for (std::size_t i = 0; i < serials.size(); ++i) {
+        if (serials[i] == u.get<std::string>()) cmd.unit = i;
+      }
+      if (!cmd.unit && u != "all") return std::unexpected(name + ": unit: no unit has serial " + u.dump());
+    } else {
+      return std::unexpected(name + ": unit: expected an index 0.." + std::to_string(serials.size() - 1) +
+                             " or a serial (got " + u.dump() + ")");
+    }
+  }
+  if (c.contains("sensor")) {
+    const auto& s = c["sensor"];
+    if (s == "t1" || s == "T1") cmd.sensor = 1;
+    else if (s == "t2" || s == "T2") cmd.sensor = 2;
+    else if (s != "both") return std::unexpected(name + ": sensor: expected t1, t2 or both (got " + s.dump() + ")");
+  }
+  // The main parameter is needed to switch a fault on; switching off needs none.
+  auto need = [&](const char* key, double min, double max) -> std::expected<double, std::string> {
+    if (!c.contains(key)) {
+      if (!cmd.on) return 0.0;
+      return std::unexpected(name + ": " + key + ": missing");
+    }
+    auto x = number_field(c, key, min, max);
+    if (!x) return std::unexpected(name + ": " + x.error());
+    return *x;
+  };
+  std::expected<double, std::string> v = 0.0;
+  switch (cmd.kind) {
+    case FaultKind::stall_modbus: v = need("ms", 1, 600000); break;
+    case FaultKind::lose_frames:
+    case FaultKind::corrupt_frames: v = need("fraction", 0, 1); break;
+    case FaultKind::lose_burst: v = need("count", 1, 1000000); break;
+    case FaultKind::gyro_spike:
+      v = need("dph", -100000, 100000);
+      if (v && c.contains("duration_s")) {
+        auto d = number_field(c, "duration_s", 1e-9, 1e9);
+        if (!d) return std::unexpected(name + ": " + d.error());
+        cmd.duration_s = *d;
+      }
+      break;
+    default: break;
+  }
+  if (!v) return std::unexpected(v.error());
+  cmd.value = *v;
+  return cmd;
+}
+
+std::expected<json, std::string> fault_json_from_cli(std::string_view text) {
+  json out = {{"cmd", "fault"}, {"on", true}};
+  auto to_value = [](std::string_view s) -> json {
+    std::int64_t i = 0;
+    if (const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), i);
+        ec == std::errc() && end == s.data() + s.size() && !s.empty()) {
+      return i;  // an integer stays one: "unit=1" is an index
+    }
+    double x = 0;
+    const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), x);
+    if (ec == std::errc() && end == s.data() + s.size() && !s.empty()) return x;
+    return std::string(s);
+  };
+  bool first = true;
+  std::optional<FaultKind> kind;
+  while (true) {
+    const auto comma = text.find(',');
+    const auto part = text.substr(0, comma);
+    const auto eq = part.find('=');
+    const auto key = part.substr(0, eq);
+    if (key.empty()) return std::unexpected("--fault '" + std::string(text) + "': empty name or key");
+    if (first) {
+      kind = parse_fault_kind(key);
+      if (!kind) return std::unexpected("--fault: unknown fault '" + std::string(key) + "'");
+      out["name"] = std::string(key);
+      if (eq != std::string_view::npos) {
+        const auto param = main_parameter(*kind);
+        if (!param) return std::unexpected("--fault " + std::string(key) + " takes no value");
+        out[std::string(*param)] = to_value(part.substr(eq + 1));
+      }
+      first = false;
+    } else {
+      if (eq == std::string_view::npos) return std::unexpected("--fault: expected KEY=VALUE, got '" + std::string(part) + "'");
+      out[std::string(key)] = to_value(part.substr(eq + 1));
+    }
+    if (comma == std::string_view::npos) break;
+    text.remove_prefix(comma + 1);
+  }
+  return out;
+}
+
+void apply_fault(FaultState& state, const FaultCommand& c, double next_second_s) {
+  auto each_device = [&](auto f) {
+    for (auto d : {Device::chamber, Device::thermistors}) {
+      if (!c.device || *c.device == d) f(static_cast<std::size_t>(d));
+    }
+  };
+  auto each_unit = [&](auto f) {
+    for (std::size_t i = 0; i < state.units.size(); ++i) {
+      if (!c.unit || *c.unit == i) f(state.units[i]);
+    }
+  };
+  switch (c.kind) {
+    case FaultKind::refuse_modbus: each_device([&](std::size_t d) { state.refuse[d] = c.on; }); break;
+    case FaultKind::drop_modbus: break;
+    case FaultKind::stall_modbus:
+      each_device([&](std::size_t d) { state.stall_ms[d] = c.on ? static_cast<int>(c.value) : 0; });
+      break;
+    case FaultKind::freeze_pv: state.freeze_pv = c.on; break;
+    case FaultKind::alarm: state.alarm = c.on; break;
+    case FaultKind::lose_frames: each_unit([&](UnitFaults& u) { u.lose_fraction = c.on ? c.value : 0.0; }); break;
+    case FaultKind::lose_burst:
+      each_unit([&](UnitFaults& u) { u.lose_burst = c.on ? u.lose_burst + static_cast<std::uint32_t>(c.value) : 0; });
+      break;
+    case FaultKind::corrupt_frames: each_unit([&](UnitFaults& u) { u.corrupt_fraction = c.on ? c.value : 0.0; }); break;
+    case FaultKind::open_thermistor:
+      each_unit([&](UnitFaults& u) {
+        if (!c.sensor || *c.sensor == 1) u.open_t1 = c.on;
+        if (!c.sensor || *c.sensor == 2) u.open_t2 = c.on;
+      });
+      break;
+    case FaultKind::gyro_spike:
+      each_unit([&](UnitFaults& u) {
+        u.spike_dph = c.on ? c.value : 0.0;
+        u.spike_until_s = c.on ? next_second_s + c.duration_s : 0.0;
+      });
+      break;
+  }
+}
+
+json active_faults(const FaultState& s, const std::vector<std::string>& serials, double next_second_s) {
+  json out = json::array();
+  for (auto d : {Device::chamber, Device::thermistors}) {
+    const auto i = static_cast<std::size_t>(d);
+    if (s.refuse[i]) out.push_back({{"name", "refuse_modbus"}, {"device", to_string(d)}});
+    if (s.stall_ms[i] > 0) out.push_back({{"name", "stall_modbus"}, {"device", to_string(d)}, {"ms", s.stall_ms[i]}});
+  }
+  if (s.freeze_pv) out.push_back({{"name", "freeze_pv"}});
+  if (s.alarm) out.push_back({{"name", "alarm"}});
+  for (std::size_t i = 0; i < s.units.size(); ++i) {
+    const auto& u = s.units[i];
+    const json unit = {{"unit", i}, {"serial", i < serials.size() ? serials[i] : ""}};
+    auto with = [&](json j) {
+      j.update(unit);
+      out.push_back(std::move(j));
+    };
+    if (u.lose_fraction > 0) with({{"name", "lose_frames"}, {"fraction", u.lose_fraction}});
+    if (u.lose_burst > 0) with({{"name", "lose_burst"}, {"count", u.lose_burst}});
+    if (u.corrupt_fraction > 0) with({{"name", "corrupt_frames"}, {"fraction", u.corrupt_fraction}});
+    if (u.open_t1) with({{"name", "open_thermistor"}, {"sensor", "t1"}});
+    if (u.open_t2) with({{"name", "open_thermistor"}, {"sensor", "t2"}});
+    if (u.spike_until_s > next_second_s) with({{"name", "gyro_spike"}, {"dph", u.spike_dph}, {"until_s", u.spike_until_s}});
+  }
+  return out;
+}
+
+}  // namespace fogbench::mock

@@ -1,0 +1,93 @@
+// Faults the mock bench injects on request, as the hardware would show them to the daemon:
+// their names, the JSON command that switches one on or off (control socket), the command-line
+// form (--fault NAME[=VALUE][,KEY=VALUE...]) that becomes the same JSON, and the state the
+// server and the clock read. Pure: applying a fault here changes state, the bench acts on it.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <array>
+#include <cstdint>
+#include <expected>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace fogbench::mock {
+
+enum class FaultKind {
+  refuse_modbus,    // close the listening socket: connects are refused
+  drop_modbus,      // action: close the connected Modbus clients now
+  stall_modbus,     // delay every reply by `ms`
+  freeze_pv,        // the chamber's process value stops updating
+  alarm,            // the chamber's alarm is raised
+  lose_frames,      // lose a `fraction` of a unit's CAN frames (their sequence numbers skipped)
+  lose_burst,       // action: lose the next `count` frames of a unit
+  corrupt_frames,   // flip one bit in a `fraction` of a unit's frames: the CRC fails
+  open_thermistor,  // a unit's sensor reads as an open circuit
+  gyro_spike,       // add `dph` to a unit's gyro for `duration_s` simulated seconds
+};
+
+inline constexpr std::array<FaultKind, 10> all_fault_kinds = {
+    FaultKind::refuse_modbus, FaultKind::drop_modbus, FaultKind::stall_modbus,
+    FaultKind::freeze_pv,     FaultKind::alarm,       FaultKind::lose_frames,
+    FaultKind::lose_burst,    FaultKind::corrupt_frames, FaultKind::open_thermistor,
+    FaultKind::gyro_spike};
+
+std::string_view to_string(FaultKind kind) noexcept;
+std::optional<FaultKind> parse_fault_kind(std::string_view name) noexcept;
+
+// The two Modbus devices; each has its listening socket unless they share one (gateway).
+enum class Device : std::size_t { chamber = 0, thermistors = 1 };
+std::string_view to_string(Device device) noexcept;
+
+struct FaultCommand {
+  FaultKind kind = FaultKind::freeze_pv;
+  bool on = true;
+  std::optional<Device> device;     // Modbus faults; empty: both devices
+  std::optional<std::size_t> unit;  // unit faults, resolved to an index; empty: every unit
+  std::optional<int> sensor;        // open_thermistor: 1 (T1) or 2 (T2); empty: both
+  double value = 0;                 // ms, fraction, count or dph, by kind
+  double duration_s = 10.0;         // gyro_spike, simulated seconds
+};
+
+// Parses {"cmd":"fault","name":"stall_modbus","on":true,"ms":800,"device":"chamber"}: the
+// fields a fault takes are named in docs/mock-bench.md; any other field is refused by name.
+// "unit" is a 0-based index or a serial from `serials`.
+std::expected<FaultCommand, std::string> parse_fault_command(const nlohmann::json& command,
+                                                             const std::vector<std::string>& serials);
+
+// "stall_modbus=800,device=chamber" -> {"cmd":"fault","name":"stall_modbus","on":true,
+// "ms":800,"device":"chamber"}: VALUE is the fault's main parameter, KEY=VALUE any other field;
+// numbers become JSON numbers, anything else a string.
+std::expected<nlohmann::json, std::string> fault_json_from_cli(std::string_view text);
+
+struct UnitFaults {
+  double lose_fraction = 0;
+  std::uint32_t lose_burst = 0;  // frames still to lose
+  double corrupt_fraction = 0;
+  bool open_t1 = false;
+  bool open_t2 = false;
+  double spike_dph = 0;
+  double spike_until_s = 0;  // the spike applies to the seconds starting before this time
+};
+
+struct FaultState {
+  std::array<bool, 2> refuse{};    // by Device
+  std::array<int, 2> stall_ms{};   // by Device
+  bool freeze_pv = false;
+  bool alarm = false;
+  std::vector<UnitFaults> units;
+};
+
+// Switches a fault on or off. `next_second_s` is the start of the next simulated second (where
+// a spike begins). drop_modbus changes no state: the caller closes the clients.
+void apply_fault(FaultState& state, const FaultCommand& command, double next_second_s);
+
+// The faults in force, each as the JSON command that would set it (plus "serial" for units
+// and "until_s" for a spike, "count" left for a burst), for the status reply.
+nlohmann::json active_faults(const FaultState& state, const std::vector<std::string>& serials,
+                             double next_second_s);
+
+}  // namespace fogbench::mock

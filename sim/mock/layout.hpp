@@ -1,0 +1,86 @@
+// What the mock bench serves and where: each unit's gyro encoding (CAN node id, rate or
+// increment counts) and coil thermistor channels, the chamber's register map, and the
+// daemon-side drivers configuration that reads exactly that. Pure: no sockets, no threads.
+//
+// The default layout continues drivers/examples/mock-bench.json: unit 0 there is an even unit
+// here, unit 1 an odd one, and every further unit repeats the pattern at the next registers.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <array>
+#include <cstdint>
+#include <expected>
+#include <string>
+#include <vector>
+
+#include "fogbench/drivers/register_map.hpp"
+#include "fogbench/drivers/sample_accumulator.hpp"
+#include "fogbench/drivers/thermistor_conversion.hpp"
+
+namespace fogbench::mock {
+
+inline constexpr std::size_t max_units = 32;
+inline constexpr int max_frame_rate_hz = 10000;
+
+struct UnitLayout {
+  std::string serial;
+  // What the daemon is told about the gyro: node id, mode, scale and, in increment mode, the
+  // nominal frame rate the daemon multiplies the mean increment by.
+  drivers::GyroChannelConfig gyro;
+  int frame_rate_hz = 100;  // frames actually sent per simulated second
+  nlohmann::json t1_json, t2_json;  // the channels as a drivers configuration spells them
+  drivers::ThermistorChannelConfig t1, t2;
+
+  // Counts of one frame per deg/h of rate, by the drivers' own conversion (in increment mode
+  // the increment of one nominal frame period: see docs/mock-bench.md).
+  double counts_per_dph() const noexcept { return 1.0 / gyro.mean_counts_to_rate_dph(1.0); }
+};
+
+// Unit i (0-based), serial SIM-000(i+1). Even units: rate counts of 1e-4 deg/h, thermistors as
+// int16 centi-degC at input i and i+1 (open circuit 32767). Odd units: increment counts of
+// 1e-7 deg at a nominal 8000 frames/s, NTC resistances as float32 at input 100+2(i-1) and
+// 102+2(i-1). Node id 257 + i.
+std::expected<UnitLayout, std::string> default_unit_layout(std::size_t i, int frame_rate_hz);
+
+// The built-in chamber map: drivers/maps/mock.json as it was when fogbench-sim was built.
+const char* builtin_map_json() noexcept;
+
+struct ServedMap {
+  nlohmann::json json;   // as read: inlined into the drivers configuration
+  drivers::RegisterMap map;
+};
+// Loads a map file, or the built-in mock map when `file` is empty.
+std::expected<ServedMap, std::string> load_served_map(const std::string& file);
+
+// Where the Modbus devices are, for the drivers configuration and the ready line.
+struct Endpoints {
+  std::string host = "127.0.0.1";
+  int chamber_port = 1502;
+  int chamber_unit = 1;
+  int thermistor_port = 1503;  // the chamber's port in gateway mode
+  int thermistor_unit = 2;
+  std::string can_socket;
+};
+
+// A complete drivers configuration (docs/drivers.md) for what is served: parse_drivers_config
+// accepts it as it is, the map inlined.
+nlohmann::json drivers_config(const Endpoints& where, const ServedMap& map,
+                              const std::vector<UnitLayout>& units);
+
+// The resistance (ohm) of an NTC at temp_c: the inverse of the Steinhart-Hart equation
+// 1/T = a + b ln R + c (ln R)^3, solved for ln R in closed form (Cardano).
+double ntc_resistance_ohm(const drivers::SteinhartHart& sh, double temp_c) noexcept;
+
+// The register words a module sends for a coil at temp_c on this channel (a temperature, or an
+// NTC's resistance). Refuses a value the register cannot hold.
+std::expected<std::array<std::uint16_t, 2>, std::string> encode_thermistor(
+    const drivers::ThermistorChannelConfig& channel, double temp_c);
+// The words of a disconnected sensor: the channel's open_circuit_raw, else for an NTC ten times
+// the resistance at which the channel declares an open circuit.
+std::array<std::uint16_t, 2> encode_open_circuit(const drivers::ThermistorChannelConfig& channel);
+
+// The words of a raw (unscaled) value of a register, by its width and word order.
+std::array<std::uint16_t, 2> raw_words(const drivers::RegisterSpec& spec, std::uint32_t raw) noexcept;
+
+}  // namespace fogbench::mock

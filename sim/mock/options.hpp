@@ -1,0 +1,46 @@
+// The mock bench's options (command line, optional per-unit JSON file) and their translation
+// into a BenchConfig, with every refusal naming the option or field. Pure: reads only the
+// files it is given.
+#pragma once
+
+#include <cstdint>
+#include <expected>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "bench.hpp"
+
+namespace fogbench::mock {
+
+// The chamber and coils start at rest at --start-c; a wider range is no chamber's.
+inline constexpr double min_start_c = -80.0, max_start_c = 180.0;
+
+struct Options {
+  std::string host = "127.0.0.1";
+  int modbus_port = 1502;       // the chamber controller; 0: ephemeral
+  int thermistor_port = 1503;   // the thermistor module; 0: ephemeral
+  bool gateway = false;         // serve the module on the chamber's port instead
+  int chamber_unit = 1;
+  int thermistor_unit = 2;
+  std::string can_socket = "/tmp/fogbench-mock-can.sock";
+  std::string control;          // control socket path; empty: none
+  std::optional<int> units;     // default: the config file's units, else 2
+  double time_scale = 1.0;
+  std::uint64_t seed = 1;
+  std::vector<std::string> effects;  // added to every unit's drift
+  double start_c = 20.0;
+  std::string config_file;
+  std::vector<std::string> faults;   // NAME[=VALUE][,KEY=VALUE...]
+  int frame_rate_hz = 100;
+  double frame_noise_dph = 0.5;
+  std::string map_file;              // empty: the built-in drivers/maps/mock.json
+  double duration_s = 0;
+};
+
+// Joins effects in the term language with '+' (or '-' when one starts with a minus).
+std::string join_effects(const std::vector<std::string>& effects);
+
+std::expected<BenchConfig, std::string> make_bench_config(const Options& options);
+
+}  // namespace fogbench::mock

@@ -1,0 +1,195 @@
+// The mock bench's CAN side read by the drivers' real GyroBus over the unix SEQPACKET
+// transport: frames arrive at the configured rate without loss, their average is the physics'
+// drift, and each CAN fault shows in the frame accounting the daemon records.
+#include <catch2/catch.hpp>
+
+#include <poll.h>
+
+#include <cmath>
+
+#include "fogbench/drivers/can_frame.hpp"
+#include "fogbench/drivers/gyro_bus.hpp"
+#include "mock_process.hpp"
+
+using namespace fogbench::drivers;
+using namespace mockbench;
+
+namespace {
+
+// The physics' drift at rest (sim::GyroTruth::mu0_dph): with the chamber and coils at rest
+// every temperature term of the default truth is zero.
+constexpr double mu0_dph = -8.097;
+
+struct Totals {
+  std::uint64_t frames = 0, used = 0, lost = 0, corrupt = 0;
+  double sum_dph = 0;  // rate times frames used, summed over samples
+  double mean_dph() const { return used > 0 ? sum_dph / static_cast<double>(used) : NAN; }
+};
+
+GyroBus open_bus(const MockProcess& mock, const DriversConfig& cfg) {
+  std::vector<GyroChannelConfig> gyros;
+  for (const auto& u : cfg.units) gyros.push_back(u.gyro);
+  auto bus = GyroBus::open(cfg.gyro_bus, gyros);
+  INFO((bus ? std::string() : bus.error().to_string()));
+  REQUIRE(bus.has_value());
+  // The bench accepts in its server loop: wait until it counts the client.
+  REQUIRE(wait_for(5s, [&] { return mock.status()["can_clients"] == 1; }));
+  return std::move(*bus);
+}
+
+// Reads frames as they come until `stop` holds (checked every 10 ms), closing a sample every
+// 50 ms as the daemon closes one per (scaled) second, and adds them to `totals`.
+void collect(GyroBus& bus, std::vector<Totals>& totals, const std::function<bool()>& stop,
+             const std::function<void(const can_frame&)>& each = {}) {
+  totals.resize(bus.unit_count());
+  std::vector<can_frame> frames;
+  auto last_close = std::chrono::steady_clock::now();
+  auto close = [&] {
+    const BusSample s = bus.close_samples();
+    for (std::size_t u = 0; u < s.units.size(); ++u) {
+      const auto& g = s.units[u];
+      totals[u].frames += g.frames;
+      totals[u].used += g.frames_used;
+      totals[u].lost += g.frames_lost;
+      totals[u].corrupt += g.frames_corrupt;
+      if (g.rate_dph) totals[u].sum_dph += *g.rate_dph * g.frames_used;
+    }
+  };
+  const auto deadline = std::chrono::steady_clock::now() + 60s;
+  while (!stop()) {
+    REQUIRE(std::chrono::steady_clock::now() < deadline);
+    pollfd p{bus.fd(), POLLIN, 0};
+    ::poll(&p, 1, 10);
+    auto n = bus.read_frames(frames);
+    REQUIRE(n.has_value());
+    if (each) {
+      for (const auto& f : frames) each(f);
+    }
+    if (std::chrono::steady_clock::now() - last_close > 50ms) {
+      close();
+      last_close = std::chrono::steady_clock::now();
+    }
+  }
+  close();
+}
+
+// Collects for `sim_s` simulated seconds of the bench's clock.
+std::vector<Totals> collect_for(const MockProcess& mock, GyroBus& bus, double sim_s) {
+  std::vector<Totals> totals;
+  const double until = mock.sim_time() + sim_s;
+  collect(bus, totals, [&] { return mock.sim_time() >= until; });
+  return totals;
+}
+
+}  // namespace
+
+TEST_CASE("gyro frames arrive at the frame rate without loss and average to the physics' drift") {
+  // K = 50 at 100 frames per simulated second: 5,000 frames/s per unit on the socket.
+  MockProcess mock({"--time-scale", "50"});
+  auto cfg = mock.example_config();
+  auto bus = open_bus(mock, cfg);
+  const double t0 = mock.sim_time();
+  auto totals = collect_for(mock, bus, 100);
+  const double t1 = mock.sim_time();
+  const auto st = mock.status();
+  for (std::size_t u = 0; u < 2; ++u) {
+    INFO("unit " << u << " (" << (u == 0 ? "rate" : "increment") << " mode)");
+    CHECK(totals[u].lost == 0);
+    CHECK(totals[u].corrupt == 0);
+    CHECK(totals[u].used == totals[u].frames);
+    // 100 frames per simulated second; the window's ends are known to a simulated second or
+    // two (status polls race the clock), so 5% over 100 s.
+    CHECK(static_cast<double>(totals[u].frames) == Approx(100.0 * (t1 - t0)).epsilon(0.05));
+    // The frames of each second average to that second's physics value exactly (to a count per
+    // second; the per-frame noise is centred), so the mean over ~100 s is mu0 plus the mean of
+    // 100 AR(2) noise values of sigma 0.146 deg/h: 0.015 deg/h (1 sigma). 0.1 deg/h is over six
+    // sigma and still covers one rare 2.5 deg/h outlier (0.025 over 100 s) and, in increment
+    // mode, the 2.88 deg/h count quantised per second (at most 0.0144 deg/h of bias).
+    CHECK(totals[u].mean_dph() == Approx(mu0_dph).margin(0.1));
+  }
+  CHECK(st["can_frames_dropped"] == 0);
+}
+
+TEST_CASE("fault lose_frames: a fraction of one unit's frames is lost, seen as frames_lost") {
+  MockProcess mock({"--time-scale", "50"});
+  auto cfg = mock.example_config();
+  auto bus = open_bus(mock, cfg);
+  mock.fault({{"name", "lose_frames"}, {"unit", 0}, {"fraction", 0.3}});
+  auto totals = collect_for(mock, bus, 40);
+  CHECK(totals[1].lost == 0);
+  REQUIRE(totals[0].lost > 0);
+  // 0.3 of ~4000 frames: binomial sigma 29 frames, under 0.01 of the total; 0.05 is generous.
+  const double lost_fraction = static_cast<double>(totals[0].lost) / static_cast<double>(totals[0].lost + totals[0].frames);
+  CHECK(lost_fraction == Approx(0.3).margin(0.05));
+  CHECK(totals[0].corrupt == 0);
+}
+
+TEST_CASE("fault lose_burst: exactly that many frames of one unit go missing") {
+  MockProcess mock({"--time-scale", "50"});
+  auto cfg = mock.example_config();
+  auto bus = open_bus(mock, cfg);
+  std::vector<Totals> totals;
+  const double start = mock.sim_time();
+  collect(bus, totals, [&] { return mock.sim_time() >= start + 5; });
+  mock.fault({{"name", "lose_burst"}, {"unit", "SIM-0002"}, {"count", 20}});
+  // Until the burst is spent (it leaves the status' faults) and a few seconds after.
+  double spent_at = -1;
+  collect(bus, totals, [&] {
+    const auto st = mock.status();
+    if (spent_at < 0 && st["faults"].empty()) spent_at = st["time_s"].get<double>();
+    return spent_at >= 0 && st["time_s"].get<double>() > spent_at + 3;
+  });
+  CHECK(totals[0].lost == 0);
+  CHECK(totals[1].lost == 20);  // fewer than 256 in a row: the sequence counter tells exactly
+}
+
+TEST_CASE("fault corrupt_frames: corrupted frames fail the CRC and are counted, not lost") {
+  MockProcess mock({"--time-scale", "50"});
+  auto cfg = mock.example_config();
+  auto bus = open_bus(mock, cfg);
+  mock.fault({{"name", "corrupt_frames"}, {"fraction", 0.2}});
+  auto totals = collect_for(mock, bus, 30);
+  for (std::size_t u = 0; u < 2; ++u) {
+    INFO("unit " << u);
+    CHECK(totals[u].corrupt > 0);
+    CHECK(totals[u].lost == 0);  // a corrupt frame explains its gap in the sequence
+    // The good frames still average to the drift: 0.3 deg/h allows the centring lost with the
+    // dropped frames (0.5 deg/h per-frame noise over ~2400 frames) several times over.
+    CHECK(totals[u].mean_dph() == Approx(mu0_dph).margin(0.3));
+  }
+  CHECK(mock.status()["units"][0]["frames_corrupted"].get<int>() > 0);
+}
+
+TEST_CASE("fault gyro_spike: the mean shifts by the spike while it lasts, then returns") {
+  MockProcess mock({"--time-scale", "20"});
+  auto cfg = mock.example_config();
+  auto bus = open_bus(mock, cfg);
+  const double scale_dph = cfg.units[0].gyro.scale_dph_per_count;
+  std::vector<Totals> before;
+  const double start = mock.sim_time();
+  collect(bus, before, [&] { return mock.sim_time() >= start + 30; });
+
+  mock.fault({{"name", "gyro_spike"}, {"dph", 50.0}, {"duration_s", 100000}});
+  // Frames already queued still carry the old values: skip to the first spiked frame of the
+  // rate-mode unit (-8 + 50 deg/h against 0.5 deg/h of per-frame noise: unmistakable).
+  bool spiked = false;
+  std::vector<Totals> skipped;
+  collect(bus, skipped, [&] { return spiked; }, [&](const can_frame& f) {
+    auto g = can::decode(f);
+    if (g && g->node_id == 257 && g->counts * scale_dph > 20.0) spiked = true;
+  });
+  std::vector<Totals> during;
+  const double from = mock.sim_time();
+  collect(bus, during, [&] { return mock.sim_time() >= from + 30; });
+  mock.fault({{"name", "gyro_spike"}, {"on", false}});
+
+  for (std::size_t u = 0; u < 2; ++u) {
+    INFO("unit " << u);
+    // 30 s means: 0.146/sqrt(30) = 0.027 deg/h (1 sigma); 0.2 is seven sigma. No unspiked
+    // frame follows the first spiked one: the bench sends a second's frames of every unit
+    // before it steps to the next.
+    CHECK(before[u].mean_dph() == Approx(mu0_dph).margin(0.2));
+    CHECK(during[u].mean_dph() == Approx(mu0_dph + 50.0).margin(0.2));
+    CHECK(during[u].lost == 0);
+  }
+}

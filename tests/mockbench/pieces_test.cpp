@@ -1,0 +1,258 @@
+// The mock bench's pure pieces, without processes or sockets: the served layout against the
+// shipped example configuration, the thermistor encodings against the drivers' conversions,
+// the frames of a second, fault commands in both forms, and the control protocol's framing.
+#include <catch2/catch.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <numeric>
+
+#include "control.hpp"
+#include "faults.hpp"
+#include "fogbench/drivers/config.hpp"
+#include "fogbench/drivers/thermistor_conversion.hpp"
+#include "frames.hpp"
+#include "layout.hpp"
+#include "options.hpp"
+
+using namespace fogbench;
+using namespace fogbench::mock;
+using nlohmann::json;
+
+namespace {
+
+drivers::DriversConfig example() {
+  std::ifstream in(FOGBENCH_SOURCE_DIR "/drivers/examples/mock-bench.json");
+  REQUIRE(in);
+  auto cfg = drivers::parse_drivers_config(json::parse(in), FOGBENCH_SOURCE_DIR "/drivers/maps");
+  REQUIRE(cfg.has_value());
+  return *cfg;
+}
+
+bool same_register(const drivers::RegisterSpec& a, const drivers::RegisterSpec& b) {
+  return a.function == b.function && a.address == b.address && a.type == b.type &&
+         a.word_order == b.word_order && a.scale == b.scale && a.offset == b.offset;
+}
+
+}  // namespace
+
+TEST_CASE("the default layout serves what drivers/examples/mock-bench.json declares") {
+  const auto ex = example();
+  REQUIRE(ex.units.size() == 2);
+  for (std::size_t i = 0; i < 2; ++i) {
+    INFO("unit " << i);
+    auto u = default_unit_layout(i, 100);
+    REQUIRE(u.has_value());
+    const auto& want = ex.units[i];
+    CHECK(u->gyro.node_id == want.gyro.node_id);
+    CHECK(u->gyro.mode == want.gyro.mode);
+    CHECK(u->gyro.scale_dph_per_count == want.gyro.scale_dph_per_count);
+    CHECK(u->gyro.scale_deg_per_count == want.gyro.scale_deg_per_count);
+    CHECK(u->gyro.frame_rate_hz == want.gyro.frame_rate_hz);
+    for (auto [got, exp] : {std::pair{&u->t1, &want.t1}, std::pair{&u->t2, &want.t2}}) {
+      CHECK(same_register(got->reg, exp->reg));
+      CHECK(got->kind == exp->kind);
+      CHECK(got->open_circuit_raw == exp->open_circuit_raw);
+      CHECK(got->coefficients.a == exp->coefficients.a);
+      CHECK(got->max_ohm == exp->max_ohm);
+    }
+  }
+  // The map served by default is the one the example names.
+  auto served = load_served_map("");
+  REQUIRE(served.has_value());
+  CHECK(served->map.name == ex.chamber.map.name);
+  CHECK(same_register(served->map.process_value, ex.chamber.map.process_value));
+}
+
+TEST_CASE("further units continue the pattern on registers of their own") {
+  std::vector<UnitLayout> units;
+  for (std::size_t i = 0; i < max_units; ++i) {
+    auto u = default_unit_layout(i, 100);
+    REQUIRE(u.has_value());
+    units.push_back(*u);
+  }
+  CHECK_FALSE(default_unit_layout(max_units, 100).has_value());
+  auto map = load_served_map("");
+  REQUIRE(map.has_value());
+  // parse_drivers_config refuses shared node ids, serials and thermistor registers.
+  const auto cfg = drivers_config({.can_socket = "/tmp/x.sock"}, *map, units);
+  auto parsed = drivers::parse_drivers_config(cfg, FOGBENCH_SOURCE_DIR "/drivers/maps");
+  INFO((parsed ? std::string() : parsed.error().to_string()));
+  REQUIRE(parsed.has_value());
+  CHECK(parsed->units.size() == max_units);
+  CHECK(parsed->units[31].gyro.node_id == 257 + 31);
+}
+
+TEST_CASE("thermistor readings encode to words the drivers convert back") {
+  for (std::size_t i : {0u, 1u}) {
+    auto u = default_unit_layout(i, 100);
+    REQUIRE(u.has_value());
+    // Inside the channels' default valid range, -60..150 degC (its very ends may round outside).
+    for (double t : {-59.5, -40.0, 0.0, 20.0, 25.0, 85.0, 149.5}) {
+      auto words = encode_thermistor(u->t1, t);
+      REQUIRE(words.has_value());
+      auto back = drivers::convert_thermistor(u->t1, *words, "unit T1");
+      INFO("unit " << i << " at " << t << " degC");
+      REQUIRE(back.has_value());
+      // int16 centi-degrees round to 0.005 degC; a float32 resistance has 24 bits (6e-8
+      // relative), about 3e-6 degC through an NTC's 4%/degC.
+      CHECK(*back == Approx(t).margin(i == 0 ? 0.005 : 1e-4));
+    }
+    auto open = drivers::convert_thermistor(u->t2, encode_open_circuit(u->t2), "unit T2");
+    REQUIRE_FALSE(open.has_value());
+    CHECK(open.error().code == drivers::ErrorCode::open_circuit);
+  }
+}
+
+TEST_CASE("the NTC resistance inverts the drivers' Steinhart-Hart equation") {
+  const drivers::SteinhartHart sh{1.129148e-3, 2.34125e-4, 8.76741e-8};
+  // 10 kohm at 25 degC is what these coefficients are made for.
+  CHECK(ntc_resistance_ohm(sh, 25.0) == Approx(10000.0).epsilon(1e-3));
+  for (double t = -80.0; t <= 200.0; t += 7.0) {
+    CHECK(sh.temp_c(ntc_resistance_ohm(sh, t)) == Approx(t).margin(1e-9));
+  }
+  const drivers::SteinhartHart beta_only{1.129148e-3, 2.34125e-4, 0.0};
+  CHECK(beta_only.temp_c(ntc_resistance_ohm(beta_only, 42.0)) == Approx(42.0).margin(1e-9));
+}
+
+TEST_CASE("the frames of a second carry its rate exactly, to one count over the second") {
+  std::mt19937_64 rng(7);
+  std::vector<std::int32_t> counts;
+  // Rate mode at 1e-4 deg/h per count: 1e4 counts per deg/h.
+  for (double rate : {-8.097, 0.0, 41.903, -1234.5678}) {
+    second_of_counts(rate, 1e4, 100, 0.5, rng, counts);
+    REQUIRE(counts.size() == 100);
+    const auto sum = std::accumulate(counts.begin(), counts.end(), std::int64_t{0});
+    // sum == round(100 * rate * 1e4): the centred noise adds nothing, rounding carries over.
+    CHECK(sum == std::llround(100 * rate * 1e4));
+    // The noise is there: 0.5 deg/h = 5000 counts per frame (1 sigma).
+    const double mean = static_cast<double>(sum) / 100.0;
+    double var = 0;
+    for (auto c : counts) var += (c - mean) * (c - mean);
+    CHECK(std::sqrt(var / 99.0) == Approx(5000.0).epsilon(0.3));
+  }
+  // Increment mode of the example's odd units: 1e-7 deg per count at a nominal 8000 frames/s is
+  // 2.88 deg/h per count per frame; -8.097 deg/h is -2.81 counts a frame. Over 100 frames the
+  // sum is round(-281.1) = -281, so the second's mean is within 0.5/100 counts: 0.0144 deg/h.
+  const double cpd = 1.0 / 2.88;
+  second_of_counts(-8.097, cpd, 100, 0.0, rng, counts);
+  const auto sum = std::accumulate(counts.begin(), counts.end(), std::int64_t{0});
+  CHECK(sum == std::llround(100 * -8.097 * cpd));
+  for (auto c : counts) CHECK((c == -3 || c == -2));
+  // Without noise every frame is within a count of the rate.
+  second_of_counts(3.3, 1e4, 7, 0.0, rng, counts);
+  for (auto c : counts) CHECK(c == 33000);
+}
+
+TEST_CASE("a fault's command-line form becomes its JSON command") {
+  auto j = fault_json_from_cli("stall_modbus=800,device=chamber");
+  REQUIRE(j.has_value());
+  CHECK(*j == json({{"cmd", "fault"}, {"name", "stall_modbus"}, {"on", true}, {"ms", 800}, {"device", "chamber"}}));
+  j = fault_json_from_cli("open_thermistor=t2,unit=1");
+  REQUIRE(j.has_value());
+  CHECK((*j)["sensor"] == "t2");
+  CHECK((*j)["unit"] == 1);
+  j = fault_json_from_cli("lose_frames=0.25,unit=SIM-0002");
+  REQUIRE(j.has_value());
+  CHECK((*j)["fraction"] == 0.25);
+  CHECK((*j)["unit"] == "SIM-0002");
+  CHECK(fault_json_from_cli("freeze_pv")->at("name") == "freeze_pv");
+  CHECK(fault_json_from_cli("freeze_pv=3").error() == "--fault freeze_pv takes no value");
+  CHECK(fault_json_from_cli("nope").error() == "--fault: unknown fault 'nope'");
+  CHECK(fault_json_from_cli("alarm,oops").error() == "--fault: expected KEY=VALUE, got 'oops'");
+}
+
+TEST_CASE("fault commands switch the state the bench reads, and are listed while active") {
+  const std::vector<std::string> serials = {"SIM-0001", "SIM-0002"};
+  FaultState state;
+  state.units.resize(2);
+  auto apply = [&](const json& j, double now = 100.0) {
+    auto c = parse_fault_command(j, serials);
+    INFO(j.dump());
+    REQUIRE(c.has_value());
+    apply_fault(state, *c, now);
+  };
+  apply({{"name", "stall_modbus"}, {"ms", 300}});
+  CHECK(state.stall_ms == std::array<int, 2>{300, 300});
+  apply({{"name", "stall_modbus"}, {"device", "chamber"}, {"on", false}});
+  CHECK(state.stall_ms == std::array<int, 2>{0, 300});
+  apply({{"name", "gyro_spike"}, {"unit", 1}, {"dph", 50}, {"duration_s", 20}}, 100.0);
+  CHECK(state.units[1].spike_dph == 50);
+  CHECK(state.units[1].spike_until_s == 120.0);  // seconds 100..119 spiked
+  CHECK(state.units[0].spike_dph == 0);
+  apply({{"name", "lose_burst"}, {"unit", "SIM-0001"}, {"count", 20}});
+  apply({{"name", "lose_burst"}, {"unit", "SIM-0001"}, {"count", 5}});
+  CHECK(state.units[0].lose_burst == 25);  // bursts add up
+  apply({{"name", "open_thermistor"}, {"sensor", "t1"}});
+  CHECK((state.units[0].open_t1 && state.units[1].open_t1 && !state.units[0].open_t2));
+
+  const auto active = active_faults(state, serials, 110.0);
+  CHECK(active.size() == 5);  // stall (thermistors), spike, burst, two open sensors
+  CHECK(active_faults(state, serials, 120.0).size() == 4);  // the spike is over at 120 s
+
+  CHECK(parse_fault_command({{"name", "gyro_spike"}, {"unit", 2}, {"dph", 1}}, serials).error() ==
+        "gyro_spike: unit: expected an index 0..1 or a serial (got 2)");
+  CHECK(parse_fault_command({{"name", "gyro_spike"}, {"unit", "FOG-9"}, {"dph", 1}}, serials).error() ==
+        "gyro_spike: unit: no unit has serial \"FOG-9\"");
+  CHECK(parse_fault_command({{"name", "corrupt_frames"}, {"fraction", 1.5}}, serials).error() ==
+        "corrupt_frames: fraction: expected 0..1 (got 1.5)");
+  // Switching off needs no parameter.
+  CHECK(parse_fault_command({{"name", "stall_modbus"}, {"on", false}}, serials).has_value());
+}
+
+namespace {
+
+struct FakeHandler : ControlHandler {
+  std::vector<json> faults;
+  bool stopped = false;
+  std::expected<void, std::string> fault(const json& c) override {
+    faults.push_back(c);
+    if (c.value("name", "") == "bad") return std::unexpected(std::string("bad fault"));
+    return {};
+  }
+  json status() override { return {{"time_s", 12.0}}; }
+  void stop() override { stopped = true; }
+};
+
+}  // namespace
+
+TEST_CASE("control protocol: lines in, one reply line per request, errors as values") {
+  LineBuffer buf;
+  buf.append("{\"cmd\":\"sta");
+  CHECK_FALSE(buf.next_line().has_value());  // incomplete
+  buf.append("tus\"}\r\n{\"cmd\":\"stop\"}\n");
+  FakeHandler h;
+  CHECK(handle_line(*buf.next_line(), h) == R"({"ok":true,"time_s":12.0,"version":1})");
+  CHECK(handle_line(*buf.next_line(), h) == R"({"ok":true})");
+  CHECK(h.stopped);
+  CHECK_FALSE(buf.next_line().has_value());
+
+  CHECK(handle_line(R"({"cmd":"fault","name":"bad"})", h) == R"({"error":"bad fault","ok":false})");
+  CHECK(json::parse(handle_line("{not json", h))["error"].get<std::string>().starts_with("not JSON"));
+  CHECK(json::parse(handle_line(R"({"cmd":"reboot"})", h))["error"] == "unknown cmd 'reboot' (known: fault, status, stop)");
+  CHECK(json::parse(handle_line(R"([1,2])", h))["ok"] == false);
+
+  LineBuffer big;
+  big.append(std::string(max_control_line + 1, 'x'));
+  CHECK(big.overflowed());
+}
+
+TEST_CASE("options: effects join in the term language, and refusals name the option") {
+  CHECK(join_effects({"0.05*T1", "-0.02*T2", "", "+ 1e-3*T1^2"}) == "0.05*T1 - 0.02*T2 + 1e-3*T1^2");
+  Options o;
+  o.effects = {"0.05*T1", "-0.02*T2"};
+  auto cfg = make_bench_config(o);
+  REQUIRE(cfg.has_value());
+  CHECK(cfg->sim.units.size() == 2);
+  CHECK(cfg->sim.units[1].effects == "0.05*T1 - 0.02*T2");
+  o.effects = {"0.05*T9"};
+  CHECK_FALSE(make_bench_config(o).has_value());
+  o.effects.clear();
+  o.units = 40;
+  CHECK(make_bench_config(o).error() == "--units: expected 1..32");
+  o.units.reset();
+  o.faults = {"lose_frames=0.5,unit=7"};
+  CHECK(make_bench_config(o).error().starts_with("--fault lose_frames=0.5,unit=7: lose_frames: unit:"));
+}
