@@ -2,6 +2,7 @@
 #include <CLI/CLI.hpp>
 #include <iostream>
 
+#include "client.hpp"
 #include "common.hpp"
 #include "offline.hpp"
 #include "workbench.hpp"
@@ -12,6 +13,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   int code = fogbench::cli::kExitOk;
   fogbench::cli::add_offline_commands(app, code);
+  fogbench::cli::add_client_commands(app, code);
   fogbench::cli::add_workbench_commands(app, code);
   try {
     app.parse(argc, argv);
