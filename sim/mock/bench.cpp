@@ -375,7 +375,10 @@ struct Bench::Impl final : ControlHandler {
   }
 
   void accept_modbus(std::size_t li) {
-    const int fd = ::accept4(listeners[li].fd, nullptr, nullptr, SOCK_CLOEXEC);
+    // Non-blocking: modbus_reply() sends while the register mutex is held, and a client that
+    // never reads its replies must cost its connection (EAGAIN closes it), not the clock.
+    // libmodbus waits in select() before each recv, so receiving is unaffected.
+    const int fd = ::accept4(listeners[li].fd, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
     if (fd < 0) {
       if (errno != EAGAIN && errno != EINTR) spdlog::warn("Modbus accept: {}", errno_text(errno));
       return;

@@ -126,7 +126,7 @@ TEST_CASE("several Modbus clients are served at once, and a stalled one blocks n
   CHECK(*stalled == Approx(20.0).margin(0.1));
 }
 
-TEST_CASE("fault refuse_modbus: a connect is refused, a connection error value; cleared, it connects") {
+TEST_CASE("fault refuse_modbus: a connect is refused (a connection error value), cleared it connects") {
   MockProcess mock({"--time-scale", "50"});
   auto cfg = mock.example_config();
   mock.fault({{"name", "refuse_modbus"}, {"device", "chamber"}});
