@@ -314,26 +314,33 @@ Qualification qualify(const Model& m, std::span<const RunData> runs, std::span<c
     const std::vector<double> ys = weighted_average(y, w, 61);
     const std::vector<Phase> ph = derive_phases(run);
     // Heating minus cooling at equal T1: 1 degC bins of T1 visited by both, each bin's
-    // difference of mean output weighted by the fewer of its two sample counts.
-    std::map<long, std::array<double, 4>> bins;  // sum heat, n heat, sum cool, n cool
+    // difference of mean output weighted by the fewer of its two sample counts; of the raw
+    // output (what the gyro does) and of the compensated one (what the model leaves).
+    auto mu = predict(m, run);
+    std::map<long, std::array<double, 6>> bins;  // sum heat, n heat, sum cool, n cool, comp heat, comp cool
     for (std::size_t t = 0; t < n; ++t) {
       if (w[t] == 0.0) continue;
       if (ph[t] == Phase::heating || ph[t] == Phase::cooling) {
         qr.peak_ramp_excursion_dph = std::max(qr.peak_ramp_excursion_dph, std::abs(ys[t] - m.mu0_dph));
         auto& b = bins[std::lround(std::floor(run.t1_c[t]))];
-        const std::size_t k = ph[t] == Phase::heating ? 0 : 2;
-        b[k] += run.gyro_dph[t];
-        b[k + 1] += 1.0;
+        const bool heat = ph[t] == Phase::heating;
+        b[heat ? 0 : 2] += run.gyro_dph[t];
+        b[heat ? 1 : 3] += 1.0;
+        if (mu) b[heat ? 4 : 5] += run.gyro_dph[t] - (*mu)[t];
       }
     }
-    double sd = 0.0, sw = 0.0;
+    double sd = 0.0, sc = 0.0, sw = 0.0;
     for (const auto& [key, b] : bins) {
       const double wgt = std::min(b[1], b[3]);
       if (wgt < 30.0) continue;  // fewer than 30 s in a bin: the mean carries 0.146/sqrt(30) = 0.03 deg/h of noise
       sd += wgt * (b[0] / b[1] - b[2] / b[3]);
+      sc += wgt * (b[4] / b[1] - b[5] / b[3]);
       sw += wgt;
     }
-    if (sw > 0.0) qr.hysteresis_dph = sd / sw;
+    if (sw > 0.0) {
+      qr.hysteresis_dph = sd / sw;
+      if (mu) qr.hysteresis_comp_dph = sc / sw;
+    }
     q.runs.push_back(qr);
   }
   return q;

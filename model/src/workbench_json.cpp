@@ -170,6 +170,7 @@ json to_json(const Qualification& q) {
                     {"comp_std_dph", r.comp_std_dph},
                     {"ratio", r.ratio},
                     {"hysteresis_dph", num(r.hysteresis_dph)},
+                    {"hysteresis_comp_dph", num(r.hysteresis_comp_dph)},
                     {"peak_ramp_excursion_dph", r.peak_ramp_excursion_dph},
                     {"pass", r.pass}});
   return {{"standard", "IEEE Std 952-1997 (thermal sensitivity of bias)"},

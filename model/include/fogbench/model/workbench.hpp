@@ -211,7 +211,8 @@ struct QualRun {
   std::string run;
   bool held_out = false;
   double meas_std_dph = 0.0, comp_std_dph = 0.0, ratio = 0.0;
-  double hysteresis_dph = std::numeric_limits<double>::quiet_NaN();  // heating - cooling at equal T1
+  double hysteresis_dph = std::numeric_limits<double>::quiet_NaN();       // heating - cooling at equal T1, raw output
+  double hysteresis_comp_dph = std::numeric_limits<double>::quiet_NaN();  // the same after compensation
   double peak_ramp_excursion_dph = 0.0;  // largest |smoothed output - mu0| on ramps
   bool pass = false;
 };
