@@ -198,7 +198,9 @@ struct Server::Impl {
   std::uint64_t poll_done_seq = 0; // polls whose result has arrived
   bool poll_in_flight = false;
   std::optional<DeviceReading> reading;  // of poll poll_done_seq
-  std::uint64_t reading_used_seq = 0;
+  bool new_reading = false;              // arrived since the last tick
+  int stale_ticks = 0;                   // ticks since a new reading was used
+  std::int64_t late_polls = 0;           // ticks that used the previous period's reading
   std::optional<double> written_setpoint_c;
   bool write_in_flight = false;
   std::int64_t late_ticks = 0;
@@ -303,7 +305,16 @@ struct Server::Impl {
       asio::post(io, [this, seq, d = std::move(d)]() mutable {
         poll_in_flight = false;
         poll_done_seq = seq;
+        if (reading && reading->chamber_ok != d.chamber_ok) {
+          if (d.chamber_ok) spdlog::info("chamber link up");
+          else spdlog::warn("chamber: {}", d.chamber_error);
+        }
+        if (reading && reading->thermistors_ok != d.thermistors_ok) {
+          if (d.thermistors_ok) spdlog::info("thermistor module link up");
+          else spdlog::warn("thermistor module: {}", d.thermistor_error);
+        }
         reading = std::move(d);
+        new_reading = true;
       });
     });
   }
@@ -403,21 +414,34 @@ struct Server::Impl {
         in.units[i].frames_lost = s.units[i].frames_lost;
       }
     }
-    // Only a reading from the poll of the last half-period counts: an older one is stale.
-    const bool fresh = reading && poll_done_seq == poll_seq && poll_done_seq != reading_used_seq;
-    if (fresh) {
-      reading_used_seq = poll_done_seq;
-      in.chamber_c = reading->chamber_c;
-      in.chamber_setpoint_c = reading->chamber_setpoint_c;
-      in.chamber_alarm = reading->alarm;
-      in.chamber_link_down = !reading->chamber_ok;
-      for (std::size_t i = 0; i < in.units.size() && i < reading->coils.size(); ++i) {
-        in.units[i].t1_c = reading->coils[i].t1_c;
-        in.units[i].t2_c = reading->coils[i].t2_c;
-        in.units[i].out_of_range = reading->coils[i].out_of_range;
-      }
+    // The poll of this period normally arrived half a period ago. When it is late (a loaded
+    // machine at a high time scale), the previous reading, one period old, stands in once: a
+    // settle judged on "every reading in band" would otherwise restart at each late poll.
+    // Older than that, the values are missing.
+    std::optional<DeviceReading> use;
+    if (new_reading) {
+      use = reading;
+      stale_ticks = 0;
+    } else if (reading && stale_ticks < 1) {
+      use = reading;
+      ++stale_ticks;
+      ++late_polls;
     } else {
-      in.chamber_link_down = true;
+      ++stale_ticks;
+    }
+    new_reading = false;
+    if (use) {
+      in.chamber_c = use->chamber_c;
+      in.chamber_setpoint_c = use->chamber_setpoint_c;
+      in.chamber_alarm = use->alarm;
+      in.chamber_link_down = !use->chamber_ok;
+      for (std::size_t i = 0; i < in.units.size() && i < use->coils.size(); ++i) {
+        in.units[i].t1_c = use->coils[i].t1_c;
+        in.units[i].t2_c = use->coils[i].t2_c;
+        in.units[i].out_of_range = use->coils[i].out_of_range;
+      }
+    } else if (reading) {
+      in.chamber_link_down = !reading->chamber_ok;
     }
     const TickOutput out = station->tick(static_cast<double>(k), in);
     if (!written_setpoint_c || *written_setpoint_c != out.setpoint_c) post_write_setpoint(out.setpoint_c);
