@@ -59,6 +59,14 @@ json pick(const std::vector<double>& v, const std::vector<std::size_t>& idx, int
   return a;
 }
 
+// Four significant digits: coefficients span 1e-4 (deg/h per degC^2) to 10 (deg/h per degC/min).
+std::string sig(double v) {
+  if (!std::isfinite(v)) return "-";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.4g", v);
+  return buf;
+}
+
 std::string pct(double v) { return std::isfinite(v) ? fixed(100.0 * v, 1) + "%" : "-"; }
 
 struct HtmlTable {
@@ -210,7 +218,7 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
   {
     HtmlTable t({"sensitivity", "value", "1 sigma", "unit"});
     t.row({"bias mu0", fixed(q.mu0_dph, 3), fixed(q.mu0_se, 3), "deg/h"});
-    for (const auto& s : q.sensitivities) t.row({s.term, fixed(s.coef, 4), fixed(s.se, 4), s.unit});
+    for (const auto& s : q.sensitivities) t.row({s.term, sig(s.coef), sig(s.se), s.unit});
     body += t.str();
     HtmlTable r({"run", "role", "raw std, deg/h", "compensated std, deg/h", "comp/raw", "heating - cooling at equal T1, deg/h", "the same compensated, deg/h",
                  "peak excursion on ramps, deg/h", "verdict"});
@@ -250,7 +258,7 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
       body += "<p class=\"note\"><b>Why " + esc(d->candidates.front().expr) + ":</b> " + esc(d->candidates.front().explanation) + "</p>";
     body += "<p class=\"note\">Rule: " + esc(d->rule) + ".</p>";
     HtmlTable c({"coefficient", "value", "1 sigma", "unit"});
-    for (const auto& x : d->coefs) c.row({x.term, fixed(x.coef, 4), fixed(x.se, 4), x.unit});
+    for (const auto& x : d->coefs) c.row({x.term, sig(x.coef), sig(x.se), x.unit});
     body += "<h3>Coefficients of the model refitted on " + esc(d->fit_run) + "</h3>" + c.str();
     for (const auto& p : d->collinear_coefs)
       body += "<p class=\"note\">Collinear: " + esc(p.a) + " and " + esc(p.b) + " (r = " + fixed(p.r, 3) + "): " + esc(p.why) + "</p>";

@@ -15,6 +15,14 @@ namespace wb = model::workbench;
 
 namespace {
 
+// Four significant digits: coefficients span 1e-4 (deg/h per degC^2) to 10 (deg/h per degC/min).
+std::string sig(double v) {
+  if (!std::isfinite(v)) return "-";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.4g", v);
+  return buf;
+}
+
 std::string pct(double v) { return std::isfinite(v) ? fixed(100.0 * v, 1) + "%" : "-"; }
 
 // Loads every run, naming the file in the error.
@@ -125,7 +133,7 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
   out << "\n\n" << d->summary << "\n\n";
   out << "coefficients (1 sigma):\n";
   Table ct({"term", "coef", "se", "unit"});
-  for (const auto& c : d->coefs) ct.add({c.term, fixed(c.coef, 4), fixed(c.se, 4), c.unit});
+  for (const auto& c : d->coefs) ct.add({c.term, sig(c.coef), sig(c.se), c.unit});
   out << ct.str();
   for (const auto& p : d->collinear_coefs)
     out << "collinear: " << p.a << " and " << p.b << " (r = " << fixed(p.r, 3) << "): " << p.why << "\n";
@@ -216,7 +224,7 @@ int run_fit_add(const FitAddOptions& o, std::ostream& out, std::ostream& err) {
   Table t({"term", "lag_s", "coef", "se (1 sigma)", "unit"});
   t.add({"mu0", "", fixed(r->model.mu0_dph, 3), fixed(r->model.mu0_se, 3), "deg/h"});
   for (const auto& ft : r->model.terms)
-    t.add({ft.name(), std::to_string(ft.term.lag.seconds), fixed(ft.coef, 4), fixed(ft.se, 4), coef_unit(*ft.term.expr)});
+    t.add({ft.name(), std::to_string(ft.term.lag.seconds), sig(ft.coef), sig(ft.se), coef_unit(*ft.term.expr)});
   out << t.str();
   if (before && after)
     out << "\ncompensated std on " << o.run << ": " << fixed(before->run.comp_std, 3) << " -> " << fixed(after->run.comp_std, 3)
