@@ -48,8 +48,9 @@ constexpr auto min_sleep = std::chrono::milliseconds(1);
 constexpr double at_setpoint_band_c = 0.5;
 // The physics accepts setpoints in this range; a client's wilder value is clamped, degC.
 constexpr double min_setpoint_c = -100.0, max_setpoint_c = 250.0;
-// Requested socket send buffer of a CAN client: about ten thousand frames, so a reader that
-// pauses for a scheduler hiccup at 20,000 frames/s loses nothing.
+// Requested socket send buffer of a CAN client: about 25,000 frames (the kernel charges each
+// 16-byte datagram some 300 bytes), so a reader that pauses for a scheduler hiccup of a second
+// at 20,000 frames/s loses nothing.
 constexpr int can_sndbuf_bytes = 8 << 20;
 
 std::string errno_text(int err) { return std::strerror(err); }

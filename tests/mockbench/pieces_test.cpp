@@ -6,6 +6,8 @@
 #include <nlohmann/json.hpp>
 
 #include <cmath>
+#include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <numeric>
 
@@ -255,4 +257,45 @@ TEST_CASE("options: effects join in the term language, and refusals name the opt
   o.units.reset();
   o.faults = {"lose_frames=0.5,unit=7"};
   CHECK(make_bench_config(o).error().starts_with("--fault lose_frames=0.5,unit=7: lose_frames: unit:"));
+}
+
+TEST_CASE("options: a --config file sets per-unit parameters and refuses unknown fields") {
+  char tmpl[] = "/tmp/fogbench-mockcfg-XXXXXX";
+  REQUIRE(::mkdtemp(tmpl) != nullptr);
+  const std::string file = std::string(tmpl) + "/bench.json";
+  auto write = [&](const json& j) {
+    std::ofstream out(file);
+    out << j.dump();
+  };
+  write({{"chamber", {{"air_tau_s", 90}}},
+         {"units", {{{"serial", "FOG-A"}, {"frame_rate_hz", 250}, {"effects", "0.1*T2"}},
+                    json::object(),
+                    {{"coil", {{"wall_tau_s", 300}}}, {"gyro", {{"mu0_dph", 1.5}, {"ar", {0.1}}}}}}}});
+  Options o;
+  o.config_file = file;
+  o.effects = {"0.05*T1"};
+  auto cfg = make_bench_config(o);
+  INFO((cfg ? std::string() : cfg.error()));
+  REQUIRE(cfg.has_value());
+  REQUIRE(cfg->units.size() == 3);  // the file's count
+  CHECK(cfg->sim.chamber.air_tau_s == 90);
+  CHECK(cfg->units[0].serial == "FOG-A");
+  CHECK(cfg->sim.units[0].serial == "FOG-A");
+  CHECK(cfg->units[0].frame_rate_hz == 250);
+  CHECK(cfg->units[1].frame_rate_hz == 100);
+  CHECK(cfg->sim.units[0].effects == "0.1*T2 + 0.05*T1");
+  CHECK(cfg->sim.units[2].effects == "0.05*T1");
+  CHECK(cfg->sim.units[2].coil.wall_tau_s == 300);
+  CHECK(cfg->sim.units[2].gyro.mu0_dph == 1.5);
+  CHECK(cfg->sim.units[2].gyro.ar == std::vector<double>{0.1});
+
+  o.units = 2;
+  CHECK(make_bench_config(o).error() == "--units 2 but " + file + " describes 3");
+  o.units.reset();
+  write({{"units", {{{"coil", {{"wal_tau_s", 300}}}}}}});
+  CHECK(make_bench_config(o).error() ==
+        file + ": units[0].coil.wal_tau_s: unknown field (known: core_tau_s, t_noise_c, wall_tau_s)");
+  write({{"units", {{{"serial", "X"}}, {{"serial", "X"}}}}});
+  CHECK(make_bench_config(o).error() == "two units have serial X");
+  std::filesystem::remove_all(tmpl);
 }
