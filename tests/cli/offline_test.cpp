@@ -64,8 +64,8 @@ std::string csv(std::size_t n) {
   std::string s = "time_s,gyro_dph,t1_c,t2_c\n";
   for (std::size_t i = 0; i < n; ++i) {
     const double t1 = 20.0 + (i > 600 ? 5.0 * std::sin(static_cast<double>(i - 600) / 500.0) : 0.0);
-    s += std::to_string(i) + "," + std::to_string(-8.0 + 0.01 * std::sin(i * 0.7)) + "," + std::to_string(t1) + "," +
-         std::to_string(t1 + 0.1) + "\n";
+    s += std::to_string(i) + "," + std::to_string(-8.0 + 0.01 * std::sin(static_cast<double>(i) * 0.7)) + "," + std::to_string(t1) + "," +
+         std::to_string(t1 + 0.1 * std::cos(static_cast<double>(i) / 300.0)) + "\n";
   }
   return s;
 }
