@@ -49,7 +49,12 @@ int main(int argc, char** argv) {
   app.add_option("--map", o.map_file, "serve another chamber register map (default: the built-in drivers/maps/mock.json)");
   app.add_option("--duration-s", o.duration_s, "stop after this many simulated seconds; 0: run until stopped")->capture_default_str();
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // --help is a "parse error" with status 0; every refused option exits 2, as ours do below.
+    return app.exit(e) == 0 ? 0 : 2;
+  }
   if (units > 0) o.units = units;
 
   auto logger = spdlog::stderr_color_mt("fogbench-sim");

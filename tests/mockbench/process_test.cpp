@@ -142,6 +142,11 @@ TEST_CASE("bad options are refused with a message and exit status 2") {
   auto out = run(bin + " --fault 'melt' --modbus-port 0 --thermistor-port 0 2>&1", status);
   CHECK(status == 2);
   CHECK(out.find("unknown fault 'melt'") != std::string::npos);
+  out = run(bin + " --units 40 2>&1", status);  // refused by the option parser itself
+  CHECK(status == 2);
+  CHECK(out.find("--units") != std::string::npos);
+  run(bin + " --help", status);
+  CHECK(status == 0);
   out = run(bin + " --modbus-port 1502 --thermistor-port 1502 2>&1", status);
   CHECK(status == 2);
   CHECK(out.find("--gateway") != std::string::npos);
