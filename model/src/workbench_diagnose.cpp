@@ -5,6 +5,10 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <atomic>
+#include <map>
+#include <memory>
+#include <thread>
 #include <optional>
 
 #include "fogbench/model/workbench.hpp"
@@ -67,7 +71,10 @@ class CandidateScan {
     for (std::size_t t = 0; t < n; ++t)
       for (Eigen::Index a = 0; a < k; ++a) u_[t] -= th(a) * cols_[a][t];
     std::vector<double> wu(n);
-    for (std::size_t t = 0; t < n; ++t) wu[t] = w_[t] * u_[t];
+    for (std::size_t t = 0; t < n; ++t) {
+      wu[t] = w_[t] * u_[t];
+      sse_ += wu[t] * u_[t];
+    }
     u_spec_ = sc_.spectrum_of_target(wu);
     for (std::size_t a = 1; a < cols_.size(); ++a) {
       std::vector<double> wc(n);
@@ -80,6 +87,16 @@ class CandidateScan {
 
   // The lag in [0, max_lag] of largest gain, skipping |lag - avoid| < avoid_half_width.
   std::optional<int> best_lag(std::span<const double> x, std::optional<int> avoid = {}, int avoid_half_width = 0) const {
+    auto g = scan(x, avoid, avoid_half_width);
+    if (!g) return std::nullopt;
+    return g->lag;
+  }
+  struct Gain {
+    int lag = 0;
+    double best = 0.0, at_zero = 0.0;  // fall of the weighted SSE, (deg/h)^2
+    double sse = 0.0;                  // weighted SSE of the residual before, (deg/h)^2
+  };
+  std::optional<Gain> scan(std::span<const double> x, std::optional<int> avoid = {}, int avoid_half_width = 0) const {
     if (!ok_) return std::nullopt;
     const detail::Lagged lx = detail::make_lagged(x, L_);
     const std::size_t k = cols_.size();
@@ -91,7 +108,7 @@ class CandidateScan {
     for (std::size_t j = 0; j < sq.size(); ++j) sq[j] = lx.ext[j] * lx.ext[j];
     const std::vector<double> cxx = sc_.wsum(sq);
     std::optional<int> best;
-    double best_gain = -1.0;
+    double best_gain = -1.0, g0 = 0.0;
     Eigen::VectorXd v(static_cast<Eigen::Index>(k));
     for (int i = 0; i <= L_; ++i) {
       if (avoid && std::abs(i - *avoid) < avoid_half_width) continue;
@@ -101,12 +118,14 @@ class CandidateScan {
       // A column (nearly) inside the span of the model's own: nothing new at this lag.
       if (!(den > 1e-9 * std::max(1.0, cxx[li]))) continue;
       const double gain = cxu[li] * cxu[li] / den;
+      if (i == 0) g0 = gain;
       if (gain > best_gain) {
         best_gain = gain;
         best = i;
       }
     }
-    return best;
+    if (!best) return std::nullopt;
+    return Gain{*best, best_gain, g0, sse_};
   }
 
   // x with the base columns regressed out (for correlations between candidates).
@@ -132,6 +151,7 @@ class CandidateScan {
   std::vector<std::vector<double>> cols_;
   Eigen::LDLT<Eigen::MatrixXd> ldlt_;
   bool ok_ = false;
+  double sse_ = 0.0;
   std::vector<double> u_;
   detail::Spectrum u_spec_;
   std::vector<detail::Spectrum> col_spec_;
@@ -162,12 +182,66 @@ std::expected<std::vector<double>, std::string> column(const Term& t, const RunS
   return lagged(*v, lag);
 }
 
-// Compensated std of a model on a run (Table 1's comp std), or the reason it cannot run.
-std::expected<double, std::string> comp_std(const Model& m, const RunData& run) {
-  auto v = verify(m, run);
-  if (!v) return std::unexpected(v.error().message);
-  return v->run.comp_std;
-}
+// Table 1's compensated std of models on one run, exactly as verify() computes it (flagged
+// samples out, 3-sigma outliers of the residual out, settle samples out), with the run's
+// signals, phases and unlagged term columns computed once for all the candidates' models.
+class Scorer {
+ public:
+  Scorer(const RunData& run, double tref_c) : run_(run), tref_c_(tref_c), w_(good_weights(run)), phase_(derive_phases(run)) {
+    auto s = run_signals(run, tref_c);
+    if (s) sig_ = std::move(*s);
+    else error_ = s.error().message;
+  }
+  std::expected<double, std::string> comp_std(const Model& m) {
+    if (!error_.empty()) return std::unexpected(error_);
+    if (m.tref_c != tref_c_) {  // another reference: no cache (never within one diagnose)
+      auto v = verify(m, run_);
+      if (!v) return std::unexpected(v.error().message);
+      return v->run.comp_std;
+    }
+    const std::size_t n = run_.size();
+    std::vector<double> mu(n, m.mu0_dph);
+    for (const auto& ft : m.terms) {
+      auto col = column(ft.term);
+      if (!col) return std::unexpected(col.error());
+      const auto lag = static_cast<std::size_t>(ft.term.lag.seconds);
+      const std::vector<double>& x = **col;
+      for (std::size_t t = 0; t < n; ++t) mu[t] += ft.coef * x[t >= lag ? t - lag : 0];
+    }
+    std::vector<double> r;
+    r.reserve(n);
+    for (std::size_t t = 0; t < n; ++t)
+      if (w_[t] != 0.0) r.push_back(run_.gyro_dph[t] - mu[t]);
+    const OutlierResult ro = outliers_3sigma(r, 3.0);
+    std::vector<double> kept;
+    kept.reserve(n);
+    std::size_t j = 0;
+    for (std::size_t t = 0; t < n; ++t) {
+      if (w_[t] == 0.0) continue;
+      if (ro.keep[j] && phase_[t] != Phase::settle) kept.push_back(r[j]);
+      ++j;
+    }
+    if (kept.size() < 2) return std::unexpected(run_.name + ": no usable samples to verify on");
+    return stddev(kept);
+  }
+
+ private:
+  std::expected<const std::vector<double>*, std::string> column(const Term& t) {
+    const std::string key = to_string(*t.expr);
+    auto it = cols_.find(key);
+    if (it != cols_.end()) return &it->second;
+    auto v = evaluate(*t.expr, sig_.view());
+    if (!v) return std::unexpected("term '" + key + "': " + v.error());
+    return &cols_.emplace(key, std::move(*v)).first->second;
+  }
+  const RunData& run_;
+  double tref_c_;
+  std::vector<double> w_;
+  std::vector<Phase> phase_;
+  RunSignals sig_;
+  std::string error_;
+  std::map<std::string, std::vector<double>> cols_;
+};
 
 // The model's terms with @auto terms frozen at their fitted lags.
 std::vector<Term> frozen_terms(const Model& m) {
@@ -249,7 +323,11 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   d.base_refitted_on_other_run = !m.fitted_on.fingerprint.empty() && m.fitted_on.fingerprint != base->fitted_on.fingerprint;
   d.model_terms = base->terms_string();
   d.method = std::string(to_string(base->method));
-  auto rms0 = comp_std(*base, fit_run);
+  Scorer fit_scorer(fit_run, base->tref_c);
+  std::vector<Scorer> held_scorers;
+  held_scorers.reserve(held_out.size());
+  for (const auto& h : held_out) held_scorers.emplace_back(h, base->tref_c);
+  auto rms0 = fit_scorer.comp_std(*base);
   if (!rms0) return fail(FitError::Code::degenerate, "fit run " + fit_run.name + ": " + rms0.error());
   d.rms_fit_dph = *rms0;
 
@@ -364,7 +442,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
 
   // Held-out runs: the base model as fitted, applied unchanged.
   std::vector<std::expected<double, std::string>> held_before;
-  for (const auto& h : held_out) held_before.push_back(comp_std(*base, h));
+  for (auto& h : held_scorers) held_before.push_back(h.comp_std(*base));
 
   // The candidates: the library's terms the model lacks, each model term again at a second
   // lag, and any extra terms asked for.
@@ -407,10 +485,16 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
 
   CandidateScan scan(fit_run.gyro_dph, fr.base_cols, fr.w, fo.max_lag_s);
   const double ln_n = std::log(static_cast<double>(std::max<std::size_t>(base->fit.n_used, 2)));
-  std::vector<std::vector<double>> partial_cols(cands.size());
-  for (std::size_t ci = 0; ci < cands.size(); ++ci) {
-    const Cand& cd = cands[ci];
+  // Each candidate is independent of the others: evaluated on `threads` threads, each with
+  // its own scorers (their column caches are not shared).
+  struct Evaluated {
     Candidate c;
+    std::vector<double> partial;  // its column with the model's terms regressed out
+  };
+  auto evaluate_one = [&](std::size_t ci, Scorer& fs, std::vector<Scorer>& held_sc) -> Evaluated {
+    const Cand& cd = cands[ci];
+    Evaluated out;
+    Candidate& c = out.c;
     c.expr = cd.expr;
     c.effect = cd.effect;
     c.explanation = cd.explanation;
@@ -419,14 +503,12 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     c.term = cd.expr + (cd.repeat ? "@auto (second lag)" : "@auto");
     if (uses_signal(*cd.term.expr, Signal::Ta) && !fit_run.has_chamber()) {
       c.skipped = "needs Ta, the chamber air temperature, which the fit run " + fit_run.name + " did not record (no chamber_c column)";
-      d.candidates.push_back(std::move(c));
-      continue;
+      return out;
     }
     auto x = evaluate(*cd.term.expr, fr.sig.view());
     if (!x) {
       c.skipped = x.error();
-      d.candidates.push_back(std::move(c));
-      continue;
+      return out;
     }
     std::optional<int> avoid;
     if (cd.repeat)
@@ -437,8 +519,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     const auto lag = scan.best_lag(*x, avoid, kDerivativeHalfWidth);
     if (!lag) {
       c.skipped = "no lag in 0.." + std::to_string(fo.max_lag_s) + " s adds anything the model's terms do not already hold";
-      d.candidates.push_back(std::move(c));
-      continue;
+      return out;
     }
     // The candidate's lag was scanned with the model's terms at the lags they had without
     // it; the refit moves those lags, so scan again with the refitted model's columns until
@@ -447,15 +528,25 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     t.lag = Lag{false, *lag};
     auto [tl, extra_params] = extended_terms(*base, t, true);
     auto m2 = fit(fit_run, tl, fo);
+    std::optional<CandidateScan::Gain> gain = scan.scan(*x, avoid, kDerivativeHalfWidth);
+    std::vector<int> lags_before;
+    for (const auto& ft : base->terms) lags_before.push_back(ft.term.lag.seconds);
     for (int it = 0; it < o.lag_iterations && m2 && !cd.repeat; ++it) {
+      // The model's own lags did not move: the rescan would find the same lag.
+      std::vector<int> lags_now;
+      for (std::size_t j = 0; j + 1 < m2->terms.size(); ++j) lags_now.push_back(m2->terms[j].term.lag.seconds);
+      if (lags_now == lags_before) break;
+      lags_before = lags_now;
       auto cols = regressors(*m2, fit_run);
       if (!cols) break;
       cols->pop_back();
       CandidateScan rescan(fit_run.gyro_dph, *cols, fr.w, fo.max_lag_s);
-      const auto lag2 = rescan.best_lag(*x);
-      if (!lag2 || *lag2 == t.lag.seconds) break;
+      const auto g2 = rescan.scan(*x);
+      if (!g2) break;
+      gain = g2;
+      if (g2->lag == t.lag.seconds) break;
       Term t2 = t;
-      t2.lag.seconds = *lag2;
+      t2.lag.seconds = g2->lag;
       auto [tl2, ep2] = extended_terms(*base, t2, true);
       auto m3 = fit(fit_run, tl2, fo);
       if (!m3 || m3->fit.bic >= m2->fit.bic) break;
@@ -464,7 +555,11 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     }
     // A lag is a parameter: the term without delay costs ln(n) less in BIC, and is the
     // simpler explanation when the runs hardly tell the two apart.
-    if (m2 && t.lag.seconds != 0 && !cd.repeat) {
+    // Always tried: the scan's gains cannot tell when lag 0 loses, because the refit moves
+    // the model's own lags (a T1 hidden at lag 0 scans best at 150 to 450 s beside a paper
+    // model whose lag it had pulled to 0).
+    const bool try_zero = m2 && t.lag.seconds != 0 && !cd.repeat;
+    if (try_zero) {
       Term t0 = t;
       t0.lag.seconds = 0;
       auto [tl0, ep0] = extended_terms(*base, t0, false);
@@ -479,11 +574,10 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     c.term = with_lag(cd.expr, t.lag.seconds);
     if (!m2) {
       c.skipped = (cd.repeat ? "the same term at a second lag cannot be separated on this run: " : "refit failed: ") + m2.error().message;
-      d.candidates.push_back(std::move(c));
-      continue;
+      return out;
     }
     c.evaluated = true;
-    auto after = comp_std(*m2, fit_run);
+    auto after = fs.comp_std(*m2);
     c.rms_after_dph = after ? *after : kNaN;
     c.fall = c.rms_before_dph > 0.0 ? 1.0 - c.rms_after_dph / c.rms_before_dph : 0.0;
     c.delta_bic = m2->fit.bic + extra_params * ln_n - base->fit.bic;
@@ -501,7 +595,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
         hs.skipped = "the model does not run on it: " + held_before[h].error();
       } else if (uses_signal(*cd.term.expr, Signal::Ta) && !held_out[h].has_chamber()) {
         hs.skipped = "needs Ta, the chamber air temperature, which " + held_out[h].name + " did not record (no chamber_c column)";
-      } else if (auto ha = comp_std(*m2, held_out[h]); !ha) {
+      } else if (auto ha = held_sc[h].comp_std(*m2); !ha) {
         hs.skipped = ha.error();
       } else {
         hs.scored = true;
@@ -533,9 +627,34 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     }
     {
       auto col = column(t, fr.sig, t.lag.seconds);
-      if (col) partial_cols[d.candidates.size()] = scan.partial(*col);
+      if (col) out.partial = scan.partial(*col);
     }
-    d.candidates.push_back(std::move(c));
+    return out;
+  };
+  std::vector<Evaluated> results(cands.size());
+  {
+    unsigned threads = o.threads > 0 ? static_cast<unsigned>(o.threads) : std::max(1u, std::min(4u, std::thread::hardware_concurrency()));
+    threads = std::min<unsigned>(threads, static_cast<unsigned>(std::max<std::size_t>(1, cands.size())));
+    std::atomic<std::size_t> next{0};
+    auto worker = [&](Scorer& fs, std::vector<Scorer>& hs) {
+      for (std::size_t ci = next++; ci < cands.size(); ci = next++) results[ci] = evaluate_one(ci, fs, hs);
+    };
+    std::vector<std::thread> pool;
+    std::vector<std::unique_ptr<Scorer>> fit_scorers;
+    std::vector<std::vector<Scorer>> held_sets(threads);
+    for (unsigned k = 1; k < threads; ++k) {
+      fit_scorers.push_back(std::make_unique<Scorer>(fit_run, base->tref_c));
+      held_sets[k].reserve(held_out.size());
+      for (const auto& h : held_out) held_sets[k].emplace_back(h, base->tref_c);
+    }
+    for (unsigned k = 1; k < threads; ++k) pool.emplace_back(worker, std::ref(*fit_scorers[k - 1]), std::ref(held_sets[k]));
+    worker(fit_scorer, held_scorers);
+    for (auto& th : pool) th.join();
+  }
+  std::vector<std::vector<double>> partial_cols;
+  for (auto& r : results) {
+    d.candidates.push_back(std::move(r.c));
+    partial_cols.push_back(std::move(r.partial));
   }
 
   // Collinear look-alikes among the detected: their columns, with the model's terms regressed

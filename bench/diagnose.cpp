@@ -1,0 +1,107 @@
+// Benchmark of workbench::diagnose: the whole effects library on an exp1-length fit run
+// (5400 s, a hidden 0.05 deg/h per degC of T1) with two held-out runs (exp2, exp3), and its
+// parts (one fit, compare). Target: under 100 ms per diagnose on the development machine.
+#include <algorithm>
+#include <chrono>
+#include <ctime>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <vector>
+
+#include "fogbench/model/model.hpp"
+#include "fogbench/model/workbench.hpp"
+#include "fogbench/profiles/profile.hpp"
+#include "fogbench/sim/sim.hpp"
+
+using namespace fogbench;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+model::RunData simulate(const std::string& name, std::uint64_t seed, const std::string& effect) {
+  std::ifstream f(std::string(FOGBENCH_SOURCE_DIR) + "/profiles/" + name + ".profile");
+  std::stringstream ss;
+  ss << f.rdbuf();
+  auto p = profiles::parse_profile(ss.str(), name);
+  if (!p) {
+    std::fprintf(stderr, "profile %s: cannot parse\n", name.c_str());
+    std::exit(2);
+  }
+  std::vector<sim::SetpointSample> prog;
+  for (const auto& pt : profiles::nominal_setpoints(*p, 1.0)) {
+    if (pt.phase == profiles::Phase::settle) continue;
+    const model::Phase ph = pt.phase == profiles::Phase::heating   ? model::Phase::heating
+                            : pt.phase == profiles::Phase::cooling ? model::Phase::cooling
+                                                                   : model::Phase::hold;
+    prog.push_back({pt.setpoint_c, ph, static_cast<int>(pt.step_index)});
+  }
+  sim::SimConfig cfg;
+  cfg.seed = seed;
+  cfg.units[0].effects = effect;
+  auto r = sim::simulate(cfg, prog);
+  if (!r) {
+    std::fprintf(stderr, "simulate %s: %s\n", name.c_str(), r.error().c_str());
+    std::exit(2);
+  }
+  auto run = r->front();
+  run.name = name;
+  return run;
+}
+
+// Median and minimum over `reps` calls of fn, in ms of wall time; the machine is shared, so
+// the process's CPU time per call (std::clock) is printed beside it.
+double g_cpu_ms = 0.0;
+template <class Fn>
+std::pair<double, double> time_ms(int reps, Fn fn) {
+  std::vector<double> t;
+  const std::clock_t c0 = std::clock();
+  for (int i = 0; i < reps; ++i) {
+    const auto a = Clock::now();
+    fn();
+    t.push_back(std::chrono::duration<double, std::milli>(Clock::now() - a).count());
+  }
+  g_cpu_ms = 1000.0 * static_cast<double>(std::clock() - c0) / CLOCKS_PER_SEC / reps;
+  std::sort(t.begin(), t.end());
+  return {t[t.size() / 2], t.front()};
+}
+
+}  // namespace
+
+int main() {
+  const std::string effect = "0.05*T1";
+  std::vector<model::RunData> runs{simulate("exp1", 7, effect), simulate("exp2", 8, effect), simulate("exp3", 9, effect)};
+  const std::span<const model::RunData> held = std::span<const model::RunData>(runs).subspan(1);
+  auto m = model::fit(runs[0], *model::parse_terms("paper"));
+  if (!m) {
+    std::fprintf(stderr, "fit: %s\n", m.error().message.c_str());
+    return 2;
+  }
+  std::size_t evaluated = 0;
+  std::string top;
+  const auto [diag_med, diag_min] = time_ms(20, [&] {
+    auto d = model::workbench::diagnose(*m, runs[0], held);
+    if (!d) std::exit(2);
+    evaluated = 0;
+    for (const auto& c : d->candidates) evaluated += c.evaluated;
+    top = d->candidates.front().term;
+  });
+  const double diag_cpu = g_cpu_ms;
+  model::workbench::DiagnoseOptions one;
+  one.threads = 1;
+  const auto [d1_med, d1_min] = time_ms(20, [&] { (void)model::workbench::diagnose(*m, runs[0], held, one); });
+  const double d1_cpu = g_cpu_ms;
+  const auto [fit_med, fit_min] = time_ms(20, [&] { (void)model::fit(runs[0], *model::parse_terms("paper")); });
+  auto t3 = model::parse_terms("d(T1)@auto + grad@auto + T1");
+  const auto [fit3_med, fit3_min] = time_ms(20, [&] { (void)model::fit(runs[0], *t3); });
+  const auto [cmp_med, cmp_min] = time_ms(20, [&] { (void)model::workbench::compare(*m, runs[0]); });
+  std::printf("diagnose: fit run exp1 (%zu s), held out exp2 (%zu s) and exp3 (%zu s), hidden effect %s\n", runs[0].size(),
+              runs[1].size(), runs[2].size(), effect.c_str());
+  std::printf("  %zu candidates refitted, top: %s\n", evaluated, top.c_str());
+  std::printf("  diagnose             median %7.1f ms  min %7.1f ms  cpu %7.1f ms per call (target < 100 ms)\n", diag_med, diag_min, diag_cpu);
+  std::printf("  diagnose, 1 thread   median %7.1f ms  min %7.1f ms  cpu %7.1f ms per call\n", d1_med, d1_min, d1_cpu);
+  std::printf("  fit paper (2 terms)  median %7.2f ms  min %7.2f ms\n", fit_med, fit_min);
+  std::printf("  fit paper + T1       median %7.2f ms  min %7.2f ms\n", fit3_med, fit3_min);
+  std::printf("  compare (exp1)       median %7.2f ms  min %7.2f ms\n", cmp_med, cmp_min);
+  return diag_med < 100.0 ? 0 : 1;
+}
