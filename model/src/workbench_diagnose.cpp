@@ -743,12 +743,15 @@ std::expected<AddResult, FitError> add_term(const Model& m, const RunData& run, 
   if (t.coef_given) return fail(FitError::Code::bad_term, "--add '" + std::string(text) + "': give the term without a coefficient (the fit estimates it)");
   t.coef = 1.0;
   const std::string key = to_string(*t.expr);
+  // The same term again is a second thermal path only at another fixed lag (the model's
+  // lags are then frozen at their fitted values: the fit cannot search two lags of one term).
   for (const auto& ft : m.terms)
-    if (term_key(ft.term) == key && (t.lag.automatic || ft.term.lag.automatic || ft.term.lag.seconds == t.lag.seconds))
+    if (term_key(ft.term) == key && (t.lag.automatic || ft.term.lag.seconds == t.lag.seconds)) {
+      const int other = ft.term.lag.seconds + 120 <= m.max_lag_s ? ft.term.lag.seconds + 120 : std::max(0, ft.term.lag.seconds - 120);
       return fail(FitError::Code::bad_term, "the model already has the term " + key + " (" + m.terms_string() +
                                                 "); to add it again as a second thermal path give it a fixed lag other than " +
-                                                std::to_string(ft.term.lag.seconds) + " s, e.g. " + key + "@" +
-                                                std::to_string(ft.term.lag.seconds + 120));
+                                                std::to_string(ft.term.lag.seconds) + " s, e.g. " + key + "@" + std::to_string(other));
+    }
   if (uses_signal(*t.expr, Signal::Ta) && !run.has_chamber())
     return fail(FitError::Code::missing_signal, "term " + key + " needs Ta, the chamber air temperature, which " + run.name +
                                                     " did not record (no chamber_c column)");
