@@ -216,9 +216,34 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
   body += std::string("<p><span class=\"verdict ") + (q.pass ? "pass\">PASS" : "failv\">FAIL") + "</span> compensated std under " +
           fixed(100.0 * q.threshold, 0) + "% of the raw std on every run</p>";
   {
-    HtmlTable t({"sensitivity", "value", "1 sigma", "unit"});
-    t.row({"bias mu0", fixed(q.mu0_dph, 3), fixed(q.mu0_se, 3), "deg/h"});
-    for (const auto& s : q.sensitivities) t.row({s.term, sig(s.coef), sig(s.se), s.unit});
+    HtmlTable t({"sensitivity", "term", "value", "1 sigma", "unit", "source"});
+    t.row({"bias", "mu0", fixed(q.mu0_dph, 3), fixed(q.mu0_se, 3), "deg/h", "the model"});
+    // IEEE Std 952's three thermal sensitivities always appear: from the model when it has
+    // the term, else from diagnose's refit of the model with it (so a missing one shows its size).
+    const std::pair<const char*, const char*> ieee[] = {
+        {"T1", "temperature (per degC)"}, {"d(T1)", "temperature rate (per degC/min)"}, {"grad", "temperature gradient (per degC)"}};
+    std::vector<bool> shown(q.sensitivities.size(), false);
+    for (const auto& [key, what] : ieee) {
+      bool found = false;
+      for (std::size_t i = 0; i < q.sensitivities.size(); ++i) {
+        const auto& x = q.sensitivities[i];
+        if (x.term.substr(0, x.term.find('@')) != key) continue;
+        t.row({what, x.term, sig(x.coef), sig(x.se), x.unit, "the model"});
+        shown[i] = found = true;
+      }
+      if (found) continue;
+      for (const auto& c : d->candidates)
+        if (c.expr == key && c.evaluated) {
+          t.row({what, c.term, sig(c.coef), sig(c.se), c.unit, std::string("refit with it (not in the model") + (c.detected ? ", detected)" : ", not needed)")});
+          found = true;
+        }
+      if (!found) t.row({what, key, "-", "-", "", "not estimated"});
+    }
+    for (std::size_t i = 0; i < q.sensitivities.size(); ++i)
+      if (!shown[i]) {
+        const auto& x = q.sensitivities[i];
+        t.row({"other", x.term, sig(x.coef), sig(x.se), x.unit, "the model"});
+      }
     body += t.str();
     HtmlTable r({"run", "role", "raw std, deg/h", "compensated std, deg/h", "comp/raw", "heating - cooling at equal T1, deg/h", "the same compensated, deg/h",
                  "peak excursion on ramps, deg/h", "verdict"});
