@@ -668,6 +668,16 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       const double r = weighted_corr(partial_cols[i], partial_cols[j], fr.w);
       if (std::abs(r) < o.collinear_r) continue;
       ci.collinear_with.push_back(cj.term);
+      // up(x) + down(x) = x: with x in the model the two are one effect written two ways.
+      auto inner = [](const std::string& e, const char* f) {
+        const std::string p = std::string(f) + "(";
+        return e.rfind(p, 0) == 0 && e.back() == ')' ? e.substr(p.size(), e.size() - p.size() - 1) : std::string();
+      };
+      const std::string xa = inner(ci.expr, "up").empty() ? inner(ci.expr, "down") : inner(ci.expr, "up");
+      const std::string xb = inner(cj.expr, "up").empty() ? inner(cj.expr, "down") : inner(cj.expr, "up");
+      if (ci.separate_by.empty() && !xa.empty() && xa == xb && ci.expr != cj.expr && has_key(*base, xa)) {
+        ci.separate_by = "with " + xa + " in the model, " + ci.expr + " and " + cj.expr + " are the same asymmetry written two ways (up(x) + down(x) = x): no profile separates them and either will do";
+      }
       if (ci.separate_by.empty()) {
         const Effect* ea = find_effect(ci.expr);
         const Effect* eb = find_effect(cj.expr);

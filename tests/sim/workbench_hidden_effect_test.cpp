@@ -140,6 +140,14 @@ TEST_CASE("workbench: a hidden effect is found, ranked first and removed by addi
       CHECK(top.delta_bic < -100.0);
       CHECK(top.p_value < 1e-6);
       CHECK(top.held_out.size() == 2);
+      // Look-alikes are named with what would separate them: on these profiles T1, T2, Ta and
+      // lp(T1,300) correlate beyond 0.99 once the paper's terms are regressed out; up and down
+      // of d(T1) are one effect when d(T1) is in the model.
+      if (top.expr == "T1") {
+        CHECK(!top.collinear_with.empty());
+        CHECK(top.separate_by.find("separates T1 from") != std::string::npos);
+      }
+      if (top.expr == "up(d(T1))" && !top.collinear_with.empty()) CHECK(top.separate_by.find("written two ways") != std::string::npos);
 
       // Add it: back near the no-effect level on the fit run and on both held-out runs. The
       // refit has one more term, so "near" is within 5% (the lag and the coefficient are
