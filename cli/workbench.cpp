@@ -174,7 +174,7 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
   if (!d->candidates.empty() && d->candidates.front().detected) {
     const auto& b = d->candidates.front();
     out << "\nwhy " << b.expr << ": " << b.explanation << "\n";
-    out << "add it: fogctl fit --model " << o.model << " --add \"" << b.expr << "\" " << o.runs.front() << " -o model2.json\n";
+    out << "add it: fogctl fit --model " << o.model << " --add \"" << b.term << "\" " << o.runs.front() << " -o model2.json\n";
   }
   out << "\ncross-correlation of the prewhitened residual with each regressor (lags 0.." << (d->ccf.empty() || d->ccf[0].r.empty() ? 0 : d->ccf[0].r.size() - 1)
       << " s, band +-" << (d->ccf.empty() ? "-" : fixed(d->ccf[0].band, 3)) << "):\n";

@@ -500,6 +500,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     c.explanation = cd.explanation;
     c.unit = coef_unit(*cd.term.expr);
     c.rms_before_dph = d.rms_fit_dph;
+    c.second_lag = cd.repeat;
     c.term = cd.expr + (cd.repeat ? "@auto (second lag)" : "@auto");
     if (uses_signal(*cd.term.expr, Signal::Ta) && !fit_run.has_chamber()) {
       c.skipped = "needs Ta, the chamber air temperature, which the fit run " + fit_run.name + " did not record (no chamber_c column)";
@@ -701,7 +702,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     auto lib_index = [](const Candidate& c) {
       const auto& lib = effects_library();
       for (std::size_t i = 0; i < lib.size(); ++i)
-        if (c.expr == lib[i].term && c.term.find("second") == std::string::npos) return i;
+        if (c.expr == lib[i].term && !c.second_lag) return i;
       return lib.size();
     };
     const Candidate& top = d.candidates.front();

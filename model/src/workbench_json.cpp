@@ -85,6 +85,7 @@ json to_json(const Candidate& c) {
             {"effect", c.effect},
             {"explanation", c.explanation},
             {"lag_s", c.lag_s},
+            {"second_lag", c.second_lag},
             {"evaluated", c.evaluated},
             {"detected", c.detected}};
   if (!c.evaluated) {

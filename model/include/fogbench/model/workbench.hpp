@@ -120,6 +120,7 @@ struct Candidate {
   std::string effect;               // physical name
   std::string explanation;
   int lag_s = 0;
+  bool second_lag = false;          // a model term again at another lag (a second thermal path)
   bool evaluated = false;
   std::string skipped;              // why it was not evaluated
   double rms_before_dph = 0.0, rms_after_dph = 0.0;  // compensated std on the fit run, deg/h
