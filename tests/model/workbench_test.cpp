@@ -203,3 +203,30 @@ TEST_CASE("workbench: decimation keeps the extremes, in time order") {
   const auto ma = wb::moving_average(line, 61);
   CHECK(ma[100] == Approx(50.0));
 }
+
+TEST_CASE("workbench: the qualification summary's hysteresis and ramp excursion") {
+  const RunData r = make_run(5000, 7);
+  const Model m = fit_d(r);
+  const std::vector<RunData> runs{r};
+  const bool held[] = {false};
+  const auto q = wb::qualify(m, runs, held);
+  REQUIRE(q.runs.size() == 1);
+  const auto& x = q.runs[0];
+  // The gyro is -3 deg/h per degC/min of d(T1): on the ramps at +1 and -1 degC/min it sits
+  // at -3 and +3 deg/h from mu0, so at equal T1 heating minus cooling is -6 deg/h where both
+  // ramps are steady, less near the ramps' ends (10..20 degC is visited by both; the ends
+  // carry the coil's 190 s transients), and the peak excursion is 3 deg/h.
+  CHECK(x.hysteresis_dph < -4.0);
+  CHECK(x.hysteresis_dph > -6.2);
+  // The model is the truth: compensated, heating and cooling agree within the noise of bin
+  // means (0.146 deg/h over hundreds of samples: a few 0.01 deg/h).
+  CHECK(std::abs(x.hysteresis_comp_dph) < 0.05);
+  CHECK(x.peak_ramp_excursion_dph == Approx(3.0).margin(0.15));
+  CHECK(x.pass);
+  CHECK(q.pass);
+  REQUIRE(q.sensitivities.size() == 1);
+  CHECK(q.sensitivities[0].coef == Approx(-3.0).margin(0.05));
+  CHECK(q.sensitivities[0].unit == "deg/h per degC/min");
+  const auto j = wb::to_json(q);
+  CHECK(j["runs"][0].contains("hysteresis_comp_dph"));
+}
