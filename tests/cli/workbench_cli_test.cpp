@@ -5,6 +5,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include "fogbench/storage/csv.hpp"
@@ -189,4 +190,29 @@ TEST_CASE("fogctl fit --add and diagnose: bad input gives a clear message and ex
   r = call(run_fit_add, a);
   CHECK(r.code == kExitError);
   CHECK(r.err.find("too short") != std::string::npos);
+}
+
+TEST_CASE("fogctl executable: the workbench commands are registered and exit with their codes") {
+  Bench b;
+  const std::string fogctl = std::string(FOGBENCH_BIN_DIR) + "/fogctl";
+  if (!fs::exists(fogctl)) {
+    WARN("fogctl not built at " << fogctl << ": end-to-end run skipped");
+    return;
+  }
+  const std::string out = b.dir.file("out.txt");
+  auto run = [&](const std::string& args) {
+    const int s = std::system((fogctl + " " + args + " >" + out + " 2>&1").c_str());
+    return WIFEXITED(s) ? WEXITSTATUS(s) : -1;
+  };
+  CHECK(run("diagnose --help") == 0);
+  CHECK(run("compare --model " + b.m + " " + b.e1) == kExitFailed);  // the hidden T1 shows
+  const std::string m2 = b.dir.file("m2.json");
+  CHECK(run("fit --model " + b.m + " --add T1 " + b.e1 + " -o " + m2) == kExitOk);
+  CHECK(run("lineage " + m2 + " " + b.e1 + " " + b.e2 + " --json") == kExitOk);
+  CHECK(run("diagnose --model " + m2 + " " + b.e1 + " " + b.e2) == kExitOk);  // adequate now
+  CHECK(run("fit --model " + b.m + " " + b.e1) == kExitError);               // --model without --add
+  std::ifstream f(out);
+  std::stringstream s;
+  s << f.rdbuf();
+  CHECK(s.str().find("--model and --add go together") != std::string::npos);
 }
