@@ -393,7 +393,7 @@ struct Server::Impl {
       spdlog::warn("acquisition {} half-periods late; skipping ahead", behind);
       slot += behind & ~std::int64_t{1};
     }
-    if (slot % 2 == 1) {
+    if (slot % 2 != 0) {  // odd, including the first slot, -1
       post_poll();
     } else {
       tick(slot / 2);

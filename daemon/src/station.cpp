@@ -70,6 +70,28 @@ double or_nan(std::optional<double> v) { return v ? *v : storage::kNoValue; }
 constexpr double kCoilMinC = -100.0, kCoilMaxC = 200.0;
 constexpr double kGyroMaxAbsDph = 1.0e5;
 
+// A value not read is stored as NULL and exported as NaN with the sample flagged `missing`.
+// model::fit skips flagged samples in the regression, but its lag scan and smoothers run over
+// every sample and a NaN spreads through them, so the gap is bridged with the neighbouring
+// value first (the flag stays, and the fit still skips the sample).
+void bridge_missing(model::RunData& d) {
+  if (d.flags.empty()) d.flags.assign(d.size(), 0);
+  for (auto* col : {&d.gyro_dph, &d.t1_c, &d.t2_c, &d.setpoint_c, &d.chamber_c}) {
+    auto& v = *col;
+    if (v.empty()) continue;
+    auto first = std::find_if(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
+    double last = first == v.end() ? 0.0 : *first;
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (std::isfinite(v[i])) {
+        last = v[i];
+      } else {
+        v[i] = last;
+        d.flags[i] |= model::flag::missing;
+      }
+    }
+  }
+}
+
 bool valid_profile_name(const std::string& name) {
   static const std::regex re("[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}");
   return std::regex_match(name, re);
@@ -276,6 +298,7 @@ ApiResult<json> Station::fit_unit(std::int64_t run_id, int unit_index, const std
   opt.method = *method;
   auto data = store_.export_run(run_id, unit_index);
   if (!data) return std::unexpected(from_store(data.error()));
+  bridge_missing(*data);
   auto m = model::fit(*data, *terms, opt);
   if (!m)
     return api_error(ErrorCode::internal, "fit failed (" + std::string(model::to_string(m.error().code)) +
@@ -322,6 +345,7 @@ ApiResult<json> Station::verify_unit(std::int64_t run_id, int unit_index,
   if (!m) return api_error(ErrorCode::internal, "model " + std::to_string(rec.id) + ": " + m.error());
   auto data = store_.export_run(run_id, unit_index);
   if (!data) return std::unexpected(from_store(data.error()));
+  bridge_missing(*data);
   auto v = model::verify(*m, *data, config_.analysis.verify_threshold);
   if (!v)
     return api_error(ErrorCode::internal, "verification failed (" +
@@ -370,7 +394,8 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
   run.last = st;
 
   if (run.state == RunState::settling && st.phase != profiles::Phase::settle && !st.failed)
-    transition(run, RunState::running, st.step_index == 0 ? "profile started" : "settled", t_s);
+    transition(run, RunState::running,
+               run.phase == profiles::Phase::settle ? "settled" : "profile started", t_s);
   if (!run.phase || *run.phase != st.phase || run.step != st.step_index) {
     run.phase = st.phase;
     run.step = st.step_index;

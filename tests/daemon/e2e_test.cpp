@@ -5,7 +5,10 @@
 #include "fixture.hpp"
 #include "process.hpp"
 
+#include "fogbench/daemon/framing.hpp"
+
 #include <cstdlib>
+#include <set>
 
 using namespace fogbench::daemon::test;
 using nlohmann::json;
@@ -61,7 +64,7 @@ struct LiveBench {
     json c = {{"simulated", true},
               {"storage", {{"path", "fogbench.db"}, {"synchronous", "normal"}}},
               {"socket", {{"path", "fogbenchd.sock"}}},
-              {"chamber_limits", {{"min_c", -40}, {"max_c", 85}, {"max_rate_c_per_min", 3}}},
+              {"chamber_limits", {{"min_c", -30}, {"max_c", 60}, {"max_rate_c_per_min", 3}}},
               {"safe_setpoint_c", 20},
               {"profile_dir", "profiles"},
               {"drivers", ready_sim["drivers_config"]}};

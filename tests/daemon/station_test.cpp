@@ -222,3 +222,22 @@ TEST_CASE("station: shutdown aborts the active run; a restart marks a crashed ru
   CHECK(store.get_run(b)->run.state == storage::RunState::interrupted);
   CHECK(store.get_run(a)->run.state == storage::RunState::aborted);
 }
+
+TEST_CASE("station: a run with seconds not read is still fitted (the gaps are flagged and bridged)") {
+  auto store = memory_store();
+  Station st(golden_config(), store);
+  SyntheticBench bench(1);
+  auto id = st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+  REQUIRE(id.has_value());
+  double sp = 20.0;
+  for (int k = 0; st.active_run_id() && k < 5000; ++k) {
+    TickInput in = bench.step(sp);
+    if (k % 97 == 50) in.units[0].gyro_dph.reset();  // a second without usable frames
+    if (k % 131 == 70) in.units[0].t1_c.reset();      // a thermistor read that failed
+    sp = st.tick(k, in).setpoint_c;
+  }
+  CHECK(store.get_run(*id)->run.state == storage::RunState::completed);
+  auto m = store.current_model("FOG-0001");
+  REQUIRE(m.has_value());
+  CHECK(m->has_value());
+}
