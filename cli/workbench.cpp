@@ -119,6 +119,7 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
   }
   wb::DiagnoseOptions dopt;
   dopt.extra_terms = o.candidates;
+  dopt.max_lag_s = o.max_lag_s;
   auto d = wb::diagnose(*m, runs->front(), std::span<const model::RunData>(*runs).subspan(1), dopt);
   if (!d) {
     err << "fogctl diagnose: " << d.error().message << "\n";
@@ -295,6 +296,7 @@ void add_workbench_commands(CLI::App& app, int& code) {
   d->add_option("--model", dia.model, "The model's JSON file")->required();
   d->add_option("runs", dia.runs, "The fit run's CSV, then held-out runs")->required();
   d->add_option("--candidate", dia.candidates, "A further candidate term beyond the library (repeatable)");
+  d->add_option("--max-lag", dia.max_lag_s, "Longest lag searched, s (default: the model's; lower it for short runs)");
   d->add_flag("--json", dia.json, "Print one JSON object");
   add_run_input(d, dia.input);
   d->callback([&] { code = run_diagnose(dia, std::cout, std::cerr); });

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <iosfwd>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,7 @@ struct DiagnoseCommandOptions {
   std::string model;
   std::vector<std::string> runs;        // the fit run first, then held-out runs
   std::vector<std::string> candidates;  // extra candidate terms beyond the library
+  std::optional<int> max_lag_s;         // lags searched, s (default: the model's)
   bool json = false;
   RunInput input;
 };

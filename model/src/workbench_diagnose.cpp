@@ -315,7 +315,8 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   Diagnosis d;
   d.fit_run = fit_run.name;
   for (const auto& h : held_out) d.held_out_runs.push_back(h.name);
-  const FitOptions fo = options_of(m);
+  FitOptions fo = options_of(m);
+  if (o.max_lag_s) fo.max_lag_s = *o.max_lag_s;
   // The base: the model's terms refitted on the fit run, so that every candidate is compared
   // with the same method on the same data (BIC compares models of one run only).
   auto base = fit(fit_run, terms_of(m), fo);

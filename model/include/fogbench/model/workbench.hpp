@@ -92,6 +92,7 @@ struct DiagnoseOptions {
   double tie_bic = 6.0;
   int ccf_max_lag_s = 600;             // cross-correlations over lags 0..this, s
   int whiteness_lags = 20;
+  std::optional<int> max_lag_s;        // lags searched, s (default: the model's; lower it for short runs)
   int threads = 0;                     // candidates refitted in parallel; 0: up to 4, as the machine has cores
   int lag_iterations = 4;              // rescans of a candidate's lag after the model's lags move
   bool second_lags = true;             // also try each model term again at a second lag
