@@ -102,6 +102,11 @@ int run_compare(const CompareCommandOptions& o, std::ostream& out, std::ostream&
     out << nlohmann::json{{"model", o.model}, {"terms", m->terms_string()}, {"runs", results}, {"adequate", adequate}}.dump() << "\n";
   } else {
     out << "compare: model " << o.model << " (" << m->terms_string() << ")\n\n" << text;
+    if (!adequate) {
+      out << "next: find the missing effect with\n  fogctl diagnose --model " << o.model;
+      for (const auto& r : o.runs) out << " " << r;
+      out << "\n(the first run is refitted, the others score the candidates as held-out runs)\n";
+    }
   }
   return adequate ? kExitOk : kExitFailed;
 }
