@@ -302,7 +302,9 @@ int cmd_run_list(const Common& o, const std::string& state, int limit, std::ostr
 void print_table1(const json& verifications, const json& run, std::ostream& out) {
   Table t({"unit", "serial", "model", "est_mean", "meas_mean", "est_std", "meas_std", "comp_std", "ratio", "pass"});
   for (const auto& v : verifications) {
-    const json& r = v["result"]["run"];
+    // model::to_json(Verification) puts the whole run's Table 1 at the top level.
+    const json& res = v["result"];
+    const json& r = res.contains("run") && res["run"].is_object() ? res["run"] : res;
     const int unit = v["unit"].get<int>();
     t.add({std::to_string(unit), run["units"][static_cast<std::size_t>(unit)].get<std::string>(),
            std::to_string(v["model_id"].get<std::int64_t>()), num_text(r["est_mean"]), num_text(r["meas_mean"]),
@@ -376,6 +378,35 @@ int cmd_run_export(const Common& o, std::int64_t id, int unit, bool settle, cons
     return kExitError;
   }
   if (!o.json_out) err << "run " << id << " unit " << unit << ": " << d->size() << " samples written to " << output << "\n";
+  return kExitOk;
+}
+
+int cmd_model_get(const Common& o, const std::string& serial, std::int64_t model_id, const std::string& output,
+                  std::ostream& out, std::ostream& err) {
+  auto c = open(o);
+  if (!c) return report(c.error(), err);
+  json args = model_id > 0 ? json{{"model_id", model_id}} : json{{"serial", serial}};
+  auto m = c->call("model.get", args);
+  if (!m) return report(m.error(), err);
+  if (!output.empty()) {
+    // The model file fogctl verify --model reads.
+    if (auto ok = write_text(output, (*m)["model"].dump(2) + "\n"); !ok) {
+      err << "fogctl: " << ok.error() << "\n";
+      return kExitError;
+    }
+  }
+  if (o.json_out) {
+    out << m->dump() << "\n";
+  } else {
+    out << "model " << (*m)["id"] << " for " << (*m)["serial"].get<std::string>() << ", version " << (*m)["version"]
+        << ", fitted on run " << ((*m)["run_id"].is_null() ? std::string("-") : (*m)["run_id"].dump()) << " ("
+        << (*m)["method"].get<std::string>() << "): " << (*m)["terms"].get<std::string>() << "\n";
+    const json& mj = (*m)["model"];
+    if (mj.contains("mu0_dph")) out << "  mu0 " << num_text(mj["mu0_dph"], 3) << " deg/h";
+    if (mj.contains("sigma_a_dph")) out << ", sigma_a " << num_text(mj["sigma_a_dph"], 3) << " deg/h";
+    out << "\n";
+    if (!output.empty()) out << "  written to " << output << "\n";
+  }
   return kExitOk;
 }
 
@@ -606,6 +637,24 @@ void add_client_commands(CLI::App& app, int& code) {
   exp->add_option("-o,--output", output, "CSV file (default: standard output)");
   exp->add_flag("--include-settle", settle, "Keep the samples of the opening settle");
   exp->callback([&] { code = cmd_run_export(common, run_id, unit, settle, output, std::cout, std::cerr); });
+
+  static std::string model_serial, model_output;
+  static std::int64_t model_id = 0;
+  auto* models = app.add_subcommand("model", "Models stored by fogbenchd");
+  models->require_subcommand(1);
+  auto* mget = models->add_subcommand("get", "Show a unit's current model (or one by --id); -o writes its JSON file");
+  add_common(mget, common);
+  mget->add_option("serial", model_serial, "The unit's serial");
+  mget->add_option("--id", model_id, "A model by its id instead");
+  mget->add_option("-o,--output", model_output, "Write the model's JSON here (the file fogctl verify --model reads)");
+  mget->callback([&] {
+    if (model_serial.empty() && model_id <= 0) {
+      std::cerr << "fogctl model get: give a serial or --id\n";
+      code = kExitError;
+      return;
+    }
+    code = cmd_model_get(common, model_serial, model_id, model_output, std::cout, std::cerr);
+  });
 
   // fogctl fit --run N / fogctl verify --run N: the offline commands on a stored run. The run
   // is fetched when --run is parsed (after --socket and --unit, declared before it) and handed
