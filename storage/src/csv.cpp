@@ -3,6 +3,8 @@
 #include "fogbench/storage/csv.hpp"
 
 #include <algorithm>
+#include <limits>
+#include <type_traits>
 #include <array>
 #include <cassert>
 #include <cerrno>
@@ -400,6 +402,14 @@ class Parser {
       }
       if (fields.bad_quote())
         return fail(CsvErrc::bad_quote, ln, i + 1, "unterminated quoted field");
+      if (empty_field_) {
+        const std::size_t f = empty_field_;
+        empty_field_ = 0;
+        if (data_.flags.empty() || !(data_.flags.back() & model::flag::missing))
+          return fail(CsvErrc::not_a_number, ln, f,
+                      "empty cell, expected a number (an empty cell is allowed only on a row "
+                      "whose flags column has the missing bit, 1, set)");
+      }
       if (i < expected_fields)
         return fail(CsvErrc::field_count, ln, 0,
                     "too few fields: " + std::to_string(i) + " but the header (line " +
@@ -418,9 +428,18 @@ class Parser {
     return {};
   }
 
+  std::size_t empty_field_ = 0;  // 1-based field of the row's first empty cell, 0 if none
+
   std::expected<void, CsvError> parse_cell(int role, std::string_view cell, std::size_t ln,
                                            std::size_t field, std::vector<double>* doubles[]) {
     if (role <= r_chamber) {
+      if (cell.empty() && role != r_time) {
+        // A reading that was not taken: kept as NaN, valid only if the row says so (checked
+        // once the row's flags are read).
+        doubles[role]->push_back(std::numeric_limits<double>::quiet_NaN());
+        if (!empty_field_) empty_field_ = field;
+        return {};
+      }
       double v;
       switch (parse_double(cell, v)) {
         case Num::ok: doubles[role]->push_back(v); return {};
@@ -656,7 +675,12 @@ std::string to_csv(const model::RunData& run) {
   out.reserve(out.size() + n * 96);
 
   char buf[64];
+  // A measurement the daemon could not take is NaN in memory and an empty cell in the file;
+  // parse_csv accepts the empty cell only on a row flagged missing.
   auto put = [&](auto v) {
+    if constexpr (std::is_floating_point_v<decltype(v)>) {
+      if (!std::isfinite(v)) return;
+    }
     auto res = std::to_chars(buf, buf + sizeof buf, v);
     out.append(buf, res.ptr);
   };

@@ -205,6 +205,22 @@ TEST_CASE("csv: every error names its place", "[csv][errors]") {
     CHECK(e.column == 3);
     CHECK_THAT(e.message, Contains("empty cell"));
   }
+  SECTION("an empty cell on a row flagged missing is a reading not taken") {
+    // flags bit 1 (missing): the empty gyro cell reads as NaN; the same row without the bit
+    // is refused.
+    auto r = fogbench::storage::parse_csv("time_s,gyro_dph,t1_c,t2_c,flags\n0,1,0,0,0\n1,,0,0,1\n", {});
+    REQUIRE(r);
+    CHECK(std::isnan(r->gyro_dph[1]));
+    auto e = parse_error("time_s,gyro_dph,t1_c,t2_c,flags\n0,1,0,0,0\n1,,0,0,2\n");
+    CHECK(e.line == 3);
+    CHECK(e.column == 2);
+    CHECK_THAT(e.message, Contains("missing bit"));
+    // And a run with a missing reading survives the round trip through to_csv.
+    auto back = fogbench::storage::parse_csv(fogbench::storage::to_csv(*r), {});
+    REQUIRE(back);
+    CHECK(std::isnan(back->gyro_dph[1]));
+    CHECK(back->t1_c == r->t1_c);
+  }
   SECTION("nan, inf and overflow") {
     auto nan = parse_error("time_s,gyro_dph,t1_c,t2_c\n0,0,0,0\n1,0,0,nan\n");
     CHECK(nan.code == CsvErrc::not_finite);
