@@ -45,9 +45,13 @@ std::vector<double> lagged(std::span<const double> x, int lag) {
 // and every sum over t is, for all lags at once, a cross-correlation by FFT (lagscan.hpp).
 class CandidateScan {
  public:
-  CandidateScan(std::span<const double> y, const std::vector<std::vector<double>>& base_cols, std::vector<double> w, int max_lag)
-      : sc_(y.size(), max_lag, w), w_(std::move(w)), L_(max_lag) {
-    const std::size_t n = y.size();
+  CandidateScan(std::span<const double> y_in, const std::vector<std::vector<double>>& base_cols, std::vector<double> w, int max_lag)
+      : sc_(y_in.size(), max_lag, w), w_(std::move(w)), L_(max_lag) {
+    const std::size_t n = y_in.size();
+    // Samples of weight 0 may hold NaN (a missing gyro reading): 0 * NaN is NaN, so zero them.
+    std::vector<double> y(y_in.begin(), y_in.end());
+    for (std::size_t t = 0; t < n; ++t)
+      if (w_[t] == 0.0) y[t] = 0.0;
     cols_.push_back(std::vector<double>(n, 1.0));
     for (const auto& c : base_cols) cols_.push_back(c);
     const auto k = static_cast<Eigen::Index>(cols_.size());
@@ -289,6 +293,23 @@ struct FitRun {
   std::vector<std::vector<double>> base_cols;  // the base model's regressors at fitted lags
 };
 
+// The core's fit gives a non-finite gyro sample weight 0 but still multiplies it in (0 * NaN
+// is NaN), so a run with a missing reading fails as "singular". A copy with such samples
+// flagged missing and set to 0 has the same meaning and fits; runs without any are not copied.
+const RunData& finite_gyro(const RunData& run, RunData& copy) {
+  bool any = false;
+  for (double v : run.gyro_dph) any = any || !std::isfinite(v);
+  if (!any) return run;
+  copy = run;
+  if (copy.flags.empty()) copy.flags.assign(copy.size(), 0);
+  for (std::size_t t = 0; t < copy.size(); ++t)
+    if (!std::isfinite(copy.gyro_dph[t])) {
+      copy.gyro_dph[t] = 0.0;
+      copy.flags[t] |= flag::missing;
+    }
+  return copy;
+}
+
 }  // namespace
 
 FitOptions options_of(const Model& m) {
@@ -310,8 +331,10 @@ TermList terms_of(const Model& m) {
   return tl;
 }
 
-std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_run, std::span<const RunData> held_out,
+std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_run_in, std::span<const RunData> held_out,
                                             const DiagnoseOptions& o) {
+  RunData fit_copy;
+  const RunData& fit_run = finite_gyro(fit_run_in, fit_copy);
   Diagnosis d;
   d.fit_run = fit_run.name;
   for (const auto& h : held_out) d.held_out_runs.push_back(h.name);
@@ -748,7 +771,9 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   return d;
 }
 
-std::expected<AddResult, FitError> add_term(const Model& m, const RunData& run, std::string_view text) {
+std::expected<AddResult, FitError> add_term(const Model& m, const RunData& run_in, std::string_view text) {
+  RunData copy;
+  const RunData& run = finite_gyro(run_in, copy);
   auto parsed = parse_term(text);
   if (!parsed) return fail(FitError::Code::bad_term, "--add: " + parsed.error().pretty());
   Term t = *parsed;

@@ -3,6 +3,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <random>
 #include <set>
 
@@ -229,4 +230,39 @@ TEST_CASE("workbench: the qualification summary's hysteresis and ramp excursion"
   CHECK(q.sensitivities[0].unit == "deg/h per degC/min");
   const auto j = wb::to_json(q);
   CHECK(j["runs"][0].contains("hysteresis_comp_dph"));
+}
+
+TEST_CASE("workbench: flagged and missing gyro samples do not spoil diagnose and compare") {
+  // A hidden 0.05 deg/h per degC of T1, as in the lineage test. The fit run has 40 flagged
+  // samples and 40 missing readings (NaN); the held-out run 40 missing readings. Both are
+  // skipped by every sum (the core's fit alone fails on a NaN, even at weight 0: diagnose
+  // hands it a copy with those samples flagged missing).
+  auto hidden = [](std::size_t, double t1) { return 0.05 * (t1 - 20.0); };
+  RunData r = make_run(5000, 8, hidden);
+  r.flags.assign(r.size(), 0);
+  for (std::size_t t = 750; t < 4750; t += 100) r.flags[t] = flag::frames_lost;
+  const Model m = fit_d(r);
+  for (std::size_t t = 720; t < 4720; t += 100) r.gyro_dph[t] = std::numeric_limits<double>::quiet_NaN();
+  RunData h = make_run(5000, 9, hidden);
+  for (std::size_t t = 700; t < 4700; t += 100) h.gyro_dph[t] = std::numeric_limits<double>::quiet_NaN();
+  const std::vector<RunData> held{h};
+  auto d = wb::diagnose(m, r, held);
+  REQUIRE(d);
+  INFO(d->summary);
+  CHECK(std::isfinite(d->rms_fit_dph));
+  REQUIRE(!d->candidates.empty());
+  const auto& top = d->candidates.front();
+  CHECK(top.expr == "T1");
+  CHECK(top.detected);
+  CHECK(std::isfinite(top.delta_bic));
+  REQUIRE(top.held_out.size() == 1);
+  CHECK(top.held_out[0].scored);
+  CHECK(std::isfinite(top.held_out[0].rms_after_dph));
+  auto c = wb::compare(m, h);
+  REQUIRE(c);
+  CHECK(!c->failures.empty());
+  for (const auto& f : c->failures) CHECK(std::isfinite(f.mean_err_dph));
+  auto a = wb::add_term(m, r, "T1");
+  REQUIRE(a);
+  CHECK(a->model.terms.back().coef == Approx(0.05).margin(0.005));
 }
