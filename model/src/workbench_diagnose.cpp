@@ -694,9 +694,9 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       if (std::abs(r) < o.collinear_r) continue;
       ci.collinear_with.push_back(cj.term);
       // up(x) + down(x) = x: with x in the model the two are one effect written two ways.
-      auto inner = [](const std::string& e, const char* f) {
+      auto inner = [](const std::string& expr, const char* f) {
         const std::string p = std::string(f) + "(";
-        return e.rfind(p, 0) == 0 && e.back() == ')' ? e.substr(p.size(), e.size() - p.size() - 1) : std::string();
+        return expr.rfind(p, 0) == 0 && expr.back() == ')' ? expr.substr(p.size(), expr.size() - p.size() - 1) : std::string();
       };
       const std::string xa = inner(ci.expr, "up").empty() ? inner(ci.expr, "down") : inner(ci.expr, "up");
       const std::string xb = inner(cj.expr, "up").empty() ? inner(cj.expr, "down") : inner(cj.expr, "up");

@@ -28,9 +28,9 @@ RunData make_run(std::size_t n, std::uint64_t seed, const std::function<double(s
     double sp = 20.0;
     int step = 0;
     Phase ph = Phase::hold;
-    if (t >= 600 && t < 1200) { sp = 20.0 - (t - 600) / 60.0; step = 1; ph = Phase::cooling; }
+    if (t >= 600 && t < 1200) { sp = 20.0 - static_cast<double>(t - 600) / 60.0; step = 1; ph = Phase::cooling; }
     else if (t >= 1200 && t < 2400) { sp = 10.0; step = 2; }
-    else if (t >= 2400 && t < 3600) { sp = 10.0 + (t - 2400) / 60.0; step = 3; ph = Phase::heating; }
+    else if (t >= 2400 && t < 3600) { sp = 10.0 + static_cast<double>(t - 2400) / 60.0; step = 3; ph = Phase::heating; }
     else if (t >= 3600) { sp = 30.0; step = 4; }
     t2 += (sp - t2) * (1.0 - std::exp(-1.0 / 150.0));
     t1 += (t2 - t1) * (1.0 - std::exp(-1.0 / 40.0));
