@@ -215,6 +215,7 @@ struct Server::Impl {
   template <class Socket>
   void accept_session(Socket socket, std::string peer) {
     auto s = std::make_shared<Session<Socket>>(std::move(socket), *handler, peer);
+    sessions.remove_if([](const auto& w) { return w.expired(); });
     sessions.push_back(s);
     s->start();
   }

@@ -9,6 +9,8 @@
 #include <regex>
 #include <sstream>
 
+#include <spdlog/spdlog.h>
+
 #include "fogbench/model/json.hpp"
 #include "fogbench/model/model.hpp"
 #include "fogbench/model/terms.hpp"
@@ -151,9 +153,9 @@ ApiResult<profiles::Profile> Station::load_profile(const std::string& name, std:
 
 void Station::event(std::int64_t run_id, storage::EventKind kind, const json& detail,
                     std::optional<double> t_s) {
-  // An event that cannot be stored is still published: the audit trail's loss is logged by the
-  // caller of the store (the daemon keeps running).
-  (void)store_.add_event(run_id, kind, detail.dump(), t_s);
+  // An event that cannot be stored is still published and logged; the daemon keeps running.
+  if (auto ok = store_.add_event(run_id, kind, detail.dump(), t_s); !ok)
+    spdlog::error("run {}: event not stored ({}): {}", run_id, ok.error().message, detail.dump());
   emit({{"type", "event"}, {"run_id", run_id}, {"t_s", num(t_s)},
         {"kind", std::string(storage::to_string(kind))}, {"detail", detail}});
 }
@@ -168,7 +170,8 @@ void Station::transition(ActiveRun& run, RunState to, const std::string& reason,
                          std::optional<double> t_s) {
   const RunState from = run.state;
   run.state = to;
-  (void)store_.set_run_state(run.id, to, reason, t_s);
+  if (auto ok = store_.set_run_state(run.id, to, reason, t_s); !ok)
+    spdlog::error("run {}: state {} not stored: {}", run.id, storage::to_string(to), ok.error().message);
   emit({{"type", "event"}, {"run_id", run.id}, {"t_s", num(t_s)}, {"kind", "state"},
         {"detail", {{"from", std::string(storage::to_string(from))},
                     {"to", std::string(storage::to_string(to))}, {"reason", reason}}}});
