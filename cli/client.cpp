@@ -510,8 +510,13 @@ int watch(const Common& o, std::optional<std::int64_t> run_id, bool quiet, doubl
         const std::string to = (*m)["detail"]["to"];
         if (tty_line) err << "\n" << "run " << *run_id << ": " << to << " (" << (*m)["detail"].value("reason", "") << ")\n";
         if (terminal(to)) {
-          // The analysis events follow the state change; run.get is answered after them.
-          return final_code(*c, *run_id, out, o.json_out);
+          // The analysis events follow the state change; run.get is answered after them. A
+          // daemon that is stopping closes this connection right after the event: the
+          // summary then comes from a new connection (the outer loop), when it is back.
+          auto g = c->call("run.get", {{"run_id", *run_id}});
+          if (g) return final_code(*c, *run_id, out, o.json_out);
+          lost_since = SteadyClock::now();
+          break;
         }
       }
     }
