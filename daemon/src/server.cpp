@@ -39,6 +39,12 @@ constexpr std::size_t kMaxQueuedBytes = 16u << 20;
 // The chamber is sent to its safe setpoint on the way out; this long at most.
 constexpr auto kShutdownDeadline = std::chrono::seconds(5);
 
+// One protocol line. Invalid UTF-8 in a string (a profile parser's quote of a cut multi-byte
+// character, say) is replaced rather than thrown: the daemon never fails on what it sends.
+std::shared_ptr<const std::string> wire(const json& message) {
+  return std::make_shared<const std::string>(message.dump(-1, ' ', false, json::error_handler_t::replace) + "\n");
+}
+
 class SessionBase {
  public:
   virtual ~SessionBase() = default;
@@ -54,7 +60,7 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
       : socket_(std::move(socket)), timer_(socket_.get_executor()), handler_(handler), peer_(std::move(peer)) {}
 
   void start() {
-    send(std::make_shared<const std::string>(Handler::hello().dump() + "\n"));
+    send(wire(Handler::hello()));
     read();
   }
 
@@ -87,12 +93,12 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
         if (st == LineSplitter::Status::incomplete) break;
         if (st == LineSplitter::Status::too_long) {
           spdlog::warn("client {}: line over {} bytes; closing", peer_, kMaxLineBytes);
-          send(std::make_shared<const std::string>(Handler::too_long().dump() + "\n"));
+          send(wire(Handler::too_long()));
           close_after_write_ = true;
           return;
         }
         if (line.empty()) continue;
-        send(std::make_shared<const std::string>(handler_.handle_line(line, state_).dump() + "\n"));
+        send(wire(handler_.handle_line(line, state_)));
       }
       read();
     });
@@ -244,7 +250,7 @@ struct Server::Impl {
   }
 
   void publish(const json& message) {
-    auto line = std::make_shared<const std::string>(message.dump() + "\n");
+    auto line = wire(message);
     for (auto it = sessions.begin(); it != sessions.end();) {
       if (auto s = it->lock()) {
         s->push(line);
@@ -253,7 +259,7 @@ struct Server::Impl {
         it = sessions.erase(it);
       }
     }
-    if (message.value("type", "") == "event") spdlog::info("event: {}", message.dump());
+    if (message.value("type", "") == "event") spdlog::info("event: {}", *line);
   }
 
   // --- worker jobs

@@ -284,3 +284,32 @@ TEST_CASE("e2e: SIGTERM mid-run ends the run as aborted and leaves the chamber a
   auto s = bench.wait_status(c, [](const json& r) { return r["chamber"]["setpoint_c"].is_number(); }, 30s);
   CHECK(s["result"]["chamber"]["setpoint_c"] == 20.0);
 }
+
+TEST_CASE("e2e: fogbenchd refuses --time-scale on hardware and a bad configuration, naming the field") {
+  char tmpl[] = "/tmp/fogbench-e2e-XXXXXX";
+  const std::filesystem::path dir = ::mkdtemp(tmpl);
+  auto run = [&](json config, std::vector<std::string> extra) {
+    std::ofstream(dir / "c.json") << config.dump();
+    std::vector<std::string> argv = {(kBin / "fogbenchd").string(), "--config", (dir / "c.json").string()};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    Process p(argv, dir / "log");
+    const int rc = p.wait(30s);
+    std::ifstream log(dir / "log");
+    std::stringstream ss;
+    ss << log.rdbuf();
+    return std::pair{rc, ss.str()};
+  };
+  json c = golden_config_json();
+  c["map_dir"] = (std::filesystem::path(FOGBENCH_SOURCE_DIR) / "drivers" / "maps").string();
+  c["profile_dir"] = (golden_dir() / "profiles").string();
+  c["simulated"] = false;
+  auto [rc1, log1] = run(c, {"--time-scale", "10"});
+  CHECK(rc1 == 2);
+  CHECK_THAT(log1, Catch::Contains("--time-scale 10 refused"));
+  c["chamber_limits"]["max_rate_c_per_min"] = -1;
+  auto [rc2, log2] = run(c, {});
+  CHECK(rc2 == 2);
+  CHECK_THAT(log2, Catch::Contains("chamber_limits.max_rate_c_per_min"));
+  std::error_code ec;
+  std::filesystem::remove_all(dir, ec);
+}
