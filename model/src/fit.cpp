@@ -784,7 +784,17 @@ std::expected<Model, FitError> fit(const RunData& run, const TermList& tl, const
   std::size_t n_flagged = 0;
   std::vector<double> w = weights_of(run, &n_flagged);
   if (auto c = check_collinear(ev->x, ev->names, w); !c) return std::unexpected(c.error());
-  auto m = o.method == Method::paper ? fit_paper(run, terms, o, *ev, w) : fit_joint(run, terms, o, *ev, w);
+  // A reading not taken (NaN) has weight 0, but 0 * NaN is NaN: give it a finite value that
+  // no sum will see.
+  const RunData* src = &run;
+  RunData clean;
+  if (std::any_of(run.gyro_dph.begin(), run.gyro_dph.end(), [](double v) { return !std::isfinite(v); })) {
+    clean = run;
+    for (double& v : clean.gyro_dph)
+      if (!std::isfinite(v)) v = 0.0;
+    src = &clean;
+  }
+  auto m = o.method == Method::paper ? fit_paper(*src, terms, o, *ev, w) : fit_joint(*src, terms, o, *ev, w);
   if (!m) return m;
   // A pair of @auto terms that are collinear only at their fitted lags is caught here.
   {
@@ -795,7 +805,10 @@ std::expected<Model, FitError> fit(const RunData& run, const TermList& tl, const
       for (std::size_t t = 0; t < n; ++t) c[t] = ev->x[j][t >= lag ? t - lag : 0];
       cols.push_back(std::move(c));
     }
-    if (auto c = check_collinear(cols, ev->names, w); !c) return std::unexpected(c.error());
+    std::vector<std::string> lagged_names;
+    for (std::size_t j = 0; j < terms.size(); ++j)
+      lagged_names.push_back(ev->names[j] + "@" + std::to_string(m->terms[j].term.lag.seconds));
+    if (auto c = check_collinear(cols, lagged_names, w); !c) return std::unexpected(c.error());
   }
   m->fit.n_flagged = n_flagged;
   m->tref_c = o.tref_c;
@@ -872,9 +885,15 @@ std::expected<Verification, FitError> verify(const Model& m, const RunData& run,
   v.threshold = threshold;
   const std::size_t n = run.size();
   std::vector<double> w = weights_of(run, &v.n_flagged);
+  // Outliers are spikes about the residual's 61 s moving average, not samples of a sustained
+  // error: a model that fails for five minutes must show it in Table 1, not lose those samples.
+  std::vector<double> res(n, 0.0);
+  for (std::size_t t = 0; t < n; ++t)
+    if (w[t] != 0.0) res[t] = run.gyro_dph[t] - (*mu)[t];
+  const std::vector<double> local = smooth(res, w, 61);
   std::vector<double> r;
   for (std::size_t t = 0; t < n; ++t)
-    if (w[t] != 0.0) r.push_back(run.gyro_dph[t] - (*mu)[t]);
+    if (w[t] != 0.0) r.push_back(res[t] - local[t]);
   const OutlierResult ro = outliers_3sigma(r, 3.0);
   v.n_outliers = ro.removed;
   std::size_t j = 0;

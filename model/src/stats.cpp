@@ -171,7 +171,10 @@ Whiteness whiteness(std::span<const double> e, int max_lag, int fitted_params) {
 double gamma_q(double a, double x) {
   if (x <= 0.0) return 1.0;
   if (a <= 0.0) return 0.0;
-  const double gln = std::lgamma(a);
+  // lgamma_r, not std::lgamma: the latter writes glibc's global signgam, a data race when
+  // fits run on several threads.
+  int sign = 0;
+  const double gln = ::lgamma_r(a, &sign);
   constexpr double eps = 1e-15;
   if (x < a + 1.0) {
     double ap = a, sum = 1.0 / a, del = sum;

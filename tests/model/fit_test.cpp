@@ -1,6 +1,7 @@
 // Fits on synthetic runs whose truth is known, every fit error, and the model's JSON.
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include "fogbench/model/json.hpp"
@@ -211,4 +212,35 @@ TEST_CASE("model JSON errors name the field") {
   broken.erase("mu0");
   CHECK(model_from_json(broken).error() == "mu0: missing");
   CHECK_FALSE(model_from_text("{not json"));
+}
+
+TEST_CASE("a reading not taken (NaN) is skipped by the fits, not poisoning them") {
+  RunData r = synthetic(8000, -3.0, 38, 0.0, 0.15, 10);
+  r.flags.assign(r.size(), 0);
+  for (std::size_t i = 3000; i < 3010; ++i) {
+    r.gyro_dph[i] = std::numeric_limits<double>::quiet_NaN();
+    r.flags[i] = flag::missing;
+  }
+  for (auto method : {Method::paper, Method::joint}) {
+    FitOptions o;
+    o.method = method;
+    auto m = fit(r, *parse_terms("d(T1)@auto"), o);
+    REQUIRE(m);
+    CHECK(std::isfinite(m->terms[0].coef));
+    CHECK(m->fit.n_flagged == 10);
+  }
+}
+
+TEST_CASE("verify keeps a sustained failure of the model in Table 1") {
+  // A 300 s error of +1 deg/h that the model does not know: only spikes are outliers, so the
+  // 300 samples stay and raise comp_std well above the noise (0.15 deg/h): the variance adds
+  // 1^2 * 300/8000 = 0.0375, comp_std becomes sqrt(0.0225 + 0.0375 - (300/8000)^2) = 0.24.
+  RunData r = synthetic(8000, -3.0, 38, 0.0, 0.15, 11);
+  auto m = fit(r, *parse_terms("paper"), FitOptions{});
+  REQUIRE(m);
+  for (std::size_t i = 5000; i < 5300; ++i) r.gyro_dph[i] += 1.0;
+  auto v = verify(*m, r);
+  REQUIRE(v);
+  CHECK(v->n_outliers < 50);
+  CHECK(v->run.comp_std > 0.22);
 }
