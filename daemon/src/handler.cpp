@@ -156,6 +156,9 @@ json Handler::handle(const json& req, SessionState& session) {
 
 ApiResult<json> Handler::dispatch(const std::string& cmd, const json& req, SessionState& session) {
   storage::Store& store = station_.store();
+  if (!session.may_control &&
+      (cmd == "run.start" || cmd == "run.abort" || cmd == "model.fit" || cmd == "model.verify"))
+    return api_error(ErrorCode::forbidden, cmd + ": only on the local socket; this connection may only read");
 
   if (cmd == "status") return station_.status();
 

@@ -56,8 +56,10 @@ class SessionBase {
 template <class Socket>
 class Session : public SessionBase, public std::enable_shared_from_this<Session<Socket>> {
  public:
-  Session(Socket socket, Handler& handler, std::string peer)
-      : socket_(std::move(socket)), timer_(socket_.get_executor()), handler_(handler), peer_(std::move(peer)) {}
+  Session(Socket socket, Handler& handler, std::string peer, bool may_control)
+      : socket_(std::move(socket)), timer_(socket_.get_executor()), handler_(handler), peer_(std::move(peer)) {
+    state_.may_control = may_control;
+  }
 
   void start() {
     send(wire(Handler::hello()));
@@ -219,8 +221,8 @@ struct Server::Impl {
 
   // --- command socket
   template <class Socket>
-  void accept_session(Socket socket, std::string peer) {
-    auto s = std::make_shared<Session<Socket>>(std::move(socket), *handler, peer);
+  void accept_session(Socket socket, std::string peer, bool may_control) {
+    auto s = std::make_shared<Session<Socket>>(std::move(socket), *handler, peer, may_control);
     sessions.remove_if([](const auto& w) { return w.expired(); });
     sessions.push_back(s);
     s->start();
@@ -229,7 +231,7 @@ struct Server::Impl {
   void accept_unix() {
     unix_acceptor->async_accept([this](boost::system::error_code ec, asio::local::stream_protocol::socket s) {
       if (stopping) return;
-      if (!ec) accept_session(std::move(s), "unix");
+      if (!ec) accept_session(std::move(s), "unix", true);
       else spdlog::warn("accept on the unix socket: {}", ec.message());
       accept_unix();
     });
@@ -241,7 +243,8 @@ struct Server::Impl {
       if (!ec) {
         boost::system::error_code e2;
         auto ep = s.remote_endpoint(e2);
-        accept_session(std::move(s), e2 ? std::string("tcp") : ep.address().to_string() + ":" + std::to_string(ep.port()));
+        accept_session(std::move(s), e2 ? std::string("tcp") : ep.address().to_string() + ":" + std::to_string(ep.port()),
+                       false);
       } else {
         spdlog::warn("accept on tcp: {}", ec.message());
       }

@@ -30,6 +30,7 @@ std::string_view to_string(ErrorCode c) {
     case ErrorCode::invalid_profile: return "invalid_profile";
     case ErrorCode::limits: return "limits";
     case ErrorCode::unknown_serial: return "unknown_serial";
+    case ErrorCode::forbidden: return "forbidden";
     case ErrorCode::internal: return "internal";
   }
   return "internal";

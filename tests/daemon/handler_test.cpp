@@ -136,3 +136,16 @@ TEST_CASE("handler: deeply nested or huge input is an error reply, not a crash")
   CHECK(r.code(R"({"id":1,"cmd":"run.get","run_id":-1})") == "bad_request");
   CHECK(Handler::too_long()["error"]["code"] == "bad_request");
 }
+
+TEST_CASE("handler: a read-only connection (TCP) may query but not change anything") {
+  Rig r;
+  r.session.may_control = false;
+  CHECK(r.code(R"({"id":1,"cmd":"status"})") == "ok");
+  CHECK(r.code(R"({"id":2,"cmd":"run.list"})") == "ok");
+  CHECK(r.code(R"({"id":3,"cmd":"subscribe"})") == "ok");
+  CHECK(r.code(R"({"id":4,"cmd":"run.start","profile":"short","units":["FOG-0001"]})") == "forbidden");
+  CHECK(r.code(R"({"id":5,"cmd":"run.abort"})") == "forbidden");
+  CHECK(r.code(R"({"id":6,"cmd":"model.fit","run_id":1})") == "forbidden");
+  CHECK(r.code(R"({"id":7,"cmd":"model.verify","run_id":1})") == "forbidden");
+  CHECK(r.store.list_runs()->empty());
+}

@@ -16,6 +16,9 @@ inline constexpr int kProtocolVersion = 1;
 // What a connection carries between requests.
 struct SessionState {
   bool subscribed = false;  // receives "sample" and "event" messages
+  // Commands that change something (run.start, run.abort, model.fit, model.verify) only on the
+  // local socket, whose file mode says who may use it; the TCP port is for reading.
+  bool may_control = true;
 };
 
 class Handler {

@@ -32,6 +32,7 @@ enum class ErrorCode {
   invalid_profile,  // the profile does not parse
   limits,           // the profile leaves the chamber's limits
   unknown_serial,   // a serial not configured on this bench, or without a model to verify
+  forbidden,        // a command that changes something, on a connection that may only read (TCP)
   internal,         // storage or analysis failed; the daemon keeps running
 };
 std::string_view to_string(ErrorCode c);
