@@ -28,6 +28,35 @@ ExprPtr make(K k, ExprPtr a = nullptr, ExprPtr b = nullptr) {
   return e;
 }
 
+bool depends_on_signal(const Expr& e) {
+  if (e.kind == K::signal) return true;
+  return (e.a && depends_on_signal(*e.a)) || (e.b && depends_on_signal(*e.b));
+}
+
+// Moves the numeric factors and negations of a product into `coef`; returns what is left
+// (null when the product was only numbers).
+ExprPtr pull_coefficient(const ExprPtr& e, double& coef, bool& given) {
+  if (e->kind == K::number) {
+    coef *= e->value;
+    given = true;
+    return nullptr;
+  }
+  if (e->kind == K::neg) {
+    coef = -coef;
+    given = true;
+    return pull_coefficient(e->a, coef, given);
+  }
+  if (e->kind == K::mul) {
+    ExprPtr a = pull_coefficient(e->a, coef, given);
+    ExprPtr b = pull_coefficient(e->b, coef, given);
+    if (!a) return b;
+    if (!b) return a;
+    if (a == e->a && b == e->b) return e;
+    return make(K::mul, a, b);
+  }
+  return e;
+}
+
 class Parser {
  public:
   explicit Parser(std::string_view text) : s_(text) {}
@@ -95,6 +124,12 @@ class Parser {
       ++pos_;
     }
     if (!term) return fail("expected a term (a signal such as T1, or a function such as d(T1)), found only a number");
+    // One spelling per term: numbers and signs anywhere in the top-level product, `(T1*5)` or
+    // `(-T1)`, are part of the coefficient, so that printing and parsing again give the same.
+    term = pull_coefficient(term, t.coef, t.coef_given);
+    if (!term) return fail("expected a term (a signal such as T1, or a function such as d(T1)), found only a number");
+    if (!depends_on_signal(*term))
+      return std::unexpected(error("a term must contain a signal (T1, T2, Ta or grad); '" + to_string(*term) + "' is a constant"));
     t.expr = term;
     skip();
     if (peek() == '@') {
@@ -168,9 +203,11 @@ class Parser {
       auto n = integer("a lag in seconds after '@'");
       if (!n) return std::unexpected(n.error());
       if (peek() == 's') ++pos_;
-      auto d = make(K::delay, e);
-      std::const_pointer_cast<Expr>(d)->delay_s = *n;
-      e = d;
+      if (*n > 0) {  // x@0 is x
+        auto d = make(K::delay, e);
+        std::const_pointer_cast<Expr>(d)->delay_s = *n;
+        e = d;
+      }
     }
     return neg ? make(K::neg, e) : e;
   }
@@ -199,9 +236,19 @@ class Parser {
     return e;
   }
 
+  // Nesting deeper than this is surely not a model term, and unbounded recursion would
+  // overflow the stack on hostile input.
+  static constexpr int kMaxDepth = 32;
+
   std::expected<ExprPtr, ParseError> primary() {
     skip();
     const std::size_t start = pos_;
+    if (depth_ >= kMaxDepth) return std::unexpected(error("expression nested deeper than " + std::to_string(kMaxDepth) + " levels"));
+    struct Depth {
+      int& d;
+      explicit Depth(int& x) : d(x) { ++d; }
+      ~Depth() { --d; }
+    } depth_guard(depth_);
     char c = peek();
     if (c == '(') {
       ++pos_;
@@ -296,6 +343,7 @@ class Parser {
 
   std::string_view s_;
   std::size_t pos_ = 0;
+  int depth_ = 0;
 };
 
 std::string fmt_number(double v) {
@@ -310,7 +358,7 @@ int precedence(const Expr& e) {
     case K::add: case K::sub: return 1;
     case K::mul: return 2;
     case K::neg: return 2;
-    case K::delay: return 2;
+    case K::delay: return 4;
     case K::pow: return 3;
     default: return 4;
   }
@@ -363,7 +411,8 @@ std::string to_string(const Expr& e) {
     case K::add: return to_string(*e.a) + "+" + wrap(*e.b, 2);
     case K::sub: return to_string(*e.a) + "-" + wrap(*e.b, 2);
     case K::neg: return "-" + wrap(*e.a, 3);
-    case K::delay: return wrap(*e.a, 3) + "@" + std::to_string(e.delay_s);
+    // Always in parentheses: `(T1@30)*T2` and `(T1@30)@auto` must not read as a term's lag.
+    case K::delay: return "(" + wrap(*e.a, 3) + "@" + std::to_string(e.delay_s) + ")";
   }
   return "?";
 }

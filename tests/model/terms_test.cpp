@@ -134,3 +134,36 @@ TEST_CASE("a term on Ta fails clearly when the run has no chamber temperature") 
   REQUIRE_FALSE(v);
   CHECK_THAT(v.error(), Catch::Contains("chamber_c"));
 }
+
+TEST_CASE("one spelling per term: what fuzzing found") {
+  // Each input must print to a spelling that parses back to the same spelling (and the same
+  // coefficient), the property the term fuzzer checks.
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"(T1*5)", "T1"},            // the 5 is the coefficient
+      {"(-T1)", "T1"},             // so is the sign
+      {"(d(T1)@0)", "d(T1)"},      // a zero delay is no delay
+      {"(T1@1)@1", "(T1@1)@1"},    // a delayed expression with its own lag
+      {"(T1@30)*T2", "(T1@30)*T2"},
+      {"d((T1@5))", "d((T1@5))"},
+  };
+  for (const auto& [in, out] : cases) {
+    INFO(in);
+    auto l = parse_terms(in);
+    REQUIRE(l);
+    CHECK(to_string(*l) == out);
+    auto again = parse_terms(to_string(*l));
+    REQUIRE(again);
+    CHECK(to_string(*again) == out);
+  }
+  auto c = parse_terms("(T1*5)");
+  CHECK(c->terms[0].coef == 5.0);
+  CHECK(parse_terms("(-T1)")->terms[0].coef == -1.0);
+  // A constant is not a term, and hostile nesting is refused before it can overflow the stack.
+  auto k = parse_terms("(-2)");
+  REQUIRE_FALSE(k);
+  CHECK_THAT(k.error().message, Catch::Contains("only a number"));
+  CHECK_THAT(parse_terms("d(2)").error().message, Catch::Contains("must contain a signal"));
+  auto deep = parse_terms(std::string(10000, '(') + "T1" + std::string(10000, ')'));
+  REQUIRE_FALSE(deep);
+  CHECK_THAT(deep.error().message, Catch::Contains("nested deeper"));
+}
