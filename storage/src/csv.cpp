@@ -574,15 +574,24 @@ class Parser {
         w = std::clamp((t - in.time_s[j]) / width, 0.0, 1.0);
         in_gap = width > gap && w > 0;
       }
+      bool touches_missing = false;
       for (std::size_t c = 0; c < std::size(numeric); ++c) {
         const auto& src = in.*numeric[c];
         if (src.empty()) continue;
         const double a = src[j];
-        (out.*numeric[c])[k] = w == 0 ? a : a + w * (src[j + 1] - a);
+        const double v = w == 0 ? a : a + w * (src[j + 1] - a);
+        (out.*numeric[c])[k] = v;
+        touches_missing = touches_missing || !std::isfinite(v);
       }
       if (in.has_phase()) out.phase[k] = in.phase[j];
       if (in.has_step()) out.step[k] = in.step[j];
       std::uint8_t f = in.has_flags() ? in.flags[j] : 0;
+      // A grid point interpolated towards a reading not taken is itself not taken, whatever
+      // the flags of the sample before it say (found by the CSV fuzzer).
+      if (touches_missing) {
+        f |= model::flag::missing;
+        any_gap = true;
+      }
       if (in_gap) {
         f |= model::flag::missing;
         any_gap = true;

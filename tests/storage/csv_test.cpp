@@ -221,6 +221,18 @@ TEST_CASE("csv: every error names its place", "[csv][errors]") {
     CHECK(std::isnan(back->gyro_dph[1]));
     CHECK(back->t1_c == r->t1_c);
   }
+  SECTION("resampling towards a reading not taken flags the grid point missing") {
+    // Samples at 0, 1.5, 3 s resampled at 1 s: the point at 1 s lies between 0 (good) and
+    // 1.5 (gyro not read): its gyro is NaN, so it must carry the missing bit, not flags 0.
+    CsvOptions o;
+    o.resample_s = 1.0;
+    auto r = fogbench::storage::parse_csv("time_s,gyro_dph,t1_c,t2_c,flags\n0,1,0,0,0\n1.5,,0,0,1\n3,1,0,0,0\n", o);
+    REQUIRE(r);
+    REQUIRE(r->size() == 4);
+    CHECK(std::isnan(r->gyro_dph[1]));
+    CHECK((r->flags[1] & fogbench::model::flag::missing) != 0);
+    CHECK(r->flags[0] == 0);
+  }
   SECTION("nan, inf and overflow") {
     auto nan = parse_error("time_s,gyro_dph,t1_c,t2_c\n0,0,0,0\n1,0,0,nan\n");
     CHECK(nan.code == CsvErrc::not_finite);
