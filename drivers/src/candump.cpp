@@ -39,6 +39,9 @@ std::optional<LogFrame> parse_candump_line(std::string_view line) {
     if (c < '0' || c > '9') return std::nullopt;
     usec = usec * 10 + (c - '0');
   }
+  // Microseconds since the epoch must fit an int64: 9.2e12 s. Reject anything past 1e12 s
+  // (year 33658) rather than overflow (found by the candump fuzzer).
+  if (sec >= 1'000'000'000'000) return std::nullopt;
   out.time_us = sec * 1'000'000 + usec;
 
   // " interface "
@@ -63,7 +66,10 @@ std::optional<LogFrame> parse_candump_line(std::string_view line) {
   }
   if (hash == 3) {
     if (id > CAN_SFF_MASK) return std::nullopt;
-  } else if (!(id & CAN_ERR_FLAG)) {
+  } else if (id & CAN_ERR_FLAG) {
+    // An error frame's id is the error flag and error classes only: no EFF or RTR bits.
+    if (id & ~(CAN_ERR_FLAG | CAN_ERR_MASK)) return std::nullopt;
+  } else {
     if (id > CAN_EFF_MASK) return std::nullopt;
     id |= CAN_EFF_FLAG;
   }
@@ -122,6 +128,8 @@ std::string format_candump_line(std::int64_t time_us, std::string_view interface
   out += '#';
   if (frame.can_id & CAN_RTR_FLAG) {
     out += 'R';
+    // A remote frame's requested length, so that the line reads back to the same frame.
+    if (frame.can_dlc > 0 && frame.can_dlc <= 8) out += static_cast<char>('0' + frame.can_dlc);
     return out;
   }
   for (int i = 0; i < frame.can_dlc && i < 8; ++i) {

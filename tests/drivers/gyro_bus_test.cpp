@@ -293,3 +293,20 @@ TEST_CASE("candump -l lines parse as candump writes them") {
   CHECK(std::memcmp(back->frame.data, g.data, 8) == 0);
   CHECK(back->frame.can_id == g.can_id);
 }
+
+TEST_CASE("candump lines the fuzzer found: overflowing stamps, remote lengths, error ids") {
+  using namespace fogbench::drivers;
+  // 9999999999999 s would overflow int64 microseconds: refused, not wrapped.
+  CHECK_FALSE(parse_candump_line("(9999999999999.000000) can0 101#00"));
+  // A remote frame keeps its requested length through format and parse.
+  auto r = parse_candump_line("(1700000000.000004) can0 123#R5");
+  REQUIRE(r);
+  CHECK(r->frame.can_dlc == 5);
+  auto again = parse_candump_line(format_candump_line(r->time_us, "can0", r->frame));
+  REQUIRE(again);
+  CHECK(again->frame.can_dlc == 5);
+  CHECK(again->frame.can_id == r->frame.can_id);
+  // An error frame's id may hold the error flag and classes, not the EFF and RTR flags.
+  CHECK_FALSE(parse_candump_line("(1700000000.300000) vcan0 E0000001#C0C0010F"));
+  CHECK(parse_candump_line("(1700000000.300000) vcan0 20000004#0000000000000000"));
+}
