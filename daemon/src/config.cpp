@@ -169,6 +169,13 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   auto drv = drivers::parse_drivers_config(j["drivers"], map_dir, "drivers");
   if (!drv) return Err(drv.error().message);
   if (drv->units.empty()) return Err("drivers.units: expected at least one unit");
+  // A profile checked against chamber_limits must not then be refused setpoint by setpoint by
+  // the driver: the limits have to lie within what the driver will write.
+  const auto& sp = drv->chamber.setpoint_limits_c;
+  if (c.limits.min_c < sp.min_c)
+    return Err("chamber_limits.min_c: below drivers.chamber.setpoint_limits_c.min (" + std::to_string(sp.min_c) + ")");
+  if (c.limits.max_c > sp.max_c)
+    return Err("chamber_limits.max_c: above drivers.chamber.setpoint_limits_c.max (" + std::to_string(sp.max_c) + ")");
   c.drivers = std::move(*drv);
   return c;
 }

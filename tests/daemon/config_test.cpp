@@ -38,5 +38,7 @@ TEST_CASE("config: errors name the field") {
   CHECK_THAT(refusal({{"analysis", {{"method", "magic"}}}}), Catch::StartsWith("analysis.method"));
   CHECK_THAT(refusal({{"analysis", {{"terms", "T1 +"}}}}), Catch::StartsWith("analysis.terms"));
   CHECK_THAT(refusal({{"colour", "blue"}}), Catch::StartsWith("colour: unknown field"));
+  // The driver refuses setpoints above 180 degC by default: limits beyond it are an error.
+  CHECK_THAT(refusal({{"chamber_limits", {{"max_c", 190}}}}), Catch::StartsWith("chamber_limits.max_c: above drivers"));
   CHECK_THAT(refusal({{"drivers", {{"units", {{{"serial", "X"}}}}}}}), Catch::StartsWith("drivers.units[0]"));
 }
