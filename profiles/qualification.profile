@@ -3,6 +3,9 @@
 # three rates (0.5, 1, 2 degC/min) in both directions, so the coil gradient is not one
 # constant times the rate; holds right after ramps, where the rate stops but the gradient
 # decays with the coil's own time constant; a rate reversal without a hold; the extremes.
+# That separation needs a real coil, whose heat reaches the centre by more than one path: on
+# the simulator's two-node coil the gradient is exactly -core_tau times the rate, on any
+# profile (docs/simulation.md), so there the two paper terms stay collinear.
 # Needs a chamber that does -40..+70 degC at 2 degC/min (check_limits refuses it otherwise).
 
 setpoint 20 C
