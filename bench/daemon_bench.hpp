@@ -27,7 +27,7 @@ struct LiveBench {
   std::filesystem::path bin, dir;
   std::unique_ptr<Process> sim, daemon;
 
-  LiveBench(const char* argv0, int units, double time_scale) {
+  LiveBench(const char* argv0, int units, double time_scale, const std::string& synchronous = "full") {
     bin = std::filesystem::absolute(argv0).parent_path();
     char tmpl[] = "/tmp/fogbench-bench-XXXXXX";
     dir = ::mkdtemp(tmpl);
@@ -40,7 +40,7 @@ struct LiveBench {
     if (ready.empty()) fail("fogbench-sim did not start (is it built next to this benchmark?)");
     const json r = json::parse(ready);
     json c = {{"simulated", true},
-              {"storage", {{"path", "fogbench.db"}, {"synchronous", "full"}}},
+              {"storage", {{"path", "fogbench.db"}, {"synchronous", synchronous}}},
               {"socket", {{"path", "fogbenchd.sock"}}},
               {"chamber_limits", {{"min_c", -40}, {"max_c", 85}, {"max_rate_c_per_min", 3}}},
               {"safe_setpoint_c", 20},

@@ -1,7 +1,8 @@
 // fogbenchd's `status` reply latency with many clients connected while a run acquires: the
 // mock bench serves 8 units, a run stores all 8 every second (one SQLite transaction with
 // synchronous=FULL), 50 clients are subscribed and receive every sample, and one of them times
-// `status` round trips. Usage: bench_daemon_status [clients=50] [requests=2000] [time_scale=1]
+// `status` round trips.
+// Usage: bench_daemon_status [clients=50] [requests=2000] [time_scale=1] [synchronous=full|normal]
 #include <poll.h>
 
 #include <atomic>
@@ -15,8 +16,9 @@ int main(int argc, char** argv) {
   const int clients = argc > 1 ? std::atoi(argv[1]) : 50;
   const int requests = argc > 2 ? std::atoi(argv[2]) : 2000;
   const double scale = argc > 3 ? std::atof(argv[3]) : 1.0;
+  const std::string sync = argc > 4 ? argv[4] : "full";
   const int units = 8;
-  LiveBench bench(argv[0], units, scale);
+  LiveBench bench(argv[0], units, scale, sync);
 
   std::vector<std::unique_ptr<LineClient>> conns;
   for (int i = 0; i < clients; ++i) {
@@ -57,8 +59,8 @@ int main(int argc, char** argv) {
   auto got = conns[0]->call({{"cmd", "run.get"}, {"run_id", run}});
   stop = true;
   drain.join();
-  std::printf("status reply latency, %d clients subscribed, run acquiring %d units (time scale %g), %d requests:\n",
-              clients, units, scale, requests);
+  std::printf("status reply latency, %d clients subscribed, run acquiring %d units (time scale %g, synchronous=%s), "
+              "%d requests:\n", clients, units, scale, sync.c_str(), requests);
   std::printf("  p50 %.3f ms  p90 %.3f ms  p99 %.3f ms  max %.3f ms\n", percentile(ms, 50), percentile(ms, 90),
               percentile(ms, 99), percentile(ms, 100));
   if (got.contains("result"))
