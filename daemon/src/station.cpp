@@ -75,8 +75,9 @@ constexpr double kGyroMaxAbsDph = 1.0e5;
 
 // A value not read is stored as NULL and exported as NaN with the sample flagged `missing`.
 // model::fit skips flagged samples in the regression, but its lag scan and smoothers run over
-// every sample and a NaN spreads through them, so the gap is bridged with the neighbouring
-// value first (the flag stays, and the fit still skips the sample).
+// every sample; before model commit e6a8890 a NaN spread through them and failed the fit
+// ("degenerate"). The gap is bridged with the neighbouring value (the flag stays, so the fit
+// still skips the sample), which keeps the daemon's fits independent of how model/ treats NaN.
 void bridge_missing(model::RunData& d) {
   if (d.flags.empty()) d.flags.assign(d.size(), 0);
   for (auto* col : {&d.gyro_dph, &d.t1_c, &d.t2_c, &d.setpoint_c, &d.chamber_c}) {
