@@ -96,6 +96,10 @@ std::string describe_model(const model::Model& m) {
 }  // namespace
 
 int run_fit(const FitCommandOptions& o, std::ostream& out, std::ostream& err) {
+  if (o.run.empty()) {
+    err << "fogctl fit: which run? give a CSV file, or --run N for a run stored by fogbenchd\n";
+    return kExitError;
+  }
   auto terms = model::parse_terms(o.terms);
   if (!terms) {
     err << "fogctl fit: --terms: " << terms.error().pretty() << "\n";
@@ -140,6 +144,11 @@ int run_fit(const FitCommandOptions& o, std::ostream& out, std::ostream& err) {
 }
 
 int run_verify(const VerifyOptions& o, std::ostream& out, std::ostream& err) {
+  if (o.model.empty() || o.runs.empty()) {
+    err << "fogctl verify: " << (o.model.empty() ? "--model MODEL.json is required" : "which runs? give CSV files, or --run N")
+        << "\n";
+    return kExitError;
+  }
   auto m = load_model(o.model);
   if (!m) {
     err << "fogctl verify: " << m.error() << "\n";
