@@ -17,6 +17,7 @@ namespace fogbench::cli {
 std::expected<model::RunData, std::string> load_run(const std::string& path, const RunInput& in) {
   storage::CsvOptions o;
   o.resample_s = in.resample_s;
+  o.skip = in.skip;
   for (const auto& m : in.maps) {
     auto cm = storage::parse_column_mapping(m);
     if (!cm) return std::unexpected("--map " + m + ": " + cm.error().message);

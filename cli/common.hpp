@@ -23,6 +23,7 @@ inline constexpr int kExitError = 2;
 struct RunInput {
   std::vector<std::string> maps;
   std::optional<double> resample_s;
+  std::vector<std::string> skip;  // optional columns the command does not use
 };
 
 std::expected<model::RunData, std::string> load_run(const std::string& path, const RunInput& in);

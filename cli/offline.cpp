@@ -116,7 +116,13 @@ int run_fit(const FitCommandOptions& o, std::ostream& out, std::ostream& err) {
   fo.max_lag_s = o.max_lag_s;
   fo.tref_c = o.tref_c;
   fo.ar_order = o.ar_order;
-  auto run = load_run(o.run, o.input);
+  // The fit reads neither the profile step nor, unless a term uses Ta, the chamber's air.
+  RunInput input = o.input;
+  input.skip.push_back("step");
+  bool uses_ta = false;
+  for (const auto& t : terms->terms) uses_ta = uses_ta || model::uses_signal(*t.expr, model::Signal::Ta);
+  if (!uses_ta) input.skip.push_back("chamber_c");
+  auto run = load_run(o.run, input);
   if (!run) {
     err << "fogctl fit: " << run.error() << "\n";
     return kExitError;

@@ -351,6 +351,8 @@ class Parser {
     }
     for (int role = 0; role < r_count; ++role) {
       if (field_of_[role] >= 0) continue;
+      if (role >= kRequired && std::find(options_.skip.begin(), options_.skip.end(), kNames[role]) != options_.skip.end())
+        continue;
       const int i = find(kNames[role]);
       if (i >= 0 && role_of_[i] == r_ignore) {
         field_of_[role] = i;

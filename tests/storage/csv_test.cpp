@@ -462,3 +462,18 @@ TEST_CASE("csv: files", "[csv][file]") {
     CHECK_THAT(r.error().message, Contains("/nonexistent/dir/out.csv"));
   }
 }
+
+TEST_CASE("CSV: columns asked to be skipped are not read, nor checked") {
+  // chamber_c holds garbage that would be an error if read.
+  fogbench::storage::CsvOptions o;
+  o.skip = {"chamber_c", "step"};
+  auto r = fogbench::storage::parse_csv("time_s,gyro_dph,t1_c,t2_c,chamber_c,step\n0,1,2,3,x,y\n1,1,2,3,x,y\n", o);
+  REQUIRE(r);
+  CHECK_FALSE(r->has_chamber());
+  CHECK_FALSE(r->has_step());
+  // A required column cannot be skipped.
+  o.skip = {"t1_c"};
+  auto req = fogbench::storage::parse_csv("time_s,gyro_dph,t2_c\n0,1,3\n", o);
+  REQUIRE_FALSE(req);
+  CHECK(req.error().code == fogbench::storage::CsvErrc::missing_column);
+}

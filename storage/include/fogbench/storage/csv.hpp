@@ -63,6 +63,9 @@ struct CsvOptions {
   // sample. Grid points inside a gap wider than 1.5 median steps get flag::missing, because
   // interpolating across a gap invents data. When unset, uneven time is an error.
   std::optional<double> resample_s;
+  // Optional columns (setpoint_c, chamber_c, phase, step, flags) not to read even when the file
+  // has them: a caller that does not use them saves their parsing (and their checks).
+  std::vector<std::string> skip;
 };
 
 // The canonical column names, required first: time_s, gyro_dph, t1_c, t2_c, then the optional
