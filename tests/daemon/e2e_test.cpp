@@ -3,7 +3,7 @@
 // fogbenchd's command socket. Accelerated with --time-scale; every wait has a deadline.
 // Skipped (with a message) when fogbench-sim has not been built.
 #include "fixture.hpp"
-#include "process.hpp"
+#include "live_bench.hpp"
 
 #include "fogbench/daemon/framing.hpp"
 
@@ -14,112 +14,7 @@ using namespace fogbench::daemon::test;
 using nlohmann::json;
 using namespace std::chrono_literals;
 
-namespace {
-
-const std::filesystem::path kBin = FOGBENCH_BIN_DIR;
-
-// A fresh temp dir with the mock bench and the daemon running on it.
-struct LiveBench {
-  std::filesystem::path dir;
-  std::unique_ptr<Process> sim, daemon;
-  json ready_sim, ready_daemon;
-  double time_scale;
-
-  explicit LiveBench(double k) : time_scale(k) {
-    char tmpl[] = "/tmp/fogbench-e2e-XXXXXX";
-    dir = ::mkdtemp(tmpl);
-    std::filesystem::create_directories(dir / "profiles");
-    for (auto src : {std::filesystem::path(FOGBENCH_SOURCE_DIR) / "profiles", golden_dir() / "profiles"})
-      for (const auto& e : std::filesystem::directory_iterator(src))
-        if (e.path().extension() == ".profile")
-          std::filesystem::copy_file(e.path(), dir / "profiles" / e.path().filename(),
-                                     std::filesystem::copy_options::overwrite_existing);
-    start_sim();
-    write_config();
-    start_daemon();
-  }
-  ~LiveBench() {
-    daemon.reset();
-    sim.reset();
-    if (!std::getenv("FOGBENCH_KEEP_TEST_DIRS")) {
-      std::error_code ec;
-      std::filesystem::remove_all(dir, ec);
-    }
-  }
-
-  void start_sim() {
-    sim = std::make_unique<Process>(
-        std::vector<std::string>{(kBin / "fogbench-sim").string(), "--modbus-port", "0", "--thermistor-port", "0",
-                                 "--can-socket", (dir / "can.sock").string(), "--units", "2", "--seed", "7",
-                                 "--time-scale", std::to_string(time_scale), "--log-level", "warn"},
-        dir / "sim.log");
-    const auto line = sim->read_line(60s);
-    INFO("fogbench-sim log in " << (dir / "sim.log"));
-    REQUIRE(!line.empty());
-    ready_sim = json::parse(line);
-    REQUIRE(ready_sim.contains("drivers_config"));
-  }
-
-  void write_config() {
-    json c = {{"simulated", true},
-              {"storage", {{"path", "fogbench.db"}, {"synchronous", "normal"}}},
-              {"socket", {{"path", "fogbenchd.sock"}}},
-              {"chamber_limits", {{"min_c", -30}, {"max_c", 60}, {"max_rate_c_per_min", 3}}},
-              {"safe_setpoint_c", 20},
-              {"profile_dir", "profiles"},
-              {"drivers", ready_sim["drivers_config"]}};
-    std::ofstream(dir / "fogbenchd.json") << c.dump(2);
-  }
-
-  void start_daemon() {
-    daemon = std::make_unique<Process>(
-        std::vector<std::string>{(kBin / "fogbenchd").string(), "--config", (dir / "fogbenchd.json").string(),
-                                 "--time-scale", std::to_string(time_scale)},
-        dir / "fogbenchd.log");
-    const auto line = daemon->read_line(60s);
-    INFO("fogbenchd log in " << (dir / "fogbenchd.log"));
-    REQUIRE(!line.empty());
-    ready_daemon = json::parse(line);
-  }
-
-  std::filesystem::path socket() const { return dir / "fogbenchd.sock"; }
-
-  // Polls run.get until the run is in one of `states`; the last reply.
-  json wait_state(LineClient& c, std::int64_t run, std::set<std::string> states, std::chrono::seconds timeout) {
-    const auto deadline = SteadyClock::now() + timeout;
-    json r;
-    while (SteadyClock::now() < deadline) {
-      r = c.call({{"cmd", "run.get"}, {"run_id", run}});
-      if (r.is_object() && r.contains("result") && states.contains(r["result"]["run"]["state"].get<std::string>()))
-        return r;
-      std::this_thread::sleep_for(200ms);
-    }
-    return r;
-  }
-
-  // Polls status until pred holds.
-  template <class Pred>
-  json wait_status(LineClient& c, Pred pred, std::chrono::seconds timeout) {
-    const auto deadline = SteadyClock::now() + timeout;
-    json s;
-    while (SteadyClock::now() < deadline) {
-      s = c.call({{"cmd", "status"}});
-      if (s.is_object() && s.contains("result") && pred(s["result"])) return s;
-      std::this_thread::sleep_for(100ms);
-    }
-    return s;
-  }
-};
-
-bool have_sim() { return std::filesystem::exists(kBin / "fogbench-sim"); }
-
-std::string code_of(const json& reply) {
-  if (!reply.is_object()) return "no reply";
-  if (!reply.contains("error")) return "ok";
-  return reply["error"]["code"];
-}
-
-}  // namespace
+using namespace fogbench::daemon::test::live;
 
 TEST_CASE("e2e: an accelerated exp1 fit run is stored and fitted; an exp2 verify run passes") {
   if (!have_sim()) {
