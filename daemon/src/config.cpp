@@ -1,6 +1,9 @@
 // Parsing of fogbenchd's configuration file, field by field, with errors that name the field.
 #include "fogbench/daemon/config.hpp"
 
+#include <grp.h>
+
+#include <boost/asio/ip/address.hpp>
 #include <cmath>
 #include <fstream>
 #include <set>
@@ -58,7 +61,7 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   if (!j.is_object()) return Err("configuration: expected a JSON object");
   if (auto ok = only_keys(j, "", {"simulated", "storage", "socket", "chamber_limits",
                                   "safe_setpoint_c", "profile_dir", "map_dir", "analysis",
-                                  "drivers"});
+                                  "link_loss", "tracking", "drivers"});
       !ok)
     return Err(ok.error());
   DaemonConfig c;
@@ -73,7 +76,7 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
     return Err("storage: expected an object {\"path\": ...}");
   {
     const json& s = j["storage"];
-    if (auto ok = only_keys(s, "storage", {"path", "synchronous"}); !ok) return Err(ok.error());
+    if (auto ok = only_keys(s, "storage", {"path", "synchronous", "size_limit_bytes"}); !ok) return Err(ok.error());
     auto path = string(s, "storage", "path");
     if (!path) return Err(path.error());
     c.storage_path = *path == ":memory:" ? std::filesystem::path(*path) : resolve(base_dir, *path);
@@ -83,12 +86,63 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
       else if (v == "normal") c.storage_synchronous_full = false;
       else return Err("storage.synchronous: expected \"full\" or \"normal\"");
     }
+    if (s.contains("size_limit_bytes") && !s["size_limit_bytes"].is_null()) {
+      const json& v = s["size_limit_bytes"];
+      if (!v.is_number_integer() || v.get<long long>() < 65536)
+        return Err("storage.size_limit_bytes: expected an integer >= 65536");
+      c.storage_size_limit_bytes = v.get<long long>();
+    }
   }
 
   if (j.contains("socket")) {
     const json& s = j["socket"];
     if (!s.is_object()) return Err("socket: expected an object");
-    if (auto ok = only_keys(s, "socket", {"path", "tcp_port"}); !ok) return Err(ok.error());
+    if (auto ok = only_keys(s, "socket", {"path", "group", "tcp_port", "tcp"}); !ok) return Err(ok.error());
+    if (s.contains("group")) {
+      auto g = string(s, "socket", "group");
+      if (!g) return Err(g.error());
+      // Checked here so that a typo is a configuration error, not a socket nobody may use.
+      if (::getgrnam(g->c_str()) == nullptr) return Err("socket.group: no such group: " + *g);
+      c.socket.group = *g;
+    }
+    if (s.contains("tcp") && s.contains("tcp_port")) return Err("socket.tcp_port: give socket.tcp.port instead, not both");
+    if (s.contains("tcp")) {
+      const json& t = s["tcp"];
+      if (!t.is_object()) return Err("socket.tcp: expected an object {\"port\", \"address\", \"token\" | \"token_file\"}");
+      if (auto ok = only_keys(t, "socket.tcp", {"port", "address", "token", "token_file"}); !ok) return Err(ok.error());
+      const json& v = t.contains("port") ? t["port"] : json(nullptr);
+      if (!v.is_number_integer() || v.get<long long>() < 1 || v.get<long long>() > 65535)
+        return Err("socket.tcp.port: expected an integer 1..65535");
+      c.socket.tcp_port = static_cast<std::uint16_t>(v.get<long long>());
+      if (t.contains("address")) {
+        auto a = string(t, "socket.tcp", "address");
+        if (!a) return Err(a.error());
+        boost::system::error_code ec;
+        boost::asio::ip::make_address(*a, ec);
+        if (ec) return Err("socket.tcp.address: not an IP address: " + *a);
+        c.socket.tcp_address = *a;
+      }
+      if (t.contains("token") && t.contains("token_file"))
+        return Err("socket.tcp.token: give token or token_file, not both");
+      if (t.contains("token")) {
+        auto tok = string(t, "socket.tcp", "token");
+        if (!tok) return Err(tok.error());
+        c.socket.tcp_token = *tok;
+      }
+      if (t.contains("token_file")) {
+        auto f = string(t, "socket.tcp", "token_file");
+        if (!f) return Err(f.error());
+        std::ifstream in(resolve(base_dir, *f));
+        std::string line;
+        if (!in || !std::getline(in, line)) return Err("socket.tcp.token_file: cannot be read: " + *f);
+        while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+        if (line.empty()) return Err("socket.tcp.token_file: the first line is empty");
+        c.socket.tcp_token = line;
+      }
+      // A guessable token is no protection on a port others can reach.
+      if (!c.socket.tcp_token.empty() && c.socket.tcp_token.size() < 16)
+        return Err("socket.tcp.token: expected at least 16 characters");
+    }
     if (s.contains("path")) {
       auto path = string(s, "socket", "path");
       if (!path) return Err(path.error());
@@ -159,6 +213,38 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
     }
   }
 
+  if (j.contains("link_loss")) {
+    const json& l = j["link_loss"];
+    if (!l.is_object()) return Err("link_loss: expected an object {\"policy\", \"tolerance_s\"}");
+    if (auto ok = only_keys(l, "link_loss", {"policy", "tolerance_s"}); !ok) return Err(ok.error());
+    if (l.contains("policy")) {
+      const json& v = l["policy"];
+      if (v == "hold") c.link_loss.policy = LinkLossConfig::Policy::hold;
+      else if (v == "safe_abort") c.link_loss.policy = LinkLossConfig::Policy::safe_abort;
+      else return Err("link_loss.policy: expected \"hold\" or \"safe_abort\"");
+    }
+    if (l.contains("tolerance_s")) {
+      auto t = number(l, "link_loss", "tolerance_s");
+      if (!t) return Err(t.error());
+      if (*t < 0) return Err("link_loss.tolerance_s: expected a number >= 0");
+      c.link_loss.tolerance_s = *t;
+    }
+  }
+
+  if (j.contains("tracking")) {
+    const json& t = j["tracking"];
+    if (!t.is_object()) return Err("tracking: expected an object {\"max_error_c\", \"for_s\", \"frozen_s\"}");
+    if (auto ok = only_keys(t, "tracking", {"max_error_c", "for_s", "frozen_s"}); !ok) return Err(ok.error());
+    for (auto [key, out] : {std::pair{"max_error_c", &c.tracking.max_error_c},
+                            std::pair{"for_s", &c.tracking.for_s}, std::pair{"frozen_s", &c.tracking.frozen_s}}) {
+      if (!t.contains(key)) continue;
+      auto v = number(t, "tracking", key);
+      if (!v) return Err(v.error());
+      if (*v <= 0) return Err(join("tracking", key) + ": expected a positive number");
+      *out = *v;
+    }
+  }
+
   std::filesystem::path map_dir = base_dir;
   if (j.contains("map_dir")) {
     auto d = string(j, "", "map_dir");
@@ -177,6 +263,10 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   if (c.limits.max_c > sp.max_c)
     return Err("chamber_limits.max_c: above drivers.chamber.setpoint_limits_c.max (" + std::to_string(sp.max_c) + ")");
   c.drivers = std::move(*drv);
+  // The source is stored with every run: the token is a credential, not a setting to audit.
+  if (c.source.contains("socket") && c.source["socket"].contains("tcp") && c.source["socket"]["tcp"].is_object() &&
+      c.source["socket"]["tcp"].contains("token"))
+    c.source["socket"]["tcp"]["token"] = "(redacted)";
   return c;
 }
 

@@ -2,6 +2,7 @@
 // per command. Every failure is an error reply; nothing here throws to the caller.
 #include "fogbench/daemon/handler.hpp"
 
+#include <chrono>
 #include <cmath>
 
 #include "fogbench/daemon/framing.hpp"
@@ -111,6 +112,21 @@ ApiResult<int> resolve_unit(storage::Store& store, std::int64_t run_id, const js
 
 }  // namespace
 
+bool is_control_command(std::string_view cmd) {
+  return cmd == "run.start" || cmd == "run.abort" || cmd == "run.resume" || cmd == "model.fit" ||
+         cmd == "model.verify";
+}
+
+namespace {
+// In time independent of where the strings differ, so a remote client cannot find the token
+// byte by byte from reply times.
+bool same_token(const std::string& a, const std::string& b) {
+  unsigned diff = a.size() == b.size() ? 0u : 1u;
+  for (std::size_t i = 0; i < b.size(); ++i) diff |= static_cast<unsigned char>(i < a.size() ? a[i] : 0) ^ static_cast<unsigned char>(b[i]);
+  return diff == 0;
+}
+}  // namespace
+
 json Handler::hello() {
   return {{"type", "hello"}, {"version", FOGBENCH_DAEMON_VERSION}, {"protocol", kProtocolVersion},
           {"max_line_bytes", kMaxLineBytes}};
@@ -144,8 +160,20 @@ json Handler::handle(const json& req, SessionState& session) {
   if (id.is_null()) return error(nullptr, ErrorCode::bad_request, "id: missing");
   if (!req.contains("cmd")) return error(id, ErrorCode::bad_request, "cmd: missing");
   if (!req["cmd"].is_string()) return error(id, ErrorCode::bad_request, "cmd: expected a string");
+  const std::string cmd = req["cmd"].get<std::string>();
+  // The token is a credential: checked here and never stored with the command in the audit trail.
+  json request = req;
+  json token = request.contains("token") ? request["token"] : json(nullptr);
+  request.erase("token");
+  if (!token.is_null() && !token.is_string()) return error(id, ErrorCode::bad_request, "token: expected a string");
+  if (!session.may_control && is_control_command(cmd)) {
+    if (session.control_token.empty())
+      return error(id, ErrorCode::forbidden, cmd + ": only on the local socket; this connection may only read");
+    if (token.is_null() || !same_token(token.get<std::string>(), session.control_token))
+      return error(id, ErrorCode::forbidden, cmd + ": needs a valid token on this connection");
+  }
   try {
-    auto r = dispatch(req["cmd"].get<std::string>(), req, session);
+    auto r = dispatch(cmd, request, session);
     if (!r) return error(id, r.error().code, r.error().message);
     return reply(id, std::move(*r));
   } catch (const std::exception& e) {
@@ -156,9 +184,6 @@ json Handler::handle(const json& req, SessionState& session) {
 
 ApiResult<json> Handler::dispatch(const std::string& cmd, const json& req, SessionState& session) {
   storage::Store& store = station_.store();
-  if (!session.may_control &&
-      (cmd == "run.start" || cmd == "run.abort" || cmd == "model.fit" || cmd == "model.verify"))
-    return api_error(ErrorCode::forbidden, cmd + ": only on the local socket; this connection may only read");
 
   if (cmd == "status") return station_.status();
 
@@ -199,6 +224,16 @@ ApiResult<json> Handler::dispatch(const std::string& cmd, const json& req, Sessi
     auto id = station_.abort_run("aborted by operator" + (*reason ? ": " + **reason : std::string()), req);
     if (!id) return std::unexpected(id.error());
     return json{{"run_id", *id}, {"state", "aborted"}};
+  }
+
+  if (cmd == "run.resume") {
+    auto run_id = opt_int(req, "run_id", 1, kMaxId);
+    if (!run_id) return std::unexpected(run_id.error());
+    if (!*run_id) return api_error(ErrorCode::bad_request, "run_id: missing");
+    const double now = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+    auto id = station_.resume_run(**run_id, now, req);
+    if (!id) return std::unexpected(id.error());
+    return json{{"run_id", *id}, {"state", "interrupted"}, {"resumes", "at the next tick"}};
   }
 
   if (cmd == "run.list") {

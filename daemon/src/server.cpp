@@ -4,6 +4,7 @@
 // stays on the loop thread: one commit per second, and a Store is single-threaded.
 #include "fogbench/daemon/server.hpp"
 
+#include <grp.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -36,6 +37,8 @@ namespace {
 constexpr auto kWriteDeadline = std::chrono::seconds(10);
 // A subscriber that falls this far behind is dropped rather than buffering without bound.
 constexpr std::size_t kMaxQueuedBytes = 16u << 20;
+// Pipelined requests answered per turn of the loop before others get theirs (see drain()).
+constexpr int kLinesPerTurn = 32;
 // The chamber is sent to its safe setpoint on the way out; this long at most.
 constexpr auto kShutdownDeadline = std::chrono::seconds(5);
 
@@ -56,9 +59,10 @@ class SessionBase {
 template <class Socket>
 class Session : public SessionBase, public std::enable_shared_from_this<Session<Socket>> {
  public:
-  Session(Socket socket, Handler& handler, std::string peer, bool may_control)
+  Session(Socket socket, Handler& handler, std::string peer, bool may_control, std::string control_token)
       : socket_(std::move(socket)), timer_(socket_.get_executor()), handler_(handler), peer_(std::move(peer)) {
     state_.may_control = may_control;
+    state_.control_token = std::move(control_token);
   }
 
   void start() {
@@ -89,21 +93,34 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
         return;
       }
       splitter_.feed(std::string_view(buf_.data(), n));
-      std::string line;
-      for (;;) {
-        const auto st = splitter_.next(line);
-        if (st == LineSplitter::Status::incomplete) break;
-        if (st == LineSplitter::Status::too_long) {
-          spdlog::warn("client {}: line over {} bytes; closing", peer_, kMaxLineBytes);
-          send(wire(Handler::too_long()));
-          close_after_write_ = true;
-          return;
-        }
-        if (line.empty()) continue;
-        send(wire(handler_.handle_line(line, state_)));
-      }
-      read();
+      drain();
     });
+  }
+
+  // Answers the lines received, a few at a time: a client that pipelines thousands of requests
+  // must not hold the loop for their whole length, or the acquisition timer would fall behind
+  // and skip seconds of the run. The rest waits for the next turn of the loop; no more is read
+  // from this client until they are answered.
+  void drain() {
+    if (closed_) return;
+    std::string line;
+    for (int i = 0; i < kLinesPerTurn; ++i) {
+      const auto st = splitter_.next(line);
+      if (st == LineSplitter::Status::incomplete) {
+        read();
+        return;
+      }
+      if (st == LineSplitter::Status::too_long) {
+        spdlog::warn("client {}: line over {} bytes; closing", peer_, kMaxLineBytes);
+        send(wire(Handler::too_long()));
+        close_after_write_ = true;
+        return;
+      }
+      if (line.empty()) continue;
+      send(wire(handler_.handle_line(line, state_)));
+      if (closed_) return;  // dropped for not reading its replies
+    }
+    asio::post(socket_.get_executor(), [self = this->shared_from_this()] { self->drain(); });
   }
 
   void send(std::shared_ptr<const std::string> line) {
@@ -222,7 +239,8 @@ struct Server::Impl {
   // --- command socket
   template <class Socket>
   void accept_session(Socket socket, std::string peer, bool may_control) {
-    auto s = std::make_shared<Session<Socket>>(std::move(socket), *handler, peer, may_control);
+    auto s = std::make_shared<Session<Socket>>(std::move(socket), *handler, peer, may_control,
+                                               may_control ? std::string() : config.socket.tcp_token);
     sessions.remove_if([](const auto& w) { return w.expired(); });
     sessions.push_back(s);
     s->start();
@@ -323,6 +341,9 @@ struct Server::Impl {
           if (d.thermistors_ok) spdlog::info("thermistor module link up");
           else spdlog::warn("thermistor module: {}", d.thermistor_error);
         }
+        // A controller that was away may have restarted with another setpoint: once the link
+        // is back the setpoint is written again, not assumed.
+        if (!d.chamber_ok) written_setpoint_c.reset();
         reading = std::move(d);
         new_reading = true;
       });
@@ -422,6 +443,7 @@ struct Server::Impl {
         in.units[i].gyro_dph = s.units[i].rate_dph;
         in.units[i].frames = s.units[i].frames;
         in.units[i].frames_lost = s.units[i].frames_lost;
+        in.units[i].frames_corrupt = s.units[i].frames_corrupt;
       }
     }
     // The poll of this period normally arrived half a period ago. When it is late (a loaded
@@ -518,6 +540,7 @@ std::expected<void, std::string> Server::start() {
   Impl& m = *impl_;
   storage::OpenOptions so;
   so.synchronous_full = m.config.storage_synchronous_full;
+  so.size_limit_bytes = m.config.storage_size_limit_bytes;
   auto store = storage::Store::open(m.config.storage_path, so);
   if (!store) return std::unexpected("storage: " + store.error().message);
   m.store.emplace(std::move(*store));
@@ -539,11 +562,20 @@ std::expected<void, std::string> Server::start() {
     return std::unexpected("socket " + path.string() + ": " + e.what());
   }
   if (::chmod(path.c_str(), 0660) != 0) spdlog::warn("chmod 0660 {}: {}", path.string(), std::strerror(errno));
+  if (m.config.socket.group) {
+    const ::group* g = ::getgrnam(m.config.socket.group->c_str());
+    if (!g) return std::unexpected("socket.group: no such group: " + *m.config.socket.group);
+    if (::chown(path.c_str(), static_cast<uid_t>(-1), g->gr_gid) != 0)
+      return std::unexpected("socket.group: chown " + path.string() + " to " + *m.config.socket.group + ": " +
+                             std::strerror(errno));
+  }
   if (m.config.socket.tcp_port) {
     try {
-      m.tcp_acceptor.emplace(m.io, asio::ip::tcp::endpoint(asio::ip::make_address("127.0.0.1"), *m.config.socket.tcp_port));
+      m.tcp_acceptor.emplace(m.io, asio::ip::tcp::endpoint(asio::ip::make_address(m.config.socket.tcp_address),
+                                                            *m.config.socket.tcp_port));
     } catch (const boost::system::system_error& e) {
-      return std::unexpected("socket tcp 127.0.0.1:" + std::to_string(*m.config.socket.tcp_port) + ": " + e.what());
+      return std::unexpected("socket tcp " + m.config.socket.tcp_address + ":" +
+                             std::to_string(*m.config.socket.tcp_port) + ": " + e.what());
     }
   }
 
@@ -588,7 +620,7 @@ int Server::run() {
   m.schedule();
 
   spdlog::info("listening on {}{}; time scale {}", m.config.socket.unix_path.string(),
-               m.config.socket.tcp_port ? " and 127.0.0.1:" + std::to_string(*m.config.socket.tcp_port) : "",
+               m.config.socket.tcp_port ? " and " + m.config.socket.tcp_address + ":" + std::to_string(*m.config.socket.tcp_port) : "",
                m.options.time_scale);
   // One line on stdout when ready, for scripts and tests that start the daemon.
   std::cout << json{{"ready", true}, {"socket", m.config.socket.unix_path.string()},

@@ -72,6 +72,9 @@ double or_nan(std::optional<double> v) { return v ? *v : storage::kNoValue; }
 // Readings outside these are implausible for a coil or a gyro on a drift bench.
 constexpr double kCoilMinC = -100.0, kCoilMaxC = 200.0;
 constexpr double kGyroMaxAbsDph = 1.0e5;
+// A setpoint that moved at least this much should have moved the PV (several register steps
+// of 0.1 degC): below it a frozen PV cannot be told from a chamber at rest.
+constexpr double kSetpointMovedC = 0.5;
 
 // A value not read is stored as NULL and exported as NaN with the sample flagged `missing`.
 // model::fit skips flagged samples in the regression, but its lag scan and smoothers run over
@@ -230,6 +233,99 @@ ApiResult<std::int64_t> Station::start_run(const std::string& profile_name,
   return *id;
 }
 
+ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall_time, const json& command) {
+  if (run_) return api_error(ErrorCode::busy, "run " + std::to_string(run_->id) + " is " +
+                                                  std::string(storage::to_string(run_->state)));
+  auto detail = store_.get_run(run_id);
+  if (!detail) return std::unexpected(from_store(detail.error()));
+  const storage::RunRecord& rec = detail->run;
+  if (rec.state != RunState::interrupted)
+    return api_error(ErrorCode::bad_request, "run_id: run " + std::to_string(run_id) + " is " +
+                                                 std::string(storage::to_string(rec.state)) +
+                                                 "; only an interrupted run resumes");
+  ActiveRun run;
+  run.id = run_id;
+  run.purpose = rec.purpose;
+  run.profile_name = rec.profile_name;
+  for (const auto& u : rec.units) {
+    const auto& units = config_.drivers.units;
+    auto it = std::find_if(units.begin(), units.end(), [&](const auto& c) { return c.serial == u.serial; });
+    if (it == units.end())
+      return api_error(ErrorCode::unknown_serial, "unit " + u.serial + ": not configured on this bench");
+    run.serials.push_back(u.serial);
+    run.config_index.push_back(static_cast<std::size_t>(it - units.begin()));
+  }
+  auto profile = check_profile_text(rec.profile_text, rec.profile_name + ".profile");
+  if (!profile) return std::unexpected(profile.error());
+  run.executor = std::make_unique<profiles::Executor>(std::move(*profile));
+
+  // Replay the stored seconds through the executor exactly as tick() fed them, gaps held.
+  std::vector<std::vector<storage::SampleRow>> rows(run.serials.size());
+  for (std::size_t u = 0; u < rows.size(); ++u) {
+    for (std::int64_t off = 0;; off += 10000) {
+      auto page = store_.get_samples(run_id, static_cast<int>(u), off, 10000);
+      if (!page) return std::unexpected(from_store(page.error()));
+      rows[u].insert(rows[u].end(), page->begin(), page->end());
+      if (page->size() < 10000) break;
+    }
+  }
+  std::size_t n = rows.empty() ? 0 : rows[0].size();
+  for (const auto& r : rows) n = std::min(n, r.size());
+  double wall_last = now_wall_time;
+  for (std::size_t i = 0; i < n; ++i) {
+    const storage::SampleRow& r0 = rows[0][i];
+    const double t_s = r0.t_s;
+    const bool gap = (r0.flags & model::flag::link_gap) != 0;
+    if (gap && config_.link_loss.policy == LinkLossConfig::Policy::hold && run.updated) {
+      run.held_s += t_s - run.prev_t_s;
+    } else {
+      profiles::Readings readings;
+      readings.chamber_c = r0.chamber_c;
+      for (std::size_t u = 0; u < rows.size(); ++u) readings.coils.push_back({rows[u][i].t1_c, rows[u][i].t2_c});
+      run.last = run.executor->update(t_s - run.held_s, readings);
+      run.updated = true;
+    }
+    run.prev_t_s = t_s;
+    run.phase = run.last.phase;
+    run.step = run.last.step_index;
+    if (std::isfinite(r0.wall_time)) wall_last = r0.wall_time;
+  }
+  if (run.last.finished || run.last.failed)
+    return api_error(ErrorCode::bad_request, "run_id: run " + std::to_string(run_id) +
+                                                 ": its profile had already ended; nothing to resume");
+  const double last_t_s = n == 0 ? -1.0 : rows[0][n - 1].t_s;
+  // The time the bench was without the daemon, in run seconds: the run clock counts it.
+  const double down_s = std::max(0.0, std::floor((now_wall_time - wall_last) * time_scale_));
+  const double gap_from_s = last_t_s + 1.0, gap_to_s = last_t_s + 1.0 + down_s;  // [from, to)
+  // The gap's seconds as rows, flagged: every second of the run is in the store, none invented.
+  for (double t = gap_from_s; t < gap_to_s; t += 1.0) {
+    std::vector<storage::SampleRow> gap_rows;
+    for (std::size_t u = 0; u < run.serials.size(); ++u) {
+      storage::SampleRow r;
+      r.unit_index = static_cast<int>(u);
+      r.t_s = t;
+      r.setpoint_c = run.last.setpoint_c;
+      r.phase = to_model_phase(run.last.phase);
+      r.step = static_cast<int>(run.last.step_index);
+      r.flags = model::flag::missing | model::flag::link_gap;
+      gap_rows.push_back(r);
+    }
+    if (auto ok = store_.append_samples(run_id, gap_rows); !ok) return std::unexpected(from_store(ok.error()));
+  }
+  run.held_s += down_s;  // the profile clock stood still through the gap
+  run.prev_t_s = gap_to_s - 1.0;
+  run.resume_at_s = gap_to_s;
+  run.state = RunState::interrupted;
+  run.link_down = true;  // so the first tick records the link as up again when it is
+  run_ = std::move(run);
+  event(run_id, storage::EventKind::command, command, gap_from_s);
+  event(run_id, storage::EventKind::fault,
+        {{"resumed", true}, {"gap_from_s", gap_from_s}, {"gap_s", down_s},
+         {"profile_clock_s", run_->prev_t_s - run_->held_s}},
+        gap_from_s);
+  return run_id;
+}
+
 ApiResult<std::int64_t> Station::abort_run(const std::string& reason, const json& command) {
   if (!run_) return api_error(ErrorCode::not_found, "no run is active");
   const auto id = run_->id;
@@ -246,7 +342,11 @@ void Station::shutdown(const std::string& reason) {
 void Station::finish(RunState to, const std::string& reason) {
   assert(run_);
   ActiveRun& run = *run_;
+  event(run.id, storage::EventKind::note, {{"quality", quality_json(run)}}, run.elapsed_s);
   transition(run, to, reason, run.elapsed_s);
+  if (to != RunState::completed) spdlog::warn("run {} {}: {}", run.id, storage::to_string(to), reason);
+  last_run_ = {{"run_id", run.id}, {"state", std::string(storage::to_string(to))}, {"reason", reason},
+               {"elapsed_s", run.elapsed_s}};
   const auto id = run.id;
   const auto purpose = run.purpose;
   const auto serials = run.serials;
@@ -265,6 +365,7 @@ void Station::analyse(std::int64_t run_id, storage::Purpose purpose,
       auto r = fit_unit(run_id, unit, "", "");
       if (r) {
         detail["model_id"] = (*r)["model_id"];
+        detail["n_flagged"] = (*r)["n_flagged"];
         detail["ok"] = true;
       } else {
         detail["ok"] = false;
@@ -324,7 +425,9 @@ ApiResult<json> Station::fit_unit(std::int64_t run_id, int unit_index, const std
   return json{{"model_id", ref->id}, {"version", ref->version}, {"serial", serial},
               {"run_id", run_id}, {"unit", unit_index},
               {"parent_id", nm.parent_id ? json(*nm.parent_id) : json(nullptr)},
-              {"terms", nm.terms}, {"method", nm.method}, {"model", mj}};
+              {"terms", nm.terms}, {"method", nm.method},
+              // Samples the fit skipped for their quality flags (missing, frames lost, link gap, ...).
+              {"n_flagged", m->fit.n_flagged}, {"model", mj}};
 }
 
 ApiResult<json> Station::verify_unit(std::int64_t run_id, int unit_index,
@@ -374,6 +477,11 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
   if (run.state == RunState::pending) {
     run.start_clock_s = clock_s;
     transition(run, RunState::settling, "run started", 0.0);
+  } else if (run.state == RunState::interrupted) {
+    // Resumed: the run clock goes on from the gap's end.
+    run.start_clock_s = clock_s - *run.resume_at_s;
+    transition(run, run.phase == profiles::Phase::settle ? RunState::settling : RunState::running,
+               "resumed by operator", *run.resume_at_s);
   }
   run.elapsed_s = clock_s - run.start_clock_s;
   const double t_s = run.elapsed_s;
@@ -389,14 +497,28 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
           {{"chamber_link", in.chamber_link_down ? "down" : "up"}}, t_s);
   }
 
-  profiles::Readings readings;
-  readings.chamber_c = in.chamber_c ? *in.chamber_c : std::nan("");
-  for (std::size_t ci : run.config_index) {
-    const UnitReading* u = ci < in.units.size() ? &in.units[ci] : nullptr;
-    readings.coils.push_back({u && u->t1_c ? *u->t1_c : std::nan(""), u && u->t2_c ? *u->t2_c : std::nan("")});
+  // The chamber's faults are judged on what was commanded up to now (setpoint_c_), before
+  // this second's profile step.
+  std::optional<std::string> abort_reason = chamber_fault(run, in, t_s);
+
+  const bool gap = in.chamber_link_down;
+  const bool hold = gap && config_.link_loss.policy == LinkLossConfig::Policy::hold && run.updated;
+  // Under `hold` the profile clock stands still through a gap: the chamber cannot be told
+  // anything, so the profile resumes where it was rather than jumping ahead.
+  if (hold) run.held_s += t_s - run.prev_t_s;
+  run.prev_t_s = t_s;
+  profiles::ExecutorStatus st = run.last;
+  if (!hold) {
+    profiles::Readings readings;
+    readings.chamber_c = in.chamber_c ? *in.chamber_c : std::nan("");
+    for (std::size_t ci : run.config_index) {
+      const UnitReading* u = ci < in.units.size() ? &in.units[ci] : nullptr;
+      readings.coils.push_back({u && u->t1_c ? *u->t1_c : std::nan(""), u && u->t2_c ? *u->t2_c : std::nan("")});
+    }
+    st = run.executor->update(t_s - run.held_s, readings);
+    run.last = st;
+    run.updated = true;
   }
-  const profiles::ExecutorStatus st = run.executor->update(t_s, readings);
-  run.last = st;
 
   if (run.state == RunState::settling && st.phase != profiles::Phase::settle && !st.failed)
     transition(run, RunState::running,
@@ -430,7 +552,7 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
     r.step = static_cast<int>(st.step_index);
     std::uint8_t f = 0;
     if (!u.gyro_dph || !u.t1_c || !u.t2_c || !in.chamber_c) f |= model::flag::missing;
-    if (u.frames_lost > 0) f |= model::flag::frames_lost;
+    if (u.frames_lost > 0 || u.frames_corrupt > 0) f |= model::flag::frames_lost;
     bool oor = u.out_of_range;
     for (auto t : {u.t1_c, u.t2_c})
       if (t && (*t < kCoilMinC || *t > kCoilMaxC)) oor = true;
@@ -439,6 +561,10 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
     if (in.chamber_link_down) f |= model::flag::link_gap;
     r.flags = f;
     rows.push_back(r);
+    if (run.quality.size() < run.config_index.size()) run.quality.resize(run.config_index.size());
+    run.quality[i].frames_lost += u.frames_lost;
+    run.quality[i].frames_corrupt += u.frames_corrupt;
+    run.quality[i].samples_flagged += f != 0;
   }
   auto stored = store_.append_samples(run.id, rows);
 
@@ -459,9 +585,12 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
     emit(m);
   }
 
-  if (!stored) {
+  if (stored && abort_reason) {
+    finish(RunState::aborted, *abort_reason);
+  } else if (!stored) {
     // Samples that cannot be stored make the run worthless: end it rather than run on blind.
-    finish(RunState::failed, "storing samples failed: " + stored.error().message);
+    finish(RunState::failed, "storing samples failed (" + std::string(storage::to_string(stored.error().code)) +
+                                "): " + stored.error().message);
   } else if (st.failed) {
     finish(RunState::failed, st.failure_reason);
   } else if (st.finished) {
@@ -470,6 +599,71 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
     setpoint_c_ = st.setpoint_c;
   }
   return {setpoint_c_};
+}
+
+json Station::quality_json(const ActiveRun& run) {
+  json q = json::array();
+  for (std::size_t i = 0; i < run.serials.size(); ++i) {
+    const ActiveRun::Quality z = i < run.quality.size() ? run.quality[i] : ActiveRun::Quality{};
+    q.push_back({{"unit", i}, {"serial", run.serials[i]}, {"frames_lost", z.frames_lost},
+                 {"frames_corrupt", z.frames_corrupt}, {"samples_flagged", z.samples_flagged}});
+  }
+  return q;
+}
+
+std::optional<std::string> Station::chamber_fault(ActiveRun& run, const TickInput& in, double t_s) {
+  auto fmt = [](double v) {
+    std::ostringstream o;
+    o << v;
+    return o.str();
+  };
+  // The controller's own alarm: it knows something is wrong with the chamber; a drift run
+  // through it measures nothing useful.
+  const bool alarm_rose = in.chamber_alarm && !run.alarm_seen;
+  run.alarm_seen = in.chamber_alarm;
+  if (alarm_rose) return std::string("chamber alarm");
+
+  if (in.chamber_link_down) {
+    if (!run.link_down_since_s) run.link_down_since_s = t_s;
+    const double gap_s = t_s - *run.link_down_since_s;
+    if (config_.link_loss.policy == LinkLossConfig::Policy::safe_abort)
+      return std::string("chamber link lost (link_loss.policy safe_abort)");
+    if (gap_s > config_.link_loss.tolerance_s)
+      return "chamber link lost for " + fmt(gap_s) + " s (link_loss.tolerance_s " +
+             fmt(config_.link_loss.tolerance_s) + ")";
+    return std::nullopt;
+  }
+  run.link_down_since_s.reset();
+  if (!in.chamber_c) return std::nullopt;
+  const double pv_c = *in.chamber_c;
+
+  // Tracking is judged while running only: a settle waits for the chamber with its own timeout.
+  const double err_c = std::abs(pv_c - setpoint_c_);
+  if (run.state == RunState::running && err_c > config_.tracking.max_error_c) {
+    if (!run.track_error_since_s) run.track_error_since_s = t_s;
+    if (t_s - *run.track_error_since_s >= config_.tracking.for_s)
+      return "chamber not following its setpoint: |PV - setpoint| " + fmt(err_c) + " degC for " +
+             fmt(t_s - *run.track_error_since_s) + " s (tracking.max_error_c " +
+             fmt(config_.tracking.max_error_c) + ", tracking.for_s " + fmt(config_.tracking.for_s) + ")";
+  } else {
+    run.track_error_since_s.reset();
+  }
+
+  // A PV that does not change at all while the setpoint moves is a frozen sensor or register,
+  // not a slow chamber: a live PV changes in its last digit. A steady hold never trips it.
+  if (!run.pv_last_c || pv_c != *run.pv_last_c) {
+    run.pv_last_c = pv_c;
+    run.pv_same_since_s = t_s;
+    run.sp_min_c = run.sp_max_c = setpoint_c_;
+  } else {
+    run.sp_min_c = std::min(run.sp_min_c, setpoint_c_);
+    run.sp_max_c = std::max(run.sp_max_c, setpoint_c_);
+    if (t_s - run.pv_same_since_s >= config_.tracking.frozen_s && run.sp_max_c - run.sp_min_c >= kSetpointMovedC)
+      return "chamber process value frozen at " + fmt(pv_c) + " degC for " + fmt(t_s - run.pv_same_since_s) +
+             " s while the setpoint moved " + fmt(run.sp_max_c - run.sp_min_c) + " degC (tracking.frozen_s " +
+             fmt(config_.tracking.frozen_s) + ")";
+  }
+  return std::nullopt;
 }
 
 json Station::status() const {
@@ -511,11 +705,13 @@ json Station::status() const {
                 {"units", r.serials}, {"elapsed_s", r.elapsed_s},
                 {"remaining_s", r.executor ? json(r.last.remaining_s) : json(nullptr)},
                 {"phase", r.phase ? json(std::string(profiles::to_string(*r.phase))) : json(nullptr)},
-                {"step", r.step}};
+                {"step", r.step}, {"profile_held_s", r.held_s}, {"quality", quality_json(r)},
+                {"link_gap_s", r.link_down_since_s ? json(r.elapsed_s - *r.link_down_since_s) : json(nullptr)}};
     if (r.state == RunState::pending) s["run"]["remaining_s"] = r.executor->profile().nominal_duration_s();
   } else {
     s["run"] = nullptr;
   }
+  s["last_run"] = last_run_;
   return s;
 }
 

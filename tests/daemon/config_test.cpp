@@ -42,3 +42,52 @@ TEST_CASE("config: errors name the field") {
   CHECK_THAT(refusal({{"chamber_limits", {{"max_c", 190}}}}), Catch::StartsWith("chamber_limits.max_c: above drivers"));
   CHECK_THAT(refusal({{"drivers", {{"units", {{{"serial", "X"}}}}}}}), Catch::StartsWith("drivers.units[0]"));
 }
+
+TEST_CASE("config: link_loss and tracking, their defaults and errors naming the field") {
+  auto c = parse_daemon_config(golden_config_json(), golden_dir());
+  REQUIRE(c.has_value());
+  CHECK(c->link_loss.policy == LinkLossConfig::Policy::hold);
+  CHECK(c->link_loss.tolerance_s == 60);
+  CHECK(c->tracking.max_error_c == 5);
+  CHECK(c->tracking.for_s == 600);
+  CHECK(c->tracking.frozen_s == 300);
+  auto j = golden_config_json();
+  j.merge_patch({{"link_loss", {{"policy", "safe_abort"}, {"tolerance_s", 5}}},
+                 {"tracking", {{"max_error_c", 2.5}, {"for_s", 60}, {"frozen_s", 30}}}});
+  auto d = parse_daemon_config(j, golden_dir());
+  REQUIRE(d.has_value());
+  CHECK(d->link_loss.policy == LinkLossConfig::Policy::safe_abort);
+  CHECK(d->link_loss.tolerance_s == 5);
+  CHECK(d->tracking.max_error_c == 2.5);
+  CHECK(d->tracking.for_s == 60);
+  CHECK(d->tracking.frozen_s == 30);
+
+  CHECK_THAT(refusal({{"link_loss", {{"policy", "pray"}}}}), Catch::StartsWith("link_loss.policy"));
+  CHECK_THAT(refusal({{"link_loss", {{"tolerance_s", -1}}}}), Catch::StartsWith("link_loss.tolerance_s"));
+  CHECK_THAT(refusal({{"link_loss", {{"tolerance", 1}}}}), Catch::StartsWith("link_loss.tolerance: unknown field"));
+  CHECK_THAT(refusal({{"link_loss", 3}}), Catch::StartsWith("link_loss: expected an object"));
+  CHECK_THAT(refusal({{"tracking", {{"max_error_c", 0}}}}), Catch::StartsWith("tracking.max_error_c"));
+  CHECK_THAT(refusal({{"tracking", {{"for_s", "long"}}}}), Catch::StartsWith("tracking.for_s"));
+  CHECK_THAT(refusal({{"tracking", {{"frozen_s", -3}}}}), Catch::StartsWith("tracking.frozen_s"));
+}
+
+TEST_CASE("config: socket.group, socket.tcp and the token, with errors naming the field") {
+  auto j = golden_config_json();
+  j.merge_patch({{"socket", {{"group", "root"}, {"tcp", {{"port", 7000}, {"token", "0123456789abcdef"}}}}}});
+  auto c = parse_daemon_config(j, golden_dir());
+  REQUIRE(c.has_value());
+  CHECK(c->socket.group == "root");
+  CHECK(c->socket.tcp_port == 7000);
+  CHECK(c->socket.tcp_address == "127.0.0.1");  // loopback unless said otherwise
+  CHECK(c->socket.tcp_token == "0123456789abcdef");
+  // The configuration stored with runs does not carry the token.
+  CHECK(c->source["socket"]["tcp"]["token"] == "(redacted)");
+
+  CHECK_THAT(refusal({{"socket", {{"group", "no-such-group-fogbench"}}}}), Catch::StartsWith("socket.group: no such group"));
+  CHECK_THAT(refusal({{"socket", {{"tcp", {{"port", 0}}}}}}), Catch::StartsWith("socket.tcp.port"));
+  CHECK_THAT(refusal({{"socket", {{"tcp", {{"port", 7000}, {"address", "localhost!"}}}}}}), Catch::StartsWith("socket.tcp.address"));
+  CHECK_THAT(refusal({{"socket", {{"tcp", {{"port", 7000}, {"token", "short"}}}}}}), Catch::StartsWith("socket.tcp.token"));
+  CHECK_THAT(refusal({{"socket", {{"tcp", {{"port", 7000}, {"token_file", "nope.token"}}}}}}), Catch::StartsWith("socket.tcp.token_file"));
+  CHECK_THAT(refusal({{"socket", {{"tcp", {{"port", 7000}, {"tokn", "x"}}}}}}), Catch::StartsWith("socket.tcp.tokn: unknown field"));
+  CHECK_THAT(refusal({{"socket", {{"tcp_port", 7000}, {"tcp", {{"port", 7001}}}}}}), Catch::StartsWith("socket.tcp_port"));
+}

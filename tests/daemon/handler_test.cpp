@@ -149,3 +149,25 @@ TEST_CASE("handler: a read-only connection (TCP) may query but not change anythi
   CHECK(r.code(R"({"id":7,"cmd":"model.verify","run_id":1})") == "forbidden");
   CHECK(r.store.list_runs()->empty());
 }
+
+TEST_CASE("handler: with a control token, a read-only connection controls only with a valid `token` field") {
+  Rig r;
+  r.session.may_control = false;
+  r.session.control_token = "0123456789abcdef-secret";
+  CHECK(r.code(R"({"id":1,"cmd":"status"})") == "ok");
+  CHECK(r.code(R"({"id":2,"cmd":"run.start","profile":"short","units":["FOG-0001"]})") == "forbidden");
+  CHECK(r.code(R"({"id":3,"cmd":"run.start","profile":"short","units":["FOG-0001"],"token":"wrong"})") == "forbidden");
+  // A prefix of the token, and the token with a byte more, are not the token.
+  CHECK(r.code(R"({"id":4,"cmd":"run.abort","token":"0123456789abcdef"})") == "forbidden");
+  CHECK(r.code(R"({"id":5,"cmd":"run.abort","token":"0123456789abcdef-secretX"})") == "forbidden");
+  CHECK(r.code(R"({"id":6,"cmd":"run.start","profile":"short","units":["FOG-0001"],"token":7})") == "bad_request");
+  CHECK(r.store.list_runs()->empty());
+  CHECK(r.code(R"({"id":7,"cmd":"run.start","profile":"short","units":["FOG-0001"],"token":"0123456789abcdef-secret"})") == "ok");
+  // The command is audited as received, without the credential.
+  auto d = r.store.get_run(1);
+  REQUIRE(d.has_value());
+  for (const auto& e : d->events) CHECK(e.detail_json.find("secret") == std::string::npos);
+  CHECK(r.code(R"({"id":8,"cmd":"run.abort","token":"0123456789abcdef-secret"})") == "ok");
+  // Reading needs no token, and a token does not hurt.
+  CHECK(r.code(R"({"id":9,"cmd":"run.list","token":"0123456789abcdef-secret"})") == "ok");
+}

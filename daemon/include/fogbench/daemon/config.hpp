@@ -18,7 +18,12 @@ namespace fogbench::daemon {
 
 struct SocketConfig {
   std::filesystem::path unix_path = "/run/fogbench/fogbenchd.sock";
-  std::optional<std::uint16_t> tcp_port;  // bound to 127.0.0.1 only when given
+  std::optional<std::string> group;       // the unix socket's group (mode 0660); the daemon's own when empty
+  std::optional<std::uint16_t> tcp_port;  // TCP is off unless given
+  std::string tcp_address = "127.0.0.1";  // loopback unless configured otherwise
+  // Control commands over TCP need a request field `token` equal to this (from socket.tcp.token
+  // or the first line of socket.tcp.token_file); empty: TCP only reads.
+  std::string tcp_token;
 };
 
 struct AnalysisConfig {
@@ -27,15 +32,34 @@ struct AnalysisConfig {
   double verify_threshold = 0.2;  // compensated/raw std ratio a verification must stay under
 };
 
+// What a run does while the chamber cannot be polled (docs/daemon.md, "Faults").
+struct LinkLossConfig {
+  enum class Policy { hold, safe_abort };
+  // hold: the profile clock stops and the last setpoint stands until the link is back; a gap
+  // longer than tolerance_s aborts the run. safe_abort: the run is aborted when the link is lost.
+  Policy policy = Policy::hold;
+  double tolerance_s = 60.0;
+};
+
+// When a chamber that does not follow its setpoint aborts the run.
+struct TrackingConfig {
+  double max_error_c = 5.0;  // |PV - setpoint| above this ...
+  double for_s = 600.0;      // ... for this long (running state only: a settle has its own timeout)
+  double frozen_s = 300.0;   // the PV exactly unchanged this long while the setpoint moves
+};
+
 struct DaemonConfig {
   bool simulated = false;                  // --time-scale is refused unless true
   std::filesystem::path storage_path;      // the SQLite store
   bool storage_synchronous_full = true;    // fsync every commit (see storage's OpenOptions)
+  std::optional<std::int64_t> storage_size_limit_bytes;  // the store never grows past it (disk_full)
   SocketConfig socket;
   profiles::ChamberLimits limits;
   double safe_setpoint_c = 20.0;
   std::filesystem::path profile_dir;
   AnalysisConfig analysis;
+  LinkLossConfig link_loss;
+  TrackingConfig tracking;
   drivers::DriversConfig drivers;
   nlohmann::json source;                   // the file as read, stored with every run
 };

@@ -3,6 +3,7 @@
 // and the golden transcripts in tests/golden/ replay it directly.
 #pragma once
 
+#include <string>
 #include <string_view>
 
 #include <nlohmann/json.hpp>
@@ -19,7 +20,13 @@ struct SessionState {
   // Commands that change something (run.start, run.abort, model.fit, model.verify) only on the
   // local socket, whose file mode says who may use it; the TCP port is for reading.
   bool may_control = true;
+  // On a connection that may only read: the token (socket.tcp.token) that lets a request
+  // control anyway when it carries it in its `token` field. Empty: none is accepted.
+  std::string control_token;
 };
+
+// The commands that change something; the others only read (docs/protocol.md).
+bool is_control_command(std::string_view cmd);
 
 class Handler {
  public:

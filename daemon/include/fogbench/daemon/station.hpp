@@ -53,6 +53,7 @@ struct UnitReading {
   std::optional<double> gyro_dph;
   std::uint32_t frames = 0;
   std::uint32_t frames_lost = 0;
+  std::uint32_t frames_corrupt = 0;  // bad CRC or length: discarded, so lost to the average too
   std::optional<double> t1_c;
   std::optional<double> t2_c;
   bool out_of_range = false;  // a sensor or the gyro reported a value outside its range
@@ -92,6 +93,12 @@ class Station {
   ApiResult<std::int64_t> start_run(const std::string& profile_name,
                                     const std::vector<std::string>& serials,
                                     const std::string& purpose, const nlohmann::json& command);
+  // Takes up an interrupted run again (run.resume): the profile goes on from where its clock
+  // stood at the last stored second (replayed from the stored samples, so settles decide as
+  // they did), the run clock counts the time it was down, and the seconds of that gap are
+  // stored flagged missing and link_gap, the profile clock held through them.
+  // `now_wall_time` (unix s) measures the gap against the last stored sample's wall time.
+  ApiResult<std::int64_t> resume_run(std::int64_t run_id, double now_wall_time, const nlohmann::json& command);
   // Ends the active run as aborted; the chamber goes back to the safe setpoint at the next tick.
   ApiResult<std::int64_t> abort_run(const std::string& reason, const nlohmann::json& command);
 
@@ -131,14 +138,34 @@ class Station {
     std::vector<std::size_t> config_index;  // of each run unit in config_.drivers.units
     storage::RunState state = storage::RunState::pending;
     std::unique_ptr<profiles::Executor> executor;
+    // Per run unit: what the run lost, for status and the `quality` note stored at its end.
+    struct Quality {
+      std::uint64_t frames_lost = 0, frames_corrupt = 0, samples_flagged = 0;
+    };
+    std::vector<Quality> quality;
     double start_clock_s = 0.0;
+    std::optional<double> resume_at_s;  // a resumed run: the run time of its first tick
     double elapsed_s = 0.0;
     profiles::ExecutorStatus last;
     std::optional<profiles::Phase> phase;
     std::size_t step = 0;
     bool alarm = false;
+    bool alarm_seen = false;  // for chamber_fault: the alarm edge that aborts
     bool link_down = false;
+    // The profile clock runs behind the run clock by the link gaps held (link_loss.policy hold).
+    double held_s = 0.0;
+    double prev_t_s = 0.0;
+    bool updated = false;                       // the executor has been updated once
+    std::optional<double> link_down_since_s;    // run time the current gap began
+    std::optional<double> track_error_since_s;  // run time |PV - SP| went over max_error_c
+    std::optional<double> pv_last_c;            // the PV as last seen changing ...
+    double pv_same_since_s = 0.0;               // ... since this run time,
+    double sp_min_c = 0.0, sp_max_c = 0.0;      // the setpoints commanded meanwhile
   };
+
+  static nlohmann::json quality_json(const ActiveRun& run);
+  // Why the chamber's state this second ends the run (alarm, link lost, not tracking), if it does.
+  std::optional<std::string> chamber_fault(ActiveRun& run, const TickInput& in, double t_s);
 
   void transition(ActiveRun& run, storage::RunState to, const std::string& reason,
                   std::optional<double> t_s);
@@ -159,6 +186,9 @@ class Station {
   double setpoint_c_ = 0.0;      // the setpoint commanded now
   double clock_s_ = 0.0;         // last tick's daemon time
   std::optional<TickInput> last_input_;
+  // How the last run ended ({run_id, state, reason}), for status: a run ended by a fault is
+  // reported even when the store could not take its final state (a full disk).
+  nlohmann::json last_run_ = nullptr;
   std::int64_t ticks_ = 0;
 };
 

@@ -1,0 +1,233 @@
+// The station's answers to a chamber that misbehaves, without I/O: the link lost (held within
+// link_loss.tolerance_s, aborted past it or at once under safe_abort), the controller's alarm,
+// and a chamber that does not follow its setpoint (tracking.*). Whole runs in milliseconds.
+#include "fixture.hpp"
+
+using namespace fogbench;
+using namespace fogbench::daemon;
+using namespace fogbench::daemon::test;
+using nlohmann::json;
+
+namespace {
+
+struct Rig {
+  storage::Store store = memory_store();
+  std::unique_ptr<Station> st;
+  SyntheticBench bench{1};
+  double clock_s = 0.0;
+  double sp_c = 20.0;
+  std::int64_t run = 0;
+
+  explicit Rig(DaemonConfig c) {
+    st = std::make_unique<Station>(std::move(c), store, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
+    auto id = st->start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+    REQUIRE(id.has_value());
+    run = *id;
+    sp_c = st->status()["setpoint_c"].get<double>();
+  }
+  // One second; `edit` changes what the chamber reports.
+  template <class Edit>
+  void tick(Edit edit) {
+    TickInput in = bench.step(sp_c);
+    edit(in);
+    sp_c = st->tick(clock_s, in).setpoint_c;
+    clock_s += 1.0;
+  }
+  void tick() {
+    tick([](TickInput&) {});
+  }
+  storage::RunRecord record() {
+    auto d = store.get_run(run);
+    REQUIRE(d.has_value());
+    return d->run;
+  }
+};
+
+template <class T>
+std::string code_of_error(const ApiResult<T>& r) {
+  return r ? "ok" : std::string(to_string(r.error().code));
+}
+
+void link_down(TickInput& in) {
+  in.chamber_link_down = true;
+  in.chamber_c.reset();
+  in.chamber_setpoint_c.reset();
+}
+
+}  // namespace
+
+TEST_CASE("station faults: a link gap within link_loss.tolerance_s holds the profile clock and flags the gap") {
+  auto c = golden_config();
+  c.link_loss.tolerance_s = 30;
+  Rig r(std::move(c));
+  for (int i = 0; i < 700; ++i) r.tick();  // into the ramp to 25 degC (hold 600 s, then 1 degC/min)
+  const double sp_before_c = r.sp_c;
+  REQUIRE(sp_before_c > 20.5);
+  for (int i = 0; i < 20; ++i) r.tick(link_down);
+  // Held: the setpoint stood still through the gap.
+  CHECK(r.sp_c == sp_before_c);
+  CHECK(r.st->status()["run"]["profile_held_s"].get<double>() == Approx(20.0));
+  r.tick();
+  CHECK(r.st->active_run_id().has_value());
+  // Every second of the run is stored; the gap's 20 are flagged link_gap and missing.
+  CHECK(*r.store.count_samples(r.run, 0) == 721);
+  auto rows = r.store.get_samples(r.run, 0, 700, 21);
+  REQUIRE(rows->size() == 21);
+  for (int i = 0; i < 20; ++i) {
+    CHECK((rows->at(i).flags & model::flag::link_gap) != 0);
+    CHECK((rows->at(i).flags & model::flag::missing) != 0);
+    CHECK(rows->at(i).setpoint_c == sp_before_c);
+  }
+  CHECK((rows->at(20).flags & model::flag::link_gap) == 0);
+  // The profile ends 20 s later than without the gap: 1801 + 20 ticks in all.
+  int ticks = 721;
+  while (r.st->active_run_id() && ticks < 5000) {
+    r.tick();
+    ++ticks;
+  }
+  CHECK(ticks == 1821);
+  CHECK(r.record().state == storage::RunState::completed);
+}
+
+TEST_CASE("station faults: a gap longer than link_loss.tolerance_s aborts and commands the safe setpoint") {
+  auto c = golden_config();
+  c.link_loss.tolerance_s = 30;
+  c.safe_setpoint_c = 15;
+  Rig r(std::move(c));
+  for (int i = 0; i < 700; ++i) r.tick();
+  for (int i = 0; i < 40 && r.st->active_run_id(); ++i) r.tick(link_down);
+  CHECK_FALSE(r.st->active_run_id().has_value());
+  CHECK(r.sp_c == 15.0);  // the server writes it as soon as the link is back
+  CHECK(r.record().state == storage::RunState::aborted);
+  CHECK_THAT(r.record().state_reason, Catch::Contains("link_loss.tolerance_s 30"));
+}
+
+TEST_CASE("station faults: link_loss.policy safe_abort aborts at the first second without the chamber") {
+  auto c = golden_config();
+  c.link_loss.policy = LinkLossConfig::Policy::safe_abort;
+  Rig r(std::move(c));
+  for (int i = 0; i < 10; ++i) r.tick();
+  r.tick(link_down);
+  CHECK_FALSE(r.st->active_run_id().has_value());
+  CHECK_THAT(r.record().state_reason, Catch::Contains("safe_abort"));
+  CHECK(*r.store.count_samples(r.run, 0) == 11);
+}
+
+TEST_CASE("station faults: the chamber's alarm aborts the run with the reason stored") {
+  Rig r(golden_config());
+  for (int i = 0; i < 10; ++i) r.tick();
+  r.tick([](TickInput& in) { in.chamber_alarm = true; });
+  CHECK_FALSE(r.st->active_run_id().has_value());
+  CHECK(r.record().state == storage::RunState::aborted);
+  CHECK(r.record().state_reason == "chamber alarm");
+}
+
+TEST_CASE("station faults: a frozen PV while the setpoint moves aborts after tracking.frozen_s") {
+  auto c = golden_config();
+  c.tracking.frozen_s = 60;
+  Rig r(std::move(c));
+  // 600 s hold at 20 degC: the synthetic PV sits exactly at 20 degC, the setpoint does not
+  // move, and nothing trips.
+  for (int i = 0; i < 600; ++i) r.tick();
+  REQUIRE(r.st->active_run_id().has_value());
+  // The ramp at 1 degC/min: 60 s moves the setpoint 1 degC, past the 0.5 degC that separates
+  // a frozen PV from a chamber at rest.
+  for (int i = 0; i < 200 && r.st->active_run_id(); ++i) r.tick([](TickInput& in) { in.chamber_c = 20.0; });
+  CHECK_FALSE(r.st->active_run_id().has_value());
+  CHECK_THAT(r.record().state_reason, Catch::Contains("frozen"));
+}
+
+TEST_CASE("station faults: |PV - setpoint| over tracking.max_error_c for tracking.for_s aborts") {
+  auto c = golden_config();
+  c.tracking.max_error_c = 2;
+  c.tracking.for_s = 100;
+  Rig r(std::move(c));
+  for (int i = 0; i < 100; ++i) r.tick();
+  // A chamber stuck 3 degC low, changing in its last digits so it is not "frozen".
+  int n = 0;
+  for (; n < 300 && r.st->active_run_id(); ++n)
+    r.tick([n](TickInput& in) { in.chamber_c = 17.0 + 0.01 * (n % 2); });
+  CHECK_FALSE(r.st->active_run_id().has_value());
+  CHECK(n > 100);
+  CHECK_THAT(r.record().state_reason, Catch::Contains("tracking.max_error_c 2"));
+}
+
+TEST_CASE("station faults: a full disk ends the run, commands the safe setpoint and is reported in status") {
+  char tmpl[] = "/tmp/fogbench-diskfull-XXXXXX";
+  const std::filesystem::path dir = ::mkdtemp(tmpl);
+  const auto db = dir / "fogbench.db";
+  {
+    auto s = storage::Store::open(db);  // the schema, so the limit below leaves room for samples only
+    REQUIRE(s.has_value());
+  }
+  storage::OpenOptions o;
+  // 64 KiB over the empty store: some hundreds of one-unit seconds, well under short.profile's 1801.
+  o.size_limit_bytes = static_cast<std::int64_t>(std::filesystem::file_size(db)) + 64 * 1024;
+  auto opened = storage::Store::open(db, o);
+  REQUIRE(opened.has_value());
+  auto c = golden_config();
+  c.safe_setpoint_c = 15;
+  Station st(std::move(c), *opened, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
+  SyntheticBench bench(1);
+  auto id = st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+  REQUIRE(id.has_value());
+  double clock_s = 0;
+  const int ticks = run_to_end(st, bench, clock_s, 5000);
+  CHECK(ticks < 1801);
+  CHECK_FALSE(st.active_run_id().has_value());
+  const json s = st.status();
+  CHECK(s["setpoint_c"] == 15.0);
+  REQUIRE(s["last_run"].is_object());
+  CHECK(s["last_run"]["run_id"] == *id);
+  CHECK(s["last_run"]["state"] == "failed");
+  CHECK_THAT(s["last_run"]["reason"].get<std::string>(), Catch::Contains("disk_full"));
+  // The daemon goes on: ticks without a run still answer.
+  CHECK(st.tick(clock_s, bench.step(15)).setpoint_c == 15.0);
+  std::error_code ec;
+  std::filesystem::remove_all(dir, ec);
+}
+
+TEST_CASE("station faults: an interrupted run resumes where its profile clock stood, the gap stored flagged") {
+  auto store = memory_store();
+  std::int64_t run = 0;
+  double sp_c = 20.0;
+  SyntheticBench bench(1);
+  {
+    Station st(golden_config(), store, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
+    auto id = st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+    REQUIRE(id.has_value());
+    run = *id;
+    // 700 s: into the ramp; wall time = 1000 + run second.
+    for (int k = 0; k < 700; ++k) sp_c = st.tick(k, bench.step(sp_c, 1000.0 + k)).setpoint_c;
+    // The daemon dies here: no shutdown, the run left running.
+  }
+  Station st(golden_config(), store, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
+  REQUIRE(st.recover().has_value());
+  CHECK(store.get_run(run)->run.state == storage::RunState::interrupted);
+  CHECK(code_of_error(st.resume_run(run + 1, 0, {})) == "not_found");
+
+  // 50 s later (the last stored second was at wall time 1699).
+  auto r = st.resume_run(run, 1699.0 + 50.0, {{"cmd", "run.resume"}, {"run_id", run}});
+  REQUIRE(r.has_value());
+  CHECK(code_of_error(st.resume_run(run, 1750.0, {})) == "busy");
+  // The next ticks carry on the run clock after the gap; the profile goes on from 700 s.
+  int ticks = 0;
+  for (double clock_s = 5000; st.active_run_id() && ticks < 5000; clock_s += 1, ++ticks)
+    sp_c = st.tick(clock_s, bench.step(sp_c, 1750.0 + ticks)).setpoint_c;
+  auto d = store.get_run(run);
+  CHECK(d->run.state == storage::RunState::completed);
+  // The whole profile is 1801 s of profile clock; 700 were run before, 1101 after, and the 50 s
+  // gap (seconds 700 .. 749) is stored flagged in between.
+  CHECK(ticks == 1101);
+  CHECK(*store.count_samples(run, 0) == 700 + 50 + 1101);
+  auto rows = store.get_samples(run, 0, 0, 10000);
+  for (std::size_t i = 0; i < rows->size(); ++i) {
+    CHECK(rows->at(i).t_s == static_cast<double>(i));
+    const bool in_gap = i >= 700 && i < 750;
+    CHECK(((rows->at(i).flags & model::flag::link_gap) != 0) == in_gap);
+  }
+  // The held setpoint through the gap is the one of second 699, and the first resumed second
+  // steps on from it by one second of the 1 degC/min ramp.
+  CHECK(rows->at(749).setpoint_c == rows->at(699).setpoint_c);
+  CHECK(rows->at(750).setpoint_c == Approx(rows->at(699).setpoint_c + 1.0 / 60.0));
+}
