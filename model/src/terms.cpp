@@ -357,7 +357,7 @@ int precedence(const Expr& e) {
   switch (e.kind) {
     case K::add: case K::sub: return 1;
     case K::mul: return 2;
-    case K::neg: return 2;
+    case K::neg: return 1;  // parenthesised in products: (-T2)*T2 is not -(T2*T2)
     case K::delay: return 4;
     case K::pow: return 3;
     default: return 4;

@@ -145,6 +145,9 @@ TEST_CASE("one spelling per term: what fuzzing found") {
       {"(T1@1)@1", "(T1@1)@1"},    // a delayed expression with its own lag
       {"(T1@30)*T2", "(T1@30)*T2"},
       {"d((T1@5))", "d((T1@5))"},
+      {"d((-T2)*T2)", "d((-T2)*T2)"},  // not d(-(T2*T2))
+      {"d(-T2*T2)", "d(-(T2*T2))"},
+      {"d(T1 + -T2)", "d(T1+(-T2))"},
   };
   for (const auto& [in, out] : cases) {
     INFO(in);
