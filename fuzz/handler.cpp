@@ -4,11 +4,13 @@
 // configuration (tests/golden/config.json: two simulated units, the golden profiles) and an
 // in-memory store. As in the golden transcripts, a line `! tick N` lets N seconds of a small
 // synthetic bench pass instead (at most kMaxTicks per input), so runs start, record, end and
-// fit. Each input starts from a fresh station and store, so every finding replays alone.
+// fit; a line `! readonly` makes the rest a read-only (TCP) connection whose token is kToken.
+// Each input starts from a fresh station and store, so every finding replays alone.
 //
 // Properties: framing does not depend on how the bytes are cut into reads; every reply is a
 // "reply" object carrying the request's id and either a result or an error with a documented
-// code; an `internal` error is storage or analysis failing, never an exception caught from a
+// code; on a read-only connection a command that changes something succeeds only with the
+// token; an `internal` error is storage or analysis failing, never an exception caught from a
 // bug; every reply, sample and event serialises (the server sends reply.dump(), which throws
 // on invalid UTF-8).
 #include <algorithm>
@@ -134,8 +136,10 @@ std::string serialise(const json& message, const char* what) {
 }
 
 bool documented_code(const std::string& code) {
-  static const std::set<std::string> codes = {"bad_json", "bad_request", "unknown_command", "not_found", "busy",
-                                              "invalid_profile", "limits", "unknown_serial", "internal"};
+  static const std::set<std::string> codes = {"bad_json",        "bad_request", "unknown_command",
+                                              "not_found",       "busy",        "invalid_profile",
+                                              "limits",          "unknown_serial", "forbidden",
+                                              "internal"};
   return codes.contains(code);
 }
 
@@ -149,7 +153,10 @@ bool expected_internal(const std::string& message) {
   return false;
 }
 
-void check_reply(std::string_view line, const json& r) {
+// The token of the read-only session that a `! readonly` line switches to.
+constexpr const char* kToken = "fuzz-token-0123";
+
+void check_reply(std::string_view line, const json& r, const SessionState& session) {
   serialise(r, "reply");
   FUZZ_CHECK(r.is_object() && r.value("type", "") == "reply", "not a reply: %s", r.dump().c_str());
   FUZZ_CHECK(r.contains("id"), "a reply without an id");
@@ -171,6 +178,12 @@ void check_reply(std::string_view line, const json& r) {
   if (req.is_object() && req.contains("id") && (req["id"].is_number_integer() || req["id"].is_string()))
     FUZZ_CHECK(r["id"] == req["id"], "reply id %s for request id %s", r["id"].dump().c_str(),
                req["id"].dump().c_str());
+  // On a connection that may only read, a command that changes something succeeds only with
+  // the connection's token.
+  if (!session.may_control && r.contains("result") && req.is_object() && req.contains("cmd") &&
+      req["cmd"].is_string() && is_control_command(req["cmd"].get<std::string>()))
+    FUZZ_CHECK(req.contains("token") && req["token"] == session.control_token,
+               "a read-only connection ran %s without its token", req["cmd"].dump().c_str());
 }
 
 }  // namespace
@@ -203,8 +216,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
 
   for (const auto& line : split(bytes, kMaxLineBytes, {bytes.size() + 1})) {
     if (!line) {  // the server sends this and closes the connection
-      check_reply("", Handler::too_long());
+      check_reply("", Handler::too_long(), session);
       break;
+    }
+    if (*line == "! readonly") {  // from here on, a TCP connection's session
+      session.may_control = false;
+      session.control_token = kToken;
+      continue;
     }
     if (line->starts_with("! tick ")) {
       int n = 0;
@@ -215,7 +233,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     }
     const json reply = handler.handle_line(*line, session);
     if (print) std::fprintf(stderr, "> %s\n< %s\n", line->c_str(), reply.dump(-1, ' ', false, json::error_handler_t::replace).c_str());
-    check_reply(*line, reply);
+    check_reply(*line, reply, session);
   }
   station.shutdown("fuzz input ended");
   serialise(station.status(), "status");
