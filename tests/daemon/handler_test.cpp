@@ -171,3 +171,18 @@ TEST_CASE("handler: with a control token, a read-only connection controls only w
   // Reading needs no token, and a token does not hurt.
   CHECK(r.code(R"({"id":9,"cmd":"run.list","token":"0123456789abcdef-secret"})") == "ok");
 }
+
+TEST_CASE("handler: run.resume takes up only an interrupted run, and is a control command") {
+  Rig r;
+  CHECK(r.code(R"({"id":1,"cmd":"run.resume"})") == "bad_request");
+  CHECK(r.code(R"({"id":2,"cmd":"run.resume","run_id":"1"})") == "bad_request");
+  CHECK(r.code(R"({"id":3,"cmd":"run.resume","run_id":1})") == "not_found");
+  REQUIRE(r.code(R"({"id":4,"cmd":"run.start","profile":"short","units":["FOG-0001"]})") == "ok");
+  CHECK(r.code(R"({"id":5,"cmd":"run.resume","run_id":1})") == "busy");
+  REQUIRE(r.code(R"({"id":6,"cmd":"run.abort"})") == "ok");
+  json aborted = r.send(R"({"id":7,"cmd":"run.resume","run_id":1})");
+  CHECK(aborted["error"]["code"] == "bad_request");
+  CHECK_THAT(aborted["error"]["message"].get<std::string>(), Catch::Contains("only an interrupted run resumes"));
+  r.session.may_control = false;
+  CHECK(r.code(R"({"id":8,"cmd":"run.resume","run_id":1})") == "forbidden");
+}
