@@ -1,6 +1,7 @@
 // fogbenchd killed with SIGKILL in the middle of a run and started again on the same store:
 // every second stored up to the kill, the store intact, the run interrupted with its reason,
-// the chamber back at the safe setpoint, and the interrupted run still usable (export, fit).
+// the chamber back at the safe setpoint, and the interrupted run still usable (export, fit)
+// and resumable (run.resume).
 #include "live_bench.hpp"
 
 #include "fogbench/storage/store.hpp"
@@ -77,4 +78,29 @@ TEST_CASE("e2e crash: SIGKILL mid-run loses no stored second; the restart marks 
   auto fit = c.call({{"cmd", "model.fit"}, {"run_id", run}, {"unit", 0}});
   INFO(fit.dump());
   CHECK(code_of(fit) == "ok");
+
+  // Or the operator takes it up again: the profile goes on, the time away is stored flagged.
+  const auto before = g["result"]["samples"][0].get<std::int64_t>();
+  auto resumed = c.call({{"cmd", "run.resume"}, {"run_id", run}});
+  REQUIRE(code_of(resumed) == "ok");
+  auto on = bench.wait_status(c, [](const json& r) {
+    return r["run"].is_object() && r["run"]["state"] == "running";
+  }, 60s);
+  REQUIRE(on["result"]["run"].is_object());
+  CHECK(on["result"]["run"]["id"] == run);
+  CHECK(on["result"]["run"]["step"].get<int>() >= 3);  // where it stood, not from the start
+  REQUIRE(code_of(c.call({{"cmd", "run.abort"}, {"reason", "resumed enough"}})) == "ok");
+  auto after = c.call({{"cmd", "run.get"}, {"run_id", run}});
+  bool resume_event = false;
+  for (const auto& e : after["result"]["events"])
+    if (e["kind"] == "fault" && e["detail"].value("resumed", false)) resume_event = true;
+  CHECK(resume_event);
+  auto all = c.call({{"cmd", "run.samples"}, {"run_id", run}, {"unit", 0}, {"limit", 10000}});
+  REQUIRE(code_of(all) == "ok");
+  const auto& rows = all["result"]["samples"];
+  CHECK(static_cast<std::int64_t>(rows.size()) > before);
+  // Every second of the run clock, the time away included (flagged link_gap + missing).
+  for (std::size_t i = 0; i < rows.size(); ++i) CHECK(rows[i]["t_s"].get<double>() == static_cast<double>(i));
+  for (std::size_t i = static_cast<std::size_t>(before); i < rows.size() && (rows[i]["flags"].get<int>() & 8); ++i)
+    CHECK(rows[i]["chamber_c"].is_null());
 }
