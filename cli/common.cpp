@@ -1,6 +1,8 @@
 // Loading runs, models and profiles for fogctl.
 #include "common.hpp"
 
+#include <CLI/CLI.hpp>
+
 #include <chrono>
 #include <cerrno>
 #include <cstdlib>
@@ -26,6 +28,11 @@ std::expected<model::RunData, std::string> load_run(const std::string& path, con
   auto r = storage::read_csv_file(path, o);
   if (!r) return std::unexpected(r.error().message);
   return std::move(*r);
+}
+
+void add_run_input(CLI::App* c, RunInput& in) {
+  c->add_option("--map", in.maps, "Column of another name: canonical=header, e.g. gyro_dph=Rate (repeatable)");
+  c->add_option("--resample", in.resample_s, "Resample unevenly spaced time onto this step, s");
 }
 
 namespace {

@@ -12,6 +12,10 @@
 #include "fogbench/model/model.hpp"
 #include "fogbench/profiles/profile.hpp"
 
+namespace CLI {
+class App;
+}
+
 namespace fogbench::cli {
 
 // Exit codes: 0 done (and passed), 1 a verification that failed its threshold, 2 an error.
@@ -27,6 +31,8 @@ struct RunInput {
 };
 
 std::expected<model::RunData, std::string> load_run(const std::string& path, const RunInput& in);
+// Adds --map and --resample to a command that reads runs.
+void add_run_input(CLI::App* command, RunInput& in);
 std::expected<model::Model, std::string> load_model(const std::string& path);
 std::expected<void, std::string> write_text(const std::string& path, const std::string& text);
 

@@ -203,15 +203,6 @@ int run_verify(const VerifyOptions& o, std::ostream& out, std::ostream& err) {
   return all_pass ? kExitOk : kExitFailed;
 }
 
-namespace {
-
-void add_run_input(CLI::App* c, RunInput& in) {
-  c->add_option("--map", in.maps, "Column of another name: canonical=header, e.g. gyro_dph=Rate (repeatable)");
-  c->add_option("--resample", in.resample_s, "Resample unevenly spaced time onto this step, s");
-}
-
-}  // namespace
-
 void add_offline_commands(CLI::App& app, int& code) {
   static SimulateOptions sim;
   auto* s = app.add_subcommand("simulate", "Simulate a thermal run of a gyro on the mock bench's physics, to CSV");

@@ -274,15 +274,6 @@ int run_lineage(const LineageOptions& o, std::ostream& out, std::ostream& err) {
   return kExitOk;
 }
 
-namespace {
-
-void add_run_input(CLI::App* c, RunInput& in) {
-  c->add_option("--map", in.maps, "Column of another name: canonical=header, e.g. gyro_dph=Rate (repeatable)");
-  c->add_option("--resample", in.resample_s, "Resample unevenly spaced time onto this step, s");
-}
-
-}  // namespace
-
 void add_workbench_commands(CLI::App& app, int& code) {
   static CompareCommandOptions cmp;
   auto* c = app.add_subcommand("compare", "Where a model fails on runs: Table 1 per phase and step, failing intervals");
