@@ -10,29 +10,14 @@
 #include "fogbench/model/workbench.hpp"
 #include "fogbench/profiles/profile.hpp"
 #include "fogbench/sim/sim.hpp"
+#include "programs.hpp"
 
 using namespace fogbench;
 namespace wb = model::workbench;
 
 namespace {
 
-// The shipped profile's setpoints at 1 s without the opening settle, as in paper_test.cpp.
-std::vector<sim::SetpointSample> program(const std::string& name) {
-  std::ifstream f(std::string(FOGBENCH_SOURCE_DIR) + "/profiles/" + name + ".profile");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  auto p = profiles::parse_profile(ss.str(), name);
-  REQUIRE(p);
-  std::vector<sim::SetpointSample> out;
-  for (const auto& pt : profiles::nominal_setpoints(*p, 1.0)) {
-    if (pt.phase == profiles::Phase::settle) continue;
-    const model::Phase ph = pt.phase == profiles::Phase::heating   ? model::Phase::heating
-                            : pt.phase == profiles::Phase::cooling ? model::Phase::cooling
-                                                                   : model::Phase::hold;
-    out.push_back({pt.setpoint_c, ph, static_cast<int>(pt.step_index)});
-  }
-  return out;
-}
+using fogbench::test::program;
 
 model::RunData run(const std::string& profile, std::uint64_t seed, const std::string& effect) {
   sim::SimConfig cfg;
