@@ -114,7 +114,7 @@ ApiResult<int> resolve_unit(storage::Store& store, std::int64_t run_id, const js
 
 bool is_control_command(std::string_view cmd) {
   return cmd == "run.start" || cmd == "run.abort" || cmd == "run.resume" || cmd == "model.fit" ||
-         cmd == "model.verify";
+         cmd == "model.verify" || cmd == "model.add_term";
 }
 
 namespace {
@@ -390,6 +390,38 @@ ApiResult<json> Handler::dispatch(const std::string& cmd, const json& req, Sessi
       if (!model_id) return std::unexpected(model_id.error());
       r = station_.verify_unit(*run_id, *unit, *model_id);
     }
+    if (r) station_.audit(*run_id, req);
+    return r;
+  }
+
+  // The workbench on stored runs: compare and diagnose read, add_term stores a refined model.
+  if (cmd == "model.compare" || cmd == "model.diagnose" || cmd == "model.add_term") {
+    auto run_id = req_int(req, "run_id", 1, kMaxId);
+    if (!run_id) return std::unexpected(run_id.error());
+    if (station_.active_run_id() == *run_id)
+      return api_error(ErrorCode::busy, "run " + std::to_string(*run_id) + " is still active");
+    auto unit = resolve_unit(store, *run_id, req);
+    if (!unit) return std::unexpected(unit.error());
+    auto model_id = opt_int(req, "model_id", 1, kMaxId);
+    if (!model_id) return std::unexpected(model_id.error());
+    if (cmd == "model.compare") return station_.compare_unit(*run_id, *unit, *model_id);
+    if (cmd == "model.diagnose") {
+      std::vector<std::int64_t> held;
+      if (auto it = req.find("held_out"); it != req.end()) {
+        if (!it->is_array()) return api_error(ErrorCode::bad_request, "held_out: expected an array of run ids");
+        for (std::size_t i = 0; i < it->size(); ++i) {
+          const json& v = (*it)[i];
+          if (!v.is_number_integer() || v.get<std::int64_t>() < 1)
+            return api_error(ErrorCode::bad_request, "held_out[" + std::to_string(i) + "]: expected a run id");
+          held.push_back(v.get<std::int64_t>());
+        }
+      }
+      return station_.diagnose_unit(*run_id, *unit, *model_id, held);
+    }
+    auto term = opt_string(req, "term");
+    if (!term) return std::unexpected(term.error());
+    if (!*term) return api_error(ErrorCode::bad_request, "term: missing (the term to add, e.g. \"T1\")");
+    auto r = station_.add_term_unit(*run_id, *unit, **term, *model_id);
     if (r) station_.audit(*run_id, req);
     return r;
   }

@@ -14,6 +14,7 @@
 #include "fogbench/model/json.hpp"
 #include "fogbench/model/model.hpp"
 #include "fogbench/model/terms.hpp"
+#include "fogbench/model/workbench.hpp"
 
 namespace fogbench::daemon {
 
@@ -465,6 +466,114 @@ ApiResult<json> Station::verify_unit(std::int64_t run_id, int unit_index,
   if (!id) return std::unexpected(from_store(id.error()));
   return json{{"verification_id", *id}, {"run_id", run_id}, {"unit", unit_index},
               {"serial", serial}, {"model_id", rec.id}, {"pass", v->pass}, {"result", vj}};
+}
+
+namespace {
+// A stored run's unit with its serial, gaps bridged for analysis.
+struct UnitRun {
+  std::string serial;
+  model::RunData data;
+};
+}  // namespace
+
+static ApiResult<UnitRun> load_unit_run(storage::Store& store, std::int64_t run_id, int unit_index) {
+  auto detail = store.get_run(run_id);
+  if (!detail) return std::unexpected(from_store(detail.error()));
+  if (unit_index < 0 || unit_index >= static_cast<int>(detail->run.units.size()))
+    return api_error(ErrorCode::not_found, "run " + std::to_string(run_id) + " has no unit " +
+                                               std::to_string(unit_index));
+  UnitRun u;
+  u.serial = detail->run.units[static_cast<std::size_t>(unit_index)].serial;
+  auto data = store.export_run(run_id, unit_index);
+  if (!data) return std::unexpected(from_store(data.error()));
+  u.data = std::move(*data);
+  u.data.name = "run " + std::to_string(run_id) + " " + u.serial;
+  bridge_missing(u.data);
+  return u;
+}
+
+static ApiResult<storage::ModelRecord> model_for(storage::Store& store, const std::string& serial,
+                                                 std::optional<std::int64_t> model_id) {
+  if (model_id) {
+    auto r = store.get_model(*model_id);
+    if (!r) return std::unexpected(from_store(r.error()));
+    return *r;
+  }
+  auto r = store.current_model(serial);
+  if (!r) return std::unexpected(from_store(r.error()));
+  if (!*r) return api_error(ErrorCode::unknown_serial, "unit " + serial + ": no model yet (fit one first)");
+  return **r;
+}
+
+static ApiError analysis_error(const char* what, const model::FitError& e) {
+  return ApiError{ErrorCode::bad_request, std::string(what) + " (" + std::string(model::to_string(e.code)) + "): " + e.message};
+}
+
+ApiResult<json> Station::compare_unit(std::int64_t run_id, int unit_index, std::optional<std::int64_t> model_id) {
+  auto u = load_unit_run(store_, run_id, unit_index);
+  if (!u) return std::unexpected(u.error());
+  auto rec = model_for(store_, u->serial, model_id);
+  if (!rec) return std::unexpected(rec.error());
+  auto m = model::model_from_text(rec->model_json);
+  if (!m) return api_error(ErrorCode::internal, "model " + std::to_string(rec->id) + ": " + m.error());
+  auto c = model::workbench::compare(*m, u->data);
+  if (!c) return std::unexpected(analysis_error("compare failed", c.error()));
+  return json{{"run_id", run_id}, {"unit", unit_index}, {"serial", u->serial}, {"model_id", rec->id},
+              {"result", model::workbench::to_json(*c)}};
+}
+
+ApiResult<json> Station::diagnose_unit(std::int64_t run_id, int unit_index, std::optional<std::int64_t> model_id,
+                                       const std::vector<std::int64_t>& held_out_runs) {
+  auto u = load_unit_run(store_, run_id, unit_index);
+  if (!u) return std::unexpected(u.error());
+  auto rec = model_for(store_, u->serial, model_id);
+  if (!rec) return std::unexpected(rec.error());
+  auto m = model::model_from_text(rec->model_json);
+  if (!m) return api_error(ErrorCode::internal, "model " + std::to_string(rec->id) + ": " + m.error());
+  // Held-out runs: the same gyro (serial) in other stored runs.
+  std::vector<model::RunData> held;
+  for (std::int64_t other : held_out_runs) {
+    auto d = store_.get_run(other);
+    if (!d) return std::unexpected(from_store(d.error()));
+    int idx = -1;
+    for (const auto& ru : d->run.units)
+      if (ru.serial == u->serial) idx = ru.unit_index;
+    if (idx < 0)
+      return api_error(ErrorCode::not_found, "held_out run " + std::to_string(other) + " has no unit " + u->serial);
+    auto h = load_unit_run(store_, other, idx);
+    if (!h) return std::unexpected(h.error());
+    held.push_back(std::move(h->data));
+  }
+  auto dg = model::workbench::diagnose(*m, u->data, held);
+  if (!dg) return std::unexpected(analysis_error("diagnose failed", dg.error()));
+  return json{{"run_id", run_id}, {"unit", unit_index}, {"serial", u->serial}, {"model_id", rec->id},
+              {"held_out", held_out_runs}, {"result", model::workbench::to_json(*dg)}};
+}
+
+ApiResult<json> Station::add_term_unit(std::int64_t run_id, int unit_index, const std::string& term,
+                                       std::optional<std::int64_t> model_id) {
+  auto u = load_unit_run(store_, run_id, unit_index);
+  if (!u) return std::unexpected(u.error());
+  auto rec = model_for(store_, u->serial, model_id);
+  if (!rec) return std::unexpected(rec.error());
+  auto m = model::model_from_text(rec->model_json);
+  if (!m) return api_error(ErrorCode::internal, "model " + std::to_string(rec->id) + ": " + m.error());
+  auto added = model::workbench::add_term(*m, u->data, term);
+  if (!added) return std::unexpected(analysis_error("add_term failed", added.error()));
+  added->model.created_at = wall_clock_();
+  storage::NewModel nm;
+  nm.serial = u->serial;
+  nm.run_id = run_id;
+  nm.parent_id = rec->id;
+  json mj = model::to_json(added->model);
+  nm.model_json = mj.dump();
+  nm.method = std::string(model::to_string(added->model.method));
+  nm.terms = added->model.terms_string();
+  auto ref = store_.put_model(nm);
+  if (!ref) return std::unexpected(from_store(ref.error()));
+  return json{{"model_id", ref->id}, {"version", ref->version}, {"serial", u->serial},
+              {"run_id", run_id}, {"unit", unit_index}, {"parent_id", rec->id},
+              {"added", added->added}, {"terms", nm.terms}, {"method", nm.method}, {"model", mj}};
 }
 
 TickOutput Station::tick(double clock_s, const TickInput& in) {

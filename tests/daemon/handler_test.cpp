@@ -186,3 +186,45 @@ TEST_CASE("handler: run.resume takes up only an interrupted run, and is a contro
   r.session.may_control = false;
   CHECK(r.code(R"({"id":8,"cmd":"run.resume","run_id":1})") == "forbidden");
 }
+
+TEST_CASE("handler: the workbench on stored runs: model.compare, model.diagnose, model.add_term") {
+  Rig r;
+  SyntheticBench bench(1);
+  double clock_s = 0.0;
+  // Run 1 fits FOG-0001's model 1 when it completes; run 2 is a second run of the same gyro.
+  REQUIRE(r.code(R"({"id":1,"cmd":"run.start","profile":"short","units":["FOG-0001"],"purpose":"fit"})") == "ok");
+  run_to_end(r.station, bench, clock_s);
+  REQUIRE(r.code(R"({"id":2,"cmd":"run.start","profile":"short","units":["FOG-0001"],"purpose":"verify"})") == "ok");
+  run_to_end(r.station, bench, clock_s);
+  REQUIRE(r.store.current_model("FOG-0001")->has_value());
+
+  json c = r.send(R"({"id":3,"cmd":"model.compare","run_id":2,"unit":"FOG-0001"})");
+  REQUIRE(c.contains("result"));
+  CHECK(c["result"]["model_id"] == 1);
+  CHECK(c["result"]["result"].contains("adequate"));
+
+  json d = r.send(R"({"id":4,"cmd":"model.diagnose","run_id":1,"unit":0,"held_out":[2]})");
+  REQUIRE(d.contains("result"));
+  CHECK(d["result"]["held_out"] == json::array({2}));
+  CHECK(d["result"]["result"]["candidates"].is_array());
+  CHECK(d["result"]["result"]["adequate"].is_boolean());
+
+  json a = r.send(R"({"id":5,"cmd":"model.add_term","run_id":1,"unit":0,"term":"T1"})");
+  REQUIRE(a.contains("result"));
+  CHECK(a["result"]["parent_id"] == 1);
+  CHECK(a["result"]["version"] == 2);
+  CHECK(a["result"]["model"]["parent"]["method"].is_string());  // the lineage travels with the model
+  CHECK((*r.store.current_model("FOG-0001"))->id == a["result"]["model_id"].get<std::int64_t>());
+
+  // Bad input: a clear error, nothing stored.
+  CHECK(r.code(R"({"id":6,"cmd":"model.add_term","run_id":1,"unit":0,"term":"T9"})") == "bad_request");
+  CHECK(r.code(R"({"id":7,"cmd":"model.add_term","run_id":1,"unit":0})") == "bad_request");
+  CHECK(r.code(R"({"id":8,"cmd":"model.diagnose","run_id":1,"held_out":"2"})") == "bad_request");
+  CHECK(r.code(R"({"id":9,"cmd":"model.diagnose","run_id":1,"held_out":[7]})") == "not_found");
+  CHECK(r.code(R"({"id":10,"cmd":"model.compare","run_id":1,"model_id":99})") == "not_found");
+  CHECK(r.store.list_models("FOG-0001")->size() == 2);
+  // add_term stores a model: a control command; compare and diagnose only read.
+  r.session.may_control = false;
+  CHECK(r.code(R"({"id":11,"cmd":"model.add_term","run_id":1,"term":"T1"})") == "forbidden");
+  CHECK(r.code(R"({"id":12,"cmd":"model.compare","run_id":2})") == "ok");
+}

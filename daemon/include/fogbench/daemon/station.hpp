@@ -122,6 +122,16 @@ class Station {
                                      const std::string& method);
   ApiResult<nlohmann::json> verify_unit(std::int64_t run_id, int unit_index,
                                         std::optional<std::int64_t> model_id);
+  // The workbench on stored runs (docs/workbench.md): model_id empty means the unit's serial's
+  // current model. compare and diagnose store nothing; add_term stores the refined model with
+  // the model it came from as its parent.
+  ApiResult<nlohmann::json> compare_unit(std::int64_t run_id, int unit_index,
+                                         std::optional<std::int64_t> model_id);
+  ApiResult<nlohmann::json> diagnose_unit(std::int64_t run_id, int unit_index,
+                                          std::optional<std::int64_t> model_id,
+                                          const std::vector<std::int64_t>& held_out_runs);
+  ApiResult<nlohmann::json> add_term_unit(std::int64_t run_id, int unit_index, const std::string& term,
+                                          std::optional<std::int64_t> model_id);
 
   storage::Store& store() { return store_; }
   const DaemonConfig& config() const { return config_; }
