@@ -3,6 +3,7 @@
 #include "fogbench/storage/csv.hpp"
 
 #include <fcntl.h>
+#include <sched.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -62,6 +63,25 @@ constexpr double kSpacingTolerance = 0.01;
 constexpr double kGapSteps = 1.5;
 // Resampling onto more points than this is surely a unit mistake (ms given as s).
 constexpr double kMaxResampledRows = 1e8;
+
+// The CPUs this process may run on (its affinity, e.g. under taskset), not those of the machine.
+unsigned usable_cpus() {
+  cpu_set_t set;
+  if (sched_getaffinity(0, sizeof set, &set) == 0) return static_cast<unsigned>(CPU_COUNT(&set));
+  return std::max(1u, std::thread::hardware_concurrency());
+}
+
+// The lines of a text, counted with memchr (std::count goes a byte at a time).
+std::size_t count_lines(std::string_view text) {
+  std::size_t n = 1;
+  const char* p = text.data();
+  const char* const end = p + text.size();
+  while (const auto* nl = static_cast<const char*>(std::memchr(p, '\n', static_cast<std::size_t>(end - p)))) {
+    ++n;
+    p = nl + 1;
+  }
+  return n;
+}
 
 std::string_view trim(std::string_view s) {
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
@@ -379,7 +399,7 @@ class Parser {
   bool read_rows_in_two(std::size_t body_pos) {
     constexpr std::size_t kMinParallelBytes = 4u << 20;
     const std::string_view body = text_.substr(body_pos);
-    if (body.size() < kMinParallelBytes || std::thread::hardware_concurrency() < 2) return false;
+    if (body.size() < kMinParallelBytes || usable_cpus() < 2) return false;
     const std::size_t nl = body.find('\n', body.size() / 2);
     if (nl == std::string_view::npos || nl + 1 >= body.size()) return false;
     const std::string_view first = body.substr(0, nl + 1), second = body.substr(nl + 1);
@@ -391,7 +411,7 @@ class Parser {
       second_ok = other.read_rows(l, second);
     });
     Lines l(first);
-    const auto first_ok = read_rows(l, first);
+    const auto first_ok = read_rows(l, body);  // reserves room for both halves: no regrowth below
     worker.join();
     auto& a = data_;
     auto& b = other.data_;
@@ -412,11 +432,11 @@ class Parser {
     return true;
   }
 
+  // Reads the data rows of `lines`; `region` is the text whose rows to reserve room for.
   std::expected<void, CsvError> read_rows(Lines& lines, std::string_view region) {
     // One row per remaining line at most: reserving that bound avoids regrowth, and the excess
     // is small next to the data.
-    const auto rows = static_cast<std::size_t>(
-        std::count(region.begin(), region.end(), '\n') + 1);
+    const std::size_t rows = count_lines(region);
     data_.name = source_;
     std::vector<double>* doubles[r_count] = {&data_.time_s, &data_.gyro_dph, &data_.t1_c,
                                              &data_.t2_c,   &data_.setpoint_c, &data_.chamber_c};
@@ -426,7 +446,6 @@ class Parser {
     if (field_of_[r_step] >= 0) data_.step.reserve(rows);
     if (field_of_[r_flags] >= 0) data_.flags.reserve(rows);
 
-    const std::size_t expected_fields = names_.size();
     const std::size_t time_field = static_cast<std::size_t>(field_of_[r_time]) + 1;
     double prev_time = 0;
     std::size_t prev_line = 0;
@@ -434,39 +453,8 @@ class Parser {
     while (lines.next(line)) {
       if (is_blank_or_comment(line)) continue;
       const std::size_t ln = lines.line_no();
-      Fields fields(line);
-      std::string_view cell;
-      std::size_t i = 0;
-      while (fields.next(cell)) {
-        if (i >= expected_fields) {
-          std::size_t n = i + 1;
-          while (fields.next(cell)) ++n;
-          return fail(CsvErrc::field_count, ln, 0,
-                      std::to_string(n) + " fields but the header (line " +
-                          std::to_string(header_line_) + ") has " +
-                          std::to_string(expected_fields));
-        }
-        const int role = role_of_[i];
-        ++i;
-        if (role == r_ignore) continue;
-        if (auto ok = parse_cell(role, cell, ln, i, doubles); !ok) return ok;
-      }
-      if (fields.bad_quote())
-        return fail(CsvErrc::bad_quote, ln, i + 1, "unterminated quoted field");
-      if (empty_field_) {
-        const std::size_t f = empty_field_;
-        empty_field_ = 0;
-        if (data_.flags.empty() || !(data_.flags.back() & model::flag::missing))
-          return fail(CsvErrc::not_a_number, ln, f,
-                      "empty cell, expected a number (an empty cell is allowed only on a row "
-                      "whose flags column has the missing bit, 1, set)");
-      }
-      if (i < expected_fields)
-        return fail(CsvErrc::field_count, ln, 0,
-                    "too few fields: " + std::to_string(i) + " but the header (line " +
-                        std::to_string(header_line_) + ") has " +
-                        std::to_string(expected_fields) + "; first missing: column " +
-                        std::to_string(i + 1) + " '" + names_[i] + "'");
+      if (!fast_row(line, doubles))
+        if (auto ok = general_row(line, ln, doubles); !ok) return ok;
       const double t = data_.time_s.back();
       if (data_.time_s.size() > 1 && !(t > prev_time))
         return fail(CsvErrc::time_not_increasing, ln, time_field,
@@ -476,6 +464,96 @@ class Parser {
       prev_time = t;
       prev_line = ln;
     }
+    return {};
+  }
+
+  // The common row, parsed in one pass: every cell a plain number (or phase name), no spaces,
+  // quotes or empty cells. Any row it does not take is left untouched for general_row, which
+  // accepts the same values and more, and names what is wrong; so the fast path only decides
+  // how fast a row is read, never what it reads.
+  bool fast_row(std::string_view line, std::vector<double>* doubles[]) {
+    const char* p = line.data();
+    const char* const end = p + line.size();
+    double values[r_chamber + 1];
+    model::Phase phase{};
+    int step = 0;
+    unsigned flags = 0;
+    const std::size_t n = names_.size();
+    for (std::size_t i = 0; i < n; ++i) {
+      const int role = role_of_[i];
+      if (role == r_ignore) {
+        for (; p != end && *p != ','; ++p)
+          if (*p == '"') return false;  // a quoted cell may hold commas
+      } else if (role <= r_chamber) {
+        double v;
+        const auto [q, ec] = std::from_chars(p, end, v);
+        if (ec != std::errc{} || q == p || !std::isfinite(v)) return false;
+        values[role] = v;
+        p = q;
+      } else if (role == r_phase) {
+        const char* q = p;
+        while (q != end && *q != ',') ++q;
+        const auto ph = model::phase_from_string(std::string_view(p, static_cast<std::size_t>(q - p)));
+        if (!ph) return false;
+        phase = *ph;
+        p = q;
+      } else {
+        const auto [q, ec] = role == r_step ? std::from_chars(p, end, step) : std::from_chars(p, end, flags);
+        if (ec != std::errc{} || q == p || (role == r_flags && flags > 0xFFu)) return false;
+        p = q;
+      }
+      if (i + 1 < n) {
+        if (p == end || *p != ',') return false;
+        ++p;
+      } else if (p != end) {
+        return false;
+      }
+    }
+    for (int role = 0; role <= r_chamber; ++role)
+      if (field_of_[role] >= 0) doubles[role]->push_back(values[role]);
+    if (field_of_[r_phase] >= 0) data_.phase.push_back(phase);
+    if (field_of_[r_step] >= 0) data_.step.push_back(step);
+    if (field_of_[r_flags] >= 0) data_.flags.push_back(static_cast<std::uint8_t>(flags));
+    return true;
+  }
+
+  // Any row, cell by cell, with the exact error of the first bad cell.
+  std::expected<void, CsvError> general_row(std::string_view line, std::size_t ln,
+                                            std::vector<double>* doubles[]) {
+    const std::size_t expected_fields = names_.size();
+    Fields fields(line);
+    std::string_view cell;
+    std::size_t i = 0;
+    while (fields.next(cell)) {
+      if (i >= expected_fields) {
+        std::size_t n = i + 1;
+        while (fields.next(cell)) ++n;
+        return fail(CsvErrc::field_count, ln, 0,
+                    std::to_string(n) + " fields but the header (line " +
+                        std::to_string(header_line_) + ") has " +
+                        std::to_string(expected_fields));
+      }
+      const int role = role_of_[i];
+      ++i;
+      if (role == r_ignore) continue;
+      if (auto ok = parse_cell(role, cell, ln, i, doubles); !ok) return ok;
+    }
+    if (fields.bad_quote())
+      return fail(CsvErrc::bad_quote, ln, i + 1, "unterminated quoted field");
+    if (empty_field_) {
+      const std::size_t f = empty_field_;
+      empty_field_ = 0;
+      if (data_.flags.empty() || !(data_.flags.back() & model::flag::missing))
+        return fail(CsvErrc::not_a_number, ln, f,
+                    "empty cell, expected a number (an empty cell is allowed only on a row "
+                    "whose flags column has the missing bit, 1, set)");
+    }
+    if (i < expected_fields)
+      return fail(CsvErrc::field_count, ln, 0,
+                  "too few fields: " + std::to_string(i) + " but the header (line " +
+                      std::to_string(header_line_) + ") has " +
+                      std::to_string(expected_fields) + "; first missing: column " +
+                      std::to_string(i + 1) + " '" + names_[i] + "'");
     return {};
   }
 
