@@ -215,19 +215,38 @@ std::expected<void, FitError> check_time(const RunData& run) {
 }
 
 // Names the terms that make the regression singular: those with weight in the null vector
-// of the correlation matrix of the columns.
+// of the correlation matrix of the columns. Column j is read delayed by lags[j] samples (the
+// first sample standing in before the start), so lagged columns need no copies; no lags, no
+// delay.
 std::expected<void, FitError> check_collinear(const std::vector<std::vector<double>>& cols,
-                                              const std::vector<std::string>& names, std::span<const double> w) {
+                                              const std::vector<std::string>& names, std::span<const double> w,
+                                              std::span<const std::size_t> lags = {}) {
   const std::size_t m = cols.size();
   if (m == 0) return {};
   const std::size_t n = w.size();
+  auto at = [&](std::size_t j, std::size_t t) {
+    const std::size_t lag = lags.empty() ? 0 : lags[j];
+    return cols[j][t >= lag ? t - lag : 0];
+  };
   const double sw = std::accumulate(w.begin(), w.end(), 0.0);
   std::vector<double> mean(m, 0.0), sd(m, 0.0);
   for (std::size_t j = 0; j < m; ++j) {
-    for (std::size_t t = 0; t < n; ++t) mean[j] += w[t] * cols[j][t];
+    for (std::size_t t = 0; t < n; ++t)
+      if (w[t] != 0.0) mean[j] += w[t] * at(j, t);
     mean[j] /= sw;
-    for (std::size_t t = 0; t < n; ++t) sd[j] += w[t] * (cols[j][t] - mean[j]) * (cols[j][t] - mean[j]);
-    sd[j] = std::sqrt(sd[j] / sw);
+  }
+  // The centred cross products of all pairs in one pass (two-pass for accuracy: a term of
+  // large mean and small spread loses nothing to cancellation).
+  Eigen::MatrixXd C = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(m));
+  std::vector<double> d(m);
+  for (std::size_t t = 0; t < n; ++t) {
+    if (w[t] == 0.0) continue;
+    for (std::size_t j = 0; j < m; ++j) d[j] = at(j, t) - mean[j];
+    for (std::size_t a = 0; a < m; ++a)
+      for (std::size_t b = a; b < m; ++b) C(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) += w[t] * d[a] * d[b];
+  }
+  for (std::size_t j = 0; j < m; ++j) {
+    sd[j] = std::sqrt(C(static_cast<Eigen::Index>(j), static_cast<Eigen::Index>(j)) / sw);
     const double scale = std::max(1.0, std::abs(mean[j]));
     if (!(sd[j] > 1e-9 * scale))
       return fail(FitError::Code::collinear, "term '" + names[j] +
@@ -237,8 +256,7 @@ std::expected<void, FitError> check_collinear(const std::vector<std::vector<doub
   Eigen::MatrixXd R(m, m);
   for (std::size_t a = 0; a < m; ++a)
     for (std::size_t b = a; b < m; ++b) {
-      double c = 0.0;
-      for (std::size_t t = 0; t < n; ++t) c += w[t] * (cols[a][t] - mean[a]) * (cols[b][t] - mean[b]);
+      const double c = C(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b));
       R(a, b) = R(b, a) = c / (sw * sd[a] * sd[b]);
     }
   auto min_eig = [](const Eigen::MatrixXd& M) {
@@ -798,17 +816,13 @@ std::expected<Model, FitError> fit(const RunData& run, const TermList& tl, const
   if (!m) return m;
   // A pair of @auto terms that are collinear only at their fitted lags is caught here.
   {
-    std::vector<std::vector<double>> cols;
-    for (std::size_t j = 0; j < terms.size(); ++j) {
-      const auto lag = static_cast<std::size_t>(m->terms[j].term.lag.seconds);
-      std::vector<double> c(n);
-      for (std::size_t t = 0; t < n; ++t) c[t] = ev->x[j][t >= lag ? t - lag : 0];
-      cols.push_back(std::move(c));
-    }
+    std::vector<std::size_t> lags;
     std::vector<std::string> lagged_names;
-    for (std::size_t j = 0; j < terms.size(); ++j)
+    for (std::size_t j = 0; j < terms.size(); ++j) {
+      lags.push_back(static_cast<std::size_t>(m->terms[j].term.lag.seconds));
       lagged_names.push_back(ev->names[j] + "@" + std::to_string(m->terms[j].term.lag.seconds));
-    if (auto c = check_collinear(cols, lagged_names, w); !c) return std::unexpected(c.error());
+    }
+    if (auto c = check_collinear(ev->x, lagged_names, w, lags); !c) return std::unexpected(c.error());
   }
   m->fit.n_flagged = n_flagged;
   m->tref_c = o.tref_c;
