@@ -10,13 +10,14 @@
 
 namespace fogbench::model::detail {
 
+// The transforms of a series' overlap-save blocks, end to end; made and read by LagScanner only.
 using Spectrum = std::vector<std::complex<double>>;
 
 // A regressor extended at the front by L copies of its first value (the steady hold before
 // the run), so that x(t - i) = ext[t + L - i] exists for every t >= 0 and i <= L.
 struct Lagged {
   std::vector<double> ext;      // length N + L
-  mutable Spectrum spec;        // FFT of ext, computed on first use
+  mutable Spectrum spec;        // FFT of ext's blocks, computed on first use
 };
 Lagged make_lagged(std::span<const double> x, int max_lag);
 // The column x(t - lag), t = 0..N-1.
@@ -43,7 +44,9 @@ class LagScanner {
   const Spectrum& spec_of(const Lagged& x) const;
   std::size_t n_;
   int max_lag_;
-  std::size_t m_;                    // FFT length >= N + L
+  std::size_t m_;                    // FFT length of a block, >= step_ + L
+  std::size_t step_;                 // target samples per block
+  std::size_t blocks_;               // ceil(N / step_)
   std::vector<double> w_;
   std::vector<std::size_t> zeros_;   // samples with weight 0 (sparse corrections)
   bool sparse_zeros_ = true;
