@@ -29,6 +29,10 @@ class Database {
   const std::filesystem::path& path() const { return path_; }
   const OpenOptions& options() const { return options_; }
   int version = 0;  // the schema version, once opened
+  // OpenOptions::size_limit_bytes in pages (0: no limit), and the last pages of it kept for the
+  // audit trail: samples may not use them (see with_reserve in store.cpp).
+  std::int64_t limit_pages = 0;
+  std::int64_t reserve_pages = 0;
 
   // The failure of the call that just returned `rc`, with what was being done.
   StoreError error(int rc, std::string_view what) const;

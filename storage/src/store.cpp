@@ -99,6 +99,31 @@ std::optional<EventKind> event_kind_from_string(std::string_view s) {
 
 namespace {
 
+// With OpenOptions::size_limit_bytes, the last pages of the limit (16 KiB at 4 KiB pages, at
+// most a quarter of it) are kept for the audit trail. Samples fill the store up to the reserve;
+// when they fail for a full store, the run's end (its state, a note, the reason) must still be
+// written, so state changes and events that fail with disk_full are tried once more with the
+// reserve opened. A real full disk has no such reserve: there the retry fails too.
+constexpr std::int64_t kReservePages = 4;
+
+template <class Write>
+auto with_reserve(Database& db, Write&& write) -> decltype(write()) {
+  auto r = write();
+  if (r || r.error().code != StoreErrc::disk_full || db.reserve_pages == 0) return r;
+  if (!db.exec("PRAGMA max_page_count = " + std::to_string(db.limit_pages), "open the size limit's reserve"))
+    return r;
+  r = write();
+  // Never below the file's size: SQLite keeps max_page_count at the page count then, so
+  // samples still find no room.
+  (void)db.exec("PRAGMA max_page_count = " + std::to_string(db.limit_pages - db.reserve_pages),
+                "close the size limit's reserve");
+  return r;
+}
+
+}  // namespace
+
+namespace {
+
 template <class T>
 std::unexpected<StoreError> fail(StoreResult<T>&& r) {
   return std::unexpected(std::move(r).error());
@@ -370,7 +395,10 @@ StoreResult<Store> Store::open(const std::filesystem::path& path, const OpenOpti
       if (*got) page_size = q.int64(0);
     }
     const std::int64_t pages = std::max<std::int64_t>(1, *options.size_limit_bytes / page_size);
-    if (auto ok = db->exec("PRAGMA max_page_count = " + std::to_string(pages), "set size limit");
+    db->limit_pages = pages;
+    db->reserve_pages = std::min<std::int64_t>(kReservePages, pages / 4);
+    if (auto ok = db->exec("PRAGMA max_page_count = " + std::to_string(pages - db->reserve_pages),
+                           "set size limit");
         !ok)
       return fail(std::move(ok));
   }
@@ -429,6 +457,7 @@ StoreResult<void> Store::set_run_state(std::int64_t run_id, RunState state,
                                        std::string_view reason, std::optional<double> t_s) {
   assert(db_);
   Database& db = *db_;
+  return with_reserve(db, [&]() -> StoreResult<void> {
   const std::string what =
       "set " + run_label(run_id) + " to " + std::string(to_string(state));
   Transaction tx(db);
@@ -470,6 +499,7 @@ StoreResult<void> Store::set_run_state(std::int64_t run_id, RunState state,
     return fail(std::move(ok));
   if (auto ok = tx.commit(what); !ok) return fail(std::move(ok));
   return {};
+  });
 }
 
 StoreResult<std::int64_t> Store::add_event(std::int64_t run_id, EventKind kind,
@@ -483,7 +513,7 @@ StoreResult<std::int64_t> Store::add_event(std::int64_t run_id, EventKind kind,
                                     "add a " + std::string(to_string(kind)) + " event to " +
                                         run_label(run_id) + ": detail is not valid JSON"));
   if (auto ok = require_run(db, run_id); !ok) return fail(std::move(ok));
-  return insert_event(db, run_id, t_s, kind, detail);
+  return with_reserve(db, [&] { return insert_event(db, run_id, t_s, kind, detail); });
 }
 
 namespace {
@@ -586,6 +616,7 @@ StoreResult<RunDetail> Store::get_run(std::int64_t run_id) {
 StoreResult<std::vector<std::int64_t>> Store::mark_interrupted_runs(std::string_view reason) {
   assert(db_);
   Database& db = *db_;
+  return with_reserve(db, [&]() -> StoreResult<std::vector<std::int64_t>> {
   const std::string what = "mark interrupted runs";
   Transaction tx(db);
   if (auto ok = tx.begin(what); !ok) return fail(std::move(ok));
@@ -629,6 +660,7 @@ StoreResult<std::vector<std::int64_t>> Store::mark_interrupted_runs(std::string_
   }
   if (auto ok = tx.commit(what); !ok) return fail(std::move(ok));
   return ids;
+  });
 }
 
 // ---------------------------------------------------------------- samples

@@ -804,6 +804,39 @@ TEST_CASE("store: a full disk is an error value, earlier data intact", "[store][
   CHECK(s.get_run(run).has_value());
 }
 
+TEST_CASE("store: a size limit keeps a reserve for the run's end after samples filled it", "[store][failure]") {
+  TempDir tmp;
+  const auto path = tmp / "reserve.db";
+  OpenOptions o;
+  o.size_limit_bytes = 256 * 1024;
+  Store s = open_ok(path, o);
+  const auto run = s.create_run(two_unit_run()).value();
+  REQUIRE(s.set_run_state(run, RunState::running, "started").has_value());
+  int second = 0;
+  for (; second < 100000; ++second) {
+    std::vector<SampleRow> rows;
+    for (int u = 0; u < 2; ++u) rows.push_back(sample(u, second));
+    if (!s.append_samples(run, rows)) break;
+  }
+  REQUIRE(second < 100000);
+  // Samples are refused, but the end of the run still goes in: a note and the state change.
+  // Larger than a page: it needs new pages (overflow), which only the reserve has.
+  const std::string note(5000, 'q');
+  CHECK(s.add_event(run, EventKind::note, "{\"why\":\"" + note + "\"}").has_value());
+  CHECK(s.set_run_state(run, RunState::aborted, "storage full").has_value());
+  CHECK(s.get_run(run).value().run.state == RunState::aborted);
+  // ... and the reserve is closed again: the second that did not fit still does not.
+  const SampleRow next[] = {sample(0, second), sample(1, second)};
+  auto r = s.append_samples(run, next);
+  REQUIRE_FALSE(r.has_value());
+  CHECK(r.error().code == StoreErrc::disk_full);
+  CHECK(s.count_samples(run).value() == 2 * second);
+  CHECK(s.integrity_check().value().empty());
+  // The file stays within its limit once the WAL is checkpointed into it (at close).
+  s = Store::open(":memory:").value();
+  CHECK(std::filesystem::file_size(path) <= 256 * 1024);
+}
+
 TEST_CASE("store: a second connection reads while the first writes (WAL)", "[store][wal]") {
   TempDir tmp;
   const auto path = tmp / "wal.db";
