@@ -121,22 +121,6 @@ ScanResult scan(const LagScanner& sc, std::span<const double> y, const Spectrum*
   return best;
 }
 
-// Weighted centred moving average of width `width` samples (shrunk at the ends).
-std::vector<double> smooth(std::span<const double> y, std::span<const double> w, int width) {
-  const std::size_t n = y.size();
-  std::vector<double> sy(n + 1, 0.0), sw(n + 1, 0.0), out(n);
-  for (std::size_t t = 0; t < n; ++t) {
-    sy[t + 1] = sy[t] + w[t] * y[t];
-    sw[t + 1] = sw[t] + w[t];
-  }
-  const auto h = static_cast<std::size_t>(std::max(0, width / 2));
-  for (std::size_t t = 0; t < n; ++t) {
-    const std::size_t lo = t >= h ? t - h : 0, hi = std::min(n, t + h + 1);
-    const double ww = sw[hi] - sw[lo];
-    out[t] = ww > 0.0 ? (sy[hi] - sy[lo]) / ww : y[t];
-  }
-  return out;
-}
 
 // AR(p) by least squares over the rows whose p+1 samples all have weight 1, accumulating
 // the p x p normal equations in one pass (no design matrix: N is large, p is small).
@@ -519,7 +503,7 @@ std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<T
   m.fit.ljung_box_p = wh.lb.p_value;
   // Step 2: the trend of the smoothed output. Outliers (3 sigma about the smooth) are
   // removed from the smoothing, then the smoothed series is regressed on the terms.
-  std::vector<double> s = smooth(run.gyro_dph, w, o.smooth_s);
+  std::vector<double> s = moving_average(run.gyro_dph, w, o.smooth_s);
   {
     std::vector<double> r, idx;
     for (std::size_t t = 0; t < n; ++t)
@@ -530,7 +514,7 @@ std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<T
     for (std::size_t t = 0; t < n; ++t)
       if (w[t] != 0.0 && !ro.keep[j++]) ws[t] = 0.0;
     m.fit.n_outliers = ro.removed + out.removed;
-    if (ro.removed) s = smooth(run.gyro_dph, ws, o.smooth_s);
+    if (ro.removed) s = moving_average(run.gyro_dph, ws, o.smooth_s);
   }
   std::vector<double> z(n);
   for (std::size_t t = 0; t < n; ++t) z[t] = s[t] - m.mu0_dph;
@@ -904,7 +888,7 @@ std::expected<Verification, FitError> verify(const Model& m, const RunData& run,
   std::vector<double> res(n, 0.0);
   for (std::size_t t = 0; t < n; ++t)
     if (w[t] != 0.0) res[t] = run.gyro_dph[t] - (*mu)[t];
-  const std::vector<double> local = smooth(res, w, 61);
+  const std::vector<double> local = moving_average(res, w, 61);
   std::vector<double> r;
   for (std::size_t t = 0; t < n; ++t)
     if (w[t] != 0.0) r.push_back(res[t] - local[t]);

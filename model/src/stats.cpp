@@ -206,4 +206,21 @@ double gamma_q(double a, double x) {
 
 double chi2_sf(double x, double dof) { return gamma_q(0.5 * dof, 0.5 * x); }
 
+std::vector<double> moving_average(std::span<const double> x, std::span<const double> w, int width) {
+  assert(w.size() == x.size());
+  const std::size_t n = x.size();
+  std::vector<double> sx(n + 1, 0.0), sw(n + 1, 0.0), out(n);
+  for (std::size_t t = 0; t < n; ++t) {
+    sx[t + 1] = sx[t] + w[t] * x[t];
+    sw[t + 1] = sw[t] + w[t];
+  }
+  const auto h = static_cast<std::size_t>(std::max(0, width / 2));
+  for (std::size_t t = 0; t < n; ++t) {
+    const std::size_t lo = t >= h ? t - h : 0, hi = std::min(n, t + h + 1);
+    const double ww = sw[hi] - sw[lo];
+    out[t] = ww > 0.0 ? (sx[hi] - sx[lo]) / ww : x[t];
+  }
+  return out;
+}
+
 }  // namespace fogbench::model

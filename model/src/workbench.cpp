@@ -15,22 +15,6 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 std::unexpected<FitError> fail(FitError::Code c, std::string msg) { return std::unexpected(FitError{c, std::move(msg)}); }
 
-// Weighted centred moving average; samples of weight 0 do not count (shrunk at the ends).
-std::vector<double> weighted_average(std::span<const double> x, std::span<const double> w, int width) {
-  const std::size_t n = x.size();
-  std::vector<double> sx(n + 1, 0.0), sw(n + 1, 0.0), out(n);
-  for (std::size_t t = 0; t < n; ++t) {
-    sx[t + 1] = sx[t] + w[t] * x[t];
-    sw[t + 1] = sw[t] + w[t];
-  }
-  const auto h = static_cast<std::size_t>(std::max(0, width / 2));
-  for (std::size_t t = 0; t < n; ++t) {
-    const std::size_t lo = t >= h ? t - h : 0, hi = std::min(n, t + h + 1);
-    const double ww = sw[hi] - sw[lo];
-    out[t] = ww > 0.0 ? (sx[hi] - sx[lo]) / ww : x[t];
-  }
-  return out;
-}
 
 // The phase most samples of [b, e) have.
 Phase majority_phase(std::span<const Phase> ph, std::size_t b, std::size_t e) {
@@ -104,7 +88,7 @@ const Effect* find_effect(std::string_view canonical_term) {
 
 std::vector<double> moving_average(std::span<const double> x, int w) {
   std::vector<double> ones(x.size(), 1.0);
-  return weighted_average(x, ones, w);
+  return model::moving_average(x, ones, w);
 }
 
 std::vector<std::size_t> decimate_indices(std::span<const double> y, std::size_t max_points) {
@@ -170,7 +154,7 @@ std::expected<RunComparison, FitError> compare(const Model& m, const RunData& ru
   for (std::size_t t = 0; t < n; ++t)
     if (w[t] == 0.0) rz[t] = 0.0;
   {
-    const std::vector<double> s0 = weighted_average(rz, w, o.smooth_s);
+    const std::vector<double> s0 = model::moving_average(rz, w, o.smooth_s);
     std::vector<double> dev;
     for (std::size_t t = 0; t < n; ++t)
       if (w[t] != 0.0) dev.push_back(rz[t] - s0[t]);
@@ -182,7 +166,7 @@ std::expected<RunComparison, FitError> compare(const Model& m, const RunData& ru
         rz[t] = 0.0;
       }
   }
-  c.residual_smooth_dph = weighted_average(rz, w, o.smooth_s);
+  c.residual_smooth_dph = model::moving_average(rz, w, o.smooth_s);
 
   // Table 1 per profile step: contiguous stretches of one step value.
   if (run.has_step()) {
@@ -311,7 +295,7 @@ Qualification qualify(const Model& m, std::span<const RunData> runs, std::span<c
     std::vector<double> y(run.gyro_dph);
     for (std::size_t t = 0; t < n; ++t)
       if (w[t] == 0.0) y[t] = 0.0;
-    const std::vector<double> ys = weighted_average(y, w, 61);
+    const std::vector<double> ys = model::moving_average(y, w, 61);
     const std::vector<Phase> ph = derive_phases(run);
     // Heating minus cooling at equal T1: 1 degC bins of T1 visited by both, each bin's
     // difference of mean output weighted by the fewer of its two sample counts; of the raw

@@ -127,3 +127,18 @@ TEST_CASE("stationarity check: a variance burst is not stationary, white noise i
   CHECK(b.m2 == 9);
   CHECK_FALSE(b.stationary);
 }
+
+TEST_CASE("moving_average: weighted, centred, shrunk at the ends, x itself where no weight") {
+  const std::vector<double> x = {1, 2, 3, 4, 5}, w = {1, 1, 0, 1, 1};
+  const std::vector<double> a = fogbench::model::moving_average(x, w, 3);
+  REQUIRE(a.size() == 5);
+  CHECK(a[0] == Approx(1.5));  // window {1, 2}
+  CHECK(a[1] == Approx(1.5));  // {1, 2, (3 not counted)}
+  CHECK(a[2] == Approx(3.0));  // {2, 4}
+  CHECK(a[3] == Approx(4.5));  // {(3), 4, 5}
+  CHECK(a[4] == Approx(4.5));  // {4, 5}
+  const std::vector<double> none = fogbench::model::moving_average(std::vector<double>{7, 8}, std::vector<double>{0, 0}, 3);
+  CHECK(none == std::vector<double>{7, 8});
+  // Width 1 (or 0) is the identity on counted samples.
+  CHECK(fogbench::model::moving_average(x, std::vector<double>(5, 1.0), 1) == x);
+}

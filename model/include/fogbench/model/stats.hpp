@@ -82,4 +82,9 @@ double chi2_sf(double x, double dof);
 // Regularised upper incomplete gamma function Q(a, x).
 double gamma_q(double a, double x);
 
+// Centred moving average over `width` samples (width/2 each side, the window shrunk at the
+// ends), each sample weighted by w (0: not counted); where a window holds no weight, x itself.
+// Same units as x.
+std::vector<double> moving_average(std::span<const double> x, std::span<const double> w, int width);
+
 }  // namespace fogbench::model
