@@ -3,6 +3,7 @@
 #include "fogbench/drivers/can_transport.hpp"
 
 #include <sys/socket.h>
+#include <unistd.h>
 
 #include <cerrno>
 #include <charconv>
@@ -107,6 +108,13 @@ Result<std::size_t> read_frame_datagrams(int fd, std::vector<::can_frame>& out,
     if (static_cast<unsigned>(n) < batch) break;
   }
   return got;
+}
+
+DatagramTransport::DatagramTransport(int fd, std::string name) : fd_(fd), name_(std::move(name)) {}
+DatagramTransport::~DatagramTransport() { ::close(fd_); }
+
+Result<std::size_t> DatagramTransport::read(std::vector<::can_frame>& out) {
+  return read_frame_datagrams(fd_, out, malformed_, name_.c_str());
 }
 
 }  // namespace detail

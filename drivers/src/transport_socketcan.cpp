@@ -9,33 +9,12 @@
 
 #include <cerrno>
 #include <cstring>
+#include <memory>
 
 #include "datagram_reader.hpp"
 #include "fogbench/drivers/can_transport.hpp"
 
 namespace fogbench::drivers {
-namespace {
-
-class SocketCanTransport final : public CanTransport {
- public:
-  SocketCanTransport(int fd, std::string interface) : fd_(fd), interface_(std::move(interface)) {}
-  ~SocketCanTransport() override { ::close(fd_); }
-
-  int fd() const noexcept override { return fd_; }
-  Result<std::size_t> read(std::vector<::can_frame>& out) override {
-    return detail::read_frame_datagrams(fd_, out, malformed_, name().c_str());
-  }
-  std::uint64_t malformed() const noexcept override { return malformed_; }
-  std::string describe() const override { return name(); }
-
- private:
-  std::string name() const { return "can:" + interface_; }
-  int fd_;
-  std::string interface_;
-  std::uint64_t malformed_ = 0;
-};
-
-}  // namespace
 
 Result<std::unique_ptr<CanTransport>> open_socketcan(const std::string& interface,
                                                      std::span<const std::uint16_t> node_ids) {
@@ -73,7 +52,7 @@ Result<std::unique_ptr<CanTransport>> open_socketcan(const std::string& interfac
   addr.can_family = AF_CAN;
   addr.can_ifindex = ifr.ifr_ifindex;
   if (::bind(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) return failed("bind");
-  return std::make_unique<SocketCanTransport>(fd, interface);
+  return std::make_unique<detail::DatagramTransport>(fd, name);
 }
 
 }  // namespace fogbench::drivers

@@ -6,33 +6,12 @@
 
 #include <cerrno>
 #include <cstring>
+#include <memory>
 
 #include "datagram_reader.hpp"
 #include "fogbench/drivers/can_transport.hpp"
 
 namespace fogbench::drivers {
-namespace {
-
-class UnixSeqpacketTransport final : public CanTransport {
- public:
-  UnixSeqpacketTransport(int fd, std::string path) : fd_(fd), path_(std::move(path)) {}
-  ~UnixSeqpacketTransport() override { ::close(fd_); }
-
-  int fd() const noexcept override { return fd_; }
-  Result<std::size_t> read(std::vector<::can_frame>& out) override {
-    return detail::read_frame_datagrams(fd_, out, malformed_, name().c_str());
-  }
-  std::uint64_t malformed() const noexcept override { return malformed_; }
-  std::string describe() const override { return name(); }
-
- private:
-  std::string name() const { return "unix:" + path_; }
-  int fd_;
-  std::string path_;
-  std::uint64_t malformed_ = 0;
-};
-
-}  // namespace
 
 Result<std::unique_ptr<CanTransport>> open_unix_seqpacket(const std::string& path) {
   sockaddr_un addr{};
@@ -52,7 +31,7 @@ Result<std::unique_ptr<CanTransport>> open_unix_seqpacket(const std::string& pat
     ::close(fd);
     return fail(ErrorCode::connection, "unix:" + path + ": connect: " + std::strerror(err));
   }
-  return std::make_unique<UnixSeqpacketTransport>(fd, path);
+  return std::make_unique<detail::DatagramTransport>(fd, "unix:" + path);
 }
 
 }  // namespace fogbench::drivers
