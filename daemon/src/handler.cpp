@@ -275,11 +275,24 @@ ApiResult<json> Handler::dispatch(const std::string& cmd, const json& req, Sessi
     auto d = store.get_run(*run_id);
     if (!d) return std::unexpected(store_error(d.error()));
     json r = run_json(d->run);
+    // An end the store could not take yet (a full disk) is the run's state all the same.
+    if (json end = station_.unrecorded_end(*run_id); !end.is_null()) {
+      r["state"] = end["state"];
+      r["reason"] = end["reason"];
+      r["recorded"] = false;
+    }
     json events = json::array();
-    for (const auto& e : d->events)
+    // Data quality per unit: live while the run is active, else the `quality` note stored when
+    // it ended (null for a run without one: interrupted by a crash, imported, older).
+    json quality = station_.live_quality(*run_id);
+    const bool live = !quality.is_null();
+    for (const auto& e : d->events) {
+      json detail = parse_or_string(e.detail_json);
+      if (!live && e.kind == storage::EventKind::note && detail.is_object() && detail.contains("quality"))
+        quality = detail["quality"];
       events.push_back({{"id", e.id}, {"t_s", e.t_s ? json(*e.t_s) : json(nullptr)}, {"at", e.at},
-                        {"kind", std::string(storage::to_string(e.kind))},
-                        {"detail", parse_or_string(e.detail_json)}});
+                        {"kind", std::string(storage::to_string(e.kind))}, {"detail", std::move(detail)}});
+    }
     json models = json::array();
     for (const auto& u : d->run.units) {
       auto ms = store.list_models(u.serial);
@@ -301,7 +314,7 @@ ApiResult<json> Handler::dispatch(const std::string& cmd, const json& req, Sessi
       auto n = store.count_samples(*run_id, u.unit_index);
       samples.push_back(n ? *n : 0);
     }
-    return json{{"run", r}, {"samples", samples}, {"events", events}, {"models", models},
+    return json{{"run", r}, {"samples", samples}, {"quality", quality}, {"events", events}, {"models", models},
                 {"verifications", vers}, {"config", parse_or_string(d->run.config_json)},
                 {"profile_text", d->run.profile_text}};
   }

@@ -1,6 +1,7 @@
 // The run state machine, the per-second samples and the automatic fit or verification.
 #include "fogbench/daemon/station.hpp"
 
+#include <algorithm>
 #include <cassert>
 #include <chrono>
 #include <cmath>
@@ -157,11 +158,77 @@ ApiResult<profiles::Profile> Station::load_profile(const std::string& name, std:
   return p;
 }
 
+storage::StoreResult<void> Station::write(const Unrecorded& w) {
+  if (w.state) return store_.set_run_state(w.run_id, *w.state, w.reason, w.t_s);
+  auto id = store_.add_event(w.run_id, w.kind, w.detail_json, w.t_s);
+  if (!id) return std::unexpected(id.error());
+  return {};
+}
+
+namespace {
+// Failures that may pass (room made on the disk, a lock released): worth writing again.
+bool may_pass(storage::StoreErrc c) {
+  using storage::StoreErrc;
+  return c == StoreErrc::disk_full || c == StoreErrc::io || c == StoreErrc::busy || c == StoreErrc::read_only;
+}
+std::string what_of(const std::string& state_or_kind, std::int64_t run_id) {
+  return "run " + std::to_string(run_id) + ": " + state_or_kind;
+}
+// Enough for the end of many runs; past it the oldest is given up (logged).
+constexpr std::size_t kMaxUnrecorded = 10000;
+}  // namespace
+
+void Station::write_or_keep(Unrecorded w) {
+  const std::string what = what_of(w.state ? "state " + std::string(storage::to_string(*w.state))
+                                           : std::string(storage::to_string(w.kind)) + " event",
+                                   w.run_id);
+  // Behind an earlier write of the same run that is still waiting: keep the order.
+  const bool behind = std::any_of(unrecorded_.begin(), unrecorded_.end(),
+                                  [&](const Unrecorded& u) { return u.run_id == w.run_id; });
+  if (!behind) {
+    auto ok = write(w);
+    if (ok) return;
+    if (!may_pass(ok.error().code)) {
+      spdlog::error("{} not stored ({}): {} {}", what, storage::to_string(ok.error().code), ok.error().message,
+                    w.state ? w.reason : w.detail_json);
+      return;
+    }
+    spdlog::error("{} not stored yet ({}): {}; kept and written again at every tick", what,
+                  storage::to_string(ok.error().code), ok.error().message);
+  }
+  if (unrecorded_.size() >= kMaxUnrecorded) {
+    const Unrecorded& old = unrecorded_.front();
+    spdlog::error("run {}: giving up an unrecorded {} ({} kept already)", old.run_id,
+                  old.state ? "state" : "event", kMaxUnrecorded);
+    unrecorded_.pop_front();
+  }
+  unrecorded_.push_back(std::move(w));
+}
+
+void Station::flush_unrecorded() {
+  while (!unrecorded_.empty()) {
+    const Unrecorded& w = unrecorded_.front();
+    auto ok = write(w);
+    if (!ok && may_pass(ok.error().code)) return;  // still no room: the next tick tries again
+    if (ok) spdlog::info("run {}: an unrecorded {} is stored now", w.run_id, w.state ? "state" : "event");
+    else spdlog::error("run {}: an unrecorded write is given up: {}", w.run_id, ok.error().message);
+    unrecorded_.pop_front();
+  }
+}
+
+json Station::unrecorded_end(std::int64_t run_id) const {
+  json end = nullptr;
+  for (const auto& w : unrecorded_)
+    if (w.run_id == run_id && w.state && storage::is_terminal(*w.state))
+      end = {{"state", std::string(storage::to_string(*w.state))}, {"reason", w.reason}, {"recorded", false}};
+  return end;
+}
+
 void Station::event(std::int64_t run_id, storage::EventKind kind, const json& detail,
                     std::optional<double> t_s) {
-  // An event that cannot be stored is still published and logged; the daemon keeps running.
-  if (auto ok = store_.add_event(run_id, kind, detail.dump(), t_s); !ok)
-    spdlog::error("run {}: event not stored ({}): {}", run_id, ok.error().message, detail.dump());
+  // An event that cannot be stored is still published and logged, and kept to be written
+  // when the store takes it again; the daemon keeps running.
+  write_or_keep({run_id, std::nullopt, "", kind, detail.dump(), t_s});
   emit({{"type", "event"}, {"run_id", run_id}, {"t_s", num(t_s)},
         {"kind", std::string(storage::to_string(kind))}, {"detail", detail}});
 }
@@ -176,8 +243,7 @@ void Station::transition(ActiveRun& run, RunState to, const std::string& reason,
                          std::optional<double> t_s) {
   const RunState from = run.state;
   run.state = to;
-  if (auto ok = store_.set_run_state(run.id, to, reason, t_s); !ok)
-    spdlog::error("run {}: state {} not stored: {}", run.id, storage::to_string(to), ok.error().message);
+  write_or_keep({run.id, to, reason, storage::EventKind::state, "", t_s});
   emit({{"type", "event"}, {"run_id", run.id}, {"t_s", num(t_s)}, {"kind", "state"},
         {"detail", {{"from", std::string(storage::to_string(from))},
                     {"to", std::string(storage::to_string(to))}, {"reason", reason}}}});
@@ -580,6 +646,7 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
   clock_s_ = clock_s;
   last_input_ = in;
   ++ticks_;
+  if (!unrecorded_.empty()) flush_unrecorded();
   if (!run_) return {setpoint_c_};
   ActiveRun& run = *run_;
 
@@ -697,9 +764,13 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
   if (stored && abort_reason) {
     finish(RunState::aborted, *abort_reason);
   } else if (!stored) {
-    // Samples that cannot be stored make the run worthless: end it rather than run on blind.
-    finish(RunState::failed, "storing samples failed (" + std::string(storage::to_string(stored.error().code)) +
-                                "): " + stored.error().message);
+    // Samples that cannot be stored make the run worthless: stop it rather than run on blind,
+    // and make the chamber safe. A fault of the station, as a chamber's is: `aborted`
+    // (`failed` is a profile that could not be run, e.g. a settle that timed out).
+    const auto& e = stored.error();
+    finish(RunState::aborted, std::string(e.code == storage::StoreErrc::disk_full ? "storage full" : "storage failed") +
+                                  " (" + std::string(storage::to_string(e.code)) +
+                                  "): samples could not be stored: " + e.message);
   } else if (st.failed) {
     finish(RunState::failed, st.failure_reason);
   } else if (st.finished) {
@@ -708,6 +779,11 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
     setpoint_c_ = st.setpoint_c;
   }
   return {setpoint_c_};
+}
+
+json Station::live_quality(std::int64_t run_id) const {
+  if (!run_ || run_->id != run_id) return nullptr;
+  return quality_json(*run_);
 }
 
 json Station::quality_json(const ActiveRun& run) {
@@ -821,6 +897,11 @@ json Station::status() const {
     s["run"] = nullptr;
   }
   s["last_run"] = last_run_;
+  if (last_run_.is_object()) {
+    const auto id = last_run_["run_id"].get<std::int64_t>();
+    s["last_run"]["recorded"] = std::none_of(unrecorded_.begin(), unrecorded_.end(),
+                                             [id](const Unrecorded& u) { return u.run_id == id; });
+  }
   return s;
 }
 

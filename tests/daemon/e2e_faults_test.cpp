@@ -1,9 +1,13 @@
 // Faults of the chamber injected into the live mock bench through its control socket
 // (docs/mock-bench.md), against the real fogbenchd: the link lost (refuse_modbus +
-// drop_modbus), the controller's alarm, a frozen process value. Every wait has a deadline; the
+// drop_modbus), the controller's alarm, a frozen process value; and a store that fills up
+// (storage.size_limit_bytes). Every wait has a deadline; the
 // deadlines allow a loaded machine several times the nominal wall time.
 #include "live_bench.hpp"
 
+#include "fogbench/storage/store.hpp"
+
+using namespace fogbench;
 using namespace fogbench::daemon::test;
 using namespace fogbench::daemon::test::live;
 using nlohmann::json;
@@ -189,6 +193,8 @@ TEST_CASE("e2e faults: lost and corrupt gyro frames and an open thermistor are f
     if (e["kind"] == "note" && e["detail"].contains("quality")) note = e["detail"]["quality"];
   REQUIRE(note.is_array());
   CHECK(note[0]["frames_lost"].get<int>() >= q[0]["frames_lost"].get<int>());
+  // run.get reports the stored counts at its top level, for fogctl run get.
+  CHECK(g["result"]["quality"] == note);
   for (int unit : {0, 1}) {
     auto page = c.call({{"cmd", "run.samples"}, {"run_id", run}, {"unit", unit}, {"limit", 10000}});
     int flagged = 0, frames_flag = 0, missing_t2 = 0;
@@ -202,4 +208,88 @@ TEST_CASE("e2e faults: lost and corrupt gyro frames and an open thermistor are f
     if (unit == 0) CHECK(frames_flag > 0);
     if (unit == 1) CHECK(missing_t2 > 5);
   }
+}
+
+TEST_CASE("e2e faults: a full store aborts the run; the chamber goes safe, the daemon answers, nothing stored is lost") {
+  if (!have_sim()) {
+    WARN("fogbench-sim not built: skipped");
+    return;
+  }
+  // An empty store with one run is about 100 KiB; at 100x two units store 200 rows a wall
+  // second, so 192 KiB fill within seconds. The safe setpoint, 15 degC, is one the profile
+  // (20 .. 25 degC) never commands, so reading it back on the mock proves it was sent.
+  constexpr std::int64_t kLimitBytes = 192 * 1024;
+  LiveBench bench(100.0, {{"safe_setpoint_c", 15}, {"storage", {{"size_limit_bytes", kLimitBytes}}}});
+  LineClient c(bench.socket());
+  REQUIRE(c.ok());
+  auto start = c.call({{"cmd", "run.start"}, {"profile", "short"}, {"units", {"SIM-0001", "SIM-0002"}}});
+  REQUIRE(code_of(start) == "ok");
+  const auto run = start["result"]["run_id"].get<std::int64_t>();
+  REQUIRE(bench.wait_status(c, [](const json& r) { return r["chamber"]["setpoint_c"] == 20.0; }, 60s)
+              ["result"]["chamber"]["setpoint_c"] == 20.0);
+
+  json done = bench.wait_state(c, run, {"completed", "aborted", "failed"}, 120s);
+  REQUIRE(done.contains("result"));
+  INFO(done["result"]["run"].dump());
+  CHECK(done["result"]["run"]["state"] == "aborted");
+  const std::string reason = done["result"]["run"]["reason"];
+  CHECK_THAT(reason, Catch::Contains("storage full (disk_full)"));
+  CHECK_THAT(reason, Catch::Contains("samples could not be stored"));
+  // The run's end is in the store (the size limit's reserve), with its quality note.
+  CHECK_FALSE(done["result"]["run"].contains("recorded"));
+  CHECK(done["result"]["run"]["ended_at"].is_string());
+  REQUIRE(done["result"]["quality"].is_array());
+  CHECK(done["result"]["quality"].size() == 2);
+
+  // The chamber goes to the safe setpoint: as the mock's own controller holds it.
+  const auto deadline = SteadyClock::now() + 30s;
+  json sim;
+  while (SteadyClock::now() < deadline) {
+    sim = bench.sim_command({{"cmd", "status"}});
+    if (sim.is_object() && sim.value("setpoint_c", 0.0) == 15.0) break;
+    std::this_thread::sleep_for(100ms);
+  }
+  CHECK(sim["setpoint_c"] == 15.0);
+
+  // The daemon keeps answering, and says how the run ended.
+  for (int i = 0; i < 3; ++i) {
+    auto s = c.call({{"cmd", "status"}});
+    REQUIRE(code_of(s) == "ok");
+    CHECK(s["result"]["run"].is_null());
+    CHECK(s["result"]["setpoint_c"] == 15.0);
+    CHECK(s["result"]["last_run"]["run_id"] == run);
+    CHECK(s["result"]["last_run"]["state"] == "aborted");
+    CHECK(s["result"]["last_run"]["recorded"] == true);
+    CHECK_THAT(s["result"]["last_run"]["reason"].get<std::string>(), Catch::Contains("disk_full"));
+  }
+  CHECK(code_of(c.call({{"cmd", "run.list"}})) == "ok");
+  CHECK(code_of(c.call({{"cmd", "profile.list"}})) == "ok");
+  // A new run cannot be stored either: a clear error, nothing started, the chamber left safe.
+  auto again = c.call({{"cmd", "run.start"}, {"profile", "short"}, {"units", {"SIM-0001"}}});
+  CHECK(code_of(again) == "internal");
+  CHECK_THAT(again.dump(), Catch::Contains("disk_full"));
+  CHECK(c.call({{"cmd", "status"}})["result"]["run"].is_null());
+
+  // Every second stored before the fault reads back, 0, 1, 2 ... with no hole.
+  std::vector<std::int64_t> counts;
+  for (int unit : {0, 1}) {
+    auto page = c.call({{"cmd", "run.samples"}, {"run_id", run}, {"unit", unit}, {"limit", 10000}});
+    REQUIRE(code_of(page) == "ok");
+    const auto& rows = page["result"]["samples"];
+    CHECK(rows.size() == done["result"]["samples"][static_cast<std::size_t>(unit)].get<std::size_t>());
+    CHECK(rows.size() > 100);
+    for (std::size_t i = 0; i < rows.size(); ++i) CHECK(rows[i]["t_s"].get<double>() == static_cast<double>(i));
+    counts.push_back(static_cast<std::int64_t>(rows.size()));
+  }
+  // The file itself, read beside the running daemon: intact, within its limit, the same samples.
+  storage::OpenOptions ro;
+  ro.read_only = true;
+  auto store = storage::Store::open(bench.dir / "fogbench.db", ro);
+  REQUIRE(store.has_value());
+  auto ic = store->integrity_check();
+  REQUIRE(ic.has_value());
+  CHECK(ic->empty());
+  CHECK(*store->count_samples(run, 0) == counts[0]);
+  CHECK(*store->count_samples(run, 1) == counts[1]);
+  CHECK(store->get_run(run)->run.state == storage::RunState::aborted);
 }

@@ -1,7 +1,10 @@
 // The station's answers to a chamber that misbehaves, without I/O: the link lost (held within
 // link_loss.tolerance_s, aborted past it or at once under safe_abort), the controller's alarm,
-// and a chamber that does not follow its setpoint (tracking.*). Whole runs in milliseconds.
+// and a chamber that does not follow its setpoint (tracking.*); a store that is full or refuses
+// writes. Whole runs in milliseconds.
 #include "fixture.hpp"
+
+#include <sqlite3.h>
 
 using namespace fogbench;
 using namespace fogbench::daemon;
@@ -152,7 +155,7 @@ TEST_CASE("station faults: |PV - setpoint| over tracking.max_error_c for trackin
   CHECK_THAT(r.record().state_reason, Catch::Contains("tracking.max_error_c 2"));
 }
 
-TEST_CASE("station faults: a full disk ends the run, commands the safe setpoint and is reported in status") {
+TEST_CASE("station faults: a full disk aborts the run, commands the safe setpoint and is reported in status") {
   char tmpl[] = "/tmp/fogbench-diskfull-XXXXXX";
   const std::filesystem::path dir = ::mkdtemp(tmpl);
   const auto db = dir / "fogbench.db";
@@ -179,10 +182,85 @@ TEST_CASE("station faults: a full disk ends the run, commands the safe setpoint 
   CHECK(s["setpoint_c"] == 15.0);
   REQUIRE(s["last_run"].is_object());
   CHECK(s["last_run"]["run_id"] == *id);
-  CHECK(s["last_run"]["state"] == "failed");
-  CHECK_THAT(s["last_run"]["reason"].get<std::string>(), Catch::Contains("disk_full"));
+  // Aborted, not failed: a fault of the station, the chamber made safe (docs/daemon.md).
+  CHECK(s["last_run"]["state"] == "aborted");
+  CHECK_THAT(s["last_run"]["reason"].get<std::string>(), Catch::Contains("storage full (disk_full)"));
+  // The size limit's reserve took the run's end: stored, with its quality note.
+  CHECK(s["last_run"]["recorded"] == true);
+  auto d = opened->get_run(*id);
+  REQUIRE(d.has_value());
+  CHECK(d->run.state == storage::RunState::aborted);
+  CHECK_THAT(d->run.state_reason, Catch::Contains("storage full"));
+  CHECK(d->run.ended_at.has_value());
+  CHECK(d->events.back().kind == storage::EventKind::state);
+  CHECK(d->events.at(d->events.size() - 2).detail_json.find("quality") != std::string::npos);
+  // Every second before the one that did not fit is stored, in order.
+  const auto n = *opened->count_samples(*id, 0);
+  CHECK(n == ticks - 1);
+  auto last = opened->get_samples(*id, 0, n - 1, 1);
+  REQUIRE(last->size() == 1);
+  CHECK(last->at(0).t_s == static_cast<double>(n - 1));
+  CHECK(opened->integrity_check()->empty());
   // The daemon goes on: ticks without a run still answer.
   CHECK(st.tick(clock_s, bench.step(15)).setpoint_c == 15.0);
+  std::error_code ec;
+  std::filesystem::remove_all(dir, ec);
+}
+
+TEST_CASE("station faults: a run's end the store refuses is kept, reported and written once the store takes it") {
+  char tmpl[] = "/tmp/fogbench-locked-XXXXXX";
+  const std::filesystem::path dir = ::mkdtemp(tmpl);
+  const auto db = dir / "fogbench.db";
+  storage::OpenOptions o;
+  o.busy_timeout_ms = 0;  // a write lock held elsewhere fails at once (busy) instead of waiting
+  auto opened = storage::Store::open(db, o);
+  REQUIRE(opened.has_value());
+  auto c = golden_config();
+  c.safe_setpoint_c = 15;
+  Station st(std::move(c), *opened, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
+  SyntheticBench bench(1);
+  auto id = st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+  REQUIRE(id.has_value());
+  double clock_s = 0, sp_c = 20;
+  for (int i = 0; i < 100; ++i, clock_s += 1) sp_c = st.tick(clock_s, bench.step(sp_c)).setpoint_c;
+
+  // Another connection (an operator's sqlite3 shell, say) holds the write lock: nothing the
+  // station writes gets in, neither the next second nor the run's end.
+  sqlite3* other = nullptr;
+  REQUIRE(sqlite3_open(db.c_str(), &other) == SQLITE_OK);
+  REQUIRE(sqlite3_exec(other, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr) == SQLITE_OK);
+  sp_c = st.tick(clock_s, bench.step(sp_c)).setpoint_c;
+  clock_s += 1;
+  CHECK_FALSE(st.active_run_id().has_value());
+  CHECK(sp_c == 15.0);
+  json s = st.status();
+  CHECK(s["last_run"]["state"] == "aborted");
+  CHECK_THAT(s["last_run"]["reason"].get<std::string>(), Catch::Contains("storage failed (busy)"));
+  CHECK(s["last_run"]["recorded"] == false);
+  // The store still says running; the station knows better and says so.
+  CHECK(opened->get_run(*id)->run.state == storage::RunState::running);
+  const json end = st.unrecorded_end(*id);
+  REQUIRE(end.is_object());
+  CHECK(end["state"] == "aborted");
+  CHECK(end["recorded"] == false);
+  // Still locked: the ticks keep trying and the daemon keeps going.
+  for (int i = 0; i < 5; ++i, clock_s += 1) CHECK(st.tick(clock_s, bench.step(15)).setpoint_c == 15.0);
+  CHECK(st.status()["last_run"]["recorded"] == false);
+
+  REQUIRE(sqlite3_exec(other, "ROLLBACK", nullptr, nullptr, nullptr) == SQLITE_OK);
+  sqlite3_close(other);
+  st.tick(clock_s, bench.step(15));
+  CHECK(st.status()["last_run"]["recorded"] == true);
+  CHECK(st.unrecorded_end(*id).is_null());
+  auto d = opened->get_run(*id);
+  REQUIRE(d.has_value());
+  CHECK(d->run.state == storage::RunState::aborted);
+  CHECK_THAT(d->run.state_reason, Catch::Contains("storage failed (busy)"));
+  // In order: the quality note, then the state change, as if written at once.
+  REQUIRE(d->events.size() >= 2);
+  CHECK(d->events.at(d->events.size() - 2).kind == storage::EventKind::note);
+  CHECK(d->events.back().kind == storage::EventKind::state);
+  CHECK(*opened->count_samples(*id, 0) == 100);
   std::error_code ec;
   std::filesystem::remove_all(dir, ec);
 }

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <deque>
 #include <expected>
 #include <functional>
 #include <memory>
@@ -110,6 +111,11 @@ class Station {
 
   nlohmann::json status() const;
   std::optional<std::int64_t> active_run_id() const;
+  // A run whose end the store could not take yet (a full disk): its state and reason as the
+  // daemon knows them, {state, reason, recorded: false}; null for any other run.
+  nlohmann::json unrecorded_end(std::int64_t run_id) const;
+  // The active run's quality counters per unit (as in status), or null when run_id is not active.
+  nlohmann::json live_quality(std::int64_t run_id) const;
 
   // Profiles: by name from the profile directory, or from text; limits checked.
   ApiResult<profiles::Profile> load_profile(const std::string& name, std::string* text = nullptr) const;
@@ -179,6 +185,20 @@ class Station {
 
   void transition(ActiveRun& run, storage::RunState to, const std::string& reason,
                   std::optional<double> t_s);
+  // A state change or event the store refused (a full disk, an I/O error): kept, in order, and
+  // written again at every tick until the store takes it, so the audit trail ends up complete
+  // and in order once there is room. A run's later writes queue behind its earlier ones.
+  struct Unrecorded {
+    std::int64_t run_id = 0;
+    std::optional<storage::RunState> state;  // a state change; otherwise an event
+    std::string reason;
+    storage::EventKind kind = storage::EventKind::note;
+    std::string detail_json;
+    std::optional<double> t_s;
+  };
+  storage::StoreResult<void> write(const Unrecorded& w);
+  void write_or_keep(Unrecorded w);
+  void flush_unrecorded();
   void event(std::int64_t run_id, storage::EventKind kind, const nlohmann::json& detail,
              std::optional<double> t_s);
   void finish(storage::RunState to, const std::string& reason);
@@ -199,6 +219,7 @@ class Station {
   // How the last run ended ({run_id, state, reason}), for status: a run ended by a fault is
   // reported even when the store could not take its final state (a full disk).
   nlohmann::json last_run_ = nullptr;
+  std::deque<Unrecorded> unrecorded_;
   std::int64_t ticks_ = 0;
 };
 
