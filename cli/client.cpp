@@ -3,6 +3,8 @@
 // waits for one thing at a time.
 #include "client.hpp"
 
+#include <fcntl.h>
+#include <netdb.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <sys/un.h>
@@ -32,6 +34,31 @@ std::string default_socket() {
   return env && *env ? env : "/run/fogbench/fogbenchd.sock";
 }
 
+std::string default_token() {
+  const char* env = std::getenv("FOGBENCH_TOKEN");
+  return env ? env : "";
+}
+
+std::expected<Endpoint, std::string> parse_connect(const std::string& text) {
+  const auto bad = [&](const std::string& why) {
+    return std::unexpected("--connect: " + why + ", got '" + text + "' (expected HOST:PORT, e.g. 127.0.0.1:7300)");
+  };
+  const auto colon = text.rfind(':');
+  if (colon == std::string::npos) return bad("no port");
+  std::string host = text.substr(0, colon);
+  const std::string port = text.substr(colon + 1);
+  if (host.size() >= 2 && host.front() == '[' && host.back() == ']') host = host.substr(1, host.size() - 2);
+  if (host.empty()) return bad("no host");
+  if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos)
+    return bad("the port is not a number");
+  const long p = std::stol(port);
+  if (p < 1 || p > 65535) return bad("the port is not in 1..65535");
+  Endpoint e;
+  e.tcp_host = host;
+  e.tcp_port = static_cast<std::uint16_t>(p);
+  return e;
+}
+
 namespace {
 
 std::unexpected<ClientError> fail(std::string code, std::string message) {
@@ -47,7 +74,7 @@ int remaining_ms(SteadyClock::time_point deadline) {
 
 Client::Client(Client&& o) noexcept
     : fd_(std::exchange(o.fd_, -1)), buffer_(std::move(o.buffer_)), pushed_(std::move(o.pushed_)),
-      next_id_(o.next_id_), hello_(std::move(o.hello_)) {}
+      token_(std::move(o.token_)), next_id_(o.next_id_), hello_(std::move(o.hello_)) {}
 
 Client& Client::operator=(Client&& o) noexcept {
   if (this != &o) {
@@ -55,6 +82,7 @@ Client& Client::operator=(Client&& o) noexcept {
     fd_ = std::exchange(o.fd_, -1);
     buffer_ = std::move(o.buffer_);
     pushed_ = std::move(o.pushed_);
+    token_ = std::move(o.token_);
     next_id_ = o.next_id_;
     hello_ = std::move(o.hello_);
   }
@@ -79,11 +107,63 @@ std::expected<Client, ClientError> Client::connect(const std::string& path, int 
     return fail("connection", "cannot connect to fogbenchd at " + path + ": " + std::strerror(err) +
                                   " (is it running? --socket or $FOGBENCH_SOCKET)");
   }
+  return handshake(fd, timeout_ms);
+}
+
+std::expected<Client, ClientError> Client::handshake(int fd, int timeout_ms) {
   Client c(fd);
   auto hello = c.read_message(timeout_ms);
   if (!hello) return std::unexpected(hello.error());
   if (hello->value("type", "") != "hello") return fail("connection", "the daemon did not say hello");
   c.hello_ = *hello;
+  return c;
+}
+
+std::expected<Client, ClientError> Client::connect(const Endpoint& e, const std::string& token, int timeout_ms) {
+  std::expected<Client, ClientError> c = std::unexpected(ClientError{"connection", "no endpoint"});
+  if (e.tcp_host.empty()) {
+    c = connect(e.socket_path, timeout_ms);
+  } else {
+    const std::string where = e.tcp_host + ":" + std::to_string(e.tcp_port);
+    addrinfo hints{};
+    hints.ai_family = AF_UNSPEC;
+    hints.ai_socktype = SOCK_STREAM;
+    addrinfo* found = nullptr;
+    if (int rc = ::getaddrinfo(e.tcp_host.c_str(), std::to_string(e.tcp_port).c_str(), &hints, &found); rc != 0)
+      return fail("connection", "cannot resolve " + e.tcp_host + " (--connect): " + ::gai_strerror(rc));
+    std::string last_error = "no address";
+    const auto deadline = SteadyClock::now() + std::chrono::milliseconds(timeout_ms);
+    int fd = -1;
+    for (addrinfo* a = found; a && fd < 0; a = a->ai_next) {
+      fd = ::socket(a->ai_family, a->ai_socktype | SOCK_CLOEXEC | SOCK_NONBLOCK, a->ai_protocol);
+      if (fd < 0) {
+        last_error = std::strerror(errno);
+        continue;
+      }
+      // Non-blocking, so an address that does not answer waits no longer than the deadline.
+      int err = ::connect(fd, a->ai_addr, a->ai_addrlen) == 0 ? 0 : errno;
+      if (err == EINPROGRESS) {
+        pollfd p{fd, POLLOUT, 0};
+        const int r = ::poll(&p, 1, remaining_ms(deadline));
+        socklen_t len = sizeof err;
+        if (r <= 0) err = ETIMEDOUT;
+        else ::getsockopt(fd, SOL_SOCKET, SO_ERROR, &err, &len);
+      }
+      if (err != 0) {
+        last_error = std::strerror(err);
+        ::close(fd);
+        fd = -1;
+      }
+    }
+    ::freeaddrinfo(found);
+    if (fd < 0)
+      return fail("connection", "cannot connect to fogbenchd at " + where + ": " + last_error +
+                                    " (is TCP configured, socket.tcp? --connect)");
+    // Blocking again: reads and writes wait with poll() deadlines of their own.
+    ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
+    c = handshake(fd, timeout_ms);
+  }
+  if (c) c->token_ = token;
   return c;
 }
 
@@ -114,6 +194,7 @@ std::expected<json, ClientError> Client::call(const std::string& cmd, json args,
   const auto id = next_id_++;
   args["id"] = id;
   args["cmd"] = cmd;
+  if (!token_.empty()) args["token"] = token_;
   const std::string line = args.dump() + "\n";
   std::size_t sent = 0;
   const auto deadline = SteadyClock::now() + std::chrono::milliseconds(timeout_ms);
@@ -213,11 +294,19 @@ namespace {
 
 struct Common {
   std::string socket = default_socket();
+  std::string connect;  // HOST:PORT: the daemon's TCP endpoint instead of the unix socket
+  std::string token = default_token();
   bool json_out = false;
 };
 
 void add_common(CLI::App* c, Common& o, bool with_json = true) {
   c->add_option("--socket", o.socket, "fogbenchd's socket (default: $FOGBENCH_SOCKET or /run/fogbench/fogbenchd.sock)");
+  c->add_option("--connect", o.connect,
+                "HOST:PORT: talk to fogbenchd over TCP (socket.tcp) instead of the unix socket; reads need "
+                "nothing, control commands need --token");
+  c->add_option("--token", o.token,
+                "The daemon's socket.tcp.token, for control commands over TCP (default: $FOGBENCH_TOKEN; the "
+                "variable keeps it out of the process list)");
   if (with_json) c->add_flag("--json", o.json_out, "Print JSON for machines");
 }
 
@@ -234,11 +323,42 @@ std::string duration_text(double s) {
 }
 
 int report(const ClientError& e, std::ostream& err) {
-  err << "fogctl: " << (e.code == "connection" || e.code == "timeout" ? "" : e.code + ": ") << e.message << "\n";
+  const bool plain = e.code == "connection" || e.code == "timeout" || e.code == "bad_option";
+  err << "fogctl: " << (plain ? "" : e.code + ": ") << e.message << "\n";
   return kExitError;
 }
 
-std::expected<Client, ClientError> open(const Common& o) { return Client::connect(o.socket); }
+std::expected<Client, ClientError> open(const Common& o) {
+  Endpoint e;
+  e.socket_path = o.socket;
+  if (!o.connect.empty()) {
+    auto tcp = parse_connect(o.connect);
+    if (!tcp) return std::unexpected(ClientError{"bad_option", tcp.error()});
+    e = *tcp;
+  }
+  return Client::connect(e, o.token);
+}
+
+// Per unit of a run, what it lost: frames lost and corrupt, samples flagged (`quality` of
+// status.run and of run.get). "-" where the daemon has no counts (a run interrupted by a crash).
+Table quality_table(const json& serials, const json& quality, const json* samples = nullptr) {
+  std::vector<std::string> head = {"unit", "serial"};
+  if (samples) head.push_back("samples");
+  for (const char* h : {"frames_lost", "frames_corrupt", "samples_flagged"}) head.push_back(h);
+  Table t(head);
+  for (std::size_t i = 0; i < serials.size(); ++i) {
+    std::vector<std::string> row = {std::to_string(i), serials[i].get<std::string>()};
+    if (samples) row.push_back(i < samples->size() ? std::to_string((*samples)[i].get<std::int64_t>()) : "-");
+    const json* q = nullptr;
+    if (quality.is_array())
+      for (const auto& x : quality)
+        if (x.value("unit", -1) == static_cast<int>(i)) q = &x;
+    for (const char* k : {"frames_lost", "frames_corrupt", "samples_flagged"})
+      row.push_back(q && (*q)[k].is_number_integer() ? std::to_string((*q)[k].get<std::int64_t>()) : "-");
+    t.add(row);
+  }
+  return t;
+}
 
 // --- status
 int cmd_status(const Common& o, std::ostream& out, std::ostream& err) {
@@ -270,7 +390,13 @@ int cmd_status(const Common& o, std::ostream& out, std::ostream& err) {
         << (r["phase"].is_string() ? r["phase"].get<std::string>() : "-") << ", elapsed "
         << duration_text(r["elapsed_s"].get<double>()) << ", remaining "
         << (r["remaining_s"].is_number() ? duration_text(r["remaining_s"].get<double>()) : "-") << "\n";
+    out << "data quality of the run:\n" << quality_table(r["units"], r.value("quality", json())).str();
   }
+  const json& last = s->value("last_run", json());
+  if (last.is_object())
+    out << "last run " << last["run_id"] << ": " << last["state"].get<std::string>() << " ("
+        << last["reason"].get<std::string>() << ")"
+        << (last.value("recorded", true) ? "" : "; NOT yet recorded in the store (retried every second)") << "\n";
   return kExitOk;
 }
 
@@ -328,10 +454,10 @@ int cmd_run_get(const Common& o, std::int64_t id, std::ostream& out, std::ostrea
       << "  purpose " << run["purpose"].get<std::string>() << ", profile " << run["profile"].get<std::string>()
       << ", time scale " << run["time_scale"] << "\n  created " << run["created_at"].get<std::string>() << ", started "
       << opt_str(run["started_at"]) << ", ended " << opt_str(run["ended_at"]) << "\n";
-  Table units({"unit", "serial", "samples"});
-  for (std::size_t i = 0; i < run["units"].size(); ++i)
-    units.add({std::to_string(i), run["units"][i], std::to_string((*r)["samples"][i].get<std::int64_t>())});
-  out << units.str();
+  if (!run.value("recorded", true))
+    out << "  its end is NOT yet recorded in the store (a full disk?); the daemon retries every second\n";
+  // Per unit: the samples stored and what the run lost (frames lost, corrupt, samples flagged).
+  out << quality_table(run["units"], r->value("quality", json()), &(*r)["samples"]).str();
   if (!(*r)["models"].empty()) {
     Table t({"model", "serial", "version", "method", "terms", "parent"});
     for (const auto& m : (*r)["models"])
@@ -451,7 +577,8 @@ int watch(const Common& o, std::optional<std::int64_t> run_id, bool quiet, doubl
   auto lost_since = SteadyClock::now();
   bool warned = false;
   for (;;) {
-    auto c = Client::connect(o.socket);
+    auto c = open(o);
+    if (!c && c.error().code == "bad_option") return report(c.error(), err);
     if (!c) {
       if (std::chrono::duration<double>(SteadyClock::now() - lost_since).count() > reconnect_s)
         return report(c.error(), err);
@@ -539,6 +666,21 @@ int cmd_run_start(const Common& o, const std::string& profile, const std::vector
   return watch(o, id, quiet, 300.0, out, err);
 }
 
+// run.resume: an interrupted run (a crash left it) goes on from where its profile clock stood.
+int cmd_run_resume(const Common& o, std::int64_t id, bool wait, bool quiet, std::ostream& out, std::ostream& err) {
+  auto c = open(o);
+  if (!c) return report(c.error(), err);
+  auto r = c->call("run.resume", {{"run_id", id}});
+  if (!r) return report(r.error(), err);
+  if (!wait) {
+    if (o.json_out) out << r->dump() << "\n";
+    else out << "run " << id << " resumes at the next tick; the time it was away is stored flagged\n";
+    return kExitOk;
+  }
+  if (!o.json_out) err << "run " << id << " resumed\n";
+  return watch(o, id, quiet, 300.0, out, err);
+}
+
 // --- fit / verify on a stored run: the run is fetched into a CSV and the offline command runs
 // on it, exactly as on a file.
 struct TempFiles {
@@ -589,11 +731,11 @@ CLI::App* find_subcommand(CLI::App& app, const std::string& name) {
 
 void add_client_commands(CLI::App& app, int& code) {
   static Common common;
-  auto* status = app.add_subcommand("status", "Show the daemon, the chamber, the units and the active run");
+  auto* status = app.add_subcommand("status", "Show the daemon, the chamber, the units, the active run with its data quality, and the last run");
   add_common(status, common);
   status->callback([&] { code = cmd_status(common, std::cout, std::cerr); });
 
-  auto* run = app.add_subcommand("run", "Start, follow, list, inspect, abort and export runs on fogbenchd");
+  auto* run = app.add_subcommand("run", "Start, follow, list, inspect, abort, resume and export runs on fogbenchd");
   run->require_subcommand(1);
 
   static std::string profile, purpose = "fit", reason, state, output;
@@ -625,7 +767,7 @@ void add_client_commands(CLI::App& app, int& code) {
   list->add_option("--limit", limit, "At most this many runs");
   list->callback([&] { code = cmd_run_list(common, state, limit, std::cout, std::cerr); });
 
-  auto* get = run->add_subcommand("get", "Show a run: its units, models, verifications and audit trail");
+  auto* get = run->add_subcommand("get", "Show a run: per unit its samples, frames lost and corrupt, samples flagged; models, verifications, audit trail");
   add_common(get, common);
   get->add_option("run", run_id, "Run id")->required();
   get->callback([&] { code = cmd_run_get(common, run_id, std::cout, std::cerr); });
@@ -634,6 +776,15 @@ void add_client_commands(CLI::App& app, int& code) {
   add_common(abort, common);
   abort->add_option("--reason", reason, "Why, for the audit trail");
   abort->callback([&] { code = cmd_run_abort(common, reason, std::cout, std::cerr); });
+
+  static bool resume_wait = false;
+  auto* resume = run->add_subcommand(
+      "resume", "Take up an interrupted run (one a crash of fogbenchd left) where its profile clock stood");
+  add_common(resume, common);
+  resume->add_option("run", run_id, "Id of the interrupted run")->required();
+  resume->add_flag("--wait", resume_wait, "Follow the run with a progress line on stderr until it ends");
+  resume->add_flag("-q,--quiet", quiet, "With --wait: no progress line");
+  resume->callback([&] { code = cmd_run_resume(common, run_id, resume_wait, quiet, std::cout, std::cerr); });
 
   auto* exp = run->add_subcommand("export", "Write a stored run's unit as CSV (the format fogctl fit reads)");
   add_common(exp, common);

@@ -1,7 +1,8 @@
 // fogctl's client commands: talk to fogbenchd over its command socket (docs/protocol.md):
-// status, run start/watch/list/get/abort/export, and fit/verify on a stored run (--run N).
+// status, run start/watch/list/get/abort/resume/export, and fit/verify on a stored run (--run N).
 #pragma once
 
+#include <cstdint>
 #include <deque>
 #include <expected>
 #include <string>
@@ -18,6 +19,17 @@ namespace fogbench::cli {
 
 // $FOGBENCH_SOCKET, else /run/fogbench/fogbenchd.sock.
 std::string default_socket();
+// $FOGBENCH_TOKEN, else empty.
+std::string default_token();
+
+// Where the daemon listens: a unix socket path, or a TCP endpoint (`tcp_host` set).
+struct Endpoint {
+  std::string socket_path;
+  std::string tcp_host;
+  std::uint16_t tcp_port = 0;
+};
+// "HOST:PORT" ("[::1]:7000" for IPv6) as given to --connect; an error names what is wrong.
+std::expected<Endpoint, std::string> parse_connect(const std::string& text);
 
 // An error of the client: a protocol code ("busy", "not_found"...) or "connection", and a
 // message for the user.
@@ -31,6 +43,11 @@ struct ClientError {
 class Client {
  public:
   static std::expected<Client, ClientError> connect(const std::string& socket_path, int timeout_ms = 5000);
+  // To the unix socket or the TCP endpoint; a non-empty `token` is sent with every request
+  // (the daemon needs it for control commands on TCP, ignores it on the unix socket, and never
+  // stores it).
+  static std::expected<Client, ClientError> connect(const Endpoint& endpoint, const std::string& token = "",
+                                                    int timeout_ms = 5000);
   Client(Client&& o) noexcept;
   Client& operator=(Client&& o) noexcept;
   Client(const Client&) = delete;
@@ -47,10 +64,12 @@ class Client {
 
  private:
   explicit Client(int fd) : fd_(fd) {}
+  static std::expected<Client, ClientError> handshake(int fd, int timeout_ms);
   std::expected<nlohmann::json, ClientError> read_message(int timeout_ms);
   int fd_ = -1;
   std::string buffer_;
   std::deque<nlohmann::json> pushed_;
+  std::string token_;
   std::int64_t next_id_ = 1;
   nlohmann::json hello_;
 };
@@ -61,7 +80,7 @@ class Client {
 std::expected<model::RunData, ClientError> fetch_run(Client& c, std::int64_t run_id, int unit,
                                                      bool include_settle = false);
 
-// Registers status, run (start, watch, list, get, abort, export) and extends fit and verify
+// Registers status, run (start, watch, list, get, abort, resume, export) and extends fit and verify
 // with --run N; `code` receives the exit code.
 void add_client_commands(CLI::App& app, int& code);
 
