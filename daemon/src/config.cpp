@@ -4,6 +4,7 @@
 #include <grp.h>
 
 #include <boost/asio/ip/address.hpp>
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <set>
@@ -281,6 +282,17 @@ std::expected<DaemonConfig, std::string> load_daemon_config(const std::filesyste
   auto c = parse_daemon_config(j, base);
   if (!c) return Err(file.string() + ": " + c.error());
   return c;
+}
+
+void scale_backoff_to_clock(drivers::DriversConfig& d, double time_scale) {
+  if (!(time_scale > 1.0)) return;
+  for (drivers::BackoffConfig* b : {&d.chamber.modbus.backoff, &d.thermistors.modbus.backoff}) {
+    auto scale = [&](std::int64_t ms) {
+      return std::max<std::int64_t>(1, std::llround(static_cast<double>(ms) / time_scale));
+    };
+    b->initial_ms = scale(b->initial_ms);
+    b->max_ms = scale(b->max_ms);
+  }
 }
 
 }  // namespace fogbench::daemon

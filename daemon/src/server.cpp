@@ -594,6 +594,8 @@ std::expected<void, std::string> Server::start() {
     }
   }
 
+  // Reconnection delays in run time, not wall time (config.hpp).
+  scale_backoff_to_clock(m.config.drivers, m.options.time_scale);
   m.chamber = std::make_unique<drivers::Chamber>(m.config.drivers.chamber);
   m.thermistors = std::make_unique<drivers::ThermistorModule>(m.config.drivers.thermistors, m.config.drivers.units);
   m.wguard.emplace(m.wio.get_executor());

@@ -91,3 +91,29 @@ TEST_CASE("config: socket.group, socket.tcp and the token, with errors naming th
   CHECK_THAT(refusal({{"socket", {{"tcp", {{"port", 7000}, {"tokn", "x"}}}}}}), Catch::StartsWith("socket.tcp.tokn: unknown field"));
   CHECK_THAT(refusal({{"socket", {{"tcp_port", 7000}, {"tcp", {{"port", 7001}}}}}}), Catch::StartsWith("socket.tcp_port"));
 }
+
+TEST_CASE("config: on the accelerated clock the reconnection backoff is divided by the time scale") {
+  auto c = parse_daemon_config(golden_config_json(), golden_dir());
+  REQUIRE(c.has_value());
+  auto& d = c->drivers;
+  d.chamber.modbus.backoff = {250, 30000, 2.0};
+  d.thermistors.modbus.backoff = {100, 10000, 3.0};
+  auto same = d;
+  scale_backoff_to_clock(same, 1.0);
+  CHECK(same.chamber.modbus.backoff.max_ms == 30000);
+  scale_backoff_to_clock(same, 0.5);  // slower than real time: left as configured
+  CHECK(same.chamber.modbus.backoff.initial_ms == 250);
+
+  scale_backoff_to_clock(d, 50.0);
+  // 250 ms / 50 = 5 ms and 30 s / 50 = 600 ms: the same run time as at 1x.
+  CHECK(d.chamber.modbus.backoff.initial_ms == 5);
+  CHECK(d.chamber.modbus.backoff.max_ms == 600);
+  CHECK(d.chamber.modbus.backoff.multiplier == 2.0);
+  CHECK(d.thermistors.modbus.backoff.initial_ms == 2);
+  CHECK(d.thermistors.modbus.backoff.max_ms == 200);
+  CHECK(d.thermistors.modbus.backoff.multiplier == 3.0);
+  // Never below 1 ms, however fast the clock.
+  scale_backoff_to_clock(d, 1e6);
+  CHECK(d.chamber.modbus.backoff.initial_ms == 1);
+  CHECK(d.chamber.modbus.backoff.max_ms == 1);
+}

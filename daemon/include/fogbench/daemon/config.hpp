@@ -67,6 +67,12 @@ struct DaemonConfig {
 // Parses the configuration; relative paths are resolved against base_dir (the file's folder).
 std::expected<DaemonConfig, std::string> parse_daemon_config(const nlohmann::json& j,
                                                              const std::filesystem::path& base_dir);
+// The drivers' reconnection backoff (drivers.*.modbus.backoff) counts wall time. On the
+// accelerated clock (--time-scale K, simulated benches) its delays are divided by K, so a lost
+// link is retried after the same run time as at 1x: the default 30 s cap is 30 s of run time,
+// not 30 s of wall time (25 min of run time at 50x). Never below 1 ms; K <= 1 changes nothing.
+void scale_backoff_to_clock(drivers::DriversConfig& drivers, double time_scale);
+
 // Reads and parses a file; errors start with the file name.
 std::expected<DaemonConfig, std::string> load_daemon_config(const std::filesystem::path& file);
 
