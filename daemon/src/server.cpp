@@ -562,9 +562,12 @@ std::expected<void, std::string> Server::start() {
   m.station = std::make_unique<Station>(m.config, *m.store, m.options.time_scale);
   m.handler = std::make_unique<Handler>(*m.station);
   m.station->set_publisher([&m](const json& msg) { m.publish(msg); });
+  // A store that cannot take the interrupted marks now (a full disk, a lock held) must not keep
+  // the daemon from starting and sending the chamber to its safe setpoint: the station retries.
   auto rec = m.station->recover();
-  if (!rec) return std::unexpected("storage: " + rec.error().message);
-  for (auto id : *rec) spdlog::warn("run {} was in progress when the daemon stopped: marked interrupted", id);
+  if (!rec) spdlog::error("storage: runs left in progress not marked interrupted: {}; retried every 10 s, no run starts until then",
+                          rec.error().message);
+  else for (auto id : *rec) spdlog::warn("run {} was in progress when the daemon stopped: marked interrupted", id);
 
   // The command socket, mode 0660: the group of the socket is the operators' group.
   const auto& path = m.config.socket.unix_path;

@@ -116,10 +116,23 @@ Station::Station(DaemonConfig config, storage::Store& store, double time_scale, 
       setpoint_c_(config_.safe_setpoint_c) {}
 
 ApiResult<std::vector<std::int64_t>> Station::recover() {
+  recovery_tried_clock_s_ = clock_s_;
   auto ids = store_.mark_interrupted_runs("daemon restarted: the run was in progress when it stopped");
-  if (!ids) return std::unexpected(from_store(ids.error()));
+  if (!ids) {
+    recovery_error_ = std::string(storage::to_string(ids.error().code)) + ": " + ids.error().message;
+    return std::unexpected(from_store(ids.error()));
+  }
+  recovery_error_.reset();
   return *ids;
 }
+
+namespace {
+ApiError not_recovered(const std::string& why) {
+  return {ErrorCode::internal,
+          "the runs a crash left in progress are not yet marked interrupted (" + why +
+              "); fogbenchd retries every 10 s and starts no run until it has"};
+}
+}  // namespace
 
 std::optional<std::int64_t> Station::active_run_id() const {
   if (!run_) return std::nullopt;
@@ -254,6 +267,7 @@ ApiResult<std::int64_t> Station::start_run(const std::string& profile_name,
                                            const std::string& purpose_text, const json& command) {
   if (run_) return api_error(ErrorCode::busy, "run " + std::to_string(run_->id) + " is " +
                                                   std::string(storage::to_string(run_->state)));
+  if (recovery_error_) return std::unexpected(not_recovered(*recovery_error_));
   auto purpose = storage::purpose_from_string(purpose_text);
   if (!purpose) return api_error(ErrorCode::bad_request, "purpose: expected \"fit\" or \"verify\"");
   if (serials.empty()) return api_error(ErrorCode::bad_request, "units: expected at least one serial");
@@ -303,6 +317,7 @@ ApiResult<std::int64_t> Station::start_run(const std::string& profile_name,
 ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall_time, const json& command) {
   if (run_) return api_error(ErrorCode::busy, "run " + std::to_string(run_->id) + " is " +
                                                   std::string(storage::to_string(run_->state)));
+  if (recovery_error_) return std::unexpected(not_recovered(*recovery_error_));
   auto detail = store_.get_run(run_id);
   if (!detail) return std::unexpected(from_store(detail.error()));
   const storage::RunRecord& rec = detail->run;
@@ -647,6 +662,13 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
   last_input_ = in;
   ++ticks_;
   if (!unrecorded_.empty()) flush_unrecorded();
+  // Every 10 s of wall time (a store held locked makes each try wait its busy timeout).
+  if (recovery_error_ && !run_ && clock_s - recovery_tried_clock_s_ >= 10.0 * time_scale_) {
+    if (auto ids = recover(); ids) {
+      for (auto id : *ids) spdlog::warn("run {} was in progress when the daemon stopped: marked interrupted", id);
+      spdlog::info("the store took the interrupted marks; runs may start");
+    }
+  }
   if (!run_) return {setpoint_c_};
   ActiveRun& run = *run_;
 
@@ -897,6 +919,7 @@ json Station::status() const {
     s["run"] = nullptr;
   }
   s["last_run"] = last_run_;
+  s["recovery"] = recovery_error_ ? json{{"pending", true}, {"error", *recovery_error_}} : json(nullptr);
   if (last_run_.is_object()) {
     const auto id = last_run_["run_id"].get<std::int64_t>();
     s["last_run"]["recorded"] = std::none_of(unrecorded_.begin(), unrecorded_.end(),

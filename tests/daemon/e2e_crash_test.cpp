@@ -4,6 +4,8 @@
 // and resumable (run.resume).
 #include "live_bench.hpp"
 
+#include <sqlite3.h>
+
 #include "fogbench/storage/store.hpp"
 
 using namespace fogbench;
@@ -103,4 +105,50 @@ TEST_CASE("e2e crash: SIGKILL mid-run loses no stored second; the restart marks 
   for (std::size_t i = 0; i < rows.size(); ++i) CHECK(rows[i]["t_s"].get<double>() == static_cast<double>(i));
   for (std::size_t i = static_cast<std::size_t>(before); i < rows.size() && (rows[i]["flags"].get<int>() & 8); ++i)
     CHECK(rows[i]["chamber_c"].is_null());
+}
+
+TEST_CASE("e2e crash: a store locked at restart does not keep fogbenchd from starting and going safe; the marks follow") {
+  if (!have_sim()) {
+    WARN("fogbench-sim not built: skipped");
+    return;
+  }
+  LiveBench bench(50.0, {{"safe_setpoint_c", 15}});
+  std::int64_t run = 0;
+  {
+    LineClient c(bench.socket());
+    REQUIRE(c.ok());
+    auto start = c.call({{"cmd", "run.start"}, {"profile", "short"}, {"units", {"SIM-0001"}}});
+    REQUIRE(code_of(start) == "ok");
+    run = start["result"]["run_id"].get<std::int64_t>();
+    REQUIRE(bench.wait_status(c, [](const json& r) {
+      return r["run"].is_object() && r["chamber"]["setpoint_c"] == 20.0;
+    }, 60s)["result"]["run"].is_object());
+  }
+  bench.daemon->kill_now();
+  // Someone holds the store's write lock (a sqlite3 shell, a backup) while the daemon restarts.
+  sqlite3* other = nullptr;
+  REQUIRE(sqlite3_open((bench.dir / "fogbench.db").c_str(), &other) == SQLITE_OK);
+  REQUIRE(sqlite3_exec(other, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr) == SQLITE_OK);
+  bench.start_daemon();  // it waits out its busy timeout (5 s) on the marks, then goes on
+  LineClient c(bench.socket());
+  REQUIRE(c.ok());
+  auto s = bench.wait_status(c, [](const json& r) { return r["chamber"]["setpoint_c"] == 15.0; }, 30s);
+  CHECK(s["result"]["chamber"]["setpoint_c"] == 15.0);
+  REQUIRE(s["result"]["recovery"].is_object());
+  CHECK_THAT(s["result"]["recovery"]["error"].get<std::string>(), Catch::Contains("busy"));
+  auto refused = c.call({{"cmd", "run.start"}, {"profile", "short"}, {"units", {"SIM-0001"}}});
+  CHECK(code_of(refused) == "internal");
+  CHECK_THAT(refused.dump(), Catch::Contains("not yet marked interrupted"));
+  CHECK(c.call({{"cmd", "run.get"}, {"run_id", run}})["result"]["run"]["state"] == "running");
+
+  REQUIRE(sqlite3_exec(other, "ROLLBACK", nullptr, nullptr, nullptr) == SQLITE_OK);
+  sqlite3_close(other);
+  // Retried every 10 s of wall time.
+  auto marked = bench.wait_status(c, [](const json& r) { return r["recovery"].is_null(); }, 40s);
+  CHECK(marked["result"]["recovery"].is_null());
+  auto g = c.call({{"cmd", "run.get"}, {"run_id", run}});
+  CHECK(g["result"]["run"]["state"] == "interrupted");
+  CHECK_THAT(g["result"]["run"]["reason"].get<std::string>(), Catch::Contains("daemon restarted"));
+  CHECK(code_of(c.call({{"cmd", "run.resume"}, {"run_id", run}})) == "ok");
+  CHECK(code_of(c.call({{"cmd", "run.abort"}})) == "ok");
 }

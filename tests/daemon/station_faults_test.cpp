@@ -265,6 +265,58 @@ TEST_CASE("station faults: a run's end the store refuses is kept, reported and w
   std::filesystem::remove_all(dir, ec);
 }
 
+TEST_CASE("station faults: a store that refuses the interrupted marks at start-up is retried; no run starts meanwhile") {
+  char tmpl[] = "/tmp/fogbench-recover-XXXXXX";
+  const std::filesystem::path dir = ::mkdtemp(tmpl);
+  const auto db = dir / "fogbench.db";
+  storage::OpenOptions o;
+  o.busy_timeout_ms = 0;
+  auto opened = storage::Store::open(db, o);
+  REQUIRE(opened.has_value());
+  SyntheticBench bench(1);
+  std::int64_t run = 0;
+  {
+    Station st(golden_config(), *opened, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
+    run = *st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+    for (int k = 0; k < 30; ++k) st.tick(k, bench.step(20));
+    // The daemon dies here, the run left running.
+  }
+  sqlite3* other = nullptr;
+  REQUIRE(sqlite3_open(db.c_str(), &other) == SQLITE_OK);
+  REQUIRE(sqlite3_exec(other, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr) == SQLITE_OK);
+
+  auto c = golden_config();
+  c.safe_setpoint_c = 15;
+  Station st(std::move(c), *opened, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
+  auto rec = st.recover();
+  REQUIRE_FALSE(rec.has_value());
+  // The daemon runs on: the chamber is sent to the safe setpoint, status says what is pending.
+  double clock_s = 0;
+  CHECK(st.tick(clock_s++, bench.step(20)).setpoint_c == 15.0);
+  json s = st.status();
+  REQUIRE(s["recovery"].is_object());
+  CHECK_THAT(s["recovery"]["error"].get<std::string>(), Catch::Contains("busy"));
+  // No run starts or resumes: the stale one would be taken for it.
+  auto refused = st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+  REQUIRE_FALSE(refused.has_value());
+  CHECK(refused.error().code == ErrorCode::internal);
+  CHECK_THAT(refused.error().message, Catch::Contains("not yet marked interrupted"));
+  CHECK(code_of_error(st.resume_run(run, 0, {})) == "internal");
+  CHECK(opened->get_run(run)->run.state == storage::RunState::running);
+
+  REQUIRE(sqlite3_exec(other, "ROLLBACK", nullptr, nullptr, nullptr) == SQLITE_OK);
+  sqlite3_close(other);
+  // Retried every 10 s: not at once, then within the next 10 ticks.
+  st.tick(clock_s++, bench.step(15));
+  CHECK(st.status()["recovery"].is_object());
+  for (int i = 0; i < 10; ++i) st.tick(clock_s++, bench.step(15));
+  CHECK(st.status()["recovery"].is_null());
+  CHECK(opened->get_run(run)->run.state == storage::RunState::interrupted);
+  CHECK(st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}}).has_value());
+  std::error_code ec;
+  std::filesystem::remove_all(dir, ec);
+}
+
 TEST_CASE("station faults: an interrupted run resumes where its profile clock stood, the gap stored flagged") {
   auto store = memory_store();
   std::int64_t run = 0;

@@ -86,7 +86,10 @@ class Station {
 
   void set_publisher(Publish p) { publish_ = std::move(p); }
 
-  // Start-up: runs left in settling or running by a crash become interrupted.
+  // Start-up: runs left in settling or running by a crash become interrupted. Should the store
+  // refuse (a full disk, a lock held), the daemon runs on: the ticks try again every 10 s of
+  // wall time while no run is active, and until it has worked no run starts or resumes (a new
+  // run would be taken for one the crash left). status.recovery says why meanwhile.
   ApiResult<std::vector<std::int64_t>> recover();
 
   // Checks and creates a run in state pending; it starts at the next tick. `command` is the
@@ -220,6 +223,9 @@ class Station {
   // reported even when the store could not take its final state (a full disk).
   nlohmann::json last_run_ = nullptr;
   std::deque<Unrecorded> unrecorded_;
+  // Why recover() has not worked yet; empty once it has (or before it is first called).
+  std::optional<std::string> recovery_error_;
+  double recovery_tried_clock_s_ = 0.0;
   std::int64_t ticks_ = 0;
 };
 
