@@ -33,6 +33,7 @@ class Database {
   // audit trail: samples may not use them (see with_reserve in store.cpp).
   std::int64_t limit_pages = 0;
   std::int64_t reserve_pages = 0;
+  int busy_timeout_ms = 0;  // as set on the connection
 
   // The failure of the call that just returned `rc`, with what was being done.
   StoreError error(int rc, std::string_view what) const;

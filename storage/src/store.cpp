@@ -346,6 +346,7 @@ StoreResult<Store> Store::open(const std::filesystem::path& path, const OpenOpti
   sqlite3_extended_result_codes(handle, 1);
   sqlite3_busy_timeout(handle, options.busy_timeout_ms);
   auto db = std::make_unique<Database>(handle, path, options);
+  db->busy_timeout_ms = options.busy_timeout_ms;
 
   // Look before writing anything: a foreign or newer file must stay exactly as it was.
   auto version = detail::inspect_schema(*db);
@@ -406,6 +407,17 @@ StoreResult<Store> Store::open(const std::filesystem::path& path, const OpenOpti
 }
 
 // ---------------------------------------------------------------- runs
+
+int Store::busy_timeout_ms() const {
+  assert(db_);
+  return db_->busy_timeout_ms;
+}
+
+void Store::set_busy_timeout_ms(int ms) {
+  assert(db_);
+  db_->busy_timeout_ms = std::max(0, ms);
+  sqlite3_busy_timeout(db_->handle(), db_->busy_timeout_ms);
+}
 
 StoreResult<std::int64_t> Store::create_run(const NewRun& r) {
   assert(db_);

@@ -291,6 +291,12 @@ class Store {
   // problems found.
   StoreResult<std::vector<std::string>> integrity_check();
 
+  // How long a write waits for another connection's lock (OpenOptions::busy_timeout_ms at
+  // first). The daemon sets 0 while the store refuses its writes, so its retries never stall
+  // its loop.
+  int busy_timeout_ms() const;
+  void set_busy_timeout_ms(int ms);
+
   // Whether this object holds a connection (false once moved from).
   explicit operator bool() const { return db_ != nullptr; }
 
