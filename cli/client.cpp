@@ -396,7 +396,7 @@ int cmd_status(const Common& o, std::ostream& out, std::ostream& err) {
   if (last.is_object())
     out << "last run " << last["run_id"] << ": " << last["state"].get<std::string>() << " ("
         << last["reason"].get<std::string>() << ")"
-        << (last.value("recorded", true) ? "" : "; NOT yet recorded in the store (retried every second)") << "\n";
+        << (last.value("recorded", true) ? "" : "; NOT yet recorded in the store (retried every 10 s)") << "\n";
   return kExitOk;
 }
 
@@ -455,7 +455,7 @@ int cmd_run_get(const Common& o, std::int64_t id, std::ostream& out, std::ostrea
       << ", time scale " << run["time_scale"] << "\n  created " << run["created_at"].get<std::string>() << ", started "
       << opt_str(run["started_at"]) << ", ended " << opt_str(run["ended_at"]) << "\n";
   if (!run.value("recorded", true))
-    out << "  its end is NOT yet recorded in the store (a full disk?); the daemon retries every second\n";
+    out << "  its end is NOT yet recorded in the store (a full disk?); the daemon retries every 10 s\n";
   // Per unit: the samples stored and what the run lost (frames lost, corrupt, samples flagged).
   out << quality_table(run["units"], r->value("quality", json()), &(*r)["samples"]).str();
   if (!(*r)["models"].empty()) {

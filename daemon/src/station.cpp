@@ -115,9 +115,30 @@ Station::Station(DaemonConfig config, storage::Store& store, double time_scale, 
       wall_clock_(wall_clock ? std::move(wall_clock) : WallClock(iso8601_now)),
       setpoint_c_(config_.safe_setpoint_c) {}
 
+namespace {
+// Failures that may pass (room made on the disk, a lock released): worth writing again.
+bool may_pass(storage::StoreErrc c) {
+  using storage::StoreErrc;
+  return c == StoreErrc::disk_full || c == StoreErrc::io || c == StoreErrc::busy || c == StoreErrc::read_only;
+}
+}  // namespace
+
+template <class Call>
+auto Station::without_waiting_if_refused(Call&& call) {
+  if (!store_refused_) return call();
+  const int wait_ms = store_.busy_timeout_ms();
+  store_.set_busy_timeout_ms(0);
+  auto r = call();
+  store_.set_busy_timeout_ms(wait_ms);
+  return r;
+}
+
 ApiResult<std::vector<std::int64_t>> Station::recover() {
   recovery_tried_clock_s_ = clock_s_;
-  auto ids = store_.mark_interrupted_runs("daemon restarted: the run was in progress when it stopped");
+  // The first try at start-up waits for a lock like any write; the retries do not.
+  auto ids = without_waiting_if_refused(
+      [&] { return store_.mark_interrupted_runs("daemon restarted: the run was in progress when it stopped"); });
+  store_refused_ = !ids && may_pass(ids.error().code);
   if (!ids) {
     recovery_error_ = std::string(storage::to_string(ids.error().code)) + ": " + ids.error().message;
     return std::unexpected(from_store(ids.error()));
@@ -172,18 +193,17 @@ ApiResult<profiles::Profile> Station::load_profile(const std::string& name, std:
 }
 
 storage::StoreResult<void> Station::write(const Unrecorded& w) {
-  if (w.state) return store_.set_run_state(w.run_id, *w.state, w.reason, w.t_s);
-  auto id = store_.add_event(w.run_id, w.kind, w.detail_json, w.t_s);
-  if (!id) return std::unexpected(id.error());
-  return {};
+  auto r = without_waiting_if_refused([&]() -> storage::StoreResult<void> {
+    if (w.state) return store_.set_run_state(w.run_id, *w.state, w.reason, w.t_s);
+    auto id = store_.add_event(w.run_id, w.kind, w.detail_json, w.t_s);
+    if (!id) return std::unexpected(id.error());
+    return {};
+  });
+  store_refused_ = !r && may_pass(r.error().code);
+  return r;
 }
 
 namespace {
-// Failures that may pass (room made on the disk, a lock released): worth writing again.
-bool may_pass(storage::StoreErrc c) {
-  using storage::StoreErrc;
-  return c == StoreErrc::disk_full || c == StoreErrc::io || c == StoreErrc::busy || c == StoreErrc::read_only;
-}
 std::string what_of(const std::string& state_or_kind, std::int64_t run_id) {
   return "run " + std::to_string(run_id) + ": " + state_or_kind;
 }
@@ -206,8 +226,9 @@ void Station::write_or_keep(Unrecorded w) {
                     w.state ? w.reason : w.detail_json);
       return;
     }
-    spdlog::error("{} not stored yet ({}): {}; kept and written again at every tick", what,
+    spdlog::error("{} not stored yet ({}): {}; kept and written again every 10 s", what,
                   storage::to_string(ok.error().code), ok.error().message);
+    unrecorded_tried_clock_s_ = clock_s_;
   }
   if (unrecorded_.size() >= kMaxUnrecorded) {
     const Unrecorded& old = unrecorded_.front();
@@ -419,6 +440,11 @@ ApiResult<std::int64_t> Station::abort_run(const std::string& reason, const json
 void Station::shutdown(const std::string& reason) {
   if (run_) finish(RunState::aborted, reason);
   setpoint_c_ = config_.safe_setpoint_c;
+  // A last try for what the store refused; what it still refuses is lost with the process
+  // (each was logged when it was refused).
+  if (!unrecorded_.empty()) flush_unrecorded();
+  if (!unrecorded_.empty())
+    spdlog::error("stopping with {} state changes or events the store did not take (see above)", unrecorded_.size());
 }
 
 void Station::finish(RunState to, const std::string& reason) {
@@ -661,8 +687,12 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
   clock_s_ = clock_s;
   last_input_ = in;
   ++ticks_;
-  if (!unrecorded_.empty()) flush_unrecorded();
-  // Every 10 s of wall time (a store held locked makes each try wait its busy timeout).
+  // Both retries every 10 s of wall time: a store held locked makes each try wait out its busy
+  // timeout (5 s), which must not hold up every second of the loop.
+  if (!unrecorded_.empty() && clock_s - unrecorded_tried_clock_s_ >= 10.0 * time_scale_) {
+    unrecorded_tried_clock_s_ = clock_s;
+    flush_unrecorded();
+  }
   if (recovery_error_ && !run_ && clock_s - recovery_tried_clock_s_ >= 10.0 * time_scale_) {
     if (auto ids = recover(); ids) {
       for (auto id : *ids) spdlog::warn("run {} was in progress when the daemon stopped: marked interrupted", id);
@@ -765,6 +795,8 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
     run.quality[i].samples_flagged += f != 0;
   }
   auto stored = store_.append_samples(run.id, rows);
+  // The run's end that follows must not wait out the lock again (write_or_keep).
+  if (!stored && may_pass(stored.error().code)) store_refused_ = true;
 
   json base = {{"type", "sample"}, {"run_id", run.id}, {"t_s", t_s},
                {"state", std::string(storage::to_string(run.state))},

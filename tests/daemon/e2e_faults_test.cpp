@@ -215,10 +215,11 @@ TEST_CASE("e2e faults: a full store aborts the run; the chamber goes safe, the d
     WARN("fogbench-sim not built: skipped");
     return;
   }
-  // An empty store with one run is about 100 KiB; at 100x two units store 200 rows a wall
-  // second, so 192 KiB fill within seconds. The safe setpoint, 15 degC, is one the profile
-  // (20 .. 25 degC) never commands, so reading it back on the mock proves it was sent.
-  constexpr std::int64_t kLimitBytes = 192 * 1024;
+  // The schema and the run take about 56 KiB (14 pages) and 16 KiB are the limit's reserve;
+  // at 100x two units store 200 rows a wall second, some 4 pages, so the rest of 128 KiB fills
+  // in about 4 s. The safe setpoint, 15 degC, is one the profile (20 .. 25 degC) never
+  // commands, so reading it back on the mock proves it was sent.
+  constexpr std::int64_t kLimitBytes = 128 * 1024;
   LiveBench bench(100.0, {{"safe_setpoint_c", 15}, {"storage", {{"size_limit_bytes", kLimitBytes}}}});
   LineClient c(bench.socket());
   REQUIRE(c.ok());

@@ -1,8 +1,10 @@
 // fogctl, the built executable, against the real fogbenchd on the live mock bench: the data
 // quality of a run in `status` and `run get` (table and --json), TCP with --connect and a
-// token (--token or $FOGBENCH_TOKEN), and `run resume` of a run a crash interrupted.
+// token (--token or $FOGBENCH_TOKEN), `run resume` of a run a crash interrupted, and a run end
+// the store has not taken yet.
 #include "live_bench.hpp"
 
+#include <sqlite3.h>
 #include <sys/wait.h>
 
 using namespace fogbench::daemon::test;
@@ -239,4 +241,54 @@ TEST_CASE("e2e fogctl: run resume takes up a run a crash interrupted; it refuses
   auto aborted = fogctl(bench, "run resume " + std::to_string(run) + " " + sock(bench));
   CHECK(aborted.code == 2);
   CHECK_THAT(aborted.err, Catch::Contains("is aborted"));
+}
+
+TEST_CASE("e2e fogctl: a run's end the store refused is shown as not yet recorded, then recorded once it is") {
+  if (!have_sim() || !have_fogctl()) {
+    WARN("fogbench-sim or fogctl not built: skipped");
+    return;
+  }
+  LiveBench bench(20.0, {{"safe_setpoint_c", 15}});
+  LineClient c(bench.socket());
+  REQUIRE(c.ok());
+  auto start = c.call({{"cmd", "run.start"}, {"profile", "short"}, {"units", {"SIM-0001"}}});
+  REQUIRE(code_of(start) == "ok");
+  const auto run = start["result"]["run_id"].get<std::int64_t>();
+  REQUIRE(bench.wait_status(c, [](const json& r) { return r["run"].is_object() && r["run"]["elapsed_s"] > 5; }, 60s)
+              ["result"]["run"].is_object());
+  // Another process takes the store's write lock: the next second waits out the busy timeout
+  // (5 s) and fails, the run is aborted, and its end cannot be written either.
+  sqlite3* other = nullptr;
+  REQUIRE(sqlite3_open((bench.dir / "fogbench.db").c_str(), &other) == SQLITE_OK);
+  REQUIRE(sqlite3_exec(other, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr) == SQLITE_OK);
+  auto s = bench.wait_status(c, [](const json& r) { return r["last_run"].is_object(); }, 60s);
+  REQUIRE(s["result"]["last_run"].is_object());
+  CHECK(s["result"]["last_run"]["recorded"] == false);
+  CHECK(s["result"]["setpoint_c"] == 15.0);
+
+  auto st = fogctl(bench, "status " + sock(bench));
+  REQUIRE(st.code == 0);
+  CHECK_THAT(st.out, Catch::Contains("last run " + std::to_string(run) + ": aborted (storage failed (busy)"));
+  CHECK_THAT(st.out, Catch::Contains("NOT yet recorded"));
+  auto g = fogctl(bench, "run get " + std::to_string(run) + " --json " + sock(bench));
+  REQUIRE(g.code == 0);
+  const json gj = json::parse(g.out);
+  CHECK(gj["run"]["state"] == "aborted");  // from the daemon's memory; the file still says running
+  CHECK(gj["run"]["recorded"] == false);
+  auto gt = fogctl(bench, "run get " + std::to_string(run) + " " + sock(bench));
+  REQUIRE(gt.code == 0);
+  CHECK_THAT(gt.out, Catch::Contains("NOT yet recorded"));
+
+  REQUIRE(sqlite3_exec(other, "ROLLBACK", nullptr, nullptr, nullptr) == SQLITE_OK);
+  sqlite3_close(other);
+  auto done = bench.wait_status(c, [](const json& r) { return r["last_run"]["recorded"] == true; }, 60s);
+  CHECK(done["result"]["last_run"]["recorded"] == true);
+  auto after = fogctl(bench, "run get " + std::to_string(run) + " --json " + sock(bench));
+  REQUIRE(after.code == 0);
+  const json aj = json::parse(after.out);
+  CHECK(aj["run"]["state"] == "aborted");
+  CHECK_FALSE(aj["run"].contains("recorded"));
+  CHECK(aj["quality"].is_array());
+  auto st2 = fogctl(bench, "status " + sock(bench));
+  CHECK(st2.out.find("NOT yet recorded") == std::string::npos);
 }

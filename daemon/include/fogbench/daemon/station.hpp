@@ -189,7 +189,7 @@ class Station {
   void transition(ActiveRun& run, storage::RunState to, const std::string& reason,
                   std::optional<double> t_s);
   // A state change or event the store refused (a full disk, an I/O error): kept, in order, and
-  // written again at every tick until the store takes it, so the audit trail ends up complete
+  // written again every 10 s of wall time until the store takes it, so the audit trail ends up complete
   // and in order once there is room. A run's later writes queue behind its earlier ones.
   struct Unrecorded {
     std::int64_t run_id = 0;
@@ -200,6 +200,10 @@ class Station {
     std::optional<double> t_s;
   };
   storage::StoreResult<void> write(const Unrecorded& w);
+  // Runs a store call without waiting for another connection's lock while the store is
+  // refusing writes (store_refused_): a locked store must not stall the loop at every retry.
+  template <class Call>
+  auto without_waiting_if_refused(Call&& call);
   void write_or_keep(Unrecorded w);
   void flush_unrecorded();
   void event(std::int64_t run_id, storage::EventKind kind, const nlohmann::json& detail,
@@ -223,6 +227,8 @@ class Station {
   // reported even when the store could not take its final state (a full disk).
   nlohmann::json last_run_ = nullptr;
   std::deque<Unrecorded> unrecorded_;
+  double unrecorded_tried_clock_s_ = 0.0;
+  bool store_refused_ = false;  // the last write failed in a way that may pass (see write_or_keep)
   // Why recover() has not worked yet; empty once it has (or before it is first called).
   std::optional<std::string> recovery_error_;
   double recovery_tried_clock_s_ = 0.0;
