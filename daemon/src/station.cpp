@@ -416,6 +416,14 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
     if (auto ok = store_.append_samples(run_id, gap_rows); !ok) return std::unexpected(from_store(ok.error()));
   }
   run.held_s += down_s;  // the profile clock stood still through the gap
+  // The counts go on from the store: every second stored flagged, the gap's included. The
+  // frames lost and corrupt before the crash were only in the dead daemon's memory: they count
+  // from here.
+  run.quality.assign(run.serials.size(), {});
+  for (std::size_t u = 0; u < rows.size(); ++u) {
+    for (std::size_t i = 0; i < n; ++i) run.quality[u].samples_flagged += rows[u][i].flags != 0;
+    run.quality[u].samples_flagged += static_cast<std::uint64_t>(down_s);
+  }
   run.prev_t_s = gap_to_s - 1.0;
   run.resume_at_s = gap_to_s;
   run.state = RunState::interrupted;

@@ -341,6 +341,10 @@ TEST_CASE("station faults: an interrupted run resumes where its profile clock st
   auto r = st.resume_run(run, 1699.0 + 50.0, {{"cmd", "run.resume"}, {"run_id", run}});
   REQUIRE(r.has_value());
   CHECK(code_of_error(st.resume_run(run, 1750.0, {})) == "busy");
+  // The quality counts go on from the store: the 50 s gap is 50 seconds flagged (the synthetic
+  // bench's own seconds have no flag).
+  CHECK(st.status()["run"]["quality"][0]["samples_flagged"] == 50);
+  CHECK(st.status()["run"]["quality"][0]["frames_lost"] == 0);
   // The next ticks carry on the run clock after the gap; the profile goes on from 700 s.
   int ticks = 0;
   for (double clock_s = 5000; st.active_run_id() && ticks < 5000; clock_s += 1, ++ticks)
