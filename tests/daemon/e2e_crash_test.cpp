@@ -14,7 +14,7 @@ using namespace fogbench::daemon::test::live;
 using nlohmann::json;
 using namespace std::chrono_literals;
 
-TEST_CASE("e2e crash: SIGKILL mid-run loses no stored second; the restart marks the run interrupted and goes safe") {
+TEST_CASE("e2e crash: SIGKILL mid-run loses no stored second, the restart marks the run interrupted and goes safe") {
   if (!have_sim()) {
     WARN("fogbench-sim not built: skipped");
     return;
@@ -107,7 +107,7 @@ TEST_CASE("e2e crash: SIGKILL mid-run loses no stored second; the restart marks 
     CHECK(rows[i]["chamber_c"].is_null());
 }
 
-TEST_CASE("e2e crash: a store locked at restart does not keep fogbenchd from starting and going safe; the marks follow") {
+TEST_CASE("e2e crash: a store locked at restart does not keep fogbenchd from starting and going safe, the marks follow") {
   if (!have_sim()) {
     WARN("fogbench-sim not built: skipped");
     return;

@@ -26,7 +26,7 @@ bool running(const json& r) { return r["run"].is_object() && r["run"]["state"] =
 
 }  // namespace
 
-TEST_CASE("e2e faults: a chamber link lost past link_loss.tolerance_s aborts; the safe setpoint follows the link back") {
+TEST_CASE("e2e faults: a chamber link lost past link_loss.tolerance_s aborts, the safe setpoint follows the link back") {
   if (!have_sim()) {
     WARN("fogbench-sim not built: skipped");
     return;
@@ -210,7 +210,7 @@ TEST_CASE("e2e faults: lost and corrupt gyro frames and an open thermistor are f
   }
 }
 
-TEST_CASE("e2e faults: a full store aborts the run; the chamber goes safe, the daemon answers, nothing stored is lost") {
+TEST_CASE("e2e faults: a full store aborts the run, the chamber goes safe, the daemon answers, nothing stored is lost") {
   if (!have_sim()) {
     WARN("fogbench-sim not built: skipped");
     return;

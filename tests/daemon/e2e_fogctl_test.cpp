@@ -134,7 +134,7 @@ TEST_CASE("e2e fogctl: status and run get show each unit's frames lost, frames c
   CHECK(g0[5] == std::to_string(flagged));
 }
 
-TEST_CASE("e2e fogctl: --connect reaches fogbenchd over TCP; control needs --token or $FOGBENCH_TOKEN") {
+TEST_CASE("e2e fogctl: --connect reaches fogbenchd over TCP, control needs --token or FOGBENCH_TOKEN") {
   if (!have_sim() || !have_fogctl()) {
     WARN("fogbench-sim or fogctl not built: skipped");
     return;
@@ -186,7 +186,7 @@ TEST_CASE("e2e fogctl: --connect reaches fogbenchd over TCP; control needs --tok
   CHECK_THAT(refused.err, Catch::Contains("cannot connect to fogbenchd at 127.0.0.1:"));
 }
 
-TEST_CASE("e2e fogctl: run resume takes up a run a crash interrupted; it refuses what it cannot resume") {
+TEST_CASE("e2e fogctl: run resume takes up a run a crash interrupted, it refuses what it cannot resume") {
   if (!have_sim() || !have_fogctl()) {
     WARN("fogbench-sim or fogctl not built: skipped");
     return;

@@ -30,7 +30,7 @@ const std::string kToken = "e2e-token-0123456789";
 
 }  // namespace
 
-TEST_CASE("e2e sockets: the unix socket is 0660 in socket.group; TCP reads freely and controls with the token") {
+TEST_CASE("e2e sockets: the unix socket is 0660 in socket.group, TCP reads freely and controls with the token") {
   if (!have_sim()) {
     WARN("fogbench-sim not built: skipped");
     return;

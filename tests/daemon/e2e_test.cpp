@@ -16,7 +16,7 @@ using namespace std::chrono_literals;
 
 using namespace fogbench::daemon::test::live;
 
-TEST_CASE("e2e: an accelerated exp1 fit run is stored and fitted; an exp2 verify run passes") {
+TEST_CASE("e2e: an accelerated exp1 fit run is stored and fitted, an exp2 verify run passes") {
   if (!have_sim()) {
     WARN("fogbench-sim not built in " << kBin << ": skipped");
     return;

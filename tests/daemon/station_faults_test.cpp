@@ -266,7 +266,7 @@ TEST_CASE("station faults: a run's end the store refuses is kept, reported and w
   std::filesystem::remove_all(dir, ec);
 }
 
-TEST_CASE("station faults: a store that refuses the interrupted marks at start-up is retried; no run starts meanwhile") {
+TEST_CASE("station faults: a store that refuses the interrupted marks at start-up is retried, no run starts meanwhile") {
   char tmpl[] = "/tmp/fogbench-recover-XXXXXX";
   const std::filesystem::path dir = ::mkdtemp(tmpl);
   const auto db = dir / "fogbench.db";

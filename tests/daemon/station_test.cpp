@@ -198,7 +198,7 @@ TEST_CASE("station: quality flags for readings that are missing, lost or implaus
   CHECK(std::count(kinds.begin(), kinds.end(), "fault") == 1);
 }
 
-TEST_CASE("station: shutdown aborts the active run; a restart marks a crashed run interrupted") {
+TEST_CASE("station: shutdown aborts the active run, a restart marks a crashed run interrupted") {
   auto store = memory_store();
   SyntheticBench bench(1);
   std::int64_t a = 0, b = 0;
