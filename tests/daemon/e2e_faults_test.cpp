@@ -184,6 +184,11 @@ TEST_CASE("e2e faults: lost and corrupt gyro frames and an open thermistor are f
   CHECK(q[1]["frames_lost"] == 0);
   CHECK(q[1]["frames_corrupt"] == 0);
   CHECK(s["result"]["units"][1]["t2_c"].is_null());  // the open sensor reads as not read
+  // run.get of the active run gives the live counts (no note is stored yet).
+  auto live = c.call({{"cmd", "run.get"}, {"run_id", run}});
+  REQUIRE(live["result"]["quality"].is_array());
+  CHECK(live["result"]["quality"][0]["frames_lost"].get<int>() >= q[0]["frames_lost"].get<int>());
+  CHECK(live["result"]["quality"][1]["samples_flagged"].get<int>() > 5);
   REQUIRE(code_of(c.call({{"cmd", "run.abort"}})) == "ok");
 
   // The stored samples say the same, and the run keeps its counts in a `quality` note.
