@@ -112,14 +112,22 @@ void World::step(double setpoint_c) {
     u.h1.push_back(u.t1);
     u.h2.push_back(u.t2);
     u.ha.push_back(air_c_);
-    if (u.h1.size() > 2 * window_) {  // keep a trailing window: amortised O(1) per step
+    if (!streaming_drift_) {
+      u.h1.clear();
+      u.h2.clear();
+      u.ha.clear();
+    } else if (u.h1.size() > 2 * window_) {  // keep a trailing window: amortised O(1) per step
       const auto drop = static_cast<std::ptrdiff_t>(u.h1.size() - window_);
       for (auto* h : {&u.h1, &u.h2, &u.ha}) h->erase(h->begin(), h->begin() + drop);
     }
     // The drift of the newest second from the trailing window; terms whose lag is shorter
     // than a centred filter's half-width see the window's one-sided edge (as a run's end does).
     double drift = u.law.mu0_dph;
-    if (auto d = drift_series(u.law, u.h1, u.h2, u.ha)) drift = d->back();
+    if (!streaming_drift_) {
+      drift = 0.0;
+    } else if (auto d = drift_series(u.law, u.h1, u.h2, u.ha)) {
+      drift = d->back();
+    }
     std::normal_distribution<double> tn(0.0, p.coil.t_noise_c);
     u.last.t1_c = u.t1 + tn(rng_);
     u.last.t2_c = u.t2 + tn(rng_);
@@ -132,6 +140,7 @@ std::expected<std::vector<model::RunData>, std::string> simulate(const SimConfig
                                                                  const std::vector<SetpointSample>& program) {
   auto world = World::create(cfg);
   if (!world) return std::unexpected(world.error());
+  world->set_streaming_drift(false);  // evaluated over the whole run below
   const std::size_t n = program.size();
   const std::size_t nu = cfg.units.size();
   std::vector<model::RunData> runs(nu);

@@ -84,6 +84,11 @@ class World {
 
   // Advances the physics by one second towards the commanded setpoint.
   void step(double setpoint_c);
+  // Whether step() works out the gyro's drift from the trailing temperature window (on by
+  // default: the mock bench streams it). simulate() turns it off and evaluates the drift over
+  // the whole run afterwards, so a day's run does not pay a window's evaluation every second;
+  // the noise realisation is the same either way. Off, sample().gyro_dph is the noise alone.
+  void set_streaming_drift(bool on) { streaming_drift_ = on; }
 
   struct UnitSample {
     double t1_c, t2_c;   // measured thermistors, degC (with noise)
@@ -117,6 +122,7 @@ class World {
   double air_c_ = 20.0;
   std::mt19937_64 rng_;
   std::size_t window_ = 0;
+  bool streaming_drift_ = true;
 };
 
 // A whole run at 1 s: the setpoints are followed in open loop. Deterministic for a seed.
