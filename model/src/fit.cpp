@@ -383,43 +383,47 @@ void finish_stats(Model& m, const Evaluated& ev, std::span<const double> y, std:
   const std::size_t p = m.ar.size();
   double ksum = 0.0;
   for (double k : m.ar) ksum += k;
-  // Columns of the prewhitened regression: intercept (1 - sum k) and each lagged term.
-  std::vector<std::vector<double>> cols;
-  for (std::size_t j = 0; j < nt; ++j) {
-    const int lag = m.terms[j].term.lag.seconds;
-    std::vector<double> c(n);
-    for (std::size_t t = 0; t < n; ++t) c[t] = ev.x[j][t >= static_cast<std::size_t>(lag) ? t - static_cast<std::size_t>(lag) : 0];
-    cols.push_back(ar_filter(c, m.ar));
-  }
-  std::vector<double> trend(n, m.mu0_dph);
-  for (std::size_t j = 0; j < nt; ++j) {
-    const int lag = m.terms[j].term.lag.seconds;
-    for (std::size_t t = 0; t < n; ++t)
-      trend[t] += m.terms[j].coef * ev.x[j][t >= static_cast<std::size_t>(lag) ? t - static_cast<std::size_t>(lag) : 0];
-  }
-  std::vector<double> e(n);
-  for (std::size_t t = 0; t < n; ++t) e[t] = y[t] - trend[t];
-  const std::vector<double> a = ar_filter(e, m.ar);
-  std::vector<double> w(n, 0.0);
+  const std::size_t k = 1 + nt;
+  // One pass over the run, no arrays of its length: the prewhitened design row
+  // [1 - sum k, (1 - k(q)) x_j(t - lag_j)] and residual a(t) = (1 - k(q)) e(t), with
+  // e = y - mu0 - sum coef_j x_j(t - lag_j), are formed sample by sample (values before the
+  // start equal to the first, as ar_filter takes them) and summed into G = X' W X and the
+  // RSS. A sample counts when it and the p before it all have weight.
+  std::vector<std::size_t> lag(nt);
+  for (std::size_t j = 0; j < nt; ++j) lag[j] = static_cast<std::size_t>(m.terms[j].term.lag.seconds);
+  auto x_at = [&](std::size_t j, std::size_t t, std::size_t back) {  // x_j(t - back - lag_j), clamped at 0
+    const std::size_t d = back + lag[j];
+    return ev.x[j][t >= d ? t - d : 0];
+  };
+  auto e_at = [&](std::size_t t, std::size_t back) {
+    const std::size_t u = t >= back ? t - back : 0;
+    double trend = m.mu0_dph;
+    for (std::size_t j = 0; j < nt; ++j) trend += m.terms[j].coef * x_at(j, u, 0);
+    return y[u] - trend;
+  };
+  std::vector<double> g(k * k, 0.0), row(k);  // g: the lower triangle of G, row-major
+  row[0] = 1.0 - ksum;
+  double rss = 0.0, nw = 0.0;
   for (std::size_t t = p; t < n; ++t) {
     bool ok = true;
     for (std::size_t j = 0; j <= p && ok; ++j) ok = w0[t - j] != 0.0;
-    w[t] = ok ? 1.0 : 0.0;
+    if (!ok) continue;
+    for (std::size_t j = 0; j < nt; ++j) {
+      double f = x_at(j, t, 0);
+      for (std::size_t i = 0; i < p; ++i) f -= m.ar[i] * x_at(j, t, i + 1);
+      row[j + 1] = f;
+    }
+    double a = e_at(t, 0);
+    for (std::size_t i = 0; i < p; ++i) a -= m.ar[i] * e_at(t, i + 1);
+    for (std::size_t r = 0; r < k; ++r)
+      for (std::size_t c = 0; c <= r; ++c) g[r * k + c] += row[r] * row[c];
+    rss += a * a;
+    nw += 1.0;
   }
-  const std::size_t k = 1 + nt;
-  // G = X' W X of the prewhitened design [1 - sum k, cols], as one vectorised product.
-  Eigen::MatrixXd X(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(k));
-  X.col(0).setConstant(1.0 - ksum);
-  for (std::size_t j = 0; j < nt; ++j)
-    X.col(static_cast<Eigen::Index>(j + 1)) = Eigen::Map<const Eigen::VectorXd>(cols[j].data(), static_cast<Eigen::Index>(n));
-  const Eigen::Map<const Eigen::VectorXd> wv(w.data(), static_cast<Eigen::Index>(n));
-  const Eigen::MatrixXd WX = X.array().colwise() * wv.array();
-  Eigen::MatrixXd G = X.transpose() * WX;
-  double rss = 0.0, nw = 0.0;
-  for (std::size_t t = 0; t < n; ++t) {
-    rss += w[t] * a[t] * a[t];
-    nw += w[t];
-  }
+  Eigen::MatrixXd G(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(k));
+  for (std::size_t r = 0; r < k; ++r)
+    for (std::size_t c = 0; c <= r; ++c)
+      G(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = G(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(r)) = g[r * k + c];
   const double nparams = static_cast<double>(k + p + static_cast<std::size_t>(n_auto_lags));
   const double s2 = nw > nparams ? rss / (nw - nparams) : 0.0;
   Eigen::LDLT<Eigen::MatrixXd> ldlt(G);
