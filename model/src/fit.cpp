@@ -22,13 +22,17 @@ using detail::Spectrum;
 
 std::unexpected<FitError> fail(FitError::Code c, std::string msg) { return std::unexpected(FitError{c, std::move(msg)}); }
 
-// A fixed column of the regression: a materialised series, or a constant (the intercept).
+// A fixed column of the regression: a view of a series (a term at its lag, read in place from
+// its Lagged extension), or a constant (the intercept).
 struct Column {
-  std::vector<double> v;  // empty when constant
+  const double* v = nullptr;  // null when constant; else valid for t = 0..N-1
   double c = 0.0;
-  bool constant() const { return v.empty(); }
-  double at(std::size_t t) const { return v.empty() ? c : v[t]; }
+  bool constant() const { return v == nullptr; }
+  double at(std::size_t t) const { return v ? v[t] : c; }
 };
+Column lagged_view(const Lagged& x, int max_lag, int lag) {
+  return {x.ext.data() + (max_lag - lag), 0.0};
+}
 
 struct ScanResult {
   int lag = 0;
@@ -50,15 +54,37 @@ ScanResult scan(const LagScanner& sc, std::span<const double> y, const Spectrum*
     wy[t] = w[t] * y[t];
     ywy += wy[t] * y[t];
   }
-  // The fixed block in one vectorised product: F' W F and F' W y.
-  Eigen::MatrixXd F(static_cast<Eigen::Index>(n), static_cast<Eigen::Index>(nf));
-  for (std::size_t a = 0; a < nf; ++a)
-    for (std::size_t t = 0; t < n; ++t) F(static_cast<Eigen::Index>(t), static_cast<Eigen::Index>(a)) = fixed[a].at(t);
-  const Eigen::Map<const Eigen::VectorXd> wv(w.data(), static_cast<Eigen::Index>(n));
-  const Eigen::Map<const Eigen::VectorXd> wyv(wy.data(), static_cast<Eigen::Index>(n));
-  const Eigen::MatrixXd WF = F.array().colwise() * wv.array();
-  const Eigen::MatrixXd Gff = F.transpose() * WF;
-  const Eigen::VectorXd bf = F.transpose() * wyv;
+  // The fixed block, F' W F and F' W y, summed pair by pair over the columns in place.
+  Eigen::MatrixXd Gff(static_cast<Eigen::Index>(nf), static_cast<Eigen::Index>(nf));
+  Eigen::VectorXd bf(static_cast<Eigen::Index>(nf));
+  // sum_t w(t) u(t) v(t) for two columns (or w(t) v(t) with u constant, and so on).
+  auto wdot = [&](const Column& u, const Column& v) {
+    double sum = 0.0;
+    if (u.constant() && v.constant()) {
+      for (std::size_t t = 0; t < n; ++t) sum += w[t];
+      return sum * u.c * v.c;
+    }
+    if (u.constant() || v.constant()) {
+      const Column& x = u.constant() ? v : u;
+      for (std::size_t t = 0; t < n; ++t) sum += w[t] * x.v[t];
+      return sum * (u.constant() ? u.c : v.c);
+    }
+    for (std::size_t t = 0; t < n; ++t) sum += w[t] * u.v[t] * v.v[t];
+    return sum;
+  };
+  for (std::size_t a = 0; a < nf; ++a) {
+    double sb = 0.0;
+    if (fixed[a].constant()) {
+      for (std::size_t t = 0; t < n; ++t) sb += wy[t];
+      sb *= fixed[a].c;
+    } else {
+      for (std::size_t t = 0; t < n; ++t) sb += fixed[a].v[t] * wy[t];
+    }
+    bf(static_cast<Eigen::Index>(a)) = sb;
+    for (std::size_t c = a; c < nf; ++c)
+      Gff(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(c)) = Gff(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(a)) =
+          wdot(fixed[a], fixed[c]);
+  }
   // Lag-dependent sums, each for all lags at once.
   std::vector<std::vector<double>> cvy(nv), gvv(nv * nv);
   std::vector<std::vector<std::vector<double>>> cvf(nv, std::vector<std::vector<double>>(nf));
@@ -535,7 +561,7 @@ std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<T
       if (terms[j].lag.seconds > L)
         return fail(FitError::Code::bad_options, "term '" + ev.names[j] + "' has lag " + std::to_string(terms[j].lag.seconds) +
                                                      " s, beyond the maximum lag of " + std::to_string(L) + " s");
-      fixed.push_back({detail::lagged_column(lagged[j], n, L, terms[j].lag.seconds), 0.0});
+      fixed.push_back(lagged_view(lagged[j], L, terms[j].lag.seconds));
       fixed_idx.push_back(j);
     }
   }
@@ -604,11 +630,11 @@ std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<T
       wy_spec = sc.spectrum_of_target(wy);
       // Start from one lag shared by all @auto terms (one scan), then refine each.
       if (first_pass) {
-        std::vector<Column> fixed{{{}, c}};
+        std::vector<Column> fixed{{nullptr, c}};
         std::vector<const Lagged*> var;
         for (std::size_t l = 0; l < nt; ++l) {
           if (terms[l].lag.automatic) var.push_back(&xf[l]);
-          else fixed.push_back({detail::lagged_column(xf[l], n, L, lag[l]), 0.0});
+          else fixed.push_back(lagged_view(xf[l], L, lag[l]));
         }
         const ScanResult r = scan(sc, yf, &wy_spec, fixed, var, 0, L);
         if (r.ok)
@@ -622,9 +648,9 @@ std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<T
       bool moved_now = false;
       for (std::size_t j = 0; j < nt && move_lags; ++j) {
         if (!terms[j].lag.automatic) continue;
-        std::vector<Column> fixed{{{}, c}};
+        std::vector<Column> fixed{{nullptr, c}};
         for (std::size_t l = 0; l < nt; ++l)
-          if (l != j) fixed.push_back({detail::lagged_column(xf[l], n, L, lag[l]), 0.0});
+          if (l != j) fixed.push_back(lagged_view(xf[l], L, lag[l]));
         const ScanResult r = scan(sc, yf, &wy_spec, fixed, {&xf[j]}, 0, L);
         if (!r.ok) return fail(FitError::Code::degenerate, "term '" + ev.names[j] + "': no lag gives a solvable regression");
         if (r.lag != lag[j]) moved_now = moved = true;
@@ -632,8 +658,8 @@ std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<T
       }
       if (!moved_now || !move_lags) break;
     }
-    std::vector<Column> all{{{}, c}};
-    for (std::size_t l = 0; l < nt; ++l) all.push_back({detail::lagged_column(xf[l], n, L, lag[l]), 0.0});
+    std::vector<Column> all{{nullptr, c}};
+    for (std::size_t l = 0; l < nt; ++l) all.push_back(lagged_view(xf[l], L, lag[l]));
     const ScanResult r = scan(sc, yf, nullptr, all, {}, 0, 0);
     if (!r.ok) return fail(FitError::Code::degenerate, "the regression is singular at the chosen lags");
     theta = r.theta;

@@ -154,13 +154,6 @@ Lagged make_lagged(std::span<const double> x, int max_lag) {
   return l;
 }
 
-std::vector<double> lagged_column(const Lagged& x, std::size_t n, int max_lag, int lag) {
-  assert(lag >= 0 && lag <= max_lag);
-  const auto off = static_cast<std::size_t>(max_lag - lag);
-  return std::vector<double>(x.ext.begin() + static_cast<std::ptrdiff_t>(off),
-                             x.ext.begin() + static_cast<std::ptrdiff_t>(off + n));
-}
-
 LagScanner::LagScanner(std::size_t n, int max_lag, std::vector<double> w)
     : n_(n), max_lag_(max_lag), w_(std::move(w)) {
   assert(w_.size() == n_);

@@ -20,8 +20,6 @@ struct Lagged {
   mutable Spectrum spec;        // FFT of ext's blocks, computed on first use
 };
 Lagged make_lagged(std::span<const double> x, int max_lag);
-// The column x(t - lag), t = 0..N-1.
-std::vector<double> lagged_column(const Lagged& x, std::size_t n, int max_lag, int lag);
 
 class LagScanner {
  public:
