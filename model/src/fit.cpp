@@ -234,27 +234,38 @@ std::expected<void, FitError> check_collinear(const std::vector<std::vector<doub
   const std::size_t m = cols.size();
   if (m == 0) return {};
   const std::size_t n = w.size();
-  auto at = [&](std::size_t j, std::size_t t) {
-    const std::size_t lag = lags.empty() ? 0 : lags[j];
-    return cols[j][t >= lag ? t - lag : 0];
-  };
+  // Column j at sample t is cols[j][t - lag_j], its first value before that; the sums below
+  // take the few samples before the longest lag one by one, the rest as plain loops.
+  std::vector<std::size_t> lag(m, 0);
+  for (std::size_t j = 0; j < m && !lags.empty(); ++j) lag[j] = std::min(lags[j], n);
+  const std::size_t head = m ? *std::max_element(lag.begin(), lag.end()) : 0;
+  auto at = [&](std::size_t j, std::size_t t) { return cols[j][t >= lag[j] ? t - lag[j] : 0]; };
   const double sw = std::accumulate(w.begin(), w.end(), 0.0);
   std::vector<double> mean(m, 0.0), sd(m, 0.0);
   for (std::size_t j = 0; j < m; ++j) {
-    for (std::size_t t = 0; t < n; ++t)
-      if (w[t] != 0.0) mean[j] += w[t] * at(j, t);
-    mean[j] /= sw;
+    double s = 0.0;
+    for (std::size_t t = 0; t < head; ++t)
+      if (w[t] != 0.0) s += w[t] * at(j, t);
+    const double* x = cols[j].data();
+    const std::size_t l = lag[j];
+    for (std::size_t t = head; t < n; ++t) s += w[t] != 0.0 ? w[t] * x[t - l] : 0.0;
+    mean[j] = s / sw;
   }
-  // The centred cross products of all pairs in one pass (two-pass for accuracy: a term of
-  // large mean and small spread loses nothing to cancellation).
-  Eigen::MatrixXd C = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(m));
-  std::vector<double> d(m);
-  for (std::size_t t = 0; t < n; ++t) {
-    if (w[t] == 0.0) continue;
-    for (std::size_t j = 0; j < m; ++j) d[j] = at(j, t) - mean[j];
-    for (std::size_t a = 0; a < m; ++a)
-      for (std::size_t b = a; b < m; ++b) C(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) += w[t] * d[a] * d[b];
-  }
+  // The centred cross products (two passes for accuracy: a term of large mean and small
+  // spread loses nothing to cancellation); a weight of zero skips a sample, NaN and all.
+  Eigen::MatrixXd C(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(m));
+  for (std::size_t a = 0; a < m; ++a)
+    for (std::size_t b = a; b < m; ++b) {
+      double c = 0.0;
+      for (std::size_t t = 0; t < head; ++t)
+        if (w[t] != 0.0) c += w[t] * (at(a, t) - mean[a]) * (at(b, t) - mean[b]);
+      const double* xa = cols[a].data();
+      const double* xb = cols[b].data();
+      const std::size_t la = lag[a], lb = lag[b];
+      const double ma = mean[a], mb = mean[b];
+      for (std::size_t t = head; t < n; ++t) c += w[t] != 0.0 ? w[t] * (xa[t - la] - ma) * (xb[t - lb] - mb) : 0.0;
+      C(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) = c;
+    }
   for (std::size_t j = 0; j < m; ++j) {
     sd[j] = std::sqrt(C(static_cast<Eigen::Index>(j), static_cast<Eigen::Index>(j)) / sw);
     const double scale = std::max(1.0, std::abs(mean[j]));
@@ -421,16 +432,22 @@ void finish_stats(Model& m, const Evaluated& ev, std::span<const double> y, std:
     const std::size_t d = back + lag[j];
     return ev.x[j][t >= d ? t - d : 0];
   };
-  auto e_at = [&](std::size_t t, std::size_t back) {
-    const std::size_t u = t >= back ? t - back : 0;
+  auto e_at = [&](std::size_t u) {  // the trend residual at sample u
     double trend = m.mu0_dph;
     for (std::size_t j = 0; j < nt; ++j) trend += m.terms[j].coef * x_at(j, u, 0);
     return y[u] - trend;
   };
+  // e(t), e(t-1), ..., e(t-p), kept as t advances (each e computed once).
+  std::vector<double> e_recent(p + 1);
+  for (std::size_t i = 0; i <= p && p < n; ++i) e_recent[i] = e_at(p - i);
   std::vector<double> g(k * k, 0.0), row(k);  // g: the lower triangle of G, row-major
   row[0] = 1.0 - ksum;
   double rss = 0.0, nw = 0.0;
   for (std::size_t t = p; t < n; ++t) {
+    if (t > p) {
+      for (std::size_t i = p; i > 0; --i) e_recent[i] = e_recent[i - 1];
+      e_recent[0] = e_at(t);
+    }
     bool ok = true;
     for (std::size_t j = 0; j <= p && ok; ++j) ok = w0[t - j] != 0.0;
     if (!ok) continue;
@@ -439,8 +456,8 @@ void finish_stats(Model& m, const Evaluated& ev, std::span<const double> y, std:
       for (std::size_t i = 0; i < p; ++i) f -= m.ar[i] * x_at(j, t, i + 1);
       row[j + 1] = f;
     }
-    double a = e_at(t, 0);
-    for (std::size_t i = 0; i < p; ++i) a -= m.ar[i] * e_at(t, i + 1);
+    double a = e_recent[0];
+    for (std::size_t i = 0; i < p; ++i) a -= m.ar[i] * e_recent[i + 1];
     for (std::size_t r = 0; r < k; ++r)
       for (std::size_t c = 0; c <= r; ++c) g[r * k + c] += row[r] * row[c];
     rss += a * a;
