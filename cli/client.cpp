@@ -702,8 +702,8 @@ std::filesystem::path temp_path(const std::string& stem, const std::string& ext)
   return p;
 }
 
-std::string fetch_to_csv(const std::string& socket, std::int64_t run_id, int unit) {
-  auto c = Client::connect(socket);
+std::string fetch_to_csv(const Common& where, std::int64_t run_id, int unit) {
+  auto c = open(where);
   if (!c) {
     report(c.error(), std::cerr);
     throw CLI::RuntimeError(kExitError);
@@ -815,17 +815,17 @@ void add_client_commands(CLI::App& app, int& code) {
   // fogctl fit --run N / fogctl verify --run N: the offline commands on a stored run. The run
   // is fetched when --run is parsed (after --socket and --unit, declared before it) and handed
   // to the command as the file it would otherwise be given.
-  static std::string fit_socket = default_socket(), verify_socket = default_socket();
+  static Common fit_from, verify_from;
   static int fit_unit = 0, verify_unit = 0;
   if (auto* fit = find_subcommand(app, "fit")) {
     if (auto* pos = fit->get_option_no_throw("run")) {
       pos->required(false);
-      fit->add_option("--socket", fit_socket, "With --run: fogbenchd's socket");
+      add_common(fit, fit_from, /*with_json=*/false);  // --socket, --connect, --token: where --run is fetched
       fit->add_option("--unit", fit_unit, "With --run: unit index in the run (default 0)");
       fit->add_option("--run", "Fit on a run stored by fogbenchd (fetched through its socket) instead of a CSV")
           ->each([pos](const std::string& v) {
             pos->clear();
-            pos->add_result(fetch_to_csv(fit_socket, std::stoll(v), fit_unit));
+            pos->add_result(fetch_to_csv(fit_from, std::stoll(v), fit_unit));
             pos->run_callback();
           });
     }
@@ -836,16 +836,16 @@ void add_client_commands(CLI::App& app, int& code) {
     if (pos && model) {
       pos->required(false);
       model->required(false);
-      ver->add_option("--socket", verify_socket, "With --run: fogbenchd's socket");
+      add_common(ver, verify_from, /*with_json=*/false);
       ver->add_option("--unit", verify_unit, "With --run: unit index in the run (default 0)");
       ver->add_option("--run", "Verify on a run stored by fogbenchd; without --model, the unit's current model")
           ->each([pos, model](const std::string& v) {
             const auto id = std::stoll(v);
             pos->clear();
-            pos->add_result(fetch_to_csv(verify_socket, id, verify_unit));
+            pos->add_result(fetch_to_csv(verify_from, id, verify_unit));
             pos->run_callback();
             if (model->count() == 0) {
-              auto c = Client::connect(verify_socket);
+              auto c = open(verify_from);
               if (!c) {
                 report(c.error(), std::cerr);
                 throw CLI::RuntimeError(kExitError);

@@ -167,6 +167,8 @@ TEST_CASE("e2e fogctl: --connect reaches fogbenchd over TCP, control needs --tok
   REQUIRE(ok.code == 0);
   const auto run = json::parse(ok.out)["run_id"].get<std::int64_t>();
   CHECK(c.call({{"cmd", "status"}})["result"]["run"]["id"] == run);
+  // A few seconds stored before the abort, for fit --run below.
+  bench.wait_status(c, [](const json& r) { return r["run"].is_object() && r["run"]["elapsed_s"].get<double>() >= 5; }, 60s);
   auto abort = fogctl(bench, "run abort " + nowhere + tcp + " --token " + token + " --reason tcp");
   INFO(abort.err);
   CHECK(abort.code == 0);
@@ -174,6 +176,12 @@ TEST_CASE("e2e fogctl: --connect reaches fogbenchd over TCP, control needs --tok
   CHECK(g["result"]["run"]["reason"] == "aborted by operator: tcp");
   // The token is never stored with the command.
   CHECK(g["result"].dump().find(token) == std::string::npos);
+  // fit --run fetches the stored run over TCP too (reads need no token). The aborted run is
+  // seconds long, so the fit itself refuses it: the refusal is the model's, not a connection's.
+  auto fit = fogctl(bench, "fit --run " + std::to_string(run) + " " + nowhere + tcp);
+  CHECK(fit.code == 2);
+  CHECK_THAT(fit.err, Catch::Contains("run" + std::to_string(run) + "-unit0"));
+  CHECK_THAT(fit.err, !Catch::Contains("connect"));
 
   // Bad endpoints: a clear message naming --connect, exit 2.
   for (const std::string bad : {"127.0.0.1", "127.0.0.1:http", "127.0.0.1:70000", ":7000"}) {
