@@ -265,7 +265,18 @@ ApiResult<json> Handler::dispatch(const std::string& cmd, const json& req, Sessi
     auto runs = store.list_runs(f);
     if (!runs) return std::unexpected(store_error(runs.error()));
     json arr = json::array();
-    for (const auto& r : *runs) arr.push_back(run_json(r));
+    for (const auto& r : *runs) {
+      json j = run_json(r);
+      // As in run.get: an end the store has not taken yet is the run's state all the same (a
+      // run so ended no longer matches a filter on its stored state).
+      if (json end = station_.unrecorded_end(r.id); !end.is_null()) {
+        if (f.state && end["state"] != std::string(storage::to_string(*f.state))) continue;
+        j["state"] = end["state"];
+        j["reason"] = end["reason"];
+        j["recorded"] = false;
+      }
+      arr.push_back(std::move(j));
+    }
     return json{{"runs", arr}};
   }
 

@@ -286,6 +286,13 @@ TEST_CASE("e2e fogctl: a run's end the store refused is shown as not yet recorde
   auto gt = fogctl(bench, "run get " + std::to_string(run) + " " + sock(bench));
   REQUIRE(gt.code == 0);
   CHECK_THAT(gt.out, Catch::Contains("NOT yet recorded"));
+  // run.list says the same, and a list of the runs stored as running no longer holds it.
+  auto list = c.call({{"cmd", "run.list"}});
+  REQUIRE(code_of(list) == "ok");
+  REQUIRE(list["result"]["runs"].size() == 1);
+  CHECK(list["result"]["runs"][0]["state"] == "aborted");
+  CHECK(list["result"]["runs"][0]["recorded"] == false);
+  CHECK(c.call({{"cmd", "run.list"}, {"state", "running"}})["result"]["runs"].empty());
 
   REQUIRE(sqlite3_exec(other, "ROLLBACK", nullptr, nullptr, nullptr) == SQLITE_OK);
   sqlite3_close(other);
