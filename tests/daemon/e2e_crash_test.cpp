@@ -25,9 +25,7 @@ TEST_CASE("e2e crash: SIGKILL mid-run loses no stored second, the restart marks 
   {
     LineClient c(bench.socket());
     REQUIRE(c.ok());
-    auto start = c.call({{"cmd", "run.start"}, {"profile", "short"}, {"units", {"SIM-0001", "SIM-0002"}}});
-    REQUIRE(code_of(start) == "ok");
-    run = start["result"]["run_id"].get<std::int64_t>();
+    run = bench.start_run(c, "short", {"SIM-0001", "SIM-0002"});
     // Past the ramp to 25 degC (step 2) into the hold after it, so the run has something to
     // fit, and with the controller's setpoint away from the safe 20 degC.
     auto s = bench.wait_status(c, [](const json& r) {
@@ -117,9 +115,7 @@ TEST_CASE("e2e crash: a store locked at restart does not keep fogbenchd from sta
   {
     LineClient c(bench.socket());
     REQUIRE(c.ok());
-    auto start = c.call({{"cmd", "run.start"}, {"profile", "short"}, {"units", {"SIM-0001"}}});
-    REQUIRE(code_of(start) == "ok");
-    run = start["result"]["run_id"].get<std::int64_t>();
+    run = bench.start_run(c, "short", {"SIM-0001"});
     REQUIRE(bench.wait_status(c, [](const json& r) {
       return r["run"].is_object() && r["chamber"]["setpoint_c"] == 20.0;
     }, 60s)["result"]["run"].is_object());

@@ -34,9 +34,7 @@ TEST_CASE("e2e faults: a chamber link lost past link_loss.tolerance_s aborts, th
   LiveBench bench(50.0, fast_reconnect({{"link_loss", {{"policy", "hold"}, {"tolerance_s", 20}}}}));
   LineClient c(bench.socket());
   REQUIRE(c.ok());
-  auto start = c.call({{"cmd", "run.start"}, {"profile", "short"}, {"units", {"SIM-0001"}}});
-  REQUIRE(code_of(start) == "ok");
-  const auto run = start["result"]["run_id"].get<std::int64_t>();
+  const auto run = bench.start_run(c, "short", {"SIM-0001"});
   // Into the ramp, the controller's setpoint above 21 degC, so the safe 20 degC is observable.
   auto s = bench.wait_status(c, [](const json& r) {
     return running(r) && r["chamber"]["setpoint_c"].is_number() && r["chamber"]["setpoint_c"].get<double>() > 21.0;
@@ -83,9 +81,7 @@ TEST_CASE("e2e faults: a short chamber link gap is held and flagged, and the run
   LiveBench bench(50.0, fast_reconnect({{"link_loss", {{"policy", "hold"}, {"tolerance_s", 3600}}}}));
   LineClient c(bench.socket());
   REQUIRE(c.ok());
-  auto start = c.call({{"cmd", "run.start"}, {"profile", "short"}, {"units", {"SIM-0001"}}});
-  REQUIRE(code_of(start) == "ok");
-  const auto run = start["result"]["run_id"].get<std::int64_t>();
+  const auto run = bench.start_run(c, "short", {"SIM-0001"});
   REQUIRE(running(bench.wait_status(c, running, 60s)["result"]));
   REQUIRE(bench.sim_command({{"cmd", "fault"}, {"name", "refuse_modbus"}, {"device", "chamber"}, {"on", true}})["ok"] == true);
   REQUIRE(bench.sim_command({{"cmd", "fault"}, {"name", "drop_modbus"}, {"device", "chamber"}})["ok"] == true);
@@ -124,9 +120,7 @@ TEST_CASE("e2e faults: the chamber's alarm aborts the run") {
   LiveBench bench(50.0);
   LineClient c(bench.socket());
   REQUIRE(c.ok());
-  auto start = c.call({{"cmd", "run.start"}, {"profile", "short"}, {"units", {"SIM-0001"}}});
-  REQUIRE(code_of(start) == "ok");
-  const auto run = start["result"]["run_id"].get<std::int64_t>();
+  const auto run = bench.start_run(c, "short", {"SIM-0001"});
   REQUIRE(running(bench.wait_status(c, running, 60s)["result"]));
   REQUIRE(bench.sim_command({{"cmd", "fault"}, {"name", "alarm"}, {"on", true}})["ok"] == true);
   json done = bench.wait_state(c, run, {"completed", "aborted", "failed"}, 60s);
@@ -142,9 +136,7 @@ TEST_CASE("e2e faults: a frozen process value aborts the run after tracking.froz
   LiveBench bench(100.0, {{"tracking", {{"frozen_s", 90}}}});
   LineClient c(bench.socket());
   REQUIRE(c.ok());
-  auto start = c.call({{"cmd", "run.start"}, {"profile", "short"}, {"units", {"SIM-0001"}}});
-  REQUIRE(code_of(start) == "ok");
-  const auto run = start["result"]["run_id"].get<std::int64_t>();
+  const auto run = bench.start_run(c, "short", {"SIM-0001"});
   REQUIRE(bench.wait_status(c, [](const json& r) { return running(r) && r["run"]["phase"] == "heating"; }, 120s)
               ["result"]["run"]["phase"] == "heating");
   REQUIRE(bench.sim_command({{"cmd", "fault"}, {"name", "freeze_pv"}, {"on", true}})["ok"] == true);
@@ -161,9 +153,7 @@ TEST_CASE("e2e faults: lost and corrupt gyro frames and an open thermistor are f
   LiveBench bench(20.0);
   LineClient c(bench.socket());
   REQUIRE(c.ok());
-  auto start = c.call({{"cmd", "run.start"}, {"profile", "short"}, {"units", {"SIM-0001", "SIM-0002"}}});
-  REQUIRE(code_of(start) == "ok");
-  const auto run = start["result"]["run_id"].get<std::int64_t>();
+  const auto run = bench.start_run(c, "short", {"SIM-0001", "SIM-0002"});
   REQUIRE(running(bench.wait_status(c, running, 60s)["result"]));
   REQUIRE(bench.sim_command({{"cmd", "fault"}, {"name", "lose_frames"}, {"unit", 0}, {"fraction", 0.2}})["ok"] == true);
   REQUIRE(bench.sim_command({{"cmd", "fault"}, {"name", "corrupt_frames"}, {"unit", 0}, {"fraction", 0.1}})["ok"] == true);
@@ -228,9 +218,7 @@ TEST_CASE("e2e faults: a full store aborts the run, the chamber goes safe, the d
   LiveBench bench(100.0, {{"safe_setpoint_c", 15}, {"storage", {{"size_limit_bytes", kLimitBytes}}}});
   LineClient c(bench.socket());
   REQUIRE(c.ok());
-  auto start = c.call({{"cmd", "run.start"}, {"profile", "short"}, {"units", {"SIM-0001", "SIM-0002"}}});
-  REQUIRE(code_of(start) == "ok");
-  const auto run = start["result"]["run_id"].get<std::int64_t>();
+  const auto run = bench.start_run(c, "short", {"SIM-0001", "SIM-0002"});
   REQUIRE(bench.wait_status(c, [](const json& r) { return r["chamber"]["setpoint_c"] == 20.0; }, 60s)
               ["result"]["chamber"]["setpoint_c"] == 20.0);
 

@@ -45,17 +45,6 @@ Out fogctl(const LiveBench& bench, const std::string& args, const std::string& e
 
 std::string sock(const LiveBench& bench) { return "--socket '" + bench.socket().string() + "'"; }
 
-std::uint16_t free_port() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
-  socklen_t len = sizeof a;
-  ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
-  ::close(fd);
-  return ntohs(a.sin_port);
-}
 
 // The table line that starts with `unit` and names `serial`, split into words.
 std::vector<std::string> row_of(const std::string& text, const std::string& serial) {
@@ -204,9 +193,7 @@ TEST_CASE("e2e fogctl: run resume takes up a run a crash interrupted, it refuses
   {
     LineClient c(bench.socket());
     REQUIRE(c.ok());
-    auto start = c.call({{"cmd", "run.start"}, {"profile", "short"}, {"units", {"SIM-0001"}}});
-    REQUIRE(code_of(start) == "ok");
-    run = start["result"]["run_id"].get<std::int64_t>();
+    run = bench.start_run(c, "short", {"SIM-0001"});
     REQUIRE(bench.wait_status(c, [](const json& r) {
       return r["run"].is_object() && r["run"]["step"].get<int>() >= 2;
     }, 120s)["result"]["run"].is_object());
@@ -259,9 +246,7 @@ TEST_CASE("e2e fogctl: a run's end the store refused is shown as not yet recorde
   LiveBench bench(20.0, {{"safe_setpoint_c", 15}});
   LineClient c(bench.socket());
   REQUIRE(c.ok());
-  auto start = c.call({{"cmd", "run.start"}, {"profile", "short"}, {"units", {"SIM-0001"}}});
-  REQUIRE(code_of(start) == "ok");
-  const auto run = start["result"]["run_id"].get<std::int64_t>();
+  const auto run = bench.start_run(c, "short", {"SIM-0001"});
   REQUIRE(bench.wait_status(c, [](const json& r) { return r["run"].is_object() && r["run"]["elapsed_s"] > 5; }, 60s)
               ["result"]["run"].is_object());
   // Another process takes the store's write lock: the next second waits out the busy timeout

@@ -13,18 +13,6 @@ using namespace std::chrono_literals;
 
 namespace {
 
-// A port free a moment ago on loopback (the kernel's pick; the daemon binds it next).
-std::uint16_t free_port() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
-  socklen_t len = sizeof a;
-  ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
-  ::close(fd);
-  return ntohs(a.sin_port);
-}
 
 const std::string kToken = "e2e-token-0123456789";
 
@@ -65,9 +53,7 @@ TEST_CASE("e2e sockets: 10,000 pipelined requests are all answered, a client tha
   LiveBench bench(20.0);
   LineClient c(bench.socket());
   REQUIRE(c.ok());
-  auto start = c.call({{"cmd", "run.start"}, {"profile", "short"}, {"units", {"SIM-0001"}}});
-  REQUIRE(code_of(start) == "ok");
-  const auto run = start["result"]["run_id"].get<std::int64_t>();
+  const auto run = bench.start_run(c, "short", {"SIM-0001"});
 
   // A client that asks and never reads: its replies queue up in the daemon until it is dropped
   // (16 MiB queued, or a write stuck for 10 s). 40,000 status replies of some 700 bytes are

@@ -27,9 +27,7 @@ TEST_CASE("e2e: an accelerated exp1 fit run is stored and fitted, an exp2 verify
   REQUIRE(c.ok());
   REQUIRE(json::parse(*c.line(10s))["type"] == "hello");
 
-  auto start = c.call({{"cmd", "run.start"}, {"profile", "exp1"}, {"units", {"SIM-0001", "SIM-0002"}}, {"purpose", "fit"}});
-  REQUIRE(code_of(start) == "ok");
-  const auto run = start["result"]["run_id"].get<std::int64_t>();
+  const auto run = bench.start_run(c, "exp1", {"SIM-0001", "SIM-0002"});
   // exp1: a settle of at least 10 min, then 90 min: about 6000 s, 60 s at K = 100. The
   // deadline allows a loaded machine five times that.
   json done = bench.wait_state(c, run, {"completed", "aborted", "failed", "interrupted"}, 300s);
@@ -72,9 +70,7 @@ TEST_CASE("e2e: a run aborted mid-ramp sends the chamber back to the safe setpoi
   LiveBench bench(50.0);
   LineClient c(bench.socket());
   REQUIRE(c.ok());
-  auto start = c.call({{"cmd", "run.start"}, {"profile", "short"}, {"units", {"SIM-0002"}}});
-  REQUIRE(code_of(start) == "ok");
-  const auto run = start["result"]["run_id"].get<std::int64_t>();
+  const auto run = bench.start_run(c, "short", {"SIM-0002"});
   // Into the ramp to 25 degC, the chamber's setpoint read back above 21 degC.
   auto s = bench.wait_status(c, [](const json& r) {
     return r["run"].is_object() && r["run"]["phase"] == "heating" && r["chamber"]["setpoint_c"].is_number() &&
@@ -153,9 +149,7 @@ TEST_CASE("e2e: SIGTERM mid-run ends the run as aborted and leaves the chamber a
   {
     LineClient c(bench.socket());
     REQUIRE(c.ok());
-    auto start = c.call({{"cmd", "run.start"}, {"profile", "short"}, {"units", {"SIM-0001"}}});
-    REQUIRE(code_of(start) == "ok");
-    run = start["result"]["run_id"].get<std::int64_t>();
+    run = bench.start_run(c, "short", {"SIM-0001"});
     auto s = bench.wait_status(c, [](const json& r) {
       return r["chamber"]["setpoint_c"].is_number() && r["chamber"]["setpoint_c"].get<double>() > 21.0;
     }, 120s);

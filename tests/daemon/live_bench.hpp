@@ -5,6 +5,11 @@
 #include "fixture.hpp"
 #include "process.hpp"
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <cstdlib>
 #include <set>
 
@@ -93,6 +98,16 @@ struct LiveBench {
     return l ? json::parse(*l, nullptr, false) : json(nullptr);
   }
 
+  // Starts a run of `profile` on `units` through `c`, which must succeed; its id.
+  std::int64_t start_run(LineClient& c, const std::string& profile, const std::vector<std::string>& units,
+                         const std::string& purpose = "fit") {
+    auto r = c.call({{"cmd", "run.start"}, {"profile", profile}, {"units", units}, {"purpose", purpose}});
+    INFO(r.dump());
+    REQUIRE(r.is_object());
+    REQUIRE(r.contains("result"));
+    return r["result"]["run_id"].get<std::int64_t>();
+  }
+
   // Polls run.get until the run is in one of `states`; the last reply.
   json wait_state(LineClient& c, std::int64_t run, std::set<std::string> states, std::chrono::seconds timeout) {
     const auto deadline = SteadyClock::now() + timeout;
@@ -121,6 +136,19 @@ struct LiveBench {
 };
 
 inline bool have_sim() { return std::filesystem::exists(kBin / "fogbench-sim"); }
+
+// A port free a moment ago on loopback (the kernel's pick; the daemon binds it next).
+inline std::uint16_t free_port() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
+  socklen_t len = sizeof a;
+  ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
+  ::close(fd);
+  return ntohs(a.sin_port);
+}
 
 inline std::string code_of(const json& reply) {
   if (!reply.is_object()) return "no reply";
