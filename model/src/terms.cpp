@@ -128,6 +128,8 @@ class Parser {
     // `(-T1)`, are part of the coefficient, so that printing and parsing again give the same.
     term = pull_coefficient(term, t.coef, t.coef_given);
     if (!term) return fail("expected a term (a signal such as T1, or a function such as d(T1)), found only a number");
+    if (!std::isfinite(t.coef))
+      return std::unexpected(error("the term's numeric factors multiply to a number out of the range of a double"));
     if (!depends_on_signal(*term))
       return std::unexpected(error("a term must contain a signal (T1, T2, Ta or grad); '" + to_string(*term) + "' is a constant"));
     t.expr = term;
@@ -227,8 +229,13 @@ class Parser {
       return std::unexpected(error("exponent must be 1 to 4, got " + std::to_string(*n)));
     }
     if ((*p)->kind == K::number) {
+      const double v = std::pow((*p)->value, *n);
+      if (!std::isfinite(v)) {
+        pos_ = at;
+        return std::unexpected(error("the number to the power " + std::to_string(*n) + " is out of the range of a double"));
+      }
       auto e = make(K::number);
-      std::const_pointer_cast<Expr>(e)->value = std::pow((*p)->value, *n);
+      std::const_pointer_cast<Expr>(e)->value = v;
       return e;
     }
     auto e = make(K::pow, *p);

@@ -169,4 +169,15 @@ TEST_CASE("one spelling per term: what fuzzing found") {
   auto deep = parse_terms(std::string(10000, '(') + "T1" + std::string(10000, ')'));
   REQUIRE_FALSE(deep);
   CHECK_THAT(deep.error().message, Catch::Contains("nested deeper"));
+  // Numbers folded at parse time must stay numbers: 1e300^4 printed as 'inf', which no
+  // longer parsed; now it is refused where the exponent stands, as are factors whose product
+  // overflows.
+  auto big = parse_terms("d(T1--1e300^4*\t.0-0)");
+  REQUIRE_FALSE(big);
+  CHECK(big.error().position == 12);  // the exponent
+  CHECK_THAT(big.error().message, Catch::Contains("out of the range of a double"));
+  auto product = parse_terms("1e200*1e200*T1");
+  REQUIRE_FALSE(product);
+  CHECK_THAT(product.error().message, Catch::Contains("out of the range of a double"));
+  CHECK(parse_terms("1e150*1e150*T1")->terms[0].coef == Approx(1e300));
 }
