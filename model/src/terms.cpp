@@ -321,6 +321,7 @@ class Parser {
     double v = 0.0;
     auto [p, ec] = std::from_chars(b, end, v);
     if (ec != std::errc() || p == b) return fail("expected a number");
+    if (!std::isfinite(v)) return fail("expected a finite number");  // from_chars reads 'inf' and 'nan'
     pos_ += static_cast<std::size_t>(p - b);
     return v;
   }

@@ -180,4 +180,8 @@ TEST_CASE("one spelling per term: what fuzzing found") {
   REQUIRE_FALSE(product);
   CHECK_THAT(product.error().message, Catch::Contains("out of the range of a double"));
   CHECK(parse_terms("1e150*1e150*T1")->terms[0].coef == Approx(1e300));
+  // A time constant is a finite number too (from_chars would read 'inf').
+  auto inf_tau = parse_terms("lp(T1, inf)");
+  REQUIRE_FALSE(inf_tau);
+  CHECK_THAT(inf_tau.error().message, Catch::Contains("finite number"));
 }
