@@ -322,6 +322,19 @@ TEST_CASE("csv: every error names its place", "[csv][errors]") {
     o.resample_s = 0.0;
     CHECK(parse_error("time_s,gyro_dph,t1_c,t2_c\n0,0,0,0\n", o).code == CsvErrc::bad_option);
   }
+  SECTION("resampling onto more than 10 million rows (a unit mistake) is refused before allocating") {
+    CsvOptions o = named();
+    o.resample_s = 2.0;
+    // What the fuzzer found: two rows 2e8 s apart asked for 1e8 rows, 6 GB.
+    auto e = parse_error("time_s,gyro_dph,t1_c,t2_c\n0,1,20,20\n199999999,1.4,20.4,20.2\n", o);
+    CHECK(e.code == CsvErrc::bad_option);
+    CHECK_THAT(e.message, Contains("would make 1e+08 rows"));
+    // 10 million rows exactly is still a run.
+    o.resample_s = 1.0;
+    auto ok = storage::parse_csv("time_s,gyro_dph,t1_c,t2_c\n0,1,20,20\n9999999,1.4,20.4,20.2\n", o);
+    REQUIRE(ok);
+    CHECK(ok->size() == 10000000u);
+  }
 }
 
 TEST_CASE("csv: resampling onto an even grid", "[csv][resample]") {
