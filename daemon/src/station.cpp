@@ -620,31 +620,49 @@ static ApiResult<storage::ModelRecord> model_for(storage::Store& store, const st
   return **r;
 }
 
+namespace {
+// A stored unit's run with the model to work on: the one asked for, or the serial's current.
+struct UnitWithModel {
+  UnitRun unit;
+  storage::ModelRecord record;
+  model::Model model;
+};
+}  // namespace
+
+static ApiResult<UnitWithModel> load_unit_with_model(storage::Store& store, std::int64_t run_id, int unit_index,
+                                                     std::optional<std::int64_t> model_id) {
+  auto u = load_unit_run(store, run_id, unit_index);
+  if (!u) return std::unexpected(u.error());
+  auto rec = model_for(store, u->serial, model_id);
+  if (!rec) return std::unexpected(rec.error());
+  auto m = model::model_from_text(rec->model_json);
+  if (!m) return api_error(ErrorCode::internal, "model " + std::to_string(rec->id) + ": " + m.error());
+  return UnitWithModel{std::move(*u), std::move(*rec), std::move(*m)};
+}
+
 static ApiError analysis_error(const char* what, const model::FitError& e) {
   return ApiError{ErrorCode::bad_request, std::string(what) + " (" + std::string(model::to_string(e.code)) + "): " + e.message};
 }
 
 ApiResult<json> Station::compare_unit(std::int64_t run_id, int unit_index, std::optional<std::int64_t> model_id) {
-  auto u = load_unit_run(store_, run_id, unit_index);
-  if (!u) return std::unexpected(u.error());
-  auto rec = model_for(store_, u->serial, model_id);
-  if (!rec) return std::unexpected(rec.error());
-  auto m = model::model_from_text(rec->model_json);
-  if (!m) return api_error(ErrorCode::internal, "model " + std::to_string(rec->id) + ": " + m.error());
-  auto c = model::workbench::compare(*m, u->data);
+  auto um = load_unit_with_model(store_, run_id, unit_index, model_id);
+  if (!um) return std::unexpected(um.error());
+  const UnitRun& u = um->unit;
+  const storage::ModelRecord& rec = um->record;
+  const model::Model& m = um->model;
+  auto c = model::workbench::compare(m, u.data);
   if (!c) return std::unexpected(analysis_error("compare failed", c.error()));
-  return json{{"run_id", run_id}, {"unit", unit_index}, {"serial", u->serial}, {"model_id", rec->id},
+  return json{{"run_id", run_id}, {"unit", unit_index}, {"serial", u.serial}, {"model_id", rec.id},
               {"result", model::workbench::to_json(*c)}};
 }
 
 ApiResult<json> Station::diagnose_unit(std::int64_t run_id, int unit_index, std::optional<std::int64_t> model_id,
                                        const std::vector<std::int64_t>& held_out_runs) {
-  auto u = load_unit_run(store_, run_id, unit_index);
-  if (!u) return std::unexpected(u.error());
-  auto rec = model_for(store_, u->serial, model_id);
-  if (!rec) return std::unexpected(rec.error());
-  auto m = model::model_from_text(rec->model_json);
-  if (!m) return api_error(ErrorCode::internal, "model " + std::to_string(rec->id) + ": " + m.error());
+  auto um = load_unit_with_model(store_, run_id, unit_index, model_id);
+  if (!um) return std::unexpected(um.error());
+  const UnitRun& u = um->unit;
+  const storage::ModelRecord& rec = um->record;
+  const model::Model& m = um->model;
   // Held-out runs: the same gyro (serial) in other stored runs.
   std::vector<model::RunData> held;
   for (std::int64_t other : held_out_runs) {
@@ -652,42 +670,41 @@ ApiResult<json> Station::diagnose_unit(std::int64_t run_id, int unit_index, std:
     if (!d) return std::unexpected(from_store(d.error()));
     int idx = -1;
     for (const auto& ru : d->run.units)
-      if (ru.serial == u->serial) idx = ru.unit_index;
+      if (ru.serial == u.serial) idx = ru.unit_index;
     if (idx < 0)
-      return api_error(ErrorCode::not_found, "held_out run " + std::to_string(other) + " has no unit " + u->serial);
+      return api_error(ErrorCode::not_found, "held_out run " + std::to_string(other) + " has no unit " + u.serial);
     auto h = load_unit_run(store_, other, idx);
     if (!h) return std::unexpected(h.error());
     held.push_back(std::move(h->data));
   }
-  auto dg = model::workbench::diagnose(*m, u->data, held);
+  auto dg = model::workbench::diagnose(m, u.data, held);
   if (!dg) return std::unexpected(analysis_error("diagnose failed", dg.error()));
-  return json{{"run_id", run_id}, {"unit", unit_index}, {"serial", u->serial}, {"model_id", rec->id},
+  return json{{"run_id", run_id}, {"unit", unit_index}, {"serial", u.serial}, {"model_id", rec.id},
               {"held_out", held_out_runs}, {"result", model::workbench::to_json(*dg)}};
 }
 
 ApiResult<json> Station::add_term_unit(std::int64_t run_id, int unit_index, const std::string& term,
                                        std::optional<std::int64_t> model_id) {
-  auto u = load_unit_run(store_, run_id, unit_index);
-  if (!u) return std::unexpected(u.error());
-  auto rec = model_for(store_, u->serial, model_id);
-  if (!rec) return std::unexpected(rec.error());
-  auto m = model::model_from_text(rec->model_json);
-  if (!m) return api_error(ErrorCode::internal, "model " + std::to_string(rec->id) + ": " + m.error());
-  auto added = model::workbench::add_term(*m, u->data, term);
+  auto um = load_unit_with_model(store_, run_id, unit_index, model_id);
+  if (!um) return std::unexpected(um.error());
+  const UnitRun& u = um->unit;
+  const storage::ModelRecord& rec = um->record;
+  const model::Model& m = um->model;
+  auto added = model::workbench::add_term(m, u.data, term);
   if (!added) return std::unexpected(analysis_error("add_term failed", added.error()));
   added->model.created_at = wall_clock_();
   storage::NewModel nm;
-  nm.serial = u->serial;
+  nm.serial = u.serial;
   nm.run_id = run_id;
-  nm.parent_id = rec->id;
+  nm.parent_id = rec.id;
   json mj = model::to_json(added->model);
   nm.model_json = mj.dump();
   nm.method = std::string(model::to_string(added->model.method));
   nm.terms = added->model.terms_string();
   auto ref = store_.put_model(nm);
   if (!ref) return std::unexpected(from_store(ref.error()));
-  return json{{"model_id", ref->id}, {"version", ref->version}, {"serial", u->serial},
-              {"run_id", run_id}, {"unit", unit_index}, {"parent_id", rec->id},
+  return json{{"model_id", ref->id}, {"version", ref->version}, {"serial", u.serial},
+              {"run_id", run_id}, {"unit", unit_index}, {"parent_id", rec.id},
               {"added", added->added}, {"terms", nm.terms}, {"method", nm.method}, {"model", mj}};
 }
 
