@@ -36,6 +36,9 @@ struct RunData {
   std::vector<Phase> phase;          // profile phase of each sample (optional)
   std::vector<int> step;             // profile step index of each sample (optional)
   std::vector<std::uint8_t> flags;   // quality flags, see `flag` (optional: all good)
+  // Time since the gyro's last power-on, s (optional: empty when the recording did not capture
+  // it; never guessed). The term language's signal `ton`; CSV column `since_power_on_s`.
+  std::vector<double> since_power_on_s;
 
   std::size_t size() const { return time_s.size(); }
   bool has_setpoint() const { return !setpoint_c.empty(); }
@@ -43,6 +46,7 @@ struct RunData {
   bool has_phase() const { return !phase.empty(); }
   bool has_step() const { return !step.empty(); }
   bool has_flags() const { return !flags.empty(); }
+  bool has_power_on() const { return !since_power_on_s.empty(); }
   // True when sample i carries any quality flag.
   bool flagged(std::size_t i) const { return !flags.empty() && flags[i] != 0; }
 };
