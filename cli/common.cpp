@@ -72,6 +72,11 @@ std::expected<void, std::string> write_text(const std::string& path, const std::
 std::vector<std::filesystem::path> profile_dirs() {
   std::vector<std::filesystem::path> dirs;
   if (const char* env = std::getenv("FOGBENCH_PROFILE_DIR"); env && *env) dirs.emplace_back(env);
+  // Beside the executable: <prefix>/bin/../share/fogbench/profiles, installed or in the build
+  // tree (profiles/CMakeLists.txt lays them out there too).
+  std::error_code ec;
+  if (const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec); !ec)
+    dirs.push_back(exe.parent_path().parent_path() / "share" / "fogbench" / "profiles");
   std::string builtin = FOGBENCH_PROFILE_DIRS;
   std::size_t b = 0;
   while (b <= builtin.size()) {
