@@ -29,7 +29,9 @@ std::expected<DriftLaw, std::string> make_drift_law(const UnitParams& u) {
   DriftLaw law;
   law.mu0_dph = u.gyro.mu0_dph;
   law.tref_c = u.gyro.tref_c;
-  for (const auto& [what, text] : {std::pair{"gyro terms", u.gyro.terms}, std::pair{"effect", u.effects}}) {
+  // A distributed coil's drift is read off its field: the truth terms are the lumped coil's.
+  const bool lumped = u.coil.model == CoilModel::lumped;
+  for (const auto& [what, text] : {std::pair{"gyro terms", lumped ? u.gyro.terms : std::string()}, std::pair{"effect", u.effects}}) {
     if (text.empty()) continue;
     auto l = model::parse_terms(text);
     if (!l) return std::unexpected(std::string(what) + " '" + text + "': " + l.error().pretty());
@@ -75,6 +77,11 @@ std::expected<World, std::string> World::create(const SimConfig& cfg) {
     UnitState st;
     st.law = std::move(*law);
     st.t1 = st.t2 = cfg.start_c;
+    if (u.coil.model == CoilModel::distributed) {
+      auto f = CoilField::create(u.coil.distributed, cfg.start_c);
+      if (!f) return std::unexpected("unit " + u.serial + ": coil: " + f.error());
+      st.field = std::move(*f);
+    }
     w.window_ = std::max<std::size_t>(w.window_, static_cast<std::size_t>(st.law.history_s) + 2 * model::kDerivativeHalfWidth + 64);
     w.units_.push_back(std::move(st));
   }
@@ -107,8 +114,15 @@ void World::step(double setpoint_c) {
   for (std::size_t i = 0; i < units_.size(); ++i) {
     auto& u = units_[i];
     const auto& p = cfg_.units[i];
-    u.t2 = lag_step(u.t2, air_c_, p.coil.wall_tau_s, 1.0);
-    u.t1 = lag_step(u.t1, u.t2, p.coil.core_tau_s, 1.0);
+    if (u.field) {
+      u.field->step(air_c_);
+      u.t1 = u.field->at(p.coil.distributed.t1_at);
+      u.t2 = u.field->at(p.coil.distributed.t2_at);
+      u.field_drift = u.field->drift_dph(p.gyro.tref_c);
+    } else {
+      u.t2 = lag_step(u.t2, air_c_, p.coil.wall_tau_s, 1.0);
+      u.t1 = lag_step(u.t1, u.t2, p.coil.core_tau_s, 1.0);
+    }
     u.h1.push_back(u.t1);
     u.h2.push_back(u.t2);
     u.ha.push_back(air_c_);
@@ -128,6 +142,7 @@ void World::step(double setpoint_c) {
     } else if (auto d = drift_series(u.law, u.h1, u.h2, u.ha)) {
       drift = d->back();
     }
+    if (u.field) drift += u.field_drift;
     std::normal_distribution<double> tn(0.0, p.coil.t_noise_c);
     u.last.t1_c = u.t1 + tn(rng_);
     u.last.t2_c = u.t2 + tn(rng_);
@@ -144,7 +159,7 @@ std::expected<std::vector<model::RunData>, std::string> simulate(const SimConfig
   const std::size_t n = program.size();
   const std::size_t nu = cfg.units.size();
   std::vector<model::RunData> runs(nu);
-  std::vector<std::vector<double>> t1(nu), t2(nu), noise(nu);
+  std::vector<std::vector<double>> t1(nu), t2(nu), noise(nu), field(nu);
   std::vector<double> air(n);
   for (std::size_t u = 0; u < nu; ++u) {
     runs[u].name = cfg.units[u].serial;
@@ -168,6 +183,7 @@ std::expected<std::vector<model::RunData>, std::string> simulate(const SimConfig
       t1[u].push_back(world->true_t1_c(u));
       t2[u].push_back(world->true_t2_c(u));
       noise[u].push_back(s.noise_dph);
+      if (world->field(u)) field[u].push_back(world->field_drift_dph(u));
     }
   }
   // Offline the drift is evaluated over the whole run with centred filters, exactly as the
@@ -178,6 +194,9 @@ std::expected<std::vector<model::RunData>, std::string> simulate(const SimConfig
     if (!exact) return std::unexpected("unit " + cfg.units[u].serial + ": " + exact.error());
     runs[u].gyro_dph.resize(n);
     for (std::size_t i = 0; i < n; ++i) runs[u].gyro_dph[i] = (*exact)[i] + noise[u][i];
+    // A distributed coil's drift comes from its field, stepped with the world.
+    if (!field[u].empty())
+      for (std::size_t i = 0; i < n; ++i) runs[u].gyro_dph[i] += field[u][i];
   }
   return runs;
 }

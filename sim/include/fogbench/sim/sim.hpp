@@ -1,19 +1,23 @@
 // The physics of the bench, seeded and at 1 s: chamber air following its setpoint through a
-// lag, a two-node coil (outer wall driven by the air, centre by the wall), thermistor noise,
-// and a gyro whose drift is mu0 plus terms of the term language (shared/TERMS.md) with their
-// coefficients and lags, plus AR(2) noise and rare outliers.
+// lag, a coil (lumped: two nodes, outer wall driven by the air, centre by the wall; distributed:
+// radial layers between the hub and the outer wall, coil.hpp), thermistor noise, and a gyro
+// whose drift is mu0 plus terms of the term language (shared/TERMS.md) with their coefficients
+// and lags (lumped), or read off the coil's temperature field (distributed), plus any hidden
+// effects, AR(2) noise and rare outliers.
 //
 // It feeds every model test (simulate()) and, stepped live, the mock bench (World).
 #pragma once
 
 #include <cstdint>
 #include <expected>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "fogbench/model/run.hpp"
 #include "fogbench/model/terms.hpp"
+#include "fogbench/sim/coil.hpp"
 
 namespace fogbench::sim {
 
@@ -23,10 +27,14 @@ struct ChamberParams {
   double air_noise_c = 0.02;           // noise of the chamber's own reading, degC
 };
 
+// The library's default is the lumped coil, the exact truth the model tests are derived
+// against; fogbench-sim and `fogctl simulate` default to the distributed coil (--coil).
 struct CoilParams {
-  double wall_tau_s = 150.0;   // outer wall follows the air, s
-  double core_tau_s = 40.0;    // coil centre follows the outer wall, s
+  CoilModel model = CoilModel::lumped;
+  double wall_tau_s = 150.0;   // lumped: outer wall follows the air, s
+  double core_tau_s = 40.0;    // lumped: coil centre follows the outer wall, s
   double t_noise_c = 0.005;    // thermistor noise (1 sigma), degC
+  DistributedCoil distributed; // distributed: the layers, the thermistors' places, the drift's sensitivities
 };
 
 // What the gyro's drift truly is. Defaults give the paper's Table 1 shape on exp1..3 (raw
@@ -36,7 +44,9 @@ struct CoilParams {
 // beta1 alone gives raw std under 1 deg/h on exp2 (see docs/simulation.md).
 struct GyroTruth {
   double mu0_dph = -8.097;
-  std::string terms = "-3.3*d(T1)@38 - 0.387*grad@38";  // deg/h, term language with coefficients
+  // deg/h, term language with coefficients; lumped coil only (the distributed coil's drift is
+  // read off its field with the sensitivities of DistributedCoil)
+  std::string terms = "-3.3*d(T1)@38 - 0.387*grad@38";
   std::vector<double> ar = {-0.005, -0.04};                // k1, k2
   double sigma_a_dph = 0.146;                              // innovation std, deg/h
   double outlier_rate_per_s = 2e-4;                        // rare spikes
@@ -65,7 +75,7 @@ struct SetpointSample {
   int step = 0;
 };
 
-// The drift terms of one unit, parsed: truth terms plus effects.
+// The drift terms of one unit, parsed: truth terms (lumped coil) plus effects.
 struct DriftLaw {
   double mu0_dph = 0.0;
   double tref_c = 20.0;
@@ -104,11 +114,17 @@ class World {
   UnitSample sample(std::size_t u) const { return units_[u].last; }
   double true_t1_c(std::size_t u) const { return units_[u].t1; }
   double true_t2_c(std::size_t u) const { return units_[u].t2; }
+  // The distributed coil's field (nullptr for a lumped coil) and the drift read off it over the
+  // second just stepped, deg/h without mu0 (0 for a lumped coil).
+  const CoilField* field(std::size_t u) const { return units_[u].field ? &*units_[u].field : nullptr; }
+  double field_drift_dph(std::size_t u) const { return units_[u].field_drift; }
 
  private:
   struct UnitState {
     DriftLaw law;
     double t1 = 20.0, t2 = 20.0;
+    std::optional<CoilField> field;   // distributed coil only
+    double field_drift = 0.0;         // deg/h, the field's drift of the last second
     std::vector<double> h1, h2, ha;   // true temperature history (trailing window), degC
     double n1 = 0.0, n2 = 0.0;        // AR noise state, deg/h
     UnitSample last{};
