@@ -102,6 +102,8 @@ struct Bench::Impl final : ControlHandler {
   struct UnitStatus {
     double t1_c = 0, t2_c = 0, true_t1_c = 0, true_t2_c = 0, gyro_dph = 0;
     std::uint64_t frames_sent = 0, frames_lost = 0, frames_corrupted = 0;
+    bool powered = true;
+    double powered_on_at_s = 0;  // simulated time of the gyro's last power-on
   };
   struct Snapshot {
     double time_s = 0, setpoint_c = 0, air_c = 0, pv_c = 0;
@@ -121,6 +123,7 @@ struct Bench::Impl final : ControlHandler {
 
   // ---- clock thread ----
   std::optional<sim::World> world;
+  std::vector<GyroStream> streams;  // each unit's gyro at its frame rate
   std::thread clock_thread;
   std::mutex cv_mutex;
   std::condition_variable cv;
@@ -172,6 +175,20 @@ struct Bench::Impl final : ControlHandler {
     auto w = sim::World::create(cfg.sim);
     if (!w) return std::unexpected(w.error());
     world.emplace(std::move(*w));
+    for (std::size_t u = 0; u < cfg.units.size(); ++u) {
+      const auto& g = cfg.sim.units[u].gyro;
+      const Warmup wu = u < cfg.warmup.size() ? cfg.warmup[u] : Warmup{};
+      if (!(wu.tau_s > 0)) return std::unexpected("unit " + cfg.units[u].serial + ": warm-up tau_s must be positive");
+      streams.emplace_back(StreamParams{.frame_rate_hz = cfg.units[u].frame_rate_hz,
+                                        .counts_per_dph = counts_per_dph[u],
+                                        .ar = g.ar,
+                                        .sigma_a_dph = g.sigma_a_dph,
+                                        .outlier_rate_per_s = g.outlier_rate_per_s,
+                                        .outlier_dph = g.outlier_dph,
+                                        .white_dph = cfg.frame_noise_dph,
+                                        .warmup_dph = wu.dph,
+                                        .warmup_tau_s = wu.tau_s});
+    }
 
     auto ch = ChamberRegisters::create(cfg.map.map, cfg.sim.start_c, true);
     if (!ch) return std::unexpected("chamber map: " + ch.error());
@@ -317,7 +334,8 @@ struct Bench::Impl final : ControlHandler {
         const auto& u = snap.units[i];
         units.push_back({{"unit", i}, {"serial", serials[i]}, {"node_id", cfg.units[i].gyro.node_id},
                          {"t1_c", u.t1_c}, {"t2_c", u.t2_c}, {"true_t1_c", u.true_t1_c}, {"true_t2_c", u.true_t2_c},
-                         {"gyro_dph", u.gyro_dph}, {"frames_sent", u.frames_sent},
+                         {"gyro_dph", u.powered ? json(u.gyro_dph) : json(nullptr)}, {"frames_sent", u.frames_sent},
+                         {"powered", u.powered}, {"powered_on_at_s", u.powered_on_at_s},
                          {"frames_lost", u.frames_lost}, {"frames_corrupted", u.frames_corrupted}});
       }
       out["units"] = std::move(units);
@@ -572,10 +590,9 @@ struct Bench::Impl final : ControlHandler {
 
   // ===== clock thread =========================================================================
 
-  struct Batch {  // the frames of the current simulated second, per unit
-    std::vector<std::vector<std::int32_t>> counts;
-    std::vector<std::size_t> next;   // next frame to send
-    std::vector<std::uint8_t> sequence;
+  struct Batch {  // the frame slots of the current simulated second, per unit
+    std::vector<std::vector<StreamFrame>> frames;
+    std::vector<std::size_t> next;   // next slot to send
     std::int64_t second = -1;        // its start, simulated seconds
   };
 
@@ -587,9 +604,8 @@ struct Bench::Impl final : ControlHandler {
     };
     const std::size_t nu = cfg.units.size();
     Batch b;
-    b.counts.resize(nu);
+    b.frames.resize(nu);
     b.next.assign(nu, 0);
-    b.sequence.assign(nu, 0);
     std::mt19937_64 rng(cfg.sim.seed ^ 0x9E3779B97F4A7C15ull);  // its own stream: the world's is untouched
     std::vector<::can_frame> out;
     std::int64_t next_step = 0;
@@ -622,7 +638,7 @@ struct Bench::Impl final : ControlHandler {
       emit(b, now, due, rng, out);
       auto wake = wall(static_cast<double>(next_step));
       for (std::size_t u = 0; u < nu; ++u) {
-        if (b.next[u] < b.counts[u].size()) wake = std::min(wake, due(u, b.next[u]));
+        if (b.next[u] < b.frames[u].size()) wake = std::min(wake, due(u, b.next[u]));
       }
       wake = std::max(wake, now + min_sleep);
       std::unique_lock lock(cv_mutex);
@@ -652,8 +668,12 @@ struct Bench::Impl final : ControlHandler {
     for (std::size_t u = 0; u < cfg.units.size(); ++u) {
       const auto& f = unit_faults[u];
       const double spike = static_cast<double>(second) < f.spike_until_s ? f.spike_dph : 0.0;
-      gyro_dph[u] = world->sample(u).gyro_dph + spike;
-      second_of_counts(gyro_dph[u], counts_per_dph[u], cfg.units[u].frame_rate_hz, cfg.frame_noise_dph, rng, b.counts[u]);
+      // The world's deterministic drift for the second; the gyro's noise is made at the frame
+      // rate by its stream (the world's own 1 s noise is left out), so the reader's 1 s means
+      // carry the specified AR noise whatever their phase.
+      const auto s = world->sample(u);
+      streams[u].second(second, s.gyro_dph - s.noise_dph + spike, {f.power_off_from_s, f.power_on_at_s}, rng, b.frames[u]);
+      gyro_dph[u] = streams[u].last_mean_dph();
       b.next[u] = 0;
     }
     const double air_c = world->air_c();
@@ -679,6 +699,8 @@ struct Bench::Impl final : ControlHandler {
       us.true_t1_c = world->true_t1_c(u);
       us.true_t2_c = world->true_t2_c(u);
       us.gyro_dph = gyro_dph[u];
+      us.powered = streams[u].powered();
+      us.powered_on_at_s = streams[u].powered_on_at_s();
     }
   }
 
@@ -690,12 +712,14 @@ struct Bench::Impl final : ControlHandler {
     std::uniform_real_distribution<double> uniform(0.0, 1.0);
     {
       std::lock_guard lock(mutex);
-      for (std::size_t u = 0; u < b.counts.size(); ++u) {
+      for (std::size_t u = 0; u < b.frames.size(); ++u) {
         auto& f = faults.units[u];
         auto& st = snap.units[u];
-        while (b.next[u] < b.counts[u].size() && (until == SteadyClock::time_point::max() || due(u, b.next[u]) <= until)) {
-          const std::int32_t counts = b.counts[u][b.next[u]++];
-          const std::uint8_t seq = b.sequence[u]++;
+        while (b.next[u] < b.frames[u].size() && (until == SteadyClock::time_point::max() || due(u, b.next[u]) <= until)) {
+          const StreamFrame slot = b.frames[u][b.next[u]++];
+          if (!slot.powered) continue;  // no power, no frame
+          const std::int32_t counts = slot.counts;
+          const std::uint8_t seq = slot.sequence;
           ++st.frames_sent;
           if (f.lose_burst > 0 || (f.lose_fraction > 0 && uniform(rng) < f.lose_fraction)) {
             if (f.lose_burst > 0) --f.lose_burst;

@@ -20,13 +20,21 @@
 
 namespace fogbench::mock {
 
+// A gyro's warm-up after each power-on: dph * exp(-t/tau_s) added to its drift, t the simulated
+// time since the power-on. dph 0: none.
+struct Warmup {
+  double dph = 0;
+  double tau_s = 600;
+};
+
 struct BenchConfig {
   Endpoints where;                 // ports 0: ephemeral, resolved by create()
   bool gateway = false;            // the thermistor module answers on the chamber's port
   std::string control_path;        // empty: no control socket
   double time_scale = 1.0;         // simulated seconds per wall second
   double duration_s = 0;           // stop after this many simulated seconds; 0: when told
-  double frame_noise_dph = 0.5;    // per-frame gyro noise, 1 sigma, zero-mean over each second
+  double frame_noise_dph = 0;      // extra white noise per frame (electronics), 1 sigma, deg/h
+  std::vector<Warmup> warmup;      // per unit (missing: none)
   sim::SimConfig sim;              // the physics; sim.units in the order of `units`
   std::vector<UnitLayout> units;
   ServedMap map;

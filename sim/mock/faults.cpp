@@ -3,6 +3,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <limits>
 #include <set>
 
 #include "fogbench/drivers/error.hpp"
@@ -22,6 +23,8 @@ std::optional<std::string_view> main_parameter(FaultKind kind) {
     case FaultKind::lose_burst: return "count";
     case FaultKind::gyro_spike: return "dph";
     case FaultKind::open_thermistor: return "sensor";
+    case FaultKind::power_off: return "duration_s";
+    case FaultKind::power_cycle: return "off_s";
     default: return std::nullopt;
   }
 }
@@ -39,6 +42,8 @@ std::set<std::string_view> fields_of(FaultKind kind) {
     case FaultKind::lose_burst: f.insert({"unit", "count"}); break;
     case FaultKind::open_thermistor: f.insert({"unit", "sensor"}); break;
     case FaultKind::gyro_spike: f.insert({"unit", "dph", "duration_s"}); break;
+    case FaultKind::power_off: f.insert({"unit", "duration_s"}); break;
+    case FaultKind::power_cycle: f.insert({"unit", "off_s"}); break;
   }
   return f;
 }
@@ -68,6 +73,8 @@ std::string_view to_string(FaultKind kind) noexcept {
     case FaultKind::corrupt_frames: return "corrupt_frames";
     case FaultKind::open_thermistor: return "open_thermistor";
     case FaultKind::gyro_spike: return "gyro_spike";
+    case FaultKind::power_off: return "power_off";
+    case FaultKind::power_cycle: return "power_cycle";
   }
   return "?";
 }
@@ -159,6 +166,16 @@ std::expected<FaultCommand, std::string> parse_fault_command(const json& c, cons
         cmd.duration_s = *d;
       }
       break;
+    case FaultKind::power_off:
+      v = std::numeric_limits<double>::infinity();
+      if (cmd.on && c.contains("duration_s")) v = number_field(c, "duration_s", 1e-9, 1e9);
+      if (!v) return std::unexpected(name + ": " + v.error());
+      break;
+    case FaultKind::power_cycle:
+      v = default_power_cycle_off_s;
+      if (c.contains("off_s")) v = number_field(c, "off_s", 1e-9, 1e9);
+      if (!v) return std::unexpected(name + ": " + v.error());
+      break;
     default: break;
   }
   if (!v) return std::unexpected(v.error());
@@ -243,6 +260,25 @@ void apply_fault(FaultState& state, const FaultCommand& c, double next_second_s)
         u.spike_until_s = c.on ? next_second_s + c.duration_s : 0.0;
       });
       break;
+    case FaultKind::power_off:
+      each_unit([&](UnitFaults& u) {
+        if (c.on) {
+          u.power_off_from_s = next_second_s;
+          u.power_on_at_s = next_second_s + c.value;
+        } else if (u.power_on_at_s > next_second_s) {
+          // Back on from the next second; a power-off not yet begun is simply cancelled.
+          if (u.power_off_from_s >= next_second_s) u.power_off_from_s = std::numeric_limits<double>::infinity();
+          u.power_on_at_s = next_second_s;
+        }
+      });
+      break;
+    case FaultKind::power_cycle:
+      if (!c.on) break;  // an action: nothing to switch off
+      each_unit([&](UnitFaults& u) {
+        u.power_off_from_s = next_second_s;
+        u.power_on_at_s = next_second_s + c.value;
+      });
+      break;
   }
 }
 
@@ -268,6 +304,10 @@ json active_faults(const FaultState& s, const std::vector<std::string>& serials,
     if (u.open_t1) with({{"name", "open_thermistor"}, {"sensor", "t1"}});
     if (u.open_t2) with({{"name", "open_thermistor"}, {"sensor", "t2"}});
     if (u.spike_until_s > next_second_s) with({{"name", "gyro_spike"}, {"dph", u.spike_dph}, {"until_s", u.spike_until_s}});
+    if (std::isfinite(u.power_off_from_s) && u.power_on_at_s > next_second_s) {
+      with({{"name", "power_off"}, {"from_s", u.power_off_from_s},
+            {"until_s", std::isfinite(u.power_on_at_s) ? json(u.power_on_at_s) : json(nullptr)}});
+    }
   }
   return out;
 }

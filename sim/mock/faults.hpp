@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <expected>
 #include <optional>
 #include <string>
@@ -27,13 +28,18 @@ enum class FaultKind {
   corrupt_frames,   // flip one bit in a `fraction` of a unit's frames: the CRC fails
   open_thermistor,  // a unit's sensor reads as an open circuit
   gyro_spike,       // add `dph` to a unit's gyro for `duration_s` simulated seconds
+  power_off,        // a unit has no power (no frames); for `duration_s` if given, else until off
+  power_cycle,      // action: a unit loses power for `off_s` simulated seconds, then restarts
 };
 
-inline constexpr std::array<FaultKind, 10> all_fault_kinds = {
+inline constexpr std::array<FaultKind, 12> all_fault_kinds = {
     FaultKind::refuse_modbus, FaultKind::drop_modbus, FaultKind::stall_modbus,
     FaultKind::freeze_pv,     FaultKind::alarm,       FaultKind::lose_frames,
     FaultKind::lose_burst,    FaultKind::corrupt_frames, FaultKind::open_thermistor,
-    FaultKind::gyro_spike};
+    FaultKind::gyro_spike,    FaultKind::power_off,   FaultKind::power_cycle};
+
+// A power cycle without `off_s` keeps the unit off this long, simulated s.
+inline constexpr double default_power_cycle_off_s = 3.0;
 
 std::string_view to_string(FaultKind kind) noexcept;
 std::optional<FaultKind> parse_fault_kind(std::string_view name) noexcept;
@@ -48,7 +54,8 @@ struct FaultCommand {
   std::optional<Device> device;     // Modbus faults; empty: both devices
   std::optional<std::size_t> unit;  // unit faults, resolved to an index; empty: every unit
   std::optional<int> sensor;        // open_thermistor: 1 (T1) or 2 (T2); empty: both
-  double value = 0;                 // ms, fraction, count or dph, by kind
+  double value = 0;                 // ms, fraction, count, dph or off_s, by kind; power_off:
+                                    // duration_s (infinity when not given)
   double duration_s = 10.0;         // gyro_spike, simulated seconds
 };
 
@@ -71,6 +78,9 @@ struct UnitFaults {
   bool open_t2 = false;
   double spike_dph = 0;
   double spike_until_s = 0;  // the spike applies to the seconds starting before this time
+  // No power from power_off_from_s (inclusive) to power_on_at_s (exclusive), simulated s.
+  double power_off_from_s = std::numeric_limits<double>::infinity();
+  double power_on_at_s = 0;
 };
 
 struct FaultState {
@@ -82,7 +92,7 @@ struct FaultState {
 };
 
 // Switches a fault on or off. `next_second_s` is the start of the next simulated second (where
-// a spike begins). drop_modbus changes no state: the caller closes the clients.
+// a spike begins, and where the power goes off or comes back). drop_modbus changes no state: the caller closes the clients.
 void apply_fault(FaultState& state, const FaultCommand& command, double next_second_s);
 
 // The faults in force, each as the JSON command that would set it (plus "serial" for units

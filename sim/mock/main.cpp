@@ -44,8 +44,12 @@ int main(int argc, char** argv) {
   app.add_option("--fault", o.faults, "fault active from the start: NAME[=VALUE][,KEY=VALUE...]; repeatable")
       ->allow_extra_args(false);
   app.add_option("--frame-rate-hz", o.frame_rate_hz, "gyro frames per simulated second, per unit")->capture_default_str();
-  app.add_option("--frame-noise-dph", o.frame_noise_dph, "per-frame gyro noise (1 sigma, zero-mean over each second), deg/h")
+  app.add_option("--frame-noise-dph", o.frame_noise_dph,
+                 "extra white noise per frame (1 sigma, deg/h), on top of the gyro's own noise made at the frame rate")
       ->capture_default_str();
+  app.add_option("--warmup-dph", o.warmup_dph, "warm-up transient after each power-on, A in A*exp(-t/tau), deg/h; 0: none")
+      ->capture_default_str();
+  app.add_option("--warmup-tau-s", o.warmup_tau_s, "time constant tau of the warm-up, simulated s")->capture_default_str();
   app.add_option("--map", o.map_file, "serve another chamber register map (default: the built-in drivers/maps/mock.json)");
   app.add_option("--duration-s", o.duration_s, "stop after this many simulated seconds; 0: run until stopped")->capture_default_str();
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")->capture_default_str();

@@ -49,8 +49,17 @@ std::expected<void, std::string> number(const json& j, const std::string& path, 
   return {};
 }
 
-std::expected<void, std::string> read_unit(const json& j, const std::string& path, sim::UnitParams& p, int& frame_rate_hz) {
-  if (auto ok = known_keys(j, path, {"serial", "frame_rate_hz", "effects", "coil", "gyro"}); !ok) return ok;
+std::expected<void, std::string> read_unit(const json& j, const std::string& path, sim::UnitParams& p, int& frame_rate_hz,
+                                           Warmup& warmup) {
+  if (auto ok = known_keys(j, path, {"serial", "frame_rate_hz", "effects", "coil", "gyro", "warmup"}); !ok) return ok;
+  if (j.contains("warmup")) {
+    const auto& w = j["warmup"];
+    const auto wp = path + ".warmup";
+    if (auto ok = known_keys(w, wp, {"dph", "tau_s"}); !ok) return ok;
+    for (auto ok : {number(w, wp, "dph", warmup.dph), number(w, wp, "tau_s", warmup.tau_s, true)}) {
+      if (!ok) return ok;
+    }
+  }
   if (j.contains("serial")) {
     if (!j["serial"].is_string() || j["serial"].get<std::string>().empty()) return std::unexpected(path + ".serial: expected a non-empty string");
     p.serial = j["serial"].get<std::string>();
@@ -135,6 +144,8 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
   if (!(o.time_scale > 0) || o.time_scale > 100000) return std::unexpected(std::string("--time-scale: expected a number in (0, 100000]"));
   if (!(o.duration_s >= 0)) return std::unexpected(std::string("--duration-s: expected a number >= 0"));
   if (!(o.frame_noise_dph >= 0)) return std::unexpected(std::string("--frame-noise-dph: expected a number >= 0"));
+  if (!std::isfinite(o.warmup_dph)) return std::unexpected(std::string("--warmup-dph: expected a number"));
+  if (!(o.warmup_tau_s > 0) || !std::isfinite(o.warmup_tau_s)) return std::unexpected(std::string("--warmup-tau-s: expected a positive number"));
   if (!std::isfinite(o.start_c) || o.start_c < min_start_c || o.start_c > max_start_c) {
     return std::unexpected("--start-c: expected " + std::to_string(static_cast<int>(min_start_c)) + ".." +
                            std::to_string(static_cast<int>(max_start_c)) + " degC");
@@ -190,8 +201,9 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
     if (!layout) return std::unexpected("--frame-rate-hz: " + layout.error());
     sim::UnitParams p;
     p.serial = layout->serial;
+    Warmup warmup{o.warmup_dph, o.warmup_tau_s};
     if (i < from_file) {
-      if (auto ok = read_unit(file["units"][i], o.config_file + ": units[" + std::to_string(i) + "]", p, rate); !ok) {
+      if (auto ok = read_unit(file["units"][i], o.config_file + ": units[" + std::to_string(i) + "]", p, rate, warmup); !ok) {
         return std::unexpected(ok.error());
       }
     }
@@ -204,6 +216,7 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
     layout->frame_rate_hz = rate;
     cfg.units.push_back(*layout);
     cfg.sim.units.push_back(p);
+    cfg.warmup.push_back(warmup);
   }
 
   auto map = load_served_map(o.map_file);

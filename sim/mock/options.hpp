@@ -33,7 +33,9 @@ struct Options {
   std::string config_file;
   std::vector<std::string> faults;   // NAME[=VALUE][,KEY=VALUE...]
   int frame_rate_hz = 100;
-  double frame_noise_dph = 0.5;
+  double frame_noise_dph = 0;        // extra white noise per frame, on top of the gyro's own
+  double warmup_dph = 0;             // every unit's warm-up after power-on: A*exp(-t/tau)
+  double warmup_tau_s = 600;
   std::string map_file;              // empty: the built-in drivers/maps/mock.json
   double duration_s = 0;
 };

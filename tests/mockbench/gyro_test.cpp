@@ -117,9 +117,9 @@ TEST_CASE("gyro frames arrive at the frame rate without loss and average to the 
     // round trip is the error, a simulated second or two, up to five when a loaded machine
     // delays a reply by 0.1 s at K = 50. 10% over 100 s.
     CHECK(static_cast<double>(totals[u].frames) == Approx(100.0 * (t1 - t0)).epsilon(0.1));
-    // The frames of each second average to that second's physics value exactly (to a count per
-    // second; the per-frame noise is centred), so the mean over ~100 s is mu0 plus the mean of
-    // 100 AR(2) noise values of sigma 0.146 deg/h: 0.015 deg/h (1 sigma). 0.1 deg/h is over six
+    // The gyro streams: any 100 consecutive frames average to the drift plus the 1 s AR(2) noise
+    // (sigma 0.146 deg/h), so the mean over ~100 s is mu0 plus the mean of 100 such values:
+    // 0.015 deg/h (1 sigma). 0.1 deg/h is over six
     // sigma and still covers one rare 2.5 deg/h outlier (0.025 over 100 s) and, in increment
     // mode, the 2.88 deg/h count quantised per second (at most 0.0144 deg/h of bias).
     CHECK(totals[u].mean_dph() == Approx(mu0_dph).margin(0.1));
@@ -170,8 +170,8 @@ TEST_CASE("fault corrupt_frames: corrupted frames fail the CRC and are counted, 
     INFO("unit " << u);
     CHECK(totals[u].corrupt > 0);
     CHECK(totals[u].lost == 0);  // a corrupt frame explains its gap in the sequence
-    // The good frames still average to the drift: 0.3 deg/h allows the centring lost with the
-    // dropped frames (0.5 deg/h per-frame noise over ~2400 frames) several times over.
+    // The good frames still average to the drift: over ~2400 frames of 30 s the AR noise
+    // leaves 0.146/sqrt(30) = 0.027 deg/h (1 sigma); 0.3 deg/h is ten sigma.
     CHECK(totals[u].mean_dph() == Approx(mu0_dph).margin(0.3));
   }
   CHECK(mock.status()["units"][0]["frames_corrupted"].get<int>() > 0);
@@ -188,7 +188,7 @@ TEST_CASE("fault gyro_spike: the mean shifts by the spike while it lasts, then r
 
   mock.fault({{"name", "gyro_spike"}, {"dph", 50.0}, {"duration_s", 100000}});
   // Frames already queued still carry the old values: skip to the first spiked frame of the
-  // rate-mode unit (-8 + 50 deg/h against 0.5 deg/h of per-frame noise: unmistakable).
+  // rate-mode unit (-8 + 50 deg/h against 1.46 deg/h of per-frame noise: unmistakable).
   bool spiked = false;
   std::vector<Totals> skipped;
   collect(bus, skipped, [&] { return spiked; }, [&](const can_frame& f) {
@@ -223,4 +223,98 @@ TEST_CASE("a hidden --effect shifts every unit's drift by its term") {
     // 60 s of AR noise: 0.146/sqrt(60) = 0.019 deg/h (1 sigma); 0.1 as in the test at rest.
     CHECK(totals[u].mean_dph() == Approx(mu0_dph + 10.0).margin(0.1));
   }
+}
+
+namespace {
+
+// The rate in deg/h of a unit's mean counts (rate or increment mode).
+double rate_dph(const DriversConfig& cfg, std::size_t u, double mean_counts) {
+  return cfg.units[u].gyro.mean_counts_to_rate_dph(mean_counts);
+}
+
+}  // namespace
+
+TEST_CASE("--fault power_off=D: a unit's frames start D s into the session, its counter at 0, its warm-up after") {
+  // SIM-0002 (increment mode) powered on at 20 s; every unit warms up by 10 exp(-t/20) deg/h.
+  MockProcess mock({"--time-scale", "50", "--fault", "power_off=20,unit=1", "--warmup-dph", "10", "--warmup-tau-s", "20"});
+  auto cfg = mock.example_config();
+  auto bus = open_bus(mock, cfg);
+  const auto early = mock.status();
+  REQUIRE(early["time_s"].get<double>() < 18);  // the bench starts in well under a wall second
+  CHECK(early["units"][1]["powered"] == false);
+  CHECK(early["units"][1]["frames_sent"] == 0);
+  CHECK(early["units"][1]["gyro_dph"].is_null());
+  CHECK(early["units"][0]["powered"] == true);
+
+  std::vector<std::int32_t> counts;  // SIM-0002's frames in order
+  std::vector<std::uint8_t> sequence;
+  std::vector<Totals> totals;
+  collect(bus, totals, [&] { return counts.size() >= 2600; }, [&](const can_frame& f) {
+    auto g = can::decode(f);
+    if (g && g->node_id == 258) {
+      counts.push_back(g->counts);
+      sequence.push_back(g->sequence);
+    }
+  });
+  const auto st = mock.status();
+  CHECK(st["units"][1]["powered"] == true);
+  CHECK(st["units"][1]["powered_on_at_s"] == 20.0);
+  CHECK(st["units"][0]["powered_on_at_s"] == 0.0);
+  // 100 frames per second from 20 s: the frames sent match the time since (one second either
+  // way for the status' snapshot).
+  const double on_s = st["time_s"].get<double>() - 20.0;
+  CHECK(st["units"][1]["frames_sent"].get<double>() == Approx(100.0 * on_s).margin(100));
+  REQUIRE(sequence.size() >= 2600);
+  CHECK(sequence[0] == 0);  // the counter starts at power-on
+  CHECK(sequence[1] == 1);
+  CHECK(totals[1].lost == 0);
+
+  // The warm-up: the mean of frames 0..499 (the first 5 s on) is mu0 + 10 * (20/5)(1 - e^-0.25)
+  // = -8.097 + 8.848 = 0.751 deg/h; frames 2000..2499 (20..25 s on) mu0 + 40 (e^-1 - e^-1.25)
+  // = -4.842 deg/h. 5 s of AR noise: 0.146/sqrt(5) = 0.065 deg/h (1 sigma); the increment
+  // mode's quantisation carries over, within one count (2.88 deg/h) per 500 frames. 0.3 is
+  // over four sigma.
+  auto mean_of = [&](std::size_t from, std::size_t to) {
+    double s = 0;
+    for (std::size_t i = from; i < to; ++i) s += counts[i];
+    return rate_dph(cfg, 1, s / static_cast<double>(to - from));
+  };
+  CHECK(mean_of(0, 500) == Approx(mu0_dph + 10.0 * 4.0 * (1 - std::exp(-0.25))).margin(0.3));
+  CHECK(mean_of(2000, 2500) == Approx(mu0_dph + 40.0 * (std::exp(-1.0) - std::exp(-1.25))).margin(0.3));
+}
+
+TEST_CASE("fault power_cycle: a unit's frames stop for off_s, then restart with the counter at 0") {
+  MockProcess mock({"--time-scale", "50"});
+  auto cfg = mock.example_config();
+  auto bus = open_bus(mock, cfg);
+  std::vector<Totals> totals;
+  const double start = mock.sim_time();
+  collect(bus, totals, [&] { return mock.sim_time() >= start + 5; });
+  mock.fault({{"name", "power_cycle"}, {"unit", "SIM-0001"}, {"off_s", 4}});
+  // Off from the next second for 4 s: the status shows it unpowered within two seconds.
+  REQUIRE(wait_for(5s, [&] { return mock.status()["units"][0]["powered"] == false; }));
+  const auto off = mock.status();
+  REQUIRE(off["faults"].size() == 1);
+  const double on_at = off["faults"][0]["until_s"].get<double>();
+  CHECK(off["faults"][0]["name"] == "power_off");
+  CHECK(on_at - off["faults"][0]["from_s"].get<double>() == 4.0);
+  // SIM-0001's frames from the cut on: the first after the gap (SIM-0002 sent over 200 frames,
+  // 2 s, since SIM-0001's previous one) has sequence 0.
+  std::optional<std::uint8_t> first_after;
+  int others_since = 0;
+  const double cut_s = mock.sim_time();
+  collect(bus, totals, [&] { return first_after.has_value() || mock.sim_time() > cut_s + 15; }, [&](const can_frame& f) {
+    auto g = can::decode(f);
+    if (!g || first_after) return;
+    if (g->node_id == 258) ++others_since;
+    if (g->node_id != 257) return;
+    if (others_since > 200) first_after = g->sequence;
+    others_since = 0;
+  });
+  REQUIRE(first_after.has_value());
+  CHECK(*first_after == 0);
+  const auto after = mock.status();
+  CHECK(after["units"][0]["powered"] == true);
+  CHECK(after["units"][0]["powered_on_at_s"] == on_at);
+  CHECK(after["units"][1]["powered_on_at_s"] == 0.0);  // the other unit was not cycled
 }

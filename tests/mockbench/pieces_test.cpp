@@ -119,35 +119,6 @@ TEST_CASE("the NTC resistance inverts the drivers' Steinhart-Hart equation") {
   CHECK(beta_only.temp_c(ntc_resistance_ohm(beta_only, 42.0)) == Approx(42.0).margin(1e-9));
 }
 
-TEST_CASE("the frames of a second carry its rate exactly, to one count over the second") {
-  std::mt19937_64 rng(7);
-  std::vector<std::int32_t> counts;
-  // Rate mode at 1e-4 deg/h per count: 1e4 counts per deg/h.
-  for (double rate : {-8.097, 0.0, 41.903, -1234.5678}) {
-    second_of_counts(rate, 1e4, 100, 0.5, rng, counts);
-    REQUIRE(counts.size() == 100);
-    const auto sum = std::accumulate(counts.begin(), counts.end(), std::int64_t{0});
-    // sum == round(100 * rate * 1e4): the centred noise adds nothing, rounding carries over.
-    CHECK(sum == std::llround(100 * rate * 1e4));
-    // The noise is there: 0.5 deg/h = 5000 counts per frame (1 sigma).
-    const double mean = static_cast<double>(sum) / 100.0;
-    double var = 0;
-    for (auto c : counts) var += (c - mean) * (c - mean);
-    CHECK(std::sqrt(var / 99.0) == Approx(5000.0).epsilon(0.3));
-  }
-  // Increment mode of the example's odd units: 1e-7 deg per count at a nominal 8000 frames/s is
-  // 2.88 deg/h per count per frame; -8.097 deg/h is -2.81 counts a frame. Over 100 frames the
-  // sum is round(-281.1) = -281, so the second's mean is within 0.5/100 counts: 0.0144 deg/h.
-  const double cpd = 1.0 / 2.88;
-  second_of_counts(-8.097, cpd, 100, 0.0, rng, counts);
-  const auto sum = std::accumulate(counts.begin(), counts.end(), std::int64_t{0});
-  CHECK(sum == std::llround(100 * -8.097 * cpd));
-  for (auto c : counts) CHECK((c == -3 || c == -2));
-  // Without noise every frame is within a count of the rate.
-  second_of_counts(3.3, 1e4, 7, 0.0, rng, counts);
-  for (auto c : counts) CHECK(c == 33000);
-}
-
 TEST_CASE("a fault's command-line form becomes its JSON command") {
   auto j = fault_json_from_cli("stall_modbus=800,device=chamber");
   REQUIRE(j.has_value());
@@ -298,4 +269,52 @@ TEST_CASE("options: a --config file sets per-unit parameters and refuses unknown
   write({{"units", {{{"serial", "X"}}, {{"serial", "X"}}}}});
   CHECK(make_bench_config(o).error() == "two units have serial X");
   std::filesystem::remove_all(tmpl);
+}
+
+TEST_CASE("power faults: power_off for a while or until switched off, power_cycle as an action") {
+  const std::vector<std::string> serials = {"SIM-0001", "SIM-0002"};
+  FaultState state;
+  state.units.assign(2, {});
+  auto apply = [&](const json& j, double next_second_s) {
+    auto c = parse_fault_command(j, serials);
+    INFO(j.dump() << ": " << (c ? "" : c.error()));
+    REQUIRE(c.has_value());
+    apply_fault(state, *c, next_second_s);
+  };
+  // --fault power_off=600,unit=1 at start: SIM-0002 powers on 600 s into the session.
+  auto cli = fault_json_from_cli("power_off=600,unit=1");
+  REQUIRE(cli.has_value());
+  CHECK(*cli == json({{"cmd", "fault"}, {"name", "power_off"}, {"on", true}, {"duration_s", 600}, {"unit", 1}}));
+  apply(*cli, 0.0);
+  CHECK(state.units[1].power_off_from_s == 0.0);
+  CHECK(state.units[1].power_on_at_s == 600.0);
+  CHECK(std::isinf(state.units[0].power_off_from_s));  // SIM-0001 untouched
+  auto active = active_faults(state, serials, 10.0);
+  REQUIRE(active.size() == 1);
+  CHECK(active[0]["name"] == "power_off");
+  CHECK(active[0]["until_s"] == 600.0);
+  CHECK(active_faults(state, serials, 600.0).empty());  // on again
+
+  // power_cycle: off from the next second for off_s (default 3 s).
+  apply({{"name", "power_cycle"}, {"unit", "SIM-0001"}}, 100.0);
+  CHECK(state.units[0].power_off_from_s == 100.0);
+  CHECK(state.units[0].power_on_at_s == 100.0 + default_power_cycle_off_s);
+  apply({{"name", "power_cycle"}, {"unit", 0}, {"off_s", 10}}, 200.0);
+  CHECK(state.units[0].power_on_at_s == 210.0);
+
+  // power_off without a duration lasts until switched off, from the next second.
+  apply({{"name", "power_off"}, {"unit", 0}}, 300.0);
+  CHECK(std::isinf(state.units[0].power_on_at_s));
+  CHECK(active_faults(state, serials, 400.0)[0]["until_s"].is_null());
+  apply({{"name", "power_off"}, {"unit", 0}, {"on", false}}, 400.0);
+  CHECK(state.units[0].power_off_from_s == 300.0);
+  CHECK(state.units[0].power_on_at_s == 400.0);
+  active = active_faults(state, serials, 400.0);
+  REQUIRE(active.size() == 1);  // SIM-0002 is still off until 600 s
+  CHECK(active[0]["unit"] == 1);
+
+  CHECK(parse_fault_command({{"name", "power_cycle"}, {"off_s", 0}}, serials).error() ==
+        "power_cycle: off_s: expected 1e-09..1000000000 (got 0)");
+  CHECK(parse_fault_command({{"name", "power_off"}, {"ms", 5}}, serials).error() ==
+        "power_off: unknown field 'ms' (known: duration_s, on, unit)");
 }
