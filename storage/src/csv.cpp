@@ -47,14 +47,17 @@ std::string_view to_string(CsvErrc code) {
 
 namespace {
 
-// The role of a file column; the order is that of csv_columns() and of to_csv's output.
+// The role of a file column; the order is that of csv_columns() (to_csv writes the same
+// columns, since_power_on_s last).
+// The roles up to r_power_on are numbers (doubles).
 enum Role : int {
-  r_time, r_gyro, r_t1, r_t2, r_setpoint, r_chamber, r_phase, r_step, r_flags, r_count,
+  r_time, r_gyro, r_t1, r_t2, r_setpoint, r_chamber, r_power_on, r_phase, r_step, r_flags, r_count,
   r_ignore = -1
 };
 constexpr int kRequired = 4;
 constexpr std::array<std::string_view, r_count> kNames = {
-    "time_s", "gyro_dph", "t1_c", "t2_c", "setpoint_c", "chamber_c", "phase", "step", "flags"};
+    "time_s", "gyro_dph", "t1_c", "t2_c", "setpoint_c", "chamber_c", "since_power_on_s",
+    "phase", "step", "flags"};
 
 // Even spacing tolerance, as a fraction of the median step: loose enough for time written
 // with %.3f at 1 Hz, tight enough to catch a skipped or doubled sample.
@@ -302,7 +305,7 @@ class Parser {
         return fail(CsvErrc::bad_option, 0, 0,
                     "--map " + spec + ": '" + m.canonical +
                         "' is not a fogbench column (time_s,gyro_dph,t1_c,t2_c,setpoint_c,"
-                        "chamber_c,phase,step,flags)");
+                        "chamber_c,since_power_on_s,phase,step,flags)");
       if (m.header.empty())
         return fail(CsvErrc::bad_option, 0, 0, "--map " + spec + ": empty header name");
       for (std::size_t j = 0; j < i; ++j) {
@@ -428,6 +431,7 @@ class Parser {
     append(a.t2_c, b.t2_c);
     append(a.setpoint_c, b.setpoint_c);
     append(a.chamber_c, b.chamber_c);
+    append(a.since_power_on_s, b.since_power_on_s);
     append(a.phase, b.phase);
     append(a.step, b.step);
     append(a.flags, b.flags);
@@ -440,9 +444,10 @@ class Parser {
     // is small next to the data.
     const std::size_t rows = count_lines(region);
     data_.name = source_;
-    std::vector<double>* doubles[r_count] = {&data_.time_s, &data_.gyro_dph, &data_.t1_c,
-                                             &data_.t2_c,   &data_.setpoint_c, &data_.chamber_c};
-    for (int role = 0; role <= r_chamber; ++role)
+    std::vector<double>* doubles[r_count] = {&data_.time_s,     &data_.gyro_dph,  &data_.t1_c,
+                                             &data_.t2_c,       &data_.setpoint_c, &data_.chamber_c,
+                                             &data_.since_power_on_s};
+    for (int role = 0; role <= r_power_on; ++role)
       if (field_of_[role] >= 0) doubles[role]->reserve(rows);
     if (field_of_[r_phase] >= 0) data_.phase.reserve(rows);
     if (field_of_[r_step] >= 0) data_.step.reserve(rows);
@@ -476,7 +481,7 @@ class Parser {
   bool fast_row(std::string_view line, std::vector<double>* doubles[]) {
     const char* p = line.data();
     const char* const end = p + line.size();
-    double values[r_chamber + 1];
+    double values[r_power_on + 1];
     model::Phase phase{};
     int step = 0;
     unsigned flags = 0;
@@ -486,7 +491,7 @@ class Parser {
       if (role == r_ignore) {
         for (; p != end && *p != ','; ++p)
           if (*p == '"') return false;  // a quoted cell may hold commas
-      } else if (role <= r_chamber) {
+      } else if (role <= r_power_on) {
         double v;
         const auto [q, ec] = std::from_chars(p, end, v);
         if (ec != std::errc{} || q == p || !std::isfinite(v)) return false;
@@ -511,7 +516,7 @@ class Parser {
         return false;
       }
     }
-    for (int role = 0; role <= r_chamber; ++role)
+    for (int role = 0; role <= r_power_on; ++role)
       if (field_of_[role] >= 0) doubles[role]->push_back(values[role]);
     if (field_of_[r_phase] >= 0) data_.phase.push_back(phase);
     if (field_of_[r_step] >= 0) data_.step.push_back(step);
@@ -563,7 +568,13 @@ class Parser {
 
   std::expected<void, CsvError> parse_cell(int role, std::string_view cell, std::size_t ln,
                                            std::size_t field, std::vector<double>* doubles[]) {
-    if (role <= r_chamber) {
+    if (role <= r_power_on) {
+      if (cell.empty() && role == r_power_on) {
+        // The gyro's power-on was not known at this sample (the daemon saw none): nothing was
+        // missed, nothing is guessed.
+        doubles[role]->push_back(std::numeric_limits<double>::quiet_NaN());
+        return {};
+      }
       if (cell.empty() && role != r_time) {
         // A reading that was not taken: kept as NaN, valid only if the row says so (checked
         // once the row's flags are read).
@@ -690,6 +701,7 @@ class Parser {
       if (!(in.*numeric[c]).empty()) (out.*numeric[c]).resize(m);
     if (in.has_phase()) out.phase.resize(m);
     if (in.has_step()) out.step.resize(m);
+    if (in.has_power_on()) out.since_power_on_s.resize(m);
     out.flags.assign(m, 0);
     bool any_gap = false;
 
@@ -713,6 +725,22 @@ class Parser {
         const double v = w == 0 ? a : a + w * (src[j + 1] - a);
         (out.*numeric[c])[k] = v;
         touches_missing = touches_missing || !std::isfinite(v);
+      }
+      if (in.has_power_on()) {
+        // Time since power-on runs at 1 s per s from the sample before, unless the gyro powered
+        // on (again) before the next one: then back from the next. Unknown stays unknown and
+        // is no missing reading.
+        const double a = in.since_power_on_s[j];
+        double v = a;
+        if (w > 0) {
+          const double b = in.since_power_on_s[j + 1];
+          v = a + (t - in.time_s[j]);
+          if (std::isfinite(b) && !(b > a)) {
+            const double back = b - (in.time_s[j + 1] - t);
+            if (back >= 0) v = back;
+          }
+        }
+        out.since_power_on_s[k] = v;
       }
       if (in.has_phase()) out.phase[k] = in.phase[j];
       if (in.has_step()) out.step[k] = in.step[j];
@@ -821,7 +849,7 @@ std::string to_csv(const model::RunData& run) {
   auto fits = [n](const auto& column) { return column.empty() || column.size() == n; };
   assert(run.gyro_dph.size() == n && run.t1_c.size() == n && run.t2_c.size() == n);
   assert(fits(run.setpoint_c) && fits(run.chamber_c) && fits(run.phase) && fits(run.step) &&
-         fits(run.flags));
+         fits(run.flags) && fits(run.since_power_on_s));
   (void)fits;
 
   std::string out = "time_s,gyro_dph,t1_c,t2_c";
@@ -830,6 +858,7 @@ std::string to_csv(const model::RunData& run) {
   if (run.has_phase()) out += ",phase";
   if (run.has_step()) out += ",step";
   if (run.has_flags()) out += ",flags";
+  if (run.has_power_on()) out += ",since_power_on_s";
   out += '\n';
   out.reserve(out.size() + n * 96);
 
@@ -870,6 +899,10 @@ std::string to_csv(const model::RunData& run) {
     if (run.has_flags()) {
       out += ',';
       put(static_cast<unsigned>(run.flags[i]));
+    }
+    if (run.has_power_on()) {
+      out += ',';
+      put(run.since_power_on_s[i]);  // empty where the power-on was not known
     }
     out += '\n';
   }

@@ -103,9 +103,23 @@ CREATE INDEX verifications_run ON verifications (run_id);
 CREATE INDEX verifications_model ON verifications (model_id);
 )sql";
 
+// Version 3: the time since each gyro's power-on, per sample (NULL: the daemon did not see
+// it; every sample recorded before version 3). The view shows it too.
+constexpr const char* kPowerOn = R"sql(
+ALTER TABLE samples ADD COLUMN since_power_on_s REAL CHECK (since_power_on_s >= 0);
+DROP VIEW sample_view;
+CREATE VIEW sample_view AS
+SELECT run_id, unit_index, t_s, wall_time, setpoint_c, chamber_c, gyro_dph, frames, t1_c, t2_c,
+       CASE phase WHEN 0 THEN 'unknown' WHEN 1 THEN 'settle' WHEN 2 THEN 'hold'
+                  WHEN 3 THEN 'heating' WHEN 4 THEN 'cooling' END AS phase,
+       step, flags, since_power_on_s
+FROM samples;
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "recording tables", kRecording},
     {2, "models and verifications", kModels},
+    {3, "time since power-on", kPowerOn},
 };
 
 StoreResult<std::int64_t> query_int(Database& db, const std::string& sql, std::string_view what) {

@@ -162,11 +162,11 @@ StoreResult<bool> row(Database& db, Query& q, std::string_view what) {
   "id, serial, version, run_id, parent_id, created_at, model_json, method, terms"
 #define FOGBENCH_SAMPLE_COLUMNS                                                              \
   "unit_index, t_s, wall_time, setpoint_c, chamber_c, gyro_dph, frames, t1_c, t2_c, phase, " \
-  "step, flags"
+  "step, flags, since_power_on_s"
 
 constexpr std::string_view kInsertSample =
     "INSERT INTO samples (run_id, " FOGBENCH_SAMPLE_COLUMNS
-    ") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13)";
+    ") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14)";
 constexpr std::string_view kInsertEvent =
     "INSERT INTO run_events (run_id, t_s, at, kind, detail) VALUES (?1, ?2, ?3, ?4, ?5)";
 constexpr std::string_view kRunExists = "SELECT 1 FROM runs WHERE id = ?1";
@@ -222,6 +222,7 @@ SampleRow read_sample(const Query& q) {
   s.phase = q.is_null(9) ? model::Phase::unknown : static_cast<model::Phase>(q.int64(9));
   if (!q.is_null(10)) s.step = static_cast<int>(q.int64(10));
   s.flags = static_cast<std::uint8_t>(q.int64(11));
+  s.since_power_on_s = q.real(12);
   return s;
 }
 
@@ -277,7 +278,7 @@ StoreResult<std::int64_t> insert_event(Database& db, std::int64_t run_id,
   return sqlite3_last_insert_rowid(db.handle());
 }
 
-// Binds one sample to the insert statement (parameters 2..13; 1 is the run id).
+// Binds one sample to the insert statement (parameters 2..14; 1 is the run id).
 void bind_sample(Query& q, const SampleRow& s) {
   q.bind(2, s.unit_index)
       .bind(3, s.t_s)
@@ -290,7 +291,8 @@ void bind_sample(Query& q, const SampleRow& s) {
       .bind(10, s.t2_c)
       .bind(11, static_cast<int>(s.phase))
       .bind(12, s.step)
-      .bind(13, static_cast<int>(s.flags));
+      .bind(13, static_cast<int>(s.flags))
+      .bind(14, s.since_power_on_s);
 }
 
 // The error of a failed sample insert, in the caller's terms when it is a constraint.
@@ -768,12 +770,12 @@ StoreResult<model::RunData> Store::export_run(std::int64_t run_id, int unit_inde
   d.step.reserve(n);
   d.flags.reserve(n);
   bool has_setpoint = false, has_chamber = false, has_phase = false, has_step = false,
-       has_flags = false;
+       has_flags = false, has_power_on = false;
   std::size_t settle_skipped = 0;
   bool in_leading_settle = !options.include_settle;
 
   auto stmt = db.statement(
-      "SELECT t_s, gyro_dph, t1_c, t2_c, setpoint_c, chamber_c, phase, step, flags "
+      "SELECT t_s, gyro_dph, t1_c, t2_c, setpoint_c, chamber_c, phase, step, flags, since_power_on_s "
       "FROM samples WHERE run_id = ?1 AND unit_index = ?2 ORDER BY t_s");
   if (!stmt) return fail(std::move(stmt));
   Query q(db, *stmt);
@@ -803,6 +805,8 @@ StoreResult<model::RunData> Store::export_run(std::int64_t run_id, int unit_inde
     d.step.push_back(q.is_null(7) ? -1 : static_cast<int>(q.int64(7)));
     has_flags |= !q.is_null(8);
     d.flags.push_back(static_cast<std::uint8_t>(q.int64(8)));
+    has_power_on |= !q.is_null(9);
+    d.since_power_on_s.push_back(q.real(9));
   }
   if (rc != SQLITE_DONE) return std::unexpected(db.error(rc, "export " + label));
   if (d.size() == 0) {
@@ -824,6 +828,7 @@ StoreResult<model::RunData> Store::export_run(std::int64_t run_id, int unit_inde
   drop(has_phase, d.phase);
   drop(has_step, d.step);
   drop(has_flags, d.flags);
+  drop(has_power_on, d.since_power_on_s);
   return d;
 }
 
@@ -842,7 +847,8 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
       {"gyro_dph", data.gyro_dph.size()},     {"t1_c", data.t1_c.size()},
       {"t2_c", data.t2_c.size()},             {"setpoint_c", data.setpoint_c.size()},
       {"chamber_c", data.chamber_c.size()},   {"phase", data.phase.size()},
-      {"step", data.step.size()},             {"flags", data.flags.size()}};
+      {"step", data.step.size()},             {"flags", data.flags.size()},
+      {"since_power_on_s", data.since_power_on_s.size()}};
   for (std::size_t c = 0; c < std::size(sizes); ++c) {
     const bool required = c < 3;
     const auto [name, size] = sizes[c];
@@ -894,6 +900,7 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
       if (data.has_phase()) q.bind(11, static_cast<int>(data.phase[i]));
       if (data.has_step()) q.bind(12, data.step[i]);
       if (data.has_flags()) q.bind(13, static_cast<int>(data.flags[i]));
+      if (data.has_power_on()) q.bind(14, data.since_power_on_s[i]);
       if (int rc = q.step(); rc != SQLITE_DONE)
         return std::unexpected(sample_error(db, rc, id, 0, data.time_s[i], what));
       q.reset();

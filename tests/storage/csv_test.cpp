@@ -575,3 +575,61 @@ TEST_CASE("CSV: rows in any accepted spelling read the same as plain ones", "[cs
   CHECK(s.error().code == CsvErrc::field_count);
   CHECK(s.error().line == 2);
 }
+
+TEST_CASE("csv: since_power_on_s round-trips, unknown cells stay unknown, and a file without it has none",
+          "[csv][power_on]") {
+  // The gyro was already on when the daemon started (unknown: empty cells, on rows that are not
+  // flagged missing), then restarted at 2 s: 0.4 s after power-on at the sample of 2 s.
+  const std::string text =
+      "time_s,gyro_dph,t1_c,t2_c,flags,since_power_on_s\n"
+      "0,0.1,20,20.5,0,\n"
+      "1,0.2,20,20.5,0,\n"
+      "2,0.3,20,20.5,0,0.4\n"
+      "3,0.4,20,20.5,0,1.4\n";
+  auto run = storage::parse_csv(text, named("power.csv"));
+  REQUIRE(run.has_value());
+  REQUIRE(run->has_power_on());
+  REQUIRE(run->since_power_on_s.size() == 4);
+  CHECK(std::isnan(run->since_power_on_s[0]));
+  CHECK(std::isnan(run->since_power_on_s[1]));
+  CHECK(run->since_power_on_s[2] == 0.4);
+  CHECK(run->since_power_on_s[3] == 1.4);
+  CHECK(run->flags == std::vector<std::uint8_t>{0, 0, 0, 0});  // unknown is not missing
+  CHECK(storage::to_csv(*run) == text);  // written last, unknown as empty cells
+
+  // In any column order, and under --map.
+  auto mapped = storage::parse_csv("t,g,a,b,on\n0,1,2,3,5.5\n1,1,2,3,6.5\n", [] {
+    CsvOptions o;
+    o.source_name = "mapped.csv";
+    for (auto m : {"time_s=t", "gyro_dph=g", "t1_c=a", "t2_c=b", "since_power_on_s=on"})
+      o.column_map.push_back(*storage::parse_column_mapping(m));
+    return o;
+  }());
+  REQUIRE(mapped.has_value());
+  CHECK(mapped->since_power_on_s == std::vector<double>{5.5, 6.5});
+
+  // A file without the column: not recorded, so empty (never made up from time_s).
+  auto without = storage::parse_csv("time_s,gyro_dph,t1_c,t2_c\n0,1,2,3\n1,1,2,3\n", named("old.csv"));
+  REQUIRE(without.has_value());
+  CHECK_FALSE(without->has_power_on());
+  CHECK(storage::to_csv(*without).find("since_power_on_s") == std::string::npos);
+
+  // A bad value names the column.
+  auto bad = storage::parse_csv("time_s,gyro_dph,t1_c,t2_c,since_power_on_s\n0,1,2,3,soon\n", named("bad.csv"));
+  REQUIRE_FALSE(bad.has_value());
+  CHECK(bad.error().column == 5);
+  CHECK_THAT(bad.error().message, Contains("since_power_on_s"));
+
+  SECTION("resampling runs the time on at 1 s per s, and from the restart after one") {
+    // Samples 2 s apart; the gyro restarted between 2 and 4 s (10 s on at 2 s, 0.5 s at 4 s).
+    CsvOptions o = named("uneven.csv");
+    o.resample_s = 1.0;
+    auto r = storage::parse_csv("time_s,gyro_dph,t1_c,t2_c,since_power_on_s\n0,1,2,3,8\n2,1,2,3,10\n4,1,2,3,0.5\n", o);
+    REQUIRE(r.has_value());
+    REQUIRE(r->since_power_on_s.size() == 5);
+    CHECK(r->since_power_on_s[1] == 9.0);   // 8 + 1
+    CHECK(r->since_power_on_s[2] == 10.0);
+    CHECK(r->since_power_on_s[3] == 11.0);  // 0.5 - 1 < 0: the restart is after 3 s
+    CHECK(r->since_power_on_s[4] == 0.5);
+  }
+}

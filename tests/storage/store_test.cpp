@@ -171,12 +171,12 @@ TEST_CASE("store: a new file gets the current schema, WAL and the fogbench id", 
   {
     Store s = open_ok(path);
     CHECK(s.schema_version() == Store::current_schema_version());
-    CHECK(Store::current_schema_version() == 2);
+    CHECK(Store::current_schema_version() == 3);
     CHECK(s.path() == path);
   }
   Raw raw(path);
   CHECK(raw.text("PRAGMA journal_mode") == "wal");
-  CHECK(raw.integer("PRAGMA user_version") == 2);
+  CHECK(raw.integer("PRAGMA user_version") == 3);
   CHECK(raw.integer("PRAGMA application_id") == 0x464F4742);
   for (const char* table : {"runs", "run_units", "samples", "run_events", "models", "verifications"})
     CHECK(raw.integer(std::string("SELECT count(*) FROM sqlite_schema WHERE name = '") + table +
@@ -214,7 +214,11 @@ TEST_CASE("store: migration from version 0 and version 1", "[store][schema]") {
           "VALUES (7, 0, 0, 0.5, 20, 21), (7, 0, 1, 0.6, 20, 21);");
     }
     Store s = open_ok(path);
-    CHECK(s.schema_version() == 2);
+    CHECK(s.schema_version() == 3);
+    // Samples from before version 3 have no time since power-on: the export says not recorded.
+    auto old = s.export_run(7, 0);
+    REQUIRE(old.has_value());
+    CHECK_FALSE(old->has_power_on());
     auto run = s.get_run(7);
     REQUIRE(run.has_value());
     CHECK(run->run.profile_name == "old");
@@ -854,4 +858,30 @@ TEST_CASE("store: a second connection reads while the first writes (WAL)", "[sto
   CHECK(moved);
   CHECK_FALSE(writer);
   CHECK(moved.count_samples(run).value() == 5);
+}
+
+TEST_CASE("store: the time since power-on is stored per sample and exported when known", "[store][power_on]") {
+  TempDir tmp;
+  Store s = open_ok(tmp / "power.db");
+  const auto run = s.create_run(two_unit_run()).value();
+  // Unit 0: power-on seen (12.5 s before the run's first sample); unit 1: never seen.
+  std::vector<SampleRow> rows;
+  for (int i = 0; i < 5; ++i) {
+    SampleRow a = sample(0, i);
+    a.since_power_on_s = 12.5 + i;
+    rows.push_back(a);
+    rows.push_back(sample(1, i));
+  }
+  REQUIRE(s.append_samples(run, rows).has_value());
+  auto a = s.export_run(run, 0);
+  REQUIRE(a.has_value());
+  CHECK(a->since_power_on_s == std::vector<double>{12.5, 13.5, 14.5, 15.5, 16.5});
+  auto b = s.export_run(run, 1);
+  REQUIRE(b.has_value());
+  CHECK_FALSE(b->has_power_on());  // not seen: not recorded, not guessed
+  // A negative time since power-on is no time at all: the schema refuses it.
+  SampleRow neg = sample(0, 10);
+  neg.since_power_on_s = -1;
+  const SampleRow bad[] = {neg};
+  CHECK_FALSE(s.append_samples(run, bad).has_value());
 }

@@ -159,6 +159,8 @@ struct SampleRow {
   model::Phase phase = model::Phase::unknown;
   std::optional<int> step;             // profile step index
   std::uint8_t flags = 0;              // model::flag bits
+  double since_power_on_s = kNoValue;  // time since the gyro's last power-on as the daemon saw
+                                       // it, s; kNoValue when it did not see one
 };
 
 struct ExportOptions {
