@@ -128,6 +128,10 @@ struct Bench::Impl final : ControlHandler {
   std::mutex cv_mutex;
   std::condition_variable cv;
   std::atomic<bool> stopping{false};
+  // --paced: the clock steps up to paced_target (seconds asked for by advance()) and reports
+  // paced_done once every frame of them is sent; both under cv_mutex.
+  std::condition_variable done_cv;
+  std::int64_t paced_target = 0, paced_done = 0;
 
   // ---- server loop (the thread that calls run()) ----
   struct Listener {
@@ -351,6 +355,21 @@ struct Bench::Impl final : ControlHandler {
   }
 
   void stop() override { request_stop("stop command"); }
+
+  // Called on the server loop: the clock thread steps, and the reply waits for it, so a client
+  // that reads its reply finds every frame of those seconds already in its CAN socket and the
+  // registers showing their end. Modbus requests wait meanwhile (microseconds per second).
+  std::expected<double, std::string> advance(std::int64_t seconds) override {
+    if (!cfg.paced) return std::unexpected(std::string("the bench keeps its own clock (start it with --paced)"));
+    std::unique_lock lock(cv_mutex);
+    paced_target = paced_done + seconds;
+    const std::int64_t want = paced_target;
+    cv.notify_all();
+    if (!done_cv.wait_for(lock, std::chrono::seconds(10), [&] { return paced_done >= want || stopping.load(); }))
+      return std::unexpected("the clock did not reach " + std::to_string(want) + " s within 10 s");
+    if (paced_done < want) return std::unexpected(std::string("stopping"));
+    return static_cast<double>(paced_done);
+  }
 
   void request_stop(const char* why) {
     if (!stop_requested.exchange(true)) spdlog::info("stopping: {}", why);
@@ -617,7 +636,12 @@ struct Bench::Impl final : ControlHandler {
 
     while (!stopping) {
       auto now = SteadyClock::now();
-      while (wall(static_cast<double>(next_step)) <= now && !stopping) {
+      auto step_due = [&] {
+        if (!cfg.paced) return wall(static_cast<double>(next_step)) <= now;
+        std::lock_guard lock(cv_mutex);
+        return next_step < paced_target;
+      };
+      while (step_due() && !stopping) {
         emit(b, SteadyClock::time_point::max(), due, rng, out);  // the rest of the second, now due
         step(b, next_step, last_setpoint_c, rng);
         ++next_step;
@@ -627,7 +651,7 @@ struct Bench::Impl final : ControlHandler {
           stopping = true;
           break;
         }
-        if (now - wall(static_cast<double>(next_step)) > std::chrono::seconds(1) &&
+        if (!cfg.paced && now - wall(static_cast<double>(next_step)) > std::chrono::seconds(1) &&
             now - last_behind_warning > std::chrono::seconds(5)) {
           last_behind_warning = now;
           spdlog::warn("the physics runs {:.1f} s (wall) behind the scaled clock: lower --time-scale",
@@ -635,6 +659,17 @@ struct Bench::Impl final : ControlHandler {
         }
       }
       if (stopping) break;
+      if (cfg.paced) {
+        // Every frame of the seconds stepped goes out before the client hears they are done;
+        // then nothing moves until it asks for more.
+        emit(b, SteadyClock::time_point::max(), due, rng, out);
+        std::unique_lock lock(cv_mutex);
+        paced_done = next_step;
+        done_cv.notify_all();
+        // Bounded: `stopping` is set without cv_mutex, so a wake-up could slip past the wait.
+        cv.wait_for(lock, std::chrono::milliseconds(100), [&] { return stopping.load() || paced_target > next_step; });
+        continue;
+      }
       emit(b, now, due, rng, out);
       auto wake = wall(static_cast<double>(next_step));
       for (std::size_t u = 0; u < nu; ++u) {
@@ -743,6 +778,7 @@ struct Bench::Impl final : ControlHandler {
   void stop_clock() {
     stopping = true;
     cv.notify_all();
+    done_cv.notify_all();
     if (clock_thread.joinable()) clock_thread.join();
   }
 

@@ -33,6 +33,10 @@ struct BenchConfig {
   std::string control_path;        // empty: no control socket
   double time_scale = 1.0;         // simulated seconds per wall second
   double duration_s = 0;           // stop after this many simulated seconds; 0: when told
+  // The clock moves only when a client asks ({"cmd":"advance"} on the control socket): the
+  // daemon paces the world, so a busy host slows both down together instead of pulling them
+  // apart. time_scale then only describes the pace the client is expected to keep.
+  bool paced = false;
   double frame_noise_dph = 0;      // extra white noise per frame (electronics), 1 sigma, deg/h
   std::vector<Warmup> warmup;      // per unit (missing: none)
   sim::SimConfig sim;              // the physics; sim.units in the order of `units`

@@ -47,7 +47,20 @@ std::string handle_line(std::string_view line, ControlHandler& handler) {
     handler.stop();
     return json{{"ok", true}}.dump();
   }
-  return error("unknown cmd '" + cmd + "' (known: fault, status, stop)");
+  if (cmd == "advance") {
+    std::int64_t seconds = 1;
+    if (request.contains("seconds")) {
+      const json& n = request["seconds"];
+      if (!n.is_number_integer() || n.get<std::int64_t>() < 1 || n.get<std::int64_t>() > max_advance_s) {
+        return error("advance: seconds: expected an integer 1.." + std::to_string(max_advance_s) + " (got " + n.dump() + ")");
+      }
+      seconds = n.get<std::int64_t>();
+    }
+    auto t = handler.advance(seconds);
+    if (!t) return error("advance: " + t.error());
+    return json{{"ok", true}, {"time_s", *t}}.dump();
+  }
+  return error("unknown cmd '" + cmd + "' (known: advance, fault, status, stop)");
 }
 
 }  // namespace fogbench::mock

@@ -5,11 +5,13 @@
 //   {"cmd":"fault","name":"freeze_pv","on":true}   -> {"ok":true}
 //   {"cmd":"status"}                               -> {"ok":true,"time_s":...,...}
 //   {"cmd":"stop"}                                 -> {"ok":true}, then the bench stops
+//   {"cmd":"advance","seconds":1}                  -> {"ok":true,"time_s":...} (--paced only)
 //   anything else                                  -> {"ok":false,"error":"..."}
 #pragma once
 
 #include <nlohmann/json.hpp>
 
+#include <cstdint>
 #include <expected>
 #include <optional>
 #include <string>
@@ -43,7 +45,13 @@ class ControlHandler {
   // The status fields (merged into {"ok":true,...}).
   virtual nlohmann::json status() = 0;
   virtual void stop() = 0;
+  // A paced bench (--paced): steps the world `seconds` simulated seconds, sends every frame of
+  // them, and returns the simulated time then. Refused when the bench keeps its own clock.
+  virtual std::expected<double, std::string> advance(std::int64_t seconds) = 0;
 };
+
+// The most seconds one advance may ask for.
+inline constexpr std::int64_t max_advance_s = 86400;
 
 // Parses one request line, dispatches it and returns the reply line (without "\n").
 std::string handle_line(std::string_view line, ControlHandler& handler);

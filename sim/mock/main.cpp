@@ -56,6 +56,9 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
+  app.add_flag("--paced", o.paced,
+               "the clock moves only when told ({\"cmd\":\"advance\"} on the control socket, which it needs): "
+               "fogbenchd paces the world");
     // --help is a "parse error" with status 0; every refused option exits 2, as ours do below.
     return app.exit(e) == 0 ? 0 : 2;
   }

@@ -173,6 +173,7 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
     } catch (const json::exception& e) {
       return std::unexpected(o.config_file + ": " + e.what());
     }
+  if (o.paced && o.control.empty()) return std::unexpected(std::string("--paced needs --control: the clock is advanced through it"));
     if (auto ok = known_keys(file, o.config_file, {"chamber", "units"}); !ok) return std::unexpected(ok.error());
     if (file.contains("chamber")) {
       const auto& c = file["chamber"];
@@ -192,6 +193,7 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
   }
   const std::size_t n = o.units ? static_cast<std::size_t>(*o.units) : (from_file > 0 ? from_file : 2);
   if (n < 1 || n > max_units) return std::unexpected("--units: expected 1.." + std::to_string(max_units));
+  cfg.paced = o.paced;
 
   cfg.sim.units.clear();
   std::set<std::string> serials;

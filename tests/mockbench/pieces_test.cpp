@@ -187,6 +187,11 @@ struct FakeHandler : ControlHandler {
   }
   json status() override { return {{"time_s", 12.0}}; }
   void stop() override { stopped = true; }
+  std::int64_t advanced_s = 0;
+  std::expected<double, std::string> advance(std::int64_t seconds) override {
+    advanced_s += seconds;
+    return static_cast<double>(advanced_s);
+  }
 };
 
 }  // namespace
@@ -204,7 +209,14 @@ TEST_CASE("control protocol: lines in, one reply line per request, errors as val
 
   CHECK(handle_line(R"({"cmd":"fault","name":"bad"})", h) == R"({"error":"bad fault","ok":false})");
   CHECK(json::parse(handle_line("{not json", h))["error"].get<std::string>().starts_with("not JSON"));
-  CHECK(json::parse(handle_line(R"({"cmd":"reboot"})", h))["error"] == "unknown cmd 'reboot' (known: fault, status, stop)");
+  CHECK(json::parse(handle_line(R"({"cmd":"reboot"})", h))["error"] == "unknown cmd 'reboot' (known: advance, fault, status, stop)");
+  // advance: one second by default, or `seconds`; the reply carries the simulated time after it.
+  CHECK(handle_line(R"({"cmd":"advance"})", h) == R"({"ok":true,"time_s":1.0})");
+  CHECK(handle_line(R"({"cmd":"advance","seconds":4})", h) == R"({"ok":true,"time_s":5.0})");
+  CHECK(json::parse(handle_line(R"({"cmd":"advance","seconds":0})", h))["error"] ==
+        "advance: seconds: expected an integer 1..86400 (got 0)");
+  CHECK(json::parse(handle_line(R"({"cmd":"advance","seconds":1.5})", h))["ok"] == false);
+  CHECK(h.advanced_s == 5);  // the refused ones moved nothing
   CHECK(json::parse(handle_line(R"([1,2])", h))["ok"] == false);
 
   LineBuffer big;

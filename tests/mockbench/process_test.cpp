@@ -3,7 +3,12 @@
 // client.
 #include <catch2/catch.hpp>
 
+#include <linux/can.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+
 #include <cstdio>
+#include <cstring>
 #include <memory>
 
 #include "fogbench/drivers/chamber.hpp"
@@ -111,6 +116,44 @@ TEST_CASE("the clock runs time-scale times faster than real time") {
   // hold the clock thread back a little, and it catches up when it runs: 20% for that.
   CHECK(s1 - s0 <= 200.0 * longest_s + 1.0);
   CHECK(s1 - s0 >= 0.8 * 200.0 * shortest_s - 1.0);
+}
+
+TEST_CASE("--paced: the clock moves only on advance, whose reply comes after every frame of those seconds") {
+  MockProcess mock({"--paced", "--time-scale", "200"});
+  // A raw CAN client, so every datagram is counted.
+  const int can = ::socket(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0);
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  const std::string path = mock.can_socket();
+  std::memcpy(addr.sun_path, path.c_str(), path.size() + 1);
+  REQUIRE(::connect(can, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0);
+  REQUIRE(wait_for(5s, [&] { return mock.control({{"cmd", "status"}})["can_clients"] == 1; }));
+  auto frames_waiting = [&] {
+    int n = 0;
+    ::can_frame f{};
+    while (::recv(can, &f, sizeof f, MSG_DONTWAIT) == static_cast<ssize_t>(sizeof f)) ++n;
+    return n;
+  };
+  // Left alone, it does not move: at K = 200, 300 ms would be 60 simulated seconds.
+  std::this_thread::sleep_for(300ms);
+  CHECK(mock.sim_time() == 0.0);
+  CHECK(frames_waiting() == 0);
+  const json r = mock.control({{"cmd", "advance"}, {"seconds", 3}});
+  INFO(r.dump());
+  REQUIRE(r["ok"] == true);
+  CHECK(r["time_s"] == 3.0);
+  // 3 s x 100 frames/s x 2 units, all in the socket by the time the reply was read.
+  CHECK(frames_waiting() == 600);
+  std::this_thread::sleep_for(200ms);
+  CHECK(frames_waiting() == 0);
+  CHECK(mock.sim_time() == 3.0);
+  CHECK(mock.control({{"cmd", "advance"}})["time_s"] == 4.0);
+  CHECK(frames_waiting() == 200);
+  ::close(can);
+
+  MockProcess free_running({"--time-scale", "200"});
+  CHECK(free_running.control({{"cmd", "advance"}})["error"] ==
+        "advance: the bench keeps its own clock (start it with --paced)");
 }
 
 TEST_CASE("SIGTERM and the stop command end the bench cleanly and remove its sockets") {
