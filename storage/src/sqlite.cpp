@@ -150,6 +150,35 @@ std::optional<double> Query::opt_real(int col) const {
   return sqlite3_column_double(stmt_, col);
 }
 
+namespace {
+std::int64_t file_bytes(const std::filesystem::path& p) {
+  std::error_code ec;
+  const auto n = std::filesystem::file_size(p, ec);
+  return ec ? 0 : static_cast<std::int64_t>(n);
+}
+}  // namespace
+
+bool Database::checkpoint_truncate() {
+  sqlite3_busy_timeout(db_, 0);  // a reader now: try again at the next write, never wait on the loop
+  const int rc = sqlite3_wal_checkpoint_v2(db_, nullptr, SQLITE_CHECKPOINT_TRUNCATE, nullptr, nullptr);
+  sqlite3_busy_timeout(db_, busy_timeout_ms);
+  return rc == SQLITE_OK;
+}
+
+StoreResult<void> Database::keep_wal_within_limit(std::string_view what) {
+  if (size_limit_bytes <= 0 || wal_budget_bytes <= 0) return {};
+  const std::filesystem::path wal = path_.string() + "-wal";
+  std::int64_t wal_bytes = file_bytes(wal);
+  if (wal_bytes <= wal_budget_bytes / 2) return {};
+  if (checkpoint_truncate()) wal_bytes = file_bytes(wal);
+  if (wal_bytes <= wal_budget_bytes) return {};
+  return std::unexpected(error(StoreErrc::disk_full,
+                               std::string(what) + ": the store is full: its write-ahead log (" +
+                                   std::to_string(wal_bytes) + " bytes) is over its share of the size limit (" +
+                                   std::to_string(wal_budget_bytes) +
+                                   " bytes) and a reader keeps it from being checkpointed"));
+}
+
 Transaction::~Transaction() {
   // After SQLITE_FULL or an I/O error SQLite may have rolled back already (autocommit again).
   if (open_ && !sqlite3_get_autocommit(db_.handle()))
@@ -158,6 +187,7 @@ Transaction::~Transaction() {
 
 StoreResult<void> Transaction::begin(std::string_view what) {
   assert(!open_);
+  if (auto ok = db_.keep_wal_within_limit(what); !ok) return ok;
   auto stmt = db_.statement("BEGIN IMMEDIATE");
   if (!stmt) return std::unexpected(stmt.error());
   Query q(db_, *stmt);

@@ -33,6 +33,15 @@ class Database {
   // audit trail: samples may not use them (see with_reserve in store.cpp).
   std::int64_t limit_pages = 0;
   std::int64_t reserve_pages = 0;
+  // OpenOptions::size_limit_bytes (0: none) and the write-ahead log's share of it.
+  std::int64_t size_limit_bytes = 0;
+  std::int64_t wal_budget_bytes = 0;
+  // With a size limit, before each write transaction: checkpoints the WAL back to nothing when
+  // it holds over half its share, and refuses the write (disk_full) when it is over its share
+  // and a reader keeps it from being checkpointed.
+  StoreResult<void> keep_wal_within_limit(std::string_view what);
+  // PRAGMA wal_checkpoint(TRUNCATE) without waiting for readers; false when one held it.
+  bool checkpoint_truncate();
   int busy_timeout_ms = 0;  // as set on the connection
 
   // The failure of the call that just returned `rc`, with what was being done.

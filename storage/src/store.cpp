@@ -4,8 +4,14 @@
 
 #include <algorithm>
 #include <cassert>
+#include <cerrno>
+#include <cstring>
 #include <cmath>
 #include <nlohmann/json.hpp>
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "schema.hpp"
 #include "sqlite.hpp"
@@ -328,8 +334,41 @@ const std::filesystem::path& Store::path() const {
   return db_->path();
 }
 
+namespace {
+// A new database file made with OpenOptions::file_mode before SQLite opens it (SQLite would make
+// it 0644 less the umask). SQLite gives the -wal and -shm the database file's mode, with fchmod.
+StoreResult<void> create_with_mode(const std::filesystem::path& path, unsigned mode) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOFOLLOW, static_cast<::mode_t>(mode));
+  if (fd < 0) {
+    if (errno == EEXIST) return {};  // made meanwhile: it keeps its mode
+    StoreError e;
+    e.code = StoreErrc::open_failed;
+    e.message = "cannot create database '" + path.string() + "': " + std::strerror(errno);
+    return std::unexpected(std::move(e));
+  }
+  const int rc = ::fchmod(fd, static_cast<::mode_t>(mode));
+  const int err = errno;
+  ::close(fd);
+  if (rc != 0) {
+    StoreError e;
+    e.code = StoreErrc::open_failed;
+    e.message = "cannot set the mode of database '" + path.string() + "': " + std::strerror(err);
+    return std::unexpected(std::move(e));
+  }
+  return {};
+}
+
+// The size limit's shares (OpenOptions::size_limit_bytes): the WAL index, then the WAL (a
+// quarter of the limit, at most 4 MiB, SQLite's default checkpoint size), the rest the file.
+constexpr std::int64_t kShmBytes = 32 * 1024;  // one WAL-index block: up to 4096 WAL frames
+std::int64_t wal_budget(std::int64_t limit) { return std::min<std::int64_t>(limit / 4, 4 << 20); }
+}  // namespace
+
 StoreResult<Store> Store::open(const std::filesystem::path& path, const OpenOptions& options) {
   int flags = SQLITE_OPEN_NOMUTEX;  // one thread at a time: see the header
+  const bool on_disk = path != ":memory:" && !path.string().starts_with("file:");
+  if (!options.read_only && options.create && on_disk && !std::filesystem::exists(path))
+    if (auto made = create_with_mode(path, options.file_mode); !made) return std::unexpected(made.error());
   if (options.read_only)
     flags |= SQLITE_OPEN_READONLY;
   else
@@ -397,7 +436,24 @@ StoreResult<Store> Store::open(const std::filesystem::path& path, const OpenOpti
       if (!got) return fail(std::move(got));
       if (*got) page_size = q.int64(0);
     }
-    const std::int64_t pages = std::max<std::int64_t>(1, *options.size_limit_bytes / page_size);
+    // The files on disk count: the WAL and its index take their shares first (none in memory).
+    const std::int64_t limit = *options.size_limit_bytes;
+    const std::int64_t wal = on_disk ? wal_budget(limit) : 0;
+    const std::int64_t pages = std::max<std::int64_t>(1, (limit - wal - (on_disk ? kShmBytes : 0)) / page_size);
+    db->size_limit_bytes = limit;
+    db->wal_budget_bytes = wal;
+    if (on_disk && !options.read_only) {
+      // SQLite checkpoints after a commit that leaves half the share in the log, and cuts the
+      // log file back to the share after a checkpoint; keep_wal_within_limit does the rest.
+      const std::int64_t frame = page_size + 24;  // a WAL frame: its header and the page
+      const std::int64_t frames = std::max<std::int64_t>(1, (wal / 2 - 32) / frame);
+      if (auto ok = db->exec("PRAGMA wal_autocheckpoint = " + std::to_string(frames), "set wal_autocheckpoint"); !ok)
+        return fail(std::move(ok));
+      if (auto ok = db->exec("PRAGMA journal_size_limit = " + std::to_string(wal), "set journal_size_limit"); !ok)
+        return fail(std::move(ok));
+      // A log left large by an earlier process without the limit, or a crash: into the file now.
+      (void)db->checkpoint_truncate();
+    }
     db->limit_pages = pages;
     db->reserve_pages = std::min<std::int64_t>(kReservePages, pages / 4);
     if (auto ok = db->exec("PRAGMA max_page_count = " + std::to_string(pages - db->reserve_pages),

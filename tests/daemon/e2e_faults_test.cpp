@@ -210,11 +210,13 @@ TEST_CASE("e2e faults: a full store aborts the run, the chamber goes safe, the d
     WARN("fogbench-sim not built: skipped");
     return;
   }
-  // The schema and the run take about 56 KiB (14 pages) and 16 KiB are the limit's reserve;
-  // at 100x two units store 200 rows a wall second, some 4 pages, so the rest of 128 KiB fills
-  // in about 4 s. The safe setpoint, 15 degC, is one the profile (20 .. 25 degC) never
-  // commands, so reading it back on the mock proves it was sent.
-  constexpr std::int64_t kLimitBytes = 128 * 1024;
+  // The limit counts the files on disk: of 256 KiB the WAL takes a quarter (64 KiB) and its
+  // index 32 KiB, leaving the database 160 KiB (40 pages). The schema and the run take about
+  // 56 KiB (14 pages) and 16 KiB are the limit's reserve; at 100x two units store 200 rows a
+  // wall second, some 4 pages, so the remaining 22 pages fill in about 6 s. The safe setpoint,
+  // 15 degC, is one the profile (20 .. 25 degC) never commands, so reading it back on the mock
+  // proves it was sent.
+  constexpr std::int64_t kLimitBytes = 256 * 1024;
   LiveBench bench(100.0, {{"safe_setpoint_c", 15}, {"storage", {{"size_limit_bytes", kLimitBytes}}}});
   LineClient c(bench.socket());
   REQUIRE(c.ok());
@@ -275,6 +277,14 @@ TEST_CASE("e2e faults: a full store aborts the run, the chamber goes safe, the d
     for (std::size_t i = 0; i < rows.size(); ++i) CHECK(rows[i]["t_s"].get<double>() == static_cast<double>(i));
     counts.push_back(static_cast<std::int64_t>(rows.size()));
   }
+  // The files themselves: the database, its WAL and index within the limit together.
+  std::int64_t on_disk = 0;
+  for (const char* suffix : {"", "-wal", "-shm"}) {
+    std::error_code ec;
+    const auto n = std::filesystem::file_size(bench.dir / ("fogbench.db" + std::string(suffix)), ec);
+    if (!ec) on_disk += static_cast<std::int64_t>(n);
+  }
+  CHECK(on_disk <= kLimitBytes);
   // The file itself, read beside the running daemon: intact, within its limit, the same samples.
   storage::OpenOptions ro;
   ro.read_only = true;

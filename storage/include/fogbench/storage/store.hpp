@@ -83,9 +83,14 @@ struct OpenOptions {
   bool synchronous_full = true;
   // How long a write waits for another connection's write lock before failing with `busy`.
   int busy_timeout_ms = 5000;
-  // Refuse to grow the file beyond this size: writes then fail with disk_full. A guard for a
-  // shared disk, and how the tests provoke SQLITE_FULL.
+  // Refuse to grow the store beyond this size: writes then fail with disk_full. A guard for a
+  // shared disk, and how the tests provoke SQLITE_FULL. It counts the files on disk: the
+  // database, its write-ahead log (a quarter of the limit at most, 4 MiB at most, checkpointed
+  // into the file when half full) and the WAL index (-shm, 32 KiB), see docs/storage.md.
   std::optional<std::int64_t> size_limit_bytes;
+  // The mode a new database file is created with (its -wal and -shm get the same from SQLite),
+  // set with fchmod so the umask does not matter. A file that exists keeps its mode.
+  unsigned file_mode = 0640;
   // The source of created_at and event times (ISO 8601 UTC); system_clock::now when empty.
   std::function<std::chrono::system_clock::time_point()> clock;
 };
