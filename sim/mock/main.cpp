@@ -52,13 +52,13 @@ int main(int argc, char** argv) {
   app.add_option("--warmup-tau-s", o.warmup_tau_s, "time constant tau of the warm-up, simulated s")->capture_default_str();
   app.add_option("--map", o.map_file, "serve another chamber register map (default: the built-in drivers/maps/mock.json)");
   app.add_option("--duration-s", o.duration_s, "stop after this many simulated seconds; 0: run until stopped")->capture_default_str();
+  app.add_flag("--paced", o.paced,
+               "the clock moves only when told ({\"cmd\":\"advance\"} on the control socket, which it needs): "
+               "fogbenchd paces the world");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")->capture_default_str();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-  app.add_flag("--paced", o.paced,
-               "the clock moves only when told ({\"cmd\":\"advance\"} on the control socket, which it needs): "
-               "fogbenchd paces the world");
     // --help is a "parse error" with status 0; every refused option exits 2, as ours do below.
     return app.exit(e) == 0 ? 0 : 2;
   }

@@ -143,6 +143,7 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
   }
   if (!(o.time_scale > 0) || o.time_scale > 100000) return std::unexpected(std::string("--time-scale: expected a number in (0, 100000]"));
   if (!(o.duration_s >= 0)) return std::unexpected(std::string("--duration-s: expected a number >= 0"));
+  if (o.paced && o.control.empty()) return std::unexpected(std::string("--paced needs --control: the clock is advanced through it"));
   if (!(o.frame_noise_dph >= 0)) return std::unexpected(std::string("--frame-noise-dph: expected a number >= 0"));
   if (!std::isfinite(o.warmup_dph)) return std::unexpected(std::string("--warmup-dph: expected a number"));
   if (!(o.warmup_tau_s > 0) || !std::isfinite(o.warmup_tau_s)) return std::unexpected(std::string("--warmup-tau-s: expected a positive number"));
@@ -160,6 +161,7 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
   cfg.control_path = o.control;
   cfg.time_scale = o.time_scale;
   cfg.duration_s = o.duration_s;
+  cfg.paced = o.paced;
   cfg.frame_noise_dph = o.frame_noise_dph;
   cfg.sim.seed = o.seed;
   cfg.sim.start_c = o.start_c;
@@ -173,7 +175,6 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
     } catch (const json::exception& e) {
       return std::unexpected(o.config_file + ": " + e.what());
     }
-  if (o.paced && o.control.empty()) return std::unexpected(std::string("--paced needs --control: the clock is advanced through it"));
     if (auto ok = known_keys(file, o.config_file, {"chamber", "units"}); !ok) return std::unexpected(ok.error());
     if (file.contains("chamber")) {
       const auto& c = file["chamber"];
@@ -193,7 +194,6 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
   }
   const std::size_t n = o.units ? static_cast<std::size_t>(*o.units) : (from_file > 0 ? from_file : 2);
   if (n < 1 || n > max_units) return std::unexpected("--units: expected 1.." + std::to_string(max_units));
-  cfg.paced = o.paced;
 
   cfg.sim.units.clear();
   std::set<std::string> serials;
