@@ -62,7 +62,7 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   if (!j.is_object()) return Err("configuration: expected a JSON object");
   if (auto ok = only_keys(j, "", {"simulated", "storage", "socket", "chamber_limits",
                                   "safe_setpoint_c", "profile_dir", "map_dir", "analysis",
-                                  "link_loss", "tracking", "drivers"});
+                                  "link_loss", "tracking", "drivers", "sim_clock"});
       !ok)
     return Err(ok.error());
   DaemonConfig c;
@@ -71,6 +71,12 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   if (j.contains("simulated")) {
     if (!j["simulated"].is_boolean()) return Err("simulated: expected true or false");
     c.simulated = j["simulated"].get<bool>();
+  }
+  if (j.contains("sim_clock")) {
+    if (!j["sim_clock"].is_string() || j["sim_clock"].get<std::string>().empty())
+      return Err("sim_clock: expected the path of fogbench-sim's control socket");
+    if (!c.simulated) return Err("sim_clock: only with \"simulated\": true (a real chamber keeps real time)");
+    c.sim_clock = resolve(base_dir, j["sim_clock"].get<std::string>());
   }
 
   if (!j.contains("storage") || !j["storage"].is_object())
@@ -282,6 +288,12 @@ std::expected<DaemonConfig, std::string> load_daemon_config(const std::filesyste
   auto c = parse_daemon_config(j, base);
   if (!c) return Err(file.string() + ": " + c.error());
   return c;
+}
+
+std::chrono::milliseconds gyro_retry_delay(double time_scale) {
+  constexpr double wall_ms = 1000.0;  // a second at 1x
+  if (!(time_scale > 1.0)) return std::chrono::milliseconds(1000);
+  return std::chrono::milliseconds(std::max<std::int64_t>(1, std::llround(wall_ms / time_scale)));
 }
 
 void scale_backoff_to_clock(drivers::DriversConfig& d, double time_scale) {

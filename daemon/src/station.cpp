@@ -34,6 +34,7 @@ std::string_view to_string(ErrorCode c) {
     case ErrorCode::unknown_serial: return "unknown_serial";
     case ErrorCode::forbidden: return "forbidden";
     case ErrorCode::internal: return "internal";
+    case ErrorCode::unavailable: return "unavailable";
   }
   return "internal";
 }
@@ -283,12 +284,21 @@ void Station::transition(ActiveRun& run, RunState to, const std::string& reason,
                     {"to", std::string(storage::to_string(to))}, {"reason", reason}}}});
 }
 
+// A run started while the chamber cannot be polled would only wait out link_loss.tolerance_s
+// and abort: refused at once instead. Before the first poll nothing is known and nothing refused.
+std::optional<ApiError> Station::chamber_unavailable() const {
+  if (!last_input_ || !last_input_->chamber_link_down) return std::nullopt;
+  return ApiError{ErrorCode::unavailable,
+                  "the chamber link is down (the chamber cannot be polled): no run starts until it answers again"};
+}
+
 ApiResult<std::int64_t> Station::start_run(const std::string& profile_name,
                                            const std::vector<std::string>& serials,
                                            const std::string& purpose_text, const json& command) {
   if (run_) return api_error(ErrorCode::busy, "run " + std::to_string(run_->id) + " is " +
                                                   std::string(storage::to_string(run_->state)));
   if (recovery_error_) return std::unexpected(not_recovered(*recovery_error_));
+  if (auto down = chamber_unavailable()) return std::unexpected(*down);
   auto purpose = storage::purpose_from_string(purpose_text);
   if (!purpose) return api_error(ErrorCode::bad_request, "purpose: expected \"fit\" or \"verify\"");
   if (serials.empty()) return api_error(ErrorCode::bad_request, "units: expected at least one serial");
@@ -339,6 +349,7 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
   if (run_) return api_error(ErrorCode::busy, "run " + std::to_string(run_->id) + " is " +
                                                   std::string(storage::to_string(run_->state)));
   if (recovery_error_) return std::unexpected(not_recovered(*recovery_error_));
+  if (auto down = chamber_unavailable()) return std::unexpected(*down);
   auto detail = store_.get_run(run_id);
   if (!detail) return std::unexpected(from_store(detail.error()));
   const storage::RunRecord& rec = detail->run;
@@ -455,9 +466,18 @@ void Station::shutdown(const std::string& reason) {
     spdlog::error("stopping with {} state changes or events the store did not take (see above)", unrecorded_.size());
 }
 
-void Station::finish(RunState to, const std::string& reason) {
+void Station::finish(RunState to, const std::string& why) {
   assert(run_);
   ActiveRun& run = *run_;
+  // A run that fails or aborts after the loop fell behind real time: that is the first thing to
+  // know about it (a settle that timed out on seconds never read blames the chamber wrongly).
+  std::string reason = why;
+  if (to != RunState::completed && run.late_s > 0) {
+    std::ostringstream o;
+    o << "the acquisition fell behind real time (" << run.late_s << " of " << run.elapsed_s + 1
+      << " s not read in time: the host is too busy for time scale " << time_scale_ << "); " << why;
+    reason = o.str();
+  }
   event(run.id, storage::EventKind::note, {{"quality", quality_json(run)}}, run.elapsed_s);
   transition(run, to, reason, run.elapsed_s);
   if (to != RunState::completed) spdlog::warn("run {} {}: {}", run.id, storage::to_string(to), reason);
@@ -738,6 +758,7 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
   }
   run.elapsed_s = clock_s - run.start_clock_s;
   const double t_s = run.elapsed_s;
+  if (in.late) ++run.late_s;
 
   // Alarms and link faults are recorded on their edges, not every second.
   if (in.chamber_alarm != run.alarm) {
@@ -812,6 +833,7 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
     if (u.gyro_dph && std::abs(*u.gyro_dph) > kGyroMaxAbsDph) oor = true;
     if (oor) f |= model::flag::out_of_range;
     if (in.chamber_link_down) f |= model::flag::link_gap;
+    if (run.pv_frozen) f |= model::flag::pv_frozen;
     r.flags = f;
     rows.push_back(r);
     if (run.quality.size() < run.config_index.size()) run.quality.resize(run.config_index.size());
@@ -898,6 +920,7 @@ std::optional<std::string> Station::chamber_fault(ActiveRun& run, const TickInpu
     return std::nullopt;
   }
   run.link_down_since_s.reset();
+  run.pv_frozen = false;
   if (!in.chamber_c) return std::nullopt;
   const double pv_c = *in.chamber_c;
 
@@ -922,6 +945,9 @@ std::optional<std::string> Station::chamber_fault(ActiveRun& run, const TickInpu
   } else {
     run.sp_min_c = std::min(run.sp_min_c, setpoint_c_);
     run.sp_max_c = std::max(run.sp_max_c, setpoint_c_);
+    // Unchanged while the setpoint moved this much: a stale value, flagged from here on (and
+    // the run ends once it lasts tracking.frozen_s).
+    run.pv_frozen = run.sp_max_c - run.sp_min_c >= kSetpointMovedC;
     if (t_s - run.pv_same_since_s >= config_.tracking.frozen_s && run.sp_max_c - run.sp_min_c >= kSetpointMovedC)
       return "chamber process value frozen at " + fmt(pv_c) + " degC for " + fmt(t_s - run.pv_same_since_s) +
              " s while the setpoint moved " + fmt(run.sp_max_c - run.sp_min_c) + " degC (tracking.frozen_s " +

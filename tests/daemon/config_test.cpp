@@ -117,3 +117,28 @@ TEST_CASE("config: on the accelerated clock the reconnection backoff is divided 
   CHECK(d.chamber.modbus.backoff.initial_ms == 1);
   CHECK(d.chamber.modbus.backoff.max_ms == 1);
 }
+
+TEST_CASE("config: the gyro bus is retried after a second of run time, 1 s of wall time divided by the time scale") {
+  using std::chrono::milliseconds;
+  CHECK(gyro_retry_delay(1.0) == milliseconds(1000));
+  CHECK(gyro_retry_delay(0.5) == milliseconds(1000));  // slower than real time: a wall second
+  CHECK(gyro_retry_delay(200.0) == milliseconds(5));   // 1000 ms / 200
+  CHECK(gyro_retry_delay(3.0) == milliseconds(333));   // 333.3 rounded
+  CHECK(gyro_retry_delay(1e6) == milliseconds(1));     // never below 1 ms
+}
+
+TEST_CASE("config: sim_clock, the paced mock bench's control socket, only on a simulated bench") {
+  auto j = golden_config_json();
+  j["simulated"] = true;
+  j["sim_clock"] = "mock-control.sock";
+  auto c = parse_daemon_config(j, golden_dir());
+  INFO((c ? std::string("ok") : c.error()));
+  REQUIRE(c.has_value());
+  REQUIRE(c->sim_clock.has_value());
+  CHECK(*c->sim_clock == golden_dir() / "mock-control.sock");  // relative to the file's folder
+  j["simulated"] = false;
+  CHECK(parse_daemon_config(j, golden_dir()).error().starts_with("sim_clock: only with"));
+  j["simulated"] = true;
+  j["sim_clock"] = 3;
+  CHECK(parse_daemon_config(j, golden_dir()).error().starts_with("sim_clock: expected the path"));
+}

@@ -27,8 +27,11 @@ struct LiveBench {
   json ready_sim, ready_daemon;
   double time_scale;
   json config_patch;  // merged into the daemon's configuration (merge_patch)
+  // The daemon paces the simulated world (fogbench-sim --paced, the daemon's `sim_clock`).
+  bool paced = false;
 
-  explicit LiveBench(double k, json patch = json::object()) : time_scale(k), config_patch(std::move(patch)) {
+  explicit LiveBench(double k, json patch = json::object(), bool paced_clock = false)
+      : time_scale(k), config_patch(std::move(patch)), paced(paced_clock) {
     char tmpl[] = "/tmp/fogbench-e2e-XXXXXX";
     dir = ::mkdtemp(tmpl);
     std::filesystem::create_directories(dir / "profiles");
@@ -51,12 +54,12 @@ struct LiveBench {
   }
 
   void start_sim() {
-    sim = std::make_unique<Process>(
-        std::vector<std::string>{(kBin / "fogbench-sim").string(), "--modbus-port", "0", "--thermistor-port", "0",
-                                 "--can-socket", (dir / "can.sock").string(), "--units", "2", "--seed", "7",
-                                 "--time-scale", std::to_string(time_scale), "--log-level", "warn",
-                                 "--control", control().string()},
-        dir / "sim.log");
+    std::vector<std::string> argv{(kBin / "fogbench-sim").string(), "--modbus-port", "0", "--thermistor-port", "0",
+                                  "--can-socket", (dir / "can.sock").string(), "--units", "2", "--seed", "7",
+                                  "--time-scale", std::to_string(time_scale), "--log-level", "warn",
+                                  "--control", control().string()};
+    if (paced) argv.push_back("--paced");
+    sim = std::make_unique<Process>(argv, dir / "sim.log");
     const auto line = sim->read_line(60s);
     INFO("fogbench-sim log in " << (dir / "sim.log"));
     REQUIRE(!line.empty());
@@ -72,6 +75,7 @@ struct LiveBench {
               {"safe_setpoint_c", 20},
               {"profile_dir", "profiles"},
               {"drivers", ready_sim["drivers_config"]}};
+    if (paced) c["sim_clock"] = control().string();
     c.merge_patch(config_patch);
     std::ofstream(dir / "fogbenchd.json") << c.dump(2);
   }

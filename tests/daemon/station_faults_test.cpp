@@ -366,3 +366,76 @@ TEST_CASE("station faults: an interrupted run resumes where its profile clock st
   CHECK(rows->at(749).setpoint_c == rows->at(699).setpoint_c);
   CHECK(rows->at(750).setpoint_c == Approx(rows->at(699).setpoint_c + 1.0 / 60.0));
 }
+
+TEST_CASE("station faults: run.start and run.resume are refused while the chamber link is down, accepted once it is back") {
+  storage::Store store = memory_store();
+  Station st(golden_config(), store, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
+  SyntheticBench bench{1};
+  // Before the first poll nothing is known: nothing is refused for it (see the Rig above).
+  TickInput in = bench.step(20.0);
+  link_down(in);
+  st.tick(0.0, in);
+  auto refused = st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+  REQUIRE_FALSE(refused.has_value());
+  CHECK(code_of_error(refused) == "unavailable");
+  CHECK_THAT(refused.error().message, Catch::Contains("chamber link is down"));
+  // Nothing was stored for it: a refused run.start changes nothing.
+  CHECK(store.list_runs({})->empty());
+  CHECK(code_of_error(st.resume_run(1, 0.0, {{"cmd", "run.resume"}})) == "unavailable");
+  st.tick(1.0, bench.step(20.0));
+  CHECK(code_of_error(st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}})) == "ok");
+}
+
+TEST_CASE("station faults: the seconds of a frozen PV are stored flagged pv_frozen once the setpoint has moved 0.5 degC") {
+  auto c = golden_config();
+  c.tracking.frozen_s = 120;
+  Rig r(std::move(c));
+  // The hold: a live PV, changing in its last digit; nothing flagged.
+  for (int i = 0; i < 600; ++i) r.tick([i](TickInput& in) { in.chamber_c = 20.01 + 0.01 * (i % 2); });
+  // The ramp at 1 degC/min with the PV stuck at 20 degC from 600 s: the setpoint has moved
+  // 0.5 degC after 30 s; from then on each second is flagged, until 120 s of it abort the run.
+  for (int i = 0; i < 300 && r.st->active_run_id(); ++i) r.tick([](TickInput& in) { in.chamber_c = 20.0; });
+  REQUIRE_FALSE(r.st->active_run_id().has_value());
+  CHECK_THAT(r.record().state_reason, Catch::Contains("frozen"));
+  const auto n = *r.store.count_samples(r.run, 0);
+  auto rows = r.store.get_samples(r.run, 0, 0, static_cast<int>(n));
+  REQUIRE(rows.has_value());
+  int flagged = 0, first = -1;
+  for (std::size_t i = 0; i < rows->size(); ++i)
+    if (rows->at(i).flags & model::flag::pv_frozen) {
+      ++flagged;
+      if (first < 0) first = static_cast<int>(i);
+    }
+  // The PV stopped changing at 600 s (it was exactly 20 all along); 0.5 degC of ramp is 30 s,
+  // the abort comes 120 s after the PV last changed. So seconds ~630..720 are flagged.
+  CHECK(first >= 625);
+  CHECK(first <= 635);
+  CHECK(flagged >= 80);
+  CHECK(flagged == static_cast<int>(rows->size()) - first);
+  for (int i = 0; i < 600; ++i) CHECK((rows->at(static_cast<std::size_t>(i)).flags & model::flag::pv_frozen) == 0);
+}
+
+TEST_CASE("station faults: a run that fails after the loop fell behind real time says so first in its reason") {
+  // The "short" profile has no settle to fail, so a station of its own runs "settle" (timeout 5 min)
+  // on seconds the loop was too late to read: nothing read, the settle cannot be judged.
+  storage::Store store = memory_store();
+  Station st(golden_config(), store, 200.0, [] { return std::string("2026-01-01T00:00:00Z"); });
+  auto id = st.start_run("settle", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+  REQUIRE(id.has_value());
+  double clock_s = 0;
+  for (int i = 0; i < 400 && st.active_run_id(); ++i) {
+    TickInput in;
+    in.units.resize(1);
+    in.late = true;
+    st.tick(clock_s, in);
+    clock_s += 1;
+  }
+  REQUIRE_FALSE(st.active_run_id().has_value());
+  auto d = store.get_run(*id);
+  REQUIRE(d.has_value());
+  CHECK(d->run.state == storage::RunState::failed);
+  INFO(d->run.state_reason);
+  CHECK(d->run.state_reason.starts_with("the acquisition fell behind real time ("));
+  CHECK_THAT(d->run.state_reason, Catch::Contains("time scale 200"));
+  CHECK_THAT(d->run.state_reason, Catch::Contains("settle"));  // the original reason follows
+}

@@ -3,6 +3,7 @@
 // ("chamber_limits.max_c: expected a number"). The shape is documented in docs/daemon.md.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <expected>
 #include <filesystem>
@@ -61,6 +62,10 @@ struct DaemonConfig {
   LinkLossConfig link_loss;
   TrackingConfig tracking;
   drivers::DriversConfig drivers;
+  // Simulated benches only: fogbench-sim's control socket. The daemon then paces the simulated
+  // world (fogbench-sim --paced): one {"cmd":"advance"} per acquired second of a run, so a busy
+  // host slows a run down instead of breaking it (docs/daemon.md, "Time scale").
+  std::optional<std::filesystem::path> sim_clock;
   nlohmann::json source;                   // the file as read, stored with every run
 };
 
@@ -72,6 +77,10 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const nlohmann::jso
 // link is retried after the same run time as at 1x: the default 30 s cap is 30 s of run time,
 // not 30 s of wall time (25 min of run time at 50x). Never below 1 ms; K <= 1 changes nothing.
 void scale_backoff_to_clock(drivers::DriversConfig& drivers, double time_scale);
+
+// The gyro bus is reopened this long after it fails: a second of run time, i.e. 1 s of wall
+// time divided by the time scale on the accelerated clock (never below 1 ms).
+std::chrono::milliseconds gyro_retry_delay(double time_scale);
 
 // Reads and parses a file; errors start with the file name.
 std::expected<DaemonConfig, std::string> load_daemon_config(const std::filesystem::path& file);

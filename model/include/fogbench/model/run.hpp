@@ -22,6 +22,7 @@ inline constexpr std::uint8_t missing = 1u << 0;       // a signal was not read 
 inline constexpr std::uint8_t frames_lost = 1u << 1;   // the gyro's sequence counter skipped
 inline constexpr std::uint8_t out_of_range = 1u << 2;  // a reading outside its plausible range
 inline constexpr std::uint8_t link_gap = 1u << 3;      // the chamber link was down
+inline constexpr std::uint8_t pv_frozen = 1u << 4;     // the chamber's PV stood still while its setpoint moved
 }  // namespace flag
 
 // Column vectors of equal length (optional ones are empty when not recorded).
