@@ -22,6 +22,19 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
   sim::SimConfig cfg;
   cfg.seed = o.seed;
   cfg.units[0].serial = o.serial;
+  auto& coil = cfg.units[0].coil;
+  auto coil_model = sim::parse_coil_model(o.coil);
+  auto t1_at = sim::parse_placement(o.t1_at), t2_at = sim::parse_placement(o.t2_at);
+  for (const auto& [opt, error] : {std::pair{"--coil", coil_model ? "" : coil_model.error()}, std::pair{"--t1-at", t1_at ? "" : t1_at.error()},
+                                   std::pair{"--t2-at", t2_at ? "" : t2_at.error()}}) {
+    if (!error.empty()) {
+      err << "fogctl simulate: " << opt << ": " << error << "\n";
+      return kExitError;
+    }
+  }
+  coil.model = *coil_model;
+  coil.distributed.t1_at = *t1_at;
+  coil.distributed.t2_at = *t2_at;
   for (const auto& e : o.effects) cfg.units[0].effects += (cfg.units[0].effects.empty() ? "" : " + ") + e;
   if (!cfg.units[0].effects.empty()) {
     if (auto l = model::parse_terms(cfg.units[0].effects); !l) {
@@ -50,11 +63,11 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
   }
   if (o.json) {
     out << nlohmann::json{{"profile", profile->source_name}, {"seed", o.seed}, {"samples", run.size()},
-                          {"settle_s", r->settle_s}, {"effects", cfg.units[0].effects}, {"output", o.output}}
+                          {"settle_s", r->settle_s}, {"effects", cfg.units[0].effects}, {"coil", o.coil}, {"output", o.output}}
                .dump()
         << "\n";
   } else {
-    out << "simulated " << profile->source_name << " (seed " << o.seed << (cfg.units[0].effects.empty() ? "" : ", effect " + cfg.units[0].effects)
+    out << "simulated " << profile->source_name << " (" << o.coil << " coil, seed " << o.seed << (cfg.units[0].effects.empty() ? "" : ", effect " + cfg.units[0].effects)
         << "): " << run.size() << " samples after a " << static_cast<long>(r->settle_s) << " s settle -> " << o.output << "\n";
   }
   return kExitOk;
@@ -210,6 +223,11 @@ void add_offline_commands(CLI::App& app, int& code) {
   s->add_option("--effect", sim.effects, "Extra drift in the term language with its coefficient, e.g. \"0.05*T1\" (repeatable)");
   s->add_option("--seed", sim.seed, "Random seed (same seed, same run)");
   s->add_option("--serial", sim.serial, "Serial number of the simulated gyro");
+  s->add_option("--coil", sim.coil,
+                "Coil model: distributed (radial layers, drift from the temperature field; default) or lumped (two nodes, the "
+                "paper's model is the exact truth); docs/simulation.md");
+  s->add_option("--t1-at", sim.t1_at, "Distributed coil: where the T1 thermistor sits (hub, inner, middle, outer; default inner)");
+  s->add_option("--t2-at", sim.t2_at, "Distributed coil: where the T2 thermistor sits (default outer)");
   s->add_option("-o,--output", sim.output, "Write the run's CSV here (default: standard output)");
   s->add_flag("--json", sim.json, "Print a JSON summary");
   s->add_flag("-q,--quiet", sim.quiet, "No progress line");

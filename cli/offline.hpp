@@ -21,6 +21,8 @@ struct SimulateOptions {
   std::uint64_t seed = 1;
   std::string output;                  // -o run.csv
   std::string serial = "SIM-0001";
+  std::string coil = "distributed";    // distributed|lumped (docs/simulation.md)
+  std::string t1_at = "inner", t2_at = "outer";  // the thermistors on a distributed coil
   bool json = false;
   bool quiet = false;
 };

@@ -39,6 +39,10 @@ int main(int argc, char** argv) {
   app.add_option("--seed", o.seed, "seed of the physics and the frame noise")->capture_default_str();
   app.add_option("--effect", o.effects, "hidden drift effect in the term language, e.g. \"0.05*T1\"; every unit; repeatable")
       ->allow_extra_args(false);
+  app.add_option("--coil", o.coil,
+                 "coil model of every unit: distributed (radial layers, drift from the temperature field) or lumped "
+                 "(two nodes, the paper's model is the exact truth); docs/simulation.md")
+      ->capture_default_str();
   app.add_option("--start-c", o.start_c, "temperature of the chamber, coils and room at start, degC")->capture_default_str();
   app.add_option("--config", o.config_file, "JSON file of per-unit parameters (see docs/mock-bench.md)");
   app.add_option("--fault", o.faults, "fault active from the start: NAME[=VALUE][,KEY=VALUE...]; repeatable")

@@ -1,12 +1,17 @@
 // Options to configuration; see options.hpp. The --config file:
 //   {"chamber": {"air_tau_s": 60, "max_rate_c_per_min": 5, "air_noise_c": 0.02},
 //    "units": [{"serial": "SIM-0001", "frame_rate_hz": 100, "effects": "0.05*T1",
-//               "coil": {"wall_tau_s": 150, "core_tau_s": 40, "t_noise_c": 0.005},
+//               "coil": {"model": "distributed", "wall_tau_s": 150, "core_tau_s": 40, "t_noise_c": 0.005,
+//                        "layers": 8, "inner_radius_mm": 35, "outer_radius_mm": 50, "winding_tau_s": 200,
+//                        "film_tau_s": 300, "hub_capacity": 0.6, "mount_tau_s": 600, "contact_tau_s": 120,
+//                        "t1_at": "inner", "t2_at": "outer", "shupe_dph_per_c_per_min": -5.5,
+//                        "stress_dph_per_c": -0.6, "absolute_dph_per_c": 0.01},
 //               "gyro": {"mu0_dph": -8.097, "terms": "...", "ar": [-0.005, -0.04],
 //                        "sigma_a_dph": 0.146, "outlier_rate_per_s": 2e-4,
 //                        "outlier_dph": 2.5, "tref_c": 20}}]}
 #include "options.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <set>
@@ -78,11 +83,36 @@ std::expected<void, std::string> read_unit(const json& j, const std::string& pat
   if (j.contains("coil")) {
     const auto& c = j["coil"];
     const auto cp = path + ".coil";
-    if (auto ok = known_keys(c, cp, {"wall_tau_s", "core_tau_s", "t_noise_c"}); !ok) return ok;
+    if (auto ok = known_keys(c, cp, {"model", "wall_tau_s", "core_tau_s", "t_noise_c", "layers", "inner_radius_mm", "outer_radius_mm",
+                                      "winding_tau_s", "film_tau_s", "hub_capacity", "mount_tau_s", "contact_tau_s", "t1_at", "t2_at",
+                                      "shupe_dph_per_c_per_min", "stress_dph_per_c", "absolute_dph_per_c"});
+        !ok)
+      return ok;
+    auto& d = p.coil.distributed;
+    double layers = d.layers;
     for (auto ok : {number(c, cp, "wall_tau_s", p.coil.wall_tau_s, true), number(c, cp, "core_tau_s", p.coil.core_tau_s, true),
-                    number(c, cp, "t_noise_c", p.coil.t_noise_c)}) {
+                    number(c, cp, "t_noise_c", p.coil.t_noise_c), number(c, cp, "layers", layers, true),
+                    number(c, cp, "inner_radius_mm", d.inner_radius_mm, true), number(c, cp, "outer_radius_mm", d.outer_radius_mm, true),
+                    number(c, cp, "winding_tau_s", d.winding_tau_s, true), number(c, cp, "film_tau_s", d.film_tau_s, true),
+                    number(c, cp, "hub_capacity", d.hub_capacity, true), number(c, cp, "mount_tau_s", d.mount_tau_s, true),
+                    number(c, cp, "contact_tau_s", d.contact_tau_s, true), number(c, cp, "shupe_dph_per_c_per_min", d.shupe_dph_per_c_per_min),
+                    number(c, cp, "stress_dph_per_c", d.stress_dph_per_c), number(c, cp, "absolute_dph_per_c", d.absolute_dph_per_c)}) {
       if (!ok) return ok;
     }
+    if (layers != std::floor(layers)) return std::unexpected(cp + ".layers: expected an integer");
+    d.layers = static_cast<int>(std::min(layers, 1000.0));
+    for (auto [key, out] : {std::pair{"t1_at", &d.t1_at}, std::pair{"t2_at", &d.t2_at}}) {
+      if (!c.contains(key)) continue;
+      auto pl = c[key].is_string() ? sim::parse_placement(c[key].get<std::string>()) : std::unexpected(std::string("expected a string"));
+      if (!pl) return std::unexpected(cp + "." + key + ": " + pl.error());
+      *out = *pl;
+    }
+    if (c.contains("model")) {
+      auto m = c["model"].is_string() ? sim::parse_coil_model(c["model"].get<std::string>()) : std::unexpected(std::string("expected a string"));
+      if (!m) return std::unexpected(cp + ".model: " + m.error());
+      p.coil.model = *m;
+    }
+    if (auto ok = d.validate(); !ok) return std::unexpected(cp + "." + ok.error());
   }
   if (j.contains("gyro")) {
     const auto& g = j["gyro"];
@@ -151,6 +181,8 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
     return std::unexpected("--start-c: expected " + std::to_string(static_cast<int>(min_start_c)) + ".." +
                            std::to_string(static_cast<int>(max_start_c)) + " degC");
   }
+  const auto coil_model = sim::parse_coil_model(o.coil);
+  if (!coil_model) return std::unexpected("--coil: " + coil_model.error());
   cfg.where.host = o.host;
   cfg.where.chamber_port = o.modbus_port;
   cfg.where.thermistor_port = o.gateway ? o.modbus_port : o.thermistor_port;
@@ -203,6 +235,7 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
     if (!layout) return std::unexpected("--frame-rate-hz: " + layout.error());
     sim::UnitParams p;
     p.serial = layout->serial;
+    p.coil.model = *coil_model;
     Warmup warmup{o.warmup_dph, o.warmup_tau_s};
     if (i < from_file) {
       if (auto ok = read_unit(file["units"][i], o.config_file + ": units[" + std::to_string(i) + "]", p, rate, warmup); !ok) {

@@ -29,6 +29,7 @@ struct Options {
   double time_scale = 1.0;
   std::uint64_t seed = 1;
   std::vector<std::string> effects;  // added to every unit's drift
+  std::string coil = "distributed";  // every unit's coil model (a --config unit's coil.model overrides it)
   double start_c = 20.0;
   std::string config_file;
   std::vector<std::string> faults;   // NAME[=VALUE][,KEY=VALUE...]

@@ -71,6 +71,7 @@ TEST_CASE("fogctl report: self-contained HTML that renders its figures in headle
     s.output = path;
     s.seed = static_cast<std::uint64_t>(seed);
     s.effects = {"0.007*T1^2"};
+    s.coil = "lumped";  // T1^2 is the one effect missing, so adding it ends the lineage
     s.quiet = true;
     std::ostringstream o, e;
     REQUIRE(run_simulate(s, o, e) == kExitOk);

@@ -46,6 +46,7 @@ void sim(const std::string& profile, std::uint64_t seed, const std::string& path
   o.seed = seed;
   o.output = path;
   if (!effect.empty()) o.effects = {effect};
+  o.coil = "lumped";  // the hidden effect is the only thing the paper's model misses
   o.quiet = true;
   const Out r = call(run_simulate, o);
   REQUIRE(r.code == kExitOk);

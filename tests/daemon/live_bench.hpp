@@ -56,6 +56,7 @@ struct LiveBench {
   void start_sim() {
     std::vector<std::string> argv{(kBin / "fogbench-sim").string(), "--modbus-port", "0", "--thermistor-port", "0",
                                   "--can-socket", (dir / "can.sock").string(), "--units", "2", "--seed", "7",
+                                  "--coil", "lumped",  // the paper's model is the exact truth: exp1's fit passes on exp2
                                   "--time-scale", std::to_string(time_scale), "--log-level", "warn",
                                   "--control", control().string()};
     if (paced) argv.push_back("--paced");

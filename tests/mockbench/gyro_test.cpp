@@ -214,7 +214,8 @@ TEST_CASE("fault gyro_spike: the mean shifts by the spike while it lasts, then r
 TEST_CASE("a hidden --effect shifts every unit's drift by its term") {
   // At rest at 30 degC every temperature sits 10 degC above the truth's tref (20 degC): the
   // default terms (rates and the gradient) are zero and "1*T1" adds 1 deg/h/degC x 10 degC.
-  MockProcess mock({"--time-scale", "50", "--start-c", "30", "--effect", "1*T1"});
+  // The lumped coil: the distributed one adds its own absolute-temperature term at 30 degC.
+  MockProcess mock({"--time-scale", "50", "--start-c", "30", "--effect", "1*T1", "--coil", "lumped"});
   auto cfg = mock.example_config();
   auto bus = open_bus(mock, cfg);
   auto totals = collect_for(mock, bus, 60);

@@ -271,13 +271,32 @@ TEST_CASE("options: a --config file sets per-unit parameters and refuses unknown
   CHECK(cfg->sim.units[2].coil.wall_tau_s == 300);
   CHECK(cfg->sim.units[2].gyro.mu0_dph == 1.5);
   CHECK(cfg->sim.units[2].gyro.ar == std::vector<double>{0.1});
+  CHECK(cfg->sim.units[0].coil.model == sim::CoilModel::distributed);  // --coil's default
 
   o.units = 2;
   CHECK(make_bench_config(o).error() == "--units 2 but " + file + " describes 3");
   o.units.reset();
   write({{"units", {{{"coil", {{"wal_tau_s", 300}}}}}}});
   CHECK(make_bench_config(o).error() ==
-        file + ": units[0].coil.wal_tau_s: unknown field (known: core_tau_s, t_noise_c, wall_tau_s)");
+        file + ": units[0].coil.wal_tau_s: unknown field (known: absolute_dph_per_c, contact_tau_s, core_tau_s, film_tau_s, "
+               "hub_capacity, inner_radius_mm, layers, model, mount_tau_s, outer_radius_mm, shupe_dph_per_c_per_min, "
+               "stress_dph_per_c, t1_at, t2_at, t_noise_c, wall_tau_s, winding_tau_s)");
+  // The distributed coil's parameters, its thermistors' places and the model per unit.
+  write({{"units", {{{"coil", {{"model", "lumped"}, {"layers", 10}, {"t1_at", "middle"}, {"winding_tau_s", 150}}}}}}});
+  auto coil = make_bench_config(o);
+  REQUIRE(coil.has_value());
+  CHECK(coil->sim.units[0].coil.model == sim::CoilModel::lumped);
+  CHECK(coil->sim.units[0].coil.distributed.layers == 10);
+  CHECK(coil->sim.units[0].coil.distributed.t1_at == sim::Placement::middle);
+  CHECK(coil->sim.units[0].coil.distributed.winding_tau_s == 150);
+  write({{"units", {{{"coil", {{"t2_at", "centre"}}}}}}});
+  CHECK(make_bench_config(o).error() ==
+        file + ": units[0].coil.t2_at: unknown thermistor placement 'centre' (known: hub, inner, middle, outer)");
+  write({{"units", {{{"coil", {{"layers", 5}}}}}}});
+  CHECK(make_bench_config(o).error() == file + ": units[0].coil.layers: expected 6..64");
+  o.coil = "two-node";
+  CHECK(make_bench_config(o).error() == "--coil: unknown coil model 'two-node' (known: distributed, lumped)");
+  o.coil = "distributed";
   write({{"units", {{{"serial", "X"}}, {{"serial", "X"}}}}});
   CHECK(make_bench_config(o).error() == "two units have serial X");
   std::filesystem::remove_all(tmpl);
