@@ -466,18 +466,21 @@ void Station::shutdown(const std::string& reason) {
     spdlog::error("stopping with {} state changes or events the store did not take (see above)", unrecorded_.size());
 }
 
-void Station::finish(RunState to, const std::string& why) {
+// A run that fails on what it read (a settle that timed out, a chamber fault) after the loop
+// fell behind real time: that is the first thing to know about it, since seconds never read
+// make a settle time out and blame the chamber wrongly. An operator's abort, a shutdown or a
+// full store are what they say.
+std::string Station::behind_real_time(const ActiveRun& run, const std::string& why) const {
+  if (run.late_s == 0) return why;
+  std::ostringstream o;
+  o << "the acquisition fell behind real time (" << run.late_s << " of " << run.elapsed_s + 1
+    << " s not read in time: the host is too busy for time scale " << time_scale_ << "); " << why;
+  return o.str();
+}
+
+void Station::finish(RunState to, const std::string& reason) {
   assert(run_);
   ActiveRun& run = *run_;
-  // A run that fails or aborts after the loop fell behind real time: that is the first thing to
-  // know about it (a settle that timed out on seconds never read blames the chamber wrongly).
-  std::string reason = why;
-  if (to != RunState::completed && run.late_s > 0) {
-    std::ostringstream o;
-    o << "the acquisition fell behind real time (" << run.late_s << " of " << run.elapsed_s + 1
-      << " s not read in time: the host is too busy for time scale " << time_scale_ << "); " << why;
-    reason = o.str();
-  }
   event(run.id, storage::EventKind::note, {{"quality", quality_json(run)}}, run.elapsed_s);
   transition(run, to, reason, run.elapsed_s);
   if (to != RunState::completed) spdlog::warn("run {} {}: {}", run.id, storage::to_string(to), reason);
@@ -863,7 +866,7 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
   }
 
   if (stored && abort_reason) {
-    finish(RunState::aborted, *abort_reason);
+    finish(RunState::aborted, behind_real_time(run, *abort_reason));
   } else if (!stored) {
     // Samples that cannot be stored make the run worthless: stop it rather than run on blind,
     // and make the chamber safe. A fault of the station, as a chamber's is: `aborted`
@@ -873,7 +876,7 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
                                   " (" + std::string(storage::to_string(e.code)) +
                                   "): samples could not be stored: " + e.message);
   } else if (st.failed) {
-    finish(RunState::failed, st.failure_reason);
+    finish(RunState::failed, behind_real_time(run, st.failure_reason));
   } else if (st.finished) {
     finish(RunState::completed, "profile finished");
   } else {

@@ -194,6 +194,8 @@ class Station {
   static nlohmann::json quality_json(const ActiveRun& run);
   // Why no run may start now (the chamber link is down), if so.
   std::optional<ApiError> chamber_unavailable() const;
+  // `why` a run fails or aborts for, said after the loop fell behind real time if it did.
+  std::string behind_real_time(const ActiveRun& run, const std::string& why) const;
   // Why the chamber's state this second ends the run (alarm, link lost, not tracking), if it does.
   std::optional<std::string> chamber_fault(ActiveRun& run, const TickInput& in, double t_s);
 
