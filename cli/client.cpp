@@ -435,7 +435,7 @@ void print_table1(const json& verifications, const json& run, std::ostream& out)
     t.add({std::to_string(unit), run["units"][static_cast<std::size_t>(unit)].get<std::string>(),
            std::to_string(v["model_id"].get<std::int64_t>()), num_text(r["est_mean"]), num_text(r["meas_mean"]),
            num_text(r["est_std"]), num_text(r["meas_std"]), num_text(r["comp_std"]), num_text(r["ratio"], 3),
-           v["pass"].get<bool>() ? "yes" : "NO"});
+           v["pass"].get<bool>() ? "yes" : res.value("verdict", "") == "marginal" ? "MARGINAL" : "NO"});
   }
   out << t.str();
 }
@@ -542,7 +542,7 @@ struct WatchResult {
   int code = kExitError;
 };
 
-// The exit code of a finished run: 0 completed (and every verification passed), 1 a
+// The exit code of a finished run: 0 completed (and every verification passed), 3 marginal, 1 a
 // verification failed, 2 anything else.
 int final_code(Client& c, std::int64_t run_id, std::ostream& out, bool json_out) {
   auto r = c.call("run.get", {{"run_id", run_id}});
@@ -551,8 +551,13 @@ int final_code(Client& c, std::int64_t run_id, std::ostream& out, bool json_out)
   if (json_out) out << r->dump() << "\n";
   else out << "run " << run_id << " " << run["state"].get<std::string>() << ": " << run["reason"].get<std::string>() << "\n";
   if (run["state"] != "completed") return kExitError;
-  bool all_pass = true;
-  for (const auto& v : (*r)["verifications"]) all_pass = all_pass && v.value("pass", false);
+  bool all_pass = true, any_fail = false;
+  for (const auto& v : (*r)["verifications"]) {
+    all_pass = all_pass && v.value("pass", false);
+    // marginal (issue 10): the paper's ratio passed, the second test did not (exit 3)
+    const bool marginal = v.contains("result") && v["result"].is_object() && v["result"].value("verdict", "") == "marginal";
+    any_fail = any_fail || (!v.value("pass", false) && !marginal);
+  }
   if (!json_out) {
     for (const auto& m : (*r)["models"])
       out << "model " << m["id"] << " for " << m["serial"].get<std::string>() << " (version " << m["version"]
@@ -562,7 +567,7 @@ int final_code(Client& c, std::int64_t run_id, std::ostream& out, bool json_out)
       if (e["kind"] == "note" && e["detail"].value("ok", true) == false)
         out << "analysis of unit " << e["detail"]["unit"] << " failed: " << e["detail"].value("error", "") << "\n";
   }
-  return all_pass ? kExitOk : kExitFailed;
+  return all_pass ? kExitOk : any_fail ? kExitFailed : kExitMarginal;
 }
 
 bool terminal(const std::string& s) {

@@ -18,10 +18,12 @@ class App;
 
 namespace fogbench::cli {
 
-// Exit codes: 0 done (and passed), 1 a verification that failed its threshold, 2 an error.
+// Exit codes: 0 done (and passed), 1 a verification that failed its threshold, 2 an error,
+// 3 marginal: the paper's ratio passed but the compensated output is not the model's noise.
 inline constexpr int kExitOk = 0;
 inline constexpr int kExitFailed = 1;
 inline constexpr int kExitError = 2;
+inline constexpr int kExitMarginal = 3;
 
 // Options to read a run's CSV: --map canonical=header (repeatable) and --resample S.
 struct RunInput {

@@ -45,6 +45,9 @@ struct VerifyOptions {
   std::string model;
   std::vector<std::string> runs;
   double threshold = 0.2;
+  double noise_factor = 1.5;   // the second test (model::VerifyOptions)
+  double max_fail_s = 60.0;
+  bool no_noise_test = false;
   bool json = false;
   RunInput input;
 };

@@ -213,8 +213,11 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
 
   // Qualification summary.
   body += "<h2>Qualification summary (IEEE Std 952 thermal sensitivities)</h2>";
-  body += std::string("<p><span class=\"verdict ") + (q.pass ? "pass\">PASS" : "failv\">FAIL") + "</span> compensated std under " +
-          fixed(100.0 * q.threshold, 0) + "% of the raw std on every run</p>";
+  body += std::string("<p><span class=\"verdict ") + (q.pass ? "pass\">PASS" : q.marginal ? "failv\">MARGINAL" : "failv\">FAIL") +
+          "</span> compensated std under " + fixed(100.0 * q.threshold, 0) +
+          "% of the raw std on every run, within 1.5 x the model's noise std and no failing interval of 60 s or more</p>";
+  for (const auto& x : q.runs)
+    for (const auto& why : x.reasons) body += "<p class=\"note\">" + esc(x.run) + ": " + esc(why) + "</p>";
   {
     HtmlTable t({"sensitivity", "term", "value", "1 sigma", "unit", "source"});
     t.row({"bias", "mu0", fixed(q.mu0_dph, 3), fixed(q.mu0_se, 3), "deg/h", "the model"});
@@ -249,7 +252,8 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
                  "peak excursion on ramps, deg/h", "verdict"});
     for (const auto& x : q.runs)
       r.row({x.run, x.held_out ? "independent" : "fit", fixed(x.meas_std_dph, 3), fixed(x.comp_std_dph, 3), pct(x.ratio),
-             fixed(x.hysteresis_dph, 3), fixed(x.hysteresis_comp_dph, 3), fixed(x.peak_ramp_excursion_dph, 3), x.pass ? "pass" : "FAIL"},
+             fixed(x.hysteresis_dph, 3), fixed(x.hysteresis_comp_dph, 3), fixed(x.peak_ramp_excursion_dph, 3),
+             x.pass ? "pass" : x.verdict == model::Verdict::marginal ? "MARGINAL" : "FAIL"},
             x.pass ? "" : "fail");
     body += r.str();
     body += "<p class=\"note\">Heating minus cooling: mean output in 1 degC bins of T1 visited by both heating and cooling "
@@ -399,7 +403,7 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
     return kExitError;
   }
   out << "report written to " << o.output << " (" << html.size() / 1024 << " KiB; " << (d->adequate ? "model adequate" : "missing effect: " + d->candidates.front().term)
-      << "; qualification " << (q.pass ? "PASS" : "FAIL") << ")\n";
+      << "; qualification " << (q.pass ? "PASS" : q.marginal ? "MARGINAL" : "FAIL") << ")\n";
   return kExitOk;
 }
 

@@ -125,6 +125,19 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
   wb::DiagnoseOptions dopt;
   dopt.extra_terms = o.candidates;
   dopt.max_lag_s = o.max_lag_s;
+  if (o.search == "library") dopt.search = wb::DiagnoseOptions::Search::library;
+  else if (o.search == "language") dopt.search = wb::DiagnoseOptions::Search::language;
+  else {
+    err << "fogctl diagnose: --search must be library or language, got '" << o.search << "'\n";
+    return kExitError;
+  }
+  dopt.max_terms = o.max_terms;
+  dopt.tau_points = o.tau_points;
+  for (const auto& c : o.candidates)
+    if (auto t = model::parse_term(c); !t) {
+      err << "fogctl diagnose: --candidate: " << t.error().pretty() << "\n";
+      return kExitError;
+    }
   auto d = wb::diagnose(*m, runs->front(), std::span<const model::RunData>(*runs).subspan(1), dopt);
   if (!d) {
     err << "fogctl diagnose: " << d.error().message << "\n";
@@ -136,8 +149,32 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
   }
   out << "diagnose: model " << o.model << " (" << d->model_terms << ", " << d->method << " method) refitted on " << d->fit_run;
   if (d->base_refitted_on_other_run) out << " (the model was fitted on other data: " << m->fitted_on.name << ")";
-  out << "\n\n" << d->summary << "\n\n";
-  out << "coefficients (1 sigma):\n";
+  out << "\n\n" << (d->adequate ? "ADEQUATE: " : "NOT ADEQUATE: ") << d->summary << "\n\n";
+  out << "adequacy of " << d->model_terms << " (Ljung-Box p >= " << fixed(dopt.adequacy_alpha, 3) << ", comp std <= "
+      << fixed(dopt.max_noise_factor, 2) << " x noise std, no failing interval):\n";
+  {
+    Table at({"run", "role", "comp std", "noise std", "factor", "Ljung-Box p", "failing intervals", "result"});
+    for (const auto& c : d->checks)
+      at.add({c.run, c.held_out ? "held out" : "fit", fixed(c.comp_std_dph, 3), fixed(c.noise_std_dph, 3), fixed(c.noise_factor, 2),
+              c.ljung_box_p < 1e-4 ? "<1e-4" : fixed(c.ljung_box_p, 4), std::to_string(c.failures.size()), c.reasons.empty() ? "ok" : "FAILS"});
+    out << at.str();
+  }
+  for (const auto& r : d->reasons) out << "  - " << r << "\n";
+  if (!d->steps.empty()) {
+    out << "\nsearch (" << d->search << ", " << d->search_space.value("total", 0) << " candidates, "
+        << d->search_space.value("refitted", 0) << " refitted): terms found, each validated on the held-out runs:\n";
+    for (std::size_t i = 0; i < d->steps.size(); ++i) {
+      const auto& st = d->steps[i];
+      out << "  " << i + 1 << ". " << st.added << "  " << st.effect << (st.library ? "" : " [not in the library]") << "  fit run "
+          << fixed(st.rms_before_dph, 3) << " -> " << fixed(st.rms_after_dph, 3);
+      for (const auto& h : st.held_out)
+        if (h.scored) out << ", " << h.run << " " << fixed(h.rms_before_dph, 3) << " -> " << fixed(h.rms_after_dph, 3);
+      out << "\n     add it: fogctl fit --model " << (i ? "model" + std::to_string(i + 1) + ".json" : o.model) << " --add \"" << st.added
+          << "\" " << o.runs.front() << " -o model" << i + 2 << ".json\n";
+    }
+    out << "  model with them: " << d->final_terms << (d->outside_search ? " (something still remains: outside the search)" : " (adequate)") << "\n";
+  }
+  out << "\ncoefficients (1 sigma):\n";
   Table ct({"term", "coef", "se", "unit"});
   for (const auto& c : d->coefs) ct.add({c.term, sig(c.coef), sig(c.se), c.unit});
   out << ct.str();
@@ -293,6 +330,9 @@ void add_workbench_commands(CLI::App& app, int& code) {
   d->add_option("runs", dia.runs, "The fit run's CSV, then held-out runs")->required();
   d->add_option("--candidate", dia.candidates, "A further candidate term beyond the library (repeatable)");
   d->add_option("--max-lag", dia.max_lag_s, "Longest lag searched, s (default: the model's; lower it for short runs)");
+  d->add_option("--search", dia.search, "library (the effects library) or language (the term language, default)");
+  d->add_option("--max-terms", dia.max_terms, "Greedy forward selection: terms added at most, 1 to 3 (default 3)");
+  d->add_option("--tau-points", dia.tau_points, "Time constants of lp and warm on a log grid 30 s to 4 h (default 12)");
   d->add_flag("--json", dia.json, "Print one JSON object");
   add_run_input(d, dia.input);
   d->callback([&] { code = run_diagnose(dia, std::cout, std::cerr); });

@@ -18,10 +18,11 @@ namespace {
 // both their edge and their interior paths. T1 and T2 lag a sine excursion of the air.
 struct Synthetic {
   static constexpr std::size_t n = 240;
-  std::vector<double> t1, t2, ta;
+  std::vector<double> t1, t2, ta, ton;
   Synthetic() {
     for (std::size_t i = 0; i < n; ++i) {
       const double t_s = static_cast<double>(i);
+      ton.push_back(600.0 + t_s);
       ta.push_back(5.0 * std::sin(t_s / 40.0));
       t2.push_back(4.0 * std::sin((t_s - 10.0) / 40.0));
       t1.push_back(3.0 * std::sin((t_s - 30.0) / 40.0) + 0.01 * static_cast<double>(i % 7));
@@ -31,13 +32,13 @@ struct Synthetic {
 
 void check_evaluate(const Expr& e) {
   static const Synthetic syn;
-  const Signals with_ta{syn.t1, syn.t2, syn.ta, 1.0};
+  const Signals with_ta{syn.t1, syn.t2, syn.ta, 1.0, syn.ton};
   auto v = evaluate(e, with_ta);
   FUZZ_CHECK(v.has_value(), "evaluation failed with every signal present: %s", v.error().c_str());
   FUZZ_CHECK(v->size() == Synthetic::n, "%zu values for %zu samples", v->size(), Synthetic::n);
 
   // Without the chamber's air: only a term that reads Ta may fail.
-  const Signals without_ta{syn.t1, syn.t2, {}, 1.0};
+  const Signals without_ta{syn.t1, syn.t2, {}, 1.0, syn.ton};
   auto w = evaluate(e, without_ta);
   FUZZ_CHECK(w.has_value() || uses_signal(e, Signal::Ta), "failed without Ta but does not use it: %s",
              w.error().c_str());

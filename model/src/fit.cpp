@@ -387,6 +387,9 @@ std::expected<RunSignals, FitError> run_signals(const RunData& run, double tref_
     s.ta.resize(n);
     if (auto r = bridge(run.chamber_c, s.ta, "Ta (chamber_c)"); !r) return std::unexpected(r.error());
   }
+  // Time since power-on is a clock, not a reading: taken as recorded (not offset by Tref, not
+  // bridged); a run without it leaves it empty and a term using it says so.
+  if (run.has_power_on() && run.since_power_on_s.size() == n) s.ton = run.since_power_on_s;
   return s;
 }
 
@@ -923,7 +926,34 @@ std::vector<Phase> derive_phases(const RunData& run) {
   return ph;
 }
 
+std::string_view to_string(Verdict v) {
+  switch (v) {
+    case Verdict::pass: return "pass";
+    case Verdict::marginal: return "marginal";
+    case Verdict::fail: return "fail";
+  }
+  return "?";
+}
+
+std::expected<void, std::string> VerifyOptions::validate() const {
+  if (!(threshold > 0.0 && threshold <= 1.0)) return std::unexpected("threshold must be in (0, 1], got " + std::to_string(threshold));
+  if (!(max_noise_factor >= 1.0 && max_noise_factor <= 100.0))
+    return std::unexpected("the noise factor must be 1 to 100, got " + std::to_string(max_noise_factor));
+  if (!(max_fail_s >= 1.0 && max_fail_s <= 1e6)) return std::unexpected("the longest failing interval must be 1 s to 1e6 s, got " + std::to_string(max_fail_s));
+  if (!(k_sigma > 0.0)) return std::unexpected("k_sigma must be positive");
+  if (smooth_s < 1 || smooth_s % 2 == 0) return std::unexpected("smooth_s must be a positive odd number of seconds");
+  return {};
+}
+
 std::expected<Verification, FitError> verify(const Model& m, const RunData& run, double threshold) {
+  VerifyOptions o;
+  o.threshold = threshold;
+  return verify(m, run, o);
+}
+
+std::expected<Verification, FitError> verify(const Model& m, const RunData& run, const VerifyOptions& o) {
+  if (auto ok = o.validate(); !ok) return fail(FitError::Code::bad_options, "verify: " + ok.error());
+  const double threshold = o.threshold;
   auto mu = predict(m, run);
   if (!mu) return std::unexpected(mu.error());
   Verification v;
@@ -961,7 +991,61 @@ std::expected<Verification, FitError> verify(const Model& m, const RunData& run,
     Table1 t = collect(p);
     if (t.n >= 2) v.phases.push_back({p, t});
   }
-  v.pass = v.run.ratio < threshold;
+  v.ratio_pass = v.run.ratio < threshold;
+  // The second test: what is left should look like the model's own noise.
+  v.noise_test = o.noise_test;
+  v.noise_std = ar_process_std(m.ar, m.sigma_a_dph);
+  v.noise_factor = v.noise_std > 0.0 ? v.run.comp_std / v.noise_std : std::numeric_limits<double>::infinity();
+  {
+    // Failing intervals exactly as compare finds them: the residual without its spikes,
+    // averaged over smooth_s, beyond k_sigma * sigma_a (settle samples do not count).
+    std::vector<double> wf(w);
+    std::vector<double> rz(n, 0.0);
+    for (std::size_t t = 0; t < n; ++t) {
+      if (ph[t] == Phase::settle) wf[t] = 0.0;
+      if (wf[t] != 0.0) rz[t] = res[t];
+    }
+    const std::vector<double> s = moving_average(rz, wf, o.smooth_s);
+    const double thr = o.k_sigma * m.sigma_a_dph;
+    std::size_t t = 0;
+    while (t < n) {
+      if (wf[t] == 0.0 || std::abs(s[t]) <= thr) {
+        ++t;
+        continue;
+      }
+      const double sign = s[t] > 0 ? 1.0 : -1.0;
+      std::size_t e = t;
+      while (e < n && sign * s[e] > thr) ++e;
+      v.longest_fail_s = std::max(v.longest_fail_s, run.time_s[e - 1] - run.time_s[t] + 1.0);
+      t = e;
+    }
+  }
+  auto pct = [](double x) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.1f%%", 100.0 * x);
+    return std::string(b);
+  };
+  auto num = [](double x, int d) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.*f", d, x);
+    return std::string(b);
+  };
+  if (!v.ratio_pass) v.reasons.push_back("comp/raw " + pct(v.run.ratio) + " is not under " + pct(threshold) + " (the paper's rule)");
+  bool second_ok = true;
+  if (o.noise_test) {
+    if (!(v.noise_factor <= o.max_noise_factor)) {
+      second_ok = false;
+      v.reasons.push_back("compensated std " + num(v.run.comp_std, 3) + " deg/h is " + num(v.noise_factor, 2) + " x the model's noise std " +
+                          num(v.noise_std, 3) + " deg/h (at most " + num(o.max_noise_factor, 2) + " x)");
+    }
+    if (v.longest_fail_s >= o.max_fail_s) {
+      second_ok = false;
+      v.reasons.push_back("a failing interval of " + num(v.longest_fail_s, 0) + " s (the residual's " + std::to_string(o.smooth_s) +
+                          " s average beyond " + num(o.k_sigma, 1) + " sigma_a; " + num(o.max_fail_s, 0) + " s or more is not passed)");
+    }
+  }
+  v.verdict = !v.ratio_pass ? Verdict::fail : second_ok ? Verdict::pass : Verdict::marginal;
+  v.pass = v.verdict == Verdict::pass;
   return v;
 }
 

@@ -1,6 +1,8 @@
 // JSON form of models and verifications (format "fogbench.model", version 1).
 #include "fogbench/model/json.hpp"
 
+#include <cmath>
+
 namespace fogbench::model {
 namespace {
 
@@ -237,6 +239,13 @@ json to_json(const Verification& v) {
   j["n_flagged"] = v.n_flagged;
   j["threshold"] = v.threshold;
   j["pass"] = v.pass;
+  j["verdict"] = std::string(to_string(v.verdict));
+  j["ratio_pass"] = v.ratio_pass;
+  j["noise_test"] = v.noise_test;
+  j["noise_std"] = v.noise_std;
+  j["noise_factor"] = std::isfinite(v.noise_factor) ? json(v.noise_factor) : json(nullptr);
+  j["longest_fail_s"] = v.longest_fail_s;
+  j["reasons"] = v.reasons;
   return j;
 }
 

@@ -224,3 +224,24 @@ std::vector<double> moving_average(std::span<const double> x, std::span<const do
 }
 
 }  // namespace fogbench::model
+
+namespace fogbench::model {
+double ar_process_std(std::span<const double> k, double sigma_a) {
+  // psi_0 = 1, psi_j = sum_i k_i psi_{j-i}: the process is sum_j psi_j a_{t-j}.
+  const std::size_t p = k.size();
+  std::vector<double> psi{1.0};
+  double s = 1.0;
+  for (std::size_t j = 1; j < 100000; ++j) {
+    double v = 0.0;
+    for (std::size_t i = 1; i <= p && i <= j; ++i) v += k[i - 1] * psi[j - i];
+    psi.push_back(v);
+    s += v * v;
+    if (!std::isfinite(s) || s > 1e12) return std::numeric_limits<double>::infinity();
+    // Stop when the last p weights are negligible (the tail of a stable filter decays geometrically).
+    bool small = j >= p;
+    for (std::size_t i = 0; i < p && small; ++i) small = std::abs(psi[j - i]) < 1e-12;
+    if (small) break;
+  }
+  return sigma_a * std::sqrt(s);
+}
+}  // namespace fogbench::model

@@ -5,7 +5,7 @@
 //   summand := product ['@' (INTEGER ['s'] | 'auto')]
 //   product := power ('*' power)*
 //   power   := primary ['^' INTEGER]
-//   primary := NUMBER | SIGNAL | FUNC '(' expr [',' NUMBER] ')' | '(' expr ')'
+//   primary := NUMBER | SIGNAL | FUNC '(' expr [',' NUMBER] ')' | 'warm' '(' NUMBER ')' | '(' expr ')'
 //   expr    := product-with-delays joined by + and - (inside parentheses only)
 // Numbers multiplying a summand form its coefficient; the rest is the term.
 #include "fogbench/model/terms.hpp"
@@ -29,7 +29,7 @@ ExprPtr make(K k, ExprPtr a = nullptr, ExprPtr b = nullptr) {
 }
 
 bool depends_on_signal(const Expr& e) {
-  if (e.kind == K::signal) return true;
+  if (e.kind == K::signal || e.kind == K::warm) return true;
   return (e.a && depends_on_signal(*e.a)) || (e.b && depends_on_signal(*e.b));
 }
 
@@ -56,6 +56,17 @@ ExprPtr pull_coefficient(const ExprPtr& e, double& coef, bool& given) {
   }
   return e;
 }
+
+std::string fmt_limit(double v) {
+  std::ostringstream o;
+  o.precision(12);
+  o << v;
+  return o.str();
+}
+
+constexpr const char* kNoPowerOn =
+    "term uses ton, the time since the gyro's power-on, which this run did not record (no since_power_on_s column): "
+    "record it (the daemon does, from the gyro's first frame) rather than guess it";
 
 class Parser {
  public:
@@ -131,7 +142,7 @@ class Parser {
     if (!std::isfinite(t.coef))
       return std::unexpected(error("the term's numeric factors multiply to a number out of the range of a double"));
     if (!depends_on_signal(*term))
-      return std::unexpected(error("a term must contain a signal (T1, T2, Ta or grad); '" + to_string(*term) + "' is a constant"));
+      return std::unexpected(error("a term must contain a signal (T1, T2, Ta, grad or ton); '" + to_string(*term) + "' is a constant"));
     t.expr = term;
     skip();
     if (peek() == '@') {
@@ -224,9 +235,9 @@ class Parser {
     const std::size_t at = pos_;
     auto n = integer("an integer exponent after '^'");
     if (!n) return std::unexpected(n.error());
-    if (*n < 1 || *n > 4) {
+    if (*n < 1 || *n > kMaxPower) {
       pos_ = at;
-      return std::unexpected(error("exponent must be 1 to 4, got " + std::to_string(*n)));
+      return std::unexpected(error("exponent must be 1 to " + std::to_string(kMaxPower) + ", got " + std::to_string(*n)));
     }
     if ((*p)->kind == K::number) {
       const double v = std::pow((*p)->value, *n);
@@ -274,11 +285,35 @@ class Parser {
       return e;
     }
     std::string_view w = peek_word();
-    if (w.empty()) return fail("expected a signal (T1, T2, Ta, grad), a function (d, dd, up, down, lp), a number or '('");
+    if (w.empty()) return fail("expected a signal (T1, T2, Ta, grad, ton), a function (d, dd, up, down, lp, warm), a number or '('");
     pos_ += w.size();
-    if (w == "T1" || w == "T2" || w == "Ta" || w == "grad") {
+    if (w == "T1" || w == "T2" || w == "Ta" || w == "grad" || w == "ton") {
       auto e = make(K::signal);
-      std::const_pointer_cast<Expr>(e)->signal = w == "T1" ? Signal::T1 : w == "T2" ? Signal::T2 : w == "Ta" ? Signal::Ta : Signal::grad;
+      std::const_pointer_cast<Expr>(e)->signal = w == "T1"   ? Signal::T1
+                                                 : w == "T2" ? Signal::T2
+                                                 : w == "Ta" ? Signal::Ta
+                                                 : w == "ton" ? Signal::ton
+                                                              : Signal::grad;
+      return e;
+    }
+    if (w == "warm") {  // warm(tau) = exp(-ton/tau): a number, not an expression, inside
+      skip();
+      if (peek() != '(') return fail("expected '(' and a time constant in seconds after 'warm': warm(tau)");
+      ++pos_;
+      skip();
+      const std::size_t at = pos_;
+      auto tau = number();
+      if (!tau) return std::unexpected(tau.error());
+      if (!(*tau >= kMinTau_s && *tau <= kMaxTau_s)) {
+        pos_ = at;
+        return std::unexpected(error("warm(tau): the time constant must be " + fmt_limit(kMinTau_s) + " to " + fmt_limit(kMaxTau_s) +
+                                     " s, got " + fmt_limit(*tau)));
+      }
+      skip();
+      if (peek() != ')') return fail("expected ')' to close 'warm(' (warm takes one number, the time constant in s)");
+      ++pos_;
+      auto e = make(K::warm);
+      std::const_pointer_cast<Expr>(e)->value = *tau;
       return e;
     }
     K k;
@@ -290,7 +325,7 @@ class Parser {
     else {
       pos_ = start;
       return std::unexpected(error("unknown name '" + std::string(w) +
-                                   "': expected a signal (T1, T2, Ta, grad) or a function (d, dd, up, down, lp)"));
+                                   "': expected a signal (T1, T2, Ta, grad, ton) or a function (d, dd, up, down, lp, warm)"));
     }
     skip();
     if (peek() != '(') return fail("expected '(' after '" + std::string(w) + "'");
@@ -303,9 +338,14 @@ class Parser {
       if (peek() != ',') return fail("expected ',' and a time constant in seconds: lp(x, tau)");
       ++pos_;
       skip();
+      const std::size_t at = pos_;
       auto tau = number();
       if (!tau) return std::unexpected(tau.error());
-      if (!(*tau > 0.0)) return std::unexpected(error("lp time constant must be positive, got " + std::to_string(*tau)));
+      if (!(*tau >= kMinTau_s && *tau <= kMaxTau_s)) {
+        pos_ = at;
+        return std::unexpected(error("lp(x, tau): the time constant must be " + fmt_limit(kMinTau_s) + " to " + fmt_limit(kMaxTau_s) +
+                                     " s, got " + fmt_limit(*tau)));
+      }
       std::const_pointer_cast<Expr>(e)->value = *tau;
       skip();
     }
@@ -333,7 +373,7 @@ class Parser {
     auto [p, ec] = std::from_chars(b, s_.data() + s_.size(), v);
     if (ec != std::errc() || p == b) return fail("expected " + what);
     if (v < 0) return std::unexpected(error("a lag cannot be negative"));
-    if (v > 86400) return std::unexpected(error("lag of " + std::to_string(v) + " s is longer than a day"));
+    if (v > kMaxLag_s) return std::unexpected(error("lag of " + std::to_string(v) + " s is longer than a day (" + std::to_string(kMaxLag_s) + " s)"));
     pos_ += static_cast<std::size_t>(p - b);
     return v;
   }
@@ -407,8 +447,10 @@ std::string to_string(const Expr& e) {
         case Signal::T2: return "T2";
         case Signal::Ta: return "Ta";
         case Signal::grad: return "grad";
+        case Signal::ton: return "ton";
       }
       return "?";
+    case K::warm: return "warm(" + fmt_number(e.value) + ")";
     case K::d: return "d(" + to_string(*e.a) + ")";
     case K::dd: return "dd(" + to_string(*e.a) + ")";
     case K::up: return "up(" + to_string(*e.a) + ")";
@@ -449,16 +491,17 @@ namespace {
 struct Unit {
   int temp = 0;     // power of degC
   int per_min = 0;  // power of 1/min
+  int sec = 0;      // power of s (ton)
 };
 Unit unit_of(const Expr& e) {
   switch (e.kind) {
-    case K::number: return {};
-    case K::signal: return {1, 0};
+    case K::number: case K::warm: return {};
+    case K::signal: return e.signal == Signal::ton ? Unit{0, 0, 1} : Unit{1, 0, 0};
     case K::d: { auto u = unit_of(*e.a); u.per_min += 1; return u; }
     case K::dd: { auto u = unit_of(*e.a); u.per_min += 2; return u; }
     case K::up: case K::down: case K::lp: case K::neg: case K::delay: return unit_of(*e.a);
-    case K::pow: { auto u = unit_of(*e.a); u.temp *= e.power; u.per_min *= e.power; return u; }
-    case K::mul: { auto a = unit_of(*e.a), b = unit_of(*e.b); return {a.temp + b.temp, a.per_min + b.per_min}; }
+    case K::pow: { auto u = unit_of(*e.a); u.temp *= e.power; u.per_min *= e.power; u.sec *= e.power; return u; }
+    case K::mul: { auto a = unit_of(*e.a), b = unit_of(*e.b); return {a.temp + b.temp, a.per_min + b.per_min, a.sec + b.sec}; }
     case K::add: case K::sub: return unit_of(*e.a);
   }
   return {};
@@ -470,6 +513,8 @@ std::string coef_unit(const Expr& e) {
   std::string s;
   if (u.temp == 1) s = "degC";
   else if (u.temp > 1) s = "degC^" + std::to_string(u.temp);
+  if (u.sec == 1) s += s.empty() ? "s" : " s";
+  else if (u.sec > 1) s += (s.empty() ? "s^" : " s^") + std::to_string(u.sec);
   if (u.per_min == 1) s += "/min";
   else if (u.per_min > 1) s += "/min^" + std::to_string(u.per_min);
   if (s.empty()) return "deg/h";
@@ -477,6 +522,7 @@ std::string coef_unit(const Expr& e) {
 }
 
 bool uses_signal(const Expr& e, Signal s) {
+  if (e.kind == K::warm) return s == Signal::ton;
   if (e.kind == K::signal) return e.signal == s || (s != Signal::Ta && e.signal == Signal::grad && (s == Signal::T1 || s == Signal::T2));
   return (e.a && uses_signal(*e.a, s)) || (e.b && uses_signal(*e.b, s));
 }
@@ -521,6 +567,10 @@ std::expected<std::vector<double>, std::string> evaluate(const Expr& e, const Si
         if (s.ta.size() != n) return std::unexpected(std::string("term uses Ta, the chamber air temperature, which this run did not record (no chamber_c column)"));
         return std::vector<double>(s.ta.begin(), s.ta.end());
       }
+      if (e.signal == Signal::ton) {
+        if (s.ton.size() != n) return std::unexpected(std::string(kNoPowerOn));
+        return std::vector<double>(s.ton.begin(), s.ton.end());
+      }
       std::vector<double> g(n);
       for (std::size_t i = 0; i < n; ++i) g[i] = s.t1[i] - s.t2[i];
       return g;
@@ -536,6 +586,12 @@ std::expected<std::vector<double>, std::string> evaluate(const Expr& e, const Si
       auto v = sub(*e.a);
       if (!v) return v;
       for (double& x : *v) x = e.kind == K::up ? std::max(x, 0.0) : std::min(x, 0.0);
+      return v;
+    }
+    case K::warm: {
+      if (s.ton.size() != n) return std::unexpected(std::string(kNoPowerOn));
+      std::vector<double> v(n);
+      for (std::size_t i = 0; i < n; ++i) v[i] = std::exp(-std::max(0.0, s.ton[i]) / e.value);
       return v;
     }
     case K::lp: {

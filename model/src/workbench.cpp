@@ -286,6 +286,8 @@ Qualification qualify(const Model& m, std::span<const RunData> runs, std::span<c
     qr.comp_std_dph = v->run.comp_std;
     qr.ratio = v->run.ratio;
     qr.pass = v->pass;
+    qr.verdict = v->verdict;
+    qr.reasons = v->reasons;
     q.pass = q.pass && qr.pass;
     // Smoothed output (61 s) so that the excursion and the hysteresis are of the drift, not the noise.
     const std::size_t n = run.size();
@@ -327,6 +329,9 @@ Qualification qualify(const Model& m, std::span<const RunData> runs, std::span<c
     }
     q.runs.push_back(qr);
   }
+  q.marginal = !q.pass && !q.runs.empty() &&
+               std::all_of(q.runs.begin(), q.runs.end(), [](const QualRun& r) { return r.verdict != Verdict::fail; }) &&
+               q.runs.size() == runs.size();
   return q;
 }
 

@@ -109,6 +109,24 @@ json to_json(const Candidate& c) {
   return j;
 }
 
+json to_json(const RunCheck& c) {
+  json fails = json::array();
+  for (const auto& f : c.failures) fails.push_back(to_json(f));
+  json j = {{"run", c.run},
+            {"held_out", c.held_out},
+            {"checked", c.checked},
+            {"comp_std_dph", num(c.comp_std_dph)},
+            {"noise_std_dph", num(c.noise_std_dph)},
+            {"noise_factor", num(c.noise_factor)},
+            {"ljung_box_q", num(c.ljung_box_q)},
+            {"ljung_box_p", num(c.ljung_box_p)},
+            {"acf_rms", num(c.acf_rms)},
+            {"failures", fails},
+            {"reasons", c.reasons}};
+  if (!c.error.empty()) j["error"] = c.error;
+  return j;
+}
+
 json to_json(const Diagnosis& d) {
   json coefs = json::array();
   for (const auto& c : d.coefs) coefs.push_back({{"term", c.term}, {"coef", c.coef}, {"se", c.se}, {"unit", c.unit}});
@@ -120,6 +138,36 @@ json to_json(const Diagnosis& d) {
   json cands = json::array();
   for (const auto& c : d.candidates) cands.push_back(to_json(c));
   const Whiteness& w = d.whiteness;
+  auto checks = [](const std::vector<RunCheck>& v) {
+    json a = json::array();
+    for (const auto& c : v) a.push_back(to_json(c));
+    return a;
+  };
+  json jumps = json::array();
+  for (const auto& j : d.jumps)
+    jumps.push_back({{"run", j.run}, {"time_s", j.time_s}, {"size_dph", j.size_dph}, {"t", j.t}, {"message", j.message}});
+  json steps = json::array();
+  for (const auto& st : d.steps) {
+    json ho = json::array();
+    for (const auto& h : st.held_out) {
+      json x = {{"run", h.run}, {"scored", h.scored}};
+      if (h.scored) {
+        x["rms_before"] = h.rms_before_dph;
+        x["rms_after"] = h.rms_after_dph;
+      } else {
+        x["skipped"] = h.skipped;
+      }
+      ho.push_back(x);
+    }
+    steps.push_back({{"added", st.added},
+                     {"expr", st.expr},
+                     {"effect", st.effect},
+                     {"library", st.library},
+                     {"rms_before", st.rms_before_dph},
+                     {"rms_after", st.rms_after_dph},
+                     {"held_out", ho},
+                     {"look_alikes", st.look_alikes}});
+  }
   return {{"fit_run", d.fit_run},
           {"held_out_runs", d.held_out_runs},
           {"model", d.model_terms},
@@ -142,6 +190,16 @@ json to_json(const Diagnosis& d) {
           {"ccf", ccf},
           {"candidates", cands},
           {"adequate", d.adequate},
+          {"reasons", d.reasons},
+          {"checks", checks(d.checks)},
+          {"jumps", jumps},
+          {"search", d.search},
+          {"search_space", d.search_space},
+          {"steps", steps},
+          {"final_terms", d.final_terms},
+          {"final_checks", checks(d.final_checks)},
+          {"outside_search", d.outside_search},
+          {"residual_follows", d.residual_follows},
           {"rule", d.rule},
           {"summary", d.summary}};
 }
@@ -173,6 +231,8 @@ json to_json(const Qualification& q) {
                     {"hysteresis_dph", num(r.hysteresis_dph)},
                     {"hysteresis_comp_dph", num(r.hysteresis_comp_dph)},
                     {"peak_ramp_excursion_dph", r.peak_ramp_excursion_dph},
+                    {"verdict", std::string(to_string(r.verdict))},
+                    {"reasons", r.reasons},
                     {"pass", r.pass}});
   return {{"standard", "IEEE Std 952-1997 (thermal sensitivity of bias)"},
           {"mu0_dph", q.mu0_dph},
@@ -180,6 +240,7 @@ json to_json(const Qualification& q) {
           {"sensitivities", sens},
           {"runs", runs},
           {"threshold", q.threshold},
+          {"verdict", q.pass ? "pass" : q.marginal ? "marginal" : "fail"},
           {"pass", q.pass}};
 }
 

@@ -1,7 +1,6 @@
 // fogbenchd's event loop: one Boost.Asio io_context that owns the signal set, the command
 // socket acceptors and sessions, the acquisition schedule and the gyro bus descriptor, plus the
-// worker thread that libmodbus's blocking calls force (chamber and thermistors) and the
-// analysis worker (fits, verifications, large reads; offload.hpp).
+// one worker thread that libmodbus's blocking calls force (chamber and thermistors).
 #pragma once
 
 #include <expected>

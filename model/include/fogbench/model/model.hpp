@@ -124,17 +124,47 @@ struct PhaseTable {
   Table1 stats;
 };
 
+// The verdict on a run (issue 10): the paper's rule comp/raw < threshold alone passes models
+// that visibly miss an effect, so a second test, on by default, asks that what is left looks
+// like the model's own noise. A run passing the ratio but not the second test is `marginal`.
+enum class Verdict { pass, marginal, fail };
+std::string_view to_string(Verdict v);
+
+struct VerifyOptions {
+  double threshold = 0.2;          // the paper's rule: comp std / raw std below this
+  bool noise_test = true;          // the second test; false gives the paper's rule alone
+  // comp std at most this times the std the model's AR noise implies (ar_process_std of its
+  // k and sigma_a): 1.5 lets a model carry a third of its noise again as misfit, while an
+  // effect left at the size of the noise (comp std sqrt(2) = 1.41 x) is close to the limit and
+  // one at 1.3 to 2 x the noise floor in std fails it or leaves failing intervals.
+  double max_noise_factor = 1.5;
+  // A failing interval (the residual's 61 s average beyond 3 sigma_a, as compare finds them)
+  // of this many seconds or more makes the run marginal: compare reports those of 60 s or more.
+  double max_fail_s = 60.0;
+  double k_sigma = 3.0;
+  int smooth_s = 61;
+  std::expected<void, std::string> validate() const;
+};
+
 struct Verification {
   Table1 run;                       // the whole run
   std::vector<PhaseTable> phases;   // hold, heating, cooling (those present)
   std::size_t n_outliers = 0;       // measured samples beyond 3 sigma of the compensated residual, excluded
   std::size_t n_flagged = 0;        // samples skipped for their quality flags
   double threshold = 0.2;
-  bool pass = false;                // run.ratio < threshold
+  bool ratio_pass = false;          // run.ratio < threshold (the paper's rule)
+  double noise_std = 0.0;           // the std the model's AR noise implies, deg/h
+  double noise_factor = 0.0;        // run.comp_std / noise_std
+  double longest_fail_s = 0.0;      // the longest failing interval, s (0: none)
+  bool noise_test = true;           // whether the second test was applied
+  Verdict verdict = Verdict::fail;
+  std::vector<std::string> reasons; // why not pass, one line each
+  bool pass = false;                // verdict == pass
 };
 
-// Compensates a run with the model and computes Table 1, whole and per phase.
+// Compensates a run with the model and computes Table 1, whole and per phase, and the verdict.
 std::expected<Verification, FitError> verify(const Model& m, const RunData& run, double threshold = 0.2);
+std::expected<Verification, FitError> verify(const Model& m, const RunData& run, const VerifyOptions& o);
 Table1 table1(std::span<const double> measured, std::span<const double> predicted);
 
 // The phase of every sample: the run's own phase column when recorded, else from the
@@ -145,7 +175,8 @@ std::vector<Phase> derive_phases(const RunData& run);
 // by linear interpolation (so a bad reading does not spread through the derivative filter).
 struct RunSignals {
   std::vector<double> t1, t2, ta;
-  Signals view() const { return Signals{t1, t2, ta, 1.0}; }
+  std::vector<double> ton;  // time since power-on, s (empty when the run did not record it)
+  Signals view() const { return Signals{t1, t2, ta, 1.0, ton}; }
 };
 std::expected<RunSignals, FitError> run_signals(const RunData& run, double tref_c);
 

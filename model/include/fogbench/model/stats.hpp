@@ -77,6 +77,12 @@ struct Whiteness {
 };
 Whiteness whiteness(std::span<const double> residuals, int max_lag = 20, int fitted_params = 0);
 
+// The std of an AR(p) process y(t) = k1 y(t-1) + ... + kp y(t-p) + a_t with innovation std
+// sigma_a: sigma_a * sqrt(sum_j psi_j^2), psi the impulse response of 1/(1 - k1 q^-1 - ...)
+// (summed until it dies out). This is the std a model's compensated output should have when
+// nothing but its own noise is left. Infinity when the filter is not stable.
+double ar_process_std(std::span<const double> k, double sigma_a);
+
 // Upper tail of the chi-square distribution, P(X > x) with dof degrees of freedom.
 double chi2_sf(double x, double dof);
 // Regularised upper incomplete gamma function Q(a, x).

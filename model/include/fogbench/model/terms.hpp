@@ -15,13 +15,15 @@
 
 namespace fogbench::model {
 
-enum class Signal { T1, T2, Ta, grad };
+// ton: time since the gyro's last power-on, s (RunData::since_power_on_s, CSV since_power_on_s).
+enum class Signal { T1, T2, Ta, grad, ton };
 
 // One node of an expression. Immutable once parsed; shared between copies of a model.
 struct Expr {
-  enum class Kind { number, signal, d, dd, up, down, lp, pow, mul, add, sub, neg, delay };
+  // warm: exp(-ton/tau), the warm-up of a gyro after power-on (value: tau in s).
+  enum class Kind { number, signal, d, dd, up, down, lp, pow, mul, add, sub, neg, delay, warm };
   Kind kind = Kind::number;
-  double value = 0.0;        // number: the value; lp: tau in s
+  double value = 0.0;        // number: the value; lp, warm: tau in s
   Signal signal = Signal::T1;
   int power = 1;             // pow: the integer exponent
   int delay_s = 0;           // delay: N seconds
@@ -70,7 +72,12 @@ std::string to_string(const Term& t, bool with_lag = true);
 std::string to_string(const TermList& l);
 // Unit of a coefficient multiplying this expression, to give deg/h: e.g. "deg/h per degC/min".
 std::string coef_unit(const Expr& e);
-// Signals the expression reads (Ta needs the chamber temperature recorded).
+// Limits of the language (a term outside them is a parse error naming the limit).
+inline constexpr double kMinTau_s = 1.0;       // lp and warm time constants, s
+inline constexpr double kMaxTau_s = 86400.0;   // a day
+inline constexpr int kMaxPower = 4;            // x^N, N = 1..4
+inline constexpr int kMaxLag_s = 86400;        // x@N
+// Signals the expression reads (Ta needs the chamber temperature recorded, ton the power-on time).
 bool uses_signal(const Expr& e, Signal s);
 
 // The signals a term is evaluated over: temperatures as deviations from Tref, degC, at dt_s.
@@ -79,6 +86,7 @@ struct Signals {
   std::span<const double> t2;  // T2 - Tref, degC
   std::span<const double> ta;  // Ta - Tref, degC (empty when not recorded)
   double dt_s = 1.0;
+  std::span<const double> ton = {};  // time since the gyro's power-on, s (empty when not recorded)
   std::size_t size() const { return t1.size(); }
 };
 

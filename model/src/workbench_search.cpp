@@ -1,0 +1,542 @@
+// diagnose beyond the library (issue 10): the search space generated from the term language,
+// the greedy forward selection over it, the adequacy checks that decide `adequate`, and the
+// change-point scan that finds bias jumps (drift that is not thermal).
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <numeric>
+
+#include "fogbench/model/workbench.hpp"
+#include "workbench_internal.hpp"
+
+namespace fogbench::model::workbench {
+namespace {
+
+using nlohmann::json;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+std::string fmt(double v, int digits) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+  return buf;
+}
+
+std::unexpected<FitError> fail(FitError::Code c, std::string msg) { return std::unexpected(FitError{c, std::move(msg)}); }
+
+// The log grid of time constants, 30 s to 4 h, on round values (so that 300 s, the library's
+// slow path, is one of them with the default 12 points).
+std::vector<int> tau_grid(int points) {
+  if (points == 12) return {30, 50, 90, 160, 300, 500, 900, 1600, 2700, 4800, 8400, 14400};
+  std::vector<int> g;
+  for (int k = 0; k < points; ++k) {
+    const double v = 30.0 * std::pow(14400.0 / 30.0, static_cast<double>(k) / (points - 1));
+    const int r = static_cast<int>(std::lround(v));
+    if (g.empty() || r != g.back()) g.push_back(r);
+  }
+  return g;
+}
+
+std::string family_name(const std::string& expr) {
+  auto starts = [&](const char* p) { return expr.rfind(p, 0) == 0; };
+  if (starts("warm(")) return "warm-up after power-on (exp(-ton/tau), tau " + expr.substr(5, expr.size() - 6) + " s)";
+  if (expr == "ton") return "drift with the time since power-on (aging of the source, slow warm-up)";
+  if (starts("d(lp(")) return "rate through a slow thermal path (" + expr.substr(2, expr.size() - 3) + ")";
+  if (starts("lp(")) return "a slow thermal path (" + expr + ")";
+  if (expr.find('*') != std::string::npos) return "a product of two signals (" + expr + "), not in the library";
+  if (expr.find('^') != std::string::npos) return "a nonlinear power (" + expr + "), not in the library";
+  return "an effect outside the library (" + expr + ")";
+}
+
+std::string family_explanation(const std::string& expr) {
+  auto starts = [&](const char* p) { return expr.rfind(p, 0) == 0; };
+  if (starts("warm(") || expr == "ton")
+    return "the source, the detector and the electronics warm up after power-on whatever the chamber does: a drift that follows the "
+           "time since power-on, not temperature";
+  if (starts("lp(") || starts("d(lp("))
+    return "part of the gyro reaches the coil's temperature through a slower path (mount, potting, housing) than the model's terms";
+  return "found by the search over the term language; no physical name is attached to it";
+}
+
+// The search space of the term language (docs/workbench.md lists it).
+struct Space {
+  std::vector<wbi::Generated> gen;
+  json j;
+};
+std::expected<Space, FitError> generate(const DiagnoseOptions& o, bool has_ta, bool has_ton) {
+  Space sp;
+  std::vector<std::string> sig = {"T1", "T2", "grad"};
+  if (has_ta) sig.push_back("Ta");
+  std::vector<std::string> rates;
+  for (const auto& s : sig) rates.push_back("d(" + s + ")");
+  std::vector<std::string> exprs;
+  for (const auto& s : sig) exprs.push_back(s);
+  for (const auto& r : rates) exprs.push_back(r);
+  exprs.push_back("dd(T1)");
+  for (const auto& s : sig)
+    for (int p : {2, 3}) exprs.push_back(s + "^" + std::to_string(p));
+  for (const auto& r : rates) {
+    exprs.push_back("up(" + r + ")");
+    exprs.push_back("down(" + r + ")");
+  }
+  std::vector<std::string> prod = sig;
+  for (const auto& r : rates) prod.push_back(r);
+  for (std::size_t a = 0; a < prod.size(); ++a)
+    for (std::size_t b = a + 1; b < prod.size(); ++b) exprs.push_back(prod[a] + "*" + prod[b]);
+  const std::vector<int> taus = tau_grid(o.tau_points);
+  for (const auto& s : sig)
+    for (int tau : taus) {
+      exprs.push_back("lp(" + s + "," + std::to_string(tau) + ")");
+      exprs.push_back("d(lp(" + s + "," + std::to_string(tau) + "))");
+    }
+  if (has_ton) {
+    exprs.push_back("ton");
+    for (int tau : taus) exprs.push_back("warm(" + std::to_string(tau) + ")");
+  }
+  const std::size_t total = exprs.size() + effects_library().size() + o.extra_terms.size();
+  if (total > o.max_candidates)
+    return fail(FitError::Code::bad_options, "the search space has " + std::to_string(total) + " candidates (" + std::to_string(taus.size()) +
+                                                 " time constants), over the limit of " + std::to_string(o.max_candidates) +
+                                                 ": fewer --tau-points, or --search library");
+  for (const auto& e : exprs) {
+    auto t = parse_term(e);
+    if (!t) return fail(FitError::Code::bad_term, "internal: the search generated '" + e + "': " + t.error().pretty());
+    const std::string k = to_string(*t->expr);
+    const Effect* eff = find_effect(k);
+    sp.gen.push_back({k, eff ? eff->name : family_name(k), eff ? eff->explanation : family_explanation(k)});
+  }
+  sp.j = {{"signals", sig},
+          {"ton", has_ton},
+          {"rates", rates},
+          {"powers", {2, 3}},
+          {"up_down_of", rates},
+          {"products_of", prod},
+          {"lp_of", sig},
+          {"tau_s", taus},
+          {"warm", has_ton},
+          {"lag_s", {0, o.max_lag_s ? *o.max_lag_s : 600}},
+          {"generated", sp.gen.size()},
+          {"library", effects_library().size()},
+          {"extra", o.extra_terms.size()},
+          {"total", total},
+          {"limit", o.max_candidates},
+          {"refitted_per_step", o.refit_top},
+          {"max_terms", o.max_terms}};
+  return sp;
+}
+
+double wcorr(std::span<const double> a, std::span<const double> b, std::span<const double> w) {
+  double sw = 0, ma = 0, mb = 0;
+  for (std::size_t t = 0; t < a.size(); ++t) {
+    sw += w[t];
+    ma += w[t] * a[t];
+    mb += w[t] * b[t];
+  }
+  if (!(sw > 0)) return 0.0;
+  ma /= sw;
+  mb /= sw;
+  double sab = 0, saa = 0, sbb = 0;
+  for (std::size_t t = 0; t < a.size(); ++t) {
+    sab += w[t] * (a[t] - ma) * (b[t] - mb);
+    saa += w[t] * (a[t] - ma) * (a[t] - ma);
+    sbb += w[t] * (b[t] - mb) * (b[t] - mb);
+  }
+  return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 0.0;
+}
+
+// The residual of a model on a run, with the weights of compare (flagged, non-finite and
+// settle samples 0; spikes about the 61 s average 0), the residual 0 where the weight is.
+struct Residual {
+  std::vector<double> r, w;
+};
+std::expected<Residual, FitError> residual_of(const Model& m, const RunData& run) {
+  auto mu = predict(m, run);
+  if (!mu) return std::unexpected(FitError{mu.error().code, run.name + ": " + mu.error().message});
+  const std::size_t n = run.size();
+  const std::vector<Phase> ph = derive_phases(run);
+  Residual res{std::vector<double>(n, 0.0), std::vector<double>(n, 1.0)};
+  for (std::size_t t = 0; t < n; ++t) {
+    const double e = run.gyro_dph[t] - (*mu)[t];
+    if (run.flagged(t) || !std::isfinite(e) || ph[t] == Phase::settle) res.w[t] = 0.0;
+    else res.r[t] = e;
+  }
+  const std::vector<double> s0 = model::moving_average(res.r, res.w, 61);
+  std::vector<double> dev;
+  for (std::size_t t = 0; t < n; ++t)
+    if (res.w[t] != 0.0) dev.push_back(res.r[t] - s0[t]);
+  const OutlierResult ro = outliers_3sigma(dev, 3.0);
+  std::size_t j = 0;
+  for (std::size_t t = 0; t < n; ++t)
+    if (res.w[t] != 0.0 && !ro.keep[j++]) {
+      res.w[t] = 0.0;
+      res.r[t] = 0.0;
+    }
+  return res;
+}
+
+RunCheck check_run(const Model& m, const RunData& run, bool held_out, const DiagnoseOptions& o) {
+  RunCheck c;
+  c.run = run.name;
+  c.held_out = held_out;
+  auto cmp = compare(m, run, o.failing);
+  auto res = residual_of(m, run);
+  if (!cmp || !res) {
+    c.error = !cmp ? cmp.error().message : res.error().message;
+    c.reasons.push_back("the model does not run on it: " + c.error);
+    return c;
+  }
+  c.checked = true;
+  c.comp_std_dph = cmp->verification.run.comp_std;
+  c.noise_std_dph = ar_process_std(m.ar, m.sigma_a_dph);
+  c.noise_factor = c.noise_std_dph > 0.0 ? c.comp_std_dph / c.noise_std_dph : kNaN;
+  c.failures = cmp->failures;
+  // Prewhitened residual: only samples whose AR window is whole.
+  const std::vector<double> a = ar_filter(res->r, m.ar);
+  std::vector<double> used;
+  const std::size_t p = m.ar.size();
+  for (std::size_t t = p; t < a.size(); ++t) {
+    bool whole = true;
+    for (std::size_t i = 0; i <= p && whole; ++i) whole = res->w[t - i] != 0.0;
+    if (whole) used.push_back(a[t]);
+  }
+  const Whiteness wh = whiteness(used, o.whiteness_lags, static_cast<int>(p));
+  c.ljung_box_q = wh.lb.q;
+  c.ljung_box_p = wh.lb.p_value;
+  c.acf_rms = used.empty() ? 0.0 : std::sqrt(wh.lb.q / (static_cast<double>(used.size()) * std::max(1, o.whiteness_lags)));
+  if (!(c.ljung_box_p >= o.adequacy_alpha) && c.acf_rms >= o.min_acf_rms)
+    c.reasons.push_back("the prewhitened residual is not white (Ljung-Box over " + std::to_string(o.whiteness_lags) + " lags: Q " +
+                        fmt(c.ljung_box_q, 1) + ", p " + (c.ljung_box_p < 1e-4 ? std::string("< 0.0001") : fmt(c.ljung_box_p, 4)) +
+                        " < " + fmt(o.adequacy_alpha, 3) + ", RMS of the ACF " + fmt(c.acf_rms, 3) + " >= " + fmt(o.min_acf_rms, 2) + ")");
+  if (!(c.noise_factor <= o.max_noise_factor))
+    c.reasons.push_back("compensated std " + fmt(c.comp_std_dph, 3) + " deg/h is " + fmt(c.noise_factor, 2) + " x the " +
+                        fmt(c.noise_std_dph, 3) + " deg/h the model's AR noise implies (at most " + fmt(o.max_noise_factor, 2) + " x)");
+  if (!c.failures.empty()) {
+    std::string where;
+    for (std::size_t i = 0; i < c.failures.size() && i < 4; ++i)
+      where += (i ? ", " : "") + fmt(c.failures[i].start_s, 0) + " s for " + fmt(c.failures[i].duration_s, 0) + " s (" +
+               std::string(to_string(c.failures[i].phase)) + ", mean " + fmt(c.failures[i].mean_err_dph, 3) + " deg/h)";
+    if (c.failures.size() > 4) where += ", ...";
+    c.reasons.push_back(std::to_string(c.failures.size()) + " failing interval" + (c.failures.size() > 1 ? "s" : "") + ": " + where);
+  }
+  return c;
+}
+
+// The change-point scan: at every k, the residual over k-W..k+W-1 is fitted by a line with
+// a kink at k plus a step at k; the step's estimate over its standard error is the statistic.
+// The kink keeps a change of slope (a ramp's corner seen through a missing temperature term)
+// from looking like a step. Where the coil's rate changes within 90 s a step is what a missing
+// rate term gives, so no jump is called there. Found jumps are removed one at a time.
+std::vector<BiasJump> find_jumps(const Model& m, const RunData& run, const DiagnoseOptions& o, std::vector<double>* removed) {
+  std::vector<BiasJump> out;
+  auto res = residual_of(m, run);
+  if (!res) return out;
+  const std::size_t n = run.size();
+  const int W = o.jump_window_s;
+  if (n < static_cast<std::size_t>(4 * W)) return out;
+  std::vector<double> r = res->r;
+  const std::vector<double>& w = res->w;
+  // The step's coefficient as a linear combination of the window's samples.
+  const auto nw = static_cast<Eigen::Index>(2 * W);
+  Eigen::MatrixXd X(nw, 4);
+  for (Eigen::Index i = 0; i < nw; ++i) {
+    const double j = static_cast<double>(i - W);
+    X(i, 0) = 1.0;
+    X(i, 1) = j;
+    X(i, 2) = std::max(0.0, j);
+    X(i, 3) = j >= 0 ? 1.0 : 0.0;
+  }
+  const Eigen::MatrixXd G = (X.transpose() * X).inverse();
+  const Eigen::VectorXd coef_row = G.row(3);  // step = coef_row . (X' r)
+  const double c2 = G(3, 3);                  // sum of the squared weights of the step's estimate
+  // Noise: the larger of the model's long-run std of its AR noise and a robust std of the
+  // residual's first differences (a misfit adds to it).
+  double sum_k = 0.0;
+  for (double k : m.ar) sum_k += k;
+  const double sigma_long = m.sigma_a_dph / std::max(0.1, std::abs(1.0 - sum_k));
+  std::vector<double> dif;
+  for (std::size_t t = 1; t < n; ++t)
+    if (w[t] != 0.0 && w[t - 1] != 0.0) dif.push_back(std::abs(r[t] - r[t - 1]));
+  double sigma_rob = 0.0;
+  if (!dif.empty()) {
+    std::nth_element(dif.begin(), dif.begin() + static_cast<std::ptrdiff_t>(dif.size() / 2), dif.end());
+    sigma_rob = 1.4826 * dif[dif.size() / 2] / std::sqrt(2.0);
+  }
+  const double sigma = std::max(sigma_long, sigma_rob);
+  const double se = sigma * std::sqrt(c2);
+  const std::vector<double> rate = derivative_per_min(run.t1_c, 1.0);
+  // Where any temperature (setpoint, air, wall, centre) starts or ends a ramp within
+  // kThermal_s, a step of the residual is what a missing rate term gives: no jump is called.
+  constexpr std::size_t kThermal_s = 150;
+  std::vector<bool> thermal(n, false);
+  auto mark = [&](const std::vector<double>& x) {
+    if (x.size() != n) return;
+    const std::vector<double> rt = derivative_per_min(x, 1.0);
+    for (std::size_t k = 0; k < n; ++k) {
+      if (thermal[k]) continue;
+      const std::size_t lo = k >= kThermal_s ? k - kThermal_s : 0, hi = std::min(n - 1, k + kThermal_s);
+      double mn = rt[lo], mx = rt[lo];
+      for (std::size_t u = lo; u <= hi; ++u) {
+        mn = std::min(mn, rt[u]);
+        mx = std::max(mx, rt[u]);
+      }
+      thermal[k] = mx - mn > 0.15;  // degC/min
+    }
+  };
+  mark(run.setpoint_c);
+  mark(run.chamber_c);
+  mark(run.t2_c);
+  mark(run.t1_c);
+  for (int found = 0; found < o.max_jumps; ++found) {
+    // Prefix sums of r and t*r.
+    std::vector<double> s0(n + 1, 0.0), s1(n + 1, 0.0);
+    for (std::size_t t = 0; t < n; ++t) {
+      s0[t + 1] = s0[t] + r[t];
+      s1[t + 1] = s1[t] + static_cast<double>(t) * r[t];
+    }
+    double best_t = 0.0, best_x = 0.0;
+    std::size_t best_k = 0;
+    for (std::size_t k = static_cast<std::size_t>(W); k + static_cast<std::size_t>(W) <= n; ++k) {
+      if (thermal[k] || w[k] == 0.0) continue;
+      const std::size_t a = k - static_cast<std::size_t>(W), b = k + static_cast<std::size_t>(W);
+      const double kd = static_cast<double>(k);
+      const double S0 = s0[b] - s0[a];
+      const double S1 = (s1[b] - s1[a]) - kd * S0;
+      const double S3 = s0[b] - s0[k];
+      const double S2 = (s1[b] - s1[k]) - kd * S3;
+      const double x = coef_row(0) * S0 + coef_row(1) * S1 + coef_row(2) * S2 + coef_row(3) * S3;
+      const double tt = se > 0.0 ? std::abs(x) / se : 0.0;
+      if (tt > best_t) {
+        best_t = tt;
+        best_x = x;
+        best_k = k;
+      }
+    }
+    if (!(best_t >= o.jump_t) || std::abs(best_x) < o.jump_min_sigma * m.sigma_a_dph) break;
+    BiasJump bj;
+    bj.run = run.name;
+    bj.time_s = run.time_s[best_k];
+    bj.size_dph = best_x;
+    bj.t = best_t;
+    const double rate_here = rate[best_k];
+    bj.message = "a bias jump of " + std::string(best_x > 0 ? "+" : "") + fmt(best_x, 3) + " deg/h at t = " + fmt(bj.time_s, 0) + " s on " +
+                 run.name + ": not a thermal effect (the coil's rate is steady there, " + fmt(rate_here, 2) + " degC/min, T1 " +
+                 fmt(run.t1_c[best_k], 1) + " degC); check the gyro's power and mode (a restart, a mode or range switch), the light "
+                 "source's drive current and the detector, the connectors and the fibre pigtail, and the bench log at that time. "
+                 "It is removed from this run for the search only and is never part of a model.";
+    out.push_back(bj);
+    for (std::size_t t = best_k; t < n; ++t) {
+      if (w[t] != 0.0) r[t] -= best_x;
+      if (removed) (*removed)[t] += best_x;
+    }
+  }
+  return out;
+}
+
+// What the remaining residual follows, pooled over the runs: its 61 s average correlated
+// with ton, T1 and d(T1); "none" when no |r| reaches 0.5.
+std::string follows(const Model& m, std::span<const RunData> runs) {
+  std::vector<double> rs, w, t1, rate, ton, wton;
+  bool any_ton = false;
+  for (const auto& run : runs) {
+    auto res = residual_of(m, run);
+    if (!res) continue;
+    const std::vector<double> s = model::moving_average(res->r, res->w, 61);
+    const std::vector<double> rt = derivative_per_min(run.t1_c, 1.0);
+    for (std::size_t t = 0; t < run.size(); ++t) {
+      rs.push_back(s[t]);
+      w.push_back(res->w[t]);
+      t1.push_back(run.t1_c[t]);
+      rate.push_back(rt[t]);
+      ton.push_back(run.has_power_on() ? run.since_power_on_s[t] : 0.0);
+      wton.push_back(run.has_power_on() ? res->w[t] : 0.0);
+    }
+    any_ton = any_ton || run.has_power_on();
+  }
+  if (rs.empty()) return "none";
+  struct C {
+    const char* name;
+    double r;
+  };
+  std::vector<C> cs = {{"temperature (T1)", wcorr(rs, t1, w)}, {"temperature rate (d(T1))", wcorr(rs, rate, w)}};
+  if (any_ton) {
+    // Warm-up decays: correlate with exp(-ton/900) as well as ton itself.
+    std::vector<double> e(ton.size());
+    for (std::size_t i = 0; i < ton.size(); ++i) e[i] = std::exp(-std::max(0.0, ton[i]) / 900.0);
+    const double a = wcorr(rs, ton, wton), b = wcorr(rs, e, wton);
+    cs.push_back({"time since power-on (ton)", std::abs(a) > std::abs(b) ? a : b});
+  }
+  const C* best = nullptr;
+  for (const auto& c : cs)
+    if (std::abs(c.r) >= 0.5 && (!best || std::abs(c.r) > std::abs(best->r))) best = &c;
+  if (!best) return "none (no |r| of its 61 s average with T1, d(T1)" + std::string(any_ton ? ", ton" : "") + " reaches 0.5)";
+  return std::string(best->name) + ", r = " + fmt(best->r, 2);
+}
+
+bool passes(const std::vector<RunCheck>& v) {
+  for (const auto& c : v)
+    if (!c.reasons.empty()) return false;
+  return true;
+}
+
+}  // namespace
+
+std::expected<void, std::string> DiagnoseOptions::validate() const {
+  if (max_terms < 1 || max_terms > 3) return std::unexpected("max_terms must be 1 to 3, got " + std::to_string(max_terms));
+  if (refit_top < 1 || refit_top > 50) return std::unexpected("refit_top must be 1 to 50, got " + std::to_string(refit_top));
+  if (tau_points < 2 || tau_points > 24) return std::unexpected("tau_points must be 2 to 24, got " + std::to_string(tau_points));
+  if (max_candidates < 1 || max_candidates > 2000) return std::unexpected("the candidate limit must be 1 to 2000");
+  if (!(adequacy_alpha > 0.0 && adequacy_alpha < 0.5)) return std::unexpected("adequacy_alpha must be in (0, 0.5)");
+  if (!(max_noise_factor >= 1.0)) return std::unexpected("max_noise_factor must be at least 1");
+  if (jump_window_s < 60 || jump_window_s > 3600) return std::unexpected("jump_window_s must be 60 to 3600 s");
+  if (!(jump_t > 0.0)) return std::unexpected("jump_t must be positive");
+  if (max_jumps < 0 || max_jumps > 10) return std::unexpected("max_jumps must be 0 to 10");
+  if (auto v = failing.validate(); !v) return std::unexpected("failing: " + v.error());
+  return {};
+}
+
+std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_run, std::span<const RunData> held_out,
+                                            const DiagnoseOptions& o) {
+  if (auto v = o.validate(); !v) return fail(FitError::Code::bad_options, "diagnose: " + v.error());
+  // The search space first: a bad request is an error before any work.
+  Space space;
+  const bool language = o.search == DiagnoseOptions::Search::language;
+  if (language) {
+    bool ta = fit_run.has_chamber(), ton = fit_run.has_power_on();
+    auto sp = generate(o, ta, ton);
+    if (!sp) return std::unexpected(sp.error());
+    space = std::move(*sp);
+  } else {
+    space.j = {{"library", effects_library().size()},
+               {"extra", o.extra_terms.size()},
+               {"generated", 0},
+               {"total", effects_library().size() + o.extra_terms.size()},
+               {"limit", o.max_candidates},
+               {"max_terms", o.max_terms}};
+  }
+  FitOptions fo = options_of(m);
+  if (o.max_lag_s) fo.max_lag_s = *o.max_lag_s;
+  auto base = fit(fit_run, terms_of(m), fo);
+  if (!base) return std::unexpected(FitError{base.error().code, "fit run " + fit_run.name + ": " + base.error().message});
+
+  // Bias jumps: found on each run's residual, removed from that run's copy for the search.
+  std::vector<BiasJump> jumps;
+  RunData fit_copy = fit_run;
+  std::vector<RunData> held_copy(held_out.begin(), held_out.end());
+  if (o.jumps) {
+    auto scan_run = [&](RunData& copy) {
+      std::vector<double> removed(copy.size(), 0.0);
+      auto js = find_jumps(*base, copy, o, &removed);
+      for (std::size_t t = 0; t < copy.size(); ++t) copy.gyro_dph[t] -= removed[t];
+      jumps.insert(jumps.end(), js.begin(), js.end());
+      return !js.empty();
+    };
+    if (scan_run(fit_copy)) {
+      // The base again without the fit run's jumps (its mu0 and lag were pulled by them).
+      auto b2 = fit(fit_copy, terms_of(m), fo);
+      if (b2) base = std::move(b2);
+    }
+    for (auto& h : held_copy) scan_run(h);
+  }
+
+  wbi::SearchStats stats;
+  auto d = wbi::diagnose_once(m, fit_copy, held_copy, o, space.gen, &stats);
+  if (!d) return d;
+  d->fit_run = fit_run.name;
+  d->jumps = jumps;
+  d->search = language ? "language" : "library";
+
+  // Adequacy of the model as given (refitted on the fit run), on the runs as given.
+  d->checks.push_back(check_run(*base, fit_run, false, o));
+  for (const auto& h : held_out) d->checks.push_back(check_run(*base, h, true, o));
+
+  // Greedy forward selection: add the first detected candidate, search again from there.
+  Model cur = *base;
+  Diagnosis step = *d;
+  for (int k = 0; k < o.max_terms; ++k) {
+    if (step.candidates.empty() || !step.candidates.front().detected) break;
+    const Candidate& top = step.candidates.front();
+    auto added = add_term(cur, fit_copy, top.term);
+    if (!added) break;
+    SearchStep ss;
+    ss.added = added->added;
+    ss.expr = top.expr;
+    ss.effect = top.effect;
+    ss.library = find_effect(top.expr) != nullptr;
+    ss.rms_before_dph = top.rms_before_dph;
+    ss.rms_after_dph = top.rms_after_dph;
+    ss.held_out = top.held_out;
+    ss.look_alikes = top.collinear_with;
+    d->steps.push_back(ss);
+    cur = added->model;
+    if (k + 1 == o.max_terms) break;
+    auto next = wbi::diagnose_once(cur, fit_copy, held_copy, o, space.gen, &stats);
+    if (!next) break;
+    step = std::move(*next);
+  }
+  d->final_terms = cur.terms_string();
+  d->final_checks.push_back(check_run(cur, fit_copy, false, o));
+  for (const auto& h : held_copy) d->final_checks.push_back(check_run(cur, h, true, o));
+  space.j["scanned"] = stats.scanned;
+  space.j["refitted"] = stats.refitted;
+  d->search_space = space.j;
+
+  // The verdict: adequate only when nothing is detected, no jump is found and every run's
+  // residual is the model's own noise.
+  const bool detected = !d->candidates.empty() && d->candidates.front().detected;
+  d->reasons.clear();
+  if (detected) d->reasons.push_back("missing effect: " + d->candidates.front().effect + " (" + d->candidates.front().term + ")");
+  for (const auto& j : jumps) d->reasons.push_back(j.message);
+  for (const auto& c : d->checks)
+    for (const auto& r : c.reasons) d->reasons.push_back(c.run + ": " + r);
+  d->adequate = d->reasons.empty();
+  d->outside_search = !passes(d->final_checks);
+  std::vector<RunData> all;
+  all.push_back(fit_copy);
+  for (const auto& h : held_copy) all.push_back(h);
+  d->residual_follows = d->outside_search ? follows(cur, all) : "none";
+
+  // The summary for people.
+  std::string s;
+  if (d->adequate) {
+    s = "The model " + d->model_terms + " is adequate on these runs: its prewhitened residual passes Ljung-Box on every run, the "
+        "compensated std is within " + fmt(o.max_noise_factor, 2) + " x its noise std and no interval fails (compensated std " +
+        fmt(d->rms_fit_dph, 3) + " deg/h on " + d->fit_run + ").";
+  } else {
+    // With a detected candidate the first step's summary (diagnose_once's) opens it.
+    s = detected ? d->summary : "Not adequate.";
+    for (const auto& j : jumps) s += " " + j.message;
+    if (!d->steps.empty()) {
+      s += " The search adds, in order: ";
+      for (std::size_t i = 0; i < d->steps.size(); ++i) {
+        const auto& st = d->steps[i];
+        s += (i ? "; then " : "") + st.effect + ", add it with fit --add \"" + st.added + "\" (compensated std on " + d->fit_run + " " +
+             fmt(st.rms_before_dph, 3) + " -> " + fmt(st.rms_after_dph, 3) + " deg/h";
+        for (const auto& h : st.held_out)
+          if (h.scored) s += ", on " + h.run + " " + fmt(h.rms_before_dph, 3) + " -> " + fmt(h.rms_after_dph, 3);
+        s += ")";
+        if (!st.look_alikes.empty()) {
+          s += "; these profiles cannot tell it from";
+          for (std::size_t k = 0; k < st.look_alikes.size(); ++k) s += (k ? ", " : " ") + st.look_alikes[k];
+        }
+      }
+      s += ".";
+    }
+    if (d->outside_search) {
+      s += std::string(d->steps.empty() ? " Nothing in the search helps: the missing effect is outside the search."
+                                        : " After these terms something still remains: the rest of the missing effect is outside the search.");
+      std::string where;
+      for (const auto& c : d->final_checks)
+        for (const auto& f : c.failures)
+          if (where.size() < 400)
+            where += (where.empty() ? "" : ", ") + c.run + " at " + fmt(f.start_s, 0) + " s for " + fmt(f.duration_s, 0) + " s (" +
+                     std::string(to_string(f.phase)) + ")";
+      if (!where.empty()) s += " It fails at " + where + ".";
+      s += " The residual follows " + d->residual_follows + ".";
+    }
+  }
+  d->summary = s;
+  return d;
+}
+
+}  // namespace fogbench::model::workbench
