@@ -2,9 +2,11 @@
 // per command. Every failure is an error reply; nothing here throws to the caller.
 #include "fogbench/daemon/handler.hpp"
 
+#include <cassert>
 #include <chrono>
 #include <cmath>
 
+#include "fogbench/daemon/analysis.hpp"
 #include "fogbench/daemon/framing.hpp"
 #include "fogbench/model/json.hpp"
 
@@ -146,40 +148,263 @@ json Handler::too_long() {
                "line longer than " + std::to_string(kMaxLineBytes) + " bytes; closing");
 }
 
+Handler::Line Handler::to_line(const json& message) {
+  return std::make_shared<const std::string>(message.dump(-1, ' ', false, json::error_handler_t::replace) + "\n");
+}
+
+bool Handler::offloaded(std::string_view cmd) {
+  return cmd == "run.samples" || cmd == "run.get" || cmd == "model.fit" || cmd == "model.verify" ||
+         cmd == "model.compare" || cmd == "model.diagnose" || cmd == "model.add_term";
+}
+
+namespace {
+// The reply of a call through the asynchronous path when the Offload runs inline.
+template <class Call>
+json sync_reply(Call&& call) {
+  Handler::Line out;
+  call([&out](Handler::Line l) { out = std::move(l); });
+  assert(out && "Handler's synchronous calls need an Offload that runs inline");
+  if (!out) return Handler::error(nullptr, ErrorCode::internal, "no reply (the analysis runs on a worker)");
+  return json::parse(*out);
+}
+}  // namespace
+
 json Handler::handle_line(std::string_view line, SessionState& session) {
-  json req = json::parse(line, nullptr, false);
-  if (req.is_discarded()) return error(nullptr, ErrorCode::bad_json, "not a JSON value");
-  return handle(req, session);
+  return sync_reply([&](Done d) { handle_line(line, session, std::move(d)); });
 }
 
 json Handler::handle(const json& req, SessionState& session) {
-  if (!req.is_object()) return error(nullptr, ErrorCode::bad_request, "expected a JSON object");
+  return sync_reply([&](Done d) { handle(req, session, std::move(d)); });
+}
+
+void Handler::handle_line(std::string_view line, SessionState& session, Done done) {
+  json req = json::parse(line, nullptr, false);
+  if (req.is_discarded()) return done(to_line(error(nullptr, ErrorCode::bad_json, "not a JSON value")));
+  handle(req, session, std::move(done));
+}
+
+void Handler::handle(const json& req, SessionState& session, Done done) {
+  auto fail = [&](const json& id, ErrorCode code, const std::string& message) {
+    done(to_line(error(id, code, message)));
+  };
+  if (!req.is_object()) return fail(nullptr, ErrorCode::bad_request, "expected a JSON object");
   json id = req.contains("id") ? req["id"] : json(nullptr);
   if (!id.is_null() && !id.is_number_integer() && !id.is_string())
-    return error(nullptr, ErrorCode::bad_request, "id: expected an integer or a string");
-  if (id.is_null()) return error(nullptr, ErrorCode::bad_request, "id: missing");
-  if (!req.contains("cmd")) return error(id, ErrorCode::bad_request, "cmd: missing");
-  if (!req["cmd"].is_string()) return error(id, ErrorCode::bad_request, "cmd: expected a string");
+    return fail(nullptr, ErrorCode::bad_request, "id: expected an integer or a string");
+  if (id.is_null()) return fail(nullptr, ErrorCode::bad_request, "id: missing");
+  if (!req.contains("cmd")) return fail(id, ErrorCode::bad_request, "cmd: missing");
+  if (!req["cmd"].is_string()) return fail(id, ErrorCode::bad_request, "cmd: expected a string");
   const std::string cmd = req["cmd"].get<std::string>();
   // The token is a credential: checked here and never stored with the command in the audit trail.
   json request = req;
   json token = request.contains("token") ? request["token"] : json(nullptr);
   request.erase("token");
-  if (!token.is_null() && !token.is_string()) return error(id, ErrorCode::bad_request, "token: expected a string");
+  if (!token.is_null() && !token.is_string()) return fail(id, ErrorCode::bad_request, "token: expected a string");
   if (!session.may_control && is_control_command(cmd)) {
     if (session.control_token.empty())
-      return error(id, ErrorCode::forbidden, cmd + ": only on the local socket; this connection may only read");
+      return fail(id, ErrorCode::forbidden, cmd + ": only on the local socket; this connection may only read");
     if (token.is_null() || !same_token(token.get<std::string>(), session.control_token))
-      return error(id, ErrorCode::forbidden, cmd + ": needs a valid token on this connection");
+      return fail(id, ErrorCode::forbidden, cmd + ": needs a valid token on this connection");
   }
+  json out;
   try {
+    if (offloaded(cmd)) return offload(cmd, request, id, done);
     auto r = dispatch(cmd, request, session);
-    if (!r) return error(id, r.error().code, r.error().message);
-    return reply(id, std::move(*r));
+    out = r ? reply(id, std::move(*r)) : error(id, r.error().code, r.error().message);
   } catch (const std::exception& e) {
     // A bug, not an input: reported, and the daemon stays up.
-    return error(id, ErrorCode::internal, e.what());
+    out = error(id, ErrorCode::internal, e.what());
   }
+  done(to_line(out));
+}
+
+namespace {
+
+// run.get through `store` (the worker's read connection); `end` and `live_quality` are what the
+// station knows and the store may not yet (taken on the loop before the read was submitted).
+ApiResult<json> run_get(storage::Store& store, std::int64_t run_id, const json& end, const json& live_quality) {
+  auto d = store.get_run(run_id);
+  if (!d) return std::unexpected(store_error(d.error()));
+  json r = run_json(d->run);
+  // An end the store could not take yet (a full disk) is the run's state all the same.
+  if (!end.is_null()) {
+    r["state"] = end["state"];
+    r["reason"] = end["reason"];
+    r["recorded"] = false;
+  }
+  json events = json::array();
+  // Data quality per unit: live while the run is active, else the `quality` note stored when
+  // it ended (null for a run without one: interrupted by a crash, imported, older).
+  json quality = live_quality;
+  const bool live = !quality.is_null();
+  for (const auto& e : d->events) {
+    json detail = parse_or_string(e.detail_json);
+    if (!live && e.kind == storage::EventKind::note && detail.is_object() && detail.contains("quality"))
+      quality = detail["quality"];
+    events.push_back({{"id", e.id}, {"t_s", e.t_s ? json(*e.t_s) : json(nullptr)}, {"at", e.at},
+                      {"kind", std::string(storage::to_string(e.kind))}, {"detail", std::move(detail)}});
+  }
+  json models = json::array();
+  for (const auto& u : d->run.units) {
+    auto ms = store.list_models(u.serial);
+    if (!ms) return std::unexpected(store_error(ms.error()));
+    for (const auto& m : *ms)
+      if (m.run_id == run_id)
+        models.push_back({{"id", m.id}, {"serial", m.serial}, {"version", m.version},
+                          {"unit", u.unit_index}, {"terms", m.terms}, {"method", m.method},
+                          {"parent_id", m.parent_id ? json(*m.parent_id) : json(nullptr)}});
+  }
+  auto vs = store.list_verifications(run_id);
+  if (!vs) return std::unexpected(store_error(vs.error()));
+  json vers = json::array();
+  for (const auto& v : *vs)
+    vers.push_back({{"id", v.id}, {"unit", v.unit_index}, {"model_id", v.model_id},
+                    {"pass", v.pass}, {"result", parse_or_string(v.result_json)}});
+  json samples = json::array();
+  for (const auto& u : d->run.units) {
+    auto n = store.count_samples(run_id, u.unit_index);
+    samples.push_back(n ? *n : 0);
+  }
+  return json{{"run", r}, {"samples", samples}, {"quality", quality}, {"events", events}, {"models", models},
+              {"verifications", vers}, {"config", parse_or_string(d->run.config_json)},
+              {"profile_text", d->run.profile_text}};
+}
+
+ApiResult<json> run_samples(storage::Store& store, std::int64_t run_id, const json& req, std::int64_t offset,
+                            std::int64_t limit) {
+  auto unit = resolve_unit(store, run_id, req);
+  if (!unit) return std::unexpected(unit.error());
+  auto total = store.count_samples(run_id, *unit);
+  if (!total) return std::unexpected(store_error(total.error()));
+  auto rows = store.get_samples(run_id, *unit, offset, limit);
+  if (!rows) return std::unexpected(store_error(rows.error()));
+  json arr = json::array();
+  for (const auto& r : *rows) arr.push_back(sample_json(r));
+  return json{{"run_id", run_id}, {"unit", *unit}, {"offset", offset}, {"total", *total}, {"samples", arr}};
+}
+
+// What a job on the worker threw: a bug, reported as `internal`, never a dead thread.
+template <class T, class F>
+ApiResult<T> guarded(F&& f) {
+  try {
+    return f();
+  } catch (const std::exception& e) {
+    return api_error(ErrorCode::internal, e.what());
+  }
+}
+
+}  // namespace
+
+void Handler::offload(const std::string& cmd, const json& req, const json& id, Done done) {
+  auto fail = [&](const ApiError& e) { done(to_line(error(id, e.code, e.message))); };
+  Offload& offload = station_.offload();
+
+  // A read: the whole reply built and serialised on the worker (10,000 samples are megabytes).
+  auto read = [&](std::function<ApiResult<json>(storage::Store&)> compute) {
+    offload.submit([id, compute = std::move(compute), done](storage::Store& reader) -> Offload::Then {
+      ApiResult<json> r = guarded<json>([&] { return compute(reader); });
+      Line line = to_line(r ? reply(id, std::move(*r)) : error(id, r.error().code, r.error().message));
+      return [done, line] { done(line); };
+    });
+  };
+  // An analysis: computed on the worker, what it produced stored here on the loop (its Commit),
+  // and the command audited when it succeeded (model.fit, model.verify, model.add_term).
+  auto analyse = [&](std::int64_t run_id, bool audit,
+                     std::function<ApiResult<analysis::Commit>(storage::Store&)> compute) {
+    offload.submit([this, id, run_id, audit, req, compute = std::move(compute), done](storage::Store& reader) -> Offload::Then {
+      auto c = std::make_shared<ApiResult<analysis::Commit>>(guarded<analysis::Commit>([&] { return compute(reader); }));
+      return [this, id, run_id, audit, req, c, done] {
+        ApiResult<json> r = !*c ? ApiResult<json>(std::unexpected((*c).error()))
+                            // The run was resumed meanwhile: nothing is stored against a live run.
+                            : audit && station_.active_run_id() == run_id
+                                ? ApiResult<json>(api_error(ErrorCode::busy, "run " + std::to_string(run_id) + " is active again"))
+                                : guarded<json>([&] { return (**c)(station_.store()); });
+        if (r && audit) station_.audit(run_id, req);
+        done(to_line(r ? reply(id, std::move(*r)) : error(id, r.error().code, r.error().message)));
+      };
+    });
+  };
+
+  auto run_id = req_int(req, "run_id", 1, kMaxId);
+  if (!run_id) return fail(run_id.error());
+  const std::int64_t rid = *run_id;
+
+  if (cmd == "run.get") {
+    // What the station knows that the store may not have taken yet, as of now.
+    json end = station_.unrecorded_end(rid), quality = station_.live_quality(rid);
+    return read([rid, end, quality](storage::Store& s) { return run_get(s, rid, end, quality); });
+  }
+  if (cmd == "run.samples") {
+    auto offset = opt_int(req, "offset", 0, kMaxId);
+    if (!offset) return fail(offset.error());
+    auto limit = opt_int(req, "limit", 1, 10000);
+    if (!limit) return fail(limit.error());
+    return read([rid, req, off = offset->value_or(0), lim = limit->value_or(1000)](storage::Store& s) {
+      return run_samples(s, rid, req, off, lim);
+    });
+  }
+
+  // The analyses: not on the run being recorded.
+  if (station_.active_run_id() == rid)
+    return fail({ErrorCode::busy, "run " + std::to_string(rid) + " is still active"});
+  auto model_id = opt_int(req, "model_id", 1, kMaxId);
+  if (cmd == "model.fit") {
+    auto terms = opt_string(req, "terms");
+    if (!terms) return fail(terms.error());
+    auto method = opt_string(req, "method");
+    if (!method) return fail(method.error());
+    return analyse(rid, true, [rid, req, t = terms->value_or(""), m = method->value_or(""),
+                               config = station_.config().analysis, at = station_.wall_now()](storage::Store& s)
+                                  -> ApiResult<analysis::Commit> {
+      auto unit = resolve_unit(s, rid, req);
+      if (!unit) return std::unexpected(unit.error());
+      return analysis::fit(s, config, rid, *unit, t, m, at);
+    });
+  }
+  if (!model_id) return fail(model_id.error());
+  const std::optional<std::int64_t> mid = *model_id;
+  if (cmd == "model.verify") {
+    return analyse(rid, true, [rid, req, mid, config = station_.config().analysis](storage::Store& s)
+                                  -> ApiResult<analysis::Commit> {
+      auto unit = resolve_unit(s, rid, req);
+      if (!unit) return std::unexpected(unit.error());
+      return analysis::verify(s, config, rid, *unit, mid);
+    });
+  }
+  if (cmd == "model.compare") {
+    return analyse(rid, false, [rid, req, mid](storage::Store& s) -> ApiResult<analysis::Commit> {
+      auto unit = resolve_unit(s, rid, req);
+      if (!unit) return std::unexpected(unit.error());
+      return analysis::compare(s, rid, *unit, mid);
+    });
+  }
+  if (cmd == "model.diagnose") {
+    std::vector<std::int64_t> held;
+    if (auto it = req.find("held_out"); it != req.end()) {
+      if (!it->is_array()) return fail({ErrorCode::bad_request, "held_out: expected an array of run ids"});
+      for (std::size_t i = 0; i < it->size(); ++i) {
+        const json& v = (*it)[i];
+        if (!v.is_number_integer() || v.get<std::int64_t>() < 1)
+          return fail({ErrorCode::bad_request, "held_out[" + std::to_string(i) + "]: expected a run id"});
+        held.push_back(v.get<std::int64_t>());
+      }
+    }
+    return analyse(rid, false, [rid, req, mid, held](storage::Store& s) -> ApiResult<analysis::Commit> {
+      auto unit = resolve_unit(s, rid, req);
+      if (!unit) return std::unexpected(unit.error());
+      return analysis::diagnose(s, rid, *unit, mid, held);
+    });
+  }
+  // model.add_term
+  auto term = opt_string(req, "term");
+  if (!term) return fail(term.error());
+  if (!*term) return fail({ErrorCode::bad_request, "term: missing (the term to add, e.g. \"T1\")"});
+  return analyse(rid, true, [rid, req, mid, t = **term, at = station_.wall_now()](storage::Store& s)
+                                -> ApiResult<analysis::Commit> {
+    auto unit = resolve_unit(s, rid, req);
+    if (!unit) return std::unexpected(unit.error());
+    return analysis::add_term(s, rid, *unit, t, mid, at);
+  });
 }
 
 ApiResult<json> Handler::dispatch(const std::string& cmd, const json& req, SessionState& session) {
@@ -280,75 +505,6 @@ ApiResult<json> Handler::dispatch(const std::string& cmd, const json& req, Sessi
     return json{{"runs", arr}};
   }
 
-  if (cmd == "run.get") {
-    auto run_id = req_int(req, "run_id", 1, kMaxId);
-    if (!run_id) return std::unexpected(run_id.error());
-    auto d = store.get_run(*run_id);
-    if (!d) return std::unexpected(store_error(d.error()));
-    json r = run_json(d->run);
-    // An end the store could not take yet (a full disk) is the run's state all the same.
-    if (json end = station_.unrecorded_end(*run_id); !end.is_null()) {
-      r["state"] = end["state"];
-      r["reason"] = end["reason"];
-      r["recorded"] = false;
-    }
-    json events = json::array();
-    // Data quality per unit: live while the run is active, else the `quality` note stored when
-    // it ended (null for a run without one: interrupted by a crash, imported, older).
-    json quality = station_.live_quality(*run_id);
-    const bool live = !quality.is_null();
-    for (const auto& e : d->events) {
-      json detail = parse_or_string(e.detail_json);
-      if (!live && e.kind == storage::EventKind::note && detail.is_object() && detail.contains("quality"))
-        quality = detail["quality"];
-      events.push_back({{"id", e.id}, {"t_s", e.t_s ? json(*e.t_s) : json(nullptr)}, {"at", e.at},
-                        {"kind", std::string(storage::to_string(e.kind))}, {"detail", std::move(detail)}});
-    }
-    json models = json::array();
-    for (const auto& u : d->run.units) {
-      auto ms = store.list_models(u.serial);
-      if (!ms) return std::unexpected(store_error(ms.error()));
-      for (const auto& m : *ms)
-        if (m.run_id == *run_id)
-          models.push_back({{"id", m.id}, {"serial", m.serial}, {"version", m.version},
-                            {"unit", u.unit_index}, {"terms", m.terms}, {"method", m.method},
-                            {"parent_id", m.parent_id ? json(*m.parent_id) : json(nullptr)}});
-    }
-    auto vs = store.list_verifications(*run_id);
-    if (!vs) return std::unexpected(store_error(vs.error()));
-    json vers = json::array();
-    for (const auto& v : *vs)
-      vers.push_back({{"id", v.id}, {"unit", v.unit_index}, {"model_id", v.model_id},
-                      {"pass", v.pass}, {"result", parse_or_string(v.result_json)}});
-    json samples = json::array();
-    for (const auto& u : d->run.units) {
-      auto n = store.count_samples(*run_id, u.unit_index);
-      samples.push_back(n ? *n : 0);
-    }
-    return json{{"run", r}, {"samples", samples}, {"quality", quality}, {"events", events}, {"models", models},
-                {"verifications", vers}, {"config", parse_or_string(d->run.config_json)},
-                {"profile_text", d->run.profile_text}};
-  }
-
-  if (cmd == "run.samples") {
-    auto run_id = req_int(req, "run_id", 1, kMaxId);
-    if (!run_id) return std::unexpected(run_id.error());
-    auto offset = opt_int(req, "offset", 0, kMaxId);
-    if (!offset) return std::unexpected(offset.error());
-    auto limit = opt_int(req, "limit", 1, 10000);
-    if (!limit) return std::unexpected(limit.error());
-    auto unit = resolve_unit(store, *run_id, req);
-    if (!unit) return std::unexpected(unit.error());
-    auto total = store.count_samples(*run_id, *unit);
-    if (!total) return std::unexpected(store_error(total.error()));
-    auto rows = store.get_samples(*run_id, *unit, offset->value_or(0), limit->value_or(1000));
-    if (!rows) return std::unexpected(store_error(rows.error()));
-    json arr = json::array();
-    for (const auto& r : *rows) arr.push_back(sample_json(r));
-    return json{{"run_id", *run_id}, {"unit", *unit}, {"offset", offset->value_or(0)},
-                {"total", *total}, {"samples", arr}};
-  }
-
   if (cmd == "profile.list") {
     json arr = json::array();
     for (const auto& name : station_.profile_names()) {
@@ -393,61 +549,6 @@ ApiResult<json> Handler::dispatch(const std::string& cmd, const json& req, Sessi
     if (!m) return std::unexpected(store_error(m.error()));
     if (!*m) return api_error(ErrorCode::not_found, "no model for serial " + **serial);
     return model_json(**m);
-  }
-
-  if (cmd == "model.fit" || cmd == "model.verify") {
-    auto run_id = req_int(req, "run_id", 1, kMaxId);
-    if (!run_id) return std::unexpected(run_id.error());
-    if (station_.active_run_id() == *run_id)
-      return api_error(ErrorCode::busy, "run " + std::to_string(*run_id) + " is still active");
-    auto unit = resolve_unit(store, *run_id, req);
-    if (!unit) return std::unexpected(unit.error());
-    ApiResult<json> r;
-    if (cmd == "model.fit") {
-      auto terms = opt_string(req, "terms");
-      if (!terms) return std::unexpected(terms.error());
-      auto method = opt_string(req, "method");
-      if (!method) return std::unexpected(method.error());
-      r = station_.fit_unit(*run_id, *unit, terms->value_or(""), method->value_or(""));
-    } else {
-      auto model_id = opt_int(req, "model_id", 1, kMaxId);
-      if (!model_id) return std::unexpected(model_id.error());
-      r = station_.verify_unit(*run_id, *unit, *model_id);
-    }
-    if (r) station_.audit(*run_id, req);
-    return r;
-  }
-
-  // The workbench on stored runs: compare and diagnose read, add_term stores a refined model.
-  if (cmd == "model.compare" || cmd == "model.diagnose" || cmd == "model.add_term") {
-    auto run_id = req_int(req, "run_id", 1, kMaxId);
-    if (!run_id) return std::unexpected(run_id.error());
-    if (station_.active_run_id() == *run_id)
-      return api_error(ErrorCode::busy, "run " + std::to_string(*run_id) + " is still active");
-    auto unit = resolve_unit(store, *run_id, req);
-    if (!unit) return std::unexpected(unit.error());
-    auto model_id = opt_int(req, "model_id", 1, kMaxId);
-    if (!model_id) return std::unexpected(model_id.error());
-    if (cmd == "model.compare") return station_.compare_unit(*run_id, *unit, *model_id);
-    if (cmd == "model.diagnose") {
-      std::vector<std::int64_t> held;
-      if (auto it = req.find("held_out"); it != req.end()) {
-        if (!it->is_array()) return api_error(ErrorCode::bad_request, "held_out: expected an array of run ids");
-        for (std::size_t i = 0; i < it->size(); ++i) {
-          const json& v = (*it)[i];
-          if (!v.is_number_integer() || v.get<std::int64_t>() < 1)
-            return api_error(ErrorCode::bad_request, "held_out[" + std::to_string(i) + "]: expected a run id");
-          held.push_back(v.get<std::int64_t>());
-        }
-      }
-      return station_.diagnose_unit(*run_id, *unit, *model_id, held);
-    }
-    auto term = opt_string(req, "term");
-    if (!term) return std::unexpected(term.error());
-    if (!*term) return api_error(ErrorCode::bad_request, "term: missing (the term to add, e.g. \"T1\")");
-    auto r = station_.add_term_unit(*run_id, *unit, **term, *model_id);
-    if (r) station_.audit(*run_id, req);
-    return r;
   }
 
   return api_error(ErrorCode::unknown_command, "unknown command: " + cmd);

@@ -1,6 +1,8 @@
 // The run state machine, the per-second samples and the automatic fit or verification.
 #include "fogbench/daemon/station.hpp"
 
+#include "fogbench/daemon/analysis.hpp"
+
 #include <algorithm>
 #include <cassert>
 #include <chrono>
@@ -34,7 +36,6 @@ std::string_view to_string(ErrorCode c) {
     case ErrorCode::unknown_serial: return "unknown_serial";
     case ErrorCode::forbidden: return "forbidden";
     case ErrorCode::internal: return "internal";
-    case ErrorCode::unavailable: return "unavailable";
   }
   return "internal";
 }
@@ -78,29 +79,6 @@ constexpr double kGyroMaxAbsDph = 1.0e5;
 // A setpoint that moved at least this much should have moved the PV (several register steps
 // of 0.1 degC): below it a frozen PV cannot be told from a chamber at rest.
 constexpr double kSetpointMovedC = 0.5;
-
-// A value not read is stored as NULL and exported as NaN with the sample flagged `missing`.
-// model::fit skips flagged samples in the regression, but its lag scan and smoothers run over
-// every sample; before model commit e6a8890 a NaN spread through them and failed the fit
-// ("degenerate"). The gap is bridged with the neighbouring value (the flag stays, so the fit
-// still skips the sample), which keeps the daemon's fits independent of how model/ treats NaN.
-void bridge_missing(model::RunData& d) {
-  if (d.flags.empty()) d.flags.assign(d.size(), 0);
-  for (auto* col : {&d.gyro_dph, &d.t1_c, &d.t2_c, &d.setpoint_c, &d.chamber_c}) {
-    auto& v = *col;
-    if (v.empty()) continue;
-    auto first = std::find_if(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
-    double last = first == v.end() ? 0.0 : *first;
-    for (std::size_t i = 0; i < v.size(); ++i) {
-      if (std::isfinite(v[i])) {
-        last = v[i];
-      } else {
-        v[i] = last;
-        d.flags[i] |= model::flag::missing;
-      }
-    }
-  }
-}
 
 bool valid_profile_name(const std::string& name) {
   static const std::regex re("[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}");
@@ -284,21 +262,12 @@ void Station::transition(ActiveRun& run, RunState to, const std::string& reason,
                     {"to", std::string(storage::to_string(to))}, {"reason", reason}}}});
 }
 
-// A run started while the chamber cannot be polled would only wait out link_loss.tolerance_s
-// and abort: refused at once instead. Before the first poll nothing is known and nothing refused.
-std::optional<ApiError> Station::chamber_unavailable() const {
-  if (!last_input_ || !last_input_->chamber_link_down) return std::nullopt;
-  return ApiError{ErrorCode::unavailable,
-                  "the chamber link is down (the chamber cannot be polled): no run starts until it answers again"};
-}
-
 ApiResult<std::int64_t> Station::start_run(const std::string& profile_name,
                                            const std::vector<std::string>& serials,
                                            const std::string& purpose_text, const json& command) {
   if (run_) return api_error(ErrorCode::busy, "run " + std::to_string(run_->id) + " is " +
                                                   std::string(storage::to_string(run_->state)));
   if (recovery_error_) return std::unexpected(not_recovered(*recovery_error_));
-  if (auto down = chamber_unavailable()) return std::unexpected(*down);
   auto purpose = storage::purpose_from_string(purpose_text);
   if (!purpose) return api_error(ErrorCode::bad_request, "purpose: expected \"fit\" or \"verify\"");
   if (serials.empty()) return api_error(ErrorCode::bad_request, "units: expected at least one serial");
@@ -349,7 +318,6 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
   if (run_) return api_error(ErrorCode::busy, "run " + std::to_string(run_->id) + " is " +
                                                   std::string(storage::to_string(run_->state)));
   if (recovery_error_) return std::unexpected(not_recovered(*recovery_error_));
-  if (auto down = chamber_unavailable()) return std::unexpected(*down);
   auto detail = store_.get_run(run_id);
   if (!detail) return std::unexpected(from_store(detail.error()));
   const storage::RunRecord& rec = detail->run;
@@ -466,18 +434,6 @@ void Station::shutdown(const std::string& reason) {
     spdlog::error("stopping with {} state changes or events the store did not take (see above)", unrecorded_.size());
 }
 
-// A run that fails on what it read (a settle that timed out, a chamber fault) after the loop
-// fell behind real time: that is the first thing to know about it, since seconds never read
-// make a settle time out and blame the chamber wrongly. An operator's abort, a shutdown or a
-// full store are what they say.
-std::string Station::behind_real_time(const ActiveRun& run, const std::string& why) const {
-  if (run.late_s == 0) return why;
-  std::ostringstream o;
-  o << "the acquisition fell behind real time (" << run.late_s << " of " << run.elapsed_s + 1
-    << " s not read in time: the host is too busy for time scale " << time_scale_ << "); " << why;
-  return o.str();
-}
-
 void Station::finish(RunState to, const std::string& reason) {
   assert(run_);
   ActiveRun& run = *run_;
@@ -496,239 +452,41 @@ void Station::finish(RunState to, const std::string& reason) {
 
 void Station::analyse(std::int64_t run_id, storage::Purpose purpose,
                       const std::vector<std::string>& serials) {
-  for (std::size_t i = 0; i < serials.size(); ++i) {
-    const int unit = static_cast<int>(i);
-    json detail = {{"analysis", std::string(storage::to_string(purpose))}, {"unit", unit},
-                   {"serial", serials[i]}};
-    if (purpose == storage::Purpose::fit) {
-      auto r = fit_unit(run_id, unit, "", "");
-      if (r) {
-        detail["model_id"] = (*r)["model_id"];
-        detail["n_flagged"] = (*r)["n_flagged"];
-        detail["ok"] = true;
-      } else {
-        detail["ok"] = false;
-        detail["error"] = r.error().message;
-      }
-    } else {
-      auto r = verify_unit(run_id, unit, std::nullopt);
-      if (r) {
-        detail["verification_id"] = (*r)["verification_id"];
-        detail["pass"] = (*r)["pass"];
-        detail["ok"] = true;
-      } else {
-        detail["ok"] = false;
-        detail["error"] = r.error().message;
+  // The fits or verifications are computed on the offload (fogbenchd's analysis worker, with its
+  // own read connection): a long fit must not hold up the next run's seconds or the replies.
+  // What they produced is stored here, on the loop, in unit order, each with its note.
+  const AnalysisConfig config = config_.analysis;
+  const std::string created_at = wall_clock_();
+  offload_->submit([this, run_id, purpose, serials, config, created_at](storage::Store& reader) -> Offload::Then {
+    auto computed = std::make_shared<std::vector<ApiResult<analysis::Commit>>>();
+    for (std::size_t i = 0; i < serials.size(); ++i) {
+      const int unit = static_cast<int>(i);
+      try {
+        computed->push_back(purpose == storage::Purpose::fit
+                                ? analysis::fit(reader, config, run_id, unit, "", "", created_at)
+                                : analysis::verify(reader, config, run_id, unit, std::nullopt));
+      } catch (const std::exception& e) {  // a bug: reported as the unit's failed analysis
+        computed->push_back(api_error(ErrorCode::internal, e.what()));
       }
     }
-    event(run_id, storage::EventKind::note, detail, std::nullopt);
-  }
-}
-
-ApiResult<json> Station::fit_unit(std::int64_t run_id, int unit_index, const std::string& terms_text,
-                                  const std::string& method_text) {
-  auto detail = store_.get_run(run_id);
-  if (!detail) return std::unexpected(from_store(detail.error()));
-  if (unit_index < 0 || unit_index >= static_cast<int>(detail->run.units.size()))
-    return api_error(ErrorCode::not_found, "run " + std::to_string(run_id) + " has no unit " +
-                                               std::to_string(unit_index));
-  const std::string serial = detail->run.units[static_cast<std::size_t>(unit_index)].serial;
-  const std::string tt = terms_text.empty() ? config_.analysis.terms : terms_text;
-  auto terms = model::parse_terms(tt);
-  if (!terms) return api_error(ErrorCode::bad_request, "terms: not a term list: " + tt);
-  model::FitOptions opt;
-  const std::string mt = method_text.empty() ? config_.analysis.method : method_text;
-  auto method = model::method_from_string(mt);
-  if (!method) return api_error(ErrorCode::bad_request, "method: expected \"paper\" or \"joint\"");
-  opt.method = *method;
-  auto data = store_.export_run(run_id, unit_index);
-  if (!data) return std::unexpected(from_store(data.error()));
-  bridge_missing(*data);
-  auto m = model::fit(*data, *terms, opt);
-  if (!m)
-    return api_error(ErrorCode::internal, "fit failed (" + std::string(model::to_string(m.error().code)) +
-                                              "): " + m.error().message);
-  m->created_at = wall_clock_();
-  auto parent = store_.current_model(serial);
-  if (!parent) return std::unexpected(from_store(parent.error()));
-  storage::NewModel nm;
-  nm.serial = serial;
-  nm.run_id = run_id;
-  if (*parent) nm.parent_id = (*parent)->id;
-  json mj = model::to_json(*m);
-  nm.model_json = mj.dump();
-  nm.method = std::string(model::to_string(m->method));
-  nm.terms = m->terms_string();
-  auto ref = store_.put_model(nm);
-  if (!ref) return std::unexpected(from_store(ref.error()));
-  return json{{"model_id", ref->id}, {"version", ref->version}, {"serial", serial},
-              {"run_id", run_id}, {"unit", unit_index},
-              {"parent_id", nm.parent_id ? json(*nm.parent_id) : json(nullptr)},
-              {"terms", nm.terms}, {"method", nm.method},
-              // Samples the fit skipped for their quality flags (missing, frames lost, link gap, ...).
-              {"n_flagged", m->fit.n_flagged}, {"model", mj}};
-}
-
-ApiResult<json> Station::verify_unit(std::int64_t run_id, int unit_index,
-                                     std::optional<std::int64_t> model_id) {
-  auto detail = store_.get_run(run_id);
-  if (!detail) return std::unexpected(from_store(detail.error()));
-  if (unit_index < 0 || unit_index >= static_cast<int>(detail->run.units.size()))
-    return api_error(ErrorCode::not_found, "run " + std::to_string(run_id) + " has no unit " +
-                                               std::to_string(unit_index));
-  const std::string serial = detail->run.units[static_cast<std::size_t>(unit_index)].serial;
-  storage::ModelRecord rec;
-  if (model_id) {
-    auto r = store_.get_model(*model_id);
-    if (!r) return std::unexpected(from_store(r.error()));
-    rec = *r;
-  } else {
-    auto r = store_.current_model(serial);
-    if (!r) return std::unexpected(from_store(r.error()));
-    if (!*r) return api_error(ErrorCode::unknown_serial, "unit " + serial + ": no model to verify");
-    rec = **r;
-  }
-  auto m = model::model_from_text(rec.model_json);
-  if (!m) return api_error(ErrorCode::internal, "model " + std::to_string(rec.id) + ": " + m.error());
-  auto data = store_.export_run(run_id, unit_index);
-  if (!data) return std::unexpected(from_store(data.error()));
-  bridge_missing(*data);
-  auto v = model::verify(*m, *data, config_.analysis.verify_threshold);
-  if (!v)
-    return api_error(ErrorCode::internal, "verification failed (" +
-                                              std::string(model::to_string(v.error().code)) + "): " +
-                                              v.error().message);
-  json vj = model::to_json(*v);
-  storage::NewVerification nv{run_id, unit_index, rec.id, vj.dump(), v->pass};
-  auto id = store_.put_verification(nv);
-  if (!id) return std::unexpected(from_store(id.error()));
-  return json{{"verification_id", *id}, {"run_id", run_id}, {"unit", unit_index},
-              {"serial", serial}, {"model_id", rec.id}, {"pass", v->pass}, {"result", vj}};
-}
-
-namespace {
-// A stored run's unit with its serial, gaps bridged for analysis.
-struct UnitRun {
-  std::string serial;
-  model::RunData data;
-};
-}  // namespace
-
-static ApiResult<UnitRun> load_unit_run(storage::Store& store, std::int64_t run_id, int unit_index) {
-  auto detail = store.get_run(run_id);
-  if (!detail) return std::unexpected(from_store(detail.error()));
-  if (unit_index < 0 || unit_index >= static_cast<int>(detail->run.units.size()))
-    return api_error(ErrorCode::not_found, "run " + std::to_string(run_id) + " has no unit " +
-                                               std::to_string(unit_index));
-  UnitRun u;
-  u.serial = detail->run.units[static_cast<std::size_t>(unit_index)].serial;
-  auto data = store.export_run(run_id, unit_index);
-  if (!data) return std::unexpected(from_store(data.error()));
-  u.data = std::move(*data);
-  u.data.name = "run " + std::to_string(run_id) + " " + u.serial;
-  bridge_missing(u.data);
-  return u;
-}
-
-static ApiResult<storage::ModelRecord> model_for(storage::Store& store, const std::string& serial,
-                                                 std::optional<std::int64_t> model_id) {
-  if (model_id) {
-    auto r = store.get_model(*model_id);
-    if (!r) return std::unexpected(from_store(r.error()));
-    return *r;
-  }
-  auto r = store.current_model(serial);
-  if (!r) return std::unexpected(from_store(r.error()));
-  if (!*r) return api_error(ErrorCode::unknown_serial, "unit " + serial + ": no model yet (fit one first)");
-  return **r;
-}
-
-namespace {
-// A stored unit's run with the model to work on: the one asked for, or the serial's current.
-struct UnitWithModel {
-  UnitRun unit;
-  storage::ModelRecord record;
-  model::Model model;
-};
-}  // namespace
-
-static ApiResult<UnitWithModel> load_unit_with_model(storage::Store& store, std::int64_t run_id, int unit_index,
-                                                     std::optional<std::int64_t> model_id) {
-  auto u = load_unit_run(store, run_id, unit_index);
-  if (!u) return std::unexpected(u.error());
-  auto rec = model_for(store, u->serial, model_id);
-  if (!rec) return std::unexpected(rec.error());
-  auto m = model::model_from_text(rec->model_json);
-  if (!m) return api_error(ErrorCode::internal, "model " + std::to_string(rec->id) + ": " + m.error());
-  return UnitWithModel{std::move(*u), std::move(*rec), std::move(*m)};
-}
-
-static ApiError analysis_error(const char* what, const model::FitError& e) {
-  return ApiError{ErrorCode::bad_request, std::string(what) + " (" + std::string(model::to_string(e.code)) + "): " + e.message};
-}
-
-ApiResult<json> Station::compare_unit(std::int64_t run_id, int unit_index, std::optional<std::int64_t> model_id) {
-  auto um = load_unit_with_model(store_, run_id, unit_index, model_id);
-  if (!um) return std::unexpected(um.error());
-  const UnitRun& u = um->unit;
-  const storage::ModelRecord& rec = um->record;
-  const model::Model& m = um->model;
-  auto c = model::workbench::compare(m, u.data);
-  if (!c) return std::unexpected(analysis_error("compare failed", c.error()));
-  return json{{"run_id", run_id}, {"unit", unit_index}, {"serial", u.serial}, {"model_id", rec.id},
-              {"result", model::workbench::to_json(*c)}};
-}
-
-ApiResult<json> Station::diagnose_unit(std::int64_t run_id, int unit_index, std::optional<std::int64_t> model_id,
-                                       const std::vector<std::int64_t>& held_out_runs) {
-  auto um = load_unit_with_model(store_, run_id, unit_index, model_id);
-  if (!um) return std::unexpected(um.error());
-  const UnitRun& u = um->unit;
-  const storage::ModelRecord& rec = um->record;
-  const model::Model& m = um->model;
-  // Held-out runs: the same gyro (serial) in other stored runs.
-  std::vector<model::RunData> held;
-  for (std::int64_t other : held_out_runs) {
-    auto d = store_.get_run(other);
-    if (!d) return std::unexpected(from_store(d.error()));
-    int idx = -1;
-    for (const auto& ru : d->run.units)
-      if (ru.serial == u.serial) idx = ru.unit_index;
-    if (idx < 0)
-      return api_error(ErrorCode::not_found, "held_out run " + std::to_string(other) + " has no unit " + u.serial);
-    auto h = load_unit_run(store_, other, idx);
-    if (!h) return std::unexpected(h.error());
-    held.push_back(std::move(h->data));
-  }
-  auto dg = model::workbench::diagnose(m, u.data, held);
-  if (!dg) return std::unexpected(analysis_error("diagnose failed", dg.error()));
-  return json{{"run_id", run_id}, {"unit", unit_index}, {"serial", u.serial}, {"model_id", rec.id},
-              {"held_out", held_out_runs}, {"result", model::workbench::to_json(*dg)}};
-}
-
-ApiResult<json> Station::add_term_unit(std::int64_t run_id, int unit_index, const std::string& term,
-                                       std::optional<std::int64_t> model_id) {
-  auto um = load_unit_with_model(store_, run_id, unit_index, model_id);
-  if (!um) return std::unexpected(um.error());
-  const UnitRun& u = um->unit;
-  const storage::ModelRecord& rec = um->record;
-  const model::Model& m = um->model;
-  auto added = model::workbench::add_term(m, u.data, term);
-  if (!added) return std::unexpected(analysis_error("add_term failed", added.error()));
-  added->model.created_at = wall_clock_();
-  storage::NewModel nm;
-  nm.serial = u.serial;
-  nm.run_id = run_id;
-  nm.parent_id = rec.id;
-  json mj = model::to_json(added->model);
-  nm.model_json = mj.dump();
-  nm.method = std::string(model::to_string(added->model.method));
-  nm.terms = added->model.terms_string();
-  auto ref = store_.put_model(nm);
-  if (!ref) return std::unexpected(from_store(ref.error()));
-  return json{{"model_id", ref->id}, {"version", ref->version}, {"serial", u.serial},
-              {"run_id", run_id}, {"unit", unit_index}, {"parent_id", rec.id},
-              {"added", added->added}, {"terms", nm.terms}, {"method", nm.method}, {"model", mj}};
+    return [this, run_id, purpose, serials, computed] {
+      for (std::size_t i = 0; i < serials.size(); ++i) {
+        json detail = {{"analysis", std::string(storage::to_string(purpose))}, {"unit", static_cast<int>(i)},
+                       {"serial", serials[i]}};
+        ApiResult<json> r = (*computed)[i] ? (*(*computed)[i])(store_) : std::unexpected((*computed)[i].error());
+        if (r && purpose == storage::Purpose::fit) {
+          detail["model_id"] = (*r)["model_id"];
+          detail["n_flagged"] = (*r)["n_flagged"];
+        } else if (r) {
+          detail["verification_id"] = (*r)["verification_id"];
+          detail["pass"] = (*r)["pass"];
+        }
+        detail["ok"] = r.has_value();
+        if (!r) detail["error"] = r.error().message;
+        event(run_id, storage::EventKind::note, detail, std::nullopt);
+      }
+    };
+  });
 }
 
 TickOutput Station::tick(double clock_s, const TickInput& in) {
@@ -761,7 +519,6 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
   }
   run.elapsed_s = clock_s - run.start_clock_s;
   const double t_s = run.elapsed_s;
-  if (in.late) ++run.late_s;
 
   // Alarms and link faults are recorded on their edges, not every second.
   if (in.chamber_alarm != run.alarm) {
@@ -836,7 +593,6 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
     if (u.gyro_dph && std::abs(*u.gyro_dph) > kGyroMaxAbsDph) oor = true;
     if (oor) f |= model::flag::out_of_range;
     if (in.chamber_link_down) f |= model::flag::link_gap;
-    if (run.pv_frozen) f |= model::flag::pv_frozen;
     r.flags = f;
     rows.push_back(r);
     if (run.quality.size() < run.config_index.size()) run.quality.resize(run.config_index.size());
@@ -866,7 +622,7 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
   }
 
   if (stored && abort_reason) {
-    finish(RunState::aborted, behind_real_time(run, *abort_reason));
+    finish(RunState::aborted, *abort_reason);
   } else if (!stored) {
     // Samples that cannot be stored make the run worthless: stop it rather than run on blind,
     // and make the chamber safe. A fault of the station, as a chamber's is: `aborted`
@@ -876,7 +632,7 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
                                   " (" + std::string(storage::to_string(e.code)) +
                                   "): samples could not be stored: " + e.message);
   } else if (st.failed) {
-    finish(RunState::failed, behind_real_time(run, st.failure_reason));
+    finish(RunState::failed, st.failure_reason);
   } else if (st.finished) {
     finish(RunState::completed, "profile finished");
   } else {
@@ -923,7 +679,6 @@ std::optional<std::string> Station::chamber_fault(ActiveRun& run, const TickInpu
     return std::nullopt;
   }
   run.link_down_since_s.reset();
-  run.pv_frozen = false;
   if (!in.chamber_c) return std::nullopt;
   const double pv_c = *in.chamber_c;
 
@@ -948,9 +703,6 @@ std::optional<std::string> Station::chamber_fault(ActiveRun& run, const TickInpu
   } else {
     run.sp_min_c = std::min(run.sp_min_c, setpoint_c_);
     run.sp_max_c = std::max(run.sp_max_c, setpoint_c_);
-    // Unchanged while the setpoint moved this much: a stale value, flagged from here on (and
-    // the run ends once it lasts tracking.frozen_s).
-    run.pv_frozen = run.sp_max_c - run.sp_min_c >= kSetpointMovedC;
     if (t_s - run.pv_same_since_s >= config_.tracking.frozen_s && run.sp_max_c - run.sp_min_c >= kSetpointMovedC)
       return "chamber process value frozen at " + fmt(pv_c) + " degC for " + fmt(t_s - run.pv_same_since_s) +
              " s while the setpoint moved " + fmt(run.sp_max_c - run.sp_min_c) + " degC (tracking.frozen_s " +

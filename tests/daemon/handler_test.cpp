@@ -31,6 +31,8 @@ TEST_CASE("handler: hello names the protocol") {
   CHECK(h["type"] == "hello");
   CHECK(h["protocol"] == 1);
   CHECK(h["max_line_bytes"] == kMaxLineBytes);
+  CHECK(h["limits"]["max_line_bytes"] == kMaxLineBytes);
+  CHECK(h["limits"]["max_depth"] == kMaxDepth);
 }
 
 TEST_CASE("handler: a reply carries the request's id, number or string") {
@@ -135,6 +137,21 @@ TEST_CASE("handler: deeply nested or huge input is an error reply, not a crash")
   CHECK(r.code(R"({"id":1,"cmd":"run.list","limit":1e308})") == "bad_request");
   CHECK(r.code(R"({"id":1,"cmd":"run.get","run_id":-1})") == "bad_request");
   CHECK(Handler::too_long()["error"]["code"] == "bad_request");
+  // Issue 11's crash line: 100,000 levels inside a valid request, under the line limit.
+  json deep = r.send(R"({"id":1,"cmd":"status","x":)" + std::string(100000, '[') + std::string(100000, ']') + "}");
+  CHECK(deep["error"]["code"] == "bad_json");
+  CHECK(deep["error"]["message"] == "nesting deeper than 64 levels at column 91");  // 27 + 64
+}
+
+TEST_CASE("handler: a key twice in a request is bad_json, and nothing runs") {
+  Rig r;
+  // Before: the last "cmd" won and this aborted the run.
+  json a = r.send(R"({"id":1,"cmd":"status","cmd":"run.abort"})");
+  CHECK(a["error"]["code"] == "bad_json");
+  CHECK(a["error"]["message"] == R"(duplicate key "cmd")");
+  CHECK(r.code(R"({"id":1,"id":2,"cmd":"status"})") == "bad_json");
+  CHECK(r.code(R"({"id":1,"cmd":"run.start","profile":"short","units":["FOG-0001"],"x":{"a":1,"a":1}})") == "bad_json");
+  CHECK(r.station.active_run_id() == std::nullopt);
 }
 
 TEST_CASE("handler: a read-only connection (TCP) may query but not change anything") {

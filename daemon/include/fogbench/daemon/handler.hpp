@@ -3,6 +3,8 @@
 // and the golden transcripts in tests/golden/ replay it directly.
 #pragma once
 
+#include <functional>
+#include <memory>
 #include <string>
 #include <string_view>
 
@@ -34,9 +36,25 @@ class Handler {
 
   // The first message on every connection.
   static nlohmann::json hello();
-  // Parses a line and dispatches it; never throws, whatever the line holds.
+  // A message as sent: one protocol line, newline included. Invalid UTF-8 in a string (a
+  // profile parser's quote of a cut multi-byte character, say) is replaced rather than thrown.
+  using Line = std::shared_ptr<const std::string>;
+  static Line to_line(const nlohmann::json& message);
+  using Done = std::function<void(Line reply)>;
+
+  // Parses a line and dispatches it; never throws, whatever the line holds. The reply goes to
+  // `done`: at once for most commands; for the long ones (offloaded()) once the station's
+  // Offload has run them, later and on the loop thread, serialised off it when it is large. A
+  // session waits for it before its next request, so replies keep the order of the requests.
+  void handle_line(std::string_view line, SessionState& session, Done done);
+  void handle(const nlohmann::json& request, SessionState& session, Done done);
+  // The same, for an Offload that runs inline (tests, golden transcripts, the fuzzer): the reply.
   nlohmann::json handle_line(std::string_view line, SessionState& session);
   nlohmann::json handle(const nlohmann::json& request, SessionState& session);
+
+  // The commands handed to the Offload: the analyses (model.fit, model.verify, model.compare,
+  // model.diagnose, model.add_term) and the reads that may be large (run.samples, run.get).
+  static bool offloaded(std::string_view cmd);
 
   static nlohmann::json reply(const nlohmann::json& id, nlohmann::json result);
   static nlohmann::json error(const nlohmann::json& id, ErrorCode code, const std::string& message);
@@ -46,6 +64,8 @@ class Handler {
  private:
   ApiResult<nlohmann::json> dispatch(const std::string& cmd, const nlohmann::json& req,
                                      SessionState& session);
+  // An offloaded command: its arguments checked here, the rest submitted.
+  void offload(const std::string& cmd, const nlohmann::json& req, const nlohmann::json& id, Done done);
   Station& station_;
 };
 

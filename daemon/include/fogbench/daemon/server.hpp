@@ -1,6 +1,7 @@
 // fogbenchd's event loop: one Boost.Asio io_context that owns the signal set, the command
 // socket acceptors and sessions, the acquisition schedule and the gyro bus descriptor, plus the
-// one worker thread that libmodbus's blocking calls force (chamber and thermistors).
+// worker thread that libmodbus's blocking calls force (chamber and thermistors) and the
+// analysis worker (fits, verifications, large reads; offload.hpp).
 #pragma once
 
 #include <expected>

@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "fogbench/daemon/config.hpp"
+#include "fogbench/daemon/offload.hpp"
 #include "fogbench/profiles/executor.hpp"
 #include "fogbench/profiles/profile.hpp"
 #include "fogbench/storage/store.hpp"
@@ -35,7 +36,6 @@ enum class ErrorCode {
   unknown_serial,   // a serial not configured on this bench, or without a model to verify
   forbidden,        // a command that changes something, on a connection that may only read (TCP)
   internal,         // storage or analysis failed; the daemon keeps running
-  unavailable,      // the bench cannot run now: the chamber link is down (run.start, run.resume)
 };
 std::string_view to_string(ErrorCode c);
 
@@ -69,12 +69,6 @@ struct TickInput {
   bool chamber_alarm = false;
   bool chamber_link_down = false;            // the chamber could not be polled this period
   std::vector<UnitReading> units;            // one per configured unit, in config order
-  // The loop was too late for this second (a busy host at a high time scale): what is missing
-  // is missing for that, not for a fault. A run that fails after such seconds says so.
-  bool late = false;
-  // The gyro bus was read for this period (false: its link down, the loop late, a paced bench
-  // that did not step): no frames then is no silence of the gyros (PowerWatch, power_on.hpp).
-  bool gyro_read = true;
 };
 
 struct TickOutput {
@@ -90,6 +84,9 @@ class Station {
 
   Station(DaemonConfig config, storage::Store& store, double time_scale = 1.0,
           WallClock wall_clock = {});
+  // Not copied or moved: offload_ may point at its own inline_offload_.
+  Station(const Station&) = delete;
+  Station& operator=(const Station&) = delete;
 
   void set_publisher(Publish p) { publish_ = std::move(p); }
 
@@ -133,21 +130,13 @@ class Station {
                                                   const std::string& source) const;
   std::vector<std::string> profile_names() const;
 
-  // Analysis of a stored run's unit (index in the run). terms/method empty: the configured.
-  ApiResult<nlohmann::json> fit_unit(std::int64_t run_id, int unit_index, const std::string& terms,
-                                     const std::string& method);
-  ApiResult<nlohmann::json> verify_unit(std::int64_t run_id, int unit_index,
-                                        std::optional<std::int64_t> model_id);
-  // The workbench on stored runs (docs/workbench.md): model_id empty means the unit's serial's
-  // current model. compare and diagnose store nothing; add_term stores the refined model with
-  // the model it came from as its parent.
-  ApiResult<nlohmann::json> compare_unit(std::int64_t run_id, int unit_index,
-                                         std::optional<std::int64_t> model_id);
-  ApiResult<nlohmann::json> diagnose_unit(std::int64_t run_id, int unit_index,
-                                          std::optional<std::int64_t> model_id,
-                                          const std::vector<std::int64_t>& held_out_runs);
-  ApiResult<nlohmann::json> add_term_unit(std::int64_t run_id, int unit_index, const std::string& term,
-                                          std::optional<std::int64_t> model_id);
+  // Where the analysis runs (the fit or verification when a run completes, and the handler's
+  // fit, verify and workbench commands): inline on this station's store until the server gives
+  // it its worker (offload.hpp). Not owned; it must outlive the station's use of it.
+  void set_offload(Offload* offload) { offload_ = offload ? offload : &inline_offload_; }
+  Offload& offload() { return *offload_; }
+  // The models' created_at: the injected wall clock's now.
+  std::string wall_now() const { return wall_clock_(); }
 
   storage::Store& store() { return store_; }
   const DaemonConfig& config() const { return config_; }
@@ -169,7 +158,6 @@ class Station {
       std::uint64_t frames_lost = 0, frames_corrupt = 0, samples_flagged = 0;
     };
     std::vector<Quality> quality;
-    std::int64_t late_s = 0;  // seconds the loop was too late to read (TickInput::late)
     double start_clock_s = 0.0;
     std::optional<double> resume_at_s;  // a resumed run: the run time of its first tick
     double elapsed_s = 0.0;
@@ -188,14 +176,9 @@ class Station {
     std::optional<double> pv_last_c;            // the PV as last seen changing ...
     double pv_same_since_s = 0.0;               // ... since this run time,
     double sp_min_c = 0.0, sp_max_c = 0.0;      // the setpoints commanded meanwhile
-    bool pv_frozen = false;                     // this second's PV is a frozen one (flag pv_frozen)
   };
 
   static nlohmann::json quality_json(const ActiveRun& run);
-  // Why no run may start now (the chamber link is down), if so.
-  std::optional<ApiError> chamber_unavailable() const;
-  // `why` a run fails or aborts for, said after the loop fell behind real time if it did.
-  std::string behind_real_time(const ActiveRun& run, const std::string& why) const;
   // Why the chamber's state this second ends the run (alarm, link lost, not tracking), if it does.
   std::optional<std::string> chamber_fault(ActiveRun& run, const TickInput& in, double t_s);
 
@@ -222,6 +205,8 @@ class Station {
   void event(std::int64_t run_id, storage::EventKind kind, const nlohmann::json& detail,
              std::optional<double> t_s);
   void finish(storage::RunState to, const std::string& reason);
+  // The automatic fit or verification of a completed run: computed on the offload, stored and
+  // noted (a `note` event per unit) back on the loop.
   void analyse(std::int64_t run_id, storage::Purpose purpose, const std::vector<std::string>& serials);
   void emit(const nlohmann::json& message) {
     if (publish_) publish_(message);
@@ -229,6 +214,8 @@ class Station {
 
   DaemonConfig config_;
   storage::Store& store_;
+  InlineOffload inline_offload_{store_};
+  Offload* offload_ = &inline_offload_;
   double time_scale_ = 1.0;
   WallClock wall_clock_;
   Publish publish_;
