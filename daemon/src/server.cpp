@@ -28,6 +28,7 @@
 #include "fogbench/drivers/chamber.hpp"
 #include "fogbench/drivers/gyro_bus.hpp"
 #include "fogbench/drivers/thermistor_module.hpp"
+#include "sim_clock.hpp"
 
 namespace fogbench::daemon {
 
@@ -364,6 +365,11 @@ struct Server::Impl {
   std::thread wthread;
   std::unique_ptr<drivers::Chamber> chamber;
   std::unique_ptr<drivers::ThermistorModule> thermistors;
+  // The thermistor module's own worker (polls only; with the shared simulated clock the
+  // module is read on the worker above, in the job of each second, and this one stays idle).
+  asio::io_context tio;
+  std::optional<asio::executor_work_guard<asio::io_context::executor_type>> tguard;
+  std::thread tthread;
 
   // The gyro bus: read on the loop through its fd.
   std::optional<drivers::GyroBus> bus;
@@ -379,16 +385,37 @@ struct Server::Impl {
   Clock::time_point t0;
   std::int64_t slot = 0;
   std::chrono::nanoseconds half_period{};
-  std::uint64_t poll_seq = 0;      // polls started
-  std::uint64_t poll_done_seq = 0; // polls whose result has arrived
-  bool poll_in_flight = false;
-  std::optional<DeviceReading> reading;  // of poll poll_done_seq
-  bool new_reading = false;              // arrived since the last tick
-  int stale_ticks = 0;                   // ticks since a new reading was used
+  bool chamber_in_flight = false, coils_in_flight = false;  // a poll of the device is under way
+  // The latest reading: its chamber part and its thermistor part arrive separately (a stalled
+  // module does not hold up the chamber's value), each with its own freshness.
+  std::optional<DeviceReading> reading;
+  bool have_chamber = false, have_coils = false;  // each part arrived at least once
+  bool new_chamber = false, new_coils = false;    // arrived since the last tick
+  int stale_chamber = 0, stale_coils = 0;         // ticks since a new part was used
   std::int64_t late_polls = 0;           // ticks that used the previous period's reading
   std::optional<double> written_setpoint_c;
   bool write_in_flight = false;
   std::int64_t late_ticks = 0;
+
+  // The shared simulated clock (config.sim_clock, fogbench-sim --paced): the daemon paces the
+  // world. Second k is acquired once a worker job has written the setpoint of tick k-1, asked
+  // the bench to step one second (so its frames are in the gyro socket) and polled the devices;
+  // tick k waits for that job rather than its wall time alone, so a busy host slows the run
+  // down instead of skipping seconds. The world moves only for seconds of a run.
+  struct PacedResult {
+    DeviceReading reading;
+    bool asked = false;     // the job asked the bench to step (a run was active)
+    bool advanced = false;  // and it did: the world stepped one second for this tick
+  };
+  std::unique_ptr<SimClock> sim_clock;         // used on the worker only
+  std::optional<PacedResult> paced_result;     // the job of second paced_k, once done
+  std::int64_t paced_k = 0;                    // the second the next tick closes
+  std::chrono::nanoseconds period{};
+  bool paced_waiting = false;                  // the tick was due before its job was done
+  std::int64_t paced_slowed = 0;               // ticks the schedule was moved back for
+  Clock::time_point paced_logged{};
+  bool clock_logged_down = false;
+  double commanded_setpoint_c = 0.0;           // the station's last output
 
   bool stopping = false;
   asio::steady_timer shutdown_timer{io};
@@ -461,53 +488,100 @@ struct Server::Impl {
     });
   }
 
+  // The chamber on the worker, the module on its own thread: a stalled module (or chamber)
+  // must not make the other's readings late. A device whose last poll is still blocked in
+  // libmodbus is not asked again.
   void post_poll() {
-    if (poll_in_flight) return;  // the previous poll is still blocked in libmodbus
-    poll_in_flight = true;
-    const auto seq = ++poll_seq;
-    asio::post(wio, [this, seq] {
-      DeviceReading d;
-      if (auto r = chamber->poll()) {
-        d.chamber_ok = true;
-        d.chamber_c = r->process_value_c;
-        d.chamber_setpoint_c = r->setpoint_c;
-        d.alarm = r->alarm;
-      } else {
-        d.chamber_error = r.error().to_string();
-      }
-      d.coils.resize(config.drivers.units.size());
-      if (auto t = thermistors->read_all()) {
-        d.thermistors_ok = true;
-        for (std::size_t i = 0; i < t->size() && i < d.coils.size(); ++i) {
-          const auto& c = (*t)[i];
-          auto take = [&](const drivers::Result<double>& v, std::optional<double>& out) {
-            if (v) out = *v;
-            else if (v.error().code == drivers::ErrorCode::out_of_range) d.coils[i].out_of_range = true;
-          };
-          take(c.t1_c, d.coils[i].t1_c);
-          take(c.t2_c, d.coils[i].t2_c);
-        }
-      } else {
-        d.thermistor_error = t.error().to_string();
-      }
-      asio::post(io, [this, seq, d = std::move(d)]() mutable {
-        poll_in_flight = false;
-        poll_done_seq = seq;
-        if (reading && reading->chamber_ok != d.chamber_ok) {
-          if (d.chamber_ok) spdlog::info("chamber link up");
-          else spdlog::warn("chamber: {}", d.chamber_error);
-        }
-        if (reading && reading->thermistors_ok != d.thermistors_ok) {
-          if (d.thermistors_ok) spdlog::info("thermistor module link up");
-          else spdlog::warn("thermistor module: {}", d.thermistor_error);
-        }
-        // A controller that was away may have restarted with another setpoint: once the link
-        // is back the setpoint is written again, not assumed.
-        if (!d.chamber_ok) written_setpoint_c.reset();
-        reading = std::move(d);
-        new_reading = true;
+    if (!chamber_in_flight) {
+      chamber_in_flight = true;
+      asio::post(wio, [this] {
+        DeviceReading c;
+        read_chamber(c);
+        asio::post(io, [this, c = std::move(c)] {
+          chamber_in_flight = false;
+          take_chamber(c);
+        });
       });
-    });
+    }
+    if (!coils_in_flight) {
+      coils_in_flight = true;
+      asio::post(tio, [this] {
+        DeviceReading t;
+        read_thermistors(t);
+        asio::post(io, [this, t = std::move(t)] {
+          coils_in_flight = false;
+          take_thermistors(t);
+        });
+      });
+    }
+  }
+
+  // On the worker: one poll of the chamber and the thermistor module.
+  DeviceReading read_devices() {
+    DeviceReading d;
+    read_chamber(d);
+    read_thermistors(d);
+    return d;
+  }
+  void read_chamber(DeviceReading& d) {
+    if (auto r = chamber->poll()) {
+      d.chamber_ok = true;
+      d.chamber_c = r->process_value_c;
+      d.chamber_setpoint_c = r->setpoint_c;
+      d.alarm = r->alarm;
+    } else {
+      d.chamber_error = r.error().to_string();
+    }
+  }
+  void read_thermistors(DeviceReading& d) {
+    d.coils.resize(config.drivers.units.size());
+    if (auto t = thermistors->read_all()) {
+      d.thermistors_ok = true;
+      for (std::size_t i = 0; i < t->size() && i < d.coils.size(); ++i) {
+        const auto& c = (*t)[i];
+        auto take = [&](const drivers::Result<double>& v, std::optional<double>& out) {
+          if (v) out = *v;
+          else if (v.error().code == drivers::ErrorCode::out_of_range) d.coils[i].out_of_range = true;
+        };
+        take(c.t1_c, d.coils[i].t1_c);
+        take(c.t2_c, d.coils[i].t2_c);
+      }
+    } else {
+      d.thermistor_error = t.error().to_string();
+    }
+  }
+
+  // On the loop: a poll's results become the current reading, each device's part on its own.
+  void take_chamber(const DeviceReading& d) {
+    if (have_chamber && reading->chamber_ok != d.chamber_ok) {
+      if (d.chamber_ok) spdlog::info("chamber link up");
+      else spdlog::warn("chamber: {}", d.chamber_error);
+    }
+    // A controller that was away may have restarted with another setpoint: once the link
+    // is back the setpoint is written again, not assumed.
+    if (!d.chamber_ok) written_setpoint_c.reset();
+    if (!reading) reading.emplace();
+    reading->chamber_ok = d.chamber_ok;
+    reading->chamber_error = d.chamber_error;
+    reading->chamber_c = d.chamber_c;
+    reading->chamber_setpoint_c = d.chamber_setpoint_c;
+    reading->alarm = d.alarm;
+    have_chamber = new_chamber = true;
+  }
+  void take_thermistors(const DeviceReading& d) {
+    if (have_coils && reading->thermistors_ok != d.thermistors_ok) {
+      if (d.thermistors_ok) spdlog::info("thermistor module link up");
+      else spdlog::warn("thermistor module: {}", d.thermistor_error);
+    }
+    if (!reading) reading.emplace();
+    reading->thermistors_ok = d.thermistors_ok;
+    reading->thermistor_error = d.thermistor_error;
+    reading->coils = d.coils;
+    have_coils = new_coils = true;
+  }
+  void take_reading(const DeviceReading& d) {
+    take_chamber(d);
+    take_thermistors(d);
   }
 
   // --- gyro bus
@@ -528,9 +602,9 @@ struct Server::Impl {
       ok = bus->reopen(config.drivers.gyro_bus);
     }
     if (!ok) {
-      if (!gyro_logged_down) spdlog::warn("gyro bus: {}; retrying every second", ok.error().to_string());
+      if (!gyro_logged_down) spdlog::warn("gyro bus: {}; retrying every second of run time", ok.error().to_string());
       gyro_logged_down = true;
-      gyro_retry.expires_after(std::chrono::seconds(1));
+      gyro_retry.expires_after(gyro_retry_delay(options.time_scale));
       gyro_retry.async_wait([this](boost::system::error_code ec) {
         if (!ec) open_gyro();
       });
@@ -553,7 +627,7 @@ struct Server::Impl {
         if (!n) {
           spdlog::warn("gyro bus: {}", n.error().to_string());
           (void)gyro_sd.release();  // the bus owns and closes the fd
-          gyro_retry.expires_after(std::chrono::seconds(1));
+          gyro_retry.expires_after(gyro_retry_delay(options.time_scale));
           gyro_retry.async_wait([this](boost::system::error_code e) {
             if (!e) open_gyro();
           });
@@ -601,57 +675,183 @@ struct Server::Impl {
 
   // A second the loop was too late to acquire: nothing read, the profile steps on.
   void tick_unread(std::int64_t k) {
-    TickInput in;
-    in.wall_time = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-    in.units.resize(config.drivers.units.size());
+    TickInput in = new_input();
+    in.late = true;
+    in.gyro_read = false;  // its frames go into the next period's sample
     const TickOutput out = station->tick(static_cast<double>(k), in);
     if (!written_setpoint_c || *written_setpoint_c != out.setpoint_c) post_write_setpoint(out.setpoint_c);
   }
 
-  void tick(std::int64_t k) {
+  // The gyro's averages since the last tick.
+  void fill_gyro(TickInput& in) {
+    in.gyro_read = bus && gyro_sd.is_open();
+    if (!bus) return;
+    auto s = bus->close_samples();
+    for (std::size_t i = 0; i < s.units.size() && i < in.units.size(); ++i) {
+      in.units[i].gyro_dph = s.units[i].rate_dph;
+      in.units[i].frames = s.units[i].frames;
+      in.units[i].frames_lost = s.units[i].frames_lost;
+      in.units[i].frames_corrupt = s.units[i].frames_corrupt;
+    }
+  }
+  static void fill_chamber(TickInput& in, const DeviceReading& d) {
+    in.chamber_c = d.chamber_c;
+    in.chamber_setpoint_c = d.chamber_setpoint_c;
+    in.chamber_alarm = d.alarm;
+    in.chamber_link_down = !d.chamber_ok;
+  }
+  static void fill_coils(TickInput& in, const DeviceReading& d) {
+    for (std::size_t i = 0; i < in.units.size() && i < d.coils.size(); ++i) {
+      in.units[i].t1_c = d.coils[i].t1_c;
+      in.units[i].t2_c = d.coils[i].t2_c;
+      in.units[i].out_of_range = d.coils[i].out_of_range;
+    }
+  }
+  TickInput new_input() const {
     TickInput in;
     in.wall_time = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
     in.units.resize(config.drivers.units.size());
-    if (bus) {
-      auto s = bus->close_samples();
-      for (std::size_t i = 0; i < s.units.size() && i < in.units.size(); ++i) {
-        in.units[i].gyro_dph = s.units[i].rate_dph;
-        in.units[i].frames = s.units[i].frames;
-        in.units[i].frames_lost = s.units[i].frames_lost;
-        in.units[i].frames_corrupt = s.units[i].frames_corrupt;
+    return in;
+  }
+
+  void tick(std::int64_t k) {
+    TickInput in = new_input();
+    fill_gyro(in);
+    // The poll of this period normally arrived half a period ago. When a part of it is late (a
+    // loaded machine at a high time scale, a stalled device), the previous one, one period old,
+    // stands in once: a settle judged on "every reading in band" would otherwise restart at
+    // each late poll. Older than that, its values are missing, and the station is told the
+    // loop was late for them (a run that fails says so).
+    auto usable = [&](bool have, bool& fresh, int& stale) {
+      if (!have) return false;
+      if (fresh) {
+        fresh = false;
+        stale = 0;
+        return true;
       }
-    }
-    // The poll of this period normally arrived half a period ago. When it is late (a loaded
-    // machine at a high time scale), the previous reading, one period old, stands in once: a
-    // settle judged on "every reading in band" would otherwise restart at each late poll.
-    // Older than that, the values are missing.
-    std::optional<DeviceReading> use;
-    if (new_reading) {
-      use = reading;
-      stale_ticks = 0;
-    } else if (reading && stale_ticks < 1) {
-      use = reading;
-      ++stale_ticks;
-      ++late_polls;
-    } else {
-      ++stale_ticks;
-    }
-    new_reading = false;
-    if (use) {
-      in.chamber_c = use->chamber_c;
-      in.chamber_setpoint_c = use->chamber_setpoint_c;
-      in.chamber_alarm = use->alarm;
-      in.chamber_link_down = !use->chamber_ok;
-      for (std::size_t i = 0; i < in.units.size() && i < use->coils.size(); ++i) {
-        in.units[i].t1_c = use->coils[i].t1_c;
-        in.units[i].t2_c = use->coils[i].t2_c;
-        in.units[i].out_of_range = use->coils[i].out_of_range;
+      if (stale++ < 1) {
+        ++late_polls;
+        return true;
       }
-    } else if (reading) {
+      return false;
+    };
+    if (usable(have_chamber, new_chamber, stale_chamber)) {
+      fill_chamber(in, *reading);
+    } else if (have_chamber) {
       in.chamber_link_down = !reading->chamber_ok;
+      in.late = true;
     }
+    if (usable(have_coils, new_coils, stale_coils)) fill_coils(in, *reading);
+    else if (have_coils) in.late = true;
     const TickOutput out = station->tick(static_cast<double>(k), in);
+    commanded_setpoint_c = out.setpoint_c;
     if (!written_setpoint_c || *written_setpoint_c != out.setpoint_c) post_write_setpoint(out.setpoint_c);
+  }
+
+  // --- the shared simulated clock (config.sim_clock)
+  void paced_start() {
+    period = 2 * half_period;
+    t0 = Clock::now() + period;
+    paced_k = 0;
+    commanded_setpoint_c = config.safe_setpoint_c;
+    paced_post_job(false, std::nullopt);
+    paced_schedule();
+  }
+
+  // The job of second paced_k: the setpoint of the last tick, one simulated second (in a run),
+  // then the poll. In this order on the worker, so the world steps under the setpoint the
+  // station commanded and the poll reads the end of that second.
+  void paced_post_job(bool advance, std::optional<double> setpoint_c) {
+    asio::post(wio, [this, advance, setpoint_c] {
+      PacedResult r;
+      r.asked = advance;
+      std::string write_error, clock_error;
+      if (setpoint_c)
+        if (auto w = chamber->write_setpoint_c(*setpoint_c); !w) write_error = w.error().to_string();
+      if (advance) {
+        if (auto t = sim_clock->advance(1)) r.advanced = true;
+        else clock_error = t.error();
+      }
+      r.reading = read_devices();
+      if (!clock_error.empty()) {
+        // The bench did not move: nothing of this second was read. As a bench that does not
+        // answer, the chamber counts as unreachable (link_loss decides).
+        r.reading = DeviceReading{};
+        r.reading.coils.resize(config.drivers.units.size());
+        r.reading.chamber_error = r.reading.thermistor_error = "simulated clock: " + clock_error;
+      }
+      asio::post(io, [this, setpoint_c, write_error, clock_error, r = std::move(r)]() mutable {
+        if (setpoint_c) {
+          if (write_error.empty()) written_setpoint_c = *setpoint_c;
+          else spdlog::warn("setpoint {} C not written: {}", *setpoint_c, write_error);
+        }
+        if (!clock_error.empty()) {
+          if (!clock_logged_down) spdlog::error("simulated clock: {}", clock_error);
+          clock_logged_down = true;
+        } else if (r.advanced && clock_logged_down) {
+          spdlog::info("simulated clock: stepping again");
+          clock_logged_down = false;
+        }
+        paced_result = std::move(r);
+        if (paced_waiting && !stopping) {
+          paced_waiting = false;
+          paced_tick();
+        }
+      });
+    });
+  }
+
+  void paced_schedule() {
+    timer.expires_at(t0 + paced_k * period);
+    timer.async_wait([this](boost::system::error_code ec) {
+      if (ec || stopping) return;
+      if (paced_result) paced_tick();
+      else paced_waiting = true;  // the job's completion ticks
+    });
+  }
+
+  void paced_tick() {
+    PacedResult r = std::move(*paced_result);
+    paced_result.reset();
+    const std::int64_t k = paced_k++;
+    // Every frame of the second the bench stepped is in the socket: read them all now.
+    if (bus && gyro_sd.is_open())
+      for (int i = 0; i < 1000; ++i) {
+        auto n = bus->read_frames(frames);
+        if (!n || *n == 0) break;
+      }
+    TickInput in = new_input();
+    fill_gyro(in);
+    in.gyro_read = in.gyro_read && r.advanced;  // a world that did not step sent nothing
+    if (!r.asked && station->active_run_id()) {
+      // A run was asked for after this second's job was sent, so the world did not move for
+      // it: its first second is the next, one the world steps through. A run's samples then
+      // depend on the seed and the runs before it, not on when it was started.
+    } else {
+      take_reading(r.reading);
+      new_chamber = new_coils = false;
+      fill_chamber(in, r.reading);
+      fill_coils(in, r.reading);
+      commanded_setpoint_c = station->tick(static_cast<double>(k), in).setpoint_c;
+    }
+    std::optional<double> sp;
+    if (!written_setpoint_c || *written_setpoint_c != commanded_setpoint_c) sp = commanded_setpoint_c;
+    paced_post_job(station->active_run_id().has_value(), sp);
+    // Behind the schedule by more than two periods (the host is busy): the schedule moves back
+    // rather than catching up in a burst. The run goes on slower than the time scale, and every
+    // second is acquired as it would be on an idle host.
+    const auto now = Clock::now();
+    const auto due = t0 + paced_k * period;
+    if (now - due > 2 * period) {
+      t0 += now - due;
+      ++paced_slowed;
+      if (now - paced_logged > std::chrono::seconds(10)) {
+        paced_logged = now;
+        spdlog::info("simulated clock: slower than time scale {} (a busy host); {} tick(s) waited so far",
+                     options.time_scale, paced_slowed);
+      }
+    }
+    paced_schedule();
   }
 
   // --- stopping
@@ -705,6 +905,11 @@ Server::~Server() {
     impl_->wguard.reset();
     impl_->wio.stop();
     impl_->wthread.join();
+  }
+  if (impl_ && impl_->tthread.joinable()) {
+    impl_->tguard.reset();
+    impl_->tio.stop();
+    impl_->tthread.join();
   }
   if (impl_ && impl_->unix_acceptor) {
     std::error_code ec;
@@ -774,10 +979,13 @@ std::expected<void, std::string> Server::start() {
 
   // Reconnection delays in run time, not wall time (config.hpp).
   scale_backoff_to_clock(m.config.drivers, m.options.time_scale);
+  if (m.config.sim_clock) m.sim_clock = std::make_unique<SimClock>(*m.config.sim_clock, std::chrono::seconds(15));
   m.chamber = std::make_unique<drivers::Chamber>(m.config.drivers.chamber);
   m.thermistors = std::make_unique<drivers::ThermistorModule>(m.config.drivers.thermistors, m.config.drivers.units);
   m.wguard.emplace(m.wio.get_executor());
   m.wthread = std::thread([&m] { m.wio.run(); });
+  m.tguard.emplace(m.tio.get_executor());
+  m.tthread = std::thread([&m] { m.tio.run(); });
   return {};
 }
 
@@ -810,9 +1018,13 @@ int Server::run() {
   m.open_gyro();
 
   m.half_period = std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(0.5e9 / m.options.time_scale)));
-  m.t0 = Clock::now() + 2 * m.half_period;
-  m.slot = -1;  // the first poll comes half a period before the first tick
-  m.schedule();
+  if (m.sim_clock) {
+    m.paced_start();
+  } else {
+    m.t0 = Clock::now() + 2 * m.half_period;
+    m.slot = -1;  // the first poll comes half a period before the first tick
+    m.schedule();
+  }
 
   spdlog::info("listening on {}{}; time scale {}", m.config.socket.unix_path.string(),
                m.config.socket.tcp_port ? " and " + m.config.socket.tcp_address + ":" + std::to_string(*m.config.socket.tcp_port) : "",
@@ -836,6 +1048,9 @@ int Server::run() {
   if (m.analysis) m.analysis->stop();
   m.wguard.reset();
   m.wthread.join();
+  m.tguard.reset();
+  m.tio.stop();
+  m.tthread.join();
   std::error_code ec;
   std::filesystem::remove(m.config.socket.unix_path, ec);
   m.unix_acceptor.reset();

@@ -36,6 +36,7 @@ std::string_view to_string(ErrorCode c) {
     case ErrorCode::unknown_serial: return "unknown_serial";
     case ErrorCode::forbidden: return "forbidden";
     case ErrorCode::internal: return "internal";
+    case ErrorCode::unavailable: return "unavailable";
   }
   return "internal";
 }
@@ -262,12 +263,21 @@ void Station::transition(ActiveRun& run, RunState to, const std::string& reason,
                     {"to", std::string(storage::to_string(to))}, {"reason", reason}}}});
 }
 
+// A run started while the chamber cannot be polled would only wait out link_loss.tolerance_s
+// and abort: refused at once instead. Before the first poll nothing is known and nothing refused.
+std::optional<ApiError> Station::chamber_unavailable() const {
+  if (!last_input_ || !last_input_->chamber_link_down) return std::nullopt;
+  return ApiError{ErrorCode::unavailable,
+                  "the chamber link is down (the chamber cannot be polled): no run starts until it answers again"};
+}
+
 ApiResult<std::int64_t> Station::start_run(const std::string& profile_name,
                                            const std::vector<std::string>& serials,
                                            const std::string& purpose_text, const json& command) {
   if (run_) return api_error(ErrorCode::busy, "run " + std::to_string(run_->id) + " is " +
                                                   std::string(storage::to_string(run_->state)));
   if (recovery_error_) return std::unexpected(not_recovered(*recovery_error_));
+  if (auto down = chamber_unavailable()) return std::unexpected(*down);
   auto purpose = storage::purpose_from_string(purpose_text);
   if (!purpose) return api_error(ErrorCode::bad_request, "purpose: expected \"fit\" or \"verify\"");
   if (serials.empty()) return api_error(ErrorCode::bad_request, "units: expected at least one serial");
@@ -318,6 +328,7 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
   if (run_) return api_error(ErrorCode::busy, "run " + std::to_string(run_->id) + " is " +
                                                   std::string(storage::to_string(run_->state)));
   if (recovery_error_) return std::unexpected(not_recovered(*recovery_error_));
+  if (auto down = chamber_unavailable()) return std::unexpected(*down);
   auto detail = store_.get_run(run_id);
   if (!detail) return std::unexpected(from_store(detail.error()));
   const storage::RunRecord& rec = detail->run;
@@ -434,6 +445,18 @@ void Station::shutdown(const std::string& reason) {
     spdlog::error("stopping with {} state changes or events the store did not take (see above)", unrecorded_.size());
 }
 
+// A run that fails on what it read (a settle that timed out, a chamber fault) after the loop
+// fell behind real time: that is the first thing to know about it, since seconds never read
+// make a settle time out and blame the chamber wrongly. An operator's abort, a shutdown or a
+// full store are what they say.
+std::string Station::behind_real_time(const ActiveRun& run, const std::string& why) const {
+  if (run.late_s == 0) return why;
+  std::ostringstream o;
+  o << "the acquisition fell behind real time (" << run.late_s << " of " << run.elapsed_s + 1
+    << " s not read in time: the host is too busy for time scale " << time_scale_ << "); " << why;
+  return o.str();
+}
+
 void Station::finish(RunState to, const std::string& reason) {
   assert(run_);
   ActiveRun& run = *run_;
@@ -519,6 +542,7 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
   }
   run.elapsed_s = clock_s - run.start_clock_s;
   const double t_s = run.elapsed_s;
+  if (in.late) ++run.late_s;
 
   // Alarms and link faults are recorded on their edges, not every second.
   if (in.chamber_alarm != run.alarm) {
@@ -593,6 +617,7 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
     if (u.gyro_dph && std::abs(*u.gyro_dph) > kGyroMaxAbsDph) oor = true;
     if (oor) f |= model::flag::out_of_range;
     if (in.chamber_link_down) f |= model::flag::link_gap;
+    if (run.pv_frozen) f |= model::flag::pv_frozen;
     r.flags = f;
     rows.push_back(r);
     if (run.quality.size() < run.config_index.size()) run.quality.resize(run.config_index.size());
@@ -622,7 +647,7 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
   }
 
   if (stored && abort_reason) {
-    finish(RunState::aborted, *abort_reason);
+    finish(RunState::aborted, behind_real_time(run, *abort_reason));
   } else if (!stored) {
     // Samples that cannot be stored make the run worthless: stop it rather than run on blind,
     // and make the chamber safe. A fault of the station, as a chamber's is: `aborted`
@@ -632,7 +657,7 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
                                   " (" + std::string(storage::to_string(e.code)) +
                                   "): samples could not be stored: " + e.message);
   } else if (st.failed) {
-    finish(RunState::failed, st.failure_reason);
+    finish(RunState::failed, behind_real_time(run, st.failure_reason));
   } else if (st.finished) {
     finish(RunState::completed, "profile finished");
   } else {
@@ -679,6 +704,7 @@ std::optional<std::string> Station::chamber_fault(ActiveRun& run, const TickInpu
     return std::nullopt;
   }
   run.link_down_since_s.reset();
+  run.pv_frozen = false;
   if (!in.chamber_c) return std::nullopt;
   const double pv_c = *in.chamber_c;
 
@@ -703,6 +729,9 @@ std::optional<std::string> Station::chamber_fault(ActiveRun& run, const TickInpu
   } else {
     run.sp_min_c = std::min(run.sp_min_c, setpoint_c_);
     run.sp_max_c = std::max(run.sp_max_c, setpoint_c_);
+    // Unchanged while the setpoint moved this much: a stale value, flagged from here on (and
+    // the run ends once it lasts tracking.frozen_s).
+    run.pv_frozen = run.sp_max_c - run.sp_min_c >= kSetpointMovedC;
     if (t_s - run.pv_same_since_s >= config_.tracking.frozen_s && run.sp_max_c - run.sp_min_c >= kSetpointMovedC)
       return "chamber process value frozen at " + fmt(pv_c) + " degC for " + fmt(t_s - run.pv_same_since_s) +
              " s while the setpoint moved " + fmt(run.sp_max_c - run.sp_min_c) + " degC (tracking.frozen_s " +

@@ -36,6 +36,7 @@ enum class ErrorCode {
   unknown_serial,   // a serial not configured on this bench, or without a model to verify
   forbidden,        // a command that changes something, on a connection that may only read (TCP)
   internal,         // storage or analysis failed; the daemon keeps running
+  unavailable,      // the bench cannot run now: the chamber link is down (run.start, run.resume)
 };
 std::string_view to_string(ErrorCode c);
 
@@ -69,6 +70,12 @@ struct TickInput {
   bool chamber_alarm = false;
   bool chamber_link_down = false;            // the chamber could not be polled this period
   std::vector<UnitReading> units;            // one per configured unit, in config order
+  // The loop was too late for this second (a busy host at a high time scale): what is missing
+  // is missing for that, not for a fault. A run that fails after such seconds says so.
+  bool late = false;
+  // The gyro bus was read for this period (false: its link down, the loop late, a paced bench
+  // that did not step): no frames then is no silence of the gyros (PowerWatch, power_on.hpp).
+  bool gyro_read = true;
 };
 
 struct TickOutput {
@@ -158,6 +165,7 @@ class Station {
       std::uint64_t frames_lost = 0, frames_corrupt = 0, samples_flagged = 0;
     };
     std::vector<Quality> quality;
+    std::int64_t late_s = 0;  // seconds the loop was too late to read (TickInput::late)
     double start_clock_s = 0.0;
     std::optional<double> resume_at_s;  // a resumed run: the run time of its first tick
     double elapsed_s = 0.0;
@@ -176,9 +184,14 @@ class Station {
     std::optional<double> pv_last_c;            // the PV as last seen changing ...
     double pv_same_since_s = 0.0;               // ... since this run time,
     double sp_min_c = 0.0, sp_max_c = 0.0;      // the setpoints commanded meanwhile
+    bool pv_frozen = false;                     // this second's PV is a frozen one (flag pv_frozen)
   };
 
   static nlohmann::json quality_json(const ActiveRun& run);
+  // Why no run may start now (the chamber link is down), if so.
+  std::optional<ApiError> chamber_unavailable() const;
+  // `why` a run fails or aborts for, said after the loop fell behind real time if it did.
+  std::string behind_real_time(const ActiveRun& run, const std::string& why) const;
   // Why the chamber's state this second ends the run (alarm, link lost, not tracking), if it does.
   std::optional<std::string> chamber_fault(ActiveRun& run, const TickInput& in, double t_s);
 
