@@ -104,7 +104,25 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   if (j.contains("socket")) {
     const json& s = j["socket"];
     if (!s.is_object()) return Err("socket: expected an object");
-    if (auto ok = only_keys(s, "socket", {"path", "group", "tcp_port", "tcp"}); !ok) return Err(ok.error());
+    if (auto ok = only_keys(s, "socket", {"path", "group", "tcp_port", "tcp", "max_clients", "idle_timeout_s"}); !ok)
+      return Err(ok.error());
+    if (s.contains("max_clients") && !s["max_clients"].is_null()) {
+      const json& v = s["max_clients"];
+      if (!v.is_number_integer() || v.get<long long>() < 1 || v.get<long long>() > 100000)
+        return Err("socket.max_clients: expected an integer 1..100000");
+      c.socket.max_clients = static_cast<int>(v.get<long long>());
+    }
+    if (s.contains("idle_timeout_s")) {
+      // null: never; a number: seconds without a request before an unsubscribed client is closed.
+      if (s["idle_timeout_s"].is_null()) {
+        c.socket.idle_timeout_s.reset();
+      } else {
+        auto t = number(s, "socket", "idle_timeout_s");
+        if (!t) return Err(t.error());
+        if (*t <= 0) return Err("socket.idle_timeout_s: expected a positive number of seconds, or null for none");
+        c.socket.idle_timeout_s = *t;
+      }
+    }
     if (s.contains("group")) {
       auto g = string(s, "socket", "group");
       if (!g) return Err(g.error());

@@ -131,7 +131,8 @@ bool same_token(const std::string& a, const std::string& b) {
 
 json Handler::hello() {
   return {{"type", "hello"}, {"version", FOGBENCH_DAEMON_VERSION}, {"protocol", kProtocolVersion},
-          {"max_line_bytes", kMaxLineBytes}};
+          {"max_line_bytes", kMaxLineBytes},
+          {"limits", {{"max_line_bytes", kMaxLineBytes}, {"max_depth", kMaxDepth}}}};
 }
 
 json Handler::reply(const json& id, json result) {
@@ -178,9 +179,11 @@ json Handler::handle(const json& req, SessionState& session) {
 }
 
 void Handler::handle_line(std::string_view line, SessionState& session, Done done) {
-  json req = json::parse(line, nullptr, false);
-  if (req.is_discarded()) return done(to_line(error(nullptr, ErrorCode::bad_json, "not a JSON value")));
-  handle(req, session, std::move(done));
+  // The protocol's limits are checked while parsing, before any of the value exists: a request
+  // nested past kMaxDepth or with a key twice is refused here (framing.hpp's parse_request).
+  auto req = parse_request(line);
+  if (!req) return done(to_line(error(nullptr, ErrorCode::bad_json, req.error())));
+  handle(*req, session, std::move(done));
 }
 
 void Handler::handle(const json& req, SessionState& session, Done done) {

@@ -46,8 +46,8 @@ int main(int argc, char** argv) {
   }
   fogbench::daemon::Server server(std::move(*config), {time_scale});
   if (auto ok = server.start(); !ok) {
-    spdlog::error("{}", ok.error());
-    return 1;
+    spdlog::error("{}", ok.error().message);
+    return ok.error().exit_code;
   }
   return server.run();
 }

@@ -24,6 +24,7 @@
 
 #include "fogbench/daemon/framing.hpp"
 #include "fogbench/daemon/handler.hpp"
+#include "fogbench/daemon/instance.hpp"
 #include "fogbench/daemon/station.hpp"
 #include "fogbench/drivers/chamber.hpp"
 #include "fogbench/drivers/gyro_bus.hpp"
@@ -50,10 +51,40 @@ constexpr std::size_t kOutputHighWaterBytes = 256u << 10;
 // between turns the loop runs the acquisition timer and whatever I/O is ready, so clients that
 // pipeline requests cannot hold it however many they are (docs/daemon.md, "Threads").
 constexpr int kLinesPerTurn = 16;
+// An accept that fails for want of descriptors or memory (EMFILE, ENFILE, ENOBUFS, ENOMEM)
+// would fail again at once, the connection still waiting in the backlog: wait this long first.
+constexpr auto kAcceptBackoff = std::chrono::milliseconds(250);
+// Failed accepts are logged at most this often, with how many there were.
+constexpr auto kAcceptLogEvery = std::chrono::seconds(60);
 // The chamber is sent to its safe setpoint on the way out; this long at most.
 constexpr auto kShutdownDeadline = std::chrono::seconds(5);
 
 std::shared_ptr<const std::string> wire(const json& message) { return Handler::to_line(message); }
+
+// A client over socket.max_clients: one error line, then the connection is closed. The line is
+// small enough for an empty socket buffer; a deadline closes it anyway if the write hangs.
+template <class Socket>
+void refuse(Socket socket, const std::string& why) {
+  auto sock = std::make_shared<Socket>(std::move(socket));
+  auto line = wire(Handler::error(nullptr, ErrorCode::busy, why));
+  auto deadline = std::make_shared<asio::steady_timer>(sock->get_executor(), std::chrono::seconds(2));
+  deadline->async_wait([sock](boost::system::error_code ec) {
+    if (!ec) sock->close(ec);
+  });
+  asio::async_write(*sock, asio::buffer(*line), [sock, line, deadline](boost::system::error_code, std::size_t) {
+    boost::system::error_code ec;
+    sock->shutdown(Socket::shutdown_both, ec);
+    sock->close(ec);
+    deadline->cancel();
+  });
+}
+
+// Whether an accept failed for want of resources, so retrying at once would spin.
+bool accept_starved(const boost::system::error_code& ec) {
+  const int v = ec.value();
+  return ec.category() == boost::system::system_category() &&
+         (v == EMFILE || v == ENFILE || v == ENOBUFS || v == ENOMEM);
+}
 
 class SessionBase {
  public:
@@ -350,6 +381,14 @@ struct Server::Impl {
   std::optional<asio::local::stream_protocol::acceptor> unix_acceptor;
   std::optional<asio::ip::tcp::acceptor> tcp_acceptor;
   std::list<std::weak_ptr<SessionBase>> sessions;
+  // One daemon per store and per socket path (instance.hpp).
+  std::optional<StoreLock> store_lock;
+  SocketFileId socket_id;
+  // Failed accepts: the backoff timers and the rate-limited log.
+  asio::steady_timer unix_accept_retry{io};
+  asio::steady_timer tcp_accept_retry{io};
+  std::uint64_t accept_failures = 0;  // since the last log line
+  std::optional<Clock::time_point> accept_logged;
 
   std::optional<storage::Store> store;
   std::unique_ptr<Station> station;
@@ -430,29 +469,73 @@ struct Server::Impl {
                                                may_control ? std::string() : config.socket.tcp_token);
     sessions.remove_if([](const auto& w) { return w.expired(); });
     sessions.push_back(s);
+    s->set_idle_timeout(config.socket.idle_timeout_s);
     s->start();
+  }
+
+  // Connections open now, both sockets together.
+  std::size_t open_sessions() {
+    sessions.remove_if([](const auto& w) {
+      auto s = w.lock();
+      return !s || s->is_closed();
+    });
+    return sessions.size();
+  }
+
+  // A new connection: a session, or a refusal past socket.max_clients.
+  template <class Socket>
+  void admit(Socket socket, std::string peer, bool may_control) {
+    const std::size_t open = open_sessions();
+    if (open >= static_cast<std::size_t>(config.socket.max_clients)) {
+      spdlog::warn("client {}: {} clients connected (socket.max_clients); refused", peer, open);
+      refuse(std::move(socket), "too many clients (" + std::to_string(open) +
+                                    " connected, socket.max_clients); closing");
+      return;
+    }
+    accept_session(std::move(socket), std::move(peer), may_control);
+  }
+
+  // A failed accept. Out of descriptors or memory, the next accept would fail at once (the
+  // client still waits in the backlog): retry after kAcceptBackoff instead of spinning. Logged
+  // at most once every kAcceptLogEvery, with the count.
+  void accept_failed(const char* which, const boost::system::error_code& ec, asio::steady_timer& retry,
+                     void (Impl::*again)()) {
+    ++accept_failures;
+    const auto now = Clock::now();
+    if (!accept_logged || now - *accept_logged >= kAcceptLogEvery) {
+      spdlog::warn("accept on {}: {} ({} failed accepts since the last report; {})", which, ec.message(),
+                   accept_failures,
+                   accept_starved(ec) ? "retrying every 250 ms; raise LimitNOFILE or lower socket.max_clients"
+                                      : "retrying");
+      accept_logged = now;
+      accept_failures = 0;
+    }
+    if (!accept_starved(ec)) {
+      (this->*again)();
+      return;
+    }
+    retry.expires_after(kAcceptBackoff);
+    retry.async_wait([this, again](boost::system::error_code e) {
+      if (!e && !stopping) (this->*again)();
+    });
   }
 
   void accept_unix() {
     unix_acceptor->async_accept([this](boost::system::error_code ec, asio::local::stream_protocol::socket s) {
-      if (stopping) return;
-      if (!ec) accept_session(std::move(s), "unix", true);
-      else spdlog::warn("accept on the unix socket: {}", ec.message());
+      if (stopping || ec == asio::error::operation_aborted) return;
+      if (ec) return accept_failed("the unix socket", ec, unix_accept_retry, &Impl::accept_unix);
+      admit(std::move(s), "unix", true);
       accept_unix();
     });
   }
 
   void accept_tcp() {
     tcp_acceptor->async_accept([this](boost::system::error_code ec, asio::ip::tcp::socket s) {
-      if (stopping) return;
-      if (!ec) {
-        boost::system::error_code e2;
-        auto ep = s.remote_endpoint(e2);
-        accept_session(std::move(s), e2 ? std::string("tcp") : ep.address().to_string() + ":" + std::to_string(ep.port()),
-                       false);
-      } else {
-        spdlog::warn("accept on tcp: {}", ec.message());
-      }
+      if (stopping || ec == asio::error::operation_aborted) return;
+      if (ec) return accept_failed("tcp", ec, tcp_accept_retry, &Impl::accept_tcp);
+      boost::system::error_code e2;
+      auto ep = s.remote_endpoint(e2);
+      admit(std::move(s), e2 ? std::string("tcp") : ep.address().to_string() + ":" + std::to_string(ep.port()), false);
       accept_tcp();
     });
   }
@@ -863,6 +946,8 @@ struct Server::Impl {
     boost::system::error_code ec;
     timer.cancel();
     gyro_retry.cancel();
+    unix_accept_retry.cancel();
+    tcp_accept_retry.cancel();
     signals.cancel();
     if (unix_acceptor) unix_acceptor->close(ec);
     if (tcp_acceptor) tcp_acceptor->close(ec);
@@ -911,19 +996,64 @@ Server::~Server() {
     impl_->tio.stop();
     impl_->tthread.join();
   }
-  if (impl_ && impl_->unix_acceptor) {
-    std::error_code ec;
-    std::filesystem::remove(impl_->config.socket.unix_path, ec);
-  }
+  // Only the socket file this daemon bound: another daemon's is never removed.
+  if (impl_ && impl_->unix_acceptor) remove_if_ours(impl_->config.socket.unix_path, impl_->socket_id);
 }
 
-std::expected<void, std::string> Server::start() {
+std::expected<void, Server::StartError> Server::start() {
   Impl& m = *impl_;
+  auto fail = [](std::string message, int code = 1) { return std::unexpected(StartError{std::move(message), code}); };
+
+  // One daemon per store: taken before anything else, so a second daemon on the same store
+  // exits without marking the first one's live run interrupted (issue 11).
+  if (m.config.storage_path != ":memory:") {
+    auto lock = StoreLock::acquire(m.config.storage_path);
+    if (!lock) return fail("storage: " + lock.error().message, lock.error().held_by_other ? 2 : 1);
+    m.store_lock.emplace(std::move(*lock));
+  }
+
+  // The command socket, mode 0660: the group of the socket is the operators' group. A socket
+  // another daemon answers on is never taken over; a stale one (a crash) is replaced. The
+  // umask is set for the bind alone, so the socket never exists with a looser mode (no other
+  // thread runs yet).
+  const auto& path = m.config.socket.unix_path;
+  if (auto ok = make_dirs(path.parent_path()); !ok) return fail("socket " + path.string() + ": " + ok.error());
+  if (auto ok = clear_stale_socket(path); !ok) return fail(ok.error().message, ok.error().held_by_other ? 2 : 1);
+  {
+    const ::mode_t old_mask = ::umask(0117);
+    try {
+      m.unix_acceptor.emplace(m.io, asio::local::stream_protocol::endpoint(path.string()));
+    } catch (const boost::system::system_error& e) {
+      ::umask(old_mask);
+      return fail("socket " + path.string() + ": " + e.what());
+    }
+    ::umask(old_mask);
+  }
+  m.socket_id = socket_file_id(path);
+  if (::chmod(path.c_str(), 0660) != 0) spdlog::warn("chmod 0660 {}: {}", path.string(), std::strerror(errno));
+  if (m.config.socket.group) {
+    const ::group* g = ::getgrnam(m.config.socket.group->c_str());
+    if (!g) return fail("socket.group: no such group: " + *m.config.socket.group);
+    if (::chown(path.c_str(), static_cast<uid_t>(-1), g->gr_gid) != 0)
+      return fail("socket.group: chown " + path.string() + " to " + *m.config.socket.group + ": " +
+                  std::strerror(errno));
+  }
+  if (m.config.socket.tcp_port) {
+    try {
+      m.tcp_acceptor.emplace(m.io, asio::ip::tcp::endpoint(asio::ip::make_address(m.config.socket.tcp_address),
+                                                            *m.config.socket.tcp_port));
+    } catch (const boost::system::system_error& e) {
+      return fail("socket tcp " + m.config.socket.tcp_address + ":" + std::to_string(*m.config.socket.tcp_port) +
+                  ": " + e.what());
+    }
+  }
+
   storage::OpenOptions so;
   so.synchronous_full = m.config.storage_synchronous_full;
   so.size_limit_bytes = m.config.storage_size_limit_bytes;
+  so.file_mode = kStoreFileMode;
   auto store = storage::Store::open(m.config.storage_path, so);
-  if (!store) return std::unexpected("storage: " + store.error().message);
+  if (!store) return fail("storage: " + store.error().message);
   m.store.emplace(std::move(*store));
   m.station = std::make_unique<Station>(m.config, *m.store, m.options.time_scale);
   m.handler = std::make_unique<Handler>(*m.station);
@@ -948,34 +1078,6 @@ std::expected<void, std::string> Server::start() {
   if (!rec) spdlog::error("storage: runs left in progress not marked interrupted: {}; retried every 10 s, no run starts until then",
                           rec.error().message);
   else for (auto id : *rec) spdlog::warn("run {} was in progress when the daemon stopped: marked interrupted", id);
-
-  // The command socket, mode 0660: the group of the socket is the operators' group.
-  const auto& path = m.config.socket.unix_path;
-  std::error_code fec;
-  std::filesystem::create_directories(path.parent_path(), fec);
-  std::filesystem::remove(path, fec);  // a stale socket from a crash
-  try {
-    m.unix_acceptor.emplace(m.io, asio::local::stream_protocol::endpoint(path.string()));
-  } catch (const boost::system::system_error& e) {
-    return std::unexpected("socket " + path.string() + ": " + e.what());
-  }
-  if (::chmod(path.c_str(), 0660) != 0) spdlog::warn("chmod 0660 {}: {}", path.string(), std::strerror(errno));
-  if (m.config.socket.group) {
-    const ::group* g = ::getgrnam(m.config.socket.group->c_str());
-    if (!g) return std::unexpected("socket.group: no such group: " + *m.config.socket.group);
-    if (::chown(path.c_str(), static_cast<uid_t>(-1), g->gr_gid) != 0)
-      return std::unexpected("socket.group: chown " + path.string() + " to " + *m.config.socket.group + ": " +
-                             std::strerror(errno));
-  }
-  if (m.config.socket.tcp_port) {
-    try {
-      m.tcp_acceptor.emplace(m.io, asio::ip::tcp::endpoint(asio::ip::make_address(m.config.socket.tcp_address),
-                                                            *m.config.socket.tcp_port));
-    } catch (const boost::system::system_error& e) {
-      return std::unexpected("socket tcp " + m.config.socket.tcp_address + ":" +
-                             std::to_string(*m.config.socket.tcp_port) + ": " + e.what());
-    }
-  }
 
   // Reconnection delays in run time, not wall time (config.hpp).
   scale_backoff_to_clock(m.config.drivers, m.options.time_scale);
@@ -1051,8 +1153,7 @@ int Server::run() {
   m.tguard.reset();
   m.tio.stop();
   m.tthread.join();
-  std::error_code ec;
-  std::filesystem::remove(m.config.socket.unix_path, ec);
+  remove_if_ours(m.config.socket.unix_path, m.socket_id);
   m.unix_acceptor.reset();
   return m.exit_code;
 }

@@ -15,10 +15,7 @@ using nlohmann::json;
 using namespace std::chrono_literals;
 
 TEST_CASE("e2e crash: SIGKILL mid-run loses no stored second, the restart marks the run interrupted and goes safe") {
-  if (!have_sim()) {
-    WARN("fogbench-sim not built: skipped");
-    return;
-  }
+  require_sim();
   LiveBench bench(50.0);
   std::int64_t run = 0;
   double elapsed_before_kill_s = 0;
@@ -106,10 +103,7 @@ TEST_CASE("e2e crash: SIGKILL mid-run loses no stored second, the restart marks 
 }
 
 TEST_CASE("e2e crash: a store locked at restart does not keep fogbenchd from starting and going safe, the marks follow") {
-  if (!have_sim()) {
-    WARN("fogbench-sim not built: skipped");
-    return;
-  }
+  require_sim();
   LiveBench bench(50.0, {{"safe_setpoint_c", 15}});
   std::int64_t run = 0;
   {

@@ -27,10 +27,7 @@ bool running(const json& r) { return r["run"].is_object() && r["run"]["state"] =
 }  // namespace
 
 TEST_CASE("e2e faults: a chamber link lost past link_loss.tolerance_s aborts, the safe setpoint follows the link back") {
-  if (!have_sim()) {
-    WARN("fogbench-sim not built: skipped");
-    return;
-  }
+  require_sim();
   LiveBench bench(50.0, fast_reconnect({{"link_loss", {{"policy", "hold"}, {"tolerance_s", 20}}}}));
   LineClient c(bench.socket());
   REQUIRE(c.ok());
@@ -74,10 +71,7 @@ TEST_CASE("e2e faults: a chamber link lost past link_loss.tolerance_s aborts, th
 }
 
 TEST_CASE("e2e faults: a short chamber link gap is held and flagged, and the run goes on") {
-  if (!have_sim()) {
-    WARN("fogbench-sim not built: skipped");
-    return;
-  }
+  require_sim();
   LiveBench bench(50.0, fast_reconnect({{"link_loss", {{"policy", "hold"}, {"tolerance_s", 3600}}}}));
   LineClient c(bench.socket());
   REQUIRE(c.ok());
@@ -113,10 +107,7 @@ TEST_CASE("e2e faults: a short chamber link gap is held and flagged, and the run
 }
 
 TEST_CASE("e2e faults: the chamber's alarm aborts the run") {
-  if (!have_sim()) {
-    WARN("fogbench-sim not built: skipped");
-    return;
-  }
+  require_sim();
   LiveBench bench(50.0);
   LineClient c(bench.socket());
   REQUIRE(c.ok());
@@ -129,10 +120,7 @@ TEST_CASE("e2e faults: the chamber's alarm aborts the run") {
 }
 
 TEST_CASE("e2e faults: a frozen process value aborts the run after tracking.frozen_s") {
-  if (!have_sim()) {
-    WARN("fogbench-sim not built: skipped");
-    return;
-  }
+  require_sim();
   LiveBench bench(100.0, {{"tracking", {{"frozen_s", 90}}}});
   LineClient c(bench.socket());
   REQUIRE(c.ok());
@@ -146,10 +134,7 @@ TEST_CASE("e2e faults: a frozen process value aborts the run after tracking.froz
 }
 
 TEST_CASE("e2e faults: lost and corrupt gyro frames and an open thermistor are flagged, counted per unit and shown in status") {
-  if (!have_sim()) {
-    WARN("fogbench-sim not built: skipped");
-    return;
-  }
+  require_sim();
   LiveBench bench(20.0);
   LineClient c(bench.socket());
   REQUIRE(c.ok());
@@ -206,10 +191,7 @@ TEST_CASE("e2e faults: lost and corrupt gyro frames and an open thermistor are f
 }
 
 TEST_CASE("e2e faults: a full store aborts the run, the chamber goes safe, the daemon answers, nothing stored is lost") {
-  if (!have_sim()) {
-    WARN("fogbench-sim not built: skipped");
-    return;
-  }
+  require_sim();
   // The limit counts the files on disk: of 256 KiB the WAL takes a quarter (64 KiB) and its
   // index 32 KiB, leaving the database 160 KiB (40 pages). The schema and the run take about
   // 56 KiB (14 pages) and 16 KiB are the limit's reserve; at 100x two units store 200 rows a

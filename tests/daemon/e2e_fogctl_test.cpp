@@ -62,10 +62,8 @@ std::vector<std::string> row_of(const std::string& text, const std::string& seri
 }  // namespace
 
 TEST_CASE("e2e fogctl: status and run get show each unit's frames lost, frames corrupt and samples flagged") {
-  if (!have_sim() || !have_fogctl()) {
-    WARN("fogbench-sim or fogctl not built: skipped");
-    return;
-  }
+  require_sim();
+  require_fogctl();
   LiveBench bench(20.0);
   auto start = fogctl(bench, "run start " + sock(bench) + " --profile short --unit SIM-0001 --unit SIM-0002 --json");
   INFO(start.err);
@@ -124,10 +122,8 @@ TEST_CASE("e2e fogctl: status and run get show each unit's frames lost, frames c
 }
 
 TEST_CASE("e2e fogctl: --connect reaches fogbenchd over TCP, control needs --token or FOGBENCH_TOKEN") {
-  if (!have_sim() || !have_fogctl()) {
-    WARN("fogbench-sim or fogctl not built: skipped");
-    return;
-  }
+  require_sim();
+  require_fogctl();
   const std::string token = "fogctl-e2e-token-0123456789";
   const auto port = free_port();
   LiveBench bench(20.0, {{"socket", {{"tcp", {{"port", port}, {"token", token}}}}}});
@@ -184,10 +180,8 @@ TEST_CASE("e2e fogctl: --connect reaches fogbenchd over TCP, control needs --tok
 }
 
 TEST_CASE("e2e fogctl: run resume takes up a run a crash interrupted, it refuses what it cannot resume") {
-  if (!have_sim() || !have_fogctl()) {
-    WARN("fogbench-sim or fogctl not built: skipped");
-    return;
-  }
+  require_sim();
+  require_fogctl();
   LiveBench bench(50.0);
   std::int64_t run = 0;
   {
@@ -239,10 +233,8 @@ TEST_CASE("e2e fogctl: run resume takes up a run a crash interrupted, it refuses
 }
 
 TEST_CASE("e2e fogctl: a run's end the store refused is shown as not yet recorded, then recorded once it is") {
-  if (!have_sim() || !have_fogctl()) {
-    WARN("fogbench-sim or fogctl not built: skipped");
-    return;
-  }
+  require_sim();
+  require_fogctl();
   LiveBench bench(20.0, {{"safe_setpoint_c", 15}});
   LineClient c(bench.socket());
   REQUIRE(c.ok());

@@ -19,10 +19,7 @@ const std::string kToken = "e2e-token-0123456789";
 }  // namespace
 
 TEST_CASE("e2e sockets: the unix socket is 0660 in socket.group, TCP reads freely and controls with the token") {
-  if (!have_sim()) {
-    WARN("fogbench-sim not built: skipped");
-    return;
-  }
+  require_sim();
   const ::group* g = ::getgrgid(::getgid());
   REQUIRE(g != nullptr);
   const std::string group = g->gr_name;
@@ -46,10 +43,7 @@ TEST_CASE("e2e sockets: the unix socket is 0660 in socket.group, TCP reads freel
 }
 
 TEST_CASE("e2e sockets: 10,000 pipelined requests are all answered, a client that never reads is dropped, the run goes on") {
-  if (!have_sim()) {
-    WARN("fogbench-sim not built: skipped");
-    return;
-  }
+  require_sim();
   LiveBench bench(20.0);
   LineClient c(bench.socket());
   REQUIRE(c.ok());

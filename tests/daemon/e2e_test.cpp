@@ -17,10 +17,7 @@ using namespace std::chrono_literals;
 using namespace fogbench::daemon::test::live;
 
 TEST_CASE("e2e: an accelerated exp1 fit run is stored and fitted, an exp2 verify run passes") {
-  if (!have_sim()) {
-    WARN("fogbench-sim not built in " << kBin << ": skipped");
-    return;
-  }
+  require_sim();
   LiveBench bench(100.0);
   INFO("test dir " << bench.dir);
   LineClient c(bench.socket());
@@ -63,10 +60,7 @@ TEST_CASE("e2e: an accelerated exp1 fit run is stored and fitted, an exp2 verify
 }
 
 TEST_CASE("e2e: a run aborted mid-ramp sends the chamber back to the safe setpoint") {
-  if (!have_sim()) {
-    WARN("fogbench-sim not built: skipped");
-    return;
-  }
+  require_sim();
   LiveBench bench(50.0);
   LineClient c(bench.socket());
   REQUIRE(c.ok());
@@ -91,10 +85,7 @@ TEST_CASE("e2e: a run aborted mid-ramp sends the chamber back to the safe setpoi
 }
 
 TEST_CASE("e2e: error replies over the socket, refusals that move and store nothing") {
-  if (!have_sim()) {
-    WARN("fogbench-sim not built: skipped");
-    return;
-  }
+  require_sim();
   LiveBench bench(20.0);
   LineClient c(bench.socket());
   REQUIRE(c.ok());
@@ -140,10 +131,7 @@ TEST_CASE("e2e: error replies over the socket, refusals that move and store noth
 }
 
 TEST_CASE("e2e: SIGTERM mid-run ends the run as aborted and leaves the chamber at the safe setpoint") {
-  if (!have_sim()) {
-    WARN("fogbench-sim not built: skipped");
-    return;
-  }
+  require_sim();
   LiveBench bench(50.0);
   std::int64_t run = 0;
   {

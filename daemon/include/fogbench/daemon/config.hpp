@@ -25,6 +25,11 @@ struct SocketConfig {
   // Control commands over TCP need a request field `token` equal to this (from socket.tcp.token
   // or the first line of socket.tcp.token_file); empty: TCP only reads.
   std::string tcp_token;
+  // Connections open at once, both sockets together; one more gets an error line and is closed.
+  int max_clients = 256;
+  // A client that is not subscribed and sends nothing this long (wall seconds) is closed; none
+  // when empty. Subscribers only listen, so they are never idle.
+  std::optional<double> idle_timeout_s = 600.0;
 };
 
 struct AnalysisConfig {

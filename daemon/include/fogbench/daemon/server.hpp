@@ -23,8 +23,16 @@ class Server {
   Server(const Server&) = delete;
   Server& operator=(const Server&) = delete;
 
-  // Opens the store, recovers interrupted runs and binds the sockets. Errors say what failed.
-  std::expected<void, std::string> start();
+  // Why start() failed, and fogbenchd's exit status for it (docs/daemon.md): 2 when another
+  // fogbenchd holds the store or answers on the socket, 1 for any other start-up failure.
+  struct StartError {
+    std::string message;
+    int exit_code = 1;
+  };
+  // Locks the store (one daemon per store), binds the sockets, opens the store and recovers
+  // interrupted runs, in that order: a start that fails changes nothing in the store. Errors say
+  // what failed.
+  std::expected<void, StartError> start();
   // Runs until SIGTERM or SIGINT (or stop()); returns when the chamber has been sent to its
   // safe setpoint and every connection is closed. 0 on a clean stop.
   int run();
