@@ -80,7 +80,8 @@ json sample_json(const storage::SampleRow& r) {
           {"chamber_c", num(r.chamber_c)}, {"gyro_dph", num(r.gyro_dph)},
           {"frames", r.frames ? json(*r.frames) : json(nullptr)}, {"t1_c", num(r.t1_c)},
           {"t2_c", num(r.t2_c)}, {"phase", std::string(model::to_string(r.phase))},
-          {"step", r.step ? json(*r.step) : json(nullptr)}, {"flags", r.flags}};
+          {"step", r.step ? json(*r.step) : json(nullptr)}, {"flags", r.flags},
+          {"since_power_on_s", num(r.since_power_on_s)}};
 }
 
 ApiError store_error(const storage::StoreError& e) {

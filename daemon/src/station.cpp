@@ -93,7 +93,8 @@ Station::Station(DaemonConfig config, storage::Store& store, double time_scale, 
       store_(store),
       time_scale_(time_scale),
       wall_clock_(wall_clock ? std::move(wall_clock) : WallClock(iso8601_now)),
-      setpoint_c_(config_.safe_setpoint_c) {}
+      setpoint_c_(config_.safe_setpoint_c),
+      power_(config_.drivers.units.size()) {}
 
 namespace {
 // Failures that may pass (room made on the disk, a lock released): worth writing again.
@@ -528,12 +529,31 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
       spdlog::info("the store took the interrupted marks; runs may start");
     }
   }
+  // Power-ons and restarts of the gyros, from what they sent this period (anything: a corrupt
+  // frame is a gyro that is on).
+  std::vector<std::optional<std::uint32_t>> sent(config_.drivers.units.size());
+  for (std::size_t i = 0; i < sent.size() && i < in.units.size(); ++i)
+    if (in.gyro_read) sent[i] = in.units[i].frames + in.units[i].frames_corrupt;
+  const auto power_edges = power_.update(clock_s, sent);
   if (!run_) return {setpoint_c_};
   ActiveRun& run = *run_;
 
+  // A gyro's power-on, restart or power-off is an event of the run (and a unit's power-on
+  // not seen is said at the start: its samples then carry no time since power-on).
+  auto power_event = [&](std::size_t i, std::string_view what, double t_s) {
+    const std::size_t ci = run.config_index[i];
+    json detail = {{"gyro_power", what}, {"unit", static_cast<int>(i)}, {"serial", run.serials[i]}};
+    if (auto since = power_.since_power_on_s(ci, clock_s)) detail["since_power_on_s"] = *since;
+    event(run.id, storage::EventKind::note, detail, t_s);
+  };
   if (run.state == RunState::pending) {
     run.start_clock_s = clock_s;
     transition(run, RunState::settling, "run started", 0.0);
+    for (std::size_t i = 0; i < run.config_index.size(); ++i) {
+      const std::size_t ci = run.config_index[i];
+      if (ci < power_edges.size() && power_edges[ci] != PowerWatch::Edge::none) continue;  // said below
+      power_event(i, power_.since_power_on_s(ci, clock_s) ? "on" : "power_on_not_seen", 0.0);
+    }
   } else if (run.state == RunState::interrupted) {
     // Resumed: the run clock goes on from the gap's end.
     run.start_clock_s = clock_s - *run.resume_at_s;
@@ -543,6 +563,10 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
   run.elapsed_s = clock_s - run.start_clock_s;
   const double t_s = run.elapsed_s;
   if (in.late) ++run.late_s;
+  for (std::size_t i = 0; i < run.config_index.size(); ++i) {
+    const std::size_t ci = run.config_index[i];
+    if (ci < power_edges.size() && power_edges[ci] != PowerWatch::Edge::none) power_event(i, to_string(power_edges[ci]), t_s);
+  }
 
   // Alarms and link faults are recorded on their edges, not every second.
   if (in.chamber_alarm != run.alarm) {
@@ -619,6 +643,7 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
     if (in.chamber_link_down) f |= model::flag::link_gap;
     if (run.pv_frozen) f |= model::flag::pv_frozen;
     r.flags = f;
+    r.since_power_on_s = or_nan(power_.since_power_on_s(ci, clock_s));
     rows.push_back(r);
     if (run.quality.size() < run.config_index.size()) run.quality.resize(run.config_index.size());
     run.quality[i].frames_lost += u.frames_lost;
@@ -643,6 +668,7 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
     m["t1_c"] = num(std::isfinite(r.t1_c) ? std::optional(r.t1_c) : std::nullopt);
     m["t2_c"] = num(std::isfinite(r.t2_c) ? std::optional(r.t2_c) : std::nullopt);
     m["flags"] = r.flags;
+    m["since_power_on_s"] = num(std::isfinite(r.since_power_on_s) ? std::optional(r.since_power_on_s) : std::nullopt);
     emit(m);
   }
 

@@ -18,6 +18,7 @@
 
 #include "fogbench/daemon/config.hpp"
 #include "fogbench/daemon/offload.hpp"
+#include "fogbench/daemon/power_on.hpp"
 #include "fogbench/profiles/executor.hpp"
 #include "fogbench/profiles/profile.hpp"
 #include "fogbench/storage/store.hpp"
@@ -246,6 +247,8 @@ class Station {
   std::optional<std::string> recovery_error_;
   double recovery_tried_clock_s_ = 0.0;
   std::int64_t ticks_ = 0;
+  // Each configured unit's power-on as seen in its frames, whether a run is active or not.
+  PowerWatch power_;
 };
 
 // ISO 8601 UTC now, to the second.
