@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <string>
@@ -27,7 +28,10 @@ struct LiveBench {
   std::filesystem::path bin, dir;
   std::unique_ptr<Process> sim, daemon;
 
-  LiveBench(const char* argv0, int units, double time_scale, const std::string& synchronous = "full") {
+  // `prepare`, when given, is called with the temp dir before fogbenchd starts (e.g. to fill the
+  // store, fogbench.db, with stored runs).
+  LiveBench(const char* argv0, int units, double time_scale, const std::string& synchronous = "full",
+            const std::function<void(const std::filesystem::path&)>& prepare = {}) {
     bin = std::filesystem::absolute(argv0).parent_path();
     char tmpl[] = "/tmp/fogbench-bench-XXXXXX";
     dir = ::mkdtemp(tmpl);
@@ -47,6 +51,7 @@ struct LiveBench {
               {"profile_dir", std::string(FOGBENCH_SOURCE_DIR) + "/profiles"},
               {"drivers", r["drivers_config"]}};
     std::ofstream(dir / "fogbenchd.json") << c.dump(2);
+    if (prepare) prepare(dir);
     daemon = std::make_unique<Process>(
         std::vector<std::string>{(bin / "fogbenchd").string(), "--config", (dir / "fogbenchd.json").string(),
                                  "--time-scale", std::to_string(time_scale), "--log-level", "warn"},
