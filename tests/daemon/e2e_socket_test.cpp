@@ -49,9 +49,8 @@ TEST_CASE("e2e sockets: 10,000 pipelined requests are all answered, a client tha
   REQUIRE(c.ok());
   const auto run = bench.start_run(c, "short", {"SIM-0001"});
 
-  // A client that asks and never reads: its replies queue up in the daemon until it is dropped
-  // (16 MiB queued, or a write stuck for 10 s). 40,000 status replies of some 700 bytes are
-  // past the cap.
+  // A client that asks and never reads: it is served until 256 KiB of replies are queued for it,
+  // then its requests wait, and it is dropped once a write has been stuck for 10 s.
   LineClient deaf(bench.socket());
   REQUIRE(deaf.ok());
   {
