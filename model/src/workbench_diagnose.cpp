@@ -778,29 +778,9 @@ std::expected<Diagnosis, FitError> diagnose_once(const Model& m, const RunData& 
   }
 
   // Ranking: the detected first, each group by delta BIC, the skipped last.
-  // With held-out runs the detected are ranked by how far they bring the error down on all
-  // the runs (mean log of after/before over the fit run and every scored held-out run): the
-  // fit run's BIC alone prefers a term that bends to the fit run (issue 10: with T1 and T1^2
-  // hidden, d(lp(T1,1600))@600 had the best BIC and did less on exp3 than T1).
-  auto held_score = [](const Candidate& c) {
-    double s = 0.0;
-    int k = 0;
-    auto add = [&](double before, double after) {
-      if (before > 0.0 && after > 0.0) {
-        s += std::log(after / before);
-        ++k;
-      }
-    };
-    add(c.rms_before_dph, c.rms_after_dph);
-    for (const auto& h : c.held_out)
-      if (h.scored) add(h.rms_before_dph, h.rms_after_dph);
-    return k ? s / k : 0.0;
-  };
-  const bool by_held_out = !held_out.empty();
-  std::stable_sort(d.candidates.begin(), d.candidates.end(), [&](const Candidate& x, const Candidate& y) {
+  std::stable_sort(d.candidates.begin(), d.candidates.end(), [](const Candidate& x, const Candidate& y) {
     auto rank = [](const Candidate& c) { return c.detected ? 0 : c.evaluated ? 1 : 2; };
     if (rank(x) != rank(y)) return rank(x) < rank(y);
-    if (rank(x) == 0 && by_held_out) return held_score(x) < held_score(y);
     if (rank(x) < 2) return x.delta_bic < y.delta_bic;
     return false;
   });
@@ -818,7 +798,7 @@ std::expected<Diagnosis, FitError> diagnose_once(const Model& m, const RunData& 
     std::size_t pick = 0;
     for (std::size_t i = 1; i < d.candidates.size(); ++i) {
       const Candidate& c = d.candidates[i];
-      if (!c.detected || std::abs(c.delta_bic - top.delta_bic) >= o.tie_bic) continue;
+      if (!c.detected || c.delta_bic - top.delta_bic >= o.tie_bic) continue;
       if (std::find(top.collinear_with.begin(), top.collinear_with.end(), c.term) == top.collinear_with.end()) continue;
       if (lib_index(c) < lib_index(d.candidates[pick])) pick = i;
     }
