@@ -39,8 +39,8 @@ struct Options {
   double warmup_tau_s = 600;
   std::string map_file;              // empty: the built-in drivers/maps/mock.json
   double duration_s = 0;
-};
   bool paced = false;                // the clock moves only on {"cmd":"advance"} (docs/mock-bench.md)
+};
 
 // Joins effects in the term language with '+' (or '-' when one starts with a minus).
 std::string join_effects(const std::vector<std::string>& effects);
