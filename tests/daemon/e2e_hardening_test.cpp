@@ -94,14 +94,14 @@ TEST_CASE("e2e hardening: the 100,000-level line is bad_json on both sockets, th
   auto got = c.call({{"cmd", "run.get"}, {"run_id", run}});
   REQUIRE(code_of(got) == "ok");
   CHECK(got["result"]["run"]["state"] != "interrupted");
-  CHECK(c.call({{"cmd", "status"}})["result"]["run"]["run_id"] == run);
+  CHECK(c.call({{"cmd", "status"}})["result"]["run"]["id"] == run);
   // Samples lost to the attack: none. Every second of the run clock so far is stored, and none
   // is flagged missing (a loop held up would store its skipped seconds flagged missing).
   std::this_thread::sleep_for(1s);
   auto page = c.call({{"cmd", "run.samples"}, {"run_id", run}, {"unit", 0}, {"limit", 10000}});
   REQUIRE(code_of(page) == "ok");
   const auto& rows = page["result"]["samples"];
-  CHECK(rows.size() > 10);
+  CHECK(rows.size() >= 2);  // a few wall seconds at 5x, settling included
   std::size_t missing = 0;
   for (std::size_t i = 0; i < rows.size(); ++i) {
     CHECK(rows[i]["t_s"].get<double>() == static_cast<double>(i));
@@ -124,7 +124,7 @@ TEST_CASE("e2e hardening: a key given twice is bad_json and the run is not abort
   // Before: the last "cmd" won and the run was aborted.
   auto s = c.call({{"cmd", "status"}});
   REQUIRE(code_of(s) == "ok");
-  CHECK(s["result"]["run"]["run_id"] == run);
+  CHECK(s["result"]["run"]["id"] == run);
 }
 
 TEST_CASE("e2e hardening: out of descriptors, accept backs off and logs once, and recovers") {
@@ -223,7 +223,7 @@ TEST_CASE("e2e hardening: a second fogbenchd on the same store exits 2 naming th
   auto got = c.call({{"cmd", "run.get"}, {"run_id", run}});
   REQUIRE(code_of(got) == "ok");
   CHECK(got["result"]["run"]["state"] != "interrupted");
-  CHECK(c.call({{"cmd", "status"}})["result"]["run"]["run_id"] == run);
+  CHECK(c.call({{"cmd", "status"}})["result"]["run"]["id"] == run);
 }
 
 TEST_CASE("e2e hardening: a second fogbenchd on the same socket exits 2 and leaves the first reachable") {
