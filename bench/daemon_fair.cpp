@@ -95,9 +95,11 @@ int main(int argc, char** argv) {
           ++a.connects;
           a.unsent = R"({"id":0,"cmd":"subscribe"})" "\n";
         }
-        while (a.unsent.size() < 4096)
-          a.unsent += R"({"id":)" + std::to_string(a.next_id++) + R"(,"cmd":"run.samples","run_id":1,"offset":)" +
-                      std::to_string((a.next_id % 10) * 1000) + R"(,"limit":10000})" "\n";
+        while (a.unsent.size() < 4096) {
+          const auto id = a.next_id++;
+          a.unsent += R"({"id":)" + std::to_string(id) + R"(,"cmd":"run.samples","run_id":1,"offset":)" +
+                      std::to_string(((id + 1) % 10) * 1000) + R"(,"limit":10000})" "\n";
+        }
         const ssize_t n = ::send(a.fd, a.unsent.data(), a.unsent.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
         if (n > 0) a.unsent.erase(0, static_cast<std::size_t>(n));
         else if (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK) {
@@ -130,7 +132,10 @@ int main(int argc, char** argv) {
   for (const auto& a : attackers) connects += a.connects;
 
   // The run's stored seconds, read from the store itself.
-  auto store = storage::Store::open(bench.dir / "fogbench.db", {.read_only = true, .create = false});
+  storage::OpenOptions read_only;
+  read_only.read_only = true;
+  read_only.create = false;
+  auto store = storage::Store::open(bench.dir / "fogbench.db", read_only);
   if (!store) LiveBench::fail("store: " + store.error().message);
   std::int64_t total = 0, flagged = 0, missing = 0, all_null = 0;
   double last_t_s = -1.0;

@@ -26,8 +26,6 @@ std::string slurp(const std::filesystem::path& p) {
   return ss.str();
 }
 
-bool have_fogctl() { return std::filesystem::exists(kBin / "fogctl"); }
-
 // Runs fogctl with `args` (shell words, quoted by the caller) and `env` (VAR=value ...) in the
 // bench's directory; its exit code, stdout and stderr.
 Out fogctl(const LiveBench& bench, const std::string& args, const std::string& env = "") {

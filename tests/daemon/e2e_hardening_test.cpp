@@ -167,7 +167,7 @@ TEST_CASE("e2e hardening: out of descriptors, accept backs off and logs once, an
   CHECK(bench.daemon->running());
 }
 
-TEST_CASE("e2e hardening: past socket.max_clients a client gets busy and is closed; idle clients are closed") {
+TEST_CASE("e2e hardening: past socket.max_clients a client gets busy and is closed, and idle clients are closed") {
   require_sim();
   LiveBench bench(20.0, {{"socket", {{"max_clients", 3}, {"idle_timeout_s", 1.5}}}});
   std::vector<std::unique_ptr<LineClient>> in;

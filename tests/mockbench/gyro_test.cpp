@@ -235,7 +235,7 @@ double rate_dph(const DriversConfig& cfg, std::size_t u, double mean_counts) {
 
 }  // namespace
 
-TEST_CASE("--fault power_off=D: a unit's frames start D s into the session, its counter at 0, its warm-up after") {
+TEST_CASE("fogbench-sim --fault power_off=D: a unit's frames start D s into the session, its counter at 0, its warm-up after") {
   // SIM-0002 (increment mode) powered on at 20 s; every unit warms up by 10 exp(-t/20) deg/h.
   MockProcess mock({"--time-scale", "50", "--fault", "power_off=20,unit=1", "--warmup-dph", "10", "--warmup-tau-s", "20"});
   auto cfg = mock.example_config();

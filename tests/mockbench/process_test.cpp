@@ -118,7 +118,7 @@ TEST_CASE("the clock runs time-scale times faster than real time") {
   CHECK(s1 - s0 >= 0.8 * 200.0 * shortest_s - 1.0);
 }
 
-TEST_CASE("--paced: the clock moves only on advance, whose reply comes after every frame of those seconds") {
+TEST_CASE("fogbench-sim --paced: the clock moves only on advance, whose reply comes after every frame of those seconds") {
   MockProcess mock({"--paced", "--time-scale", "200"});
   // A raw CAN client, so every datagram is counted.
   const int can = ::socket(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0);

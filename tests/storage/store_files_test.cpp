@@ -110,7 +110,7 @@ TEST_CASE("store files: created 0640 with their WAL and index, under umask 000, 
   CHECK(mode_of(t.dir / "g.db") == 0600);
 }
 
-TEST_CASE("store files: the size limit counts the WAL and its index; the files never pass it") {
+TEST_CASE("store files: the size limit counts the WAL and its index, and the files never pass it") {
   // One write of two samples a second until the store is full, the files measured after every
   // write. Before: the WAL grew to SQLite's 1000-page checkpoint (about 4 MB) beside a
   // database capped at the limit.
