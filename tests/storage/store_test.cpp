@@ -5,6 +5,7 @@
 
 #include <sqlite3.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -739,21 +740,40 @@ TEST_CASE("store: writes to a read-only database are errors and lose nothing",
     const SampleRow rows[] = {sample(0, 0), sample(0, 1)};
     REQUIRE(s.append_samples(run, rows).has_value());
   }
-  auto check_refused = [&](Store& s) {
+  // What a write-refusing store must do, as a list of what it did not (empty: all of it). Plain
+  // code rather than CHECKs, so that a child process without privileges can run it too.
+  auto refusal_failures = [&](Store& s) {
+    std::vector<std::string> failed;
+    auto expect = [&](bool ok, const char* what) {
+      if (!ok) failed.emplace_back(what);
+    };
     const SampleRow rows[] = {sample(0, 2)};
     auto w = s.append_samples(run, rows);
-    REQUIRE_FALSE(w.has_value());
-    CHECK(w.error().code == StoreErrc::read_only);
-    CHECK((w.error().sqlite_code & 0xff) == SQLITE_READONLY);
-    CHECK_THAT(w.error().message, Contains("append 1 samples to run 1"));
-    CHECK_THAT(w.error().message, Contains("readonly"));
-    CHECK(s.create_run(two_unit_run()).error().code == StoreErrc::read_only);
-    CHECK(s.set_run_state(run, RunState::failed, "x").error().code == StoreErrc::read_only);
-    CHECK(s.put_model({"FOG-001", run, std::nullopt, "{}", "", ""}).error().code ==
-          StoreErrc::read_only);
+    expect(!w.has_value(), "append_samples refused");
+    if (!w) {
+      expect(w.error().code == StoreErrc::read_only, "append error code read_only");
+      expect((w.error().sqlite_code & 0xff) == SQLITE_READONLY, "sqlite code SQLITE_READONLY");
+      expect(w.error().message.find("append 1 samples to run 1") != std::string::npos,
+             "message names the append");
+      expect(w.error().message.find("readonly") != std::string::npos, "message says readonly");
+    }
+    auto c = s.create_run(two_unit_run());
+    expect(!c && c.error().code == StoreErrc::read_only, "create_run refused as read_only");
+    auto st = s.set_run_state(run, RunState::failed, "x");
+    expect(!st && st.error().code == StoreErrc::read_only, "set_run_state refused as read_only");
+    auto m = s.put_model({"FOG-001", run, std::nullopt, "{}", "", ""});
+    expect(!m && m.error().code == StoreErrc::read_only, "put_model refused as read_only");
     // Reads still work and show everything stored before.
-    CHECK(s.count_samples(run).value() == 2);
-    CHECK(s.get_run(run)->run.state == RunState::pending);
+    auto n = s.count_samples(run);
+    expect(n && *n == 2, "the 2 stored samples still read");
+    auto r = s.get_run(run);
+    expect(r && r->run.state == RunState::pending, "the run still reads as pending");
+    return failed;
+  };
+  auto check_refused = [&](Store& s) {
+    const auto failed = refusal_failures(s);
+    for (const auto& f : failed) FAIL_CHECK("not done: " << f);
+    CHECK(failed.empty());
   };
 
   SECTION("opened read-only") {
@@ -763,15 +783,51 @@ TEST_CASE("store: writes to a read-only database are errors and lose nothing",
     check_refused(s);
   }
   SECTION("a file without write permission") {
-    if (::geteuid() == 0) {
-      WARN("running as root, which ignores file permissions: chmod case skipped");
-      return;
+    namespace fs = std::filesystem;
+    fs::permissions(path, fs::perms::owner_read | fs::perms::group_read | fs::perms::others_read);
+    if (::geteuid() != 0) {
+      Store s = open_ok(path);
+      check_refused(s);
+    } else {
+      // Root ignores file modes: the case runs in a child that gives up root for `nobody`
+      // (uid/gid 65534), owner of the folder and the read-only file as a user would be of theirs.
+      constexpr uid_t kNobody = 65534;
+      for (const auto& e : fs::directory_iterator(tmp.dir))
+        REQUIRE(::chown(e.path().c_str(), kNobody, kNobody) == 0);
+      REQUIRE(::chown(tmp.dir.c_str(), kNobody, kNobody) == 0);
+      int out[2];
+      REQUIRE(::pipe(out) == 0);
+      const pid_t child = ::fork();
+      REQUIRE(child >= 0);
+      if (child == 0) {
+        ::close(out[0]);
+        std::string report;
+        if (::setgid(kNobody) != 0 || ::setuid(kNobody) != 0) {
+          report = "could not become nobody";
+        } else if (auto s = Store::open(path, {}); !s) {
+          report = "open: " + s.error().message;
+        } else {
+          for (const auto& f : refusal_failures(*s)) report += f + "\n";
+        }
+        const auto written = ::write(out[1], report.data(), report.size());
+        ::_exit(written == static_cast<ssize_t>(report.size()) ? 0 : 1);
+      }
+      ::close(out[1]);
+      std::string report;
+      char buf[512];
+      for (ssize_t k; (k = ::read(out[0], buf, sizeof buf)) > 0;) report.append(buf, k);
+      ::close(out[0]);
+      int status = 0;
+      REQUIRE(::waitpid(child, &status, 0) == child);
+      REQUIRE(WIFEXITED(status));
+      CHECK(WEXITSTATUS(status) == 0);
+      INFO("the child without privileges reported:\n" << report);
+      CHECK(report.empty());
+      REQUIRE(::chown(tmp.dir.c_str(), 0, 0) == 0);
+      for (const auto& e : fs::directory_iterator(tmp.dir))
+        REQUIRE(::chown(e.path().c_str(), 0, 0) == 0);
     }
-    std::filesystem::permissions(path, std::filesystem::perms::owner_read |
-                                           std::filesystem::perms::group_read |
-                                           std::filesystem::perms::others_read);
-    Store s = open_ok(path);
-    check_refused(s);
+    fs::permissions(path, fs::perms::owner_read | fs::perms::owner_write);
   }
   Store s = open_ok(path);
   CHECK(s.count_samples(run).value() == 2);
