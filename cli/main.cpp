@@ -9,6 +9,7 @@
 #include <CLI/CLI.hpp>
 #include <iostream>
 
+#include "allan.hpp"
 #include "client.hpp"
 #include "common.hpp"
 #include "offline.hpp"
@@ -38,6 +39,7 @@ int main(int argc, char** argv) {
   fogbench::cli::add_offline_commands(app, code);
   fogbench::cli::add_client_commands(app, code);
   fogbench::cli::add_workbench_commands(app, code);
+  fogbench::cli::add_allan_command(app, code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1,0 +1,144 @@
+// fogctl allan: the Allan deviation of a run's holds (and of its compensated output with a
+// model), with the noise terms of IEEE Std 952 Annex C read off the curve.
+#include "allan.hpp"
+
+#include <CLI/CLI.hpp>
+#include <cmath>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "fogbench/model/allan.hpp"
+#include "table.hpp"
+
+namespace fogbench::cli {
+namespace {
+
+namespace allan = model::allan;
+using nlohmann::json;
+
+json estimate_json(const std::optional<allan::NoiseEstimate>& e, const std::string& note) {
+  json j = json::object();
+  if (e)
+    j = {{"value", e->value}, {"ci_low", e->ci_low}, {"ci_high", e->ci_high},
+         {"from_tau_s", e->from_tau_s}, {"to_tau_s", e->to_tau_s}};
+  else
+    j = {{"value", nullptr}};
+  if (!note.empty()) j["note"] = note;
+  return j;
+}
+
+std::string cell(const std::optional<allan::NoiseEstimate>& e, int digits) {
+  if (!e) return "-";
+  return fixed(e->value, digits) + " (" + fixed(e->ci_low, digits) + ".." + fixed(e->ci_high, digits) + ")";
+}
+
+struct Series {
+  std::string what;  // "hold 3" / "compensated"
+  allan::Stretch stretch;
+  std::vector<double> rate_dph;
+};
+
+}  // namespace
+
+int run_allan(const AllanOptions& o, std::ostream& out, std::ostream& err) {
+  if (o.min_samples < 7) {
+    err << "fogctl allan: --min-samples " << o.min_samples << " is under 7 (three octave taus need 7 samples)\n";
+    return kExitError;
+  }
+  auto run = load_run(o.run, o.input);
+  if (!run) {
+    err << "fogctl allan: " << run.error() << "\n";
+    return kExitError;
+  }
+  std::vector<Series> series;
+  int hold = 0;
+  for (const auto& s : allan::even_stretches(*run, o.min_samples, o.whole_run)) {
+    Series x{o.whole_run || !run->has_phase() ? "run" : "hold " + std::to_string(++hold), s, {}};
+    x.rate_dph.assign(run->gyro_dph.begin() + static_cast<std::ptrdiff_t>(s.begin),
+                      run->gyro_dph.begin() + static_cast<std::ptrdiff_t>(s.end));
+    series.push_back(std::move(x));
+  }
+  if (!o.model.empty()) {
+    auto m = load_model(o.model);
+    if (!m) {
+      err << "fogctl allan: " << m.error() << "\n";
+      return kExitError;
+    }
+    auto predicted = model::predict(*m, *run);
+    if (!predicted) {
+      err << "fogctl allan: " << o.model << " on " << o.run << ": " << predicted.error().message << "\n";
+      return kExitError;
+    }
+    // The compensated output over the whole run: every phase, since compensation is meant to
+    // remove the ramps' drift. The longest even stretch is analysed.
+    model::RunData comp = *run;
+    for (std::size_t i = 0; i < comp.size(); ++i) comp.gyro_dph[i] -= (*predicted)[i];
+    std::optional<allan::Stretch> longest;
+    for (const auto& s : allan::even_stretches(comp, o.min_samples, true))
+      if (!longest || s.end - s.begin > longest->end - longest->begin) longest = s;
+    if (longest) {
+      Series x{"compensated", *longest, {}};
+      x.rate_dph.assign(comp.gyro_dph.begin() + static_cast<std::ptrdiff_t>(longest->begin),
+                        comp.gyro_dph.begin() + static_cast<std::ptrdiff_t>(longest->end));
+      series.push_back(std::move(x));
+    }
+  }
+  if (series.empty()) {
+    err << "fogctl allan: " << o.run << ": no stretch of " << o.min_samples << " or more evenly spaced, unflagged "
+        << (run->has_phase() && !o.whole_run ? "hold " : "") << "samples"
+        << (run->has_phase() && !o.whole_run ? " (--whole-run analyses every phase)" : "") << "\n";
+    return kExitError;
+  }
+
+  json results = json::array();
+  Table t({"series", "from s", "to s", "samples", "ARW deg/sqrt(h)", "bias instab. deg/h", "RRW deg/h/sqrt(h)"});
+  std::vector<std::string> notes;
+  for (const auto& x : series) {
+    const auto m = allan::octave_cluster_sizes(x.rate_dph.size());
+    auto curve = allan::overlapping_adev(x.rate_dph, x.stretch.tau0_s, m);
+    if (!curve) {  // cannot happen for stretches of finite, evenly spaced samples; said if it does
+      err << "fogctl allan: " << x.what << ": " << curve.error() << "\n";
+      return kExitError;
+    }
+    const auto terms = allan::noise_terms(*curve);
+    const double from_s = run->time_s[x.stretch.begin], to_s = run->time_s[x.stretch.end - 1];
+    t.add({x.what, fixed(from_s, 0), fixed(to_s, 0), std::to_string(x.rate_dph.size()),
+           cell(terms.arw_deg_per_sqrt_h, 5), cell(terms.bias_instability_dph, 4), cell(terms.rrw_dph_per_sqrt_h, 4)});
+    for (const auto& [name, note] : {std::pair{"ARW", terms.arw_note}, std::pair{"bias instability", terms.bias_instability_note},
+                                     std::pair{"RRW", terms.rrw_note}})
+      if (!note.empty()) notes.push_back(x.what + ": " + name + ": " + note);
+    json pts = json::array();
+    for (const auto& p : *curve)
+      pts.push_back({{"tau_s", p.tau_s}, {"adev_dph", p.adev_dph}, {"ci_low_dph", p.ci_low_dph},
+                     {"ci_high_dph", p.ci_high_dph}, {"terms", p.terms}});
+    results.push_back({{"series", x.what}, {"from_s", from_s}, {"to_s", to_s}, {"samples", x.rate_dph.size()},
+                       {"tau0_s", x.stretch.tau0_s}, {"curve", pts},
+                       {"arw_deg_per_sqrt_h", estimate_json(terms.arw_deg_per_sqrt_h, terms.arw_note)},
+                       {"bias_instability_dph", estimate_json(terms.bias_instability_dph, terms.bias_instability_note)},
+                       {"rrw_dph_per_sqrt_h", estimate_json(terms.rrw_dph_per_sqrt_h, terms.rrw_note)}});
+  }
+  if (o.json) {
+    out << json{{"run", o.run}, {"series", results},
+                {"method", "overlapping Allan deviation at octave taus; noise terms and 1-sigma intervals per IEEE Std 952-1997 Annex C"}}
+               .dump()
+        << "\n";
+  } else {
+    out << "Allan deviation of " << o.run << " (IEEE 952 Annex C; 1-sigma intervals in brackets)\n\n" << t.str();
+    for (const auto& n : notes) out << "  " << n << "\n";
+  }
+  return kExitOk;
+}
+
+void add_allan_command(CLI::App& app, int& code) {
+  static AllanOptions o;
+  auto* a = app.add_subcommand("allan", "Allan deviation of a run's holds (and its compensated output): angle random walk, bias instability, rate random walk");
+  a->add_option("run", o.run, "The run's CSV file")->required();
+  a->add_option("--model", o.model, "Also analyse the run compensated with this model (JSON file)");
+  a->add_option("--min-samples", o.min_samples, "Shortest stretch analysed, samples (default 600)");
+  a->add_flag("--whole-run", o.whole_run, "Analyse every phase, not only the holds");
+  a->add_flag("--json", o.json, "Print one JSON object with the curves");
+  add_run_input(a, o.input);
+  a->callback([&] { code = run_allan(o, std::cout, std::cerr); });
+}
+
+}  // namespace fogbench::cli
