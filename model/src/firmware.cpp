@@ -1,0 +1,326 @@
+// Compiling a model to the firmware's causal program, and running it (see firmware.hpp).
+#include "fogbench/model/firmware.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+
+namespace fogbench::model::firmware {
+namespace {
+
+using K = Op::Kind;
+
+constexpr int kSlopeWindow = 2 * kDerivativeHalfWidth + 1;  // samples, as the fit's d()
+
+// An operation's output stream at sample i is the fit's value at sample i - delay.
+struct Node {
+  int op = -1;
+  int delay = 0;  // samples
+};
+
+struct Compiler {
+  Program& p;
+  std::string term;  // the term being compiled, for errors
+  std::string error;
+
+  int emit(Op op) {
+    if (op.kind == K::slope || op.kind == K::delay) {
+      op.ring = p.ring_size;
+      p.ring_size += op.n;
+    }
+    p.ops.push_back(op);
+    return static_cast<int>(p.ops.size()) - 1;
+  }
+  // Delays a node's stream by `by` samples.
+  Node later(Node x, int by) {
+    if (by <= 0) return x;
+    Op d;
+    d.kind = K::delay;
+    d.a = x.op;
+    d.n = by;
+    return {emit(d), x.delay + by};
+  }
+  std::optional<Node> compile(const Expr& e) {
+    switch (e.kind) {
+      case Expr::Kind::number: {
+        Op o;
+        o.p = e.value;
+        return Node{emit(o), 0};
+      }
+      case Expr::Kind::signal: {
+        auto sig = [&](int n) {
+          Op o;
+          o.kind = K::signal;
+          o.n = n;
+          return emit(o);
+        };
+        switch (e.signal) {
+          case Signal::T1: return Node{sig(0), 0};
+          case Signal::T2: return Node{sig(1), 0};
+          case Signal::Ta: p.uses_ta = true; return Node{sig(2), 0};
+          case Signal::ton: p.uses_ton = true; return Node{sig(3), 0};
+          case Signal::grad: {
+            Op o;
+            o.kind = K::sub;
+            o.a = sig(0);
+            o.b = sig(1);
+            return Node{emit(o), 0};
+          }
+        }
+        return std::nullopt;
+      }
+      case Expr::Kind::d: case Expr::Kind::dd: {
+        auto x = compile(*e.a);
+        if (!x) return x;
+        for (int k = 0; k < (e.kind == Expr::Kind::dd ? 2 : 1); ++k) {
+          Op o;
+          o.kind = K::slope;
+          o.a = x->op;
+          o.n = kSlopeWindow;
+          x = Node{emit(o), x->delay + kDerivativeHalfWidth};
+        }
+        return x;
+      }
+      case Expr::Kind::lp: case Expr::Kind::up: case Expr::Kind::down: case Expr::Kind::pow: case Expr::Kind::neg: {
+        auto x = compile(*e.a);
+        if (!x) return x;
+        Op o;
+        o.a = x->op;
+        if (e.kind == Expr::Kind::lp) {
+          o.kind = K::lp;
+          o.p = 1.0 - std::exp(-p.dt_s / e.value);
+        } else if (e.kind == Expr::Kind::pow) {
+          o.kind = K::pow;
+          o.n = e.power;
+        } else {
+          o.kind = e.kind == Expr::Kind::up ? K::up : e.kind == Expr::Kind::down ? K::down : K::neg;
+        }
+        return Node{emit(o), x->delay};
+      }
+      case Expr::Kind::warm: {
+        Op s;
+        s.kind = K::signal;
+        s.n = 3;
+        p.uses_ton = true;
+        Op o;
+        o.kind = K::warm;
+        o.a = emit(s);
+        o.p = e.value;
+        return Node{emit(o), 0};
+      }
+      case Expr::Kind::delay: {
+        auto x = compile(*e.a);
+        if (!x) return x;
+        const int n = static_cast<int>(std::lround(e.delay_s / p.dt_s));
+        if (n <= 0) return x;
+        Op o;
+        o.kind = K::delay;
+        o.a = x->op;
+        o.n = n;
+        return Node{emit(o), x->delay};  // the stream is the delayed value, shifted as before
+      }
+      case Expr::Kind::add: case Expr::Kind::sub: case Expr::Kind::mul: {
+        auto a = compile(*e.a);
+        if (!a) return a;
+        auto b = compile(*e.b);
+        if (!b) return b;
+        // Both operands must show the same instant: the earlier one waits for the later.
+        const int d = std::max(a->delay, b->delay);
+        *a = later(*a, d - a->delay);
+        *b = later(*b, d - b->delay);
+        Op o;
+        o.kind = e.kind == Expr::Kind::add ? K::add : e.kind == Expr::Kind::sub ? K::sub : K::mul;
+        o.a = a->op;
+        o.b = b->op;
+        return Node{emit(o), d};
+      }
+    }
+    error = "internal: unknown expression kind";
+    return std::nullopt;
+  }
+};
+
+
+}  // namespace
+
+std::string_view to_string(Op::Kind k) {
+  switch (k) {
+    case K::signal: return "signal";
+    case K::number: return "number";
+    case K::slope: return "slope";
+    case K::lp: return "lp";
+    case K::delay: return "delay";
+    case K::up: return "up";
+    case K::down: return "down";
+    case K::pow: return "pow";
+    case K::neg: return "neg";
+    case K::add: return "add";
+    case K::sub: return "sub";
+    case K::mul: return "mul";
+    case K::warm: return "warm";
+  }
+  return "?";
+}
+
+std::expected<Program, std::string> compile(const Model& m, double dt_s, bool allow_late) {
+  if (!(dt_s > 0.0) || !std::isfinite(dt_s)) return std::unexpected("the firmware's sample interval must be a positive number of seconds");
+  Program p;
+  p.dt_s = dt_s;
+  p.tref_c = m.tref_c;
+  p.mu0_dph = m.mu0_dph;
+  for (const auto& ft : m.terms) {
+    Compiler c{p, ft.name(), {}};
+    const std::string name = to_string(*ft.term.expr) + (ft.term.lag.seconds ? "@" + std::to_string(ft.term.lag.seconds) : "");
+    auto node = c.compile(*ft.term.expr);
+    if (!node) return std::unexpected("term " + name + ": " + c.error);
+    const int lag = static_cast<int>(std::lround(ft.term.lag.seconds / dt_s));
+    if (lag < node->delay && !allow_late)
+      return std::unexpected("term " + name + " cannot be computed by firmware: its rates are least-squares slopes over " +
+                             std::to_string(kSlopeWindow) + " samples centred on their instant, so the term reads its signals " +
+                             std::to_string(static_cast<int>(std::lround((node->delay - lag) * dt_s))) +
+                             " s ahead of now; a causal filter needs a lag of at least " +
+                             std::to_string(static_cast<int>(std::lround(node->delay * dt_s))) + " s (refit with that lag, e.g. `" +
+                             to_string(*ft.term.expr) + "@" + std::to_string(static_cast<int>(std::lround(node->delay * dt_s))) +
+                             "`, or accept it computed late)");
+    const Node out = c.later(*node, lag - node->delay);
+    const int late = std::max(0, node->delay - lag);
+    p.terms.push_back({name, out.op, ft.coef, coef_unit(*ft.term.expr), static_cast<int>(std::lround(late * dt_s))});
+  }
+  if (static_cast<int>(p.ops.size()) > kMaxOps)
+    return std::unexpected("the model needs " + std::to_string(p.ops.size()) + " operations; the firmware holds at most " + std::to_string(kMaxOps));
+  if (static_cast<int>(p.terms.size()) > kMaxTerms)
+    return std::unexpected("the model has " + std::to_string(p.terms.size()) + " terms; the firmware holds at most " + std::to_string(kMaxTerms));
+  if (p.ring_size > kMaxRing)
+    return std::unexpected("the model's delays and windows need " + std::to_string(p.ring_size) + " samples of history; the firmware holds at most " +
+                           std::to_string(kMaxRing) + " (shorter lags or a longer sample interval)");
+  return p;
+}
+
+Compensator::Compensator(const Program& program)
+    : program_(&program), value_(program.ops.size(), 0.0), state_(program.ops.size(), 0.0),
+      ring_(static_cast<std::size_t>(program.ring_size), 0.0), pos_(program.ops.size(), 0) {}
+
+double Compensator::step(const Input& in) {
+  const Program& p = *program_;
+  const bool first = !started_;
+  started_ = true;
+  for (std::size_t k = 0; k < p.ops.size(); ++k) {
+    const Op& o = p.ops[k];
+    const double a = o.a >= 0 ? value_[static_cast<std::size_t>(o.a)] : 0.0;
+    const double b = o.b >= 0 ? value_[static_cast<std::size_t>(o.b)] : 0.0;
+    double v = 0.0;
+    switch (o.kind) {
+      case K::signal:
+        v = o.n == 0 ? in.t1_c - p.tref_c : o.n == 1 ? in.t2_c - p.tref_c : o.n == 2 ? in.ta_c - p.tref_c : in.ton_s;
+        break;
+      case K::number: v = o.p; break;
+      case K::slope: case K::delay: {
+        // History of the input, oldest first from pos_; the first sample fills it (a steady hold).
+        double* h = ring_.data() + o.ring;
+        if (first)
+          for (int j = 0; j < o.n; ++j) h[j] = a;
+        int& pos = pos_[k];
+        if (o.kind == K::delay) {
+          v = h[pos];
+          h[pos] = a;
+          pos = (pos + 1) % o.n;
+        } else {
+          h[pos] = a;
+          pos = (pos + 1) % o.n;
+          const double c = 0.5 * (o.n - 1);
+          double num = 0.0, den = 0.0;
+          for (int j = 0; j < o.n; ++j) {
+            num += (j - c) * h[(pos + j) % o.n];
+            den += (j - c) * (j - c);
+          }
+          v = num / den * 60.0 / p.dt_s;
+        }
+        break;
+      }
+      case K::lp:
+        if (first) state_[k] = a;
+        v = state_[k] = state_[k] + o.p * (a - state_[k]);
+        break;
+      case K::up: v = a > 0.0 ? a : 0.0; break;
+      case K::down: v = a < 0.0 ? a : 0.0; break;
+      case K::pow: {
+        v = a;
+        for (int j = 1; j < o.n; ++j) v *= a;
+        break;
+      }
+      case K::neg: v = -a; break;
+      case K::add: v = a + b; break;
+      case K::sub: v = a - b; break;
+      case K::mul: v = a * b; break;
+      case K::warm: v = std::exp(-(a > 0.0 ? a : 0.0) / o.p); break;
+    }
+    value_[k] = v;
+  }
+  double mu = p.mu0_dph;
+  for (const auto& t : p.terms) mu += t.beta * value_[static_cast<std::size_t>(t.op)];
+  return mu;
+}
+
+std::string to_json_text(const Program& p) {
+  nlohmann::json ops = nlohmann::json::array();
+  for (const auto& o : p.ops)
+    ops.push_back({{"kind", to_string(o.kind)}, {"a", o.a}, {"b", o.b}, {"n", o.n}, {"p", o.p}, {"ring", o.ring}});
+  nlohmann::json terms = nlohmann::json::array();
+  for (const auto& t : p.terms)
+    terms.push_back({{"name", t.name}, {"op", t.op}, {"beta", t.beta}, {"unit", t.unit}, {"late_s", t.late_s}});
+  return nlohmann::json{{"dt_s", p.dt_s}, {"tref_c", p.tref_c}, {"mu0_dph", p.mu0_dph}, {"ring_size", p.ring_size},
+                        {"uses_ta", p.uses_ta}, {"uses_ton", p.uses_ton}, {"ops", ops}, {"terms", terms}}
+      .dump(2);
+}
+
+namespace {
+std::string num(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+}  // namespace
+
+std::string to_csv(const Program& p) {
+  std::string s = "# fogbench firmware program: dt_s=" + num(p.dt_s) + " tref_c=" + num(p.tref_c) + " mu0_dph=" + num(p.mu0_dph) +
+                  " ring_size=" + std::to_string(p.ring_size) + "\n";
+  s += "record,index,kind,a,b,n,p,ring,name,beta,unit\n";
+  for (std::size_t k = 0; k < p.ops.size(); ++k) {
+    const auto& o = p.ops[k];
+    s += "op," + std::to_string(k) + "," + std::string(to_string(o.kind)) + "," + std::to_string(o.a) + "," + std::to_string(o.b) + "," +
+         std::to_string(o.n) + "," + num(o.p) + "," + std::to_string(o.ring) + ",,,\n";
+  }
+  for (std::size_t j = 0; j < p.terms.size(); ++j) {
+    const auto& t = p.terms[j];
+    s += "term," + std::to_string(j) + ",,,,,,," + std::to_string(t.op) + "," + "\"" + t.name + "\"," + num(t.beta) + ",\"" + t.unit + "\"\n";
+  }
+  return s;
+}
+
+std::string to_c(const Program& p, std::string_view name) {
+  std::string s = "/* fogbench firmware program: mu(t) = mu0 + sum beta_j term_j, deg/h. Include after fogcomp.h. */\n";
+  s += "static const fogcomp_model " + std::string(name) + " = {\n";
+  s += "  " + num(p.dt_s) + ", /* dt_s */\n  " + num(p.tref_c) + ", /* tref_c */\n  " + num(p.mu0_dph) + ", /* mu0_dph */\n";
+  s += "  " + std::to_string(p.ops.size()) + ", /* n_ops */\n  {\n";
+  for (std::size_t k = 0; k < p.ops.size(); ++k) {
+    const auto& o = p.ops[k];
+    std::string kind(to_string(o.kind));
+    std::transform(kind.begin(), kind.end(), kind.begin(), [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+    s += "    {FOGCOMP_" + kind + ", " + std::to_string(o.a) + ", " + std::to_string(o.b) + ", " + std::to_string(o.n) + ", " + num(o.p) + ", " +
+         std::to_string(o.ring) + "}, /* " + std::to_string(k) + " */\n";
+  }
+  if (p.ops.empty()) s += "    {0, -1, -1, 0, 0, -1},\n";  /* C99 has no empty initializer */
+  s += "  },\n  " + std::to_string(p.terms.size()) + ", /* n_terms */\n  {";
+  for (const auto& t : p.terms) s += std::to_string(t.op) + ", ";
+  if (p.terms.empty()) s += "0";
+  s += "}, /* term_op */\n  {";
+  for (const auto& t : p.terms) s += num(t.beta) + ", ";
+  if (p.terms.empty()) s += "0";
+  s += "}, /* beta:";
+  for (const auto& t : p.terms) s += " " + t.name + " [" + t.unit + "]";
+  s += " */\n  " + std::to_string(p.ring_size) + " /* ring_size */\n};\n";
+  return s;
+}
+
+}  // namespace fogbench::model::firmware
