@@ -285,6 +285,19 @@ const char* const kPlotScript = R"js(
       }
       return {stroke:null,fill:p};};
   }
+  // A line through an xy series in time order, broken at nulls (uPlot's own line builders
+  // window the data by x, which assumes x sorted: a loop is not).
+  function polyline(u,si){
+    const d=u.data[si], p=new Path2D();
+    let pen=false;
+    for(let i=0;i<d[0].length;i++){
+      if(d[0][i]==null||d[1][i]==null){ pen=false; continue; }
+      const x=u.valToPos(d[0][i],'x',true), y=u.valToPos(d[1][i],'y',true);
+      if(pen) p.lineTo(x,y); else p.moveTo(x,y);
+      pen=true;
+    }
+    return {stroke:p,fill:null};
+  }
   function draw(spec){
     const el=document.getElementById(spec.id); if(!el) return;
     const xy=spec.kind==='xy';
@@ -294,6 +307,7 @@ const char* const kPlotScript = R"js(
       const o={label:s.label,stroke:s.stroke,width:s.width,spanGaps:false};
       if(s.dash&&s.dash.length) o.dash=s.dash;
       if(!s.line&&xy){ o.paths=dots(3); o.fill=s.stroke; o.points={show:false}; return o; }
+      if(xy){ o.paths=polyline; o.points={show:false}; return o; }
       if(!s.line) o.paths=()=>null;
       o.points=s.points?{show:true,size:6,fill:s.stroke,stroke:s.stroke}:{show:false};
       return o;
