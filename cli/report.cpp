@@ -8,6 +8,8 @@
 #include <sstream>
 
 #include "fogbench/model/workbench.hpp"
+#include "report_plots.hpp"
+#include "report_runs.hpp"
 #include "table.hpp"
 #include "workbench.hpp"
 
@@ -49,16 +51,6 @@ std::string script_json(const json& j) {
   return o;
 }
 
-json pick(const std::vector<double>& v, const std::vector<std::size_t>& idx, int digits = 4) {
-  json a = json::array();
-  const double scale = std::pow(10.0, digits);
-  for (std::size_t i : idx) {
-    if (i >= v.size() || !std::isfinite(v[i])) a.push_back(nullptr);
-    else a.push_back(std::round(v[i] * scale) / scale);  // fewer digits, smaller file
-  }
-  return a;
-}
-
 // Four significant digits: coefficients span 1e-4 (deg/h per degC^2) to 10 (deg/h per degC/min).
 std::string sig(double v) {
   if (!std::isfinite(v)) return "-";
@@ -66,6 +58,8 @@ std::string sig(double v) {
   std::snprintf(buf, sizeof buf, "%.4g", v);
   return buf;
 }
+
+const char* const kColours[] = {"#3d6fb6", "#d9822b", "#2e7d32", "#8e44ad", "#b3261e", "#16a085"};
 
 std::string pct(double v) { return std::isfinite(v) ? fixed(100.0 * v, 1) + "%" : "-"; }
 
@@ -118,57 +112,6 @@ td.w{text-align:left}tr.hit td{background:#fff1e6;font-weight:600}tr.fail td{col
 .plot{margin:6px 0 14px}.summary{background:#f3f5f8;border-left:4px solid #3d6fb6;padding:8px 12px;max-width:1100px}
 )css";
 
-constexpr const char* kScript = R"js(
-(function(){
-  let drawn = 0;
-  const W = () => Math.max(600, Math.min(1140, document.body.clientWidth - 40));
-  const colors = ['#3d6fb6','#d9822b','#2e7d32','#8e44ad','#b3261e','#16a085'];
-  // Failing intervals shaded behind the series: the plot's own coordinates, via a hook.
-  function shade(intervals){
-    return {hooks:{drawClear:[u=>{
-      const ctx=u.ctx; ctx.save(); ctx.fillStyle='rgba(179,38,30,0.13)';
-      for(const f of intervals){
-        const x0=u.valToPos(f.start_s,'x',true), x1=u.valToPos(f.start_s+f.duration_s,'x',true);
-        ctx.fillRect(x0,u.bbox.top,Math.max(1,x1-x0),u.bbox.height);
-      }
-      ctx.restore();}]}};
-  }
-  // styles[i]: {stroke, width, dash} of series i, else the palette.
-  function plot(id, title, ylabel, names, cols, extra, styles){
-    const el=document.getElementById(id); if(!el) return;
-    const series=[{label:'time, s'}].concat(names.map((n,i)=>Object.assign({label:n,stroke:colors[i%colors.length],width:1.2,spanGaps:false},(styles||[])[i]||{})));
-    const opts=Object.assign({title:title,width:W(),height:260,scales:{x:{time:false}},
-      axes:[{label:'time, s'},{label:ylabel,size:70}],series:series,legend:{live:true}}, extra||{});
-    new uPlot(opts, cols, el); drawn++;
-  }
-  for(const [k,r] of DATA.runs.entries()){
-    const s=r.series, t=s.time_s;
-    const temps=[['T1 (coil centre)',s.t1_c],['T2 (outer wall)',s.t2_c]];
-    if(s.ta_c) temps.push(['Ta (chamber air)',s.ta_c]);
-    plot('temp'+k, 'Temperature profile: '+r.run, 'degC', temps.map(x=>x[0]), [t].concat(temps.map(x=>x[1])));
-    plot('drift'+k, 'Measured and predicted drift: '+r.run, 'deg/h', ['measured','predicted'], [t,s.measured_dph,s.predicted_dph],
-         null, [{stroke:'#aab4c0',width:1},{stroke:'#d9822b',width:2}]);
-    const lim={stroke:'#b3261e',width:1,dash:[6,4]};
-    plot('resid'+k, 'Residual (measured - predicted), failing intervals shaded: '+r.run, 'deg/h',
-         ['residual','residual, 61 s average','+k sigma_a','-k sigma_a'],
-         [t,s.residual_dph,s.residual_smooth_dph,t.map(()=>r.threshold_dph),t.map(()=>-r.threshold_dph)], shade(r.failures),
-         [{stroke:'#c3cad3',width:1},{stroke:'#1f4e8c',width:2},lim,lim]);
-  }
-  if(DATA.cand && DATA.cand.names.length){
-    plot('cand','Residual on '+DATA.fit_run+' against the top candidates (each: its refitted contribution, mean removed)','deg/h',
-         ['residual, 61 s average'].concat(DATA.cand.names), [DATA.cand.time_s,DATA.cand.residual].concat(DATA.cand.cols),
-         null, [{stroke:'#8a949f',width:1}].concat(DATA.cand.cols.map((c,i)=>({stroke:colors[(i+1)%colors.length],width:2}))));
-  }
-  if(DATA.lineage && DATA.lineage.steps>1){
-    const x=[...Array(DATA.lineage.steps).keys()];
-    plot('lineage','Compensated std along the lineage (root = 0)','deg/h', DATA.lineage.runs, [x].concat(DATA.lineage.cols),
-         {axes:[{label:'model in the lineage (0 = root)',incrs:[1,2,5,10],values:(u,v)=>v.map(x=>String(x))},{label:'deg/h',size:70}],
-          scales:{x:{time:false},y:{range:(u,lo,hi)=>[0,hi*1.1]}}},
-         DATA.lineage.runs.map(()=>({width:2,points:{show:true,size:7}})));
-  }
-  document.body.setAttribute('data-plots', String(drawn));
-})();
-)js";
 
 }  // namespace
 
@@ -203,7 +146,7 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
   const wb::Qualification q = wb::qualify(*m, runs, std::span<const bool>(held_flags.get(), runs.size()), o.threshold);
   const wb::Lineage lin = wb::lineage(*m, runs);
 
-  json data = {{"fit_run", runs.front().name}, {"runs", json::array()}};
+  json specs = json::array();  // the plots, drawn by plots::kPlotScript
   std::string body;
   body += "<h1>fogbench report: model " + esc(m->terms_string()) + "</h1>";
   body += "<div class=\"sub\">" + esc(o.model) + " (" + std::string(to_string(m->method)) + " method, fitted on " +
@@ -303,47 +246,87 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
   // The residual against the top candidates on the fit run.
   {
     auto c0 = wb::compare(*m, runs.front());
-    json cand = {{"names", json::array()}, {"cols", json::array()}};
+    plots::Plot p;
+    p.id = "cand";
+    p.title = "Residual on " + runs.front().name + " against the top candidates (each: its refitted contribution, mean removed)";
+    p.xlabel = "time, s";
+    p.ylabel = "deg/h";
     if (c0) {
-      const auto idx = wb::decimate_indices(c0->residual_smooth_dph, o.max_points);
-      cand["time_s"] = pick(c0->time_s, idx, 1);
-      cand["residual"] = pick(c0->residual_smooth_dph, idx);
-      int k = 0;
+      p.x = c0->time_s;
+      plots::Series r;
+      r.name = "residual, 61 s average";
+      r.y = c0->residual_smooth_dph;
+      r.stroke = "#8a949f";
+      r.keys = plots::keys_text(plots::keys(r.y), "deg/h");
+      p.series.push_back(std::move(r));
       for (const auto& c : d->candidates) {
-        if (!c.evaluated || k >= 3) continue;
-        auto y = contribution(c, runs.front(), m->tref_c);
-        if (y.empty()) continue;
-        cand["names"].push_back(c.term + " × " + fixed(c.coef, 4));
-        cand["cols"].push_back(pick(y, idx));
-        ++k;
+        if (!c.evaluated || p.series.size() > 3) continue;
+        plots::Series s;
+        s.y = contribution(c, runs.front(), m->tref_c);
+        if (s.y.empty()) continue;
+        s.name = c.term + " × " + sig(c.coef) + " " + c.unit;
+        s.stroke = kColours[p.series.size() % std::size(kColours)];
+        s.width = 2;
+        s.keys = "compensated std with it " + fixed(c.rms_before_dph, 3) + " → " + fixed(c.rms_after_dph, 3) + " deg/h; " +
+                 plots::keys_text(plots::keys(s.y), "deg/h");
+        p.series.push_back(std::move(s));
       }
     }
-    data["cand"] = cand;
-    body += "<h2>Residual against the top candidates</h2><div class=\"plot\" id=\"cand\"></div>";
+    body += "<h2>Residual against the top candidates</h2>";
+    if (p.series.size() > 1) body += plots::render(p, specs, o.max_points);
+    else body += "<p class=\"note\">No candidate could be evaluated.</p>";
   }
 
-  // Lineage.
+  // Lineage: the models of the chain, then diagnose's steps refitted on the fit run.
+  std::vector<std::unique_ptr<model::Model>> owned;
+  std::vector<std::string> step_notes;
+  std::vector<std::string> added;
+  for (const auto& st : d->steps) added.push_back(st.added);
+  const std::vector<report::Step> steps = report::lineage_steps(*m, runs.front(), added, owned, step_notes);
   body += "<h2>Lineage of the error</h2>";
   {
     std::vector<std::string> head{"#", "terms"};
-    for (const auto& r : lin.runs) head.push_back(r + ", deg/h");
+    for (const auto& r : runs) head.push_back(r.name + ", deg/h");
     head.push_back("note");
     HtmlTable t(head);
-    json cols = json::array();
-    for (std::size_t r = 0; r < lin.runs.size(); ++r) cols.push_back(json::array());
-    for (std::size_t i = 0; i < lin.steps.size(); ++i) {
-      const auto& s = lin.steps[i];
-      std::vector<std::string> row{std::to_string(i), s.terms};
-      for (std::size_t r = 0; r < s.comp_std_dph.size(); ++r) {
-        row.push_back(fixed(s.comp_std_dph[r], 3));
-        cols[r].push_back(std::isfinite(s.comp_std_dph[r]) ? json(s.comp_std_dph[r]) : json(nullptr));
+    plots::Plot p;
+    p.id = "lineage";
+    p.kind = "step";
+    p.robust = false;
+    p.y_from_zero = true;
+    p.title = "Compensated std of each model of the lineage on each run (step 0 = the root)";
+    p.xlabel = "lineage step";
+    p.ylabel = "compensated std, deg/h";
+    for (std::size_t r = 0; r < runs.size(); ++r) {
+      plots::Series s;
+      s.name = runs[r].name + (r ? " (held out)" : " (fit run)");
+      s.stroke = kColours[r % std::size(kColours)];
+      s.width = 2;
+      s.points = true;
+      p.series.push_back(std::move(s));
+    }
+    for (std::size_t i = 0; i < steps.size(); ++i) {
+      const model::Model& sm = *steps[i].model;
+      p.x.push_back(static_cast<double>(i));
+      p.x_names.push_back(steps[i].label.substr(steps[i].label.find(": ") + 2) + " = " + sm.terms_string());
+      std::vector<std::string> row{std::to_string(i), sm.terms_string()};
+      for (std::size_t r = 0; r < runs.size(); ++r) {
+        auto v = model::verify(sm, runs[r]);
+        const double y = v ? v->run.comp_std : std::nan("");
+        p.series[r].y.push_back(y);
+        row.push_back(v ? fixed(y, 3) : "-");
       }
-      row.push_back(s.note);
+      row.push_back(steps[i].saved ? sm.note : "diagnose's step, refitted here, not saved: fogctl fit --add \"" + added[i - (steps.size() - owned.size())] + "\"");
       t.row(row);
     }
+    for (auto& s : p.series) {
+      std::string k;
+      for (std::size_t i = 0; i < s.y.size(); ++i) k += (i ? ", " : "") + std::string("step ") + std::to_string(i) + " " + fixed(s.y[i], 3);
+      s.keys = "compensated std " + k + " deg/h";
+    }
     body += t.str();
-    data["lineage"] = {{"steps", lin.steps.size()}, {"runs", lin.runs}, {"cols", cols}};
-    if (lin.steps.size() > 1) body += "<div class=\"plot\" id=\"lineage\"></div>";
+    for (const auto& n : step_notes) body += "<p class=\"note\">" + esc(n) + "</p>";
+    if (steps.size() > 1) body += plots::render(p, specs, o.max_points);
   }
 
   // Per run: profile, drift, residual.
@@ -353,26 +336,86 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
       err << "fogctl report: " << c.error().message << "\n";
       return kExitError;
     }
-    const auto idx = wb::decimate_indices(c->residual_dph, o.max_points);
-    json s = {{"time_s", pick(c->time_s, idx, 1)},
-              {"measured_dph", pick(c->measured_dph, idx)},
-              {"predicted_dph", pick(c->predicted_dph, idx)},
-              {"residual_dph", pick(c->residual_dph, idx)},
-              {"residual_smooth_dph", pick(c->residual_smooth_dph, idx)},
-              {"t1_c", pick(c->t1_c, idx, 3)},
-              {"t2_c", pick(c->t2_c, idx, 3)}};
-    if (!c->ta_c.empty()) s["ta_c"] = pick(c->ta_c, idx, 3);
-    json fails = json::array();
-    for (const auto& f : c->failures) fails.push_back(wb::to_json(f));
-    data["runs"].push_back({{"run", runs[k].name}, {"series", s}, {"threshold_dph", c->threshold_dph}, {"failures", fails}});
     const auto& v = c->verification;
     body += "<h2>Run " + esc(runs[k].name) + (k ? " (held out)" : " (fit run)") + "</h2>";
     body += "<p class=\"note\">" + std::to_string(v.run.n) + " samples; raw std " + fixed(v.run.meas_std, 3) + " deg/h, compensated " +
             fixed(v.run.comp_std, 3) + " deg/h (" + pct(v.run.ratio) + "); " + std::to_string(c->failures.size()) +
-            " failing interval(s) beyond " + fixed(c->threshold_dph, 3) + " deg/h. Plotted: " + std::to_string(idx.size()) +
-            " of " + std::to_string(runs[k].size()) + " samples (minimum and maximum of each bucket).</p>";
-    body += "<div class=\"plot\" id=\"temp" + std::to_string(k) + "\"></div><div class=\"plot\" id=\"drift" + std::to_string(k) +
-            "\"></div><div class=\"plot\" id=\"resid" + std::to_string(k) + "\"></div>";
+            " failing interval(s) beyond " + fixed(c->threshold_dph, 3) + " deg/h. Plotted: at most " + std::to_string(o.max_points) +
+            " of " + std::to_string(runs[k].size()) + " samples per series (minimum and maximum of each bucket). Y-ranges are robust: "
+            "a few extreme samples do not set them, they are marked at the edge and counted in the title.</p>";
+    const std::string key = std::to_string(k);
+    {
+      plots::Plot p;
+      p.id = "temp" + key;
+      p.title = "Temperature profile: " + runs[k].name;
+      p.xlabel = "time, s";
+      p.ylabel = "temperature, degC";
+      p.x = c->time_s;
+      std::vector<std::pair<std::string, const std::vector<double>*>> temps{{"T1 (coil centre)", &c->t1_c}, {"T2 (outer wall)", &c->t2_c}};
+      if (!c->ta_c.empty()) temps.emplace_back("Ta (chamber air)", &c->ta_c);
+      for (const auto& [name, y] : temps) {
+        plots::Series s;
+        s.name = name;
+        s.y = *y;
+        s.stroke = kColours[p.series.size()];
+        s.keys = plots::keys_text(plots::keys(s.y), "degC");
+        p.series.push_back(std::move(s));
+      }
+      body += plots::render(p, specs, o.max_points);
+    }
+    {
+      plots::Plot p;
+      p.id = "drift" + key;
+      p.title = "Measured and predicted drift: " + runs[k].name;
+      p.xlabel = "time, s";
+      p.ylabel = "drift, deg/h";
+      p.x = c->time_s;
+      p.series.resize(2);
+      p.series[0].name = "measured";
+      p.series[0].y = c->measured_dph;
+      p.series[0].stroke = "#aab4c0";
+      p.series[0].width = 1;
+      p.series[1].name = "predicted";
+      p.series[1].y = c->predicted_dph;
+      p.series[1].stroke = "#d9822b";
+      p.series[1].width = 2;
+      for (auto& s : p.series) s.keys = plots::keys_text(plots::keys(s.y), "deg/h");
+      body += plots::render(p, specs, o.max_points);
+    }
+    {
+      plots::Plot p;
+      p.id = "resid" + key;
+      p.title = "Residual (measured - predicted), failing intervals shaded: " + runs[k].name;
+      p.xlabel = "time, s";
+      p.ylabel = "residual, deg/h";
+      p.x = c->time_s;
+      for (const auto& f : c->failures) p.failures.push_back(wb::to_json(f));
+      p.series.resize(4);
+      p.series[0].name = "residual";
+      p.series[0].y = c->residual_dph;
+      p.series[0].stroke = "#c3cad3";
+      p.series[0].width = 1;
+      p.series[0].keys = plots::keys_text(plots::keys(c->residual_dph), "deg/h");
+      p.series[1].name = "residual, 61 s average";
+      p.series[1].y = c->residual_smooth_dph;
+      p.series[1].stroke = "#1f4e8c";
+      p.series[1].width = 2;
+      p.series[1].keys = plots::keys_text(plots::keys(c->residual_smooth_dph), "deg/h") + "; " + std::to_string(c->failures.size()) +
+                         " failing interval(s)";
+      for (int i : {2, 3}) {
+        auto& s = p.series[static_cast<std::size_t>(i)];
+        s.name = i == 2 ? "+k sigma_a" : "-k sigma_a";
+        s.y.assign(c->time_s.size(), i == 2 ? c->threshold_dph : -c->threshold_dph);
+        s.stroke = "#b3261e";
+        s.width = 1;
+        s.dash = {6, 4};
+        s.robust = false;
+      }
+      p.series[2].keys = "failing beyond +-" + fixed(c->threshold_dph, 3) + " deg/h (k sigma_a) for 60 s or more";
+      body += plots::render(p, specs, o.max_points);
+    }
+    const wb::QualRun* qr = k < q.runs.size() ? &q.runs[k] : nullptr;
+    body += report::analysis_plots({*m, runs[k], *c, qr, key}, steps, specs, o.max_points);
     HtmlTable t({"part", "samples", "est mean", "meas mean", "est std", "meas std", "comp std", "comp/raw"});
     auto row = [&](const std::string& name, const model::Table1& x) {
       t.row({name, std::to_string(x.n), fixed(x.est_mean, 3), fixed(x.meas_mean, 3), fixed(x.est_std, 3), fixed(x.meas_std, 3),
@@ -395,9 +438,9 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
   body += std::string("<p class=\"note\">Plots: uPlot ") + vendor::kUplotVersion + " (MIT), embedded. Generated by fogctl " FOGBENCH_VERSION ".</p>";
 
   std::string html = "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>fogbench report: " + esc(m->terms_string()) +
-                     "</title><style>" + std::string(vendor::kUplotCss) + "</style><style>" + kStyle + "</style></head><body>" + body +
-                     "<script>" + std::string(vendor::kUplotJs) + "</script><script>const DATA=" + script_json(data) + ";</script><script>" +
-                     kScript + "</script></body></html>\n";
+                     "</title><style>" + std::string(vendor::kUplotCss) + "</style><style>" + kStyle + plots::kPlotStyle +
+                     "</style></head><body>" + body + "<script>" + std::string(vendor::kUplotJs) + "</script><script>const DATA=" +
+                     script_json(json{{"plots", specs}}) + ";</script><script>" + plots::kPlotScript + "</script></body></html>\n";
   if (auto w = write_text(o.output, html); !w) {
     err << "fogctl report: " << w.error() << "\n";
     return kExitError;

@@ -137,6 +137,13 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
     if (auto t = model::parse_term(c); !t) {
       err << "fogctl diagnose: --candidate: " << t.error().pretty() << "\n";
       return kExitError;
+    } else if (auto s = model::run_signals(runs->front(), m->tref_c); s) {
+      // A term the user asked for that the fit run cannot give (ton without since_power_on_s,
+      // Ta without chamber_c) is bad input, not a candidate to skip: say so, exit 2.
+      if (auto x = model::evaluate(*t->expr, s->view()); !x) {
+        err << "fogctl diagnose: --candidate " << c << " on " << runs->front().name << ": " << x.error() << "\n";
+        return kExitError;
+      }
     }
   auto d = wb::diagnose(*m, runs->front(), std::span<const model::RunData>(*runs).subspan(1), dopt);
   if (!d) {

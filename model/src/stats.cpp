@@ -245,3 +245,58 @@ double ar_process_std(std::span<const double> k, double sigma_a) {
   return sigma_a * std::sqrt(s);
 }
 }  // namespace fogbench::model
+
+namespace fogbench::model {
+std::vector<double> ccf(std::span<const double> a, std::span<const double> x, int max_lag) {
+  const std::size_t n = std::min(a.size(), x.size());
+  const int L = std::max(0, max_lag);
+  std::vector<double> r(2 * static_cast<std::size_t>(L) + 1, 0.0);
+  double ma = 0.0, mx = 0.0;
+  std::size_t na = 0, nx = 0;
+  for (std::size_t t = 0; t < n; ++t) {
+    if (std::isfinite(a[t])) ma += a[t], ++na;
+    if (std::isfinite(x[t])) mx += x[t], ++nx;
+  }
+  if (na < 2 || nx < 2) return r;
+  ma /= static_cast<double>(na);
+  mx /= static_cast<double>(nx);
+  double saa = 0.0, sxx = 0.0;
+  for (std::size_t t = 0; t < n; ++t) {
+    if (std::isfinite(a[t])) saa += (a[t] - ma) * (a[t] - ma);
+    if (std::isfinite(x[t])) sxx += (x[t] - mx) * (x[t] - mx);
+  }
+  // N s_a s_x with population stds: sqrt(saa * sxx) when both have the same count, which
+  // is the usual case (a residual and a regressor of one run); else scaled to a common N.
+  const double denom = std::sqrt(saa / static_cast<double>(na) * sxx / static_cast<double>(nx)) * static_cast<double>(std::min(na, nx));
+  if (!(denom > 0.0)) return r;
+  for (int k = -L; k <= L; ++k) {
+    double c = 0.0;
+    for (std::size_t t = 0; t < n; ++t) {
+      const long j = static_cast<long>(t) - k;
+      if (j < 0 || j >= static_cast<long>(n)) continue;
+      const double av = a[t], xv = x[static_cast<std::size_t>(j)];
+      if (std::isfinite(av) && std::isfinite(xv)) c += (av - ma) * (xv - mx);
+    }
+    r[static_cast<std::size_t>(k + L)] = c / denom;
+  }
+  return r;
+}
+
+double normal_quantile(double p) {
+  if (!(p > 0.0 && p < 1.0)) return std::numeric_limits<double>::quiet_NaN();
+  // Bisection on Phi(z) = erfc(-z / sqrt 2) / 2, monotone; 80 halvings of [-40, 40] reach
+  // 80 / 2^80, far below the 1e-9 promised.
+  double lo = -40.0, hi = 40.0;
+  for (int i = 0; i < 80; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    if (0.5 * std::erfc(-mid / std::sqrt(2.0)) < p) lo = mid;
+    else hi = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+double confidence_band(std::size_t n, double level) {
+  if (n == 0 || !(level > 0.0 && level < 1.0)) return std::numeric_limits<double>::quiet_NaN();
+  return normal_quantile(0.5 * (1.0 + level)) / std::sqrt(static_cast<double>(n));
+}
+}  // namespace fogbench::model

@@ -1,6 +1,6 @@
 // fogctl report: a self-contained HTML file that renders in headless Chromium without a
-// console error and holds its figures. Skipped with a warning when Chromium is absent
-// (Debian package: chromium).
+// console error, draws each of its figures, and prints (PDF) with the legends' values. Fails
+// when Chromium or pdftotext is absent (Debian packages chromium, poppler-utils).
 #include <catch2/catch.hpp>
 #include <cstdlib>
 #include <filesystem>
@@ -115,13 +115,54 @@ TEST_CASE("fogctl report: self-contained HTML that renders its figures in headle
   REQUIRE(run_chromium(exe, dir, "--enable-logging=stderr --v=0 --dump-dom", r.output, dom, log) == 0);
   const std::string d = slurp(dom), l = slurp(log);
   INFO(l);
-  // The figures: per run the profile, the drift and the residual (2 x 3), the candidates and
-  // the lineage: 8 plots, each a canvas; the page counts what it drew.
-  CHECK(d.find("data-plots=\"8\"") != std::string::npos);
-  CHECK(count(d, "<canvas") == 8);
+  // The figures: per run the profile, the drift, the residual, the residual along the lineage,
+  // the ACF and the CCF of the prewhitened residual, the residual against T1 and the drift-vs-T1
+  // loop (2 x 8), then the candidates and the lineage: 18 plots, each a canvas; the page counts
+  // what it drew.
+  const std::vector<std::string> ids{"cand", "lineage"};
+  std::vector<std::string> all = ids;
+  for (const char* k : {"0", "1"})
+    for (const char* p : {"temp", "drift", "resid", "lres", "acf", "ccf", "rvt", "loop"}) all.push_back(std::string(p) + k);
+  REQUIRE(all.size() == 18);
+  CHECK(count(html, "<div class=\"plot\"") == 18);
+  CHECK(d.find("data-plots=\"18\"") != std::string::npos);
+  CHECK(count(d, "<canvas") == 18);
+  // Each plot drew something: coloured pixels (series, not the grey grid) in its plotting area,
+  // counted by the page into data-ink after each draw. A line across the plot is over 500.
+  for (const auto& id : all) {
+    INFO(id);
+    std::smatch mm;
+    REQUIRE(std::regex_search(d, mm, std::regex("<div class=\"plot\" id=\"" + id + "\" data-ink=\"([0-9]+)\"")));
+    CHECK(std::stoul(mm[1].str()) > 500u);
+  }
+  // The lineage plot: x is the lineage step (not time), y the compensated std with its unit,
+  // and each step named by its terms.
+  CHECK(html.find("\"id\":\"lineage\",\"kind\":\"step\"") != std::string::npos);
+  CHECK(html.find("\"xlabel\":\"lineage step\"") != std::string::npos);
+  CHECK(html.find("\"ylabel\":\"compensated std, deg/h\"") != std::string::npos);
   // Console errors are logged as CONSOLE lines with "Uncaught" or "Error".
   CHECK(l.find("Uncaught") == std::string::npos);
   CHECK_FALSE(std::regex_search(l, std::regex("CONSOLE.*(Error|error)")));
+
+  // Printed (print-to-PDF): the print stylesheet shows each plot's legend with its values
+  // (uPlot's own legend shows values only under the mouse). On screen they are hidden, so
+  // their text in the PDF's text layer comes from @media print.
+  const std::string pdf = dir.file("report.pdf");
+  REQUIRE(run_chromium(exe, dir, "--no-pdf-header-footer --print-to-pdf=" + pdf, r.output, dir.file("po"), dir.file("pe")) == 0);
+  REQUIRE(fs::exists(pdf));
+  if (std::system("command -v pdftotext >/dev/null 2>&1") != 0)
+    FAIL("pdftotext not found (Debian package: poppler-utils): the printed report cannot be checked");
+  const std::string txt = dir.file("report.txt");
+  REQUIRE(std::system(("pdftotext " + pdf + " " + txt).c_str()) == 0);
+  std::string printed = std::regex_replace(slurp(txt), std::regex("\\s+"), " ");
+  INFO(printed.substr(0, 4000));
+  CHECK(printed.find("compensated std step 0") != std::string::npos);             // the lineage plot's legend
+  CHECK(printed.find("step 1: + T1^2") != std::string::npos);                     // ... naming each step's terms
+  CHECK(printed.find("largest |r|") != std::string::npos);                        // ACF and CCF: their key numbers
+  CHECK(printed.find("lags outside the 99% band") != std::string::npos);
+  CHECK(printed.find("heating - cooling at equal T1") != std::string::npos);      // the loop
+  CHECK(printed.find("correlation with T1 r =") != std::string::npos);            // the scatter
+  CHECK(count(printed, "mean ") >= 20u);                                          // every time series: mean, std, ...
   // A screenshot for people (kept only if FOGBENCH_REPORT_SHOT names a path to copy it to).
   const std::string shot = dir.file("report.png");
   REQUIRE(run_chromium(exe, dir, "--hide-scrollbars --window-size=1280,2600 --screenshot=" + shot, r.output, dir.file("o"), dir.file("e")) == 0);

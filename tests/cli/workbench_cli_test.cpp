@@ -215,3 +215,78 @@ TEST_CASE("fogctl executable: the workbench commands are registered and exit wit
   s << f.rdbuf();
   CHECK(s.str().find("--model and --add go together") != std::string::npos);
 }
+
+TEST_CASE("fogctl executable: a term out of range, ton without its column, a search over the limit: exit 2, named, nothing written") {
+  Bench b;
+  const std::string fogctl = std::string(FOGBENCH_BIN_DIR) + "/fogctl";
+  INFO("fogctl not built at " << fogctl << " (test_cli depends on it)");
+  REQUIRE(fs::exists(fogctl));
+  // The premise of the ton cases: the simulated run has no time since power-on.
+  auto e1 = fogbench::storage::read_csv_file(b.e1, {});
+  REQUIRE(e1);
+  REQUIRE(e1->since_power_on_s.empty());
+  const std::string out = b.dir.file("out.txt"), err = b.dir.file("err.txt"), written = b.dir.file("written.json");
+  struct Result {
+    int code;
+    std::string out, err;
+  };
+  auto run = [&](const std::string& args) {
+    fs::remove(written);
+    const int s = std::system((fogctl + " " + args + " >" + out + " 2>" + err).c_str());
+    auto slurp = [](const std::string& p) {
+      std::ifstream f(p);
+      std::stringstream ss;
+      ss << f.rdbuf();
+      return ss.str();
+    };
+    return Result{WIFEXITED(s) ? WEXITSTATUS(s) : -1, slurp(out), slurp(err)};
+  };
+  // fit --add: each message names the term and the limit; no model file is written.
+  struct Case {
+    std::string term, names, limit;
+  };
+  for (const Case& c : {Case{"lp(T1,100000)", "lp", "1 to 86400 s"}, Case{"warm(0.5)", "warm", "1 to 86400 s"},
+                        Case{"T1^5", "^", "1 to 4"}, Case{"T1@90000", "@", "86400"}, Case{"warm(600)", "warm(600)", "since_power_on_s"},
+                        Case{"ton", "ton", "since_power_on_s"}}) {
+    INFO("fit --add " << c.term);
+    const Result r = run("fit --model " + b.m + " --add '" + c.term + "' " + b.e1 + " -o " + written);
+    INFO(r.err);
+    CHECK(r.code == kExitError);
+    CHECK(r.err.find(c.names) != std::string::npos);
+    CHECK(r.err.find(c.limit) != std::string::npos);
+    CHECK_FALSE(fs::exists(written));
+  }
+  // diagnose: the same through --candidate, and a search space over its limit of 400
+  // candidates (24 time constants and 150 extra candidates): stdout empty, no report.
+  for (const Case& c : {Case{"lp(T1,100000)", "lp", "1 to 86400 s"}, Case{"T1^5", "^", "1 to 4"}, Case{"T1@90000", "@", "86400"},
+                        Case{"warm(600)", "warm(600)", "since_power_on_s"}}) {
+    INFO("diagnose --candidate " << c.term);
+    // Runs first: --candidate takes every value that follows it.
+    const Result r = run("diagnose --model " + b.m + " " + b.e1 + " " + b.e2 + " --candidate '" + c.term + "'");
+    INFO(r.err);
+    CHECK(r.code == kExitError);
+    CHECK(r.err.find(c.names) != std::string::npos);
+    CHECK(r.err.find(c.limit) != std::string::npos);
+    CHECK(r.out.empty());
+  }
+  std::string many;
+  for (int i = 1; i <= 150; ++i) many += " --candidate T1@" + std::to_string(i);
+  Result r = run("diagnose --model " + b.m + " " + b.e1 + " " + b.e2 + " --tau-points 24" + many);
+  INFO(r.err);
+  CHECK(r.code == kExitError);
+  CHECK(r.err.find("over the limit of 400") != std::string::npos);
+  CHECK(r.err.find("24 time constants") != std::string::npos);
+  CHECK(r.out.empty());
+  r = run("diagnose --model " + b.m + " --tau-points 30 " + b.e1);
+  CHECK(r.code == kExitError);
+  CHECK(r.err.find("2 to 24") != std::string::npos);
+  CHECK(r.out.empty());
+  r = run("diagnose --model " + b.m + " --max-lag 90000 " + b.e1);
+  CHECK(r.code == kExitError);
+  CHECK(r.err.find("lag") != std::string::npos);
+  CHECK(r.out.empty());
+  // report: a bad option is refused before anything is written.
+  r = run("report --model " + b.m + " " + b.e1 + " -o " + written + " --threshold 2");
+  CHECK(r.code == kExitError);
+  CHECK_FALSE(fs::exists(written));
+}

@@ -142,3 +142,74 @@ TEST_CASE("moving_average: weighted, centred, shrunk at the ends, x itself where
   // Width 1 (or 0) is the identity on counted samples.
   CHECK(fogbench::model::moving_average(x, std::vector<double>(5, 1.0), 1) == x);
 }
+
+TEST_CASE("normal_quantile and confidence_band against tabulated z values") {
+  // Tabulated: Phi^-1(0.975) = 1.959964, Phi^-1(0.995) = 2.575829, Phi^-1(0.5) = 0.
+  CHECK(normal_quantile(0.975) == Approx(1.959964).margin(1e-6));
+  CHECK(normal_quantile(0.995) == Approx(2.575829).margin(1e-6));
+  CHECK(normal_quantile(0.5) == Approx(0.0).margin(1e-9));
+  CHECK(normal_quantile(0.025) == Approx(-1.959964).margin(1e-6));
+  CHECK(std::isnan(normal_quantile(0.0)));
+  CHECK(std::isnan(normal_quantile(1.5)));
+  // 99% on N = 10000: 2.575829 / 100.
+  CHECK(confidence_band(10000, 0.99) == Approx(0.02575829).margin(1e-8));
+  CHECK(std::isnan(confidence_band(0, 0.99)));
+  CHECK(std::isnan(confidence_band(100, 1.0)));
+}
+
+TEST_CASE("ACF of white noise stays inside its 95% band at about 95% of lags, AR(1) at lag 1 is phi") {
+  // White noise: each of 200 lags is inside +-1.96/sqrt(N) with probability 0.95, nearly
+  // independently; the count of lags outside is about binomial(200, 0.05): mean 10, sd 3.1.
+  // At most 22 outside (mean + 4 sd) keeps the test from failing by chance (it is seeded anyway).
+  std::mt19937_64 rng(42);
+  std::normal_distribution<double> g(0.0, 1.0);
+  const std::size_t n = 20000;
+  std::vector<double> w(n);
+  for (double& v : w) v = g(rng);
+  const std::vector<double> r = acf(w, 200);
+  const double band = confidence_band(n, 0.95);
+  int outside = 0;
+  for (double v : r) outside += std::abs(v) > band;
+  CHECK(outside <= 22);
+  CHECK(outside >= 1);  // a band too wide would have none: P(0 of 200) = 0.95^200 = 3.5e-5
+  // AR(1) with phi = 0.7: rho_1 = phi, rho_2 = phi^2; the sample ACF's sd at lag 1 is about
+  // sqrt((1 - phi^2) / N) = 0.005, so 0.02 is 4 sd.
+  std::vector<double> y(n);
+  y[0] = g(rng);
+  for (std::size_t t = 1; t < n; ++t) y[t] = 0.7 * y[t - 1] + g(rng);
+  const std::vector<double> ry = acf(y, 2);
+  CHECK(ry[0] == Approx(0.7).margin(0.02));
+  CHECK(ry[1] == Approx(0.49).margin(0.03));
+}
+
+TEST_CASE("ccf: x leading a by d samples peaks at lag +d with r near 1, white pairs stay in the band") {
+  // a_t = x_{t-5} + small noise: the CCF at lag k = +5 (x leading by 5) is
+  // var(x) / sqrt(var(x) (var(x) + 0.1^2)) = 1 / sqrt(1.01) = 0.995.
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> g(0.0, 1.0);
+  const std::size_t n = 5000;
+  std::vector<double> x(n), a(n);
+  for (double& v : x) v = g(rng);
+  for (std::size_t t = 0; t < n; ++t) a[t] = (t >= 5 ? x[t - 5] : 0.0) + 0.1 * g(rng);
+  const int L = 20;
+  const std::vector<double> r = ccf(a, x, L);
+  REQUIRE(r.size() == 2 * L + 1);
+  std::size_t best = 0;
+  for (std::size_t i = 0; i < r.size(); ++i)
+    if (std::abs(r[i]) > std::abs(r[best])) best = i;
+  CHECK(static_cast<int>(best) - L == 5);
+  CHECK(r[best] == Approx(1.0 / std::sqrt(1.01)).margin(0.01));
+  // Every other lag: two independent white series, inside the 99.9% band (3.29/sqrt(N)).
+  const double band = confidence_band(n, 0.999);
+  for (std::size_t i = 0; i < r.size(); ++i)
+    if (i != best) CHECK(std::abs(r[i]) < band);
+  // A series with itself at lag 0 is exactly 1; non-finite samples are left out, not spread.
+  std::vector<double> xs = x;
+  xs[100] = std::nan("");
+  const std::vector<double> self = ccf(xs, xs, 0);
+  CHECK(self[0] == Approx(1.0).margin(1e-3));
+  CHECK(std::isfinite(self[0]));
+  // A constant series correlates with nothing: zeros, not NaN.
+  const std::vector<double> flat(n, 3.0);
+  for (double v : ccf(flat, x, 3)) CHECK(v == 0.0);
+}

@@ -60,6 +60,19 @@ std::vector<double> pacf(std::span<const double> x, int max_lag);
 // The +-2/sqrt(N) band inside which a white series' ACF and PACF lie (95%).
 inline double white_band(std::size_t n) { return n ? 2.0 / std::sqrt(static_cast<double>(n)) : 0.0; }
 
+// Sample cross-correlation of a and x, as MATLAB's `resid` and `crosscorr` estimate it:
+// r[k + max_lag] = sum_t (a_t - mean a)(x_{t-k} - mean x) / (N s_a s_x) for k = -max_lag..max_lag
+// (x leads a by k samples when k > 0; s the population std, divisor N). a and x must have the
+// same length N; pairs with a non-finite sample are left out of the sums (means and stds are
+// over the finite samples). Length 2 max_lag + 1; zeros when either series is constant.
+std::vector<double> ccf(std::span<const double> a, std::span<const double> x, int max_lag);
+// The standard normal quantile z with P(Z <= z) = p, 0 < p < 1 (|error| < 1e-9).
+double normal_quantile(double p);
+// The two-sided band +-z/sqrt(N) inside which the sample ACF of a white series, or its sample
+// CCF with any series independent of it, lies at each lag with probability `level`:
+// z = normal_quantile((1 + level) / 2) (2.576 at 99%, MATLAB resid's default; 1.960 at 95%).
+double confidence_band(std::size_t n, double level);
+
 // Ljung-Box: Q = N (N+2) sum_{k=1..h} r_k^2 / (N-k), chi-square with h - fitted_params dof.
 struct LjungBox {
   int lags = 0, dof = 0;
