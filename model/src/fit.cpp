@@ -12,6 +12,7 @@
 
 #include "fogbench/model/model.hpp"
 #include "lagscan.hpp"
+#include "lsq.hpp"
 
 namespace fogbench::model {
 namespace {
@@ -145,6 +146,27 @@ ScanResult scan(const LagScanner& sc, std::span<const double> y, const Spectrum*
     }
   }
   return best;
+}
+
+// Least squares of y on fixed columns by the kernel (lsq.hpp): the coefficients and SSE the
+// models report. The lag scan above picks lags from its normal equations (one solve per lag,
+// every sum by FFT); the coefficients at the lags chosen come from here.
+ScanResult solve_at(std::span<const double> y, std::span<const double> w, const std::vector<Column>& cols, int lag = 0) {
+  detail::LeastSquares ls(cols.size());
+  std::vector<double> row(cols.size());
+  for (std::size_t t = 0; t < y.size(); ++t) {
+    if (w[t] == 0.0) continue;
+    for (std::size_t j = 0; j < cols.size(); ++j) row[j] = cols[j].at(t);
+    ls.add(row, y[t], w[t]);
+  }
+  const detail::LeastSquaresResult r = ls.solve();
+  ScanResult out;
+  out.lag = lag;
+  if (!r.ok) return out;
+  out.theta = r.theta;
+  out.sse = r.sse;
+  out.ok = true;
+  return out;
 }
 
 
@@ -427,8 +449,9 @@ void finish_stats(Model& m, const Evaluated& ev, std::span<const double> y, std:
   // One pass over the run, no arrays of its length: the prewhitened design row
   // [1 - sum k, (1 - k(q)) x_j(t - lag_j)] and residual a(t) = (1 - k(q)) e(t), with
   // e = y - mu0 - sum coef_j x_j(t - lag_j), are formed sample by sample (values before the
-  // start equal to the first, as ar_filter takes them) and summed into G = X' W X and the
-  // RSS. A sample counts when it and the p before it all have weight.
+  // start equal to the first, as ar_filter takes them) and streamed into the kernel's QR
+  // (the covariance s2 (X' W X)^-1 from its triangle) and the RSS. A sample counts when it
+  // and the p before it all have weight.
   std::vector<std::size_t> lag(nt);
   for (std::size_t j = 0; j < nt; ++j) lag[j] = static_cast<std::size_t>(m.terms[j].term.lag.seconds);
   auto x_at = [&](std::size_t j, std::size_t t, std::size_t back) {  // x_j(t - back - lag_j), clamped at 0
@@ -443,7 +466,8 @@ void finish_stats(Model& m, const Evaluated& ev, std::span<const double> y, std:
   // e(t), e(t-1), ..., e(t-p), kept as t advances (each e computed once).
   std::vector<double> e_recent(p + 1);
   for (std::size_t i = 0; i <= p && p < n; ++i) e_recent[i] = e_at(p - i);
-  std::vector<double> g(k * k, 0.0), row(k);  // g: the lower triangle of G, row-major
+  detail::LeastSquares ls(k);  // the prewhitened design's R, for (X' W X)^-1 without forming X' W X
+  std::vector<double> row(k);
   row[0] = 1.0 - ksum;
   double rss = 0.0, nw = 0.0;
   for (std::size_t t = p; t < n; ++t) {
@@ -461,21 +485,14 @@ void finish_stats(Model& m, const Evaluated& ev, std::span<const double> y, std:
     }
     double a = e_recent[0];
     for (std::size_t i = 0; i < p; ++i) a -= m.ar[i] * e_recent[i + 1];
-    for (std::size_t r = 0; r < k; ++r)
-      for (std::size_t c = 0; c <= r; ++c) g[r * k + c] += row[r] * row[c];
+    ls.add(row, 0.0);
     rss += a * a;
     nw += 1.0;
   }
-  Eigen::MatrixXd G(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(k));
-  for (std::size_t r = 0; r < k; ++r)
-    for (std::size_t c = 0; c <= r; ++c)
-      G(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = G(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(r)) = g[r * k + c];
   const double nparams = static_cast<double>(k + p + static_cast<std::size_t>(n_auto_lags));
   const double s2 = nw > nparams ? rss / (nw - nparams) : 0.0;
-  Eigen::LDLT<Eigen::MatrixXd> ldlt(G);
   m.fit.coef_corr.assign(k, std::vector<double>(k, 0.0));
-  if (ldlt.info() == Eigen::Success && ldlt.rcond() > 1e-15) {
-    const Eigen::MatrixXd cov = s2 * ldlt.solve(Eigen::MatrixXd::Identity(k, k));
+  if (const Eigen::MatrixXd cov = ls.covariance(s2); cov.size() != 0) {
     m.mu0_se = std::sqrt(std::max(0.0, cov(0, 0)));
     for (std::size_t j = 0; j < nt; ++j) m.terms[j].se = std::sqrt(std::max(0.0, cov(j + 1, j + 1)));
     for (std::size_t r = 0; r < k; ++r)
@@ -586,8 +603,13 @@ std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<T
     }
   }
   LagScanner sc(n, L, w);
-  const ScanResult r = scan(sc, z, nullptr, fixed, varying, 0, L);
-  if (!r.ok) return fail(FitError::Code::degenerate, "no lag in 0.." + std::to_string(L) + " s gives a solvable regression");
+  const ScanResult best = scan(sc, z, nullptr, fixed, varying, 0, L);
+  if (!best.ok) return fail(FitError::Code::degenerate, "no lag in 0.." + std::to_string(L) + " s gives a solvable regression");
+  // The coefficients at the lag chosen, by the kernel (fixed columns first, as the scan orders them).
+  std::vector<Column> all = fixed;
+  for (const Lagged* v : varying) all.push_back(lagged_view(*v, L, best.lag));
+  const ScanResult r = solve_at(z, w, all, best.lag);
+  if (!r.ok) return fail(FitError::Code::degenerate, "the regression is singular at lag " + std::to_string(best.lag) + " s");
   m.terms.resize(terms.size());
   for (std::size_t a = 0; a < fixed_idx.size(); ++a) {
     m.terms[fixed_idx[a]].term = terms[fixed_idx[a]];
@@ -680,7 +702,7 @@ std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<T
     }
     std::vector<Column> all{{nullptr, c}};
     for (std::size_t l = 0; l < nt; ++l) all.push_back(lagged_view(xf[l], L, lag[l]));
-    const ScanResult r = scan(sc, yf, nullptr, all, {}, 0, 0);
+    const ScanResult r = solve_at(yf, sc.weights(), all);
     if (!r.ok) return fail(FitError::Code::degenerate, "the regression is singular at the chosen lags");
     theta = r.theta;
     m.fit.rss = r.sse;
