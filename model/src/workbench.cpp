@@ -8,12 +8,14 @@
 #include <limits>
 #include <map>
 
+#include "common.hpp"
+
 namespace fogbench::model::workbench {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-std::unexpected<FitError> fail(FitError::Code c, std::string msg) { return std::unexpected(FitError{c, std::move(msg)}); }
+using detail::fail;
 
 
 // The phase most samples of [b, e) have.

@@ -13,24 +13,22 @@
 
 #include "fogbench/model/workbench.hpp"
 #include "lagscan.hpp"
+#include "common.hpp"
 #include "workbench_internal.hpp"
 
 namespace fogbench::model::workbench {
 namespace {
 
+using wbi::fmt;
+using wbi::weighted_corr;
+
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-std::unexpected<FitError> fail(FitError::Code c, std::string msg) { return std::unexpected(FitError{c, std::move(msg)}); }
+using detail::fail;
 
 std::string with_lag(const std::string& expr, int lag_s) { return lag_s ? expr + "@" + std::to_string(lag_s) : expr; }
 
-// Samples a regression may use: not flagged, finite output.
-std::vector<double> good_weights(const RunData& run) {
-  std::vector<double> w(run.size(), 1.0);
-  for (std::size_t t = 0; t < run.size(); ++t)
-    if (run.flagged(t) || !std::isfinite(run.gyro_dph[t])) w[t] = 0.0;
-  return w;
-}
+using detail::good_weights;
 
 std::vector<double> lagged(std::span<const double> x, int lag) {
   const std::size_t n = x.size(), l = static_cast<std::size_t>(std::max(0, lag));
@@ -162,24 +160,6 @@ class CandidateScan {
   std::vector<detail::Spectrum> col_spec_;
 };
 
-double weighted_corr(std::span<const double> a, std::span<const double> b, std::span<const double> w) {
-  double sw = 0, ma = 0, mb = 0;
-  for (std::size_t t = 0; t < a.size(); ++t) {
-    sw += w[t];
-    ma += w[t] * a[t];
-    mb += w[t] * b[t];
-  }
-  ma /= sw;
-  mb /= sw;
-  double sab = 0, saa = 0, sbb = 0;
-  for (std::size_t t = 0; t < a.size(); ++t) {
-    sab += w[t] * (a[t] - ma) * (b[t] - mb);
-    saa += w[t] * (a[t] - ma) * (a[t] - ma);
-    sbb += w[t] * (b[t] - mb) * (b[t] - mb);
-  }
-  return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 0.0;
-}
-
 // The candidate's column on a run: the expression evaluated and delayed.
 std::expected<std::vector<double>, std::string> column(const Term& t, const RunSignals& s, int lag) {
   auto v = evaluate(*t.expr, s.view());
@@ -282,11 +262,6 @@ std::pair<TermList, int> extended_terms(const Model& base, const Term& extra, bo
   return {tl, (lag_scanned ? 1 : 0) + (repeat ? auto_lag_params(base) : 0)};
 }
 
-std::string fmt(double v, int digits) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
-  return buf;
-}
 
 struct FitRun {
   RunSignals sig;
