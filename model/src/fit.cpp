@@ -223,12 +223,17 @@ void fill_fitted_on(Model& m, const RunData& run) {
 
 }  // namespace
 
-std::expected<Model, FitError> fit(const RunData& run, const TermList& tl, const FitOptions& o) {
+namespace {
+
+// fit() without its summary on failure: `progress` follows it (stage, iterations).
+std::expected<Model, FitError> fit_run(const RunData& run, const TermList& tl, const FitOptions& o, FitSummary& progress) {
+  progress.stage = "options";
   if (auto v = o.validate(); !v) return fail(FitError::Code::bad_options, v.error());
   const std::size_t n = run.size();
   if (run.gyro_dph.size() != n || run.t1_c.size() != n || run.t2_c.size() != n)
     return fail(FitError::Code::bad_options, "the run's columns have different lengths");
   const std::vector<Term>& terms = tl.terms;
+  progress.stage = "checks";
   if (auto c = detail::check_terms(n, terms, o); !c) return std::unexpected(c.error());
   if (auto t = detail::check_time(run); !t) return std::unexpected(t.error());
   auto ev = detail::evaluate_terms(run, terms, o.tref_c);
@@ -246,8 +251,10 @@ std::expected<Model, FitError> fit(const RunData& run, const TermList& tl, const
       if (!std::isfinite(v)) v = 0.0;
     src = &clean;
   }
-  auto m = o.method == Method::paper ? detail::fit_paper(*src, terms, o, *ev, w) : detail::fit_joint(*src, terms, o, *ev, w);
+  auto m = o.method == Method::paper ? detail::fit_paper(*src, terms, o, *ev, w, progress)
+                                     : detail::fit_joint(*src, terms, o, *ev, w, progress);
   if (!m) return m;
+  progress.stage = "collinearity at the fitted lags";
   // A pair of @auto terms that are collinear only at their fitted lags is caught here.
   {
     std::vector<std::size_t> lags;
@@ -265,6 +272,47 @@ std::expected<Model, FitError> fit(const RunData& run, const TermList& tl, const
   m->hold_s = o.hold_s;
   fill_fitted_on(*m, run);
   return m;
+}
+
+}  // namespace
+
+std::expected<Model, FitError> fit(const RunData& run, const TermList& tl, const FitOptions& o) {
+  FitSummary progress;
+  progress.method = o.method;
+  auto m = fit_run(run, tl, o, progress);
+  if (!m) {
+    FitError e = std::move(m.error());
+    e.summary = progress;
+    e.summary.termination = FitTermination::failed;
+    e.summary.why = e.message;
+    return std::unexpected(std::move(e));
+  }
+  progress.stage = "done";
+  m->fit.summary = progress;
+  m->fit.iterations = progress.iterations;
+  m->fit.converged = progress.converged();
+  return m;
+}
+
+std::string_view to_string(FitTermination t) {
+  switch (t) {
+    case FitTermination::converged: return "converged";
+    case FitTermination::no_convergence: return "no_convergence";
+    case FitTermination::failed: return "failed";
+  }
+  return "?";
+}
+
+std::string FitSummary::brief() const {
+  std::string s = std::string(to_string(method)) + " fit ";
+  switch (termination) {
+    case FitTermination::converged: s += "converged"; break;
+    case FitTermination::no_convergence: s += "NOT converged"; break;
+    case FitTermination::failed: s += "failed" + (stage.empty() ? std::string() : " at " + stage); break;
+  }
+  if (method == Method::joint && iterations > 0) s += " after " + std::to_string(iterations) + (iterations == 1 ? " iteration" : " iterations");
+  if (!why.empty()) s += ": " + why;
+  return s;
 }
 
 std::expected<std::vector<std::vector<double>>, FitError> regressors(const Model& m, const RunData& run) {

@@ -75,10 +75,12 @@ void finish_stats(Model& m, const Evaluated& ev, std::span<const double> y, std:
 
 // ---- the methods (fit_paper.cpp, fit_joint.cpp) ----
 
-// w: the samples' weights (good_weights); run.gyro_dph finite everywhere.
+// w: the samples' weights (good_weights); run.gyro_dph finite everywhere. progress: where
+// the method is (stage, iterations), read by fit() when it fails; on success its termination
+// (and for joint last_change and why) says how the method ended.
 std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<Term>& terms, const FitOptions& o,
-                                         const Evaluated& ev, std::vector<double> w);
+                                         const Evaluated& ev, std::vector<double> w, FitSummary& progress);
 std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<Term>& terms, const FitOptions& o,
-                                         const Evaluated& ev, std::vector<double> w);
+                                         const Evaluated& ev, std::vector<double> w, FitSummary& progress);
 
 }  // namespace fogbench::model::detail

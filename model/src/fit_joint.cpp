@@ -104,7 +104,7 @@ class JointSolver {
 }  // namespace
 
 std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<Term>& terms, const FitOptions& o,
-                                         const Evaluated& ev, std::vector<double> w) {
+                                         const Evaluated& ev, std::vector<double> w, FitSummary& progress) {
   Model m;
   m.method = Method::joint;
   const std::size_t n = run.size();
@@ -129,6 +129,7 @@ std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<T
   // Ordinary least squares first (white errors), then the outliers of its residual.
   std::vector<Lagged> xl;
   for (const auto& x : ev.x) xl.push_back(make_lagged(x, L));
+  progress.stage = "ordinary least squares (white errors)";
   {
     // Only the shared-lag start here: the lags are refined once the noise is whitened.
     LagScanner sc(n, L, w);
@@ -157,7 +158,11 @@ std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<T
   std::vector<double> k_at_search(static_cast<std::size_t>(p), 0.0);
   int it = 0;
   std::vector<double> wf(n);
+  double change = 0.0;
+  bool lags_moved = false;
   for (; it < o.max_iterations && !converged; ++it) {
+    progress.iterations = it + 1;
+    progress.stage = "Cochrane-Orcutt iteration " + std::to_string(it + 1);
     auto ar = fit_ar_rows(e, w, p);
     if (!ar) return fail(FitError::Code::too_short, "joint fit: " + ar.error());
     const std::vector<double> k_new = ar->k;
@@ -181,7 +186,7 @@ std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<T
     m.fit.rss = solver.rss();
     const std::vector<double>& theta = solver.theta();
     // The intercept of the prewhitened regression is mu0 itself (its column is 1 - sum k).
-    double change = 0.0;
+    change = 0.0;
     for (std::size_t j = 0; j <= nt; ++j) change = std::max(change, std::abs(theta[j] - old[j]) / std::max(1e-6, std::abs(theta[j])));
     for (std::size_t j = 0; j < k.size(); ++j) change = std::max(change, std::abs(k_new[j] - k[j]));
     // Confirm the lags once the coefficients have settled, unless the whitening has barely
@@ -191,7 +196,8 @@ std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<T
     for (std::size_t j = 0; j < k_new.size(); ++j) k_drift = std::max(k_drift, std::abs(k_new[j] - k_at_search[j]));
     if (search_lags) k_at_search = k_new;
     k = k_new;
-    const bool settled = change < o.tolerance && solver.lags() == old_lag;
+    lags_moved = solver.lags() != old_lag;
+    const bool settled = change < o.tolerance && !lags_moved;
     converged = settled && (search_lags || n_auto == 0 || k_drift < 0.01);
     search_lags = settled && !converged;
     solver.residual(y, ev.x, e);
@@ -204,6 +210,19 @@ std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<T
       }
     m.sigma_a_dph = std::sqrt(rss / std::max(1.0, cnt));
     m.fit.n_used = static_cast<std::size_t>(cnt);
+  }
+  progress.last_change = change;
+  if (converged) {
+    progress.termination = FitTermination::converged;
+    progress.why = "coefficients and AR settled within the tolerance " + std::to_string(o.tolerance) + " at the chosen lags";
+  } else {
+    progress.termination = FitTermination::no_convergence;
+    progress.why = "max_iterations (" + std::to_string(o.max_iterations) + ") reached with " +
+                   (lags_moved              ? std::string("the lags still moving")
+                    : change >= o.tolerance ? "the coefficients still changing by " + std::to_string(change) +
+                                                  " (relative; tolerance " + std::to_string(o.tolerance) + ")"
+                                            : std::string("the coefficients settled but the lags not yet confirmed")) +
+                   ": the model holds the last iteration's estimates";
   }
   m.fit.iterations = it;
   m.fit.converged = converged;

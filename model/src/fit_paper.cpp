@@ -31,13 +31,14 @@ std::pair<std::size_t, std::size_t> opening_hold(const RunData& run, int hold_s)
 }  // namespace
 
 std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<Term>& terms, const FitOptions& o,
-                                         const Evaluated& ev, std::vector<double> w) {
+                                         const Evaluated& ev, std::vector<double> w, FitSummary& progress) {
   Model m;
   m.method = Method::paper;
   m.shared_lag = true;
   const std::size_t n = run.size();
   const int L = o.max_lag_s;
   // Step 1: the opening hold gives mu0 and the AR noise.
+  progress.stage = "opening hold (step 1)";
   auto [hb, he] = opening_hold(run, o.hold_s);
   std::vector<double> hold;
   for (std::size_t t = hb; t < he; ++t)
@@ -62,6 +63,7 @@ std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<T
   m.fit.stationary = st.stationary;
   m.fit.ljung_box_q = wh.lb.q;
   m.fit.ljung_box_p = wh.lb.p_value;
+  progress.stage = "trend (step 2)";
   // Step 2: the trend of the smoothed output. Outliers (3 sigma about the smooth) are
   // removed from the smoothing, then the smoothed series is regressed on the terms.
   std::vector<double> s = moving_average(run.gyro_dph, w, o.smooth_s);
@@ -126,6 +128,8 @@ std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<T
   m.fit.trend_r2 = zz > 0.0 ? 1.0 - r.sse / zz : 0.0;
   m.fit.n_used = static_cast<std::size_t>(sw);
   finish_stats(m, ev, run.gyro_dph, w, varying.empty() ? 0 : 1);
+  progress.termination = FitTermination::converged;
+  progress.why = "two steps, no iteration";
   return m;
 }
 

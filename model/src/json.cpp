@@ -189,6 +189,12 @@ std::expected<Model, std::string> model_from_json(const json& j) {
     m.fit.iterations = static_cast<int>(fr.integer("iterations", 0, false));
     m.fit.converged = fr.boolean("converged", true, false);
     if (!fr.err.empty()) return std::unexpected(fr.err);
+    // The file keeps iterations and converged only (its format is unchanged): the summary is
+    // rebuilt from them.
+    m.fit.summary.method = m.method;
+    m.fit.summary.iterations = m.fit.iterations;
+    m.fit.summary.termination = m.fit.converged ? FitTermination::converged : FitTermination::no_convergence;
+    m.fit.summary.stage = "done";
     if (auto it = f->find("coef_corr"); it != f->end()) {
       try {
         m.fit.coef_corr = it->get<std::vector<std::vector<double>>>();
@@ -219,6 +225,16 @@ std::expected<Model, std::string> model_from_text(std::string_view text) {
   json j = json::parse(text.begin(), text.end(), nullptr, false);
   if (j.is_discarded()) return std::unexpected(std::string("not valid JSON"));
   return model_from_json(j);
+}
+
+json to_json(const FitSummary& s) {
+  return {{"method", std::string(to_string(s.method))},
+          {"termination", std::string(to_string(s.termination))},
+          {"iterations", s.iterations},
+          {"last_change", s.last_change},
+          {"stage", s.stage},
+          {"why", s.why},
+          {"brief", s.brief()}};
 }
 
 json to_json(const Table1& t) {

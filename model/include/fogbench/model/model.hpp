@@ -38,6 +38,32 @@ struct FittedOn {
   std::string fingerprint;  // FNV-1a 64 of the gyro and temperature columns, hex
 };
 
+// How a fit ended, kept whether it gave a model or not (after Ceres' Solver::Summary): a fit
+// that gave up is a FitError carrying one, a model carries one, so a caller can say how each
+// fit ended and refuse to make a model that did not converge the current one without saying so.
+enum class FitTermination {
+  converged,       // paper: always (no iteration); joint: coefficients, AR and lags settled within the tolerance
+  no_convergence,  // joint: max_iterations reached first; the model holds the last iteration's estimates
+  failed,          // no model (the FitError says why)
+};
+std::string_view to_string(FitTermination t);
+
+struct FitSummary {
+  Method method = Method::paper;
+  FitTermination termination = FitTermination::converged;
+  int iterations = 0;           // joint: Cochrane-Orcutt iterations done; paper: 0
+  double last_change = 0.0;     // joint: the largest relative change of a coefficient (or AR) at the last iteration
+  std::string stage;            // where it ended, e.g. "checks", "opening hold", "Cochrane-Orcutt iteration 3", "done"
+  std::string why;              // one sentence: how it ended, or the failure's message
+  bool converged() const { return termination == FitTermination::converged; }
+  std::string brief() const;    // one line, e.g. "joint fit NOT converged after 30 iterations: ..."
+  static FitSummary failure() {
+    FitSummary s;
+    s.termination = FitTermination::failed;
+    return s;
+  }
+};
+
 struct FitStats {
   std::size_t n_used = 0;       // samples in the regression
   std::size_t n_outliers = 0;   // gyro samples removed by the 3-sigma rule
@@ -49,9 +75,10 @@ struct FitStats {
   bool stationary = true;       // the hold passed the paper's stationarity check
   double ljung_box_q = 0.0;     // whiteness of the AR residuals (hold for paper, run for joint)
   double ljung_box_p = 1.0;
-  int iterations = 0;           // joint: Cochrane-Orcutt iterations
-  bool converged = true;
+  int iterations = 0;           // joint: Cochrane-Orcutt iterations (summary.iterations too)
+  bool converged = true;        // summary.termination == converged
   std::vector<std::vector<double>> coef_corr;  // correlation matrix of [mu0, beta_1..m]
+  FitSummary summary;           // how the fit ended (a model loaded from JSON: from iterations and converged)
 };
 
 struct Model {
@@ -95,10 +122,15 @@ struct FitError {
   enum class Code { bad_options, too_short, bad_term, missing_signal, collinear, degenerate, uneven_time };
   Code code;
   std::string message;
+  // From fit(): how far it got (method, stage, iterations), termination failed, why = message.
+  // Errors of other functions (predict, verify, ...) leave it at its default (stage empty).
+  FitSummary summary = FitSummary::failure();
 };
 std::string_view to_string(FitError::Code c);
 
-// Fits the terms on one run. The run's quality-flagged samples are skipped (and counted).
+// Fits the terms on one run. The run's quality-flagged samples are skipped (and counted). A
+// joint fit that reaches max_iterations still returns its model, with fit.converged false and
+// fit.summary saying so: check fit.summary.converged() before making it the current model.
 std::expected<Model, FitError> fit(const RunData& run, const TermList& terms, const FitOptions& options = {});
 
 // The trend mu(t) = mu0 + sum beta_j term_j(t - lag_j), deg/h, from temperatures alone.
