@@ -194,8 +194,8 @@ void finish_stats(Model& m, const Evaluated& ev, std::span<const double> y, std:
   const double s2 = nw > nparams ? rss / (nw - nparams) : 0.0;
   m.fit.coef_corr.assign(k, std::vector<double>(k, 0.0));
   if (const Eigen::MatrixXd cov = ls.covariance(s2); cov.size() != 0) {
-    m.mu0_se = std::sqrt(std::max(0.0, cov(0, 0)));
-    for (std::size_t j = 0; j < nt; ++j) m.terms[j].se = std::sqrt(std::max(0.0, cov(j + 1, j + 1)));
+    m.mu0_se_dph = std::sqrt(std::max(0.0, cov(0, 0)));
+    for (std::size_t j = 0; j < nt; ++j) m.terms[j].se_dph_per_unit = std::sqrt(std::max(0.0, cov(j + 1, j + 1)));
     for (std::size_t r = 0; r < k; ++r)
       for (std::size_t c = 0; c < k; ++c) {
         const double d = std::sqrt(cov(r, r) * cov(c, c));

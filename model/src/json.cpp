@@ -74,7 +74,7 @@ json to_json(const Model& m) {
                      {"lag_s", t.term.lag.seconds},
                      {"lag_auto", t.term.lag.automatic},
                      {"coef", t.coef},
-                     {"se", t.se},
+                     {"se", t.se_dph_per_unit},
                      {"unit", coef_unit(*t.term.expr)}});
   }
   json j = {
@@ -84,7 +84,7 @@ json to_json(const Model& m) {
       {"terms", terms},
       {"shared_lag", m.shared_lag},
       {"mu0", m.mu0_dph},
-      {"mu0_se", m.mu0_se},
+      {"mu0_se", m.mu0_se_dph},
       {"ar", m.ar},
       {"sigma_a", m.sigma_a_dph},
       {"tref_c", m.tref_c},
@@ -132,7 +132,7 @@ std::expected<Model, std::string> model_from_json(const json& j) {
   }
   m.shared_lag = r.boolean("shared_lag", false, false);
   m.mu0_dph = r.number("mu0");
-  m.mu0_se = r.number("mu0_se", 0.0, false);
+  m.mu0_se_dph = r.number("mu0_se", 0.0, false);
   m.sigma_a_dph = r.number("sigma_a");
   m.tref_c = r.number("tref_c", 20.0, false);
   m.created_at = r.string("created_at", "", false);
@@ -156,7 +156,7 @@ std::expected<Model, std::string> model_from_json(const json& j) {
     const bool automatic = tr.boolean("lag_auto", false, false);
     FittedTerm ft;
     ft.coef = tr.number("coef");
-    ft.se = tr.number("se", 0.0, false);
+    ft.se_dph_per_unit = tr.number("se", 0.0, false);
     if (!tr.err.empty()) return std::unexpected(tr.err);
     auto t = parse_term(spec);
     if (!t) return std::unexpected(tr.path + ".term: " + t.error().pretty());

@@ -341,9 +341,9 @@ std::expected<Diagnosis, FitError> diagnose_once(const Model& m, const RunData& 
   d.rms_fit_dph = *rms0;
 
   // Coefficients, their standard errors and correlations.
-  d.coefs.push_back({"mu0", base->mu0_dph, base->mu0_se, "deg/h"});
+  d.coefs.push_back({"mu0", base->mu0_dph, base->mu0_se_dph, "deg/h"});
   for (const auto& ft : base->terms)
-    d.coefs.push_back({with_lag(ft.name(), ft.term.lag.seconds), ft.coef, ft.se, coef_unit(*ft.term.expr)});
+    d.coefs.push_back({with_lag(ft.name(), ft.term.lag.seconds), ft.coef, ft.se_dph_per_unit, coef_unit(*ft.term.expr)});
   d.coef_corr = base->fit.coef_corr;
   for (std::size_t a = 1; a < d.coef_corr.size(); ++a)
     for (std::size_t b = a + 1; b < d.coef_corr.size(); ++b) {
@@ -648,8 +648,8 @@ std::expected<Diagnosis, FitError> diagnose_once(const Model& m, const RunData& 
     c.delta_bic = m2->fit.bic + extra_params * ln_n - base->fit.bic;
     const FittedTerm& nt = m2->terms.back();
     c.coef = nt.coef;
-    c.se = nt.se;
-    c.t = nt.se > 0.0 ? nt.coef / nt.se : 0.0;
+    c.se_dph_per_unit = nt.se_dph_per_unit;
+    c.t = nt.se_dph_per_unit > 0.0 ? nt.coef / nt.se_dph_per_unit : 0.0;
     c.p_value = std::erfc(std::abs(c.t) / std::sqrt(2.0));
     double min_fall = std::numeric_limits<double>::infinity();
     int scored = 0;

@@ -59,8 +59,8 @@ TEST_CASE("joint fit recovers mu0, a coefficient and its lag on a run with known
   CHECK(std::abs(m->ar[0]) < 0.03);
   CHECK(std::abs(m->ar[1]) < 0.03);
   // The reported standard error is of the size derived above.
-  CHECK(m->terms[0].se > 0.0005);
-  CHECK(m->terms[0].se < 0.01);
+  CHECK(m->terms[0].se_dph_per_unit > 0.0005);
+  CHECK(m->terms[0].se_dph_per_unit < 0.01);
   CHECK(m->fit.converged);
 }
 

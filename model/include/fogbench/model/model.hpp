@@ -21,11 +21,16 @@ enum class Method { paper, joint };
 std::string_view to_string(Method m);
 std::optional<Method> method_from_string(std::string_view s);
 
+// Units in names: a standard error carries its coefficient's unit in its name: `_dph` (deg/h)
+// for mu0; `_dph_per_unit` for a term's coefficient, in deg/h per unit of the term (coef_unit()
+// names it, e.g. "deg/h per degC/min" for d(T1)); `_in_unit` where a struct carries that unit
+// as a string beside it (workbench.hpp). JSON keys stay as they were ("se", "mu0_se").
+
 // A fitted term: the term, its lag in s, its coefficient and standard error.
 struct FittedTerm {
   Term term;             // term.lag.seconds holds the fitted lag; term.lag.automatic whether it was searched
   double coef = 0.0;     // deg/h per unit of the term (see coef_unit)
-  double se = 0.0;       // 1-sigma standard error of coef, same unit
+  double se_dph_per_unit = 0.0;  // 1-sigma standard error of coef, deg/h per unit of the term
   std::string name() const { return to_string(term, false); }
 };
 
@@ -86,7 +91,7 @@ struct Model {
   std::vector<FittedTerm> terms;
   bool shared_lag = false;      // one lag for all @auto terms (the paper's model)
   double mu0_dph = 0.0;         // constant bias, deg/h
-  double mu0_se = 0.0;
+  double mu0_se_dph = 0.0;      // 1-sigma standard error of mu0_dph, deg/h
   std::vector<double> ar;       // k1..kp
   double sigma_a_dph = 0.0;     // innovation std, deg/h
   double tref_c = 20.0;         // temperatures enter the terms as T - tref_c
