@@ -80,10 +80,10 @@ std::string describe_model(const model::Model& m) {
   s += "model (" + std::string(to_string(m.method)) + " method) fitted on " + m.fitted_on.name + ": " +
        std::to_string(m.fitted_on.n_samples) + " samples, " + std::to_string(static_cast<long>(m.fitted_on.duration_s)) + " s\n\n";
   Table t({"term", "lag_s", "coef", "se (1 sigma)", "unit"});
-  t.add({"mu0", "", fixed(m.mu0_dph, 3), fixed(m.mu0_se, 3), "deg/h"});
+  t.add({"mu0", "", fixed(m.mu0_dph, 3), fixed(m.mu0_se_dph, 3), "deg/h"});
   for (const auto& ft : m.terms)
     t.add({ft.name(), std::to_string(ft.term.lag.seconds) + (ft.term.lag.automatic ? " (auto)" : ""), fixed(ft.coef, 4),
-           fixed(ft.se, 4), coef_unit(*ft.term.expr)});
+           fixed(ft.se_dph_per_unit, 4), coef_unit(*ft.term.expr)});
   s += t.str();
   s += "\nnoise: AR(" + std::to_string(m.ar.size()) + ")";
   for (std::size_t i = 0; i < m.ar.size(); ++i) s += "  k" + std::to_string(i + 1) + " " + fixed(m.ar[i], 4);

@@ -163,7 +163,7 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
     for (const auto& why : x.reasons) body += "<p class=\"note\">" + esc(x.run) + ": " + esc(why) + "</p>";
   {
     HtmlTable t({"sensitivity", "term", "value", "1 sigma", "unit", "source"});
-    t.row({"bias", "mu0", fixed(q.mu0_dph, 3), fixed(q.mu0_se, 3), "deg/h", "the model"});
+    t.row({"bias", "mu0", fixed(q.mu0_dph, 3), fixed(q.mu0_se_dph, 3), "deg/h", "the model"});
     // IEEE Std 952's three thermal sensitivities always appear: from the model when it has
     // the term, else from diagnose's refit of the model with it (so a missing one shows its size).
     const std::pair<const char*, const char*> ieee[] = {
@@ -174,13 +174,13 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
       for (std::size_t i = 0; i < q.sensitivities.size(); ++i) {
         const auto& x = q.sensitivities[i];
         if (x.term.substr(0, x.term.find('@')) != key) continue;
-        t.row({what, x.term, sig(x.coef), sig(x.se), x.unit, "the model"});
+        t.row({what, x.term, sig(x.coef), sig(x.se_in_unit), x.unit, "the model"});
         shown[i] = found = true;
       }
       if (found) continue;
       for (const auto& c : d->candidates)
         if (c.expr == key && c.evaluated) {
-          t.row({what, c.term, sig(c.coef), sig(c.se), c.unit, std::string("refit with it (not in the model") + (c.detected ? ", detected)" : ", not needed)")});
+          t.row({what, c.term, sig(c.coef), sig(c.se_dph_per_unit), c.unit, std::string("refit with it (not in the model") + (c.detected ? ", detected)" : ", not needed)")});
           found = true;
         }
       if (!found) t.row({what, key, "-", "-", "", "not estimated"});
@@ -188,7 +188,7 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
     for (std::size_t i = 0; i < q.sensitivities.size(); ++i)
       if (!shown[i]) {
         const auto& x = q.sensitivities[i];
-        t.row({"other", x.term, sig(x.coef), sig(x.se), x.unit, "the model"});
+        t.row({"other", x.term, sig(x.coef), sig(x.se_in_unit), x.unit, "the model"});
       }
     body += t.str();
     HtmlTable r({"run", "role", "raw std, deg/h", "compensated std, deg/h", "comp/raw", "heating - cooling at equal T1, deg/h", "the same compensated, deg/h",
@@ -230,7 +230,7 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
       body += "<p class=\"note\"><b>Why " + esc(d->candidates.front().expr) + ":</b> " + esc(d->candidates.front().explanation) + "</p>";
     body += "<p class=\"note\">Rule: " + esc(d->rule) + ".</p>";
     HtmlTable c({"coefficient", "value", "1 sigma", "unit"});
-    for (const auto& x : d->coefs) c.row({x.term, sig(x.coef), sig(x.se), x.unit});
+    for (const auto& x : d->coefs) c.row({x.term, sig(x.coef), sig(x.se_in_unit), x.unit});
     body += "<h3>Coefficients of the model refitted on " + esc(d->fit_run) + "</h3>" + c.str();
     for (const auto& p : d->collinear_coefs)
       body += "<p class=\"note\">Collinear: " + esc(p.a) + " and " + esc(p.b) + " (r = " + fixed(p.r, 3) + "): " + esc(p.why) + "</p>";

@@ -183,7 +183,7 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
   }
   out << "\ncoefficients (1 sigma):\n";
   Table ct({"term", "coef", "se", "unit"});
-  for (const auto& c : d->coefs) ct.add({c.term, sig(c.coef), sig(c.se), c.unit});
+  for (const auto& c : d->coefs) ct.add({c.term, sig(c.coef), sig(c.se_in_unit), c.unit});
   out << ct.str();
   for (const auto& p : d->collinear_coefs)
     out << "collinear: " << p.a << " and " << p.b << " (r = " << fixed(p.r, 3) << "): " << p.why << "\n";
@@ -272,9 +272,9 @@ int run_fit_add(const FitAddOptions& o, std::ostream& out, std::ostream& err) {
   out << "added " << r->added << ": " << r->model.terms_string() << " (" << to_string(r->model.method) << " method), parent "
       << m->terms_string() << "\n\n";
   Table t({"term", "lag_s", "coef", "se (1 sigma)", "unit"});
-  t.add({"mu0", "", fixed(r->model.mu0_dph, 3), fixed(r->model.mu0_se, 3), "deg/h"});
+  t.add({"mu0", "", fixed(r->model.mu0_dph, 3), fixed(r->model.mu0_se_dph, 3), "deg/h"});
   for (const auto& ft : r->model.terms)
-    t.add({ft.name(), std::to_string(ft.term.lag.seconds), sig(ft.coef), sig(ft.se), coef_unit(*ft.term.expr)});
+    t.add({ft.name(), std::to_string(ft.term.lag.seconds), sig(ft.coef), sig(ft.se_dph_per_unit), coef_unit(*ft.term.expr)});
   out << t.str();
   if (before && after)
     out << "\ncompensated std on " << o.run << ": " << fixed(before->run.comp_std, 3) << " -> " << fixed(after->run.comp_std, 3)

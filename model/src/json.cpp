@@ -74,7 +74,7 @@ json to_json(const Model& m) {
                      {"lag_s", t.term.lag.seconds},
                      {"lag_auto", t.term.lag.automatic},
                      {"coef", t.coef},
-                     {"se", t.se},
+                     {"se", t.se_dph_per_unit},
                      {"unit", coef_unit(*t.term.expr)}});
   }
   json j = {
@@ -84,7 +84,7 @@ json to_json(const Model& m) {
       {"terms", terms},
       {"shared_lag", m.shared_lag},
       {"mu0", m.mu0_dph},
-      {"mu0_se", m.mu0_se},
+      {"mu0_se", m.mu0_se_dph},
       {"ar", m.ar},
       {"sigma_a", m.sigma_a_dph},
       {"tref_c", m.tref_c},
@@ -132,7 +132,7 @@ std::expected<Model, std::string> model_from_json(const json& j) {
   }
   m.shared_lag = r.boolean("shared_lag", false, false);
   m.mu0_dph = r.number("mu0");
-  m.mu0_se = r.number("mu0_se", 0.0, false);
+  m.mu0_se_dph = r.number("mu0_se", 0.0, false);
   m.sigma_a_dph = r.number("sigma_a");
   m.tref_c = r.number("tref_c", 20.0, false);
   m.created_at = r.string("created_at", "", false);
@@ -156,7 +156,7 @@ std::expected<Model, std::string> model_from_json(const json& j) {
     const bool automatic = tr.boolean("lag_auto", false, false);
     FittedTerm ft;
     ft.coef = tr.number("coef");
-    ft.se = tr.number("se", 0.0, false);
+    ft.se_dph_per_unit = tr.number("se", 0.0, false);
     if (!tr.err.empty()) return std::unexpected(tr.err);
     auto t = parse_term(spec);
     if (!t) return std::unexpected(tr.path + ".term: " + t.error().pretty());
@@ -189,6 +189,12 @@ std::expected<Model, std::string> model_from_json(const json& j) {
     m.fit.iterations = static_cast<int>(fr.integer("iterations", 0, false));
     m.fit.converged = fr.boolean("converged", true, false);
     if (!fr.err.empty()) return std::unexpected(fr.err);
+    // The file keeps iterations and converged only (its format is unchanged): the summary is
+    // rebuilt from them.
+    m.fit.summary.method = m.method;
+    m.fit.summary.iterations = m.fit.iterations;
+    m.fit.summary.termination = m.fit.converged ? FitTermination::converged : FitTermination::no_convergence;
+    m.fit.summary.stage = "done";
     if (auto it = f->find("coef_corr"); it != f->end()) {
       try {
         m.fit.coef_corr = it->get<std::vector<std::vector<double>>>();
@@ -219,6 +225,16 @@ std::expected<Model, std::string> model_from_text(std::string_view text) {
   json j = json::parse(text.begin(), text.end(), nullptr, false);
   if (j.is_discarded()) return std::unexpected(std::string("not valid JSON"));
   return model_from_json(j);
+}
+
+json to_json(const FitSummary& s) {
+  return {{"method", std::string(to_string(s.method))},
+          {"termination", std::string(to_string(s.termination))},
+          {"iterations", s.iterations},
+          {"last_change", s.last_change},
+          {"stage", s.stage},
+          {"why", s.why},
+          {"brief", s.brief()}};
 }
 
 json to_json(const Table1& t) {

@@ -1,4 +1,6 @@
 // Parser, printer and evaluator of the term language (shared/TERMS.md).
+// Over 600 lines: the parser, the printer and the evaluator of one small language, kept
+// together because a new operator changes all three.
 //
 // Grammar (whitespace ignored):
 //   list    := 'paper' | ['-'] summand (('+' | '-') summand)*
@@ -152,10 +154,9 @@ class Parser {
         pos_ += 4;
         t.lag.automatic = true;
       } else {
-        auto n = integer("a lag in seconds or 'auto' after '@'");
+        auto n = lag_seconds("a lag in seconds or 'auto' after '@'");
         if (!n) return std::unexpected(n.error());
         t.lag.seconds = *n;
-        if (peek() == 's') ++pos_;
       }
     }
     return t;
@@ -213,9 +214,8 @@ class Parser {
       ++pos_;
       skip();
       if (peek_word() == "auto") return fail("'@auto' is allowed only at the end of a whole term, not inside a function");
-      auto n = integer("a lag in seconds after '@'");
+      auto n = lag_seconds("a lag in seconds after '@'");
       if (!n) return std::unexpected(n.error());
-      if (peek() == 's') ++pos_;
       if (*n > 0) {  // x@0 is x
         auto d = make(K::delay, e);
         std::const_pointer_cast<Expr>(d)->delay_s = *n;
@@ -300,15 +300,8 @@ class Parser {
       skip();
       if (peek() != '(') return fail("expected '(' and a time constant in seconds after 'warm': warm(tau)");
       ++pos_;
-      skip();
-      const std::size_t at = pos_;
-      auto tau = number();
+      auto tau = time_constant("warm(tau)");
       if (!tau) return std::unexpected(tau.error());
-      if (!(*tau >= kMinTau_s && *tau <= kMaxTau_s)) {
-        pos_ = at;
-        return std::unexpected(error("warm(tau): the time constant must be " + fmt_limit(kMinTau_s) + " to " + fmt_limit(kMaxTau_s) +
-                                     " s, got " + fmt_limit(*tau)));
-      }
       skip();
       if (peek() != ')') return fail("expected ')' to close 'warm(' (warm takes one number, the time constant in s)");
       ++pos_;
@@ -337,15 +330,8 @@ class Parser {
     if (k == K::lp) {
       if (peek() != ',') return fail("expected ',' and a time constant in seconds: lp(x, tau)");
       ++pos_;
-      skip();
-      const std::size_t at = pos_;
-      auto tau = number();
+      auto tau = time_constant("lp(x, tau)");
       if (!tau) return std::unexpected(tau.error());
-      if (!(*tau >= kMinTau_s && *tau <= kMaxTau_s)) {
-        pos_ = at;
-        return std::unexpected(error("lp(x, tau): the time constant must be " + fmt_limit(kMinTau_s) + " to " + fmt_limit(kMaxTau_s) +
-                                     " s, got " + fmt_limit(*tau)));
-      }
       std::const_pointer_cast<Expr>(e)->value = *tau;
       skip();
     }
@@ -364,6 +350,28 @@ class Parser {
     if (!std::isfinite(v)) return fail("expected a finite number");  // from_chars reads 'inf' and 'nan'
     pos_ += static_cast<std::size_t>(p - b);
     return v;
+  }
+
+  // A time constant in seconds (warm(tau), lp(x, tau)) within kMinTau_s..kMaxTau_s; form names
+  // the construct in the error, which points at the number.
+  std::expected<double, ParseError> time_constant(const char* form) {
+    skip();
+    const std::size_t at = pos_;
+    auto tau = number();
+    if (!tau) return tau;
+    if (!(*tau >= kMinTau_s && *tau <= kMaxTau_s)) {
+      pos_ = at;
+      return std::unexpected(error(std::string(form) + ": the time constant must be " + fmt_limit(kMinTau_s) + " to " +
+                                   fmt_limit(kMaxTau_s) + " s, got " + fmt_limit(*tau)));
+    }
+    return tau;
+  }
+
+  // A lag after '@': whole seconds, an optional unit 's'.
+  std::expected<int, ParseError> lag_seconds(const std::string& what) {
+    auto n = integer(what);
+    if (n && peek() == 's') ++pos_;
+    return n;
   }
 
   std::expected<int, ParseError> integer(const std::string& what) {

@@ -8,12 +8,14 @@
 #include <limits>
 #include <map>
 
+#include "common.hpp"
+
 namespace fogbench::model::workbench {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-std::unexpected<FitError> fail(FitError::Code c, std::string msg) { return std::unexpected(FitError{c, std::move(msg)}); }
+using detail::fail;
 
 
 // The phase most samples of [b, e) have.
@@ -264,11 +266,11 @@ Qualification qualify(const Model& m, std::span<const RunData> runs, std::span<c
   Qualification q;
   q.threshold = threshold;
   q.mu0_dph = m.mu0_dph;
-  q.mu0_se = m.mu0_se;
+  q.mu0_se_dph = m.mu0_se_dph;
   for (const auto& ft : m.terms) {
     std::string name = ft.name();
     if (ft.term.lag.seconds) name += "@" + std::to_string(ft.term.lag.seconds);
-    q.sensitivities.push_back({name, coef_unit(*ft.term.expr), ft.coef, ft.se});
+    q.sensitivities.push_back({name, coef_unit(*ft.term.expr), ft.coef, ft.se_dph_per_unit});
   }
   q.pass = !runs.empty();
   for (std::size_t i = 0; i < runs.size(); ++i) {

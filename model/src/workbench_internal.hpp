@@ -1,7 +1,11 @@
 // What diagnose's files share inside model/: one step of the search (diagnose_once, in
-// workbench_diagnose.cpp) and the language's generated candidates (workbench_search.cpp).
+// workbench_diagnose.cpp), the language's generated candidates (workbench_search.cpp) and
+// the small helpers both use (one copy each).
 #pragma once
 
+#include <cmath>
+#include <cstdio>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -13,6 +17,33 @@ namespace fogbench::model::workbench {
 std::string missing_signal_of(const Expr& e, const RunData& run);
 
 namespace wbi {
+
+// v with `digits` decimals, for the workbench's sentences.
+inline std::string fmt(double v, int digits) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+  return buf;
+}
+
+// The weighted correlation of a and b (0 when either is constant or no weight is left).
+inline double weighted_corr(std::span<const double> a, std::span<const double> b, std::span<const double> w) {
+  double sw = 0, ma = 0, mb = 0;
+  for (std::size_t t = 0; t < a.size(); ++t) {
+    sw += w[t];
+    ma += w[t] * a[t];
+    mb += w[t] * b[t];
+  }
+  if (!(sw > 0)) return 0.0;
+  ma /= sw;
+  mb /= sw;
+  double sab = 0, saa = 0, sbb = 0;
+  for (std::size_t t = 0; t < a.size(); ++t) {
+    sab += w[t] * (a[t] - ma) * (b[t] - mb);
+    saa += w[t] * (a[t] - ma) * (a[t] - ma);
+    sbb += w[t] * (b[t] - mb) * (b[t] - mb);
+  }
+  return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 0.0;
+}
 
 // A candidate of the language search: the term (canonical, no lag) and what it would mean.
 struct Generated {

@@ -97,7 +97,7 @@ json to_json(const Candidate& c) {
                 {"fall", num(c.fall)},
                 {"delta_bic", c.delta_bic},
                 {"coef", c.coef},
-                {"se", c.se},
+                {"se", c.se_dph_per_unit},
                 {"unit", c.unit},
                 {"t", c.t},
                 {"p_value", c.p_value},
@@ -129,7 +129,7 @@ json to_json(const RunCheck& c) {
 
 json to_json(const Diagnosis& d) {
   json coefs = json::array();
-  for (const auto& c : d.coefs) coefs.push_back({{"term", c.term}, {"coef", c.coef}, {"se", c.se}, {"unit", c.unit}});
+  for (const auto& c : d.coefs) coefs.push_back({{"term", c.term}, {"coef", c.coef}, {"se", c.se_in_unit}, {"unit", c.unit}});
   json pairs = json::array();
   for (const auto& p : d.collinear_coefs) pairs.push_back({{"a", p.a}, {"b", p.b}, {"r", p.r}, {"why", p.why}});
   json ccf = json::array();
@@ -220,7 +220,7 @@ json to_json(const Lineage& l) {
 
 json to_json(const Qualification& q) {
   json sens = json::array();
-  for (const auto& s : q.sensitivities) sens.push_back({{"term", s.term}, {"unit", s.unit}, {"coef", s.coef}, {"se", s.se}});
+  for (const auto& s : q.sensitivities) sens.push_back({{"term", s.term}, {"unit", s.unit}, {"coef", s.coef}, {"se", s.se_in_unit}});
   json runs = json::array();
   for (const auto& r : q.runs)
     runs.push_back({{"run", r.run},
@@ -236,7 +236,7 @@ json to_json(const Qualification& q) {
                     {"pass", r.pass}});
   return {{"standard", "IEEE Std 952-1997 (thermal sensitivity of bias)"},
           {"mu0_dph", q.mu0_dph},
-          {"mu0_se_dph", q.mu0_se},
+          {"mu0_se_dph", q.mu0_se_dph},
           {"sensitivities", sens},
           {"runs", runs},
           {"threshold", q.threshold},

@@ -9,21 +9,20 @@
 #include <numeric>
 
 #include "fogbench/model/workbench.hpp"
+#include "common.hpp"
 #include "workbench_internal.hpp"
 
 namespace fogbench::model::workbench {
 namespace {
 
+using wbi::fmt;
+using wbi::weighted_corr;
+
 using nlohmann::json;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-std::string fmt(double v, int digits) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
-  return buf;
-}
 
-std::unexpected<FitError> fail(FitError::Code c, std::string msg) { return std::unexpected(FitError{c, std::move(msg)}); }
+using detail::fail;
 
 // The log grid of time constants, 30 s to 4 h, on round values (so that 300 s, the library's
 // slow path, is one of them with the default 12 points).
@@ -124,25 +123,6 @@ std::expected<Space, FitError> generate(const DiagnoseOptions& o, bool has_ta, b
           {"refitted_per_step", o.refit_top},
           {"max_terms", o.max_terms}};
   return sp;
-}
-
-double wcorr(std::span<const double> a, std::span<const double> b, std::span<const double> w) {
-  double sw = 0, ma = 0, mb = 0;
-  for (std::size_t t = 0; t < a.size(); ++t) {
-    sw += w[t];
-    ma += w[t] * a[t];
-    mb += w[t] * b[t];
-  }
-  if (!(sw > 0)) return 0.0;
-  ma /= sw;
-  mb /= sw;
-  double sab = 0, saa = 0, sbb = 0;
-  for (std::size_t t = 0; t < a.size(); ++t) {
-    sab += w[t] * (a[t] - ma) * (b[t] - mb);
-    saa += w[t] * (a[t] - ma) * (a[t] - ma);
-    sbb += w[t] * (b[t] - mb) * (b[t] - mb);
-  }
-  return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 0.0;
 }
 
 // The residual of a model on a run, with the weights of compare (flagged, non-finite and
@@ -358,12 +338,12 @@ std::string follows(const Model& m, std::span<const RunData> runs) {
     const char* name;
     double r;
   };
-  std::vector<C> cs = {{"temperature (T1)", wcorr(rs, t1, w)}, {"temperature rate (d(T1))", wcorr(rs, rate, w)}};
+  std::vector<C> cs = {{"temperature (T1)", weighted_corr(rs, t1, w)}, {"temperature rate (d(T1))", weighted_corr(rs, rate, w)}};
   if (any_ton) {
     // Warm-up decays: correlate with exp(-ton/900) as well as ton itself.
     std::vector<double> e(ton.size());
     for (std::size_t i = 0; i < ton.size(); ++i) e[i] = std::exp(-std::max(0.0, ton[i]) / 900.0);
-    const double a = wcorr(rs, ton, wton), b = wcorr(rs, e, wton);
+    const double a = weighted_corr(rs, ton, wton), b = weighted_corr(rs, e, wton);
     cs.push_back({"time since power-on (ton)", std::abs(a) > std::abs(b) ? a : b});
   }
   const C* best = nullptr;

@@ -59,8 +59,8 @@ TEST_CASE("joint fit recovers mu0, a coefficient and its lag on a run with known
   CHECK(std::abs(m->ar[0]) < 0.03);
   CHECK(std::abs(m->ar[1]) < 0.03);
   // The reported standard error is of the size derived above.
-  CHECK(m->terms[0].se > 0.0005);
-  CHECK(m->terms[0].se < 0.01);
+  CHECK(m->terms[0].se_dph_per_unit > 0.0005);
+  CHECK(m->terms[0].se_dph_per_unit < 0.01);
   CHECK(m->fit.converged);
 }
 
@@ -243,4 +243,56 @@ TEST_CASE("verify keeps a sustained failure of the model in Table 1") {
   REQUIRE(v);
   CHECK(v->n_outliers < 50);
   CHECK(v->run.comp_std > 0.22);
+}
+
+TEST_CASE("a fit's summary says how it ended: converged, not converged, or failed and where") {
+  // White noise 0.15 deg/h: the AR estimates start from 0 and the first iteration moves them
+  // by about 1/sqrt(N) = 0.007 or more, far above the 1e-5 tolerance, so one iteration cannot
+  // converge; the default 30 do (the first test above).
+  const RunData r = synthetic(8000, -3.0, 38, 0.0, 0.15, 7);
+  FitOptions o;
+  o.method = Method::joint;
+  auto done = fit(r, *parse_terms("d(T1)@auto"), o);
+  REQUIRE(done);
+  CHECK(done->fit.summary.termination == FitTermination::converged);
+  CHECK(done->fit.summary.converged());
+  CHECK(done->fit.summary.iterations == done->fit.iterations);
+  CHECK(done->fit.summary.iterations > 1);
+  CHECK(done->fit.summary.last_change < o.tolerance);
+
+  o.max_iterations = 1;
+  auto cut = fit(r, *parse_terms("d(T1)@auto"), o);
+  REQUIRE(cut);  // still a model: the last iteration's estimates
+  CHECK_FALSE(cut->fit.converged);
+  CHECK(cut->fit.summary.termination == FitTermination::no_convergence);
+  CHECK_FALSE(cut->fit.summary.converged());
+  CHECK(cut->fit.summary.iterations == 1);
+  CHECK(cut->fit.summary.last_change >= o.tolerance);
+  CHECK(cut->fit.summary.why.find("max_iterations (1)") != std::string::npos);
+  CHECK(cut->fit.summary.brief().find("NOT converged after 1 iteration") != std::string::npos);
+  // The file keeps converged and iterations; the summary comes back from them.
+  auto back = model_from_json(to_json(*cut));
+  REQUIRE(back);
+  CHECK(back->fit.summary.termination == FitTermination::no_convergence);
+  CHECK(back->fit.summary.iterations == 1);
+  CHECK(to_json(cut->fit.summary)["termination"] == "no_convergence");
+
+  // The paper method does not iterate: converged, 0 iterations.
+  auto paper = fit(r, *parse_terms("paper"));
+  REQUIRE(paper);
+  CHECK(paper->fit.summary.method == Method::paper);
+  CHECK(paper->fit.summary.converged());
+  CHECK(paper->fit.summary.iterations == 0);
+
+  // A failure keeps its summary: where the fit stopped and why (the error's message).
+  RunData short_run = r;
+  for (auto* col : {&short_run.time_s, &short_run.gyro_dph, &short_run.t1_c, &short_run.t2_c}) col->resize(500);
+  auto bad = fit(short_run, *parse_terms("d(T1)@auto"), o);
+  REQUIRE_FALSE(bad);
+  CHECK(bad.error().code == FitError::Code::too_short);
+  CHECK(bad.error().summary.termination == FitTermination::failed);
+  CHECK(bad.error().summary.method == Method::joint);
+  CHECK(bad.error().summary.stage == "checks");
+  CHECK(bad.error().summary.iterations == 0);
+  CHECK(bad.error().summary.why == bad.error().message);
 }

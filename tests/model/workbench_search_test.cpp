@@ -100,7 +100,7 @@ TEST_CASE("fit: a term using ton on a run without since_power_on_s names the ter
   auto m2 = fit(r, *parse_terms("d(T1)@auto + warm(600)"), FitOptions{.method = Method::joint});
   REQUIRE(m2);
   // 0.5 within 4 standard errors (the se is ~0.03 deg/h here).
-  CHECK(std::abs(m2->terms[1].coef - 0.5) < 4.0 * m2->terms[1].se);
+  CHECK(std::abs(m2->terms[1].coef - 0.5) < 4.0 * m2->terms[1].se_dph_per_unit);
 }
 
 TEST_CASE("stats: the std an AR process's noise implies") {

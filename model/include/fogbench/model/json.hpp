@@ -18,6 +18,9 @@ std::expected<Model, std::string> model_from_json(const nlohmann::json& j);
 // Parses text (a model file's contents) and loads it.
 std::expected<Model, std::string> model_from_text(std::string_view text);
 
+// How a fit ended (not part of a model's file, whose format is unchanged): for a reply or a
+// log line about a fit that failed or did not converge.
+nlohmann::json to_json(const FitSummary& s);
 nlohmann::json to_json(const Table1& t);
 nlohmann::json to_json(const Verification& v);
 

@@ -21,11 +21,16 @@ enum class Method { paper, joint };
 std::string_view to_string(Method m);
 std::optional<Method> method_from_string(std::string_view s);
 
+// Units in names: a standard error carries its coefficient's unit in its name: `_dph` (deg/h)
+// for mu0; `_dph_per_unit` for a term's coefficient, in deg/h per unit of the term (coef_unit()
+// names it, e.g. "deg/h per degC/min" for d(T1)); `_in_unit` where a struct carries that unit
+// as a string beside it (workbench.hpp). JSON keys stay as they were ("se", "mu0_se").
+
 // A fitted term: the term, its lag in s, its coefficient and standard error.
 struct FittedTerm {
   Term term;             // term.lag.seconds holds the fitted lag; term.lag.automatic whether it was searched
   double coef = 0.0;     // deg/h per unit of the term (see coef_unit)
-  double se = 0.0;       // 1-sigma standard error of coef, same unit
+  double se_dph_per_unit = 0.0;  // 1-sigma standard error of coef, deg/h per unit of the term
   std::string name() const { return to_string(term, false); }
 };
 
@@ -36,6 +41,32 @@ struct FittedOn {
   double duration_s = 0.0;
   double t1_min_c = 0.0, t1_max_c = 0.0;
   std::string fingerprint;  // FNV-1a 64 of the gyro and temperature columns, hex
+};
+
+// How a fit ended, kept whether it gave a model or not (after Ceres' Solver::Summary): a fit
+// that gave up is a FitError carrying one, a model carries one, so a caller can say how each
+// fit ended and refuse to make a model that did not converge the current one without saying so.
+enum class FitTermination {
+  converged,       // paper: always (no iteration); joint: coefficients, AR and lags settled within the tolerance
+  no_convergence,  // joint: max_iterations reached first; the model holds the last iteration's estimates
+  failed,          // no model (the FitError says why)
+};
+std::string_view to_string(FitTermination t);
+
+struct FitSummary {
+  Method method = Method::paper;
+  FitTermination termination = FitTermination::converged;
+  int iterations = 0;           // joint: Cochrane-Orcutt iterations done; paper: 0
+  double last_change = 0.0;     // joint: the largest relative change of a coefficient (or AR) at the last iteration
+  std::string stage;            // where it ended, e.g. "checks", "opening hold", "Cochrane-Orcutt iteration 3", "done"
+  std::string why;              // one sentence: how it ended, or the failure's message
+  bool converged() const { return termination == FitTermination::converged; }
+  std::string brief() const;    // one line, e.g. "joint fit NOT converged after 30 iterations: ..."
+  static FitSummary failure() {
+    FitSummary s;
+    s.termination = FitTermination::failed;
+    return s;
+  }
 };
 
 struct FitStats {
@@ -49,9 +80,10 @@ struct FitStats {
   bool stationary = true;       // the hold passed the paper's stationarity check
   double ljung_box_q = 0.0;     // whiteness of the AR residuals (hold for paper, run for joint)
   double ljung_box_p = 1.0;
-  int iterations = 0;           // joint: Cochrane-Orcutt iterations
-  bool converged = true;
+  int iterations = 0;           // joint: Cochrane-Orcutt iterations (summary.iterations too)
+  bool converged = true;        // summary.termination == converged
   std::vector<std::vector<double>> coef_corr;  // correlation matrix of [mu0, beta_1..m]
+  FitSummary summary;           // how the fit ended (a model loaded from JSON: from iterations and converged)
 };
 
 struct Model {
@@ -59,7 +91,7 @@ struct Model {
   std::vector<FittedTerm> terms;
   bool shared_lag = false;      // one lag for all @auto terms (the paper's model)
   double mu0_dph = 0.0;         // constant bias, deg/h
-  double mu0_se = 0.0;
+  double mu0_se_dph = 0.0;      // 1-sigma standard error of mu0_dph, deg/h
   std::vector<double> ar;       // k1..kp
   double sigma_a_dph = 0.0;     // innovation std, deg/h
   double tref_c = 20.0;         // temperatures enter the terms as T - tref_c
@@ -95,10 +127,15 @@ struct FitError {
   enum class Code { bad_options, too_short, bad_term, missing_signal, collinear, degenerate, uneven_time };
   Code code;
   std::string message;
+  // From fit(): how far it got (method, stage, iterations), termination failed, why = message.
+  // Errors of other functions (predict, verify, ...) leave it at its default (stage empty).
+  FitSummary summary = FitSummary::failure();
 };
 std::string_view to_string(FitError::Code c);
 
-// Fits the terms on one run. The run's quality-flagged samples are skipped (and counted).
+// Fits the terms on one run. The run's quality-flagged samples are skipped (and counted). A
+// joint fit that reaches max_iterations still returns its model, with fit.converged false and
+// fit.summary saying so: check fit.summary.converged() before making it the current model.
 std::expected<Model, FitError> fit(const RunData& run, const TermList& terms, const FitOptions& options = {});
 
 // The trend mu(t) = mu0 + sum beta_j term_j(t - lag_j), deg/h, from temperatures alone.

@@ -155,7 +155,7 @@ struct Candidate {
   double rms_before_dph = 0.0, rms_after_dph = 0.0;  // compensated std on the fit run, deg/h
   double fall = 0.0;                // 1 - rms_after/rms_before on the fit run
   double delta_bic = 0.0;           // bic_with - bic_without (lag search counted); negative is better
-  double coef = 0.0, se = 0.0;      // of the new term, deg/h per unit (see unit)
+  double coef = 0.0, se_dph_per_unit = 0.0;  // of the new term, deg/h per unit of the term (see unit)
   std::string unit;
   double t = 0.0, p_value = 1.0;    // t = coef/se, two-sided normal p
   std::vector<HeldOutScore> held_out;
@@ -168,7 +168,7 @@ struct Candidate {
 
 struct CoefInfo {
   std::string term;                 // "mu0" or the term with its lag
-  double coef = 0.0, se = 0.0;
+  double coef = 0.0, se_in_unit = 0.0;  // the coefficient and its 1-sigma standard error, in unit
   std::string unit;
 };
 
@@ -280,7 +280,7 @@ Lineage lineage(const Model& m, std::span<const RunData> runs);
 // The qualification summary in the terms of IEEE Std 952-1997 (thermal sensitivities).
 struct Sensitivity {
   std::string term, unit;
-  double coef = 0.0, se = 0.0;      // 1 sigma
+  double coef = 0.0, se_in_unit = 0.0;  // in unit; the standard error 1 sigma
 };
 struct QualRun {
   std::string run;
@@ -295,7 +295,7 @@ struct QualRun {
 };
 struct Qualification {
   std::vector<Sensitivity> sensitivities;
-  double mu0_dph = 0.0, mu0_se = 0.0;
+  double mu0_dph = 0.0, mu0_se_dph = 0.0;
   std::vector<QualRun> runs;
   double threshold = 0.2;
   bool pass = false;                // every run's verdict is pass

@@ -1,0 +1,262 @@
+// The joint method: regression with AR errors by Cochrane-Orcutt. OLS first, then AR(p) of
+// the residual, prewhiten, refit the coefficients and the @auto lags (each its own, by
+// coordinate descent), until the coefficients, AR and lags settle.
+#include <algorithm>
+#include <cmath>
+
+#include "common.hpp"
+#include "fit_internal.hpp"
+
+namespace fogbench::model::detail {
+namespace {
+
+// The joint fit's regression at one whitening: y on [c, x_j(t - lag_j)], the @auto lags
+// chosen by coordinate descent. It owns what it finds (lags, coefficients, RSS); the fit
+// reads them back after each solve.
+class JointSolver {
+ public:
+  // lags: the fixed terms' lags (the @auto ones start anywhere: the first search sets them).
+  JointSolver(const std::vector<Term>& terms, const std::vector<std::string>& names, int max_lag_s, std::vector<int> lags)
+      : terms_(terms), names_(names), max_lag_s_(max_lag_s), lag_(std::move(lags)), theta_(terms.size() + 1, 0.0) {
+    for (const auto& t : terms_) n_auto_ += t.lag.automatic;
+  }
+
+  // One solve of yf on [c, xf_j(t - lag_j)], yf and xf the (prewhitened) series, c the
+  // intercept's column (1 - sum k). With move_lags, the @auto lags are searched first: on the
+  // first call one lag shared by all (one scan), then up to max_sweeps sweeps refining each in
+  // turn. Returns whether any lag moved in the sweeps.
+  std::expected<bool, FitError> solve(const LagScanner& sc, std::span<const double> yf, const std::vector<Lagged>& xf,
+                                      double c, bool move_lags, int max_sweeps = 6) {
+    const std::size_t n = sc.n(), nt = terms_.size();
+    const int L = max_lag_s_;
+    Spectrum wy_spec;
+    if (move_lags && n_auto_ > 0) {
+      std::vector<double> wy(n);
+      for (std::size_t t = 0; t < n; ++t) wy[t] = sc.weights()[t] * yf[t];
+      wy_spec = sc.spectrum_of_target(wy);
+      if (first_pass_) {
+        std::vector<Column> fixed{{nullptr, c}};
+        std::vector<const Lagged*> var;
+        for (std::size_t l = 0; l < nt; ++l) {
+          if (terms_[l].lag.automatic) var.push_back(&xf[l]);
+          else fixed.push_back(lagged_view(xf[l], L, lag_[l]));
+        }
+        const ScanResult r = scan(sc, yf, &wy_spec, fixed, var, 0, L);
+        if (r.ok)
+          for (std::size_t l = 0; l < nt; ++l)
+            if (terms_[l].lag.automatic) lag_[l] = r.lag;
+        first_pass_ = false;
+      }
+    }
+    bool moved = false;
+    for (int sweep = 0; sweep < max_sweeps && move_lags; ++sweep) {
+      bool moved_now = false;
+      for (std::size_t j = 0; j < nt; ++j) {
+        if (!terms_[j].lag.automatic) continue;
+        std::vector<Column> fixed{{nullptr, c}};
+        for (std::size_t l = 0; l < nt; ++l)
+          if (l != j) fixed.push_back(lagged_view(xf[l], L, lag_[l]));
+        const ScanResult r = scan(sc, yf, &wy_spec, fixed, {&xf[j]}, 0, L);
+        if (!r.ok) return fail(FitError::Code::degenerate, "term '" + names_[j] + "': no lag gives a solvable regression");
+        if (r.lag != lag_[j]) moved_now = moved = true;
+        lag_[j] = r.lag;
+      }
+      if (!moved_now) break;
+    }
+    std::vector<Column> all{{nullptr, c}};
+    for (std::size_t l = 0; l < nt; ++l) all.push_back(lagged_view(xf[l], L, lag_[l]));
+    const ScanResult r = solve_at(yf, sc.weights(), all);
+    if (!r.ok) return fail(FitError::Code::degenerate, "the regression is singular at the chosen lags");
+    theta_ = r.theta;
+    rss_ = r.sse;
+    return moved;
+  }
+
+  // e(t) = y(t) - theta_0 - sum_j theta_j x_j(t - lag_j), the unlagged terms x read in place.
+  void residual(std::span<const double> y, const std::vector<std::vector<double>>& x, std::vector<double>& e) const {
+    const std::size_t n = y.size(), nt = terms_.size();
+    e.assign(y.begin(), y.end());
+    for (std::size_t t = 0; t < n; ++t) {
+      e[t] -= theta_[0];
+      for (std::size_t j = 0; j < nt; ++j) {
+        const auto lj = static_cast<std::size_t>(lag_[j]);
+        e[t] -= theta_[j + 1] * x[j][t >= lj ? t - lj : 0];
+      }
+    }
+  }
+
+  const std::vector<double>& theta() const { return theta_; }  // [mu0 (the intercept), beta_1..m]
+  const std::vector<int>& lags() const { return lag_; }         // s, per term
+  double rss() const { return rss_; }                          // of the last solve, (deg/h)^2
+  int n_auto() const { return n_auto_; }
+
+ private:
+  const std::vector<Term>& terms_;
+  const std::vector<std::string>& names_;
+  int max_lag_s_;
+  int n_auto_ = 0;
+  std::vector<int> lag_;
+  std::vector<double> theta_;
+  double rss_ = 0.0;
+  bool first_pass_ = true;
+};
+
+}  // namespace
+
+std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<Term>& terms, const FitOptions& o,
+                                         const Evaluated& ev, std::vector<double> w, FitSummary& progress) {
+  Model m;
+  m.method = Method::joint;
+  const std::size_t n = run.size();
+  const std::size_t nt = terms.size();
+  const int L = o.max_lag_s;
+  const int p = o.ar_order;
+  // Outliers are replaced by the OLS fit (their residual set to zero) rather than given zero
+  // weight: the weights stay a range with few holes, so every lag sum is a prefix sum.
+  std::vector<double> y_clean(run.gyro_dph);
+  const std::span<const double> y = y_clean;
+  std::vector<int> fixed_lag(nt);
+  for (std::size_t j = 0; j < nt; ++j) {
+    fixed_lag[j] = terms[j].lag.automatic ? 0 : terms[j].lag.seconds;
+    if (fixed_lag[j] > L)
+      return fail(FitError::Code::bad_options, "term '" + ev.names[j] + "' has lag " + std::to_string(fixed_lag[j]) +
+                                                   " s, beyond the maximum lag of " + std::to_string(L) + " s");
+  }
+  JointSolver solver(terms, ev.names, L, fixed_lag);
+  const int n_auto = solver.n_auto();
+  std::vector<double> k(static_cast<std::size_t>(p), 0.0);
+
+  // Ordinary least squares first (white errors), then the outliers of its residual.
+  std::vector<Lagged> xl;
+  for (const auto& x : ev.x) xl.push_back(make_lagged(x, L));
+  progress.stage = "ordinary least squares (white errors)";
+  {
+    // Only the shared-lag start here: the lags are refined once the noise is whitened.
+    LagScanner sc(n, L, w);
+    auto r = solver.solve(sc, y, xl, 1.0, true, /*max_sweeps=*/0);
+    if (!r) return std::unexpected(r.error());
+    m.fit.rss = solver.rss();
+  }
+  std::vector<double> e;
+  solver.residual(y, ev.x, e);
+  {
+    std::vector<double> r;
+    for (std::size_t t = 0; t < n; ++t)
+      if (w[t] != 0.0) r.push_back(e[t]);
+    const OutlierResult ro = outliers_3sigma(r, o.outlier_sigma);
+    std::size_t j = 0;
+    for (std::size_t t = 0; t < n; ++t)
+      if (w[t] != 0.0 && !ro.keep[j++]) {
+        y_clean[t] -= e[t];
+        e[t] = 0.0;
+      }
+    m.fit.n_outliers = ro.removed;
+  }
+  // Cochrane-Orcutt: AR(p) of the residual, prewhiten, refit (lags included), until stable.
+  bool converged = false;
+  bool search_lags = true;
+  std::vector<double> k_at_search(static_cast<std::size_t>(p), 0.0);
+  int it = 0;
+  std::vector<double> wf(n);
+  double change = 0.0;
+  bool lags_moved = false;
+  for (; it < o.max_iterations && !converged; ++it) {
+    progress.iterations = it + 1;
+    progress.stage = "Cochrane-Orcutt iteration " + std::to_string(it + 1);
+    auto ar = fit_ar_rows(e, w, p);
+    if (!ar) return fail(FitError::Code::too_short, "joint fit: " + ar.error());
+    const std::vector<double> k_new = ar->k;
+    double ksum = 0.0;
+    for (double v : k_new) ksum += v;
+    for (std::size_t t = 0; t < n; ++t) {
+      bool ok = t >= static_cast<std::size_t>(p);
+      for (int j = 0; j <= p && ok; ++j) ok = w[t - static_cast<std::size_t>(j)] != 0.0;
+      wf[t] = ok ? 1.0 : 0.0;
+    }
+    const std::vector<double> yf = ar_filter(y, k_new);
+    std::vector<Lagged> xf;
+    for (const auto& x : xl) xf.push_back(Lagged{ar_filter(x.ext, k_new), {}});
+    const std::vector<double> old = solver.theta();
+    const std::vector<int> old_lag = solver.lags();
+    LagScanner sc(n, L, wf);
+    // Lags move little once the noise is whitened: search them on the first iteration and
+    // whenever the coefficients have settled (to confirm), not on every iteration.
+    auto r = solver.solve(sc, yf, xf, 1.0 - ksum, search_lags);
+    if (!r) return std::unexpected(r.error());
+    m.fit.rss = solver.rss();
+    const std::vector<double>& theta = solver.theta();
+    // The intercept of the prewhitened regression is mu0 itself (its column is 1 - sum k).
+    change = 0.0;
+    for (std::size_t j = 0; j <= nt; ++j) change = std::max(change, std::abs(theta[j] - old[j]) / std::max(1e-6, std::abs(theta[j])));
+    for (std::size_t j = 0; j < k.size(); ++j) change = std::max(change, std::abs(k_new[j] - k[j]));
+    // Confirm the lags once the coefficients have settled, unless the whitening has barely
+    // changed since they were searched (AR coefficients within 0.01: the lag sums differ by
+    // less than the noise).
+    double k_drift = 0.0;
+    for (std::size_t j = 0; j < k_new.size(); ++j) k_drift = std::max(k_drift, std::abs(k_new[j] - k_at_search[j]));
+    if (search_lags) k_at_search = k_new;
+    k = k_new;
+    lags_moved = solver.lags() != old_lag;
+    const bool settled = change < o.tolerance && !lags_moved;
+    converged = settled && (search_lags || n_auto == 0 || k_drift < 0.01);
+    search_lags = settled && !converged;
+    solver.residual(y, ev.x, e);
+    double rss = 0.0, cnt = 0.0;
+    const std::vector<double> a = ar_filter(e, k);
+    for (std::size_t t = 0; t < n; ++t)
+      if (wf[t] != 0.0) {
+        rss += a[t] * a[t];
+        cnt += 1.0;
+      }
+    m.sigma_a_dph = std::sqrt(rss / std::max(1.0, cnt));
+    m.fit.n_used = static_cast<std::size_t>(cnt);
+  }
+  progress.last_change = change;
+  if (converged) {
+    progress.termination = FitTermination::converged;
+    progress.why = "coefficients and AR settled within the tolerance " + std::to_string(o.tolerance) + " at the chosen lags";
+  } else {
+    progress.termination = FitTermination::no_convergence;
+    progress.why = "max_iterations (" + std::to_string(o.max_iterations) + ") reached with " +
+                   (lags_moved              ? std::string("the lags still moving")
+                    : change >= o.tolerance ? "the coefficients still changing by " + std::to_string(change) +
+                                                  " (relative; tolerance " + std::to_string(o.tolerance) + ")"
+                                            : std::string("the coefficients settled but the lags not yet confirmed")) +
+                   ": the model holds the last iteration's estimates";
+  }
+  m.fit.iterations = it;
+  m.fit.converged = converged;
+  m.ar = k;
+  m.mu0_dph = solver.theta()[0];
+  m.terms.resize(nt);
+  for (std::size_t j = 0; j < nt; ++j) {
+    m.terms[j].term = terms[j];
+    m.terms[j].term.lag.seconds = solver.lags()[j];
+    m.terms[j].coef = solver.theta()[j + 1];
+  }
+  {
+    std::vector<double> a = ar_filter(e, k), aw;
+    for (std::size_t t = 0; t < n; ++t)
+      if (wf[t] != 0.0) aw.push_back(a[t]);
+    const LjungBox lb = ljung_box(aw, 20, p);
+    m.fit.ljung_box_q = lb.q;
+    m.fit.ljung_box_p = lb.p_value;
+    double ym = 0.0, sw = 0.0, yy = 0.0, ee = 0.0;
+    for (std::size_t t = 0; t < n; ++t)
+      if (w[t] != 0.0) {
+        ym += y[t];
+        sw += 1.0;
+      }
+    ym /= sw;
+    for (std::size_t t = 0; t < n; ++t)
+      if (w[t] != 0.0) {
+        yy += (y[t] - ym) * (y[t] - ym);
+        ee += e[t] * e[t];
+      }
+    m.fit.trend_r2 = yy > 0.0 ? 1.0 - ee / yy : 0.0;
+  }
+  finish_stats(m, ev, y, w, n_auto);
+  return m;
+}
+
+}  // namespace fogbench::model::detail

@@ -1,0 +1,136 @@
+// The paper's two-step method: mu0 and the AR noise from the opening hold, then the trend of
+// the smoothed output regressed on the terms with one lag shared by the @auto terms.
+#include <cmath>
+
+#include "common.hpp"
+#include "fit_internal.hpp"
+
+namespace fogbench::model::detail {
+namespace {
+
+// The opening hold: the first hold phase (or constant setpoint, or simply the start), at most hold_s.
+std::pair<std::size_t, std::size_t> opening_hold(const RunData& run, int hold_s) {
+  const std::size_t n = run.size();
+  const auto cap = static_cast<std::size_t>(hold_s);
+  std::size_t b = 0;
+  if (run.has_phase()) {
+    while (b < n && run.phase[b] != Phase::hold) ++b;
+    if (b == n) b = 0;
+    std::size_t e = b;
+    while (e < n && e - b < cap && run.phase[e] == Phase::hold) ++e;
+    if (e > b) return {b, e};
+  }
+  if (run.has_setpoint()) {
+    std::size_t e = 0;
+    while (e < n && e < cap && std::abs(run.setpoint_c[e] - run.setpoint_c[0]) < 0.01) ++e;
+    return {0, e};
+  }
+  return {0, std::min(n, cap)};
+}
+
+}  // namespace
+
+std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<Term>& terms, const FitOptions& o,
+                                         const Evaluated& ev, std::vector<double> w, FitSummary& progress) {
+  Model m;
+  m.method = Method::paper;
+  m.shared_lag = true;
+  const std::size_t n = run.size();
+  const int L = o.max_lag_s;
+  // Step 1: the opening hold gives mu0 and the AR noise.
+  progress.stage = "opening hold (step 1)";
+  auto [hb, he] = opening_hold(run, o.hold_s);
+  std::vector<double> hold;
+  for (std::size_t t = hb; t < he; ++t)
+    if (w[t] != 0.0) hold.push_back(run.gyro_dph[t]);
+  if (hold.size() < 60)
+    return fail(FitError::Code::too_short, "the opening hold has " + std::to_string(hold.size()) +
+                                               " good samples; the paper method needs at least 60 s of constant "
+                                               "temperature at the start of the run to estimate mu0 and the AR noise");
+  const OutlierResult out = outliers_3sigma(hold, o.outlier_sigma);
+  std::vector<double> kept;
+  for (std::size_t i = 0; i < hold.size(); ++i)
+    if (out.keep[i]) kept.push_back(hold[i]);
+  m.mu0_dph = mean(kept);
+  for (double& v : kept) v -= m.mu0_dph;
+  const StationarityResult st = stationarity_check(kept);
+  auto ar = fit_ar(kept, o.ar_order);
+  if (!ar) return fail(FitError::Code::too_short, "opening hold: " + ar.error());
+  m.ar = ar->k;
+  m.sigma_a_dph = std::sqrt(ar->sigma_a2);
+  const Whiteness wh = whiteness(ar->residuals, 20, o.ar_order);
+  m.fit.n_hold = hold.size();
+  m.fit.stationary = st.stationary;
+  m.fit.ljung_box_q = wh.lb.q;
+  m.fit.ljung_box_p = wh.lb.p_value;
+  progress.stage = "trend (step 2)";
+  // Step 2: the trend of the smoothed output. Outliers (3 sigma about the smooth) are
+  // removed from the smoothing, then the smoothed series is regressed on the terms.
+  std::vector<double> s = moving_average(run.gyro_dph, w, o.smooth_s);
+  {
+    std::vector<double> r, idx;
+    for (std::size_t t = 0; t < n; ++t)
+      if (w[t] != 0.0) r.push_back(run.gyro_dph[t] - s[t]);
+    const OutlierResult ro = outliers_3sigma(r, o.outlier_sigma);
+    std::vector<double> ws = w;
+    std::size_t j = 0;
+    for (std::size_t t = 0; t < n; ++t)
+      if (w[t] != 0.0 && !ro.keep[j++]) ws[t] = 0.0;
+    m.fit.n_outliers = ro.removed + out.removed;
+    if (ro.removed) s = moving_average(run.gyro_dph, ws, o.smooth_s);
+  }
+  std::vector<double> z(n);
+  for (std::size_t t = 0; t < n; ++t) z[t] = s[t] - m.mu0_dph;
+  std::vector<Lagged> lagged;
+  for (const auto& x : ev.x) lagged.push_back(detail::make_lagged(x, L));
+  std::vector<Column> fixed;
+  std::vector<const Lagged*> varying;
+  std::vector<std::size_t> fixed_idx, var_idx;
+  for (std::size_t j = 0; j < terms.size(); ++j) {
+    if (terms[j].lag.automatic) {
+      varying.push_back(&lagged[j]);
+      var_idx.push_back(j);
+    } else {
+      if (terms[j].lag.seconds > L)
+        return fail(FitError::Code::bad_options, "term '" + ev.names[j] + "' has lag " + std::to_string(terms[j].lag.seconds) +
+                                                     " s, beyond the maximum lag of " + std::to_string(L) + " s");
+      fixed.push_back(lagged_view(lagged[j], L, terms[j].lag.seconds));
+      fixed_idx.push_back(j);
+    }
+  }
+  LagScanner sc(n, L, w);
+  const ScanResult best = scan(sc, z, nullptr, fixed, varying, 0, L);
+  if (!best.ok) return fail(FitError::Code::degenerate, "no lag in 0.." + std::to_string(L) + " s gives a solvable regression");
+  // The coefficients at the lag chosen, by the kernel (fixed columns first, as the scan orders them).
+  std::vector<Column> all = fixed;
+  for (const Lagged* v : varying) all.push_back(lagged_view(*v, L, best.lag));
+  const ScanResult r = solve_at(z, w, all, best.lag);
+  if (!r.ok) return fail(FitError::Code::degenerate, "the regression is singular at lag " + std::to_string(best.lag) + " s");
+  m.terms.resize(terms.size());
+  for (std::size_t a = 0; a < fixed_idx.size(); ++a) {
+    m.terms[fixed_idx[a]].term = terms[fixed_idx[a]];
+    m.terms[fixed_idx[a]].coef = r.theta[a];
+  }
+  for (std::size_t v = 0; v < var_idx.size(); ++v) {
+    auto& ft = m.terms[var_idx[v]];
+    ft.term = terms[var_idx[v]];
+    ft.term.lag.seconds = r.lag;
+    ft.coef = r.theta[fixed_idx.size() + v];
+  }
+  double zz = 0.0, zm = 0.0, sw = 0.0;
+  for (std::size_t t = 0; t < n; ++t) {
+    zm += w[t] * z[t];
+    sw += w[t];
+  }
+  zm /= sw;
+  for (std::size_t t = 0; t < n; ++t) zz += w[t] * (z[t] - zm) * (z[t] - zm);
+  m.fit.rss = r.sse;
+  m.fit.trend_r2 = zz > 0.0 ? 1.0 - r.sse / zz : 0.0;
+  m.fit.n_used = static_cast<std::size_t>(sw);
+  finish_stats(m, ev, run.gyro_dph, w, varying.empty() ? 0 : 1);
+  progress.termination = FitTermination::converged;
+  progress.why = "two steps, no iteration";
+  return m;
+}
+
+}  // namespace fogbench::model::detail

@@ -1,0 +1,171 @@
+// Prediction checked on a run: Table 1 of the paper (whole run and per phase), the phases
+// themselves, and the verdict (issue 10).
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include "common.hpp"
+#include "fogbench/model/model.hpp"
+
+namespace fogbench::model {
+
+using detail::fail;
+
+Table1 table1(std::span<const double> y, std::span<const double> mu) {
+  Table1 r;
+  r.n = y.size();
+  if (y.empty()) return r;
+  std::vector<double> c(y.size());
+  for (std::size_t i = 0; i < y.size(); ++i) c[i] = y[i] - mu[i];
+  r.est_mean = mean(mu);
+  r.meas_mean = mean(y);
+  r.est_std = stddev(mu);
+  r.meas_std = stddev(y);
+  r.comp_std = stddev(c);
+  r.ratio = r.meas_std > 0.0 ? r.comp_std / r.meas_std : 0.0;
+  return r;
+}
+
+std::vector<Phase> derive_phases(const RunData& run) {
+  if (run.has_phase()) return run.phase;
+  const std::size_t n = run.size();
+  const std::vector<double>* src = &run.t1_c;
+  double threshold = 0.1;  // degC/min
+  if (run.has_setpoint()) {
+    src = &run.setpoint_c;
+    threshold = 0.05;
+  } else if (run.has_chamber()) {
+    src = &run.chamber_c;
+  }
+  const std::vector<double> rate = derivative_per_min(*src, 1.0);
+  std::vector<Phase> ph(n, Phase::hold);
+  for (std::size_t t = 0; t < n; ++t)
+    if (rate[t] > threshold) ph[t] = Phase::heating;
+    else if (rate[t] < -threshold) ph[t] = Phase::cooling;
+  return ph;
+}
+
+std::string_view to_string(Verdict v) {
+  switch (v) {
+    case Verdict::pass: return "pass";
+    case Verdict::marginal: return "marginal";
+    case Verdict::fail: return "fail";
+  }
+  return "?";
+}
+
+std::expected<void, std::string> VerifyOptions::validate() const {
+  if (!(threshold > 0.0 && threshold <= 1.0)) return std::unexpected("threshold must be in (0, 1], got " + std::to_string(threshold));
+  if (!(max_noise_factor >= 1.0 && max_noise_factor <= 100.0))
+    return std::unexpected("the noise factor must be 1 to 100, got " + std::to_string(max_noise_factor));
+  if (!(max_fail_s >= 1.0 && max_fail_s <= 1e6)) return std::unexpected("the longest failing interval must be 1 s to 1e6 s, got " + std::to_string(max_fail_s));
+  if (!(k_sigma > 0.0)) return std::unexpected("k_sigma must be positive");
+  if (smooth_s < 1 || smooth_s % 2 == 0) return std::unexpected("smooth_s must be a positive odd number of seconds");
+  return {};
+}
+
+std::expected<Verification, FitError> verify(const Model& m, const RunData& run, double threshold) {
+  VerifyOptions o;
+  o.threshold = threshold;
+  return verify(m, run, o);
+}
+
+std::expected<Verification, FitError> verify(const Model& m, const RunData& run, const VerifyOptions& o) {
+  if (auto ok = o.validate(); !ok) return fail(FitError::Code::bad_options, "verify: " + ok.error());
+  const double threshold = o.threshold;
+  auto mu = predict(m, run);
+  if (!mu) return std::unexpected(mu.error());
+  Verification v;
+  v.threshold = threshold;
+  const std::size_t n = run.size();
+  std::vector<double> w = detail::good_weights(run, &v.n_flagged);
+  // Outliers are spikes about the residual's 61 s moving average, not samples of a sustained
+  // error: a model that fails for five minutes must show it in Table 1, not lose those samples.
+  std::vector<double> res(n, 0.0);
+  for (std::size_t t = 0; t < n; ++t)
+    if (w[t] != 0.0) res[t] = run.gyro_dph[t] - (*mu)[t];
+  const std::vector<double> local = moving_average(res, w, 61);
+  std::vector<double> r;
+  for (std::size_t t = 0; t < n; ++t)
+    if (w[t] != 0.0) r.push_back(res[t] - local[t]);
+  const OutlierResult ro = outliers_3sigma(r, 3.0);
+  v.n_outliers = ro.removed;
+  std::size_t j = 0;
+  for (std::size_t t = 0; t < n; ++t)
+    if (w[t] != 0.0 && !ro.keep[j++]) w[t] = 0.0;
+  const std::vector<Phase> ph = derive_phases(run);
+  auto collect = [&](std::optional<Phase> only) {
+    std::vector<double> y, p;
+    for (std::size_t t = 0; t < n; ++t) {
+      if (w[t] == 0.0 || ph[t] == Phase::settle) continue;
+      if (only && ph[t] != *only) continue;
+      y.push_back(run.gyro_dph[t]);
+      p.push_back((*mu)[t]);
+    }
+    return table1(y, p);
+  };
+  v.run = collect(std::nullopt);
+  if (v.run.n < 2) return fail(FitError::Code::too_short, "no usable samples to verify on");
+  for (Phase p : {Phase::hold, Phase::heating, Phase::cooling}) {
+    Table1 t = collect(p);
+    if (t.n >= 2) v.phases.push_back({p, t});
+  }
+  v.ratio_pass = v.run.ratio < threshold;
+  // The second test: what is left should look like the model's own noise.
+  v.noise_test = o.noise_test;
+  v.noise_std = ar_process_std(m.ar, m.sigma_a_dph);
+  v.noise_factor = v.noise_std > 0.0 ? v.run.comp_std / v.noise_std : std::numeric_limits<double>::infinity();
+  {
+    // Failing intervals exactly as compare finds them: the residual without its spikes,
+    // averaged over smooth_s, beyond k_sigma * sigma_a (settle samples do not count).
+    std::vector<double> wf(w);
+    std::vector<double> rz(n, 0.0);
+    for (std::size_t t = 0; t < n; ++t) {
+      if (ph[t] == Phase::settle) wf[t] = 0.0;
+      if (wf[t] != 0.0) rz[t] = res[t];
+    }
+    const std::vector<double> s = moving_average(rz, wf, o.smooth_s);
+    const double thr = o.k_sigma * m.sigma_a_dph;
+    std::size_t t = 0;
+    while (t < n) {
+      if (wf[t] == 0.0 || std::abs(s[t]) <= thr) {
+        ++t;
+        continue;
+      }
+      const double sign = s[t] > 0 ? 1.0 : -1.0;
+      std::size_t e = t;
+      while (e < n && sign * s[e] > thr) ++e;
+      v.longest_fail_s = std::max(v.longest_fail_s, run.time_s[e - 1] - run.time_s[t] + 1.0);
+      t = e;
+    }
+  }
+  auto pct = [](double x) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.1f%%", 100.0 * x);
+    return std::string(b);
+  };
+  auto num = [](double x, int d) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.*f", d, x);
+    return std::string(b);
+  };
+  if (!v.ratio_pass) v.reasons.push_back("comp/raw " + pct(v.run.ratio) + " is not under " + pct(threshold) + " (the paper's rule)");
+  bool second_ok = true;
+  if (o.noise_test) {
+    if (!(v.noise_factor <= o.max_noise_factor)) {
+      second_ok = false;
+      v.reasons.push_back("compensated std " + num(v.run.comp_std, 3) + " deg/h is " + num(v.noise_factor, 2) + " x the model's noise std " +
+                          num(v.noise_std, 3) + " deg/h (at most " + num(o.max_noise_factor, 2) + " x)");
+    }
+    if (v.longest_fail_s >= o.max_fail_s) {
+      second_ok = false;
+      v.reasons.push_back("a failing interval of " + num(v.longest_fail_s, 0) + " s (the residual's " + std::to_string(o.smooth_s) +
+                          " s average beyond " + num(o.k_sigma, 1) + " sigma_a; " + num(o.max_fail_s, 0) + " s or more is not passed)");
+    }
+  }
+  v.verdict = !v.ratio_pass ? Verdict::fail : second_ok ? Verdict::pass : Verdict::marginal;
+  v.pass = v.verdict == Verdict::pass;
+  return v;
+}
+
+}  // namespace fogbench::model

@@ -1,0 +1,222 @@
+// One candidate of diagnose's step: its lag (the scan beside the model, rescans while the
+// refit moves the model's own lags, lag 0 tried as the simpler explanation), the refit with
+// it, its score on the fit run and the held-out runs, and the verdict.
+#include <cmath>
+#include <limits>
+
+#include "workbench_step.hpp"
+
+namespace fogbench::model::workbench::wbi {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// The candidate at its lag, and the model refitted with it.
+struct Refit {
+  Term term;                               // the candidate, its lag fixed
+  std::expected<Model, FitError> model;    // the base's terms plus the candidate, refitted on the fit run
+  int extra_params = 0;                    // lag parameters estimated outside the fit (BIC's count)
+};
+
+// The lag of x (the candidate evaluated on the fit run) starting at the scan's best, then
+// coordinate descent with the refit (as the joint fit does), then lag 0 if BIC prefers it.
+Refit refit_at_best_lag(const StepContext& ctx, const Cand& cd, std::span<const double> x, int first_lag) {
+  const Model& base = ctx.base;
+  Term t = cd.term;
+  t.lag = Lag{false, first_lag};
+  auto [tl, extra_params] = extended_terms(base, t, true);
+  Refit r{t, fit(ctx.fit_run, tl, ctx.fo), extra_params};
+  // The candidate's lag was scanned with the model's terms at the lags they had without
+  // it; the refit moves those lags, so scan again with the refitted model's columns until
+  // the lag settles.
+  std::vector<int> lags_before;
+  for (const auto& ft : base.terms) lags_before.push_back(ft.term.lag.seconds);
+  for (int it = 0; it < ctx.o.lag_iterations && r.model && !cd.repeat; ++it) {
+    // The model's own lags did not move: the rescan would find the same lag.
+    std::vector<int> lags_now;
+    for (std::size_t j = 0; j + 1 < r.model->terms.size(); ++j) lags_now.push_back(r.model->terms[j].term.lag.seconds);
+    if (lags_now == lags_before) break;
+    lags_before = lags_now;
+    auto rescan = scan_beside(*r.model, ctx.fit_run, ctx.fo.max_lag_s, /*without_last_term=*/true);
+    if (!rescan) break;
+    const auto g2 = rescan->scan(x);
+    if (!g2 || g2->lag == r.term.lag.seconds) break;
+    Term t2 = r.term;
+    t2.lag.seconds = g2->lag;
+    auto [tl2, ep2] = extended_terms(base, t2, true);
+    auto m3 = fit(ctx.fit_run, tl2, ctx.fo);
+    if (!m3 || m3->fit.bic >= r.model->fit.bic) break;
+    r.term = t2;
+    r.model = std::move(m3);
+  }
+  // A lag is a parameter: the term without delay costs ln(n) less in BIC, and is the
+  // simpler explanation when the runs hardly tell the two apart.
+  // Always tried: the scan's gains cannot tell when lag 0 loses, because the refit moves
+  // the model's own lags (a T1 hidden at lag 0 scans best at 150 to 450 s beside a paper
+  // model whose lag it had pulled to 0).
+  if (r.model && r.term.lag.seconds != 0 && !cd.repeat) {
+    Term t0 = r.term;
+    t0.lag.seconds = 0;
+    auto [tl0, ep0] = extended_terms(base, t0, false);
+    auto m0 = fit(ctx.fit_run, tl0, ctx.fo);
+    if (m0 && m0->fit.bic + ep0 * ctx.ln_n <= r.model->fit.bic + r.extra_params * ctx.ln_n) {
+      r.term = t0;
+      r.model = std::move(m0);
+      r.extra_params = ep0;
+    }
+  }
+  return r;
+}
+
+// The refitted model's scores (fit run, every held-out run), the new term's statistics, and
+// the detection rule's verdict, into c.
+void score(const StepContext& ctx, const Cand& cd, const Model& m2, int extra_params, Scorer& fs, std::vector<Scorer>& held_sc,
+           Candidate& c) {
+  const DiagnoseOptions& o = ctx.o;
+  c.evaluated = true;
+  auto after = fs.comp_std(m2);
+  c.rms_after_dph = after ? *after : kNaN;
+  c.fall = c.rms_before_dph > 0.0 ? 1.0 - c.rms_after_dph / c.rms_before_dph : 0.0;
+  c.delta_bic = m2.fit.bic + extra_params * ctx.ln_n - ctx.base.fit.bic;
+  const FittedTerm& nt = m2.terms.back();
+  c.coef = nt.coef;
+  c.se_dph_per_unit = nt.se_dph_per_unit;
+  c.t = nt.se_dph_per_unit > 0.0 ? nt.coef / nt.se_dph_per_unit : 0.0;
+  c.p_value = std::erfc(std::abs(c.t) / std::sqrt(2.0));
+  double min_fall = std::numeric_limits<double>::infinity();
+  int scored = 0;
+  for (std::size_t h = 0; h < ctx.held_out.size(); ++h) {
+    HeldOutScore hs;
+    hs.run = ctx.held_out[h].name;
+    if (!ctx.held_before[h]) {
+      hs.skipped = "the model does not run on it: " + ctx.held_before[h].error();
+    } else if (auto why = missing_signal_of(*cd.term.expr, ctx.held_out[h]); !why.empty()) {
+      hs.skipped = why;
+    } else if (auto ha = held_sc[h].comp_std(m2); !ha) {
+      hs.skipped = ha.error();
+    } else {
+      hs.scored = true;
+      hs.rms_before_dph = *ctx.held_before[h];
+      hs.rms_after_dph = *ha;
+      min_fall = std::min(min_fall, hs.rms_before_dph > 0.0 ? 1.0 - hs.rms_after_dph / hs.rms_before_dph : 0.0);
+      ++scored;
+    }
+    c.held_out.push_back(hs);
+  }
+  c.held_out_fall = scored ? min_fall : 0.0;
+  const bool significant = c.p_value < o.max_p_value;
+  if (scored > 0) {
+    c.detected = c.delta_bic < o.max_delta_bic && significant && c.fall >= o.min_fit_fall && c.held_out_fall >= o.min_held_out_fall;
+  } else {
+    c.detected = c.delta_bic < o.max_delta_bic_alone && significant && c.fall >= o.min_fit_fall_alone;
+  }
+  if (c.detected) {
+    c.verdict = "missing: compensated std falls " + fmt(100.0 * c.fall, 1) + "% on the fit run" +
+                (scored ? " and at least " + fmt(100.0 * c.held_out_fall, 1) + "% on every held-out run" : "") +
+                ", delta BIC " + fmt(c.delta_bic, 1);
+  } else {
+    std::string why;
+    if (!(c.delta_bic < (scored ? o.max_delta_bic : o.max_delta_bic_alone))) why = "BIC does not fall enough (" + fmt(c.delta_bic, 1) + ")";
+    else if (!significant) why = "its coefficient is not significant (p " + fmt(c.p_value, 4) + ")";
+    else if (c.fall < (scored ? o.min_fit_fall : o.min_fit_fall_alone)) why = "the fit run's compensated std falls only " + fmt(100.0 * c.fall, 1) + "%";
+    else why = "it does not hold up on held-out data (the smallest fall there is " + fmt(100.0 * c.held_out_fall, 1) + "%)";
+    c.verdict = "not needed: " + why;
+  }
+}
+
+}  // namespace
+
+EvaluatedCandidate evaluate_candidate(const StepContext& ctx, const Cand& cd, Scorer& fs, std::vector<Scorer>& held_sc) {
+  EvaluatedCandidate out;
+  Candidate& c = out.c;
+  c.expr = cd.expr;
+  c.effect = cd.effect;
+  c.explanation = cd.explanation;
+  c.unit = coef_unit(*cd.term.expr);
+  c.rms_before_dph = ctx.rms_fit_dph;
+  c.second_lag = cd.repeat;
+  c.term = cd.expr + (cd.repeat ? "@auto (second lag)" : "@auto");
+  if (auto why = missing_signal_of(*cd.term.expr, ctx.fit_run); !why.empty()) {
+    c.skipped = why + " (the fit run)";
+    return out;
+  }
+  auto x = evaluate(*cd.term.expr, ctx.fr.sig.view());
+  if (!x) {
+    c.skipped = x.error();
+    return out;
+  }
+  std::optional<int> avoid;
+  if (cd.repeat)
+    for (const auto& ft : ctx.base.terms)
+      if (term_key(ft.term) == cd.expr) avoid = ft.term.lag.seconds;
+  // Within the derivative window (30 s) of the model's own lag the same term is nearly
+  // the same column: a second path must be further away to mean anything.
+  const auto gain = ctx.scan.scan(*x, avoid, kDerivativeHalfWidth);
+  if (!gain) {
+    c.skipped = "no lag in 0.." + std::to_string(ctx.fo.max_lag_s) + " s adds anything the model's terms do not already hold";
+    return out;
+  }
+  Refit r = refit_at_best_lag(ctx, cd, *x, gain->lag);
+  c.lag_s = r.term.lag.seconds;
+  c.term = with_lag(cd.expr, r.term.lag.seconds);
+  if (!r.model) {
+    c.skipped = (cd.repeat ? "the same term at a second lag cannot be separated on this run: " : "refit failed: ") + r.model.error().message;
+    return out;
+  }
+  score(ctx, cd, *r.model, r.extra_params, fs, held_sc, c);
+  if (auto col = column(r.term, ctx.fr.sig, r.term.lag.seconds)) out.partial = ctx.scan.partial(*col);
+  return out;
+}
+
+std::expected<CandidateScan, FitError> scan_beside(const Model& m, const RunData& run, int max_lag_s, bool without_last_term) {
+  auto cols = regressors(m, run);
+  if (!cols) return std::unexpected(cols.error());
+  if (without_last_term && !cols->empty()) cols->pop_back();
+  return CandidateScan(run.gyro_dph, *cols, detail::good_weights(run), max_lag_s);
+}
+
+std::vector<Term> frozen_terms(const Model& m) {
+  std::vector<Term> out;
+  for (const auto& ft : m.terms) {
+    Term t = ft.term;
+    t.lag.automatic = false;
+    out.push_back(t);
+  }
+  return out;
+}
+
+int auto_lag_params(const Model& m) {
+  int n = 0;
+  for (const auto& ft : m.terms) n += ft.term.lag.automatic;
+  return m.method == Method::paper ? std::min(n, 1) : n;  // the paper method shares one lag
+}
+
+bool has_key(const Model& m, const std::string& key) {
+  for (const auto& ft : m.terms)
+    if (term_key(ft.term) == key) return true;
+  return false;
+}
+
+std::pair<TermList, int> extended_terms(const Model& base, const Term& extra, bool lag_scanned) {
+  TermList tl;
+  const bool repeat = has_key(base, term_key(extra));
+  tl.terms = repeat ? frozen_terms(base) : terms_of(base).terms;
+  tl.terms.push_back(extra);
+  return {tl, (lag_scanned ? 1 : 0) + (repeat ? auto_lag_params(base) : 0)};
+}
+
+const RunData& finite_gyro(const RunData& run, RunData& copy) {
+  bool any = false;
+  for (double v : run.gyro_dph) any = any || !std::isfinite(v);
+  if (!any) return run;
+  copy = run;
+  if (copy.flags.empty()) copy.flags.assign(copy.size(), 0);
+  for (std::size_t t = 0; t < copy.size(); ++t)
+    if (!std::isfinite(copy.gyro_dph[t])) {
+      copy.gyro_dph[t] = 0.0;
+      copy.flags[t] |= flag::missing;
+    }
+  return copy;
+}
+
+}  // namespace fogbench::model::workbench::wbi

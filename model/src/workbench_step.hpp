@@ -1,0 +1,286 @@
+// Internal to model/: the pieces of diagnose's step (workbench_diagnose.cpp: the stages of
+// diagnose_once and add_term; workbench_candidate.cpp: one candidate's lag, refit and score):
+// the lag scan beside a model, the scorer, the candidate list's entries.
+#pragma once
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <expected>
+#include <map>
+#include <optional>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "common.hpp"
+#include "fogbench/model/workbench.hpp"
+#include "lagscan.hpp"
+#include "workbench_internal.hpp"
+
+namespace fogbench::model::workbench::wbi {
+
+inline std::string with_lag(const std::string& expr, int lag_s) { return lag_s ? expr + "@" + std::to_string(lag_s) : expr; }
+
+// x delayed by lag samples, its first value standing in before the start.
+inline std::vector<double> lagged(std::span<const double> x, int lag) {
+  const std::size_t n = x.size(), l = static_cast<std::size_t>(std::max(0, lag));
+  std::vector<double> c(n);
+  for (std::size_t t = 0; t < n; ++t) c[t] = x[t >= l ? t - l : 0];
+  return c;
+}
+
+// The lag scan of a candidate x against the output with the base model's columns B (at their
+// fitted lags, intercept included) held in the regression. With u the residual of y on B,
+// Frisch-Waugh gives the fall of SSE from adding x(t - i):
+//   gain(i) = (x_i' W u)^2 / (x_i' W x_i - x_i' W B (B' W B)^-1 B' W x_i)
+// and every sum over t is, for all lags at once, a cross-correlation by FFT (lagscan.hpp).
+class CandidateScan {
+ public:
+  CandidateScan(std::span<const double> y_in, const std::vector<std::vector<double>>& base_cols, std::vector<double> w, int max_lag)
+      : sc_(y_in.size(), max_lag, w), w_(std::move(w)), L_(max_lag) {
+    const std::size_t n = y_in.size();
+    // Samples of weight 0 may hold NaN (a missing gyro reading): 0 * NaN is NaN, so zero them.
+    std::vector<double> y(y_in.begin(), y_in.end());
+    for (std::size_t t = 0; t < n; ++t)
+      if (w_[t] == 0.0) y[t] = 0.0;
+    cols_.push_back(std::vector<double>(n, 1.0));
+    for (const auto& c : base_cols) cols_.push_back(c);
+    const auto k = static_cast<Eigen::Index>(cols_.size());
+    Eigen::MatrixXd G(k, k);
+    Eigen::VectorXd b(k);
+    for (Eigen::Index a = 0; a < k; ++a) {
+      double s = 0.0;
+      for (std::size_t t = 0; t < n; ++t) s += w_[t] * cols_[a][t] * y[t];
+      b(a) = s;
+      for (Eigen::Index c = a; c < k; ++c) {
+        double g = 0.0;
+        for (std::size_t t = 0; t < n; ++t) g += w_[t] * cols_[a][t] * cols_[c][t];
+        G(a, c) = G(c, a) = g;
+      }
+    }
+    ldlt_.compute(G);
+    ok_ = ldlt_.info() == Eigen::Success && ldlt_.rcond() > 1e-14;
+    if (!ok_) return;
+    const Eigen::VectorXd th = ldlt_.solve(b);
+    u_.assign(y.begin(), y.end());
+    for (std::size_t t = 0; t < n; ++t)
+      for (Eigen::Index a = 0; a < k; ++a) u_[t] -= th(a) * cols_[a][t];
+    std::vector<double> wu(n);
+    for (std::size_t t = 0; t < n; ++t) {
+      wu[t] = w_[t] * u_[t];
+      sse_ += wu[t] * u_[t];
+    }
+    u_spec_ = sc_.spectrum_of_target(wu);
+    for (std::size_t a = 1; a < cols_.size(); ++a) {
+      std::vector<double> wc(n);
+      for (std::size_t t = 0; t < n; ++t) wc[t] = w_[t] * cols_[a][t];
+      col_spec_.push_back(sc_.spectrum_of_target(wc));
+    }
+  }
+  bool ok() const { return ok_; }
+  const std::vector<double>& residual() const { return u_; }
+
+  // The lag in [0, max_lag] of largest gain, skipping |lag - avoid| < avoid_half_width.
+  std::optional<int> best_lag(std::span<const double> x, std::optional<int> avoid = {}, int avoid_half_width = 0) const {
+    auto g = scan(x, avoid, avoid_half_width);
+    if (!g) return std::nullopt;
+    return g->lag;
+  }
+  struct Gain {
+    int lag = 0;
+    double best = 0.0, at_zero = 0.0;  // fall of the weighted SSE, (deg/h)^2
+    double sse = 0.0;                  // weighted SSE of the residual before, (deg/h)^2
+  };
+  std::optional<Gain> scan(std::span<const double> x, std::optional<int> avoid = {}, int avoid_half_width = 0) const {
+    if (!ok_) return std::nullopt;
+    const detail::Lagged lx = detail::make_lagged(x, L_);
+    const std::size_t k = cols_.size();
+    std::vector<std::vector<double>> cxb(k);
+    cxb[0] = sc_.wsum(lx.ext);
+    for (std::size_t a = 1; a < k; ++a) cxb[a] = sc_.corr(lx, col_spec_[a - 1]);
+    const std::vector<double> cxu = sc_.corr(lx, u_spec_);
+    std::vector<double> sq(lx.ext.size());
+    for (std::size_t j = 0; j < sq.size(); ++j) sq[j] = lx.ext[j] * lx.ext[j];
+    const std::vector<double> cxx = sc_.wsum(sq);
+    std::optional<int> best;
+    double best_gain = -1.0, g0 = 0.0;
+    Eigen::VectorXd v(static_cast<Eigen::Index>(k));
+    for (int i = 0; i <= L_; ++i) {
+      if (avoid && std::abs(i - *avoid) < avoid_half_width) continue;
+      const auto li = static_cast<std::size_t>(i);
+      for (std::size_t a = 0; a < k; ++a) v(static_cast<Eigen::Index>(a)) = cxb[a][li];
+      const double den = cxx[li] - v.dot(ldlt_.solve(v));
+      // A column (nearly) inside the span of the model's own: nothing new at this lag.
+      if (!(den > 1e-9 * std::max(1.0, cxx[li]))) continue;
+      const double gain = cxu[li] * cxu[li] / den;
+      if (i == 0) g0 = gain;
+      if (gain > best_gain) {
+        best_gain = gain;
+        best = i;
+      }
+    }
+    if (!best) return std::nullopt;
+    return Gain{*best, best_gain, g0, sse_};
+  }
+
+  // x with the base columns regressed out (for correlations between candidates).
+  std::vector<double> partial(std::span<const double> x) const {
+    const std::size_t n = x.size(), k = cols_.size();
+    Eigen::VectorXd b(static_cast<Eigen::Index>(k));
+    for (std::size_t a = 0; a < k; ++a) {
+      double s = 0.0;
+      for (std::size_t t = 0; t < n; ++t) s += w_[t] * cols_[a][t] * x[t];
+      b(static_cast<Eigen::Index>(a)) = s;
+    }
+    const Eigen::VectorXd th = ldlt_.solve(b);
+    std::vector<double> r(x.begin(), x.end());
+    for (std::size_t t = 0; t < n; ++t)
+      for (std::size_t a = 0; a < k; ++a) r[t] -= th(static_cast<Eigen::Index>(a)) * cols_[a][t];
+    return r;
+  }
+
+ private:
+  detail::LagScanner sc_;
+  std::vector<double> w_;
+  int L_;
+  std::vector<std::vector<double>> cols_;
+  Eigen::LDLT<Eigen::MatrixXd> ldlt_;
+  bool ok_ = false;
+  double sse_ = 0.0;
+  std::vector<double> u_;
+  detail::Spectrum u_spec_;
+  std::vector<detail::Spectrum> col_spec_;
+};
+
+
+// The lag scan beside a model on a run: the model's regressors at their fitted lags (all, or
+// all but the last term: the candidate just added) held in the regression, the run's good
+// samples weighted. The one place diagnose's rescan and add_term build it.
+std::expected<CandidateScan, FitError> scan_beside(const Model& m, const RunData& run, int max_lag_s, bool without_last_term = false);
+
+// The candidate's column on a run: the expression evaluated and delayed.
+inline std::expected<std::vector<double>, std::string> column(const Term& t, const RunSignals& s, int lag) {
+  auto v = evaluate(*t.expr, s.view());
+  if (!v) return std::unexpected(v.error());
+  return lagged(*v, lag);
+}
+
+// Table 1's compensated std of models on one run, exactly as verify() computes it (flagged
+// samples out, 3-sigma outliers of the residual out, settle samples out), with the run's
+// signals, phases and unlagged term columns computed once for all the candidates' models.
+class Scorer {
+ public:
+  Scorer(const RunData& run, double tref_c) : run_(run), tref_c_(tref_c), w_(detail::good_weights(run)), phase_(derive_phases(run)) {
+    auto s = run_signals(run, tref_c);
+    if (s) sig_ = std::move(*s);
+    else error_ = s.error().message;
+  }
+  std::expected<double, std::string> comp_std(const Model& m) {
+    if (!error_.empty()) return std::unexpected(error_);
+    if (m.tref_c != tref_c_) {  // another reference: no cache (never within one diagnose)
+      auto v = verify(m, run_);
+      if (!v) return std::unexpected(v.error().message);
+      return v->run.comp_std;
+    }
+    const std::size_t n = run_.size();
+    std::vector<double> mu(n, m.mu0_dph);
+    for (const auto& ft : m.terms) {
+      auto col = column(ft.term);
+      if (!col) return std::unexpected(col.error());
+      const auto lag = static_cast<std::size_t>(ft.term.lag.seconds);
+      const std::vector<double>& x = **col;
+      for (std::size_t t = 0; t < n; ++t) mu[t] += ft.coef * x[t >= lag ? t - lag : 0];
+    }
+    std::vector<double> r;
+    r.reserve(n);
+    for (std::size_t t = 0; t < n; ++t)
+      if (w_[t] != 0.0) r.push_back(run_.gyro_dph[t] - mu[t]);
+    const OutlierResult ro = outliers_3sigma(r, 3.0);
+    std::vector<double> kept;
+    kept.reserve(n);
+    std::size_t j = 0;
+    for (std::size_t t = 0; t < n; ++t) {
+      if (w_[t] == 0.0) continue;
+      if (ro.keep[j] && phase_[t] != Phase::settle) kept.push_back(r[j]);
+      ++j;
+    }
+    if (kept.size() < 2) return std::unexpected(run_.name + ": no usable samples to verify on");
+    return stddev(kept);
+  }
+
+ private:
+  std::expected<const std::vector<double>*, std::string> column(const Term& t) {
+    const std::string key = to_string(*t.expr);
+    auto it = cols_.find(key);
+    if (it != cols_.end()) return &it->second;
+    auto v = evaluate(*t.expr, sig_.view());
+    if (!v) return std::unexpected("term '" + key + "': " + v.error());
+    return &cols_.emplace(key, std::move(*v)).first->second;
+  }
+  const RunData& run_;
+  double tref_c_;
+  std::vector<double> w_;
+  std::vector<Phase> phase_;
+  RunSignals sig_;
+  std::string error_;
+  std::map<std::string, std::vector<double>> cols_;
+};
+
+// The model's terms with @auto terms frozen at their fitted lags.
+std::vector<Term> frozen_terms(const Model& m);
+// Lag parameters the model estimated (the paper method shares one).
+int auto_lag_params(const Model& m);
+bool has_key(const Model& m, const std::string& key);
+// The base terms plus one at a fixed lag; when the new term is a model term again, the
+// model's lags are frozen (the fit cannot separate the same term at two searched lags).
+// Returns the terms and how many lag parameters were estimated outside the fit.
+std::pair<TermList, int> extended_terms(const Model& base, const Term& extra, bool lag_scanned);
+
+// The core's fit gives a non-finite gyro sample weight 0 but still multiplies it in (0 * NaN
+// is NaN), so a run with a missing reading fails as "singular". A copy with such samples
+// flagged missing and set to 0 has the same meaning and fits; runs without any are not copied.
+const RunData& finite_gyro(const RunData& run, RunData& copy);
+
+// The fit run as the candidates see it.
+struct FitRun {
+  RunSignals sig;
+  std::vector<double> w;
+  std::vector<std::vector<double>> base_cols;  // the base model's regressors at fitted lags
+};
+
+// A candidate of the step: a library effect, a model term again at a second lag, an extra
+// term asked for, or a term generated by the language search.
+struct Cand {
+  Term term;
+  std::string expr, effect, explanation;
+  bool repeat = false;
+  bool generated = false;  // from the language search: screened by its lag scan's gain
+};
+
+// What every candidate's evaluation reads (shared by the threads, read only).
+struct StepContext {
+  const Model& base;                 // the model refitted on the fit run
+  const RunData& fit_run;
+  std::span<const RunData> held_out;
+  const DiagnoseOptions& o;
+  const FitOptions& fo;
+  const FitRun& fr;
+  const CandidateScan& scan;         // beside the base model on the fit run
+  double rms_fit_dph = 0.0;          // the base's compensated std on the fit run
+  const std::vector<std::expected<double, std::string>>& held_before;  // the base's on each held-out run
+  double ln_n = 0.0;                 // ln of the samples the base used (BIC's price of a parameter)
+};
+
+struct EvaluatedCandidate {
+  Candidate c;
+  std::vector<double> partial;  // its column with the model's terms regressed out (empty if not evaluated)
+};
+
+// One candidate: its lag (scan, rescans as the refit moves the model's lags, lag 0 tried),
+// the refit, its score on the fit run and every held-out run, and the verdict. fs and held_sc
+// are this thread's scorers.
+EvaluatedCandidate evaluate_candidate(const StepContext& ctx, const Cand& cd, Scorer& fs, std::vector<Scorer>& held_sc);
+
+}  // namespace fogbench::model::workbench::wbi
