@@ -157,6 +157,7 @@ int run_fit(const FitCommandOptions& o, std::ostream& out, std::ostream& err) {
     out << j.dump() << "\n";
   } else {
     out << describe_model(*model);
+    for (const auto& e : model::lags_at_edge(*model)) out << "\nwarning: " << e << "\n";
     if (!o.output.empty()) out << "\nmodel written to " << o.output << "\n";
   }
   return kExitOk;

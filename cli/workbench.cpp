@@ -157,6 +157,7 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
   out << "diagnose: model " << o.model << " (" << d->model_terms << ", " << d->method << " method) refitted on " << d->fit_run;
   if (d->base_refitted_on_other_run) out << " (the model was fitted on other data: " << m->fitted_on.name << ")";
   out << "\n\n" << (d->adequate ? "ADEQUATE: " : "NOT ADEQUATE: ") << d->summary << "\n\n";
+  for (const auto& e : model::lags_at_edge(*m)) out << "warning: in the model as given, " << e << "\n\n";
   out << "adequacy of " << d->model_terms << " (Ljung-Box p >= " << fixed(dopt.adequacy_alpha, 3) << ", comp std <= "
       << fixed(dopt.max_noise_factor, 2) << " x noise std, no failing interval):\n";
   {
@@ -279,6 +280,8 @@ int run_fit_add(const FitAddOptions& o, std::ostream& out, std::ostream& err) {
   if (before && after)
     out << "\ncompensated std on " << o.run << ": " << fixed(before->run.comp_std, 3) << " -> " << fixed(after->run.comp_std, 3)
         << " deg/h; BIC " << fixed(m->fit.bic, 1) << " -> " << fixed(r->model.fit.bic, 1) << "\n";
+  for (const auto& n : r->notes) out << "note: " << n << "\n";
+  for (const auto& e : model::lags_at_edge(r->model)) out << "warning: " << e << "\n";
   if (!o.output.empty()) out << "model written to " << o.output << "\n";
   return kExitOk;
 }

@@ -495,13 +495,33 @@ std::expected<AddResult, FitError> add_term(const Model& m, const RunData& run_i
   tl.terms.push_back(t);
   auto m2 = fit(run, tl, fo);
   if (!m2) return std::unexpected(FitError{m2.error().code, run.name + ": " + m2.error().message});
+  // A refit that runs the model's own lag to the edge of its scan has not estimated it
+  // (lags_at_edge): the model's lags then stay where they were fitted (issue 16: with d(T2)
+  // added on the distributed coil, the paper's shared lag ran to 599 s standing in for the
+  // absolute term, which the next diagnose then no longer saw).
+  std::vector<std::string> kept;
+  if (!has_key(m, key) && lags_at_edge(m).empty()) {
+    Model own = *m2;
+    own.terms.pop_back();
+    if (const auto edge = lags_at_edge(own); !edge.empty()) {
+      TermList frozen;
+      frozen.terms = frozen_terms(m);
+      frozen.terms.push_back(t);
+      if (auto m3 = fit(run, frozen, fo)) {
+        for (const auto& e : edge) kept.push_back("refitted with " + key + ", " + e + "; kept at the lags fitted before (" + m.terms_string() + ")");
+        m2 = std::move(m3);
+      }
+    }
+  }
   AddResult r;
+  r.notes = kept;
   r.model = std::move(*m2);
   r.model.parent = std::make_shared<const Model>(m);
   const FittedTerm& nt = r.model.terms.back();
   r.added = with_lag(nt.name(), nt.term.lag.seconds);
   r.model.note = "added " + r.added + (scanned ? " (lag from the residual's lag scan)" : "") + " to " + m.terms_string() +
                  ", refitted on " + run.name + " (" + std::string(to_string(fo.method)) + " method)";
+  for (const auto& k : kept) r.model.note += "; " + k;
   return r;
 }
 

@@ -32,9 +32,11 @@ struct LiveBench {
   std::vector<std::string> daemon_prefix;
   // The daemon paces the simulated world (fogbench-sim --paced, the daemon's `sim_clock`).
   bool paced = false;
+  // The mock bench's per-unit physics (fogbench-sim --config, docs/mock-bench.md); null: none.
+  json sim_config;
 
-  explicit LiveBench(double k, json patch = json::object(), bool paced_clock = false)
-      : time_scale(k), config_patch(std::move(patch)), paced(paced_clock) {
+  explicit LiveBench(double k, json patch = json::object(), bool paced_clock = false, json sim_cfg = nullptr)
+      : time_scale(k), config_patch(std::move(patch)), paced(paced_clock), sim_config(std::move(sim_cfg)) {
     char tmpl[] = "/tmp/fogbench-e2e-XXXXXX";
     dir = ::mkdtemp(tmpl);
     std::filesystem::create_directories(dir / "profiles");
@@ -63,6 +65,11 @@ struct LiveBench {
                                   "--time-scale", std::to_string(time_scale), "--log-level", "warn",
                                   "--control", control().string()};
     if (paced) argv.push_back("--paced");
+    if (!sim_config.is_null()) {
+      std::ofstream(dir / "sim.json") << sim_config.dump(2);
+      argv.push_back("--config");
+      argv.push_back((dir / "sim.json").string());
+    }
     sim = std::make_unique<Process>(argv, dir / "sim.log");
     const auto line = sim->read_line(60s);
     INFO("fogbench-sim log in " << (dir / "sim.log"));

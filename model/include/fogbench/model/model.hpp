@@ -142,6 +142,14 @@ std::expected<Model, FitError> fit(const RunData& run, const TermList& terms, co
 // Before the run's start a lagged term takes its first value (runs open with a steady hold).
 std::expected<std::vector<double>, FitError> predict(const Model& m, const RunData& run);
 
+// The @auto lags that ended at the upper edge of their scan, 0..max_lag_s (within 5% of
+// max_lag_s, at least 1 s: 570..600 s by default): there the least-squares optimum ran to, or
+// stopped just short of, its bound, so the lag is a bound, not an estimate. Either the range is too short or, more often, the delayed terms stand
+// in for a slower effect the model lacks (on the distributed coil, with d(T2) added, the paper's
+// shared lag runs to 600 s, and to 1176 s with a range of 3600 s, in place of the absolute
+// term T1). One sentence per lag (a shared lag once), naming its terms; empty when none.
+std::vector<std::string> lags_at_edge(const Model& m);
+
 // Evaluates every term of the model on a run, lag applied: columns of the regression.
 std::expected<std::vector<std::vector<double>>, FitError> regressors(const Model& m, const RunData& run);
 

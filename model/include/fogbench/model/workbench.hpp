@@ -248,10 +248,15 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
 // ---------------------------------------------------------------------------------------
 // add: the model's terms plus one, refitted with the same method and options on a run.
 // `term` in the term language; `@auto` with the paper method (one shared lag) is resolved by
-// the lag scan of the model's residual, so the new term does not move the paper's lag.
+// the lag scan of the model's residual, so the new term does not move the paper's lag. The
+// model's own @auto lags are refitted, unless the refit runs one to the edge of its scan: then
+// they are kept at their fitted values (notes says so).
 struct AddResult {
   Model model;                      // parent and note set; created_at left to the caller
   std::string added;                // the term as fitted, with its lag
+  // What the refit did that its user should know: the model's lags kept where they were when
+  // the refit ran one to the edge of its scan (model::lags_at_edge). Also in model.note.
+  std::vector<std::string> notes;
 };
 std::expected<AddResult, FitError> add_term(const Model& m, const RunData& run, std::string_view term);
 
