@@ -21,6 +21,8 @@
 #include <thread>
 
 #include "common.hpp"
+#include "fogbench/protocol/framing.hpp"
+#include "fogbench/protocol/protocol.hpp"
 #include "fogbench/storage/csv.hpp"
 #include "table.hpp"
 
@@ -73,14 +75,14 @@ int remaining_ms(SteadyClock::time_point deadline) {
 }  // namespace
 
 Client::Client(Client&& o) noexcept
-    : fd_(std::exchange(o.fd_, -1)), buffer_(std::move(o.buffer_)), pushed_(std::move(o.pushed_)),
+    : fd_(std::exchange(o.fd_, -1)), lines_(std::move(o.lines_)), pushed_(std::move(o.pushed_)),
       token_(std::move(o.token_)), next_id_(o.next_id_), hello_(std::move(o.hello_)) {}
 
 Client& Client::operator=(Client&& o) noexcept {
   if (this != &o) {
     if (fd_ >= 0) ::close(fd_);
     fd_ = std::exchange(o.fd_, -1);
-    buffer_ = std::move(o.buffer_);
+    lines_ = std::move(o.lines_);
     pushed_ = std::move(o.pushed_);
     token_ = std::move(o.token_);
     next_id_ = o.next_id_;
@@ -114,7 +116,8 @@ std::expected<Client, ClientError> Client::handshake(int fd, int timeout_ms) {
   Client c(fd);
   auto hello = c.read_message(timeout_ms);
   if (!hello) return std::unexpected(hello.error());
-  if (hello->value("type", "") != "hello") return fail("connection", "the daemon did not say hello");
+  // A daemon of another protocol version is refused here, before any request is sent.
+  if (auto h = protocol::hello_from_json(*hello); !h) return fail("protocol", h.error());
   c.hello_ = *hello;
   return c;
 }
@@ -169,13 +172,22 @@ std::expected<Client, ClientError> Client::connect(const Endpoint& e, const std:
 
 std::expected<json, ClientError> Client::read_message(int timeout_ms) {
   const auto deadline = SteadyClock::now() + std::chrono::milliseconds(timeout_ms);
+  std::string line;
   for (;;) {
-    const auto nl = buffer_.find('\n');
-    if (nl != std::string::npos) {
-      json j = json::parse(std::string_view(buffer_).substr(0, nl), nullptr, false);
-      buffer_.erase(0, nl + 1);
-      if (j.is_discarded() || !j.is_object()) return fail("connection", "the daemon sent a line that is not a JSON object");
-      return j;
+    switch (lines_.next(line)) {
+      case protocol::LineSplitter::Status::line: {
+        if (line.empty()) continue;
+        // The daemon's own limits on nesting and duplicate keys: a deep line is refused, never built.
+        auto j = protocol::parse_line(line);
+        if (!j || !j->is_object())
+          return fail("protocol", "the daemon sent a line that is not a JSON object" +
+                                      (j ? std::string() : " (" + j.error() + ")"));
+        return std::move(*j);
+      }
+      case protocol::LineSplitter::Status::too_long:
+        return fail("protocol", "the daemon sent a line over " + std::to_string(protocol::kMaxMessageBytes) +
+                                    " bytes (the protocol's limit on a message, kMaxMessageBytes); giving up on it");
+      case protocol::LineSplitter::Status::incomplete: break;
     }
     pollfd p{fd_, POLLIN, 0};
     const int r = ::poll(&p, 1, remaining_ms(deadline));
@@ -186,7 +198,7 @@ std::expected<json, ClientError> Client::read_message(int timeout_ms) {
     const ssize_t n = ::recv(fd_, buf, sizeof buf, 0);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) return fail("connection", "the daemon closed the connection");
-    buffer_.append(buf, static_cast<std::size_t>(n));
+    lines_.feed(std::string_view(buf, static_cast<std::size_t>(n)));
   }
 }
 
@@ -249,19 +261,21 @@ std::expected<model::RunData, ClientError> fetch_run(Client& c, std::int64_t run
     auto r = c.call("run.samples", {{"run_id", run_id}, {"unit", unit}, {"offset", offset}, {"limit", page}});
     if (!r) return std::unexpected(r.error());
     const json& rows = (*r)["samples"];
-    for (const auto& s : rows) {
-      const auto phase = model::phase_from_string(s.value("phase", "unknown")).value_or(model::Phase::unknown);
+    for (const auto& row : rows) {
+      auto s = protocol::sample_from_json(row);
+      if (!s) return fail("protocol", "run.samples of run " + std::to_string(run_id) + ": " + s.error());
+      const auto phase = model::phase_from_string(s->phase).value_or(model::Phase::unknown);
       if (phase == model::Phase::settle && !include_settle) continue;
-      auto val = [&](const char* k) { return s[k].is_number() ? s[k].get<double>() : std::nan(""); };
-      d.time_s.push_back(s["t_s"].get<double>());
-      d.gyro_dph.push_back(val("gyro_dph"));
-      d.t1_c.push_back(val("t1_c"));
-      d.t2_c.push_back(val("t2_c"));
-      d.setpoint_c.push_back(val("setpoint_c"));
-      d.chamber_c.push_back(val("chamber_c"));
+      auto val = [](std::optional<double> v) { return v.value_or(std::nan("")); };
+      d.time_s.push_back(s->t_s);
+      d.gyro_dph.push_back(val(s->gyro_dph));
+      d.t1_c.push_back(val(s->t1_c));
+      d.t2_c.push_back(val(s->t2_c));
+      d.setpoint_c.push_back(val(s->setpoint_c));
+      d.chamber_c.push_back(val(s->chamber_c));
       d.phase.push_back(phase);
-      d.step.push_back(s["step"].is_number_integer() ? s["step"].get<int>() : -1);
-      d.flags.push_back(static_cast<std::uint8_t>(s.value("flags", 0)));
+      d.step.push_back(s->step.value_or(-1));
+      d.flags.push_back(s->flags);
     }
     offset += static_cast<std::int64_t>(rows.size());
     if (rows.size() < static_cast<std::size_t>(page) || offset >= (*r)["total"].get<std::int64_t>()) break;
@@ -313,6 +327,10 @@ void add_common(CLI::App* c, Common& o, bool with_json = true) {
 std::string num_text(const json& v, int digits = 2) {
   return v.is_number() ? fixed(v.get<double>(), digits) : "-";
 }
+std::string num_text(std::optional<double> v, int digits = 2) {
+  return v && std::isfinite(*v) ? fixed(*v, digits) : "-";
+}
+std::string num_text(double v, int digits = 2) { return num_text(std::optional<double>(v), digits); }
 
 std::string duration_text(double s) {
   if (!std::isfinite(s) || s < 0) return "-";
@@ -323,7 +341,7 @@ std::string duration_text(double s) {
 }
 
 int report(const ClientError& e, std::ostream& err) {
-  const bool plain = e.code == "connection" || e.code == "timeout" || e.code == "bad_option";
+  const bool plain = e.code == "connection" || e.code == "timeout" || e.code == "bad_option" || e.code == "protocol";
   err << "fogctl: " << (plain ? "" : e.code + ": ") << e.message << "\n";
   return kExitError;
 }
@@ -610,7 +628,7 @@ int watch(const Common& o, std::optional<std::int64_t> run_id, bool quiet, doubl
       if (!g) return report(g.error(), err);
       if (terminal((*g)["run"]["state"])) return final_code(*c, *run_id, out, o.json_out);
     }
-    std::map<int, json> latest;  // by unit
+    std::map<int, protocol::SampleMessage> latest;  // by unit
     auto last_draw = SteadyClock::now() - std::chrono::seconds(1);
     for (;;) {
       auto m = c->next_message(30000);
@@ -622,25 +640,28 @@ int watch(const Common& o, std::optional<std::int64_t> run_id, bool quiet, doubl
       }
       if ((*m)["run_id"] != *run_id) continue;
       if ((*m)["type"] == "sample") {
-        latest[(*m)["unit"].get<int>()] = *m;
+        auto s = protocol::sample_message_from_json(*m);
+        if (!s) return report(ClientError{"protocol", s.error()}, err);
+        latest[s->unit] = *s;
         const auto now = SteadyClock::now();
         if (tty_line && now - last_draw > std::chrono::milliseconds(200)) {
           last_draw = now;
-          const json& s = *m;
           std::ostringstream line;
-          line << "\rrun " << *run_id << " " << s["state"].get<std::string>() << " " << s["phase"].get<std::string>()
-               << " step " << s["step"] << "  " << duration_text(s["elapsed_s"].get<double>()) << " elapsed, "
-               << duration_text(s["remaining_s"].get<double>()) << " left  chamber " << num_text(s["chamber_c"], 1)
-               << "/" << num_text(s["setpoint_c"], 1) << " C";
+          line << "\rrun " << *run_id << " " << s->state << " " << s->phase << " step " << s->step << "  "
+               << duration_text(s->elapsed_s) << " elapsed, " << duration_text(s->remaining_s) << " left  chamber "
+               << num_text(s->chamber_c, 1) << "/" << num_text(s->setpoint_c, 1) << " C";
           for (const auto& [u, x] : latest)
-            line << "  " << x["serial"].get<std::string>() << " T1 " << num_text(x["t1_c"]) << " T2 "
-                 << num_text(x["t2_c"]) << " drift " << num_text(x["gyro_dph"]) << " dph";
+            line << "  " << x.serial << " T1 " << num_text(x.t1_c) << " T2 " << num_text(x.t2_c) << " drift "
+                 << num_text(x.gyro_dph) << " dph";
           line << "   ";
           err << line.str() << std::flush;
         }
-      } else if ((*m)["type"] == "event" && (*m)["kind"] == "state") {
-        const std::string to = (*m)["detail"]["to"];
-        if (tty_line) err << "\n" << "run " << *run_id << ": " << to << " (" << (*m)["detail"].value("reason", "") << ")\n";
+      } else if ((*m)["type"] == "event") {
+        auto e = protocol::event_message_from_json(*m);
+        if (!e) return report(ClientError{"protocol", e.error()}, err);
+        if (e->kind != "state") continue;
+        const std::string to = e->detail.value("to", "");
+        if (tty_line) err << "\n" << "run " << *run_id << ": " << to << " (" << e->detail.value("reason", "") << ")\n";
         if (terminal(to)) {
           // The analysis events follow the state change; run.get is answered after them. A
           // daemon that is stopping closes this connection right after the event: the

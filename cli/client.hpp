@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "fogbench/model/run.hpp"
+#include "fogbench/protocol/framing.hpp"
 
 namespace CLI {
 class App;
@@ -31,7 +32,8 @@ struct Endpoint {
 // "HOST:PORT" ("[::1]:7000" for IPv6) as given to --connect; an error names what is wrong.
 std::expected<Endpoint, std::string> parse_connect(const std::string& text);
 
-// An error of the client: a protocol code ("busy", "not_found"...) or "connection", and a
+// An error of the client: a protocol code ("busy", "not_found"...), "connection", "timeout", or
+// "protocol" (the daemon speaks another protocol version or sent a line past the limits), and a
 // message for the user.
 struct ClientError {
   std::string code;
@@ -65,9 +67,10 @@ class Client {
  private:
   explicit Client(int fd) : fd_(fd) {}
   static std::expected<Client, ClientError> handshake(int fd, int timeout_ms);
+  // One line from the daemon: at most protocol::kMaxMessageBytes, nested at most kMaxDepth.
   std::expected<nlohmann::json, ClientError> read_message(int timeout_ms);
   int fd_ = -1;
-  std::string buffer_;
+  protocol::LineSplitter lines_{protocol::kMaxMessageBytes};
   std::deque<nlohmann::json> pushed_;
   std::string token_;
   std::int64_t next_id_ = 1;

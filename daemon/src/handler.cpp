@@ -7,7 +7,7 @@
 #include <cmath>
 
 #include "fogbench/daemon/analysis.hpp"
-#include "fogbench/daemon/framing.hpp"
+#include "fogbench/protocol/framing.hpp"
 #include "fogbench/model/json.hpp"
 
 namespace fogbench::daemon {
@@ -15,11 +15,6 @@ namespace fogbench::daemon {
 using nlohmann::json;
 
 namespace {
-
-json num(double v) {
-  if (!std::isfinite(v)) return nullptr;
-  return v;
-}
 
 // Field accessors: absent is fine for optional ones; present with the wrong type is not.
 ApiResult<std::optional<std::string>> opt_string(const json& req, const char* key) {
@@ -76,12 +71,21 @@ json model_json(const storage::ModelRecord& m) {
 }
 
 json sample_json(const storage::SampleRow& r) {
-  return {{"t_s", r.t_s}, {"wall_time", num(r.wall_time)}, {"setpoint_c", num(r.setpoint_c)},
-          {"chamber_c", num(r.chamber_c)}, {"gyro_dph", num(r.gyro_dph)},
-          {"frames", r.frames ? json(*r.frames) : json(nullptr)}, {"t1_c", num(r.t1_c)},
-          {"t2_c", num(r.t2_c)}, {"phase", std::string(model::to_string(r.phase))},
-          {"step", r.step ? json(*r.step) : json(nullptr)}, {"flags", r.flags},
-          {"since_power_on_s", num(r.since_power_on_s)}};
+  auto finite = [](double v) { return std::isfinite(v) ? std::optional(v) : std::nullopt; };
+  protocol::Sample s;
+  s.t_s = r.t_s;
+  s.wall_time = finite(r.wall_time);
+  s.setpoint_c = finite(r.setpoint_c);
+  s.chamber_c = finite(r.chamber_c);
+  s.gyro_dph = finite(r.gyro_dph);
+  s.frames = r.frames;
+  s.t1_c = finite(r.t1_c);
+  s.t2_c = finite(r.t2_c);
+  s.phase = std::string(model::to_string(r.phase));
+  s.step = r.step;
+  s.flags = r.flags;
+  s.since_power_on_s = finite(r.since_power_on_s);
+  return protocol::to_json(s);
 }
 
 ApiError store_error(const storage::StoreError& e) {
@@ -131,9 +135,7 @@ bool same_token(const std::string& a, const std::string& b) {
 }  // namespace
 
 json Handler::hello() {
-  return {{"type", "hello"}, {"version", FOGBENCH_DAEMON_VERSION}, {"protocol", kProtocolVersion},
-          {"max_line_bytes", kMaxLineBytes},
-          {"limits", {{"max_line_bytes", kMaxLineBytes}, {"max_depth", kMaxDepth}}}};
+  return protocol::to_json(protocol::Hello{FOGBENCH_DAEMON_VERSION});
 }
 
 json Handler::reply(const json& id, json result) {
@@ -147,7 +149,7 @@ json Handler::error(const json& id, ErrorCode code, const std::string& message) 
 
 json Handler::too_long() {
   return error(nullptr, ErrorCode::bad_request,
-               "line longer than " + std::to_string(kMaxLineBytes) + " bytes; closing");
+               "line longer than " + std::to_string(protocol::kMaxLineBytes) + " bytes; closing");
 }
 
 Handler::Line Handler::to_line(const json& message) {
@@ -181,8 +183,8 @@ json Handler::handle(const json& req, SessionState& session) {
 
 void Handler::handle_line(std::string_view line, SessionState& session, Done done) {
   // The protocol's limits are checked while parsing, before any of the value exists: a request
-  // nested past kMaxDepth or with a key twice is refused here (framing.hpp's parse_request).
-  auto req = parse_request(line);
+  // nested past kMaxDepth or with a key twice is refused here (protocol/framing.hpp's parse_line).
+  auto req = protocol::parse_line(line);
   if (!req) return done(to_line(error(nullptr, ErrorCode::bad_json, req.error())));
   handle(*req, session, std::move(done));
 }

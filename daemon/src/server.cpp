@@ -22,7 +22,7 @@
 
 #include <spdlog/spdlog.h>
 
-#include "fogbench/daemon/framing.hpp"
+#include "fogbench/protocol/framing.hpp"
 #include "fogbench/daemon/handler.hpp"
 #include "fogbench/daemon/instance.hpp"
 #include "fogbench/daemon/station.hpp"
@@ -189,12 +189,12 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
     std::string line;
     for (;;) {
       const auto st = splitter_.next(line);
-      if (st == LineSplitter::Status::incomplete) {
+      if (st == protocol::LineSplitter::Status::incomplete) {
         read();
         return false;
       }
-      if (st == LineSplitter::Status::too_long) {
-        spdlog::warn("client {}: line over {} bytes; closing", peer_, kMaxLineBytes);
+      if (st == protocol::LineSplitter::Status::too_long) {
+        spdlog::warn("client {}: line over {} bytes; closing", peer_, protocol::kMaxLineBytes);
         close_after_write_ = true;
         send(wire(Handler::too_long()));
         return true;
@@ -289,7 +289,7 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
   Turns& turns_;
   std::string peer_;
   SessionState state_;
-  LineSplitter splitter_;
+  protocol::LineSplitter splitter_;
   std::array<char, 65536> buf_{};
   std::deque<std::shared_ptr<const std::string>> queue_;
   std::size_t queued_bytes_ = 0;

@@ -24,23 +24,6 @@ namespace fogbench::daemon {
 using nlohmann::json;
 using storage::RunState;
 
-std::string_view to_string(ErrorCode c) {
-  switch (c) {
-    case ErrorCode::bad_json: return "bad_json";
-    case ErrorCode::bad_request: return "bad_request";
-    case ErrorCode::unknown_command: return "unknown_command";
-    case ErrorCode::not_found: return "not_found";
-    case ErrorCode::busy: return "busy";
-    case ErrorCode::invalid_profile: return "invalid_profile";
-    case ErrorCode::limits: return "limits";
-    case ErrorCode::unknown_serial: return "unknown_serial";
-    case ErrorCode::forbidden: return "forbidden";
-    case ErrorCode::internal: return "internal";
-    case ErrorCode::unavailable: return "unavailable";
-  }
-  return "internal";
-}
-
 std::string iso8601_now() {
   const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
   std::tm tm{};
@@ -68,10 +51,7 @@ model::Phase to_model_phase(profiles::Phase p) {
 }
 
 // A JSON number, or null for a value not read (JSON has no NaN).
-json num(std::optional<double> v) {
-  if (!v || !std::isfinite(*v)) return nullptr;
-  return *v;
-}
+json num(std::optional<double> v) { return protocol::number_or_null(v); }
 double or_nan(std::optional<double> v) { return v ? *v : storage::kNoValue; }
 
 // Readings outside these are implausible for a coil or a gyro on a drift bench.
@@ -244,8 +224,7 @@ void Station::event(std::int64_t run_id, storage::EventKind kind, const json& de
   // An event that cannot be stored is still published and logged, and kept to be written
   // when the store takes it again; the daemon keeps running.
   write_or_keep({run_id, std::nullopt, "", kind, detail.dump(), t_s});
-  emit({{"type", "event"}, {"run_id", run_id}, {"t_s", num(t_s)},
-        {"kind", std::string(storage::to_string(kind))}, {"detail", detail}});
+  emit(protocol::to_json(protocol::EventMessage{run_id, t_s, std::string(storage::to_string(kind)), detail}));
 }
 
 void Station::audit(std::int64_t run_id, const json& command) {
@@ -259,9 +238,9 @@ void Station::transition(ActiveRun& run, RunState to, const std::string& reason,
   const RunState from = run.state;
   run.state = to;
   write_or_keep({run.id, to, reason, storage::EventKind::state, "", t_s});
-  emit({{"type", "event"}, {"run_id", run.id}, {"t_s", num(t_s)}, {"kind", "state"},
-        {"detail", {{"from", std::string(storage::to_string(from))},
-                    {"to", std::string(storage::to_string(to))}, {"reason", reason}}}});
+  emit(protocol::to_json(protocol::EventMessage{
+      run.id, t_s, "state",
+      {{"from", std::string(storage::to_string(from))}, {"to", std::string(storage::to_string(to))}, {"reason", reason}}}));
 }
 
 // A run started while the chamber cannot be polled would only wait out link_loss.tolerance_s
@@ -654,22 +633,27 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
   // The run's end that follows must not wait out the lock again (write_or_keep).
   if (!stored && may_pass(stored.error().code)) store_refused_ = true;
 
-  json base = {{"type", "sample"}, {"run_id", run.id}, {"t_s", t_s},
-               {"state", std::string(storage::to_string(run.state))},
-               {"phase", std::string(profiles::to_string(st.phase))}, {"step", st.step_index},
-               {"elapsed_s", t_s}, {"remaining_s", st.remaining_s}, {"setpoint_c", st.setpoint_c},
-               {"chamber_c", num(in.chamber_c)}};
   for (const auto& r : rows) {
-    json m = base;
-    m["unit"] = r.unit_index;
-    m["serial"] = run.serials[static_cast<std::size_t>(r.unit_index)];
-    m["gyro_dph"] = num(std::isfinite(r.gyro_dph) ? std::optional(r.gyro_dph) : std::nullopt);
-    m["frames"] = r.frames.value_or(0);
-    m["t1_c"] = num(std::isfinite(r.t1_c) ? std::optional(r.t1_c) : std::nullopt);
-    m["t2_c"] = num(std::isfinite(r.t2_c) ? std::optional(r.t2_c) : std::nullopt);
-    m["flags"] = r.flags;
-    m["since_power_on_s"] = num(std::isfinite(r.since_power_on_s) ? std::optional(r.since_power_on_s) : std::nullopt);
-    emit(m);
+    auto finite = [](double v) { return std::isfinite(v) ? std::optional(v) : std::nullopt; };
+    protocol::SampleMessage m;
+    m.run_id = run.id;
+    m.t_s = t_s;
+    m.state = std::string(storage::to_string(run.state));
+    m.phase = std::string(profiles::to_string(st.phase));
+    m.step = st.step_index;
+    m.elapsed_s = t_s;
+    m.remaining_s = st.remaining_s;
+    m.setpoint_c = st.setpoint_c;
+    m.chamber_c = in.chamber_c;
+    m.unit = r.unit_index;
+    m.serial = run.serials[static_cast<std::size_t>(r.unit_index)];
+    m.gyro_dph = finite(r.gyro_dph);
+    m.frames = r.frames.value_or(0);
+    m.t1_c = finite(r.t1_c);
+    m.t2_c = finite(r.t2_c);
+    m.flags = r.flags;
+    m.since_power_on_s = finite(r.since_power_on_s);
+    emit(protocol::to_json(m));
   }
 
   if (stored && abort_reason) {

@@ -1,11 +1,12 @@
 // The command handler without a socket: hello, replies, and every error code of the protocol.
 #include "fixture.hpp"
 
-#include "fogbench/daemon/framing.hpp"
+#include "fogbench/protocol/framing.hpp"
 #include "fogbench/daemon/handler.hpp"
 
 using namespace fogbench;
 using namespace fogbench::daemon;
+using namespace fogbench::protocol;
 using namespace fogbench::daemon::test;
 using nlohmann::json;
 

@@ -14,8 +14,6 @@
 
 namespace fogbench::daemon {
 
-inline constexpr int kProtocolVersion = 1;
-
 // What a connection carries between requests.
 struct SessionState {
   bool subscribed = false;  // receives "sample" and "event" messages

@@ -21,25 +21,14 @@
 #include "fogbench/daemon/power_on.hpp"
 #include "fogbench/profiles/executor.hpp"
 #include "fogbench/profiles/profile.hpp"
+#include "fogbench/protocol/protocol.hpp"
 #include "fogbench/storage/store.hpp"
 
 namespace fogbench::daemon {
 
-// The protocol's error codes: stable strings, documented in docs/protocol.md.
-enum class ErrorCode {
-  bad_json,         // the line is not JSON
-  bad_request,      // JSON, but not a request: missing or mistyped field
-  unknown_command,  // no such cmd
-  not_found,        // no such run, unit, model, profile
-  busy,             // a run is active
-  invalid_profile,  // the profile does not parse
-  limits,           // the profile leaves the chamber's limits
-  unknown_serial,   // a serial not configured on this bench, or without a model to verify
-  forbidden,        // a command that changes something, on a connection that may only read (TCP)
-  internal,         // storage or analysis failed; the daemon keeps running
-  unavailable,      // the bench cannot run now: the chamber link is down (run.start, run.resume)
-};
-std::string_view to_string(ErrorCode c);
+// The protocol's error codes (fogbench::protocol, shared with fogctl).
+using protocol::ErrorCode;
+using protocol::to_string;
 
 struct ApiError {
   ErrorCode code;
