@@ -5,7 +5,9 @@
 #include <cstdint>
 #include <deque>
 #include <expected>
+#include <optional>
 #include <string>
+#include <string_view>
 
 #include <nlohmann/json.hpp>
 
@@ -32,13 +34,26 @@ struct Endpoint {
 // "HOST:PORT" ("[::1]:7000" for IPv6) as given to --connect; an error names what is wrong.
 std::expected<Endpoint, std::string> parse_connect(const std::string& text);
 
-// An error of the client: a protocol code ("busy", "not_found"...), "connection", "timeout", or
-// "protocol" (the daemon speaks another protocol version or sent a line past the limits), and a
-// message for the user.
-struct ClientError {
-  std::string code;
-  std::string message;
+// What a client call failed on.
+enum class ClientErrc {
+  reply,       // the daemon answered with an error reply: `reply_code` says which
+  connection,  // no connection to the daemon, or it was lost
+  timeout,     // no answer within the deadline
+  protocol,    // the daemon speaks another protocol version, or sent a line past the limits
+  bad_option,  // fogctl's own option is wrong (--connect)
 };
+std::string_view to_string(ClientErrc c);
+
+// An error of the client, with a message for the user.
+struct ClientError {
+  ClientErrc code = ClientErrc::connection;
+  std::string message;
+  // code == reply: the reply's code (nullopt for one this fogctl does not know) and its wire string.
+  std::optional<protocol::ErrorCode> reply_code;
+  std::string reply_code_text;
+};
+// An error reply of the daemon (or one the client finds in what it was sent, e.g. a run without samples).
+ClientError reply_error(protocol::ErrorCode code, std::string message);
 
 // A blocking connection to the daemon: requests wait for the reply with the same id; messages
 // pushed meanwhile (subscriptions) are kept for next_message(). Every wait has a deadline.

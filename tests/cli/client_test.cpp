@@ -130,7 +130,7 @@ TEST_CASE("fogctl client: a daemon of another protocol version is refused at hel
   d.serve([](int fd) { FakeDaemon::send_all(fd, hello_line(fogbench::protocol::kProtocolVersion + 1)); });
   auto c = fogbench::cli::Client::connect(d.path(), 5000);
   REQUIRE_FALSE(c.has_value());
-  CHECK(c.error().code == "protocol");
+  CHECK(c.error().code == fogbench::cli::ClientErrc::protocol);
   CHECK_THAT(c.error().message, Catch::Contains("speaks protocol " + std::to_string(fogbench::protocol::kProtocolVersion + 1)) &&
                                     Catch::Contains("this client speaks protocol " + std::to_string(fogbench::protocol::kProtocolVersion)) &&
                                     Catch::Contains("9.9.9"));
@@ -141,7 +141,7 @@ TEST_CASE("fogctl client: a hello without a protocol version is refused") {
   d.serve([](int fd) { FakeDaemon::send_all(fd, "{\"type\":\"hello\",\"version\":\"0.0.1\"}\n"); });
   auto c = fogbench::cli::Client::connect(d.path(), 5000);
   REQUIRE_FALSE(c.has_value());
-  CHECK(c.error().code == "protocol");
+  CHECK(c.error().code == fogbench::cli::ClientErrc::protocol);
   CHECK_THAT(c.error().message, Catch::Contains("no protocol version"));
 }
 
@@ -163,7 +163,7 @@ TEST_CASE("fogctl client: an endless line from the daemon is an error naming the
   REQUIRE(c.has_value());
   auto r = c->call("status", nlohmann::json::object(), 60000);
   REQUIRE_FALSE(r.has_value());
-  CHECK(r.error().code == "protocol");
+  CHECK(r.error().code == fogbench::cli::ClientErrc::protocol);
   CHECK_THAT(r.error().message, Catch::Contains(std::to_string(fogbench::protocol::kMaxMessageBytes) + " bytes") &&
                                     Catch::Contains("kMaxMessageBytes"));
 }
@@ -173,6 +173,40 @@ TEST_CASE("fogctl client: an endless hello is refused the same way") {
   d.serve(endless_line);
   auto c = fogbench::cli::Client::connect(d.path(), 60000);
   REQUIRE_FALSE(c.has_value());
-  CHECK(c.error().code == "protocol");
+  CHECK(c.error().code == fogbench::cli::ClientErrc::protocol);
   CHECK_THAT(c.error().message, Catch::Contains(std::to_string(fogbench::protocol::kMaxMessageBytes) + " bytes"));
+}
+
+TEST_CASE("fogctl client: an error reply carries its code as an enum, and an unknown one as received") {
+  FakeDaemon d;
+  // Answers two requests (ids 1 and 2) with a known and an unknown error code.
+  d.serve([](int fd) {
+    if (!FakeDaemon::send_all(fd, hello_line(fogbench::protocol::kProtocolVersion))) return;
+    std::string got;
+    char buf[4096];
+    for (int answered = 0; answered < 2;) {
+      const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
+      if (n <= 0) return;
+      got.append(buf, static_cast<std::size_t>(n));
+      for (auto nl = got.find('\n'); nl != std::string::npos; nl = got.find('\n')) {
+        const auto req = nlohmann::json::parse(got.substr(0, nl));
+        got.erase(0, nl + 1);
+        const char* code = ++answered == 1 ? "busy" : "quantum_flux";
+        nlohmann::json reply = {{"type", "reply"}, {"id", req["id"]}, {"error", {{"code", code}, {"message", "no"}}}};
+        if (!FakeDaemon::send_all(fd, reply.dump() + "\n")) return;
+      }
+    }
+  });
+  auto c = fogbench::cli::Client::connect(d.path(), 5000);
+  REQUIRE(c.has_value());
+  auto busy = c->call("run.start", nlohmann::json::object(), 5000);
+  REQUIRE_FALSE(busy.has_value());
+  CHECK(busy.error().code == fogbench::cli::ClientErrc::reply);
+  CHECK(busy.error().reply_code == fogbench::protocol::ErrorCode::busy);
+  CHECK(busy.error().reply_code_text == "busy");
+  auto odd = c->call("status", nlohmann::json::object(), 5000);
+  REQUIRE_FALSE(odd.has_value());
+  CHECK(odd.error().code == fogbench::cli::ClientErrc::reply);
+  CHECK_FALSE(odd.error().reply_code.has_value());
+  CHECK(odd.error().reply_code_text == "quantum_flux");
 }
