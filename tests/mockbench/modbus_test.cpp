@@ -251,7 +251,7 @@ TEST_CASE("the gateway mode serves the thermistor module on the chamber's port b
   // A unit id the gateway does not have: an exception, a protocol error, the link stays up.
   auto other = cfg.chamber;
   other.modbus.unit_id = 7;
-  Chamber stranger(other);
+  ModbusChamber stranger(other);
   auto e = stranger.read_process_value_c();
   REQUIRE_FALSE(e.has_value());
   CHECK(e.error().code == ErrorCode::protocol);
