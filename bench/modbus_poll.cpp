@@ -127,7 +127,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   ccfg.map = *map;
-  Chamber chamber(ccfg);
+  ModbusChamber chamber(ccfg);
 
   // 8 units, T1 and T2 as scaled int16 temperatures at input 0..15: one request per poll.
   std::vector<UnitConfig> unit_cfgs;

@@ -5,11 +5,14 @@
 #include <cstdint>
 #include <deque>
 #include <expected>
+#include <optional>
 #include <string>
+#include <string_view>
 
 #include <nlohmann/json.hpp>
 
 #include "fogbench/model/run.hpp"
+#include "fogbench/protocol/framing.hpp"
 
 namespace CLI {
 class App;
@@ -31,12 +34,26 @@ struct Endpoint {
 // "HOST:PORT" ("[::1]:7000" for IPv6) as given to --connect; an error names what is wrong.
 std::expected<Endpoint, std::string> parse_connect(const std::string& text);
 
-// An error of the client: a protocol code ("busy", "not_found"...) or "connection", and a
-// message for the user.
-struct ClientError {
-  std::string code;
-  std::string message;
+// What a client call failed on.
+enum class ClientErrc {
+  reply,       // the daemon answered with an error reply: `reply_code` says which
+  connection,  // no connection to the daemon, or it was lost
+  timeout,     // no answer within the deadline
+  protocol,    // the daemon speaks another protocol version, or sent a line past the limits
+  bad_option,  // fogctl's own option is wrong (--connect)
 };
+std::string_view to_string(ClientErrc c);
+
+// An error of the client, with a message for the user.
+struct ClientError {
+  ClientErrc code = ClientErrc::connection;
+  std::string message;
+  // code == reply: the reply's code (nullopt for one this fogctl does not know) and its wire string.
+  std::optional<protocol::ErrorCode> reply_code;
+  std::string reply_code_text;
+};
+// An error reply of the daemon (or one the client finds in what it was sent, e.g. a run without samples).
+ClientError reply_error(protocol::ErrorCode code, std::string message);
 
 // A blocking connection to the daemon: requests wait for the reply with the same id; messages
 // pushed meanwhile (subscriptions) are kept for next_message(). Every wait has a deadline.
@@ -65,9 +82,10 @@ class Client {
  private:
   explicit Client(int fd) : fd_(fd) {}
   static std::expected<Client, ClientError> handshake(int fd, int timeout_ms);
+  // One line from the daemon: at most protocol::kMaxMessageBytes, nested at most kMaxDepth.
   std::expected<nlohmann::json, ClientError> read_message(int timeout_ms);
   int fd_ = -1;
-  std::string buffer_;
+  protocol::LineSplitter lines_{protocol::kMaxMessageBytes};
   std::deque<nlohmann::json> pushed_;
   std::string token_;
   std::int64_t next_id_ = 1;

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "fogbench/model/json.hpp"
+#include "fogbench/storage/run_data.hpp"
 #include "fogbench/storage/csv.hpp"
 
 namespace fogbench::cli {
@@ -116,13 +117,6 @@ std::expected<profiles::Profile, std::string> load_profile(const std::string& na
   return std::move(*p);
 }
 
-std::string now_iso8601() {
-  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
+std::string now_iso8601() { return storage::iso8601_utc(std::chrono::system_clock::now()); }
 
 }  // namespace fogbench::cli

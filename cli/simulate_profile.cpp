@@ -4,18 +4,9 @@
 #include <cmath>
 
 #include "fogbench/profiles/executor.hpp"
+#include "fogbench/storage/run_data.hpp"
 
 namespace fogbench::cli {
-
-model::Phase to_model_phase(profiles::Phase p) {
-  switch (p) {
-    case profiles::Phase::settle: return model::Phase::settle;
-    case profiles::Phase::hold: return model::Phase::hold;
-    case profiles::Phase::heating: return model::Phase::heating;
-    case profiles::Phase::cooling: return model::Phase::cooling;
-  }
-  return model::Phase::unknown;
-}
 
 std::expected<SimulatedRun, std::string> simulate_profile(const profiles::Profile& profile, const sim::SimConfig& cfg,
                                                           const std::function<void(double, double)>& progress) {
@@ -56,7 +47,7 @@ std::expected<SimulatedRun, std::string> simulate_profile(const profiles::Profil
       continue;
     }
     leading_settle = false;
-    program.push_back({st.setpoint_c, to_model_phase(st.phase), static_cast<int>(st.step_index)});
+    program.push_back({st.setpoint_c, storage::model_phase(st.phase), static_cast<int>(st.step_index)});
     chamber.push_back(reading);
     for (std::size_t u = 0; u < nu; ++u) {
       const auto s = world->sample(u);

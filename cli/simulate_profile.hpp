@@ -14,8 +14,6 @@
 
 namespace fogbench::cli {
 
-model::Phase to_model_phase(profiles::Phase p);
-
 struct SimulatedRun {
   std::vector<model::RunData> units;  // one run per simulated unit
   double settle_s = 0.0;              // time spent in the opening settle, s (not in the runs)

@@ -1,5 +1,5 @@
-// Fuzzes the daemon's command protocol without a socket (daemon/include/fogbench/daemon/
-// framing.hpp, handler.hpp; docs/protocol.md): the input is what a client sends, split into
+// Fuzzes the daemon's command protocol without a socket (protocol/include/fogbench/protocol/
+// framing.hpp, daemon/include/fogbench/daemon/handler.hpp; docs/protocol.md): the input is what a client sends, split into
 // lines by LineSplitter and answered by a Handler over a Station with the golden transcripts'
 // configuration (tests/golden/config.json: two simulated units, the golden profiles) and an
 // in-memory store. As in the golden transcripts, a line `! tick N` lets N seconds of a small
@@ -8,7 +8,7 @@
 // Each input starts from a fresh station and store, so every finding replays alone.
 //
 // Lines reach the handler as the server gives them: handle_line, with the protocol's depth and
-// duplicate-key checks (framing.hpp's parse_request), the same function for both. Inputs go up
+// duplicate-key checks (framing.hpp's parse_line), the same function for both. Inputs go up
 // to 1 MiB (scripts/fuzz -max_len) and the dictionary has brackets and nesting, so lines nested
 // past kMaxDepth are reached; fuzz/regressions/handler/ keeps issue 11's 100,000-level line.
 //
@@ -31,13 +31,14 @@
 
 #include "common.hpp"
 #include "fogbench/daemon/config.hpp"
-#include "fogbench/daemon/framing.hpp"
+#include "fogbench/protocol/framing.hpp"
 #include "fogbench/daemon/handler.hpp"
 #include "fogbench/daemon/station.hpp"
 #include "fogbench/storage/store.hpp"
 
 using namespace fogbench;
 using namespace fogbench::daemon;
+using namespace fogbench::protocol;
 using nlohmann::json;
 
 namespace {
@@ -180,7 +181,7 @@ void check_reply(std::string_view line, const json& r, const SessionState& sessi
   }
   // The id of a well-formed request comes back unchanged. Parsed as the daemon parses it
   // (framing.hpp): json::parse would itself overflow the stack on a deeply nested line.
-  const auto parsed = parse_request(line);
+  const auto parsed = parse_line(line);
   const json req = parsed ? *parsed : json(nullptr);
   if (!parsed && !line.empty() && r.contains("error")) {
     FUZZ_CHECK(r["error"]["code"] == "bad_json" && r["id"].is_null(), "a refused parse that is not bad_json: %s",

@@ -5,10 +5,13 @@
 #include <algorithm>
 #include <cmath>
 
+#include <spdlog/spdlog.h>
+
 #include "fogbench/model/json.hpp"
 #include "fogbench/model/model.hpp"
 #include "fogbench/model/terms.hpp"
 #include "fogbench/model/workbench.hpp"
+#include "fogbench/storage/run_data.hpp"
 
 namespace fogbench::daemon::analysis {
 
@@ -16,33 +19,12 @@ using nlohmann::json;
 
 namespace {
 
-ApiError from_store(const storage::StoreError& e) {
-  if (e.code == storage::StoreErrc::not_found) return {ErrorCode::not_found, e.message};
-  return {ErrorCode::internal, std::string(storage::to_string(e.code)) + ": " + e.message};
-}
-
 // A value not read is stored as NULL and exported as NaN with the sample flagged `missing`.
 // model::fit skips flagged samples in the regression, but its lag scan and smoothers run over
 // every sample; before model commit e6a8890 a NaN spread through them and failed the fit
-// ("degenerate"). The gap is bridged with the neighbouring value (the flag stays, so the fit
-// still skips the sample), which keeps the daemon's fits independent of how model/ treats NaN.
-void bridge_missing(model::RunData& d) {
-  if (d.flags.empty()) d.flags.assign(d.size(), 0);
-  for (auto* col : {&d.gyro_dph, &d.t1_c, &d.t2_c, &d.setpoint_c, &d.chamber_c}) {
-    auto& v = *col;
-    if (v.empty()) continue;
-    auto first = std::find_if(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
-    double last = first == v.end() ? 0.0 : *first;
-    for (std::size_t i = 0; i < v.size(); ++i) {
-      if (std::isfinite(v[i])) {
-        last = v[i];
-      } else {
-        v[i] = last;
-        d.flags[i] |= model::flag::missing;
-      }
-    }
-  }
-}
+// ("degenerate"). The gap is bridged (storage::bridge_missing; the flag stays, so the fit still
+// skips the sample), which keeps the daemon's fits independent of how model/ treats NaN.
+using storage::bridge_missing;
 
 // A stored run's unit with its serial, gaps bridged for analysis.
 struct UnitRun {
@@ -59,7 +41,11 @@ ApiResult<std::string> serial_of(storage::Store& store, std::int64_t run_id, int
   return detail->run.units[static_cast<std::size_t>(unit_index)].serial;
 }
 
-ApiResult<UnitRun> load_unit_run(storage::Store& store, std::int64_t run_id, int unit_index) {
+// The loading every analysis shares: the unit's serial and its samples, gaps bridged. The run
+// keeps the store's name ("run N unit U (SERIAL)": fit and verify record it); the workbench's
+// reports call it "run N SERIAL" (`workbench_name`).
+ApiResult<UnitRun> load_unit_run(storage::Store& store, std::int64_t run_id, int unit_index,
+                                 bool workbench_name = false) {
   auto serial = serial_of(store, run_id, unit_index);
   if (!serial) return std::unexpected(serial.error());
   UnitRun u;
@@ -67,7 +53,7 @@ ApiResult<UnitRun> load_unit_run(storage::Store& store, std::int64_t run_id, int
   auto data = store.export_run(run_id, unit_index);
   if (!data) return std::unexpected(from_store(data.error()));
   u.data = std::move(*data);
-  u.data.name = "run " + std::to_string(run_id) + " " + u.serial;
+  if (workbench_name) u.data.name = "run " + std::to_string(run_id) + " " + u.serial;
   bridge_missing(u.data);
   return u;
 }
@@ -93,18 +79,16 @@ struct UnitWithModel {
 };
 
 ApiResult<UnitWithModel> load_unit_with_model(storage::Store& store, std::int64_t run_id, int unit_index,
-                                              std::optional<std::int64_t> model_id) {
-  auto u = load_unit_run(store, run_id, unit_index);
+                                              std::optional<std::int64_t> model_id,
+                                              const char* none = "no model yet (fit one first)",
+                                              bool workbench_name = true) {
+  auto u = load_unit_run(store, run_id, unit_index, workbench_name);
   if (!u) return std::unexpected(u.error());
-  auto rec = model_for(store, u->serial, model_id, "no model yet (fit one first)");
+  auto rec = model_for(store, u->serial, model_id, none);
   if (!rec) return std::unexpected(rec.error());
   auto m = model::model_from_text(rec->model_json);
   if (!m) return api_error(ErrorCode::internal, "model " + std::to_string(rec->id) + ": " + m.error());
   return UnitWithModel{std::move(*u), std::move(*rec), std::move(*m)};
-}
-
-ApiError analysis_error(const char* what, const model::FitError& e) {
-  return ApiError{ErrorCode::bad_request, std::string(what) + " (" + std::string(model::to_string(e.code)) + "): " + e.message};
 }
 
 // A Commit that stores nothing: the result is ready.
@@ -117,8 +101,8 @@ Commit ready(json result) {
 
 ApiResult<Commit> fit(storage::Store& reader, const AnalysisConfig& config, std::int64_t run_id, int unit_index,
                       const std::string& terms_text, const std::string& method_text, const std::string& created_at) {
-  auto serial = serial_of(reader, run_id, unit_index);
-  if (!serial) return std::unexpected(serial.error());
+  auto unit = load_unit_run(reader, run_id, unit_index);
+  if (!unit) return std::unexpected(unit.error());
   const std::string tt = terms_text.empty() ? config.terms : terms_text;
   auto terms = model::parse_terms(tt);
   if (!terms) return api_error(ErrorCode::bad_request, "terms: not a term list: " + tt);
@@ -127,16 +111,19 @@ ApiResult<Commit> fit(storage::Store& reader, const AnalysisConfig& config, std:
   auto method = model::method_from_string(mt);
   if (!method) return api_error(ErrorCode::bad_request, "method: expected \"paper\" or \"joint\"");
   opt.method = *method;
-  auto data = reader.export_run(run_id, unit_index);
-  if (!data) return std::unexpected(from_store(data.error()));
-  bridge_missing(*data);
-  auto m = model::fit(*data, *terms, opt);
-  if (!m)
-    return api_error(ErrorCode::internal, "fit failed (" + std::string(model::to_string(m.error().code)) +
-                                              "): " + m.error().message);
+  opt.max_iterations = config.max_iterations;
+  auto m = model::fit(unit->data, *terms, opt);
+  if (!m) return std::unexpected(from_fit("fit failed", m.error()));
   m->created_at = created_at;
+  // A joint fit whose iterations did not settle is still stored (the best estimate there is),
+  // but never silently: the reply and the run's note say so, and the log.
+  std::string warning;
+  if (m->method == model::Method::joint && !m->fit.converged)
+    warning = "the joint fit did not converge in " + std::to_string(m->fit.iterations) +
+              (m->fit.iterations == 1 ? " iteration" : " iterations") + " (analysis.max_iterations " +
+              std::to_string(config.max_iterations) + "): its coefficients may still move; check it before use";
   auto fitted = std::make_shared<const model::Model>(std::move(*m));
-  return Commit([fitted, serial = *serial, run_id, unit_index](storage::Store& writer) -> ApiResult<json> {
+  return Commit([fitted, warning, serial = unit->serial, run_id, unit_index](storage::Store& writer) -> ApiResult<json> {
     const model::Model& mo = *fitted;
     // The parent is the serial's current model when this one is stored, not when the fit began.
     auto parent = writer.current_model(serial);
@@ -151,35 +138,34 @@ ApiResult<Commit> fit(storage::Store& reader, const AnalysisConfig& config, std:
     nm.terms = mo.terms_string();
     auto ref = writer.put_model(nm);
     if (!ref) return std::unexpected(from_store(ref.error()));
-    return json{{"model_id", ref->id}, {"version", ref->version}, {"serial", serial},
+    json result{{"model_id", ref->id}, {"version", ref->version}, {"serial", serial},
                 {"run_id", run_id}, {"unit", unit_index},
                 {"parent_id", nm.parent_id ? json(*nm.parent_id) : json(nullptr)},
                 {"terms", nm.terms}, {"method", nm.method},
                 // Samples the fit skipped for their quality flags (missing, frames lost, link gap, ...).
                 {"n_flagged", mo.fit.n_flagged}, {"model", mj}};
+    if (!warning.empty()) {
+      result["warning"] = warning;
+      spdlog::warn("model {} for {} (run {}): {}", ref->id, serial, run_id, warning);
+    }
+    return result;
   });
 }
 
 ApiResult<Commit> verify(storage::Store& reader, const AnalysisConfig& config, std::int64_t run_id, int unit_index,
                          std::optional<std::int64_t> model_id) {
-  auto serial = serial_of(reader, run_id, unit_index);
-  if (!serial) return std::unexpected(serial.error());
-  auto rec = model_for(reader, *serial, model_id, "no model to verify");
-  if (!rec) return std::unexpected(rec.error());
-  auto m = model::model_from_text(rec->model_json);
-  if (!m) return api_error(ErrorCode::internal, "model " + std::to_string(rec->id) + ": " + m.error());
-  auto data = reader.export_run(run_id, unit_index);
-  if (!data) return std::unexpected(from_store(data.error()));
-  bridge_missing(*data);
-  auto v = model::verify(*m, *data, config.verify_threshold);
-  if (!v)
-    return api_error(ErrorCode::internal, "verification failed (" +
-                                              std::string(model::to_string(v.error().code)) + "): " +
-                                              v.error().message);
+  auto um = load_unit_with_model(reader, run_id, unit_index, model_id, "no model to verify", false);
+  if (!um) return std::unexpected(um.error());
+  model::VerifyOptions vo;
+  vo.threshold = config.verify_threshold;
+  vo.max_noise_factor = config.verify_max_noise_factor;
+  vo.max_fail_s = config.verify_max_fail_s;
+  auto v = model::verify(um->model, um->unit.data, vo);
+  if (!v) return std::unexpected(from_fit("verification failed", v.error()));
   auto vj = std::make_shared<const json>(model::to_json(*v));
   const bool pass = v->pass;
-  const std::int64_t mid = rec->id;
-  return Commit([vj, pass, mid, serial = *serial, run_id, unit_index](storage::Store& writer) -> ApiResult<json> {
+  const std::int64_t mid = um->record.id;
+  return Commit([vj, pass, mid, serial = um->unit.serial, run_id, unit_index](storage::Store& writer) -> ApiResult<json> {
     storage::NewVerification nv{run_id, unit_index, mid, vj->dump(), pass};
     auto id = writer.put_verification(nv);
     if (!id) return std::unexpected(from_store(id.error()));
@@ -193,7 +179,7 @@ ApiResult<Commit> compare(storage::Store& reader, std::int64_t run_id, int unit_
   auto um = load_unit_with_model(reader, run_id, unit_index, model_id);
   if (!um) return std::unexpected(um.error());
   auto c = model::workbench::compare(um->model, um->unit.data);
-  if (!c) return std::unexpected(analysis_error("compare failed", c.error()));
+  if (!c) return std::unexpected(from_fit("compare failed", c.error()));
   return ready(json{{"run_id", run_id}, {"unit", unit_index}, {"serial", um->unit.serial},
                     {"model_id", um->record.id}, {"result", model::workbench::to_json(*c)}});
 }
@@ -213,12 +199,12 @@ ApiResult<Commit> diagnose(storage::Store& reader, std::int64_t run_id, int unit
       if (ru.serial == u.serial) idx = ru.unit_index;
     if (idx < 0)
       return api_error(ErrorCode::not_found, "held_out run " + std::to_string(other) + " has no unit " + u.serial);
-    auto h = load_unit_run(reader, other, idx);
+    auto h = load_unit_run(reader, other, idx, true);
     if (!h) return std::unexpected(h.error());
     held.push_back(std::move(h->data));
   }
   auto dg = model::workbench::diagnose(um->model, u.data, held);
-  if (!dg) return std::unexpected(analysis_error("diagnose failed", dg.error()));
+  if (!dg) return std::unexpected(from_fit("diagnose failed", dg.error()));
   return ready(json{{"run_id", run_id}, {"unit", unit_index}, {"serial", u.serial}, {"model_id", um->record.id},
                     {"held_out", held_out_runs}, {"result", model::workbench::to_json(*dg)}});
 }
@@ -228,7 +214,7 @@ ApiResult<Commit> add_term(storage::Store& reader, std::int64_t run_id, int unit
   auto um = load_unit_with_model(reader, run_id, unit_index, model_id);
   if (!um) return std::unexpected(um.error());
   auto added = model::workbench::add_term(um->model, um->unit.data, term);
-  if (!added) return std::unexpected(analysis_error("add_term failed", added.error()));
+  if (!added) return std::unexpected(from_fit("add_term failed", added.error()));
   added->model.created_at = created_at;
   auto nm = std::make_shared<storage::NewModel>();
   nm->serial = um->unit.serial;

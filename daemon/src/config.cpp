@@ -1,6 +1,7 @@
 // Parsing of fogbenchd's configuration file, field by field, with errors that name the field.
 #include "fogbench/daemon/config.hpp"
 
+#include <tuple>
 #include <grp.h>
 
 #include <boost/asio/ip/address.hpp>
@@ -215,7 +216,9 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   if (j.contains("analysis")) {
     const json& a = j["analysis"];
     if (!a.is_object()) return Err("analysis: expected an object");
-    if (auto ok = only_keys(a, "analysis", {"terms", "method", "verify_threshold"}); !ok)
+    if (auto ok = only_keys(a, "analysis", {"terms", "method", "verify_threshold", "verify_max_noise_factor",
+                                            "verify_max_fail_s", "max_iterations"});
+        !ok)
       return Err(ok.error());
     if (a.contains("terms")) {
       auto t = string(a, "analysis", "terms");
@@ -235,6 +238,23 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
       if (!t) return Err(t.error());
       if (*t <= 0) return Err("analysis.verify_threshold: expected a positive number");
       c.analysis.verify_threshold = *t;
+    }
+    // The ranges model::VerifyOptions::validate takes, refused here with the key's name.
+    for (auto [key, field, lo, hi] : {std::tuple{"verify_max_noise_factor", &c.analysis.verify_max_noise_factor, 1.0, 100.0},
+                                      std::tuple{"verify_max_fail_s", &c.analysis.verify_max_fail_s, 1.0, 1e6}}) {
+      if (!a.contains(key)) continue;
+      auto t = number(a, "analysis", key);
+      if (!t) return Err(t.error());
+      if (!(*t >= lo && *t <= hi))
+        return Err(std::string("analysis.") + key + ": expected a number " + (lo == 1.0 ? "1" : "") + " to " +
+                   (hi == 100.0 ? "100" : "1e6"));
+      *field = *t;
+    }
+    if (a.contains("max_iterations")) {
+      const json& v = a["max_iterations"];
+      if (!v.is_number_integer() || v.get<long long>() < 1 || v.get<long long>() > 1000)
+        return Err("analysis.max_iterations: expected an integer 1..1000");
+      c.analysis.max_iterations = v.get<int>();
     }
   }
 

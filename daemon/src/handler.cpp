@@ -7,7 +7,7 @@
 #include <cmath>
 
 #include "fogbench/daemon/analysis.hpp"
-#include "fogbench/daemon/framing.hpp"
+#include "fogbench/protocol/framing.hpp"
 #include "fogbench/model/json.hpp"
 
 namespace fogbench::daemon {
@@ -15,11 +15,6 @@ namespace fogbench::daemon {
 using nlohmann::json;
 
 namespace {
-
-json num(double v) {
-  if (!std::isfinite(v)) return nullptr;
-  return v;
-}
 
 // Field accessors: absent is fine for optional ones; present with the wrong type is not.
 ApiResult<std::optional<std::string>> opt_string(const json& req, const char* key) {
@@ -76,23 +71,27 @@ json model_json(const storage::ModelRecord& m) {
 }
 
 json sample_json(const storage::SampleRow& r) {
-  return {{"t_s", r.t_s}, {"wall_time", num(r.wall_time)}, {"setpoint_c", num(r.setpoint_c)},
-          {"chamber_c", num(r.chamber_c)}, {"gyro_dph", num(r.gyro_dph)},
-          {"frames", r.frames ? json(*r.frames) : json(nullptr)}, {"t1_c", num(r.t1_c)},
-          {"t2_c", num(r.t2_c)}, {"phase", std::string(model::to_string(r.phase))},
-          {"step", r.step ? json(*r.step) : json(nullptr)}, {"flags", r.flags},
-          {"since_power_on_s", num(r.since_power_on_s)}};
-}
-
-ApiError store_error(const storage::StoreError& e) {
-  if (e.code == storage::StoreErrc::not_found) return {ErrorCode::not_found, e.message};
-  return {ErrorCode::internal, std::string(storage::to_string(e.code)) + ": " + e.message};
+  auto finite = [](double v) { return std::isfinite(v) ? std::optional(v) : std::nullopt; };
+  protocol::Sample s;
+  s.t_s = r.t_s;
+  s.wall_time = finite(r.wall_time);
+  s.setpoint_c = finite(r.setpoint_c);
+  s.chamber_c = finite(r.chamber_c);
+  s.gyro_dph = finite(r.gyro_dph);
+  s.frames = r.frames;
+  s.t1_c = finite(r.t1_c);
+  s.t2_c = finite(r.t2_c);
+  s.phase = std::string(model::to_string(r.phase));
+  s.step = r.step;
+  s.flags = r.flags;
+  s.since_power_on_s = finite(r.since_power_on_s);
+  return protocol::to_json(s);
 }
 
 // `unit` is an index into the run's units or a serial; absent means the first unit.
 ApiResult<int> resolve_unit(storage::Store& store, std::int64_t run_id, const json& req) {
   auto run = store.get_run(run_id);
-  if (!run) return std::unexpected(store_error(run.error()));
+  if (!run) return std::unexpected(from_store(run.error()));
   const auto& units = run->run.units;
   if (!req.contains("unit") || req["unit"].is_null()) {
     if (units.empty()) return api_error(ErrorCode::not_found, "run " + std::to_string(run_id) + " has no units");
@@ -131,9 +130,7 @@ bool same_token(const std::string& a, const std::string& b) {
 }  // namespace
 
 json Handler::hello() {
-  return {{"type", "hello"}, {"version", FOGBENCH_DAEMON_VERSION}, {"protocol", kProtocolVersion},
-          {"max_line_bytes", kMaxLineBytes},
-          {"limits", {{"max_line_bytes", kMaxLineBytes}, {"max_depth", kMaxDepth}}}};
+  return protocol::to_json(protocol::Hello{FOGBENCH_DAEMON_VERSION});
 }
 
 json Handler::reply(const json& id, json result) {
@@ -147,7 +144,7 @@ json Handler::error(const json& id, ErrorCode code, const std::string& message) 
 
 json Handler::too_long() {
   return error(nullptr, ErrorCode::bad_request,
-               "line longer than " + std::to_string(kMaxLineBytes) + " bytes; closing");
+               "line longer than " + std::to_string(protocol::kMaxLineBytes) + " bytes; closing");
 }
 
 Handler::Line Handler::to_line(const json& message) {
@@ -181,8 +178,8 @@ json Handler::handle(const json& req, SessionState& session) {
 
 void Handler::handle_line(std::string_view line, SessionState& session, Done done) {
   // The protocol's limits are checked while parsing, before any of the value exists: a request
-  // nested past kMaxDepth or with a key twice is refused here (framing.hpp's parse_request).
-  auto req = parse_request(line);
+  // nested past kMaxDepth or with a key twice is refused here (protocol/framing.hpp's parse_line).
+  auto req = protocol::parse_line(line);
   if (!req) return done(to_line(error(nullptr, ErrorCode::bad_json, req.error())));
   handle(*req, session, std::move(done));
 }
@@ -228,7 +225,7 @@ namespace {
 // station knows and the store may not yet (taken on the loop before the read was submitted).
 ApiResult<json> run_get(storage::Store& store, std::int64_t run_id, const json& end, const json& live_quality) {
   auto d = store.get_run(run_id);
-  if (!d) return std::unexpected(store_error(d.error()));
+  if (!d) return std::unexpected(from_store(d.error()));
   json r = run_json(d->run);
   // An end the store could not take yet (a full disk) is the run's state all the same.
   if (!end.is_null()) {
@@ -251,7 +248,7 @@ ApiResult<json> run_get(storage::Store& store, std::int64_t run_id, const json& 
   json models = json::array();
   for (const auto& u : d->run.units) {
     auto ms = store.list_models(u.serial);
-    if (!ms) return std::unexpected(store_error(ms.error()));
+    if (!ms) return std::unexpected(from_store(ms.error()));
     for (const auto& m : *ms)
       if (m.run_id == run_id)
         models.push_back({{"id", m.id}, {"serial", m.serial}, {"version", m.version},
@@ -259,7 +256,7 @@ ApiResult<json> run_get(storage::Store& store, std::int64_t run_id, const json& 
                           {"parent_id", m.parent_id ? json(*m.parent_id) : json(nullptr)}});
   }
   auto vs = store.list_verifications(run_id);
-  if (!vs) return std::unexpected(store_error(vs.error()));
+  if (!vs) return std::unexpected(from_store(vs.error()));
   json vers = json::array();
   for (const auto& v : *vs)
     vers.push_back({{"id", v.id}, {"unit", v.unit_index}, {"model_id", v.model_id},
@@ -279,9 +276,9 @@ ApiResult<json> run_samples(storage::Store& store, std::int64_t run_id, const js
   auto unit = resolve_unit(store, run_id, req);
   if (!unit) return std::unexpected(unit.error());
   auto total = store.count_samples(run_id, *unit);
-  if (!total) return std::unexpected(store_error(total.error()));
+  if (!total) return std::unexpected(from_store(total.error()));
   auto rows = store.get_samples(run_id, *unit, offset, limit);
-  if (!rows) return std::unexpected(store_error(rows.error()));
+  if (!rows) return std::unexpected(from_store(rows.error()));
   json arr = json::array();
   for (const auto& r : *rows) arr.push_back(sample_json(r));
   return json{{"run_id", run_id}, {"unit", *unit}, {"offset", offset}, {"total", *total}, {"samples", arr}};
@@ -435,9 +432,11 @@ ApiResult<json> Handler::dispatch(const std::string& cmd, const json& req, Sessi
       if (!u.is_string()) return api_error(ErrorCode::bad_request, "units: expected an array of serials");
       serials.push_back(u.get<std::string>());
     }
-    auto purpose = opt_string(req, "purpose");
-    if (!purpose) return std::unexpected(purpose.error());
-    auto id = station_.start_run(*profile, serials, purpose->value_or("fit"), req);
+    auto purpose_text = opt_string(req, "purpose");
+    if (!purpose_text) return std::unexpected(purpose_text.error());
+    const auto purpose = storage::purpose_from_string(purpose_text->value_or("fit"));
+    if (!purpose) return api_error(ErrorCode::bad_request, "purpose: expected \"fit\" or \"verify\"");
+    auto id = station_.start_run(*profile, serials, *purpose, req);
     if (!id) return std::unexpected(id.error());
     return json{{"run_id", *id}, {"state", "pending"}};
   }
@@ -492,7 +491,7 @@ ApiResult<json> Handler::dispatch(const std::string& cmd, const json& req, Sessi
     if (!offset) return std::unexpected(offset.error());
     f.offset = offset->value_or(0);
     auto runs = store.list_runs(f);
-    if (!runs) return std::unexpected(store_error(runs.error()));
+    if (!runs) return std::unexpected(from_store(runs.error()));
     json arr = json::array();
     for (const auto& r : *runs) {
       json j = run_json(r);
@@ -546,11 +545,11 @@ ApiResult<json> Handler::dispatch(const std::string& cmd, const json& req, Sessi
     if (!!*serial == !!*id) return api_error(ErrorCode::bad_request, "expected either serial or model_id");
     if (*id) {
       auto m = store.get_model(**id);
-      if (!m) return std::unexpected(store_error(m.error()));
+      if (!m) return std::unexpected(from_store(m.error()));
       return model_json(*m);
     }
     auto m = store.current_model(**serial);
-    if (!m) return std::unexpected(store_error(m.error()));
+    if (!m) return std::unexpected(from_store(m.error()));
     if (!*m) return api_error(ErrorCode::not_found, "no model for serial " + **serial);
     return model_json(**m);
   }

@@ -5,6 +5,13 @@
 // read connection to the store and posts its replies back (docs/daemon.md, "Threads"). Every
 // write to the store stays on the loop thread: a Store is single-threaded. Sessions take turns
 // on the loop (Turns), so no number of clients can hold it.
+//
+// Its rooms: a session and the turns (session.hpp), the analysis worker (analysis_worker.hpp),
+// and here Server::Impl, the one object that owns the io_context, the signal set, the acceptors,
+// the set of sessions, the acquisition schedule and the device workers, as in Asio's example
+// servers. Why this file is longer than 600 lines: Impl's handlers (accept, tick, poll, stop)
+// share that state and its order of shutdown; split further they would pass Impl's internals
+// between files instead of keeping one owner.
 #include "fogbench/daemon/server.hpp"
 
 #include <grp.h>
@@ -22,13 +29,15 @@
 
 #include <spdlog/spdlog.h>
 
-#include "fogbench/daemon/framing.hpp"
+#include "fogbench/protocol/framing.hpp"
 #include "fogbench/daemon/handler.hpp"
 #include "fogbench/daemon/instance.hpp"
 #include "fogbench/daemon/station.hpp"
 #include "fogbench/drivers/chamber.hpp"
 #include "fogbench/drivers/gyro_bus.hpp"
 #include "fogbench/drivers/thermistor_module.hpp"
+#include "analysis_worker.hpp"
+#include "session.hpp"
 #include "sim_clock.hpp"
 
 namespace fogbench::daemon {
@@ -36,21 +45,10 @@ namespace fogbench::daemon {
 namespace asio = boost::asio;
 using nlohmann::json;
 using Clock = std::chrono::steady_clock;
+using namespace net;
 
 namespace {
 
-// A write that does not finish in this long means the client stopped reading: it is dropped.
-constexpr auto kWriteDeadline = std::chrono::seconds(10);
-// A subscriber that falls this far behind is dropped rather than buffering without bound.
-constexpr std::size_t kMaxQueuedBytes = 16u << 20;
-// A connection with more than this queued for it is not served (its next request waits) until
-// the client has read it down: a client that asks and does not read holds at most this plus one
-// reply (a page of 10,000 samples is about 2 MB), never a growing queue.
-constexpr std::size_t kOutputHighWaterBytes = 256u << 10;
-// Requests answered per turn of the loop over all connections, one per connection in turn:
-// between turns the loop runs the acquisition timer and whatever I/O is ready, so clients that
-// pipeline requests cannot hold it however many they are (docs/daemon.md, "Threads").
-constexpr int kLinesPerTurn = 16;
 // An accept that fails for want of descriptors or memory (EMFILE, ENFILE, ENOBUFS, ENOMEM)
 // would fail again at once, the connection still waiting in the backlog: wait this long first.
 constexpr auto kAcceptBackoff = std::chrono::milliseconds(250);
@@ -59,305 +57,12 @@ constexpr auto kAcceptLogEvery = std::chrono::seconds(60);
 // The chamber is sent to its safe setpoint on the way out; this long at most.
 constexpr auto kShutdownDeadline = std::chrono::seconds(5);
 
-std::shared_ptr<const std::string> wire(const json& message) { return Handler::to_line(message); }
-
-// A client over socket.max_clients: one error line, then the connection is closed. The line is
-// small enough for an empty socket buffer; a deadline closes it anyway if the write hangs.
-template <class Socket>
-void refuse(Socket socket, const std::string& why) {
-  auto sock = std::make_shared<Socket>(std::move(socket));
-  auto line = wire(Handler::error(nullptr, ErrorCode::busy, why));
-  auto deadline = std::make_shared<asio::steady_timer>(sock->get_executor(), std::chrono::seconds(2));
-  deadline->async_wait([sock](boost::system::error_code ec) {
-    if (!ec) sock->close(ec);
-  });
-  asio::async_write(*sock, asio::buffer(*line), [sock, line, deadline](boost::system::error_code, std::size_t) {
-    boost::system::error_code ec;
-    sock->shutdown(Socket::shutdown_both, ec);
-    sock->close(ec);
-    deadline->cancel();
-  });
-}
-
 // Whether an accept failed for want of resources, so retrying at once would spin.
 bool accept_starved(const boost::system::error_code& ec) {
   const int v = ec.value();
   return ec.category() == boost::system::system_category() &&
          (v == EMFILE || v == ENFILE || v == ENOBUFS || v == ENOMEM);
 }
-
-class SessionBase {
- public:
-  virtual ~SessionBase() = default;
-  virtual void push(const std::shared_ptr<const std::string>& line) = 0;
-  virtual void close() = 0;
-  virtual bool subscribed() const = 0;
-  virtual bool is_closed() const = 0;
-  // For Turns: serves the connection's next request if a whole one has arrived (true), else
-  // starts reading (false).
-  virtual bool serve_one() = 0;
-  // Whether it may be served now: no reply outstanding (replies keep the requests' order), not
-  // reading, and the client has read its output down to kOutputHighWaterBytes.
-  virtual bool servable() const = 0;
-  bool in_turns = false;  // queued in Turns
-};
-
-// The fair loop: connections with a request to serve take turns, one request each, at most
-// kLinesPerTurn in all per turn; the next turn is posted behind what became ready meanwhile
-// (the acquisition timer, reads and writes, the analysis worker's replies).
-class Turns {
- public:
-  explicit Turns(asio::io_context& io) : io_(io) {}
-
-  // The session may have become servable (a read, a reply, a drained output).
-  void want(const std::shared_ptr<SessionBase>& s) {
-    if (s->in_turns || !s->servable()) return;
-    s->in_turns = true;
-    ready_.push_back(s);
-    if (!posted_) {
-      posted_ = true;
-      asio::post(io_, [this] { turn(); });
-    }
-  }
-
- private:
-  void turn() {
-    posted_ = false;
-    int served = 0;
-    while (served < kLinesPerTurn && !ready_.empty()) {
-      auto s = std::move(ready_.front());
-      ready_.pop_front();
-      s->in_turns = false;
-      if (s->servable() && s->serve_one()) ++served;
-      want(s);  // to the back of the line, if it has more
-    }
-  }
-
-  asio::io_context& io_;
-  // Held here while waiting for a turn: a session between its read and its turn has no
-  // operation in flight that would keep it alive.
-  std::deque<std::shared_ptr<SessionBase>> ready_;
-  bool posted_ = false;
-};
-
-template <class Socket>
-class Session : public SessionBase, public std::enable_shared_from_this<Session<Socket>> {
- public:
-  Session(Socket socket, Handler& handler, Turns& turns, std::string peer, bool may_control,
-          std::string control_token)
-      : socket_(std::move(socket)), timer_(socket_.get_executor()), handler_(handler), turns_(turns),
-        peer_(std::move(peer)) {
-    state_.may_control = may_control;
-    state_.control_token = std::move(control_token);
-  }
-
-  void start() {
-    send(wire(Handler::hello()));
-    read();
-    arm_idle();
-  }
-
-  // socket.idle_timeout_s: a client that is not subscribed and neither sends a request nor waits
-  // for a reply this long is closed. None when empty.
-  void set_idle_timeout(std::optional<double> seconds) { idle_s_ = seconds; }
-
-  void push(const std::shared_ptr<const std::string>& line) override {
-    if (state_.subscribed) send(line);
-  }
-  bool subscribed() const override { return state_.subscribed; }
-  bool is_closed() const override { return closed_; }
-
-  void close() override {
-    if (closed_) return;
-    closed_ = true;
-    boost::system::error_code ec;
-    socket_.shutdown(Socket::shutdown_both, ec);
-    socket_.close(ec);
-    timer_.cancel();
-    idle_timer_.cancel();
-  }
-
-  bool servable() const override {
-    return !closed_ && !reading_ && !awaiting_reply_ && !close_after_write_ &&
-           queued_bytes_ <= kOutputHighWaterBytes;
-  }
-
-  // One request: its reply comes at once, or from the analysis worker later; either way the
-  // next request of this connection waits for it. No more is read from the client while whole
-  // requests of it are waiting.
-  bool serve_one() override {
-    std::string line;
-    for (;;) {
-      const auto st = splitter_.next(line);
-      if (st == LineSplitter::Status::incomplete) {
-        read();
-        return false;
-      }
-      if (st == LineSplitter::Status::too_long) {
-        spdlog::warn("client {}: line over {} bytes; closing", peer_, kMaxLineBytes);
-        close_after_write_ = true;
-        send(wire(Handler::too_long()));
-        return true;
-      }
-      if (!line.empty()) break;
-    }
-    last_request_ = Clock::now();
-    awaiting_reply_ = true;
-    handler_.handle_line(line, state_, [self = this->shared_from_this()](Handler::Line reply) {
-      self->awaiting_reply_ = false;
-      self->send(std::move(reply));
-      self->turns_.want(self);
-    });
-    return true;
-  }
-
- private:
-  void arm_idle() {
-    if (!idle_s_ || closed_) return;
-    const auto idle = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(*idle_s_));
-    idle_timer_.expires_at(last_request_ + idle);
-    idle_timer_.async_wait([this, self = this->shared_from_this(), idle](boost::system::error_code ec) {
-      if (ec || closed_) return;
-      if (!state_.subscribed && !awaiting_reply_ && queue_.empty() && Clock::now() - last_request_ >= idle) {
-        spdlog::info("client {}: idle for {} s; closing", peer_, *idle_s_);
-        close();
-        return;
-      }
-      if (state_.subscribed || awaiting_reply_ || !queue_.empty()) last_request_ = Clock::now();
-      arm_idle();
-    });
-  }
-
-  void read() {
-    if (reading_ || closed_) return;
-    reading_ = true;
-    auto self = this->shared_from_this();
-    socket_.async_read_some(asio::buffer(buf_), [this, self](boost::system::error_code ec, std::size_t n) {
-      reading_ = false;
-      if (ec == asio::error::eof && !closed_ && !queue_.empty()) {
-        close_after_write_ = true;  // the client has said all: it gets its replies, then the end
-        return;
-      }
-      if (ec || closed_) {
-        close();
-        return;
-      }
-      splitter_.feed(std::string_view(buf_.data(), n));
-      turns_.want(self);
-    });
-  }
-
-  void send(std::shared_ptr<const std::string> line) {
-    if (closed_) return;
-    queued_bytes_ += line->size();
-    if (queued_bytes_ > kMaxQueuedBytes) {
-      spdlog::warn("client {}: {} bytes unread; dropping it", peer_, queued_bytes_);
-      close();
-      return;
-    }
-    queue_.push_back(std::move(line));
-    if (queue_.size() == 1) write();
-  }
-
-  void write() {
-    auto self = this->shared_from_this();
-    timer_.expires_after(kWriteDeadline);
-    timer_.async_wait([this, self](boost::system::error_code ec) {
-      if (!ec) {
-        spdlog::warn("client {}: write deadline passed; closing", peer_);
-        close();
-      }
-    });
-    asio::async_write(socket_, asio::buffer(*queue_.front()),
-                      [this, self](boost::system::error_code ec, std::size_t) {
-                        timer_.cancel();
-                        if (ec || closed_) {
-                          close();
-                          return;
-                        }
-                        queued_bytes_ -= queue_.front()->size();
-                        queue_.pop_front();
-                        if (!queue_.empty()) write();
-                        else if (close_after_write_) close();
-                        turns_.want(self);  // read down below the high water: served again
-                      });
-  }
-
-  Socket socket_;
-  asio::steady_timer timer_;
-  Handler& handler_;
-  Turns& turns_;
-  std::string peer_;
-  SessionState state_;
-  LineSplitter splitter_;
-  std::array<char, 65536> buf_{};
-  std::deque<std::shared_ptr<const std::string>> queue_;
-  std::size_t queued_bytes_ = 0;
-  bool closed_ = false;
-  bool close_after_write_ = false;
-  bool reading_ = false;
-  bool awaiting_reply_ = false;
-  asio::steady_timer idle_timer_{socket_.get_executor()};
-  std::optional<double> idle_s_;
-  Clock::time_point last_request_ = Clock::now();
-};
-
-// The analysis worker (offload.hpp): one thread with its own read-only connection to the store.
-// The queue is the loop's: one job at a time goes to the thread, and the next only once the
-// previous one's continuation has run on the loop, so every job reads what the jobs before it
-// stored (a run.get sent after a run's end sees the models its automatic fit stored), as with
-// InlineOffload. The thread runs niced (+10): on a busy host the loop, which acquires and
-// answers, wins the CPU from it.
-class AnalysisWorker final : public Offload {
- public:
-  AnalysisWorker(asio::io_context& loop, storage::Store reader) : loop_(loop), reader_(std::move(reader)) {
-    thread_ = std::thread([this] {
-      ::setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), 10);
-      jobs_.run();
-    });
-  }
-  ~AnalysisWorker() override { stop(); }
-
-  // On the loop thread.
-  void submit(Job job) override {
-    queue_.push_back(std::move(job));
-    if (!busy_) next();
-  }
-
-  // Jobs not yet started are dropped (the loop is stopping); the one running finishes first.
-  void stop() {
-    guard_.reset();
-    jobs_.stop();
-    if (thread_.joinable()) thread_.join();
-  }
-
- private:
-  void next() {
-    busy_ = !queue_.empty();
-    if (!busy_) return;
-    asio::post(jobs_, [this, job = std::move(queue_.front())] {
-      Then then;
-      try {
-        then = job(reader_);
-      } catch (const std::exception& e) {  // jobs catch their own; this is a last guard
-        spdlog::error("analysis worker: {}", e.what());
-      }
-      asio::post(loop_, [this, then = std::move(then)] {
-        if (then) then();
-        next();
-      });
-    });
-    queue_.pop_front();
-  }
-
-  asio::io_context& loop_;
-  storage::Store reader_;
-  std::deque<Job> queue_;  // the loop's
-  bool busy_ = false;      // a job is on the thread or its continuation on the loop
-  asio::io_context jobs_;
-  asio::executor_work_guard<asio::io_context::executor_type> guard_{jobs_.get_executor()};
-  std::thread thread_;
-};
 
 // What the worker read from the chamber and the thermistor module at one poll.
 struct DeviceReading {
@@ -1082,7 +787,7 @@ std::expected<void, Server::StartError> Server::start() {
   // Reconnection delays in run time, not wall time (config.hpp).
   scale_backoff_to_clock(m.config.drivers, m.options.time_scale);
   if (m.config.sim_clock) m.sim_clock = std::make_unique<SimClock>(*m.config.sim_clock, std::chrono::seconds(15));
-  m.chamber = std::make_unique<drivers::Chamber>(m.config.drivers.chamber);
+  m.chamber = std::make_unique<drivers::ModbusChamber>(m.config.drivers.chamber);
   m.thermistors = std::make_unique<drivers::ThermistorModule>(m.config.drivers.thermistors, m.config.drivers.units);
   m.wguard.emplace(m.wio.get_executor());
   m.wthread = std::thread([&m] { m.wio.run(); });

@@ -1,7 +1,9 @@
-// The run state machine, the per-second samples and the automatic fit or verification.
+// The run state machine: start, resume, abort, the tick (profile, chamber faults, the second's
+// samples) and the end of a run. The station's other rooms are listed in station.hpp.
 #include "fogbench/daemon/station.hpp"
 
-#include "fogbench/daemon/analysis.hpp"
+#include "fogbench/daemon/sample_rows.hpp"
+#include "fogbench/storage/run_data.hpp"
 
 #include <algorithm>
 #include <cassert>
@@ -24,67 +26,13 @@ namespace fogbench::daemon {
 using nlohmann::json;
 using storage::RunState;
 
-std::string_view to_string(ErrorCode c) {
-  switch (c) {
-    case ErrorCode::bad_json: return "bad_json";
-    case ErrorCode::bad_request: return "bad_request";
-    case ErrorCode::unknown_command: return "unknown_command";
-    case ErrorCode::not_found: return "not_found";
-    case ErrorCode::busy: return "busy";
-    case ErrorCode::invalid_profile: return "invalid_profile";
-    case ErrorCode::limits: return "limits";
-    case ErrorCode::unknown_serial: return "unknown_serial";
-    case ErrorCode::forbidden: return "forbidden";
-    case ErrorCode::internal: return "internal";
-    case ErrorCode::unavailable: return "unavailable";
-  }
-  return "internal";
-}
-
-std::string iso8601_now() {
-  const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char buf[32];
-  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return buf;
-}
+std::string iso8601_now() { return storage::iso8601_utc(std::chrono::system_clock::now()); }
 
 namespace {
 
-ApiError from_store(const storage::StoreError& e) {
-  if (e.code == storage::StoreErrc::not_found) return {ErrorCode::not_found, e.message};
-  return {ErrorCode::internal, std::string(storage::to_string(e.code)) + ": " + e.message};
-}
-
-model::Phase to_model_phase(profiles::Phase p) {
-  switch (p) {
-    case profiles::Phase::settle: return model::Phase::settle;
-    case profiles::Phase::hold: return model::Phase::hold;
-    case profiles::Phase::heating: return model::Phase::heating;
-    case profiles::Phase::cooling: return model::Phase::cooling;
-  }
-  return model::Phase::unknown;
-}
-
-// A JSON number, or null for a value not read (JSON has no NaN).
-json num(std::optional<double> v) {
-  if (!v || !std::isfinite(*v)) return nullptr;
-  return *v;
-}
-double or_nan(std::optional<double> v) { return v ? *v : storage::kNoValue; }
-
-// Readings outside these are implausible for a coil or a gyro on a drift bench.
-constexpr double kCoilMinC = -100.0, kCoilMaxC = 200.0;
-constexpr double kGyroMaxAbsDph = 1.0e5;
 // A setpoint that moved at least this much should have moved the PV (several register steps
 // of 0.1 degC): below it a frozen PV cannot be told from a chamber at rest.
 constexpr double kSetpointMovedC = 0.5;
-
-bool valid_profile_name(const std::string& name) {
-  static const std::regex re("[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}");
-  return std::regex_match(name, re);
-}
 
 }  // namespace
 
@@ -96,30 +44,12 @@ Station::Station(DaemonConfig config, storage::Store& store, double time_scale, 
       setpoint_c_(config_.safe_setpoint_c),
       power_(config_.drivers.units.size()) {}
 
-namespace {
-// Failures that may pass (room made on the disk, a lock released): worth writing again.
-bool may_pass(storage::StoreErrc c) {
-  using storage::StoreErrc;
-  return c == StoreErrc::disk_full || c == StoreErrc::io || c == StoreErrc::busy || c == StoreErrc::read_only;
-}
-}  // namespace
-
-template <class Call>
-auto Station::without_waiting_if_refused(Call&& call) {
-  if (!store_refused_) return call();
-  const int wait_ms = store_.busy_timeout_ms();
-  store_.set_busy_timeout_ms(0);
-  auto r = call();
-  store_.set_busy_timeout_ms(wait_ms);
-  return r;
-}
-
 ApiResult<std::vector<std::int64_t>> Station::recover() {
   recovery_tried_clock_s_ = clock_s_;
   // The first try at start-up waits for a lock like any write; the retries do not.
-  auto ids = without_waiting_if_refused(
+  auto ids = journal_.without_waiting_if_refused(
       [&] { return store_.mark_interrupted_runs("daemon restarted: the run was in progress when it stopped"); });
-  store_refused_ = !ids && may_pass(ids.error().code);
+  journal_.set_refused(!ids && WriteJournal::may_pass(ids.error().code));
   if (!ids) {
     recovery_error_ = std::string(storage::to_string(ids.error().code)) + ": " + ids.error().message;
     return std::unexpected(from_store(ids.error()));
@@ -141,102 +71,8 @@ std::optional<std::int64_t> Station::active_run_id() const {
   return run_->id;
 }
 
-std::vector<std::string> Station::profile_names() const {
-  std::vector<std::string> names;
-  std::error_code ec;
-  for (const auto& e : std::filesystem::directory_iterator(config_.profile_dir, ec)) {
-    if (e.path().extension() == ".profile") names.push_back(e.path().stem().string());
-  }
-  std::sort(names.begin(), names.end());
-  return names;
-}
-
-ApiResult<profiles::Profile> Station::check_profile_text(const std::string& text,
-                                                         const std::string& source) const {
-  auto p = profiles::parse_profile(text, source);
-  if (!p) return api_error(ErrorCode::invalid_profile, p.error().to_string());
-  if (auto ok = profiles::check_limits(*p, config_.limits); !ok)
-    return api_error(ErrorCode::limits, ok.error().to_string());
-  return std::move(*p);
-}
-
-ApiResult<profiles::Profile> Station::load_profile(const std::string& name, std::string* text) const {
-  if (!valid_profile_name(name))
-    return api_error(ErrorCode::bad_request, "profile: expected a name of letters, digits, '_', '-' or '.'");
-  const auto path = config_.profile_dir / (name + ".profile");
-  std::ifstream in(path);
-  if (!in) return api_error(ErrorCode::not_found, "profile " + name + ": not in " + config_.profile_dir.string());
-  std::stringstream ss;
-  ss << in.rdbuf();
-  auto p = check_profile_text(ss.str(), name + ".profile");
-  if (p && text) *text = ss.str();
-  return p;
-}
-
-storage::StoreResult<void> Station::write(const Unrecorded& w) {
-  auto r = without_waiting_if_refused([&]() -> storage::StoreResult<void> {
-    if (w.state) return store_.set_run_state(w.run_id, *w.state, w.reason, w.t_s);
-    auto id = store_.add_event(w.run_id, w.kind, w.detail_json, w.t_s);
-    if (!id) return std::unexpected(id.error());
-    return {};
-  });
-  store_refused_ = !r && may_pass(r.error().code);
-  return r;
-}
-
-namespace {
-std::string what_of(const std::string& state_or_kind, std::int64_t run_id) {
-  return "run " + std::to_string(run_id) + ": " + state_or_kind;
-}
-// Enough for the end of many runs; past it the oldest is given up (logged).
-constexpr std::size_t kMaxUnrecorded = 10000;
-}  // namespace
-
-void Station::write_or_keep(Unrecorded w) {
-  const std::string what = what_of(w.state ? "state " + std::string(storage::to_string(*w.state))
-                                           : std::string(storage::to_string(w.kind)) + " event",
-                                   w.run_id);
-  // Behind an earlier write of the same run that is still waiting: keep the order.
-  const bool behind = std::any_of(unrecorded_.begin(), unrecorded_.end(),
-                                  [&](const Unrecorded& u) { return u.run_id == w.run_id; });
-  if (!behind) {
-    auto ok = write(w);
-    if (ok) return;
-    if (!may_pass(ok.error().code)) {
-      spdlog::error("{} not stored ({}): {} {}", what, storage::to_string(ok.error().code), ok.error().message,
-                    w.state ? w.reason : w.detail_json);
-      return;
-    }
-    spdlog::error("{} not stored yet ({}): {}; kept and written again every 10 s", what,
-                  storage::to_string(ok.error().code), ok.error().message);
-    unrecorded_tried_clock_s_ = clock_s_;
-  }
-  if (unrecorded_.size() >= kMaxUnrecorded) {
-    const Unrecorded& old = unrecorded_.front();
-    spdlog::error("run {}: giving up an unrecorded {} ({} kept already)", old.run_id,
-                  old.state ? "state" : "event", kMaxUnrecorded);
-    unrecorded_.pop_front();
-  }
-  unrecorded_.push_back(std::move(w));
-}
-
-void Station::flush_unrecorded() {
-  while (!unrecorded_.empty()) {
-    const Unrecorded& w = unrecorded_.front();
-    auto ok = write(w);
-    if (!ok && may_pass(ok.error().code)) return;  // still no room: the next tick tries again
-    if (ok) spdlog::info("run {}: an unrecorded {} is stored now", w.run_id, w.state ? "state" : "event");
-    else spdlog::error("run {}: an unrecorded write is given up: {}", w.run_id, ok.error().message);
-    unrecorded_.pop_front();
-  }
-}
-
-json Station::unrecorded_end(std::int64_t run_id) const {
-  json end = nullptr;
-  for (const auto& w : unrecorded_)
-    if (w.run_id == run_id && w.state && storage::is_terminal(*w.state))
-      end = {{"state", std::string(storage::to_string(*w.state))}, {"reason", w.reason}, {"recorded", false}};
-  return end;
+void Station::write_or_keep(WriteJournal::Write w) {
+  if (journal_.write_or_keep(std::move(w))) unrecorded_tried_clock_s_ = clock_s_;
 }
 
 void Station::event(std::int64_t run_id, storage::EventKind kind, const json& detail,
@@ -244,8 +80,7 @@ void Station::event(std::int64_t run_id, storage::EventKind kind, const json& de
   // An event that cannot be stored is still published and logged, and kept to be written
   // when the store takes it again; the daemon keeps running.
   write_or_keep({run_id, std::nullopt, "", kind, detail.dump(), t_s});
-  emit({{"type", "event"}, {"run_id", run_id}, {"t_s", num(t_s)},
-        {"kind", std::string(storage::to_string(kind))}, {"detail", detail}});
+  emit(protocol::to_json(protocol::EventMessage{run_id, t_s, std::string(storage::to_string(kind)), detail}));
 }
 
 void Station::audit(std::int64_t run_id, const json& command) {
@@ -259,9 +94,9 @@ void Station::transition(ActiveRun& run, RunState to, const std::string& reason,
   const RunState from = run.state;
   run.state = to;
   write_or_keep({run.id, to, reason, storage::EventKind::state, "", t_s});
-  emit({{"type", "event"}, {"run_id", run.id}, {"t_s", num(t_s)}, {"kind", "state"},
-        {"detail", {{"from", std::string(storage::to_string(from))},
-                    {"to", std::string(storage::to_string(to))}, {"reason", reason}}}});
+  emit(protocol::to_json(protocol::EventMessage{
+      run.id, t_s, "state",
+      {{"from", std::string(storage::to_string(from))}, {"to", std::string(storage::to_string(to))}, {"reason", reason}}}));
 }
 
 // A run started while the chamber cannot be polled would only wait out link_loss.tolerance_s
@@ -274,13 +109,11 @@ std::optional<ApiError> Station::chamber_unavailable() const {
 
 ApiResult<std::int64_t> Station::start_run(const std::string& profile_name,
                                            const std::vector<std::string>& serials,
-                                           const std::string& purpose_text, const json& command) {
+                                           storage::Purpose purpose, const json& command) {
   if (run_) return api_error(ErrorCode::busy, "run " + std::to_string(run_->id) + " is " +
                                                   std::string(storage::to_string(run_->state)));
   if (recovery_error_) return std::unexpected(not_recovered(*recovery_error_));
   if (auto down = chamber_unavailable()) return std::unexpected(*down);
-  auto purpose = storage::purpose_from_string(purpose_text);
-  if (!purpose) return api_error(ErrorCode::bad_request, "purpose: expected \"fit\" or \"verify\"");
   if (serials.empty()) return api_error(ErrorCode::bad_request, "units: expected at least one serial");
 
   std::vector<std::size_t> index;
@@ -292,7 +125,7 @@ ApiResult<std::int64_t> Station::start_run(const std::string& profile_name,
     if (it == units.end())
       return api_error(ErrorCode::unknown_serial, "unit " + serials[i] + ": not configured on this bench");
     index.push_back(static_cast<std::size_t>(it - units.begin()));
-    if (*purpose == storage::Purpose::verify) {
+    if (purpose == storage::Purpose::verify) {
       auto m = store_.current_model(serials[i]);
       if (!m) return std::unexpected(from_store(m.error()));
       if (!*m) return api_error(ErrorCode::unknown_serial, "unit " + serials[i] + ": no model to verify");
@@ -306,7 +139,7 @@ ApiResult<std::int64_t> Station::start_run(const std::string& profile_name,
   storage::NewRun nr;
   nr.profile_name = profile_name;
   nr.profile_text = text;
-  nr.purpose = *purpose;
+  nr.purpose = purpose;
   nr.config_json = config_.source.dump();
   nr.time_scale = time_scale_;
   nr.unit_serials = serials;
@@ -315,7 +148,7 @@ ApiResult<std::int64_t> Station::start_run(const std::string& profile_name,
 
   ActiveRun run;
   run.id = *id;
-  run.purpose = *purpose;
+  run.purpose = purpose;
   run.profile_name = profile_name;
   run.serials = serials;
   run.config_index = std::move(index);
@@ -399,7 +232,7 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
       r.unit_index = static_cast<int>(u);
       r.t_s = t;
       r.setpoint_c = run.last.setpoint_c;
-      r.phase = to_model_phase(run.last.phase);
+      r.phase = storage::model_phase(run.last.phase);
       r.step = static_cast<int>(run.last.step_index);
       r.flags = model::flag::missing | model::flag::link_gap;
       gap_rows.push_back(r);
@@ -441,9 +274,9 @@ void Station::shutdown(const std::string& reason) {
   setpoint_c_ = config_.safe_setpoint_c;
   // A last try for what the store refused; what it still refuses is lost with the process
   // (each was logged when it was refused).
-  if (!unrecorded_.empty()) flush_unrecorded();
-  if (!unrecorded_.empty())
-    spdlog::error("stopping with {} state changes or events the store did not take (see above)", unrecorded_.size());
+  if (!journal_.empty()) journal_.flush();
+  if (!journal_.empty())
+    spdlog::error("stopping with {} state changes or events the store did not take (see above)", journal_.size());
 }
 
 // A run that fails on what it read (a settle that timed out, a chamber fault) after the loop
@@ -474,54 +307,15 @@ void Station::finish(RunState to, const std::string& reason) {
   if (to == RunState::completed) analyse(id, purpose, serials);
 }
 
-void Station::analyse(std::int64_t run_id, storage::Purpose purpose,
-                      const std::vector<std::string>& serials) {
-  // The fits or verifications are computed on the offload (fogbenchd's analysis worker, with its
-  // own read connection): a long fit must not hold up the next run's seconds or the replies.
-  // What they produced is stored here, on the loop, in unit order, each with its note.
-  const AnalysisConfig config = config_.analysis;
-  const std::string created_at = wall_clock_();
-  offload_->submit([this, run_id, purpose, serials, config, created_at](storage::Store& reader) -> Offload::Then {
-    auto computed = std::make_shared<std::vector<ApiResult<analysis::Commit>>>();
-    for (std::size_t i = 0; i < serials.size(); ++i) {
-      const int unit = static_cast<int>(i);
-      try {
-        computed->push_back(purpose == storage::Purpose::fit
-                                ? analysis::fit(reader, config, run_id, unit, "", "", created_at)
-                                : analysis::verify(reader, config, run_id, unit, std::nullopt));
-      } catch (const std::exception& e) {  // a bug: reported as the unit's failed analysis
-        computed->push_back(api_error(ErrorCode::internal, e.what()));
-      }
-    }
-    return [this, run_id, purpose, serials, computed] {
-      for (std::size_t i = 0; i < serials.size(); ++i) {
-        json detail = {{"analysis", std::string(storage::to_string(purpose))}, {"unit", static_cast<int>(i)},
-                       {"serial", serials[i]}};
-        ApiResult<json> r = (*computed)[i] ? (*(*computed)[i])(store_) : std::unexpected((*computed)[i].error());
-        if (r && purpose == storage::Purpose::fit) {
-          detail["model_id"] = (*r)["model_id"];
-          detail["n_flagged"] = (*r)["n_flagged"];
-        } else if (r) {
-          detail["verification_id"] = (*r)["verification_id"];
-          detail["pass"] = (*r)["pass"];
-        }
-        detail["ok"] = r.has_value();
-        if (!r) detail["error"] = r.error().message;
-        event(run_id, storage::EventKind::note, detail, std::nullopt);
-      }
-    };
-  });
-}
-
 TickOutput Station::tick(double clock_s, const TickInput& in) {
   clock_s_ = clock_s;
   last_input_ = in;
   ++ticks_;
   // Both retries every 10 s of wall time: a store held locked makes each try wait out its busy
   // timeout (5 s), which must not hold up every second of the loop.
-  if (!unrecorded_.empty() && clock_s - unrecorded_tried_clock_s_ >= 10.0 * time_scale_) {
+  if (!journal_.empty() && clock_s - unrecorded_tried_clock_s_ >= 10.0 * time_scale_) {
     unrecorded_tried_clock_s_ = clock_s;
-    flush_unrecorded();
+    journal_.flush();
   }
   if (recovery_error_ && !run_ && clock_s - recovery_tried_clock_s_ >= 10.0 * time_scale_) {
     if (auto ids = recover(); ids) {
@@ -616,61 +410,22 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
 
   std::vector<storage::SampleRow> rows;
   rows.reserve(run.config_index.size());
+  if (run.quality.size() < run.config_index.size()) run.quality.resize(run.config_index.size());
   for (std::size_t i = 0; i < run.config_index.size(); ++i) {
     const std::size_t ci = run.config_index[i];
     const UnitReading u = ci < in.units.size() ? in.units[ci] : UnitReading{};
-    storage::SampleRow r;
-    r.unit_index = static_cast<int>(i);
-    r.t_s = t_s;
-    r.wall_time = in.wall_time;
-    // The setpoint recorded is the one commanded for this second: the profile's.
-    r.setpoint_c = st.setpoint_c;
-    r.chamber_c = or_nan(in.chamber_c);
-    r.gyro_dph = or_nan(u.gyro_dph);
-    r.frames = u.frames;
-    r.t1_c = or_nan(u.t1_c);
-    r.t2_c = or_nan(u.t2_c);
-    r.phase = to_model_phase(st.phase);
-    r.step = static_cast<int>(st.step_index);
-    std::uint8_t f = 0;
-    if (!u.gyro_dph || !u.t1_c || !u.t2_c || !in.chamber_c) f |= model::flag::missing;
-    if (u.frames_lost > 0 || u.frames_corrupt > 0) f |= model::flag::frames_lost;
-    bool oor = u.out_of_range;
-    for (auto t : {u.t1_c, u.t2_c})
-      if (t && (*t < kCoilMinC || *t > kCoilMaxC)) oor = true;
-    if (u.gyro_dph && std::abs(*u.gyro_dph) > kGyroMaxAbsDph) oor = true;
-    if (oor) f |= model::flag::out_of_range;
-    if (in.chamber_link_down) f |= model::flag::link_gap;
-    if (run.pv_frozen) f |= model::flag::pv_frozen;
-    r.flags = f;
-    r.since_power_on_s = or_nan(power_.since_power_on_s(ci, clock_s));
-    rows.push_back(r);
-    if (run.quality.size() < run.config_index.size()) run.quality.resize(run.config_index.size());
+    rows.push_back(sample_row(static_cast<int>(i), u, in, t_s, st, run.pv_frozen, power_.since_power_on_s(ci, clock_s)));
     run.quality[i].frames_lost += u.frames_lost;
     run.quality[i].frames_corrupt += u.frames_corrupt;
-    run.quality[i].samples_flagged += f != 0;
+    run.quality[i].samples_flagged += rows.back().flags != 0;
   }
   auto stored = store_.append_samples(run.id, rows);
   // The run's end that follows must not wait out the lock again (write_or_keep).
-  if (!stored && may_pass(stored.error().code)) store_refused_ = true;
+  if (!stored && WriteJournal::may_pass(stored.error().code)) journal_.set_refused(true);
 
-  json base = {{"type", "sample"}, {"run_id", run.id}, {"t_s", t_s},
-               {"state", std::string(storage::to_string(run.state))},
-               {"phase", std::string(profiles::to_string(st.phase))}, {"step", st.step_index},
-               {"elapsed_s", t_s}, {"remaining_s", st.remaining_s}, {"setpoint_c", st.setpoint_c},
-               {"chamber_c", num(in.chamber_c)}};
-  for (const auto& r : rows) {
-    json m = base;
-    m["unit"] = r.unit_index;
-    m["serial"] = run.serials[static_cast<std::size_t>(r.unit_index)];
-    m["gyro_dph"] = num(std::isfinite(r.gyro_dph) ? std::optional(r.gyro_dph) : std::nullopt);
-    m["frames"] = r.frames.value_or(0);
-    m["t1_c"] = num(std::isfinite(r.t1_c) ? std::optional(r.t1_c) : std::nullopt);
-    m["t2_c"] = num(std::isfinite(r.t2_c) ? std::optional(r.t2_c) : std::nullopt);
-    m["flags"] = r.flags;
-    m["since_power_on_s"] = num(std::isfinite(r.since_power_on_s) ? std::optional(r.since_power_on_s) : std::nullopt);
-    emit(m);
-  }
+  for (const auto& r : rows)
+    emit(protocol::to_json(sample_message(r, run.id, run.serials[static_cast<std::size_t>(r.unit_index)], run.state, st,
+                                          in.chamber_c)));
 
   if (stored && abort_reason) {
     finish(RunState::aborted, behind_real_time(run, *abort_reason));
@@ -690,21 +445,6 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
     setpoint_c_ = st.setpoint_c;
   }
   return {setpoint_c_};
-}
-
-json Station::live_quality(std::int64_t run_id) const {
-  if (!run_ || run_->id != run_id) return nullptr;
-  return quality_json(*run_);
-}
-
-json Station::quality_json(const ActiveRun& run) {
-  json q = json::array();
-  for (std::size_t i = 0; i < run.serials.size(); ++i) {
-    const ActiveRun::Quality z = i < run.quality.size() ? run.quality[i] : ActiveRun::Quality{};
-    q.push_back({{"unit", i}, {"serial", run.serials[i]}, {"frames_lost", z.frames_lost},
-                 {"frames_corrupt", z.frames_corrupt}, {"samples_flagged", z.samples_flagged}});
-  }
-  return q;
 }
 
 std::optional<std::string> Station::chamber_fault(ActiveRun& run, const TickInput& in, double t_s) {
@@ -764,61 +504,6 @@ std::optional<std::string> Station::chamber_fault(ActiveRun& run, const TickInpu
              fmt(config_.tracking.frozen_s) + ")";
   }
   return std::nullopt;
-}
-
-json Station::status() const {
-  json s;
-  s["version"] = FOGBENCH_DAEMON_VERSION;
-  s["simulated"] = config_.simulated;
-  s["time_scale"] = time_scale_;
-  s["clock_s"] = clock_s_;
-  s["setpoint_c"] = setpoint_c_;
-  s["safe_setpoint_c"] = config_.safe_setpoint_c;
-  s["limits"] = {{"min_c", config_.limits.min_c}, {"max_c", config_.limits.max_c},
-                 {"max_rate_c_per_min", config_.limits.max_rate_c_per_min}};
-  json chamber = {{"chamber_c", nullptr}, {"setpoint_c", nullptr}, {"alarm", false}, {"link", "unknown"}};
-  json units = json::array();
-  for (std::size_t i = 0; i < config_.drivers.units.size(); ++i) {
-    json u = {{"serial", config_.drivers.units[i].serial}, {"gyro_dph", nullptr},
-              {"frames", 0}, {"t1_c", nullptr}, {"t2_c", nullptr}};
-    if (last_input_ && i < last_input_->units.size()) {
-      const auto& r = last_input_->units[i];
-      u["gyro_dph"] = num(r.gyro_dph);
-      u["frames"] = r.frames;
-      u["t1_c"] = num(r.t1_c);
-      u["t2_c"] = num(r.t2_c);
-    }
-    units.push_back(u);
-  }
-  if (last_input_) {
-    chamber = {{"chamber_c", num(last_input_->chamber_c)},
-               {"setpoint_c", num(last_input_->chamber_setpoint_c)},
-               {"alarm", last_input_->chamber_alarm},
-               {"link", last_input_->chamber_link_down ? "down" : "up"}};
-  }
-  s["chamber"] = chamber;
-  s["units"] = units;
-  if (run_) {
-    const auto& r = *run_;
-    s["run"] = {{"id", r.id}, {"state", std::string(storage::to_string(r.state))},
-                {"profile", r.profile_name}, {"purpose", std::string(storage::to_string(r.purpose))},
-                {"units", r.serials}, {"elapsed_s", r.elapsed_s},
-                {"remaining_s", r.executor ? json(r.last.remaining_s) : json(nullptr)},
-                {"phase", r.phase ? json(std::string(profiles::to_string(*r.phase))) : json(nullptr)},
-                {"step", r.step}, {"profile_held_s", r.held_s}, {"quality", quality_json(r)},
-                {"link_gap_s", r.link_down_since_s ? json(r.elapsed_s - *r.link_down_since_s) : json(nullptr)}};
-    if (r.state == RunState::pending) s["run"]["remaining_s"] = r.executor->profile().nominal_duration_s();
-  } else {
-    s["run"] = nullptr;
-  }
-  s["last_run"] = last_run_;
-  s["recovery"] = recovery_error_ ? json{{"pending", true}, {"error", *recovery_error_}} : json(nullptr);
-  if (last_run_.is_object()) {
-    const auto id = last_run_["run_id"].get<std::int64_t>();
-    s["last_run"]["recorded"] = std::none_of(unrecorded_.begin(), unrecorded_.end(),
-                                             [id](const Unrecorded& u) { return u.run_id == id; });
-  }
-  return s;
 }
 
 }  // namespace fogbench::daemon

@@ -19,10 +19,10 @@ std::string BringUpReport::to_string() const {
   return out;
 }
 
-Chamber::Chamber(ChamberConfig config, ModbusLink::Clock clock)
+ModbusChamber::ModbusChamber(ChamberConfig config, ModbusLink::Clock clock)
     : config_(std::move(config)), link_(config_.modbus, "chamber", std::move(clock)) {}
 
-Result<void> Chamber::write_setpoint_c(double temp_c) {
+Result<void> ModbusChamber::write_setpoint_c(double temp_c) {
   const auto& lim = config_.setpoint_limits_c;
   if (!(temp_c >= lim.min_c && temp_c <= lim.max_c)) {
     return fail(ErrorCode::out_of_range, "chamber: setpoint " + format_number(temp_c) +
@@ -33,20 +33,20 @@ Result<void> Chamber::write_setpoint_c(double temp_c) {
   return link_.write_value(config_.map.setpoint, temp_c);
 }
 
-Result<double> Chamber::read_setpoint_c() { return link_.read_value(config_.map.setpoint); }
+Result<double> ModbusChamber::read_setpoint_c() { return link_.read_value(config_.map.setpoint); }
 
-Result<double> Chamber::read_process_value_c() {
+Result<double> ModbusChamber::read_process_value_c() {
   return link_.read_value(config_.map.process_value);
 }
 
-Result<void> Chamber::set_running(bool run) {
+Result<void> ModbusChamber::set_running(bool run) {
   const auto& r = config_.map.run;
   if (r.reg.function == RegisterFunction::coil) return link_.write_coil(r.reg.address, run);
   const std::uint16_t word = run ? r.on_value : r.off_value;
   return link_.write_registers(r.reg.address, std::span<const std::uint16_t>(&word, 1));
 }
 
-Result<bool> Chamber::read_running() {
+Result<bool> ModbusChamber::read_running() {
   const auto& r = config_.map.run;
   auto raw = link_.read_raw(r.reg);
   if (!raw) return std::unexpected(raw.error());
@@ -59,13 +59,13 @@ Result<bool> Chamber::read_running() {
                                        std::to_string(r.off_value) + ")");
 }
 
-Result<bool> Chamber::read_alarm() {
+Result<bool> ModbusChamber::read_alarm() {
   auto raw = link_.read_raw(config_.map.alarm.reg);
   if (!raw) return std::unexpected(raw.error());
   return (*raw & config_.map.alarm.mask) != 0;
 }
 
-Result<ChamberStatusWord> Chamber::read_status() {
+Result<ChamberStatusWord> ModbusChamber::read_status() {
   if (!config_.map.status) {
     return fail(ErrorCode::config, "chamber: the map '" + config_.map.name + "' has no status register");
   }
@@ -79,7 +79,7 @@ Result<ChamberStatusWord> Chamber::read_status() {
   return word;
 }
 
-Result<ChamberReading> Chamber::poll() {
+Result<ChamberReading> ModbusChamber::poll() {
   ChamberReading r;
   auto pv = read_process_value_c();
   if (!pv) return std::unexpected(pv.error());
@@ -109,7 +109,7 @@ bool link_level(const DriverError& e) {
 
 }  // namespace
 
-Result<BringUpReport> Chamber::bring_up() {
+Result<BringUpReport> ModbusChamber::bring_up() {
   if (auto ok = link_.connect(); !ok) return std::unexpected(ok.error());
   BringUpReport report;
   report.checks.push_back({"connection", true, link_.endpoint().describe()});

@@ -1,6 +1,8 @@
 // The SQLite helpers of the store: error mapping, statement cache, queries, transactions.
 #include "sqlite.hpp"
 
+#include "fogbench/storage/run_data.hpp"
+
 #include <cassert>
 #include <cmath>
 #include <cstdio>
@@ -70,21 +72,7 @@ StoreResult<void> Database::exec(const std::string& sql, std::string_view what) 
 }
 
 std::string Database::now_iso() const {
-  using namespace std::chrono;
-  const auto tp = options_.clock ? options_.clock() : system_clock::now();
-  const auto ms = duration_cast<milliseconds>(tp.time_since_epoch()).count();
-  auto secs = static_cast<std::time_t>(ms / 1000);
-  auto milli = static_cast<int>(ms % 1000);
-  if (milli < 0) {  // before 1970: floor, not truncate
-    milli += 1000;
-    --secs;
-  }
-  std::tm t{};
-  gmtime_r(&secs, &t);
-  char buf[80];  // ample for any int fields, which keeps -Wformat-truncation quiet
-  std::snprintf(buf, sizeof buf, "%04d-%02d-%02dT%02d:%02d:%02d.%03dZ", t.tm_year + 1900,
-                t.tm_mon + 1, t.tm_mday, t.tm_hour, t.tm_min, t.tm_sec, milli);
-  return buf;
+  return iso8601_utc(options_.clock ? options_.clock() : std::chrono::system_clock::now(), /*milliseconds=*/true);
 }
 
 Query::~Query() {

@@ -5,7 +5,7 @@
 #include "fixture.hpp"
 #include "live_bench.hpp"
 
-#include "fogbench/daemon/framing.hpp"
+#include "fogbench/protocol/framing.hpp"
 
 #include <cstdlib>
 #include <set>
@@ -121,7 +121,7 @@ TEST_CASE("e2e: error replies over the socket, refusals that move and store noth
   // A second client is unaffected by the first's line over 1 MiB, which is closed after its error.
   LineClient other(bench.socket());
   REQUIRE(other.ok());
-  c.send_raw(std::string(fogbench::daemon::kMaxLineBytes + 10, 'x'));
+  c.send_raw(std::string(fogbench::protocol::kMaxLineBytes + 10, 'x'));
   std::optional<std::string> reply;
   for (auto l = c.line(30s); l; l = c.line(30s)) reply = l;  // the hello/earlier lines, then the error
   REQUIRE(reply.has_value());

@@ -1,11 +1,12 @@
 // The command handler without a socket: hello, replies, and every error code of the protocol.
 #include "fixture.hpp"
 
-#include "fogbench/daemon/framing.hpp"
+#include "fogbench/protocol/framing.hpp"
 #include "fogbench/daemon/handler.hpp"
 
 using namespace fogbench;
 using namespace fogbench::daemon;
+using namespace fogbench::protocol;
 using namespace fogbench::daemon::test;
 using nlohmann::json;
 
@@ -244,4 +245,34 @@ TEST_CASE("handler: the workbench on stored runs: model.compare, model.diagnose,
   r.session.may_control = false;
   CHECK(r.code(R"({"id":11,"cmd":"model.add_term","run_id":1,"term":"T1"})") == "forbidden");
   CHECK(r.code(R"({"id":12,"cmd":"model.compare","run_id":2})") == "ok");
+}
+
+TEST_CASE("handler: run.start's purpose is fit or verify, anything else is bad_request naming the field") {
+  Rig r;
+  json j = r.send(R"({"id":1,"cmd":"run.start","profile":"short","units":["FOG-0001"],"purpose":"calibrate"})");
+  CHECK(j["error"]["code"] == "bad_request");
+  CHECK_THAT(j["error"]["message"].get<std::string>(), Catch::Contains("purpose"));
+  CHECK(r.store.list_runs()->empty());
+}
+
+TEST_CASE("handler: a fit that fails on the run's data has one code, whichever command meets it") {
+  Rig r;
+  SyntheticBench bench(1);
+  double clock_s = 0.0;
+  REQUIRE(r.code(R"({"id":1,"cmd":"run.start","profile":"short","units":["FOG-0001"]})") == "ok");
+  run_to_end(r.station, bench, clock_s);  // run 1 completes: model 1
+  REQUIRE(r.store.current_model("FOG-0001")->has_value());
+  // Run 2 lasts 20 s, far too short to fit anything on.
+  REQUIRE(r.code(R"({"id":2,"cmd":"run.start","profile":"short","units":["FOG-0001"]})") == "ok");
+  run_to_end(r.station, bench, clock_s, 20);
+  REQUIRE(r.code(R"({"id":3,"cmd":"run.abort"})") == "ok");
+  const json fit = r.send(R"({"id":4,"cmd":"model.fit","run_id":2})");
+  const json add = r.send(R"({"id":5,"cmd":"model.add_term","run_id":2,"term":"T1"})");
+  REQUIRE(fit.contains("error"));
+  REQUIRE(add.contains("error"));
+  // Before, model.fit said internal and model.add_term bad_request for the same failure.
+  CHECK(fit["error"]["code"] == "internal");
+  CHECK(add["error"]["code"] == fit["error"]["code"]);
+  CHECK_THAT(fit["error"]["message"].get<std::string>(), Catch::Contains("fit failed ("));
+  CHECK(r.store.list_models("FOG-0001")->size() == 1);  // nothing stored
 }

@@ -23,7 +23,7 @@ struct Rig {
 
   explicit Rig(DaemonConfig c) {
     st = std::make_unique<Station>(std::move(c), store, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
-    auto id = st->start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+    auto id = st->start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
     REQUIRE(id.has_value());
     run = *id;
     sp_c = st->status()["setpoint_c"].get<double>();
@@ -172,7 +172,7 @@ TEST_CASE("station faults: a full disk aborts the run, commands the safe setpoin
   c.safe_setpoint_c = 15;
   Station st(std::move(c), *opened, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
   SyntheticBench bench(1);
-  auto id = st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+  auto id = st.start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
   REQUIRE(id.has_value());
   double clock_s = 0;
   const int ticks = run_to_end(st, bench, clock_s, 5000);
@@ -219,7 +219,7 @@ TEST_CASE("station faults: a run's end the store refuses is kept, reported and w
   c.safe_setpoint_c = 15;
   Station st(std::move(c), *opened, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
   SyntheticBench bench(1);
-  auto id = st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+  auto id = st.start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
   REQUIRE(id.has_value());
   double clock_s = 0, sp_c = 20;
   for (int i = 0; i < 100; ++i, clock_s += 1) sp_c = st.tick(clock_s, bench.step(sp_c)).setpoint_c;
@@ -278,7 +278,7 @@ TEST_CASE("station faults: a store that refuses the interrupted marks at start-u
   std::int64_t run = 0;
   {
     Station st(golden_config(), *opened, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
-    run = *st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+    run = *st.start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
     for (int k = 0; k < 30; ++k) st.tick(k, bench.step(20));
     // The daemon dies here, the run left running.
   }
@@ -298,7 +298,7 @@ TEST_CASE("station faults: a store that refuses the interrupted marks at start-u
   REQUIRE(s["recovery"].is_object());
   CHECK_THAT(s["recovery"]["error"].get<std::string>(), Catch::Contains("busy"));
   // No run starts or resumes: the stale one would be taken for it.
-  auto refused = st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+  auto refused = st.start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
   REQUIRE_FALSE(refused.has_value());
   CHECK(refused.error().code == ErrorCode::internal);
   CHECK_THAT(refused.error().message, Catch::Contains("not yet marked interrupted"));
@@ -313,7 +313,7 @@ TEST_CASE("station faults: a store that refuses the interrupted marks at start-u
   for (int i = 0; i < 10; ++i) st.tick(clock_s++, bench.step(15));
   CHECK(st.status()["recovery"].is_null());
   CHECK(opened->get_run(run)->run.state == storage::RunState::interrupted);
-  CHECK(st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}}).has_value());
+  CHECK(st.start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}}).has_value());
   std::error_code ec;
   std::filesystem::remove_all(dir, ec);
 }
@@ -325,7 +325,7 @@ TEST_CASE("station faults: an interrupted run resumes where its profile clock st
   SyntheticBench bench(1);
   {
     Station st(golden_config(), store, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
-    auto id = st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+    auto id = st.start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
     REQUIRE(id.has_value());
     run = *id;
     // 700 s: into the ramp; wall time = 1000 + run second.
@@ -375,7 +375,7 @@ TEST_CASE("station faults: run.start and run.resume are refused while the chambe
   TickInput in = bench.step(20.0);
   link_down(in);
   st.tick(0.0, in);
-  auto refused = st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+  auto refused = st.start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
   REQUIRE_FALSE(refused.has_value());
   CHECK(code_of_error(refused) == "unavailable");
   CHECK_THAT(refused.error().message, Catch::Contains("chamber link is down"));
@@ -383,7 +383,7 @@ TEST_CASE("station faults: run.start and run.resume are refused while the chambe
   CHECK(store.list_runs({})->empty());
   CHECK(code_of_error(st.resume_run(1, 0.0, {{"cmd", "run.resume"}})) == "unavailable");
   st.tick(1.0, bench.step(20.0));
-  CHECK(code_of_error(st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}})) == "ok");
+  CHECK(code_of_error(st.start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}})) == "ok");
 }
 
 TEST_CASE("station faults: the seconds of a frozen PV are stored flagged pv_frozen once the setpoint has moved 0.5 degC") {
@@ -420,7 +420,7 @@ TEST_CASE("station faults: a run that fails after the loop fell behind real time
   // on seconds the loop was too late to read: nothing read, the settle cannot be judged.
   storage::Store store = memory_store();
   Station st(golden_config(), store, 200.0, [] { return std::string("2026-01-01T00:00:00Z"); });
-  auto id = st.start_run("settle", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+  auto id = st.start_run("settle", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
   REQUIRE(id.has_value());
   double clock_s = 0;
   for (int i = 0; i < 400 && st.active_run_id(); ++i) {

@@ -49,7 +49,7 @@ TEST_CASE("station: the time since a gyro's power-on is recorded when seen, and 
     if (k < 5) silent(in, 1);
     sp = st.tick(k, in).setpoint_c;
   }
-  auto id = st.start_run("short", {"FOG-0001", "FOG-0002"}, "fit", {{"cmd", "run.start"}});
+  auto id = st.start_run("short", {"FOG-0001", "FOG-0002"}, storage::Purpose::fit, {{"cmd", "run.start"}});
   REQUIRE(id.has_value());
   // The run starts at daemon second 6 (run time 0). FOG-0002 is silent at 10..12 (off at 11,
   // 2 s) and sends again at 13: a restart, powered on at 12.
@@ -104,7 +104,7 @@ TEST_CASE("station: seconds the gyro was not read are no silence") {
     silent(in, 1);
     sp = st.tick(k, in).setpoint_c;
   }
-  auto id = st.start_run("short", {"FOG-0001", "FOG-0002"}, "fit", {{"cmd", "run.start"}});
+  auto id = st.start_run("short", {"FOG-0001", "FOG-0002"}, storage::Purpose::fit, {{"cmd", "run.start"}});
   REQUIRE(id.has_value());
   // At 3 the frames come: both on at 2. At 6 a second not read (the loop late): no frames,
   // and still no power-off, so no restart at 7 either.

@@ -35,7 +35,7 @@ TEST_CASE("station: a fit run goes pending -> settling -> running -> completed a
   SyntheticBench bench(2);
   double clock_s = 100.0;  // the daemon has been up a while: run time starts at the run's start
 
-  auto id = st.start_run("short", {"FOG-0001", "FOG-0002"}, "fit", {{"cmd", "run.start"}});
+  auto id = st.start_run("short", {"FOG-0001", "FOG-0002"}, storage::Purpose::fit, {{"cmd", "run.start"}});
   REQUIRE(id.has_value());
   CHECK(st.status()["run"]["state"] == "pending");
   const int ticks = run_to_end(st, bench, clock_s);
@@ -77,7 +77,7 @@ TEST_CASE("station: a fit run goes pending -> settling -> running -> completed a
   CHECK(std::count_if(published.begin(), published.end(), [](const json& m) { return m["type"] == "sample"; }) == 2 * ticks);
 
   SECTION("a verify run on the same bench passes; a second fit has the first as parent") {
-    auto v = st.start_run("short", {"FOG-0001"}, "verify", {{"cmd", "run.start"}});
+    auto v = st.start_run("short", {"FOG-0001"}, storage::Purpose::verify, {{"cmd", "run.start"}});
     REQUIRE(v.has_value());
     run_to_end(st, bench, clock_s);
     auto vs = store.list_verifications(*v);
@@ -86,7 +86,7 @@ TEST_CASE("station: a fit run goes pending -> settling -> running -> completed a
     CHECK(vs->at(0).pass);
     auto first = store.current_model("FOG-0001");
 
-    auto f = st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+    auto f = st.start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
     REQUIRE(f.has_value());
     run_to_end(st, bench, clock_s);
     auto second = store.current_model("FOG-0001");
@@ -100,22 +100,21 @@ TEST_CASE("station: refusals leave the store untouched") {
   Station st(golden_config(), store);
   const json cmd = {{"cmd", "run.start"}};
   auto code = [&](auto r) { return r ? std::string("ok") : std::string(to_string(r.error().code)); };
-  CHECK(code(st.start_run("short", {"FOG-0001"}, "verify", cmd)) == "unknown_serial");  // no model
-  CHECK(code(st.start_run("short", {"FOG-9999"}, "fit", cmd)) == "unknown_serial");
-  CHECK(code(st.start_run("hot", {"FOG-0001"}, "fit", cmd)) == "limits");
-  CHECK(code(st.start_run("fast", {"FOG-0001"}, "fit", cmd)) == "limits");
-  CHECK(code(st.start_run("broken", {"FOG-0001"}, "fit", cmd)) == "invalid_profile");
-  CHECK(code(st.start_run("nosuch", {"FOG-0001"}, "fit", cmd)) == "not_found");
-  CHECK(code(st.start_run("../etc/passwd", {"FOG-0001"}, "fit", cmd)) == "bad_request");
-  CHECK(code(st.start_run("short", {}, "fit", cmd)) == "bad_request");
-  CHECK(code(st.start_run("short", {"FOG-0001", "FOG-0001"}, "fit", cmd)) == "bad_request");
-  CHECK(code(st.start_run("short", {"FOG-0001"}, "calibrate", cmd)) == "bad_request");
+  CHECK(code(st.start_run("short", {"FOG-0001"}, storage::Purpose::verify, cmd)) == "unknown_serial");  // no model
+  CHECK(code(st.start_run("short", {"FOG-9999"}, storage::Purpose::fit, cmd)) == "unknown_serial");
+  CHECK(code(st.start_run("hot", {"FOG-0001"}, storage::Purpose::fit, cmd)) == "limits");
+  CHECK(code(st.start_run("fast", {"FOG-0001"}, storage::Purpose::fit, cmd)) == "limits");
+  CHECK(code(st.start_run("broken", {"FOG-0001"}, storage::Purpose::fit, cmd)) == "invalid_profile");
+  CHECK(code(st.start_run("nosuch", {"FOG-0001"}, storage::Purpose::fit, cmd)) == "not_found");
+  CHECK(code(st.start_run("../etc/passwd", {"FOG-0001"}, storage::Purpose::fit, cmd)) == "bad_request");
+  CHECK(code(st.start_run("short", {}, storage::Purpose::fit, cmd)) == "bad_request");
+  CHECK(code(st.start_run("short", {"FOG-0001", "FOG-0001"}, storage::Purpose::fit, cmd)) == "bad_request");
   CHECK(store.list_runs()->empty());
   CHECK(!st.active_run_id());
 
-  auto id = st.start_run("short", {"FOG-0001"}, "fit", cmd);
+  auto id = st.start_run("short", {"FOG-0001"}, storage::Purpose::fit, cmd);
   REQUIRE(id.has_value());
-  CHECK(code(st.start_run("short", {"FOG-0002"}, "fit", cmd)) == "busy");
+  CHECK(code(st.start_run("short", {"FOG-0002"}, storage::Purpose::fit, cmd)) == "busy");
   CHECK(store.list_runs()->size() == 1);
 }
 
@@ -123,7 +122,7 @@ TEST_CASE("station: an abort mid-ramp ends the run and sends the chamber back to
   auto store = memory_store();
   Station st(golden_config(), store);
   SyntheticBench bench(2);
-  auto id = st.start_run("short", {"FOG-0002"}, "fit", {{"cmd", "run.start"}});
+  auto id = st.start_run("short", {"FOG-0002"}, storage::Purpose::fit, {{"cmd", "run.start"}});
   REQUIRE(id.has_value());
   double clock_s = 0.0;
   double sp = 20.0;
@@ -150,7 +149,7 @@ TEST_CASE("station: a settle that is never met fails the run at its timeout") {
   SyntheticBench bench(1);
   bench.t1_c[0] = 35.0;  // a hot coil that cannot cool in 5 min
   bench.t2_c[0] = 35.0;
-  auto id = st.start_run("settle", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+  auto id = st.start_run("settle", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
   REQUIRE(id.has_value());
   double clock_s = 0;
   run_to_end(st, bench, clock_s, 1000);
@@ -164,7 +163,7 @@ TEST_CASE("station: a settle that is met moves the run from settling to running"
   auto store = memory_store();
   Station st(golden_config(), store);
   SyntheticBench bench(1);
-  auto id = st.start_run("settle", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+  auto id = st.start_run("settle", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
   double clock_s = 0;
   run_to_end(st, bench, clock_s, 1000);
   CHECK(states(store, *id) == std::vector<std::string>{"pending", "settling", "running", "completed"});
@@ -176,7 +175,7 @@ TEST_CASE("station: quality flags for readings that are missing, lost or implaus
   auto store = memory_store();
   Station st(golden_config(), store);
   SyntheticBench bench(2);
-  auto id = st.start_run("short", {"FOG-0001", "FOG-0002"}, "fit", {{"cmd", "run.start"}});
+  auto id = st.start_run("short", {"FOG-0001", "FOG-0002"}, storage::Purpose::fit, {{"cmd", "run.start"}});
   TickInput in = bench.step(20);
   in.units[0].gyro_dph.reset();       // no frames this second
   in.units[1].frames_lost = 3;
@@ -204,7 +203,7 @@ TEST_CASE("station: shutdown aborts the active run, a restart marks a crashed ru
   std::int64_t a = 0, b = 0;
   {
     Station st(golden_config(), store);
-    a = *st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+    a = *st.start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
     for (int i = 0; i < 5; ++i) st.tick(i, bench.step(20));
     st.shutdown("fogbenchd stopping: SIGTERM");
     CHECK(store.get_run(a)->run.state == storage::RunState::aborted);
@@ -212,7 +211,7 @@ TEST_CASE("station: shutdown aborts the active run, a restart marks a crashed ru
   }
   {
     Station st(golden_config(), store);  // crashes: never shut down
-    b = *st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+    b = *st.start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
     for (int i = 0; i < 5; ++i) st.tick(i, bench.step(20));
   }
   Station restarted(golden_config(), store);
@@ -227,7 +226,7 @@ TEST_CASE("station: a run with seconds not read is still fitted (the gaps are fl
   auto store = memory_store();
   Station st(golden_config(), store);
   SyntheticBench bench(1);
-  auto id = st.start_run("short", {"FOG-0001"}, "fit", {{"cmd", "run.start"}});
+  auto id = st.start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
   REQUIRE(id.has_value());
   double sp = 20.0;
   for (int k = 0; st.active_run_id() && k < 5000; ++k) {

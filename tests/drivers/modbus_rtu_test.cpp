@@ -106,7 +106,7 @@ TEST_CASE("chamber over RTU: setpoint written and process value read through a s
   auto map = load_register_map(FOGBENCH_SOURCE_DIR "/drivers/maps/mock.json");
   REQUIRE(map.has_value());
   cfg.map = *map;
-  Chamber chamber(cfg);
+  ModbusChamber chamber(cfg);
 
   auto read = chamber.read_process_value_c();
   INFO((read ? std::string("ok") : read.error().to_string()));
@@ -123,7 +123,7 @@ TEST_CASE("chamber over RTU: setpoint written and process value read through a s
   ChamberConfig other = cfg;
   other.modbus.unit_id = 8;
   other.modbus.response_timeout_ms = 100;
-  Chamber nobody(other);
+  ModbusChamber nobody(other);
   chamber.link().disconnect();  // one opener of the tty at a time
   auto silent = nobody.read_process_value_c();
   REQUIRE_FALSE(silent.has_value());

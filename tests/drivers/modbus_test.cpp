@@ -73,7 +73,7 @@ struct MockChamberServer : ModbusTestServer {
 
 TEST_CASE("chamber: a setpoint written lands in the map's holding registers") {
   MockChamberServer server;
-  Chamber chamber(mock_chamber(server.port()));
+  ModbusChamber chamber(mock_chamber(server.port()));
   REQUIRE(chamber.write_setpoint_c(-40.25).has_value());
   server.with_mapping([](modbus_mapping_t& m) {
     // -40.25 = -1.0100001b x 2^5: sign 1, exponent 127 + 5 = 0x84, so 0xC2210000, high word first.
@@ -87,7 +87,7 @@ TEST_CASE("chamber: a setpoint written lands in the map's holding registers") {
 
 TEST_CASE("chamber: process value, run, alarm and status are read through the map") {
   MockChamberServer server;
-  Chamber chamber(mock_chamber(server.port()));
+  ModbusChamber chamber(mock_chamber(server.port()));
   auto pv = chamber.read_process_value_c();
   REQUIRE(pv.has_value());
   CHECK(*pv == 23.5);
@@ -122,7 +122,7 @@ TEST_CASE("chamber: process value, run, alarm and status are read through the ma
 TEST_CASE("chamber: a setpoint outside the configured limits is refused before any I/O") {
   auto cfg = mock_chamber(unused_port());  // nothing listens: an attempt would fail differently
   cfg.setpoint_limits_c = {-60.0, 150.0};
-  Chamber chamber(cfg);
+  ModbusChamber chamber(cfg);
   auto r = chamber.write_setpoint_c(151.0);
   REQUIRE_FALSE(r.has_value());
   CHECK(r.error().code == ErrorCode::out_of_range);
@@ -132,7 +132,7 @@ TEST_CASE("chamber: a setpoint outside the configured limits is refused before a
 
 TEST_CASE("chamber: bring-up reports identity, units and a plausible process value") {
   MockChamberServer server;
-  Chamber chamber(mock_chamber(server.port()));
+  ModbusChamber chamber(mock_chamber(server.port()));
   auto report = chamber.bring_up();
   REQUIRE(report.has_value());
   INFO(report->to_string());
@@ -162,7 +162,7 @@ TEST_CASE("chamber: an exception reply is a protocol error and the link stays up
   ModbusTestServer server(16, 16, 16, 16);
   auto cfg = mock_chamber(server.port());
   cfg.map.process_value.address = 500;  // beyond the server's 16 input registers
-  Chamber chamber(cfg);
+  ModbusChamber chamber(cfg);
   auto r = chamber.read_process_value_c();
   REQUIRE_FALSE(r.has_value());
   CHECK(r.error().code == ErrorCode::protocol);
@@ -175,7 +175,7 @@ TEST_CASE("chamber: a stopped server gives connection errors, then retries under
   auto server = std::make_unique<MockChamberServer>();
   const auto port = server->port();
   auto now = std::chrono::steady_clock::time_point{} + 1h;
-  Chamber chamber(mock_chamber(port), [&now] { return now; });
+  ModbusChamber chamber(mock_chamber(port), [&now] { return now; });
   REQUIRE(chamber.read_process_value_c().has_value());
 
   server->stop();
@@ -215,7 +215,7 @@ TEST_CASE("chamber: a server that never replies gives a timeout value") {
   socklen_t len = sizeof addr;
   ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len);
 
-  Chamber chamber(mock_chamber(ntohs(addr.sin_port), 100));
+  ModbusChamber chamber(mock_chamber(ntohs(addr.sin_port), 100));
   auto r = chamber.read_process_value_c();
   REQUIRE_FALSE(r.has_value());
   CHECK(r.error().code == ErrorCode::timeout);
@@ -231,7 +231,7 @@ TEST_CASE("chamber: the Watlow F4 map writes a scaled int16 setpoint") {
   auto map = load_register_map(map_dir + "watlow-f4.json");
   REQUIRE(map.has_value());
   cfg.map = *map;
-  Chamber chamber(cfg);
+  ModbusChamber chamber(cfg);
   REQUIRE(chamber.write_setpoint_c(-12.5).has_value());
   // -12.5 / 0.1 = -125 = 0xFF83 in register 300.
   server.with_mapping([](modbus_mapping_t& m) {

@@ -19,7 +19,7 @@ TEST_CASE("the chamber's process value follows a written setpoint, and the statu
   // about 3 s of wall time.
   MockProcess mock({"--time-scale", "100"});
   auto cfg = mock.example_config();
-  Chamber chamber(cfg.chamber);
+  ModbusChamber chamber(cfg.chamber);
   auto report = chamber.bring_up();
   REQUIRE(report.has_value());
   INFO(report->to_string());
@@ -77,7 +77,7 @@ TEST_CASE("the thermistor module reads both encodings of the example configurati
 
   // Heating: the outer wall (T2) follows the air with 150 s, the centre (T1) the wall with 40 s,
   // so on the way up air > T2 > T1 > 20.
-  Chamber chamber(cfg.chamber);
+  ModbusChamber chamber(cfg.chamber);
   REQUIRE(chamber.write_setpoint_c(60.0).has_value());
   mock.wait_sim_time(mock.sim_time() + 200);
   auto up = module.read_all();
@@ -97,8 +97,8 @@ TEST_CASE("the thermistor module reads both encodings of the example configurati
 TEST_CASE("several Modbus clients are served at once, and a stalled one blocks no other") {
   MockProcess mock({"--time-scale", "50"});
   auto cfg = mock.example_config(3000);
-  std::vector<std::unique_ptr<Chamber>> chambers;
-  for (int i = 0; i < 3; ++i) chambers.push_back(std::make_unique<Chamber>(cfg.chamber));
+  std::vector<std::unique_ptr<ModbusChamber>> chambers;
+  for (int i = 0; i < 3; ++i) chambers.push_back(std::make_unique<ModbusChamber>(cfg.chamber));
   ThermistorModule module(cfg.thermistors, cfg.units);
   for (int round = 0; round < 3; ++round) {
     for (auto& c : chambers) REQUIRE(c->read_process_value_c().has_value());
@@ -131,7 +131,7 @@ TEST_CASE("fault refuse_modbus: a connect is refused (a connection error value),
   auto cfg = mock.example_config();
   mock.fault({{"name", "refuse_modbus"}, {"device", "chamber"}});
   {
-    Chamber chamber(cfg.chamber);
+    ModbusChamber chamber(cfg.chamber);
     auto r = chamber.read_process_value_c();
     REQUIRE_FALSE(r.has_value());
     CHECK(r.error().code == ErrorCode::connection);
@@ -141,14 +141,14 @@ TEST_CASE("fault refuse_modbus: a connect is refused (a connection error value),
     CHECK(module.read_all().has_value());
   }
   mock.fault({{"name", "refuse_modbus"}, {"on", false}});
-  Chamber chamber(cfg.chamber);
+  ModbusChamber chamber(cfg.chamber);
   CHECK(chamber.read_process_value_c().has_value());
 }
 
 TEST_CASE("fault drop_modbus: the connected client gets a connection error, then reconnects") {
   MockProcess mock({"--time-scale", "50"});
   auto cfg = mock.example_config();
-  Chamber chamber(cfg.chamber);
+  ModbusChamber chamber(cfg.chamber);
   REQUIRE(chamber.read_process_value_c().has_value());
   mock.fault({{"name", "drop_modbus"}});
   auto r = chamber.read_process_value_c();
@@ -176,7 +176,7 @@ TEST_CASE("fault stall_modbus: a reply later than the client's timeout is a time
 TEST_CASE("fault freeze_pv: the process value stays put while the air moves") {
   MockProcess mock({"--time-scale", "100"});
   auto cfg = mock.example_config();
-  Chamber chamber(cfg.chamber);
+  ModbusChamber chamber(cfg.chamber);
   mock.fault({{"name", "freeze_pv"}});
   const auto frozen = chamber.read_process_value_c();
   REQUIRE(frozen.has_value());
@@ -192,7 +192,7 @@ TEST_CASE("fault freeze_pv: the process value stays put while the air moves") {
 TEST_CASE("fault alarm: the chamber's alarm reads true and fails bring-up") {
   MockProcess mock({"--time-scale", "50"});
   auto cfg = mock.example_config();
-  Chamber chamber(cfg.chamber);
+  ModbusChamber chamber(cfg.chamber);
   CHECK(*chamber.read_alarm() == false);
   mock.fault({{"name", "alarm"}});
   CHECK(*chamber.read_alarm() == true);
@@ -246,12 +246,12 @@ TEST_CASE("the gateway mode serves the thermistor module on the chamber's port b
   auto r = module.read_all();
   REQUIRE(r.has_value());
   CHECK(*(*r)[0].t1_c == Approx(20.0).margin(0.05));
-  Chamber chamber(cfg.chamber);
+  ModbusChamber chamber(cfg.chamber);
   CHECK(chamber.read_process_value_c().has_value());
   // A unit id the gateway does not have: an exception, a protocol error, the link stays up.
   auto other = cfg.chamber;
   other.modbus.unit_id = 7;
-  Chamber stranger(other);
+  ModbusChamber stranger(other);
   auto e = stranger.read_process_value_c();
   REQUIRE_FALSE(e.has_value());
   CHECK(e.error().code == ErrorCode::protocol);

@@ -93,7 +93,7 @@ TEST_CASE("faults given at start are active from the first request") {
   CHECK(faults[0] == json({{"name", "stall_modbus"}, {"device", "thermistors"}, {"ms", 5}}));
   CHECK(faults[1]["name"] == "alarm");
   CHECK(faults[2] == json({{"name", "open_thermistor"}, {"unit", 1}, {"serial", "SIM-0002"}, {"sensor", "t2"}}));
-  Chamber chamber(mock.example_config().chamber);
+  ModbusChamber chamber(mock.example_config().chamber);
   CHECK(*chamber.read_alarm() == true);
 }
 
@@ -201,7 +201,7 @@ TEST_CASE("mbpoll reads the process value the drivers read (independent Modbus c
   // scripts/deps installs mbpoll: a machine without it fails here rather than passing unchecked.
   if (status != 0) FAIL("mbpoll is not installed (apt-get install mbpoll): the cross-check cannot run");
   MockProcess mock;
-  Chamber chamber(mock.example_config().chamber);
+  ModbusChamber chamber(mock.example_config().chamber);
   auto pv = chamber.read_process_value_c();
   REQUIRE(pv.has_value());
   // Input register 1 in mbpoll's 1-based numbering is protocol address 0; -B: high word first.

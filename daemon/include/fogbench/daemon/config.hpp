@@ -36,6 +36,13 @@ struct AnalysisConfig {
   std::string terms = "paper";    // term list of automatic fits (model/terms.hpp)
   std::string method = "paper";   // paper | joint
   double verify_threshold = 0.2;  // compensated/raw std ratio a verification must stay under
+  // The verdict's second test (model::VerifyOptions): a run whose ratio passes is `marginal`
+  // when its compensated std exceeds this many times the model's noise std ...
+  double verify_max_noise_factor = 1.5;
+  // ... or when it has a failing interval (61 s average of the residual beyond 3 sigma_a) this
+  // long or longer, s.
+  double verify_max_fail_s = 60.0;
+  int max_iterations = 30;  // joint method: Cochrane-Orcutt iterations at most
 };
 
 // What a run does while the chamber cannot be polled (docs/daemon.md, "Faults").

@@ -14,13 +14,12 @@
 
 namespace fogbench::daemon {
 
-inline constexpr int kProtocolVersion = 1;
-
 // What a connection carries between requests.
 struct SessionState {
   bool subscribed = false;  // receives "sample" and "event" messages
-  // Commands that change something (run.start, run.abort, model.fit, model.verify) only on the
-  // local socket, whose file mode says who may use it; the TCP port is for reading.
+  // Commands that change something (is_control_command: run.start, run.abort, run.resume,
+  // model.fit, model.verify, model.add_term) only on the local socket, whose file mode says who
+  // may use it; the TCP port is for reading (or with the token).
   bool may_control = true;
   // On a connection that may only read: the token (socket.tcp.token) that lets a request
   // control anyway when it carries it in its `token` field. Empty: none is accepted.

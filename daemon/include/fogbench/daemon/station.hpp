@@ -3,6 +3,11 @@
 // into stored samples, commands the setpoint from the profile executor, and fits or verifies
 // models when a run completes. No I/O besides the store and no clock: the server passes the
 // daemon time and the readings, so tests drive whole runs in milliseconds.
+//
+// Its rooms, one job each: the state machine and the tick (station.cpp), the profiles it may
+// run (station_profiles.cpp), the status view (station_status.cpp), the end-of-run analysis
+// (station_analysis.cpp, over the analysis service of analysis.hpp), the write journal
+// (write_journal.hpp) and the pure building of a second's rows and messages (sample_rows.hpp).
 #pragma once
 
 #include <cstdint>
@@ -16,41 +21,17 @@
 
 #include <nlohmann/json.hpp>
 
+#include "fogbench/daemon/api.hpp"
 #include "fogbench/daemon/config.hpp"
 #include "fogbench/daemon/offload.hpp"
 #include "fogbench/daemon/power_on.hpp"
+#include "fogbench/daemon/write_journal.hpp"
 #include "fogbench/profiles/executor.hpp"
 #include "fogbench/profiles/profile.hpp"
+#include "fogbench/protocol/protocol.hpp"
 #include "fogbench/storage/store.hpp"
 
 namespace fogbench::daemon {
-
-// The protocol's error codes: stable strings, documented in docs/protocol.md.
-enum class ErrorCode {
-  bad_json,         // the line is not JSON
-  bad_request,      // JSON, but not a request: missing or mistyped field
-  unknown_command,  // no such cmd
-  not_found,        // no such run, unit, model, profile
-  busy,             // a run is active
-  invalid_profile,  // the profile does not parse
-  limits,           // the profile leaves the chamber's limits
-  unknown_serial,   // a serial not configured on this bench, or without a model to verify
-  forbidden,        // a command that changes something, on a connection that may only read (TCP)
-  internal,         // storage or analysis failed; the daemon keeps running
-  unavailable,      // the bench cannot run now: the chamber link is down (run.start, run.resume)
-};
-std::string_view to_string(ErrorCode c);
-
-struct ApiError {
-  ErrorCode code;
-  std::string message;
-};
-template <class T>
-using ApiResult = std::expected<T, ApiError>;
-
-inline std::unexpected<ApiError> api_error(ErrorCode c, std::string message) {
-  return std::unexpected(ApiError{c, std::move(message)});
-}
 
 // One configured unit's readings at one tick; an empty optional was not read.
 struct UnitReading {
@@ -108,7 +89,7 @@ class Station {
   // request as received, stored as the run's first command event.
   ApiResult<std::int64_t> start_run(const std::string& profile_name,
                                     const std::vector<std::string>& serials,
-                                    const std::string& purpose, const nlohmann::json& command);
+                                    storage::Purpose purpose, const nlohmann::json& command);
   // Takes up an interrupted run again (run.resume): the profile goes on from where its clock
   // stood at the last stored second (replayed from the stored samples, so settles decide as
   // they did), the run clock counts the time it was down, and the seconds of that gap are
@@ -198,24 +179,10 @@ class Station {
 
   void transition(ActiveRun& run, storage::RunState to, const std::string& reason,
                   std::optional<double> t_s);
-  // A state change or event the store refused (a full disk, an I/O error): kept, in order, and
-  // written again every 10 s of wall time until the store takes it, so the audit trail ends up complete
-  // and in order once there is room. A run's later writes queue behind its earlier ones.
-  struct Unrecorded {
-    std::int64_t run_id = 0;
-    std::optional<storage::RunState> state;  // a state change; otherwise an event
-    std::string reason;
-    storage::EventKind kind = storage::EventKind::note;
-    std::string detail_json;
-    std::optional<double> t_s;
-  };
-  storage::StoreResult<void> write(const Unrecorded& w);
-  // Runs a store call without waiting for another connection's lock while the store is
-  // refusing writes (store_refused_): a locked store must not stall the loop at every retry.
-  template <class Call>
-  auto without_waiting_if_refused(Call&& call);
-  void write_or_keep(Unrecorded w);
-  void flush_unrecorded();
+  // A state change or event: written through the journal, which keeps what the store refuses
+  // (a full disk, an I/O error) and writes it again every 10 s of wall time until the store
+  // takes it, so the audit trail ends up complete and in order once there is room.
+  void write_or_keep(WriteJournal::Write w);
   void event(std::int64_t run_id, storage::EventKind kind, const nlohmann::json& detail,
              std::optional<double> t_s);
   void finish(storage::RunState to, const std::string& reason);
@@ -240,9 +207,8 @@ class Station {
   // How the last run ended ({run_id, state, reason}), for status: a run ended by a fault is
   // reported even when the store could not take its final state (a full disk).
   nlohmann::json last_run_ = nullptr;
-  std::deque<Unrecorded> unrecorded_;
+  WriteJournal journal_{store_};
   double unrecorded_tried_clock_s_ = 0.0;
-  bool store_refused_ = false;  // the last write failed in a way that may pass (see write_or_keep)
   // Why recover() has not worked yet; empty once it has (or before it is first called).
   std::optional<std::string> recovery_error_;
   double recovery_tried_clock_s_ = 0.0;

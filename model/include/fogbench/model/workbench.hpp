@@ -93,9 +93,8 @@ struct DiagnoseOptions {
   int ccf_max_lag_s = 600;             // cross-correlations over lags 0..this, s
   int whiteness_lags = 20;
   std::optional<int> max_lag_s;        // lags searched, s (default: the model's; lower it for short runs)
-  // Candidates refitted in parallel (0: up to 4, as the machine has cores). Default 1: the
-  // core's gamma_q (stats.cpp) calls std::lgamma, which writes glibc's global signgam, so
-  // concurrent fits race there (ThreadSanitizer reports it); with lgamma_r it is safe.
+  // Candidates refitted in parallel (0: up to 4, as the machine has cores). Default 1; more is
+  // safe: the core's gamma_q (stats.cpp) uses lgamma_r, not std::lgamma's global signgam.
   int threads = 1;
   int lag_iterations = 4;              // rescans of a candidate's lag after the model's lags move
   bool second_lags = true;             // also try each model term again at a second lag

@@ -1,10 +1,11 @@
 // The line splitter of the command protocol.
-#include "fogbench/daemon/framing.hpp"
+#include "fogbench/protocol/framing.hpp"
 
+#include <algorithm>
 #include <set>
 #include <vector>
 
-namespace fogbench::daemon {
+namespace fogbench::protocol {
 
 namespace {
 
@@ -113,7 +114,7 @@ class CheckedSax {
 
 }  // namespace
 
-std::expected<json, std::string> parse_request(std::string_view line, std::size_t max_depth) {
+std::expected<json, std::string> parse_line(std::string_view line, std::size_t max_depth) {
   json out;
   CheckedSax sax(out, max_depth);
   bool ok = false;
@@ -133,12 +134,14 @@ std::expected<json, std::string> parse_request(std::string_view line, std::size_
 
 LineSplitter::Status LineSplitter::next(std::string& out) {
   if (spent_) return Status::too_long;
-  const auto nl = buffer_.find('\n', start_);
+  // The search resumes where the last one stopped: a long line arriving in many reads is
+  // scanned once, not once per read (O(n), not O(n^2) for a 64 MiB message).
+  const auto nl = buffer_.find('\n', std::max(start_, scanned_));
   if (nl == std::string::npos) {
     if (buffer_.size() - start_ > max_) {
       spent_ = true;
       buffer_.clear();
-      start_ = 0;
+      start_ = scanned_ = 0;
       return Status::too_long;
     }
     // Compact only when nothing is pending from the front, so a burst of lines is O(n).
@@ -146,19 +149,21 @@ LineSplitter::Status LineSplitter::next(std::string& out) {
       buffer_.erase(0, start_);
       start_ = 0;
     }
+    scanned_ = buffer_.size();
     return Status::incomplete;
   }
   std::size_t len = nl - start_;
   if (len > max_) {
     spent_ = true;
     buffer_.clear();
-    start_ = 0;
+    start_ = scanned_ = 0;
     return Status::too_long;
   }
   if (len > 0 && buffer_[nl - 1] == '\r') --len;
   out.assign(buffer_, start_, len);
   start_ = nl + 1;
+  scanned_ = start_;
   return Status::line;
 }
 
-}  // namespace fogbench::daemon
+}  // namespace fogbench::protocol

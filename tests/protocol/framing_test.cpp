@@ -1,9 +1,9 @@
 // The line splitter: whole lines out of arbitrary byte chunks, and the 1 MiB limit.
 #include <catch2/catch.hpp>
 
-#include "fogbench/daemon/framing.hpp"
+#include "fogbench/protocol/framing.hpp"
 
-using fogbench::daemon::LineSplitter;
+using fogbench::protocol::LineSplitter;
 using Status = LineSplitter::Status;
 
 TEST_CASE("framing: lines split across and within chunks") {
@@ -59,10 +59,10 @@ TEST_CASE("framing: a line over the limit is reported, with or without its newli
   }
 }
 
-// --- parse_request: the limits checked while a request line is parsed (docs/protocol.md)
+// --- parse_line: the limits checked while a request line is parsed (docs/protocol.md)
 
-using fogbench::daemon::kMaxDepth;
-using fogbench::daemon::parse_request;
+using fogbench::protocol::kMaxDepth;
+using fogbench::protocol::parse_line;
 
 namespace {
 // `{"id":1,"cmd":"status","x":` + n '[' + n ']' + `}`: issue 11's crash line at n = 100,000.
@@ -71,9 +71,9 @@ std::string nested_request(std::size_t n) {
 }
 }  // namespace
 
-TEST_CASE("framing: parse_request takes a request nested up to the limit") {
+TEST_CASE("framing: parse_line takes a request nested up to the limit") {
   // The request object is level 1, so kMaxDepth - 1 arrays inside it reach the limit exactly.
-  auto r = parse_request(nested_request(kMaxDepth - 1));
+  auto r = parse_line(nested_request(kMaxDepth - 1));
   REQUIRE(r.has_value());
   CHECK((*r)["cmd"] == "status");
   std::size_t depth = 1;
@@ -84,40 +84,40 @@ TEST_CASE("framing: parse_request takes a request nested up to the limit") {
   CHECK(depth == kMaxDepth);
 }
 
-TEST_CASE("framing: parse_request refuses one level past the limit, naming depth and column") {
-  auto r = parse_request(nested_request(kMaxDepth));
+TEST_CASE("framing: parse_line refuses one level past the limit, naming depth and column") {
+  auto r = parse_line(nested_request(kMaxDepth));
   REQUIRE(!r.has_value());
   // The prefix {"id":1,"cmd":"status","x": is 27 characters; the request's '{' is level 1, the
   // k-th '[' level k + 1, so level kMaxDepth + 1 opens at the kMaxDepth-th '[': column 27 + 64.
   CHECK(r.error() == "nesting deeper than 64 levels at column " + std::to_string(27 + kMaxDepth));
   // Brackets inside strings are not levels.
   const std::string quoted = R"({"id":1,"cmd":"status","s":")" + std::string(1000, '[') + R"("})";
-  CHECK(parse_request(quoted).has_value());
+  CHECK(parse_line(quoted).has_value());
 }
 
-TEST_CASE("framing: parse_request refuses issue 11's crash line without building it") {
+TEST_CASE("framing: parse_line refuses issue 11's crash line without building it") {
   // 200 KB, under the 1 MiB line limit; before the limit this overflowed the stack in a
   // recursive copy (and destruction) of the parsed request.
   const std::string line = nested_request(100000);
-  REQUIRE(line.size() < fogbench::daemon::kMaxLineBytes);
-  auto r = parse_request(line);
+  REQUIRE(line.size() < fogbench::protocol::kMaxLineBytes);
+  auto r = parse_line(line);
   REQUIRE(!r.has_value());
   CHECK(r.error().starts_with("nesting deeper than 64 levels"));
   // The same with objects, and with nothing closed.
   std::string objects;
   for (int i = 0; i < 100000; ++i) objects += R"({"a":)";
-  CHECK(!parse_request(objects).has_value());
-  CHECK(!parse_request(std::string(100000, '[')).has_value());
+  CHECK(!parse_line(objects).has_value());
+  CHECK(!parse_line(std::string(100000, '[')).has_value());
 }
 
-TEST_CASE("framing: parse_request refuses a key twice in one object, at any depth") {
-  auto top = parse_request(R"({"id":1,"cmd":"status","cmd":"run.abort"})");
+TEST_CASE("framing: parse_line refuses a key twice in one object, at any depth") {
+  auto top = parse_line(R"({"id":1,"cmd":"status","cmd":"run.abort"})");
   REQUIRE(!top.has_value());
   CHECK(top.error() == R"(duplicate key "cmd")");
-  auto deep = parse_request(R"({"id":1,"cmd":"run.start","x":{"y":[{"k":1,"k":2}]}})");
+  auto deep = parse_line(R"({"id":1,"cmd":"run.start","x":{"y":[{"k":1,"k":2}]}})");
   REQUIRE(!deep.has_value());
   CHECK(deep.error() == R"(duplicate key "k" in "x"."y")");
   // The same key in sibling objects is no duplicate; nor are keys that differ only in case.
-  CHECK(parse_request(R"({"id":1,"a":{"k":1},"b":{"k":2},"K":3,"k":4})").has_value());
-  CHECK(parse_request("{not json").error() == "not a JSON value");
+  CHECK(parse_line(R"({"id":1,"a":{"k":1},"b":{"k":2},"K":3,"k":4})").has_value());
+  CHECK(parse_line("{not json").error() == "not a JSON value");
 }

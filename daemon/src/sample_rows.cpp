@@ -1,0 +1,74 @@
+// One second of a run as stored and as pushed (sample_rows.hpp).
+#include "fogbench/daemon/sample_rows.hpp"
+
+#include <cmath>
+
+#include "fogbench/daemon/station.hpp"
+#include "fogbench/storage/run_data.hpp"
+
+namespace fogbench::daemon {
+
+namespace {
+double or_nan(std::optional<double> v) { return v ? *v : storage::kNoValue; }
+std::optional<double> finite(double v) { return std::isfinite(v) ? std::optional(v) : std::nullopt; }
+}  // namespace
+
+std::uint8_t quality_flags(const UnitReading& u, const TickInput& in, bool pv_frozen) {
+  std::uint8_t f = 0;
+  if (!u.gyro_dph || !u.t1_c || !u.t2_c || !in.chamber_c) f |= model::flag::missing;
+  if (u.frames_lost > 0 || u.frames_corrupt > 0) f |= model::flag::frames_lost;
+  bool oor = u.out_of_range;
+  for (auto t : {u.t1_c, u.t2_c})
+    if (t && (*t < kCoilMinC || *t > kCoilMaxC)) oor = true;
+  if (u.gyro_dph && std::abs(*u.gyro_dph) > kGyroMaxAbsDph) oor = true;
+  if (oor) f |= model::flag::out_of_range;
+  if (in.chamber_link_down) f |= model::flag::link_gap;
+  if (pv_frozen) f |= model::flag::pv_frozen;
+  return f;
+}
+
+storage::SampleRow sample_row(int unit_index, const UnitReading& u, const TickInput& in, double t_s,
+                              const profiles::ExecutorStatus& st, bool pv_frozen,
+                              std::optional<double> since_power_on_s) {
+  storage::SampleRow r;
+  r.unit_index = unit_index;
+  r.t_s = t_s;
+  r.wall_time = in.wall_time;
+  r.setpoint_c = st.setpoint_c;
+  r.chamber_c = or_nan(in.chamber_c);
+  r.gyro_dph = or_nan(u.gyro_dph);
+  r.frames = u.frames;
+  r.t1_c = or_nan(u.t1_c);
+  r.t2_c = or_nan(u.t2_c);
+  r.phase = storage::model_phase(st.phase);
+  r.step = static_cast<int>(st.step_index);
+  r.flags = quality_flags(u, in, pv_frozen);
+  r.since_power_on_s = or_nan(since_power_on_s);
+  return r;
+}
+
+protocol::SampleMessage sample_message(const storage::SampleRow& r, std::int64_t run_id, const std::string& serial,
+                                       storage::RunState state, const profiles::ExecutorStatus& st,
+                                       std::optional<double> chamber_c) {
+  protocol::SampleMessage m;
+  m.run_id = run_id;
+  m.t_s = r.t_s;
+  m.state = std::string(storage::to_string(state));
+  m.phase = std::string(profiles::to_string(st.phase));
+  m.step = st.step_index;
+  m.elapsed_s = r.t_s;
+  m.remaining_s = st.remaining_s;
+  m.setpoint_c = st.setpoint_c;
+  m.chamber_c = chamber_c;
+  m.unit = r.unit_index;
+  m.serial = serial;
+  m.gyro_dph = finite(r.gyro_dph);
+  m.frames = r.frames.value_or(0);
+  m.t1_c = finite(r.t1_c);
+  m.t2_c = finite(r.t2_c);
+  m.flags = r.flags;
+  m.since_power_on_s = finite(r.since_power_on_s);
+  return m;
+}
+
+}  // namespace fogbench::daemon

@@ -1,0 +1,53 @@
+// The automatic analysis when a run completes: each unit's fit or verification computed on the
+// offload (the analysis service of analysis.hpp, on fogbenchd's analysis worker), stored and
+// noted back on the loop.
+#include <memory>
+
+#include "fogbench/daemon/analysis.hpp"
+#include "fogbench/daemon/station.hpp"
+
+namespace fogbench::daemon {
+
+using nlohmann::json;
+
+void Station::analyse(std::int64_t run_id, storage::Purpose purpose,
+                      const std::vector<std::string>& serials) {
+  // The fits or verifications are computed on the offload (fogbenchd's analysis worker, with its
+  // own read connection): a long fit must not hold up the next run's seconds or the replies.
+  // What they produced is stored here, on the loop, in unit order, each with its note.
+  const AnalysisConfig config = config_.analysis;
+  const std::string created_at = wall_clock_();
+  offload_->submit([this, run_id, purpose, serials, config, created_at](storage::Store& reader) -> Offload::Then {
+    auto computed = std::make_shared<std::vector<ApiResult<analysis::Commit>>>();
+    for (std::size_t i = 0; i < serials.size(); ++i) {
+      const int unit = static_cast<int>(i);
+      try {
+        computed->push_back(purpose == storage::Purpose::fit
+                                ? analysis::fit(reader, config, run_id, unit, "", "", created_at)
+                                : analysis::verify(reader, config, run_id, unit, std::nullopt));
+      } catch (const std::exception& e) {  // a bug: reported as the unit's failed analysis
+        computed->push_back(api_error(ErrorCode::internal, e.what()));
+      }
+    }
+    return [this, run_id, purpose, serials, computed] {
+      for (std::size_t i = 0; i < serials.size(); ++i) {
+        json detail = {{"analysis", std::string(storage::to_string(purpose))}, {"unit", static_cast<int>(i)},
+                       {"serial", serials[i]}};
+        ApiResult<json> r = (*computed)[i] ? (*(*computed)[i])(store_) : std::unexpected((*computed)[i].error());
+        if (r && purpose == storage::Purpose::fit) {
+          detail["model_id"] = (*r)["model_id"];
+          detail["n_flagged"] = (*r)["n_flagged"];
+          if (r->contains("warning")) detail["warning"] = (*r)["warning"];
+        } else if (r) {
+          detail["verification_id"] = (*r)["verification_id"];
+          detail["pass"] = (*r)["pass"];
+        }
+        detail["ok"] = r.has_value();
+        if (!r) detail["error"] = r.error().message;
+        event(run_id, storage::EventKind::note, detail, std::nullopt);
+      }
+    };
+  });
+}
+
+}  // namespace fogbench::daemon

@@ -1,0 +1,147 @@
+// The protocol's codes, hello and message shapes: what the daemon writes is what fogctl reads.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+#include "fogbench/protocol/framing.hpp"
+#include "fogbench/protocol/protocol.hpp"
+
+using namespace fogbench::protocol;
+using nlohmann::json;
+
+TEST_CASE("protocol: every error code has its documented wire string, and back") {
+  // docs/protocol.md's table, in its order.
+  const std::pair<ErrorCode, const char*> table[] = {
+      {ErrorCode::bad_json, "bad_json"},         {ErrorCode::bad_request, "bad_request"},
+      {ErrorCode::unknown_command, "unknown_command"}, {ErrorCode::not_found, "not_found"},
+      {ErrorCode::busy, "busy"},                 {ErrorCode::invalid_profile, "invalid_profile"},
+      {ErrorCode::limits, "limits"},             {ErrorCode::unknown_serial, "unknown_serial"},
+      {ErrorCode::forbidden, "forbidden"},       {ErrorCode::internal, "internal"},
+      {ErrorCode::unavailable, "unavailable"},
+  };
+  for (const auto& [code, text] : table) {
+    CHECK(to_string(code) == text);
+    CHECK(error_code_from_string(text) == code);
+  }
+  CHECK_FALSE(error_code_from_string("connection").has_value());
+}
+
+TEST_CASE("protocol: hello carries the version and the limits, and a client takes only its own version") {
+  const json h = to_json(Hello{"1.2.3"});
+  CHECK(h["type"] == "hello");
+  CHECK(h["protocol"] == kProtocolVersion);
+  CHECK(h["max_line_bytes"] == kMaxLineBytes);
+  CHECK(h["limits"]["max_depth"] == kMaxDepth);
+  auto back = hello_from_json(h);
+  REQUIRE(back.has_value());
+  CHECK(back->version == "1.2.3");
+
+  json other = h;
+  other["protocol"] = kProtocolVersion + 1;
+  auto refused = hello_from_json(other);
+  REQUIRE_FALSE(refused.has_value());
+  CHECK_THAT(refused.error(), Catch::Contains("speaks protocol " + std::to_string(kProtocolVersion + 1)));
+
+  json none = h;
+  none.erase("protocol");
+  CHECK_THAT(hello_from_json(none).error(), Catch::Contains("no protocol version"));
+  CHECK_THAT(hello_from_json(json{{"type", "reply"}}).error(), Catch::Contains("did not say hello"));
+}
+
+TEST_CASE("protocol: a stored sample goes to JSON and back, values not read as null") {
+  Sample s;
+  s.t_s = 598.0;
+  s.wall_time = 1795298101.25;
+  s.setpoint_c = 20.0;
+  s.chamber_c = std::nan("");  // not read: null on the wire, absent when read back
+  s.gyro_dph = -7.98;
+  s.frames = 100;
+  s.t1_c = 20.5;
+  s.phase = "hold";
+  s.step = 1;
+  s.flags = 1;
+  const json j = to_json(s);
+  CHECK(j["chamber_c"].is_null());
+  CHECK(j["t2_c"].is_null());
+  CHECK(j["since_power_on_s"].is_null());
+  auto back = sample_from_json(json::parse(j.dump()));
+  REQUIRE(back.has_value());
+  CHECK(back->t_s == 598.0);
+  CHECK(back->wall_time == 1795298101.25);
+  CHECK_FALSE(back->chamber_c.has_value());
+  CHECK(back->gyro_dph == -7.98);
+  CHECK(back->frames == 100);
+  CHECK(back->phase == "hold");
+  CHECK(back->step == 1);
+  CHECK(back->flags == 1);
+}
+
+TEST_CASE("protocol: a malformed sample is refused naming the field") {
+  json j = to_json(Sample{});
+  j["gyro_dph"] = "fast";
+  CHECK(sample_from_json(j).error() == "sample.gyro_dph: expected a number or null");
+  j = to_json(Sample{});
+  j.erase("t_s");
+  CHECK(sample_from_json(j).error() == "sample.t_s: expected a number");
+}
+
+TEST_CASE("protocol: pushed sample and event messages go to JSON and back") {
+  SampleMessage m;
+  m.run_id = 3;
+  m.t_s = 660.0;
+  m.state = "running";
+  m.phase = "heating";
+  m.step = 2;
+  m.elapsed_s = 660.0;
+  m.remaining_s = 1140.0;
+  m.setpoint_c = 21.0;
+  m.unit = 1;
+  m.serial = "FOG-0002";
+  m.gyro_dph = -8.11;
+  m.frames = 100;
+  const json j = to_json(m);
+  CHECK(j["type"] == "sample");
+  CHECK(j["chamber_c"].is_null());
+  auto back = sample_message_from_json(json::parse(j.dump()));
+  REQUIRE(back.has_value());
+  CHECK(back->serial == "FOG-0002");
+  CHECK(back->step == 2);
+  CHECK(back->gyro_dph == -8.11);
+  CHECK_FALSE(back->chamber_c.has_value());
+
+  const json e = to_json(EventMessage{3, std::nullopt, "state", {{"to", "aborted"}}});
+  CHECK(e["t_s"].is_null());
+  auto eb = event_message_from_json(e);
+  REQUIRE(eb.has_value());
+  CHECK(eb->kind == "state");
+  CHECK(eb->detail["to"] == "aborted");
+  CHECK_THAT(event_message_from_json(j).error(), Catch::Contains("type \"event\""));
+}
+
+TEST_CASE("framing: a line far over the limit arriving in many small reads is reported once it passes") {
+  // The splitter resumes its newline search where it stopped: feeding 64 KiB at a time up to the
+  // limit never reports a line, and one byte more is too_long.
+  LineSplitter s(1 << 20);
+  std::string line;
+  const std::string chunk(1 << 16, 'x');
+  for (int i = 0; i < 16; ++i) {
+    s.feed(chunk);
+    REQUIRE(s.next(line) == LineSplitter::Status::incomplete);
+  }
+  s.feed("y");
+  CHECK(s.next(line) == LineSplitter::Status::too_long);
+}
+
+TEST_CASE("framing: a newline in a later read ends a line whose start was scanned already") {
+  LineSplitter s;
+  std::string line;
+  s.feed("{\"id\":");
+  REQUIRE(s.next(line) == LineSplitter::Status::incomplete);
+  s.feed("1}");
+  REQUIRE(s.next(line) == LineSplitter::Status::incomplete);
+  s.feed("\n{\"id\":2}\n");
+  REQUIRE(s.next(line) == LineSplitter::Status::line);
+  CHECK(line == "{\"id\":1}");
+  REQUIRE(s.next(line) == LineSplitter::Status::line);
+  CHECK(line == "{\"id\":2}");
+}
