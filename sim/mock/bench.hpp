@@ -1,11 +1,12 @@
 // The mock bench: sim::World stepped on a clock K times faster than real time and served as the
-// bench's hardware. One object owns everything: the Modbus TCP listeners and their clients
-// (chamber controller and thermistor module, libmodbus in a poll() loop on the calling thread),
-// the gyros' CAN bus (an AF_UNIX SOCK_SEQPACKET socket it listens on, one struct can_frame per
-// datagram), the control socket, the signal handling, and a clock thread that steps the physics
-// and sends the frames. No client can block the clock: the two threads share only the served
-// registers, the fault state and a status snapshot, under one mutex, and the list of CAN
-// clients, under another. Described for users in docs/mock-bench.md.
+// bench's hardware. Its parts, each in its own file: the Modbus TCP server (chamber controller
+// and thermistor module, libmodbus in a poll() loop on the calling thread; modbus_server.hpp),
+// the gyros' CAN bus (an AF_UNIX SOCK_SEQPACKET socket, one struct can_frame per datagram;
+// can_bus.hpp), the clock thread that steps the physics and sends the frames (bench_clock.hpp),
+// and here the control socket, the signal handling and the loop. No client can block the clock:
+// the two threads share only the served registers, the fault state and a status snapshot, under
+// one mutex (shared_state.hpp), and the list of CAN readers, under the bus's own. Described for
+// users in docs/mock-bench.md.
 #pragma once
 
 #include <nlohmann/json.hpp>
