@@ -157,6 +157,7 @@
     if (r && r.id !== runId) {
       startRun(r.id, r.units);
       loadHistory(r.id);
+      refreshVerdicts();  // the new run heads the table
     }
   }
   async function refreshStatus() {

@@ -7,6 +7,7 @@
 #include <catch2/catch.hpp>
 
 #include <cstdlib>
+#include <cstring>
 #include <iostream>
 
 #include "../daemon/live_bench.hpp"
@@ -21,7 +22,10 @@ namespace {
 
 const std::string kToken = "web-panel-token-0123456789";
 
+// FOGBENCH_CHROMIUM names the browser (a path that does not exist: the test reports SKIPPED,
+// which is how the skip itself is checked).
 std::string find_chromium() {
+  if (const char* c = std::getenv("FOGBENCH_CHROMIUM")) return std::filesystem::exists(c) ? c : "";
   for (const char* c : {"/usr/bin/chromium", "/usr/bin/chromium-browser", "/usr/bin/google-chrome"})
     if (std::filesystem::exists(c)) return c;
   return {};
@@ -69,6 +73,26 @@ class Browser {
                           {"params", {{"expression", expr}, {"returnByValue", true}, {"awaitPromise", true}}}});
     if (!r.is_object() || !r.contains("result") || r["result"].contains("exceptionDetails")) return nullptr;
     return r["result"]["result"].value("value", json(nullptr));
+  }
+  // A PNG of the page (Page.captureScreenshot), empty when it failed.
+  std::string screenshot() {
+    auto r = page_->call({{"method", "Page.captureScreenshot"}, {"params", {{"format", "png"}}}});
+    if (!r.is_object() || !r.contains("result")) return {};
+    const std::string b64 = r["result"].value("data", "");
+    std::string out;
+    int val = 0, bits = -8;
+    for (unsigned char ch : b64) {
+      const char* table = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+      const char* p = std::strchr(table, ch);
+      if (!p || ch == 0) break;
+      val = (val << 6) + static_cast<int>(p - table);
+      bits += 6;
+      if (bits >= 0) {
+        out.push_back(static_cast<char>((val >> bits) & 0xff));
+        bits -= 8;
+      }
+    }
+    return out;
   }
   // Polls a boolean expression until it holds or the deadline passes.
   bool until(const std::string& expr, std::chrono::seconds timeout) {
@@ -121,6 +145,11 @@ TEST_CASE("the live panel in headless Chromium: samples plotted, a fault shown, 
   CHECK(b.eval("document.querySelectorAll('#plot-drift canvas').length") == 1);
   CHECK(b.until("document.getElementById('run-id').textContent === '" + std::to_string(run) + "'", 30s));
   CHECK(b.eval("document.getElementById('run-elapsed').textContent.length > 0") == true);
+  // A picture for people (only if FOGBENCH_PANEL_SHOT names a file to write it to).
+  if (const char* shot = std::getenv("FOGBENCH_PANEL_SHOT")) {
+    std::this_thread::sleep_for(2s);
+    std::ofstream(shot, std::ios::binary) << b.screenshot();
+  }
 
   // Abort from the page without the token: refused (forbidden), shown, and the run goes on.
   CHECK(b.eval("fogPanel.abort().then(r => r.error ? r.error.code : 'ok')") == "forbidden");
