@@ -223,6 +223,18 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       if (!websocket::is_upgrade(req))
         return error(http::status::upgrade_required, "/ws is a WebSocket: connect with an Upgrade request",
                      req.version(), !req.keep_alive());
+      // A page of another site may not open the panel's WebSocket in the operator's browser
+      // (cross-site WebSocket hijacking: reads need no token). Browsers send Origin; its host
+      // must be the Host the page was loaded from. Clients that send no Origin are not browsers.
+      if (const auto origin = req[http::field::origin]; !origin.empty()) {
+        const std::string o(origin);
+        const auto scheme = o.find("://");
+        const std::string host = scheme == std::string::npos ? o : o.substr(scheme + 3);
+        if (host != std::string(req[http::field::host])) {
+          spdlog::warn("web client {}: WebSocket from origin {} refused (host {})", peer_, o, std::string(req[http::field::host]));
+          return error(http::status::forbidden, "WebSocket from another origin (" + o + ") refused", req.version(), true);
+        }
+      }
       if (server_->hooks.full && server_->hooks.full()) {
         spdlog::warn("web client {}: too many clients (socket.max_clients); refused", peer_);
         return error(http::status::service_unavailable, "too many clients (socket.max_clients); retry later",

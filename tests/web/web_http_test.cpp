@@ -156,6 +156,17 @@ TEST_CASE("bad input on the HTTP side gets a clear error and the daemon goes on"
   CHECK(code_of(json::parse(bad.body, nullptr, false)) == "bad_json");
   // /ws without the upgrade.
   CHECK(http_get(port, "/ws").status == 426);
+  // A WebSocket opened by a page of another site (its Origin) is refused; from the panel's own
+  // origin it is accepted (101).
+  auto upgrade = [&](const std::string& origin) {
+    return http_raw(port, "GET /ws HTTP/1.1\r\nHost: 127.0.0.1:" + std::to_string(port) +
+                              "\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                              "Sec-WebSocket-Version: 13\r\nOrigin: " + origin + "\r\n\r\n", 10s);
+  };
+  auto evil = upgrade("http://evil.example");
+  CHECK(evil.status == 403);
+  CHECK(evil.body.find("WebSocket from another origin (http://evil.example) refused") != std::string::npos);
+  CHECK(upgrade("http://127.0.0.1:" + std::to_string(port)).status == 101);
 
   // WebSocket garbage: a bad line is an error reply and the connection stays; a binary message
   // is refused the same way; a message over 1 MiB closes the connection.
