@@ -63,7 +63,7 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   if (!j.is_object()) return Err("configuration: expected a JSON object");
   if (auto ok = only_keys(j, "", {"simulated", "storage", "socket", "chamber_limits",
                                   "safe_setpoint_c", "profile_dir", "map_dir", "analysis",
-                                  "link_loss", "tracking", "drivers", "sim_clock"});
+                                  "link_loss", "tracking", "drivers", "sim_clock", "web"});
       !ok)
     return Err(ok.error());
   DaemonConfig c;
@@ -100,6 +100,12 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
         return Err("storage.size_limit_bytes: expected an integer >= 65536");
       c.storage_size_limit_bytes = v.get<long long>();
     }
+  }
+
+  if (j.contains("web") && !j["web"].is_null()) {
+    auto w = parse_web_config(j["web"]);
+    if (!w) return Err(w.error());
+    c.web = *w;
   }
 
   if (j.contains("socket")) {

@@ -32,6 +32,7 @@
 #include "fogbench/protocol/framing.hpp"
 #include "fogbench/daemon/handler.hpp"
 #include "fogbench/daemon/instance.hpp"
+#include "fogbench/daemon/metrics.hpp"
 #include "fogbench/daemon/station.hpp"
 #include "fogbench/drivers/chamber.hpp"
 #include "fogbench/drivers/gyro_bus.hpp"
@@ -39,6 +40,7 @@
 #include "analysis_worker.hpp"
 #include "session.hpp"
 #include "sim_clock.hpp"
+#include "web_server.hpp"
 
 namespace fogbench::daemon {
 
@@ -139,7 +141,16 @@ struct Server::Impl {
   std::int64_t late_polls = 0;           // ticks that used the previous period's reading
   std::optional<double> written_setpoint_c;
   bool write_in_flight = false;
-  std::int64_t late_ticks = 0;
+  // For the metrics (web_metrics.cpp): seconds acquired, skipped, and how late the ticks ran.
+  std::int64_t ticks_done = 0, ticks_skipped = 0;
+  double tick_late_s = 0.0, tick_late_max_s = 0.0;
+  void note_lateness(Clock::time_point due) {
+    ++ticks_done;
+    tick_late_s = std::max(0.0, std::chrono::duration<double>(Clock::now() - due).count());
+    tick_late_max_s = std::max(tick_late_max_s, tick_late_s);
+  }
+  // The web panel and metrics (web.hpp), when configured.
+  std::unique_ptr<web::WebServer> web;
 
   // The shared simulated clock (config.sim_clock, fogbench-sim --paced): the daemon paces the
   // world. Second k is acquired once a worker job has written the setpoint of tick k-1, asked
@@ -455,6 +466,7 @@ struct Server::Impl {
     if (slot % 2 != 0) {  // odd, including the first slot, -1
       post_poll();
     } else {
+      note_lateness(t0 + slot * half_period);
       tick(slot / 2);
     }
     ++slot;
@@ -463,6 +475,7 @@ struct Server::Impl {
 
   // A second the loop was too late to acquire: nothing read, the profile steps on.
   void tick_unread(std::int64_t k) {
+    ++ticks_skipped;
     TickInput in = new_input();
     in.late = true;
     in.gyro_read = false;  // its frames go into the next period's sample
@@ -601,6 +614,7 @@ struct Server::Impl {
   void paced_tick() {
     PacedResult r = std::move(*paced_result);
     paced_result.reset();
+    note_lateness(t0 + paced_k * period);
     const std::int64_t k = paced_k++;
     // Every frame of the second the bench stepped is in the socket: read them all now.
     if (bus && gyro_sd.is_open())
@@ -642,6 +656,32 @@ struct Server::Impl {
     paced_schedule();
   }
 
+  // --- the web side: GET /metrics
+  std::string metrics() {
+    MetricsInput in;
+    in.status = station->status();
+    if (config.storage_path != ":memory:") {
+      std::int64_t bytes = 0;
+      for (const char* suffix : {"", "-wal", "-shm"}) {
+        std::error_code ec;
+        const auto n = std::filesystem::file_size(config.storage_path.string() + suffix, ec);
+        if (!ec) bytes += static_cast<std::int64_t>(n);
+      }
+      in.store_bytes = bytes;
+    }
+    in.web_clients = web ? web->open_websockets() : 0;
+    const std::size_t all = open_sessions();
+    in.socket_clients = all >= in.web_clients ? all - in.web_clients : 0;
+    in.http_requests = web ? web->requests() : 0;
+    in.ticks = ticks_done;
+    in.ticks_skipped = ticks_skipped;
+    in.polls_late = late_polls;
+    in.paced_slowed = paced_slowed;
+    in.tick_lateness_s = tick_late_s;
+    in.tick_lateness_max_s = tick_late_max_s;
+    return render_metrics(in);
+  }
+
   // --- stopping
   void begin_stop(const std::string& why) {
     if (stopping) return;
@@ -656,6 +696,7 @@ struct Server::Impl {
     signals.cancel();
     if (unix_acceptor) unix_acceptor->close(ec);
     if (tcp_acceptor) tcp_acceptor->close(ec);
+    if (web) web->stop();
     for (auto& w : sessions)
       if (auto s = w.lock()) s->close();
     sessions.clear();
@@ -762,6 +803,14 @@ std::expected<void, Server::StartError> Server::start() {
   m.store.emplace(std::move(*store));
   m.station = std::make_unique<Station>(m.config, *m.store, m.options.time_scale);
   m.handler = std::make_unique<Handler>(*m.station);
+  if (m.config.web) {
+    web::WebServer::Hooks hooks;
+    hooks.full = [&m] { return m.open_sessions() >= static_cast<std::size_t>(m.config.socket.max_clients); };
+    hooks.admit = [&m](const std::shared_ptr<SessionBase>& s) { m.sessions.push_back(s); };
+    hooks.metrics = [&m] { return m.metrics(); };
+    m.web = std::make_unique<web::WebServer>(m.io, *m.handler, *m.config.web, m.config.socket.tcp_token, std::move(hooks));
+    if (auto ok = m.web->bind(); !ok) return fail(ok.error());
+  }
   // The analysis worker reads through its own connection (WAL: beside the loop's writes). A
   // store it cannot open (":memory:") leaves the analysis on the loop, as before issue 11.
   {
@@ -803,6 +852,7 @@ int Server::run() {
   });
   m.accept_unix();
   if (m.tcp_acceptor) m.accept_tcp();
+  if (m.web) m.web->start();
 
   // Start-up: the chamber goes to its safe setpoint and runs, before anything else is asked.
   const double safe = m.config.safe_setpoint_c;
@@ -839,7 +889,8 @@ int Server::run() {
   // One line on stdout when ready, for scripts and tests that start the daemon.
   std::cout << json{{"ready", true}, {"socket", m.config.socket.unix_path.string()},
                     {"tcp_port", m.config.socket.tcp_port ? json(*m.config.socket.tcp_port) : json(nullptr)},
-                    {"pid", ::getpid()}, {"time_scale", m.options.time_scale}}
+                    {"pid", ::getpid()}, {"time_scale", m.options.time_scale},
+                    {"web_port", m.web ? json(m.web->port()) : json(nullptr)}}
                    .dump()
             << std::endl;
 

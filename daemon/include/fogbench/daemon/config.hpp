@@ -32,6 +32,15 @@ struct SocketConfig {
   std::optional<double> idle_timeout_s = 600.0;
 };
 
+// The web panel and metrics (docs/web.md): off unless configured. Loopback unless allow_remote.
+struct WebConfig {
+  std::string address = "127.0.0.1";
+  std::uint16_t port = 8080;  // 0: the kernel picks (reported in the ready line's web_port)
+  bool allow_remote = false;  // a non-loopback address is refused unless true
+};
+// Parses the `web` section ({listen: "host:port", allow_remote?}); errors name the field.
+std::expected<WebConfig, std::string> parse_web_config(const nlohmann::json& j);
+
 struct AnalysisConfig {
   std::string terms = "paper";    // term list of automatic fits (model/terms.hpp)
   std::string method = "paper";   // paper | joint
@@ -67,6 +76,7 @@ struct DaemonConfig {
   bool storage_synchronous_full = true;    // fsync every commit (see storage's OpenOptions)
   std::optional<std::int64_t> storage_size_limit_bytes;  // the store never grows past it (disk_full)
   SocketConfig socket;
+  std::optional<WebConfig> web;            // the web panel; off when empty
   profiles::ChamberLimits limits;
   double safe_setpoint_c = 20.0;
   std::filesystem::path profile_dir;

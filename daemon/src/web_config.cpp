@@ -1,0 +1,54 @@
+// The `web` section of fogbenchd's configuration (docs/web.md): where the web panel and the
+// metrics listen. Loopback unless the configuration says allow_remote, since the panel's reads
+// need no token.
+#include "fogbench/daemon/config.hpp"
+
+#include <boost/asio/ip/address.hpp>
+
+namespace fogbench::daemon {
+
+using nlohmann::json;
+
+std::expected<WebConfig, std::string> parse_web_config(const json& j) {
+  using Err = std::unexpected<std::string>;
+  if (!j.is_object()) return Err("web: expected an object {\"listen\": \"127.0.0.1:8080\", \"allow_remote\"?}");
+  for (const auto& [key, value] : j.items())
+    if (key != "listen" && key != "allow_remote") return Err("web." + key + ": unknown field");
+  WebConfig w;
+  if (j.contains("allow_remote")) {
+    if (!j["allow_remote"].is_boolean()) return Err("web.allow_remote: expected true or false");
+    w.allow_remote = j["allow_remote"].get<bool>();
+  }
+  if (!j.contains("listen")) return Err("web.listen: missing (e.g. \"127.0.0.1:8080\")");
+  if (!j["listen"].is_string()) return Err("web.listen: expected a string \"address:port\"");
+  const std::string listen = j["listen"].get<std::string>();
+  // "host:port" or "[v6]:port".
+  std::string host, port;
+  if (!listen.empty() && listen.front() == '[') {
+    const auto close = listen.find(']');
+    if (close == std::string::npos || close + 1 >= listen.size() || listen[close + 1] != ':')
+      return Err("web.listen: expected \"[address]:port\" for IPv6, got \"" + listen + "\"");
+    host = listen.substr(1, close - 1);
+    port = listen.substr(close + 2);
+  } else {
+    const auto colon = listen.rfind(':');
+    if (colon == std::string::npos) return Err("web.listen: expected \"address:port\", got \"" + listen + "\"");
+    host = listen.substr(0, colon);
+    port = listen.substr(colon + 1);
+  }
+  boost::system::error_code ec;
+  const auto addr = boost::asio::ip::make_address(host, ec);
+  if (ec) return Err("web.listen: not an IP address: \"" + host + "\"");
+  if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos ||
+      std::stoul(port) > 65535)
+    return Err("web.listen: expected a port 0..65535 after the address, got \"" + port + "\"");
+  if (!addr.is_loopback() && !w.allow_remote)
+    return Err("web.listen: " + host +
+               " is not a loopback address; the panel's reads need no token, so serving other hosts needs "
+               "\"allow_remote\": true");
+  w.address = host;
+  w.port = static_cast<std::uint16_t>(std::stoul(port));
+  return w;
+}
+
+}  // namespace fogbench::daemon

@@ -1,0 +1,412 @@
+// fogbenchd's HTTP and WebSocket server (web_server.hpp, docs/web.md). Rooms: HttpSession reads
+// one request at a time with Beast's parser (limits on headers and body, a deadline) and routes
+// it; WsSession is a protocol session over a WebSocket: each text message is one request line for
+// the same Handler the command socket uses, its replies and the pushed `sample`/`event` lines go
+// back as text messages. Everything runs on the daemon's loop thread.
+#include "web_server.hpp"
+
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
+#include <deque>
+#include <list>
+
+#include <spdlog/spdlog.h>
+
+#include "fogbench/protocol/framing.hpp"
+#include "web_assets.hpp"
+
+namespace fogbench::daemon::web {
+
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace websocket = beast::websocket;
+using tcp = asio::ip::tcp;
+using nlohmann::json;
+
+struct WebServer::Impl : std::enable_shared_from_this<WebServer::Impl> {
+  asio::io_context& io;
+  Handler& handler;
+  WebConfig config;
+  std::string control_token;
+  Hooks hooks;
+  std::optional<tcp::acceptor> acceptor;
+  std::list<std::weak_ptr<net::SessionBase>> websockets;
+  std::uint64_t requests = 0;
+  bool stopped = false;
+
+  Impl(asio::io_context& i, Handler& h, WebConfig c, std::string t, Hooks k)
+      : io(i), handler(h), config(std::move(c)), control_token(std::move(t)), hooks(std::move(k)) {}
+
+  void accept();
+  // The HTTP connections open, each with how to close it (on stop).
+  std::list<std::pair<std::weak_ptr<void>, std::function<void()>>> closers;
+};
+
+namespace {
+
+// A WebSocket carrying the command protocol: one JSON request per text message, one reply per
+// request (in order: the next message is read once the reply is queued), pushed messages after
+// `subscribe`. Bounded like the socket's sessions: a client that stops reading is dropped.
+class WsSession : public net::SessionBase, public std::enable_shared_from_this<WsSession> {
+ public:
+  WsSession(tcp::socket socket, Handler& handler, std::string peer, std::string control_token)
+      : ws_(std::move(socket)), timer_(ws_.get_executor()), handler_(handler), peer_(std::move(peer)) {
+    state_.may_control = false;
+    state_.control_token = std::move(control_token);
+  }
+
+  void start(http::request<http::string_body> req) {
+    ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
+    ws_.set_option(websocket::stream_base::decorator([](websocket::response_type& res) {
+      res.set(http::field::server, std::string("fogbenchd/") + FOGBENCH_DAEMON_VERSION);
+    }));
+    ws_.read_message_max(protocol::kMaxLineBytes);
+    ws_.async_accept(req, [self = shared_from_this()](beast::error_code ec) {
+      if (ec) {
+        spdlog::info("web client {}: WebSocket handshake failed: {}", self->peer_, ec.message());
+        return self->close();
+      }
+      self->send(net::wire(Handler::hello()));
+      self->read();
+    });
+  }
+
+  void push(const std::shared_ptr<const std::string>& line) override {
+    if (state_.subscribed) send(line);
+  }
+  void close() override {
+    if (closed_) return;
+    closed_ = true;
+    beast::error_code ec;
+    beast::get_lowest_layer(ws_).socket().shutdown(tcp::socket::shutdown_both, ec);
+    beast::get_lowest_layer(ws_).socket().close(ec);
+    timer_.cancel();
+  }
+  bool subscribed() const override { return state_.subscribed; }
+  bool is_closed() const override { return closed_; }
+  // Served from its own reads, never through the socket's Turns.
+  bool serve_one() override { return false; }
+  bool servable() const override { return false; }
+
+ private:
+  void read() {
+    if (closed_) return;
+    ws_.async_read(buf_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
+      if (ec) {
+        if (ec == websocket::error::message_too_big)
+          spdlog::warn("web client {}: message over {} bytes; closing", self->peer_, protocol::kMaxLineBytes);
+        return self->close();
+      }
+      std::string line = beast::buffers_to_string(self->buf_.data());
+      self->buf_.consume(self->buf_.size());
+      if (!self->ws_.got_text()) {
+        self->send(net::wire(Handler::error(nullptr, ErrorCode::bad_request,
+                                            "binary message: the panel's protocol is JSON text, one request per message")));
+        return self->read();
+      }
+      self->handler_.handle_line(line, self->state_, [self](Handler::Line reply) {
+        self->send(std::move(reply));
+        self->read();
+      });
+    });
+  }
+
+  void send(std::shared_ptr<const std::string> line) {
+    if (closed_) return;
+    queued_bytes_ += line->size();
+    if (queued_bytes_ > net::kMaxQueuedBytes) {
+      spdlog::warn("web client {}: {} bytes unread; dropping it", peer_, queued_bytes_);
+      return close();
+    }
+    queue_.push_back(std::move(line));
+    if (queue_.size() == 1) write();
+  }
+
+  void write() {
+    auto self = shared_from_this();
+    timer_.expires_after(net::kWriteDeadline);
+    timer_.async_wait([self](boost::system::error_code ec) {
+      if (!ec) {
+        spdlog::warn("web client {}: write deadline passed; closing", self->peer_);
+        self->close();
+      }
+    });
+    const auto& l = *queue_.front();
+    // The protocol's line without its newline: one message is one JSON object.
+    const std::size_t n = !l.empty() && l.back() == '\n' ? l.size() - 1 : l.size();
+    ws_.text(true);
+    ws_.async_write(asio::buffer(l.data(), n), [self](beast::error_code ec, std::size_t) {
+      self->timer_.cancel();
+      if (ec || self->closed_) return self->close();
+      self->queued_bytes_ -= self->queue_.front()->size();
+      self->queue_.pop_front();
+      if (!self->queue_.empty()) self->write();
+    });
+  }
+
+  websocket::stream<beast::tcp_stream> ws_;
+  asio::steady_timer timer_;
+  Handler& handler_;
+  std::string peer_;
+  SessionState state_;
+  beast::flat_buffer buf_;
+  std::deque<std::shared_ptr<const std::string>> queue_;
+  std::size_t queued_bytes_ = 0;
+  bool closed_ = false;
+};
+
+// The reply's HTTP status for POST /api: the protocol's error code says what went wrong.
+http::status status_of(const std::string& reply) {
+  if (reply.size() > 65536) return http::status::ok;  // errors are small; a large reply is a result
+  const json j = json::parse(reply, nullptr, false);
+  if (!j.is_object() || !j.contains("error") || !j["error"].is_object()) return http::status::ok;
+  const std::string code = j["error"].value("code", "");
+  if (code == "forbidden") return http::status::forbidden;
+  if (code == "bad_json" || code == "bad_request" || code == "unknown_command" || code == "invalid_profile" ||
+      code == "limits" || code == "unknown_serial")
+    return http::status::bad_request;
+  if (code == "not_found") return http::status::not_found;
+  if (code == "busy") return http::status::conflict;
+  if (code == "unavailable") return http::status::service_unavailable;
+  return http::status::internal_server_error;
+}
+
+class HttpSession : public std::enable_shared_from_this<HttpSession> {
+ public:
+  HttpSession(tcp::socket socket, std::shared_ptr<WebServer::Impl> server, std::string peer)
+      : stream_(std::move(socket)), server_(std::move(server)), peer_(std::move(peer)) {}
+
+  void start() { read(); }
+  void close() {
+    beast::error_code ec;
+    stream_.socket().shutdown(tcp::socket::shutdown_both, ec);
+    stream_.close();
+  }
+
+ private:
+  void read() {
+    parser_.emplace();
+    parser_->header_limit(static_cast<std::uint32_t>(kMaxHeaderBytes));
+    parser_->body_limit(kMaxBodyBytes);
+    stream_.expires_after(kRequestDeadline);
+    http::async_read(stream_, buf_, *parser_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
+      self->on_read(ec);
+    });
+  }
+
+  void on_read(beast::error_code ec) {
+    if (ec == http::error::end_of_stream || ec == asio::error::eof || ec == beast::error::timeout ||
+        ec == asio::error::operation_aborted || ec == asio::error::connection_reset)
+      return close();
+    if (ec == http::error::header_limit)
+      return error(http::status::request_header_fields_too_large,
+                   "request headers over " + std::to_string(kMaxHeaderBytes) + " bytes", 11, true);
+    if (ec == http::error::body_limit)
+      return error(http::status::payload_too_large, "request body over " + std::to_string(kMaxBodyBytes) + " bytes",
+                   11, true);
+    if (ec) {
+      if (ec.category() == beast::error_code(http::error::bad_method).category())
+        return error(http::status::bad_request, "bad HTTP request: " + ec.message(), 11, true);
+      return close();
+    }
+    ++server_->requests;
+    route(parser_->release());
+  }
+
+  void route(http::request<http::string_body> req) {
+    std::string path(req.target());
+    if (const auto q = path.find('?'); q != std::string::npos) path.resize(q);
+    const auto method = req.method();
+    if (path == "/ws") {
+      if (!websocket::is_upgrade(req))
+        return error(http::status::upgrade_required, "/ws is a WebSocket: connect with an Upgrade request",
+                     req.version(), !req.keep_alive());
+      // A page of another site may not open the panel's WebSocket in the operator's browser
+      // (cross-site WebSocket hijacking: reads need no token). Browsers send Origin; its host
+      // must be the Host the page was loaded from. Clients that send no Origin are not browsers.
+      if (const auto origin = req[http::field::origin]; !origin.empty()) {
+        const std::string o(origin);
+        const auto scheme = o.find("://");
+        const std::string host = scheme == std::string::npos ? o : o.substr(scheme + 3);
+        if (host != std::string(req[http::field::host])) {
+          spdlog::warn("web client {}: WebSocket from origin {} refused (host {})", peer_, o, std::string(req[http::field::host]));
+          return error(http::status::forbidden, "WebSocket from another origin (" + o + ") refused", req.version(), true);
+        }
+      }
+      if (server_->hooks.full && server_->hooks.full()) {
+        spdlog::warn("web client {}: too many clients (socket.max_clients); refused", peer_);
+        return error(http::status::service_unavailable, "too many clients (socket.max_clients); retry later",
+                     req.version(), true);
+      }
+      auto ws = std::make_shared<WsSession>(stream_.release_socket(), server_->handler, peer_, server_->control_token);
+      if (server_->hooks.admit) server_->hooks.admit(ws);
+      server_->websockets.remove_if([](const auto& w) { return w.expired(); });
+      server_->websockets.push_back(ws);
+      ws->start(std::move(req));
+      return;
+    }
+    if (path == "/metrics") {
+      if (method != http::verb::get) return not_allowed(req, "GET");
+      return respond(req, http::status::ok, "text/plain; version=0.0.4; charset=utf-8",
+                     server_->hooks.metrics ? server_->hooks.metrics() : std::string());
+    }
+    if (path == "/api") {
+      if (method != http::verb::post) return not_allowed(req, "POST");
+      auto state = std::make_shared<SessionState>();
+      state->may_control = false;
+      state->control_token = server_->control_token;
+      auto self = shared_from_this();
+      auto r = std::make_shared<http::request<http::string_body>>(std::move(req));
+      server_->handler.handle_line(r->body(), *state, [self, state, r](Handler::Line reply) {
+        self->respond(*r, status_of(*reply), "application/json", *reply);
+      });
+      return;
+    }
+    if (const Asset* a = find_asset(path == "/" ? "/index.html" : path)) {
+      if (method != http::verb::get && method != http::verb::head) return not_allowed(req, "GET, HEAD");
+      return respond(req, http::status::ok, std::string(a->content_type), std::string(a->body));
+    }
+    error(http::status::not_found, "no such path: " + path + " (the panel is at /, metrics at /metrics)",
+          req.version(), !req.keep_alive());
+  }
+
+  void not_allowed(const http::request<http::string_body>& req, const char* allow) {
+    auto res = make(http::status::method_not_allowed, "text/plain; charset=utf-8",
+                    std::string(req.method_string()) + " is not allowed here (allowed: " + allow + ")\n", req.version(),
+                    !req.keep_alive());
+    res->set(http::field::allow, allow);
+    send(std::move(res));
+  }
+
+  void error(http::status s, const std::string& message, unsigned version, bool close_after) {
+    spdlog::debug("web client {}: {} {}", peer_, static_cast<int>(s), message);
+    send(make(s, "text/plain; charset=utf-8", message + "\n", version, close_after));
+  }
+
+  void respond(const http::request<http::string_body>& req, http::status s, const std::string& type, std::string body) {
+    auto res = make(s, type, std::move(body), req.version(), !req.keep_alive());
+    if (req.method() == http::verb::head) {
+      const auto n = res->body().size();
+      res->body().clear();
+      res->content_length(n);
+    }
+    send(std::move(res));
+  }
+
+  static std::shared_ptr<http::response<http::string_body>> make(http::status s, const std::string& type,
+                                                                 std::string body, unsigned version, bool close_after) {
+    auto res = std::make_shared<http::response<http::string_body>>(s, version);
+    res->set(http::field::server, std::string("fogbenchd/") + FOGBENCH_DAEMON_VERSION);
+    res->set(http::field::content_type, type);
+    res->set(http::field::cache_control, "no-store");
+    res->set("X-Content-Type-Options", "nosniff");
+    res->set("Content-Security-Policy",
+             "default-src 'self'; connect-src 'self' ws: wss:; style-src 'self' 'unsafe-inline'; img-src 'self' data:; "
+             "frame-ancestors 'none'");
+    res->keep_alive(!close_after);
+    res->body() = std::move(body);
+    res->prepare_payload();
+    return res;
+  }
+
+  void send(std::shared_ptr<http::response<http::string_body>> res) {
+    const bool close_after = !res->keep_alive();
+    stream_.expires_after(kRequestDeadline);
+    http::async_write(stream_, *res, [self = shared_from_this(), res, close_after](beast::error_code ec, std::size_t) {
+      if (ec || close_after) return self->close();
+      self->read();
+    });
+  }
+
+  beast::tcp_stream stream_;
+  beast::flat_buffer buf_;
+  std::optional<http::request_parser<http::string_body>> parser_;
+  std::shared_ptr<WebServer::Impl> server_;
+  std::string peer_;
+};
+
+}  // namespace
+
+void WebServer::Impl::accept() {
+  acceptor->async_accept([self = shared_from_this()](boost::system::error_code ec, tcp::socket s) {
+    if (self->stopped || ec == asio::error::operation_aborted) return;
+    if (ec) {
+      // Out of descriptors: wait a little rather than spin (as the command socket does).
+      spdlog::warn("web accept: {}", ec.message());
+      auto t = std::make_shared<asio::steady_timer>(self->io, std::chrono::milliseconds(250));
+      t->async_wait([self, t](boost::system::error_code) {
+        if (!self->stopped) self->accept();
+      });
+      return;
+    }
+    boost::system::error_code e2;
+    const auto ep = s.remote_endpoint(e2);
+    auto h = std::make_shared<HttpSession>(std::move(s), self,
+                                           e2 ? std::string("web") : ep.address().to_string() + ":" + std::to_string(ep.port()));
+    self->closers.remove_if([](const auto& p) { return p.first.expired(); });
+    self->closers.emplace_back(h, [w = std::weak_ptr<HttpSession>(h)] {
+      if (auto x = w.lock()) x->close();
+    });
+    h->start();
+    self->accept();
+  });
+}
+
+WebServer::WebServer(asio::io_context& io, Handler& handler, WebConfig config, std::string control_token, Hooks hooks)
+    : impl_(std::make_shared<Impl>(io, handler, std::move(config), std::move(control_token), std::move(hooks))) {}
+
+WebServer::~WebServer() {
+  stop();
+  impl_->acceptor.reset();  // before the io_context goes, whoever holds the Impl last
+}
+
+std::expected<void, std::string> WebServer::bind() {
+  const std::string where = impl_->config.address + ":" + std::to_string(impl_->config.port);
+  try {
+    impl_->acceptor.emplace(impl_->io);
+    const tcp::endpoint ep(asio::ip::make_address(impl_->config.address), impl_->config.port);
+    impl_->acceptor->open(ep.protocol());
+    impl_->acceptor->set_option(asio::socket_base::reuse_address(true));
+    impl_->acceptor->bind(ep);
+    impl_->acceptor->listen();
+  } catch (const boost::system::system_error& e) {
+    impl_->acceptor.reset();
+    return std::unexpected("web.listen " + where + ": " + e.what());
+  }
+  return {};
+}
+
+std::uint16_t WebServer::port() const {
+  boost::system::error_code ec;
+  return impl_->acceptor ? impl_->acceptor->local_endpoint(ec).port() : 0;
+}
+
+void WebServer::start() {
+  if (impl_->acceptor) impl_->accept();
+}
+
+void WebServer::stop() {
+  if (impl_->stopped) return;
+  impl_->stopped = true;
+  boost::system::error_code ec;
+  if (impl_->acceptor) impl_->acceptor->close(ec);
+  for (auto& [w, close] : impl_->closers)
+    if (!w.expired()) close();
+  impl_->closers.clear();
+  for (auto& w : impl_->websockets)
+    if (auto s = w.lock()) s->close();
+}
+
+std::size_t WebServer::open_websockets() {
+  impl_->websockets.remove_if([](const auto& w) {
+    auto s = w.lock();
+    return !s || s->is_closed();
+  });
+  return impl_->websockets.size();
+}
+
+std::uint64_t WebServer::requests() const { return impl_->requests; }
+
+}  // namespace fogbench::daemon::web

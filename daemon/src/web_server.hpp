@@ -1,0 +1,59 @@
+// fogbenchd's web side (an internal header of daemon/src/, used by server.cpp): one HTTP server
+// on the daemon's io_context (Boost.Beast) that serves the live panel's embedded files, the
+// Prometheus metrics, a WebSocket carrying the command protocol's lines (the same Handler as the
+// command socket, read-only unless a request carries the control token) and POST /api for one
+// request. docs/web.md.
+#pragma once
+
+#include <utility>  // before Boost 1.74's asio: its awaitable.hpp uses std::exchange without it
+
+#include <boost/asio.hpp>
+#include <cstdint>
+#include <expected>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "fogbench/daemon/config.hpp"
+#include "fogbench/daemon/handler.hpp"
+#include "session.hpp"
+
+namespace fogbench::daemon::web {
+
+// Requests over these limits get 431 / 413 and the connection is closed.
+constexpr std::size_t kMaxHeaderBytes = 8 * 1024;
+constexpr std::size_t kMaxBodyBytes = 64 * 1024;
+// A request must arrive whole within this (slow clients do not hold a connection).
+constexpr auto kRequestDeadline = std::chrono::seconds(30);
+
+class WebServer {
+ public:
+  struct Hooks {
+    // Whether socket.max_clients connections are open already (a WebSocket is then refused, 503).
+    std::function<bool()> full;
+    // A WebSocket session to register for pushed messages and the connection count.
+    std::function<void(const std::shared_ptr<net::SessionBase>&)> admit;
+    // The Prometheus exposition (GET /metrics).
+    std::function<std::string()> metrics;
+  };
+  WebServer(boost::asio::io_context& io, Handler& handler, WebConfig config, std::string control_token, Hooks hooks);
+  ~WebServer();
+  WebServer(const WebServer&) = delete;
+  WebServer& operator=(const WebServer&) = delete;
+
+  // Binds web.listen; the error names the address.
+  std::expected<void, std::string> bind();
+  std::uint16_t port() const;  // the bound port (web.listen's port 0: the kernel's pick)
+  void start();                // accepts
+  void stop();                 // closes the acceptor and every HTTP connection
+  // WebSocket connections open now, and HTTP requests answered since start.
+  std::size_t open_websockets();
+  std::uint64_t requests() const;
+
+  struct Impl;
+
+ private:
+  std::shared_ptr<Impl> impl_;
+};
+
+}  // namespace fogbench::daemon::web

@@ -1,0 +1,321 @@
+// fogbench's live panel (docs/web.md): one WebSocket to fogbenchd's /ws carrying the command
+// protocol (docs/protocol.md): it subscribes to the `sample` and `event` stream, asks `status`
+// every 2 s, loads the last hour of the active run with `run.samples`, and plots with uPlot.
+// Control requests (run.start, run.abort) carry the token typed in; the daemon decides. When the
+// connection drops (the daemon restarts) it reconnects by itself, waiting 0.5 s to 5 s.
+"use strict";
+(function () {
+  const HOUR_S = 3600;
+  const $ = (id) => document.getElementById(id);
+  let ws = null;
+  let nextId = 1;
+  const pending = new Map();
+  let connects = 0;
+  let retryMs = 500;
+  let statusTimer = null;
+
+  // The plotted run: rows by run time t_s, each {t, sp, air, u: [{t1, t2, raw, comp}]}.
+  let runId = null;
+  let serials = [];
+  let rows = [];
+  let plots = null;
+  let drawQueued = false;
+  let samplesSeen = 0;
+
+  function fmtS(s) {
+    if (s === null || s === undefined) return "";
+    s = Math.round(s);
+    const h = Math.floor(s / 3600), m = Math.floor((s % 3600) / 60), r = s % 60;
+    return (h ? h + " h " : "") + (h || m ? m + " min " : "") + r + " s";
+  }
+  function fmtC(v) { return v === null || v === undefined ? "-" : v.toFixed(2) + " degC"; }
+
+  function call(req) {
+    return new Promise((resolve, reject) => {
+      if (!ws || ws.readyState !== WebSocket.OPEN) return reject(new Error("not connected"));
+      const id = nextId++;
+      pending.set(id, resolve);
+      ws.send(JSON.stringify(Object.assign({}, req, { id: id })));
+    });
+  }
+
+  // --- plots
+  function palette(i) { return ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#7f7f7f"][i % 8]; }
+  function makePlot(el, ylabel, series) {
+    el.innerHTML = "";
+    const width = Math.max(400, (el.clientWidth || 900) - 10);
+    return new uPlot({
+      width: width, height: 220,
+      scales: { x: { time: false } },
+      series: [{ label: "run time, s" }].concat(series),
+      axes: [{ label: "run time, s" }, { label: ylabel }],
+      legend: { live: true },
+    }, [[]].concat(series.map(() => [])), el);
+  }
+  function buildPlots() {
+    const coil = [], drift = [];
+    serials.forEach((s, i) => {
+      coil.push({ label: s + " T1", stroke: palette(i) }, { label: s + " T2", stroke: palette(i), dash: [6, 4] });
+      drift.push({ label: s + " raw", stroke: palette(i) }, { label: s + " compensated", stroke: palette(i + 4) });
+    });
+    plots = {
+      chamber: makePlot($("plot-chamber"), "degC", [
+        { label: "setpoint", stroke: "#888", dash: [6, 4] }, { label: "air", stroke: "#d62728" }]),
+      coil: makePlot($("plot-coil"), "degC", coil),
+      drift: makePlot($("plot-drift"), "deg/h", drift),
+    };
+  }
+  function queueDraw() {
+    if (drawQueued) return;
+    drawQueued = true;
+    setTimeout(draw, 250);
+  }
+  function draw() {
+    drawQueued = false;
+    if (!plots) return;
+    if (rows.length) {
+      const last = rows[rows.length - 1].t;
+      let k = 0;
+      while (k < rows.length && rows[k].t < last - HOUR_S) k++;
+      if (k) rows = rows.slice(k);
+    }
+    const t = rows.map((r) => r.t);
+    const v = (f) => rows.map((r) => (f(r) === undefined ? null : f(r)));
+    plots.chamber.setData([t, v((r) => r.sp), v((r) => r.air)]);
+    const coil = [t], drift = [t];
+    serials.forEach((s, i) => {
+      coil.push(v((r) => r.u[i] && r.u[i].t1), v((r) => r.u[i] && r.u[i].t2));
+      drift.push(v((r) => r.u[i] && r.u[i].raw), v((r) => r.u[i] && r.u[i].comp));
+    });
+    plots.coil.setData(coil);
+    plots.drift.setData(drift);
+    $("plot-drift").dataset.points = String(t.length);  // what the plots hold, for tests and people
+  }
+  // One sample (pushed, or a row of run.samples) into the rows, which stay in time order.
+  function addSample(unit, s) {
+    let i = rows.length - 1;
+    while (i >= 0 && rows[i].t > s.t_s) i--;
+    let row;
+    if (i >= 0 && rows[i].t === s.t_s) row = rows[i];
+    else {
+      row = { t: s.t_s, sp: null, air: null, u: [] };
+      rows.splice(i + 1, 0, row);
+    }
+    if (s.setpoint_c !== undefined) row.sp = s.setpoint_c;
+    if (s.chamber_c !== undefined) row.air = s.chamber_c;
+    row.u[unit] = { t1: s.t1_c, t2: s.t2_c, raw: s.gyro_dph,
+                    comp: s.compensated_dph === undefined ? null : s.compensated_dph };
+  }
+
+  function startRun(id, units) {
+    runId = id;
+    serials = units.slice();
+    rows = [];
+    buildPlots();
+  }
+
+  // The last hour of the active run, unit by unit: its count first, then the page.
+  async function loadHistory(id) {
+    for (let u = 0; u < serials.length; u++) {
+      try {
+        const head = await call({ cmd: "run.samples", run_id: id, unit: u, limit: 1 });
+        if (!head.result || runId !== id) return;
+        const total = head.result.total;
+        const offset = Math.max(0, total - HOUR_S);
+        const page = await call({ cmd: "run.samples", run_id: id, unit: u, offset: offset, limit: Math.min(HOUR_S, 10000) });
+        if (!page.result || runId !== id) return;
+        page.result.samples.forEach((s) => addSample(u, s));
+      } catch (e) { return; }
+    }
+    queueDraw();
+  }
+
+  // --- the run box
+  function showStatus(st) {
+    $("daemon").textContent = "fogbenchd " + st.version + (st.simulated ? " (mock bench, time scale " + st.time_scale + ")" : "");
+    const ch = st.chamber || {};
+    $("chamber-now").textContent = "air " + fmtC(ch.chamber_c) + ", setpoint " + fmtC(st.setpoint_c);
+    $("chamber-link").textContent = ch.link + (ch.alarm ? ", ALARM" : "");
+    const r = st.run;
+    $("run-id").textContent = r ? String(r.id) : "none";
+    $("run-state").textContent = r ? r.state : (st.last_run ? "idle (last: run " + st.last_run.run_id + " " + st.last_run.state + ")" : "idle");
+    $("run-profile").textContent = r ? r.profile + " (" + r.purpose + ")" : "";
+    $("run-step").textContent = r ? String(r.step) + (r.phase ? " (" + r.phase + ")" : "") : "";
+    $("run-elapsed").textContent = r ? fmtS(r.elapsed_s) : "";
+    $("run-remaining").textContent = r ? fmtS(r.remaining_s) : "";
+    const unitsEl = $("units");
+    if (!unitsEl.childElementCount && st.units) {
+      st.units.forEach((u) => {
+        const l = document.createElement("label");
+        const c = document.createElement("input");
+        c.type = "checkbox"; c.checked = true; c.value = u.serial; c.className = "unit";
+        l.appendChild(c);
+        l.appendChild(document.createTextNode(" " + u.serial));
+        unitsEl.appendChild(l);
+      });
+    }
+    if (r && r.id !== runId) {
+      startRun(r.id, r.units);
+      loadHistory(r.id);
+      refreshVerdicts();  // the new run heads the table
+    }
+  }
+  async function refreshStatus() {
+    try {
+      const s = await call({ cmd: "status" });
+      if (s.result) showStatus(s.result);
+    } catch (e) { /* reconnecting */ }
+  }
+
+  async function refreshProfiles() {
+    const r = await call({ cmd: "profile.list" });
+    if (!r.result) return;
+    const sel = $("profile");
+    const keep = sel.value;
+    sel.innerHTML = "";
+    r.result.profiles.filter((p) => p.valid).forEach((p) => {
+      const o = document.createElement("option");
+      o.value = p.name;
+      o.textContent = p.name + " (" + fmtS(p.nominal_duration_s) + ")";
+      sel.appendChild(o);
+    });
+    if (keep) sel.value = keep;
+  }
+
+  async function refreshVerdicts() {
+    let list;
+    try { list = await call({ cmd: "run.list", limit: 5 }); } catch (e) { return; }
+    if (!list.result) return;
+    const body = $("verdicts").querySelector("tbody");
+    body.innerHTML = "";
+    for (const run of list.result.runs) {
+      const tr = document.createElement("tr");
+      for (const text of [run.id, run.profile, run.purpose, run.state + (run.reason ? ": " + run.reason : "")]) {
+        const td = document.createElement("td");
+        td.textContent = String(text);
+        tr.appendChild(td);
+      }
+      const v = document.createElement("td");
+      tr.appendChild(v);
+      body.appendChild(tr);
+      if (run.state !== "completed") continue;
+      try {
+        const g = await call({ cmd: "run.get", run_id: run.id });
+        if (!g.result) continue;
+        const parts = [];
+        (g.result.verifications || []).forEach((x) => {
+          const verdict = (x.result && x.result.verdict) || (x.pass ? "pass" : "fail");
+          const ratio = x.result && x.result.ratio !== undefined ? " " + Number(x.result.ratio).toFixed(3) : "";
+          parts.push("<span class='" + verdict + "'>" + (run.units[x.unit] || x.unit) + " " + verdict + ratio + "</span>");
+        });
+        (g.result.models || []).forEach((m) => parts.push(m.serial + " model v" + m.version));
+        v.innerHTML = parts.join(", ");
+      } catch (e) { return; }
+    }
+  }
+
+  // --- events
+  function addEvent(e) {
+    const li = document.createElement("li");
+    li.className = e.kind;
+    const t = e.t_s === null || e.t_s === undefined ? "" : "t=" + e.t_s + " s ";
+    li.textContent = t + "run " + e.run_id + " " + e.kind + ": " + JSON.stringify(e.detail);
+    const ul = $("events");
+    ul.insertBefore(li, ul.firstChild);
+    while (ul.childElementCount > 200) ul.removeChild(ul.lastChild);
+    ul.dataset.count = String(Number(ul.dataset.count) + 1);
+    if (e.kind === "state" && e.detail && ["completed", "aborted", "failed"].includes(e.detail.to)) {
+      refreshVerdicts();
+      refreshStatus();
+    }
+  }
+
+  // --- control
+  function token() { return $("token").value; }
+  function showResult(what, r) {
+    const el = $("control-result");
+    if (r.error) {
+      el.className = "error";
+      el.dataset.code = r.error.code;
+      el.textContent = what + " refused (" + r.error.code + "): " + r.error.message;
+    } else {
+      el.className = "";
+      el.dataset.code = "ok";
+      el.textContent = what + ": " + JSON.stringify(r.result);
+    }
+    return r;
+  }
+  async function start() {
+    const units = Array.from(document.querySelectorAll("input.unit")).filter((c) => c.checked).map((c) => c.value);
+    const req = { cmd: "run.start", profile: $("profile").value, units: units, purpose: $("purpose").value };
+    if (token()) req.token = token();
+    return showResult("start", await call(req));
+  }
+  async function abort() {
+    const req = { cmd: "run.abort", reason: "from the web panel" };
+    if (token()) req.token = token();
+    return showResult("abort", await call(req));
+  }
+  $("start").addEventListener("click", () => start().catch((e) => showResult("start", { error: { code: "disconnected", message: e.message } })));
+  $("abort").addEventListener("click", () => abort().catch((e) => showResult("abort", { error: { code: "disconnected", message: e.message } })));
+
+  // --- the connection
+  function setConn(up, text) {
+    const c = $("conn");
+    c.className = up ? "up" : "down";
+    c.textContent = text;
+  }
+  function onMessage(ev) {
+    let m;
+    try { m = JSON.parse(ev.data); } catch (e) { return; }
+    if (m.type === "reply") {
+      const done = pending.get(m.id);
+      if (done) { pending.delete(m.id); done(m); }
+    } else if (m.type === "sample") {
+      if (m.run_id !== runId) {
+        // A run the status has not shown yet: its units come with the status.
+        refreshStatus();
+        return;
+      }
+      addSample(m.unit, m);
+      samplesSeen++;
+      const el = $("samples");
+      el.dataset.count = String(samplesSeen);
+      el.textContent = String(samplesSeen);
+      queueDraw();
+    } else if (m.type === "event") {
+      addEvent(m);
+    } else if (m.type === "hello") {
+      $("daemon").textContent = "fogbenchd " + m.version;
+    }
+  }
+  function connect() {
+    const url = (location.protocol === "https:" ? "wss://" : "ws://") + location.host + "/ws";
+    setConn(false, connects ? "reconnecting" : "connecting");
+    ws = new WebSocket(url);
+    ws.onmessage = onMessage;
+    ws.onopen = async () => {
+      retryMs = 500;
+      connects++;
+      $("conn").dataset.connects = String(connects);
+      setConn(true, "connected");
+      try {
+        await call({ cmd: "subscribe" });
+        await refreshStatus();
+        await refreshProfiles();
+        await refreshVerdicts();
+      } catch (e) { /* dropped meanwhile: onclose reconnects */ }
+    };
+    ws.onclose = () => {
+      pending.forEach((done) => done({ error: { code: "disconnected", message: "the connection to fogbenchd closed" } }));
+      pending.clear();
+      setConn(false, "disconnected; retrying");
+      runId = null;  // the run is taken up again from the status after the reconnect
+      setTimeout(connect, retryMs);
+      retryMs = Math.min(retryMs * 2, 5000);
+    };
+  }
+  statusTimer = setInterval(refreshStatus, 2000);
+  window.fogPanel = { call: call, start: start, abort: abort, refreshStatus: refreshStatus };
+  connect();
+})();

@@ -1,0 +1,178 @@
+// The live panel in headless Chromium against a live daemon on the mock bench, driven over
+// Chromium's DevTools protocol (a WebSocket, from the Beast client of web_client.hpp): the page
+// loads, its plots receive samples (the page counts them in the DOM), a fault injected in the
+// simulator shows in the events list, abort without the token is refused and with it taken, and
+// the page reconnects by itself when the daemon restarts. Without Chromium the test reports
+// SKIPPED (exit 77, SKIP_RETURN_CODE of test_web), never passes.
+#include <catch2/catch.hpp>
+
+#include <cstdlib>
+#include <cstring>
+#include <iostream>
+
+#include "../daemon/live_bench.hpp"
+#include "web_client.hpp"
+
+using namespace fogbench::daemon::test;
+using namespace fogbench::daemon::test::live;
+using namespace fogbench::web_test;
+using nlohmann::json;
+
+namespace {
+
+const std::string kToken = "web-panel-token-0123456789";
+
+// FOGBENCH_CHROMIUM names the browser (a path that does not exist: the test reports SKIPPED,
+// which is how the skip itself is checked).
+std::string find_chromium() {
+  if (const char* c = std::getenv("FOGBENCH_CHROMIUM")) return std::filesystem::exists(c) ? c : "";
+  for (const char* c : {"/usr/bin/chromium", "/usr/bin/chromium-browser", "/usr/bin/google-chrome"})
+    if (std::filesystem::exists(c)) return c;
+  return {};
+}
+
+// Headless Chromium on `url` with a fresh profile and the DevTools protocol on a port it picks.
+class Browser {
+ public:
+  Browser(const std::string& exe, const std::filesystem::path& dir, const std::string& url) : profile_(dir / "chrome") {
+    std::filesystem::create_directories(profile_);
+    proc_ = std::make_unique<Process>(
+        std::vector<std::string>{exe, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                                 "--user-data-dir=" + profile_.string(), "--remote-debugging-port=0",
+                                 "--window-size=1200,1600", url},
+        dir / "chrome.log");
+    // Chromium writes the port it took into DevToolsActivePort.
+    const auto deadline = SteadyClock::now() + 60s;
+    while (SteadyClock::now() < deadline && port_ == 0) {
+      std::ifstream f(profile_ / "DevToolsActivePort");
+      int p = 0;
+      if (f >> p) port_ = static_cast<std::uint16_t>(p);
+      else std::this_thread::sleep_for(100ms);
+    }
+    if (!port_) return;
+    // The page's target.
+    for (int i = 0; i < 100 && !page_; ++i) {
+      auto list = json::parse(http_get(port_, "/json/list").body, nullptr, false);
+      if (list.is_array())
+        for (const auto& t : list)
+          if (t.value("type", "") == "page") {
+            const std::string u = t.value("webSocketDebuggerUrl", "");
+            const auto path = u.find("/devtools/");
+            if (path != std::string::npos) page_ = std::make_unique<WsClient>("127.0.0.1", port_, u.substr(path));
+            break;
+          }
+      if (!page_) std::this_thread::sleep_for(100ms);
+    }
+  }
+  bool ok() const { return page_ && page_->ok(); }
+
+  // A JavaScript expression's value in the page (promises awaited); null when it threw.
+  json eval(const std::string& expr) {
+    auto r = page_->call({{"method", "Runtime.evaluate"},
+                          {"params", {{"expression", expr}, {"returnByValue", true}, {"awaitPromise", true}}}});
+    if (!r.is_object() || !r.contains("result") || r["result"].contains("exceptionDetails")) return nullptr;
+    return r["result"]["result"].value("value", json(nullptr));
+  }
+  // A PNG of the page (Page.captureScreenshot), empty when it failed.
+  std::string screenshot() {
+    auto r = page_->call({{"method", "Page.captureScreenshot"}, {"params", {{"format", "png"}}}});
+    if (!r.is_object() || !r.contains("result")) return {};
+    const std::string b64 = r["result"].value("data", "");
+    std::string out;
+    int val = 0, bits = -8;
+    for (unsigned char ch : b64) {
+      const char* table = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+      const char* p = std::strchr(table, ch);
+      if (!p || ch == 0) break;
+      val = (val << 6) + static_cast<int>(p - table);
+      bits += 6;
+      if (bits >= 0) {
+        out.push_back(static_cast<char>((val >> bits) & 0xff));
+        bits -= 8;
+      }
+    }
+    return out;
+  }
+  // Polls a boolean expression until it holds or the deadline passes.
+  bool until(const std::string& expr, std::chrono::seconds timeout) {
+    const auto deadline = SteadyClock::now() + timeout;
+    while (SteadyClock::now() < deadline) {
+      if (eval(expr) == true) return true;
+      std::this_thread::sleep_for(250ms);
+    }
+    return false;
+  }
+
+ private:
+  std::filesystem::path profile_;
+  std::unique_ptr<Process> proc_;
+  std::uint16_t port_ = 0;
+  std::unique_ptr<WsClient> page_;
+};
+
+}  // namespace
+
+TEST_CASE("the live panel in headless Chromium: samples plotted, a fault shown, abort needs the token, reconnects") {
+  require_sim();
+  const std::string exe = find_chromium();
+  if (exe.empty()) {
+    std::cout << "SKIPPED: Chromium not found (Debian package: chromium): the panel cannot be tested" << std::endl;
+    std::_Exit(77);
+  }
+  const auto web_port = free_port();
+  LiveBench bench(20.0,
+                  {{"web", {{"listen", "127.0.0.1:" + std::to_string(web_port)}}},
+                   {"socket", {{"tcp", {{"port", free_port()}, {"token", kToken}}}}}},
+                  true);
+  REQUIRE(bench.ready_daemon["web_port"] == web_port);
+  Browser b(exe, bench.dir, "http://127.0.0.1:" + std::to_string(web_port) + "/");
+  INFO("chromium log in " << (bench.dir / "chrome.log") << ", fogbenchd log in " << (bench.dir / "fogbenchd.log"));
+  REQUIRE(b.ok());
+
+  // The page loads, uPlot with it, and connects.
+  REQUIRE(b.until("document.getElementById('conn').className === 'up'", 60s));
+  CHECK(b.eval("typeof uPlot") == "function");
+  CHECK(b.until("document.querySelectorAll('#profile option').length > 0", 30s));
+  CHECK(b.eval("Array.from(document.querySelectorAll('#profile option')).some(o => o.value === 'short')") == true);
+
+  // A run: its samples reach the page and its plots.
+  LineClient c(bench.socket());
+  REQUIRE(c.ok());
+  const auto run = bench.start_run(c, "short", {"SIM-0001", "SIM-0002"});
+  REQUIRE(b.until("Number(document.getElementById('samples').dataset.count) >= 20", 120s));
+  CHECK(b.until("Number(document.getElementById('plot-drift').dataset.points) >= 5", 30s));
+  CHECK(b.eval("document.querySelectorAll('#plot-drift canvas').length") == 1);
+  CHECK(b.until("document.getElementById('run-id').textContent === '" + std::to_string(run) + "'", 30s));
+  CHECK(b.eval("document.getElementById('run-elapsed').textContent.length > 0") == true);
+  // A picture for people (only if FOGBENCH_PANEL_SHOT names a file to write it to).
+  if (const char* shot = std::getenv("FOGBENCH_PANEL_SHOT")) {
+    std::this_thread::sleep_for(2s);
+    std::ofstream(shot, std::ios::binary) << b.screenshot();
+  }
+
+  // Abort from the page without the token: refused (forbidden), shown, and the run goes on.
+  CHECK(b.eval("fogPanel.abort().then(r => r.error ? r.error.code : 'ok')") == "forbidden");
+  CHECK(b.eval("document.getElementById('control-result').dataset.code") == "forbidden");
+  CHECK(c.call({{"cmd", "status"}})["result"]["run"]["id"] == run);
+
+  // A fault in the simulator: the chamber's alarm. It shows in the events list as it happens.
+  REQUIRE(bench.sim_command({{"cmd", "fault"}, {"name", "alarm"}, {"on", true}})["ok"] == true);
+  CHECK(b.until("Array.from(document.querySelectorAll('#events li.alarm')).length > 0", 120s));
+  CHECK(b.until("document.querySelector('#verdicts tbody') && document.querySelector('#verdicts tbody').textContent.includes('aborted')", 60s));
+  REQUIRE(bench.sim_command({{"cmd", "fault"}, {"name", "alarm"}, {"on", false}})["ok"] == true);
+
+  // With the token typed in, the page's control goes through (a second run, aborted from the page).
+  const auto run2 = bench.start_run(c, "short", {"SIM-0001"});
+  CHECK(b.until("document.getElementById('run-id').textContent === '" + std::to_string(run2) + "'", 60s));
+  CHECK(b.eval("document.getElementById('token').value = '" + kToken + "'; fogPanel.abort().then(r => r.error ? r.error.code : 'ok')") == "ok");
+  CHECK(bench.wait_state(c, run2, {"aborted"}, 60s)["result"]["run"]["reason"] == "aborted by operator: from the web panel");
+
+  // The daemon restarts: the page notices, and reconnects by itself.
+  bench.daemon.reset();
+  CHECK(b.until("document.getElementById('conn').className === 'down'", 60s));
+  bench.start_daemon();
+  CHECK(b.until("document.getElementById('conn').className === 'up' && Number(document.getElementById('conn').dataset.connects) >= 2", 60s));
+  // And it reads again: the status of the new daemon (no run).
+  CHECK(b.until("document.getElementById('run-id').textContent === 'none'", 30s));
+}
