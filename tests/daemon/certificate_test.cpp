@@ -113,7 +113,7 @@ TEST_CASE("certificate: issued when a verify run completes, the same from cert.g
   CHECK(r.store.list_certificates("FOG-0001")->size() == 2);
 }
 
-TEST_CASE("certificate: a serial without a model is not_found naming it, nothing stored; a missing serial field is bad_request") {
+TEST_CASE("certificate: a serial without a model is not_found naming it, nothing stored, a missing serial field is bad_request") {
   Rig r;
   json reply = r.send({{"id", 1}, {"cmd", "cert.get"}, {"serial", "FOG-0002"}});
   REQUIRE(reply.contains("error"));

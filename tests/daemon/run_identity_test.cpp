@@ -24,7 +24,7 @@ struct Rig {
 };
 }  // namespace
 
-TEST_CASE("run identity: run.start records station, operator, software, hashes; run.get shows them") {
+TEST_CASE("run identity: run.start records station, operator, software, hashes, run.get shows them") {
   Rig r;
   r.session.peer_user = "fogop";
   json start = r.send({{"id", 1}, {"cmd", "run.start"}, {"profile", "short"}, {"units", {"FOG-0001", "FOG-0002"}},
@@ -49,7 +49,7 @@ TEST_CASE("run identity: run.start records station, operator, software, hashes; 
   CHECK(id["units"][1]["serial"] == "FOG-0002");
 }
 
-TEST_CASE("run identity: without --operator the unix peer's user is recorded; on TCP nobody") {
+TEST_CASE("run identity: without --operator the unix peer's user is recorded, on TCP nobody") {
   Rig r;
   r.session.peer_user = "fogop";
   json a = r.send({{"id", 1}, {"cmd", "run.start"}, {"profile", "short"}, {"units", {"FOG-0001"}}});
