@@ -10,6 +10,7 @@
 #include <iostream>
 
 #include "client_commands.hpp"
+#include "run_identity.hpp"
 #include "common.hpp"
 #include "fogbench/storage/csv.hpp"
 
@@ -182,6 +183,7 @@ int cmd_run_get(const Common& o, std::int64_t id, std::ostream& out, std::ostrea
     out << "  its end is NOT yet recorded in the store (a full disk?); the daemon retries every 10 s\n";
   // Per unit: the samples stored and what the run lost (frames lost, corrupt, samples flagged).
   out << quality_table(run["units"], r->value("quality", json()), &(*r)["samples"]).str();
+  print_identity(r->value("identity", json()), out);
   if (!(*r)["models"].empty()) {
     Table t({"model", "serial", "version", "method", "terms", "parent"});
     for (const auto& m : (*r)["models"])
@@ -218,7 +220,10 @@ int cmd_run_export(const Common& o, std::int64_t id, int unit, bool settle, cons
   if (!c) return report(c.error(), err);
   auto d = fetch_run(*c, id, unit, settle);
   if (!d) return report(d.error(), err);
-  const std::string csv = storage::to_csv(*d);
+  // The run's identity as `# key: value` lines above the header (docs/csv.md).
+  auto g = c->call("run.get", {{"run_id", id}});
+  if (!g) return report(g.error(), err);
+  const std::string csv = identity_csv_comments(*g, unit) + storage::to_csv(*d);
   if (output.empty() || output == "-") {
     out << csv;
     return kExitOk;
@@ -268,10 +273,20 @@ using namespace commands;
 using nlohmann::json;
 
 int cmd_run_start(const Common& o, const std::string& profile, const std::vector<std::string>& units,
-                  const std::string& purpose, bool wait, bool quiet, std::ostream& out, std::ostream& err) {
+                  const std::string& purpose, const std::string& operator_name, bool wait, bool quiet,
+                  std::ostream& out, std::ostream& err) {
+  // Checked here too, so that a bad name is refused before anything is sent.
+  if (!operator_name.empty()) {
+    if (auto why = storage::check_operator_name(operator_name); !why.empty()) {
+      err << "fogctl run start: " << why << "\n";
+      return kExitError;
+    }
+  }
   auto c = open(o);
   if (!c) return report(c.error(), err);
-  auto r = c->call("run.start", {{"profile", profile}, {"units", units}, {"purpose", purpose}});
+  json args = {{"profile", profile}, {"units", units}, {"purpose", purpose}};
+  if (!operator_name.empty()) args["operator"] = operator_name;
+  auto r = c->call("run.start", args);
   if (!r) return report(r.error(), err);
   const auto id = (*r)["run_id"].get<std::int64_t>();
   if (!wait) {
@@ -355,7 +370,7 @@ void add_client_commands(CLI::App& app, int& code) {
   auto* run = app.add_subcommand("run", "Start, follow, list, inspect, abort, resume and export runs on fogbenchd");
   run->require_subcommand(1);
 
-  static std::string profile, purpose = "fit", reason, state, output;
+  static std::string profile, purpose = "fit", reason, state, output, operator_name;
   static std::vector<std::string> units;
   static bool wait = false, quiet = false, settle = false;
   static std::int64_t run_id = 0;
@@ -368,9 +383,11 @@ void add_client_commands(CLI::App& app, int& code) {
   start->add_option("--unit", units, "Serial of a unit under test (repeatable)")->required();
   start->add_option("--purpose", purpose, "fit (a model is fitted at the end) or verify (the current model is checked)")
       ->check(CLI::IsMember({"fit", "verify"}));
+  start->add_option("--operator", operator_name,
+                    "Who runs it, recorded in the run's identity (default: the unix socket's user)");
   start->add_flag("--wait", wait, "Follow the run with a progress line on stderr until it ends");
   start->add_flag("-q,--quiet", quiet, "With --wait: no progress line");
-  start->callback([&] { code = cmd_run_start(common, profile, units, purpose, wait, quiet, std::cout, std::cerr); });
+  start->callback([&] { code = cmd_run_start(common, profile, units, purpose, operator_name, wait, quiet, std::cout, std::cerr); });
 
   auto* w = run->add_subcommand("watch", "Follow a run (the active one by default) to its end; reconnects if the daemon restarts");
   add_common(w, common);

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "fogbench/model/firmware.hpp"
+#include "fogbench/model/json.hpp"
 #include "offline.hpp"
 
 namespace fogbench::cli {
@@ -78,7 +79,20 @@ int run_coefficients(const CoefficientsOptions& o, std::ostream& out, std::ostre
     err << me << "--name '" << o.name << "' is not a C identifier\n";
     return kExitError;
   }
-  auto m = load_model(o.model);
+  // A file, or else a serial whose current model fogbenchd has (model.get).
+  std::error_code fec;
+  const bool is_file = std::filesystem::exists(o.model, fec) || o.model.ends_with(".json");
+  std::expected<model::Model, std::string> m = std::unexpected(std::string());
+  if (is_file) {
+    m = load_model(o.model);
+  } else {
+    auto c = commands::open(o.daemon);
+    if (!c) return commands::report(c.error(), err);
+    auto got = c->call("model.get", {{"serial", o.model}});
+    if (!got) return commands::report(got.error(), err);
+    m = model::model_from_text((*got)["model"].dump());
+    if (!m) m = std::unexpected("serial " + o.model + ": the daemon's model " + (*got)["id"].dump() + " is not readable: " + m.error());
+  }
   if (!m) {
     err << me << m.error() << "\n";
     return kExitError;
@@ -183,7 +197,8 @@ int run_coefficients(const CoefficientsOptions& o, std::ostream& out, std::ostre
 void add_coefficients_command(CLI::App& app, int& code) {
   static CoefficientsOptions o;
   auto* c = app.add_subcommand("coefficients", "A model as the gyro's firmware computes it: causal program, coefficients, reference vector");
-  c->add_option("model", o.model, "The model's JSON file (fogctl fit -o, or fogctl model get SERIAL -o)")->required();
+  c->add_option("model", o.model, "The model's JSON file (fogctl fit -o, or fogctl model get SERIAL -o), or a serial: its current model from fogbenchd")->required();
+  commands::add_common(c, o.daemon, /*with_json=*/false);
   c->add_option("--format", o.format, "json (default), csv, or c (an initializer for firmware/fogcomp.h)");
   c->add_option("--name", o.name, "Name of the C initializer (--format c)");
   c->add_option("-o,--output", o.output, "Write to this file instead of standard output");

@@ -5,6 +5,7 @@
 #include <iosfwd>
 #include <string>
 
+#include "client_commands.hpp"
 #include "common.hpp"
 
 namespace CLI {
@@ -14,7 +15,8 @@ class App;
 namespace fogbench::cli {
 
 struct CoefficientsOptions {
-  std::string model;         // model.json (from `fit -o` or `model get -o`)
+  std::string model;         // model.json (from `fit -o` or `model get -o`), or a serial: its current model from fogbenchd
+  commands::Common daemon;   // where fogbenchd is, for a serial
   std::string format = "json";  // json|csv|c
   std::string name = "fogcomp_model_unit";  // the C initializer's name
   std::string output;        // -o FILE (default: standard output)

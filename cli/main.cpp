@@ -11,6 +11,7 @@
 
 #include "allan.hpp"
 #include "client.hpp"
+#include "cert.hpp"
 #include "coefficients.hpp"
 #include "common.hpp"
 #include "offline.hpp"
@@ -42,6 +43,7 @@ int main(int argc, char** argv) {
   fogbench::cli::add_workbench_commands(app, code);
   fogbench::cli::add_allan_command(app, code);
   fogbench::cli::add_coefficients_command(app, code);
+  fogbench::cli::add_cert_command(app, code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

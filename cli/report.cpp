@@ -10,6 +10,7 @@
 #include "fogbench/model/workbench.hpp"
 #include "report_plots.hpp"
 #include "report_runs.hpp"
+#include "run_identity.hpp"
 #include "table.hpp"
 #include "workbench.hpp"
 
@@ -113,6 +114,27 @@ td.w{text-align:left}tr.hit td{background:#fff1e6;font-weight:600}tr.fail td{col
 )css";
 
 
+// Who, where and with what each run was recorded: the identity comments atop its CSV (a
+// fogctl run export), one line per run; nothing for a file without them.
+std::string identity_header(const std::vector<std::string>& paths) {
+  std::string html;
+  for (const auto& p : paths) {
+    const auto fields = csv_file_identity(p);
+    auto get = [&](const char* key) {
+      for (const auto& [k, v] : fields)
+        if (k == key) return v.empty() ? std::string("-") : v;
+      return std::string("-");
+    };
+    if (get("software_version") == "-") continue;
+    html += "<div class=\"sub\">" + esc(p) + ": run " + esc(get("run")) + " of " + esc(get("serial")) + ", station " +
+            esc(get("station_id")) + ", operator " + esc(get("operator")) + ", fogbench " + esc(get("software_version")) +
+            " (" + esc(get("git_hash").substr(0, 12)) + "), profile " + esc(get("profile")) + " (sha256 " +
+            esc(get("profile_sha256").substr(0, 12)) + "), config sha256 " + esc(get("config_sha256").substr(0, 12)) +
+            ", powered on " + esc(get("powered_on_at")) + "</div>";
+  }
+  return html;
+}
+
 }  // namespace
 
 int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
@@ -153,6 +175,7 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
           esc(m->fitted_on.name) + (m->created_at.empty() ? "" : ", " + esc(m->created_at)) + "); runs: ";
   for (std::size_t i = 0; i < runs.size(); ++i) body += (i ? ", " : "") + esc(runs[i].name) + (i ? " (held out)" : " (fit run)");
   body += "</div>";
+  body += identity_header(o.runs);
 
   // Qualification summary.
   body += "<h2>Qualification summary (IEEE Std 952 thermal sensitivities)</h2>";

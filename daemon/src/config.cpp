@@ -63,7 +63,8 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   if (!j.is_object()) return Err("configuration: expected a JSON object");
   if (auto ok = only_keys(j, "", {"simulated", "storage", "socket", "chamber_limits",
                                   "safe_setpoint_c", "profile_dir", "map_dir", "analysis",
-                                  "link_loss", "tracking", "drivers", "sim_clock", "web"});
+                                  "link_loss", "tracking", "drivers", "sim_clock", "web",
+                                  "station"});
       !ok)
     return Err(ok.error());
   DaemonConfig c;
@@ -78,6 +79,21 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
       return Err("sim_clock: expected the path of fogbench-sim's control socket");
     if (!c.simulated) return Err("sim_clock: only with \"simulated\": true (a real chamber keeps real time)");
     c.sim_clock = resolve(base_dir, j["sim_clock"].get<std::string>());
+  }
+
+  if (j.contains("station")) {
+    // Recorded with every run (its identity) and printed on certificates.
+    const json& st = j["station"];
+    if (!st.is_object()) return Err("station: expected an object {\"id\": ...}");
+    if (auto ok = only_keys(st, "station", {"id"}); !ok) return Err(ok.error());
+    if (st.contains("id")) {
+      auto id = string(st, "station", "id");
+      if (!id) return Err(id.error());
+      if (id->size() > 64) return Err("station.id: longer than 64 bytes");
+      for (char ch : *id)
+        if (static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f) return Err("station.id: control character");
+      c.station_id = *id;
+    }
   }
 
   if (!j.contains("storage") || !j["storage"].is_object())

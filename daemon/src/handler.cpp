@@ -7,6 +7,8 @@
 #include <cmath>
 
 #include "fogbench/daemon/analysis.hpp"
+#include "fogbench/daemon/certificate.hpp"
+#include "fogbench/daemon/run_identity.hpp"
 #include "fogbench/protocol/framing.hpp"
 #include "fogbench/model/json.hpp"
 
@@ -152,7 +154,7 @@ Handler::Line Handler::to_line(const json& message) {
 }
 
 bool Handler::offloaded(std::string_view cmd) {
-  return cmd == "run.samples" || cmd == "run.get" || cmd == "model.fit" || cmd == "model.verify" ||
+  return cmd == "run.samples" || cmd == "run.get" || cmd == "cert.get" || cmd == "model.fit" || cmd == "model.verify" ||
          cmd == "model.compare" || cmd == "model.diagnose" || cmd == "model.add_term";
 }
 
@@ -266,9 +268,11 @@ ApiResult<json> run_get(storage::Store& store, std::int64_t run_id, const json& 
     auto n = store.count_samples(run_id, u.unit_index);
     samples.push_back(n ? *n : 0);
   }
+  auto identity = store.get_run_identity(run_id);
+  if (!identity) return std::unexpected(from_store(identity.error()));
   return json{{"run", r}, {"samples", samples}, {"quality", quality}, {"events", events}, {"models", models},
               {"verifications", vers}, {"config", parse_or_string(d->run.config_json)},
-              {"profile_text", d->run.profile_text}};
+              {"profile_text", d->run.profile_text}, {"identity", identity_json(*identity)}};
 }
 
 ApiResult<json> run_samples(storage::Store& store, std::int64_t run_id, const json& req, std::int64_t offset,
@@ -325,6 +329,8 @@ void Handler::offload(const std::string& cmd, const json& req, const json& id, D
       };
     });
   };
+
+  if (cmd == "cert.get") return offload_certificate(req, id, std::move(done));
 
   auto run_id = req_int(req, "run_id", 1, kMaxId);
   if (!run_id) return fail(run_id.error());
@@ -408,8 +414,39 @@ void Handler::offload(const std::string& cmd, const json& req, const json& id, D
   });
 }
 
+// cert.get: the certificate built on the worker from its read connection, then handed out on
+// the loop: the serial's stored one when nothing changed, else a new one stored (certificate.hpp).
+void Handler::offload_certificate(const json& req, const json& id, Done done) {
+  auto serial = req_string(req, "serial");
+  if (!serial) return done(to_line(error(id, serial.error().code, serial.error().message)));
+  station_.offload().submit([this, id, s = *serial, limits = station_.config().analysis,
+                             station = station_.config().station_id, done](storage::Store& reader) -> Offload::Then {
+    auto body = std::make_shared<ApiResult<json>>(guarded<json>([&] { return certificate::build(reader, limits, station, s); }));
+    return [this, id, body, done] {
+      ApiResult<json> r = !*body ? ApiResult<json>(std::unexpected(body->error())) : guarded<json>([&]() -> ApiResult<json> {
+        auto c = certificate::issue(station_.store(), **body, station_.wall_now());
+        if (!c) return std::unexpected(c.error());
+        return json{{"certificate", c->first}, {"issued_now", c->second}};
+      });
+      done(to_line(r ? reply(id, std::move(*r)) : error(id, r.error().code, r.error().message)));
+    };
+  });
+}
+
 ApiResult<json> Handler::dispatch(const std::string& cmd, const json& req, SessionState& session) {
   storage::Store& store = station_.store();
+
+  if (cmd == "cert.check") {
+    // Whether the store issued a certificate of this hash (fogctl cert --check).
+    auto hash = req_string(req, "sha256");
+    if (!hash) return std::unexpected(hash.error());
+    auto found = store.find_certificates(*hash);
+    if (!found) return std::unexpected(from_store(found.error()));
+    json certs = json::array();
+    for (const auto& c : *found)
+      certs.push_back({{"id", c.id}, {"serial", c.serial}, {"model_version", c.model_version}, {"created_at", c.created_at}});
+    return json{{"known", !found->empty()}, {"certificates", certs}};
+  }
 
   if (cmd == "status") return station_.status();
 
@@ -436,7 +473,9 @@ ApiResult<json> Handler::dispatch(const std::string& cmd, const json& req, Sessi
     if (!purpose_text) return std::unexpected(purpose_text.error());
     const auto purpose = storage::purpose_from_string(purpose_text->value_or("fit"));
     if (!purpose) return api_error(ErrorCode::bad_request, "purpose: expected \"fit\" or \"verify\"");
-    auto id = station_.start_run(*profile, serials, *purpose, req);
+    auto op = operator_of(req, session.peer_user);
+    if (!op) return std::unexpected(op.error());
+    auto id = station_.start_run(*profile, serials, *purpose, req, *op);
     if (!id) return std::unexpected(id.error());
     return json{{"run_id", *id}, {"state", "pending"}};
   }

@@ -37,6 +37,7 @@
 #include "fogbench/drivers/chamber.hpp"
 #include "fogbench/drivers/gyro_bus.hpp"
 #include "fogbench/drivers/thermistor_module.hpp"
+#include "fogbench/daemon/run_identity.hpp"
 #include "analysis_worker.hpp"
 #include "session.hpp"
 #include "sim_clock.hpp"
@@ -181,8 +182,11 @@ struct Server::Impl {
   // --- command socket
   template <class Socket>
   void accept_session(Socket socket, std::string peer, bool may_control) {
+    std::string user;
+    if constexpr (std::is_same_v<Socket, asio::local::stream_protocol::socket>) user = peer_user_name(socket.native_handle());
     auto s = std::make_shared<Session<Socket>>(std::move(socket), *handler, turns, peer, may_control,
                                                may_control ? std::string() : config.socket.tcp_token);
+    s->set_peer_user(std::move(user));
     sessions.remove_if([](const auto& w) { return w.expired(); });
     sessions.push_back(s);
     s->set_idle_timeout(config.socket.idle_timeout_s);

@@ -121,6 +121,9 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
     state_.control_token = std::move(control_token);
   }
 
+  // Who is at the other end of a unix socket (SessionState::peer_user).
+  void set_peer_user(std::string user) { state_.peer_user = std::move(user); }
+
   void start() {
     send(wire(Handler::hello()));
     read();

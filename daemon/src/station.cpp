@@ -109,7 +109,8 @@ std::optional<ApiError> Station::chamber_unavailable() const {
 
 ApiResult<std::int64_t> Station::start_run(const std::string& profile_name,
                                            const std::vector<std::string>& serials,
-                                           storage::Purpose purpose, const json& command) {
+                                           storage::Purpose purpose, const json& command,
+                                           const OperatorId& op) {
   if (run_) return api_error(ErrorCode::busy, "run " + std::to_string(run_->id) + " is " +
                                                   std::string(storage::to_string(run_->state)));
   if (recovery_error_) return std::unexpected(not_recovered(*recovery_error_));
@@ -143,6 +144,16 @@ ApiResult<std::int64_t> Station::start_run(const std::string& profile_name,
   nr.config_json = config_.source.dump();
   nr.time_scale = time_scale_;
   nr.unit_serials = serials;
+  std::vector<UnitPowerOn> power;
+  for (std::size_t ci : index) {
+    UnitPowerOn p;
+    p.since_power_on_s = power_.since_power_on_s(ci, clock_s_);
+    // Its wall time: the last tick's, less the daemon seconds since (time_scale per wall second).
+    if (p.since_power_on_s && last_input_ && last_input_->wall_time > 0)
+      p.powered_on_wall_s = last_input_->wall_time - *p.since_power_on_s / time_scale_;
+    power.push_back(p);
+  }
+  nr.identity = make_run_identity(config_.station_id, op, nr.config_json, text, serials, power);
   auto id = store_.create_run(nr);
   if (!id) return std::unexpected(from_store(id.error()));
 

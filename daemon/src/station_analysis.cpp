@@ -4,6 +4,7 @@
 #include <memory>
 
 #include "fogbench/daemon/analysis.hpp"
+#include "fogbench/daemon/certificate.hpp"
 #include "fogbench/daemon/station.hpp"
 
 namespace fogbench::daemon {
@@ -41,6 +42,16 @@ void Station::analyse(std::int64_t run_id, storage::Purpose purpose,
         } else if (r) {
           detail["verification_id"] = (*r)["verification_id"];
           detail["pass"] = (*r)["pass"];
+          // The serial's certificate, issued now that its verification is stored (certificate.hpp).
+          try {
+            auto body = certificate::build(store_, config_.analysis, config_.station_id, serials[i]);
+            auto cert = body ? certificate::issue(store_, *body, wall_clock_())
+                             : ApiResult<std::pair<json, bool>>(std::unexpected(body.error()));
+            if (cert) detail["certificate_sha256"] = cert->first["sha256"];
+            else detail["certificate_error"] = cert.error().message;
+          } catch (const std::exception& e) {
+            detail["certificate_error"] = e.what();
+          }
         }
         detail["ok"] = r.has_value();
         if (!r) detail["error"] = r.error().message;

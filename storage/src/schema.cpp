@@ -116,10 +116,50 @@ SELECT run_id, unit_index, t_s, wall_time, setpoint_c, chamber_c, gyro_dph, fram
 FROM samples;
 )sql";
 
+// Version 4 (issue 13): each run's identity (station, operator, software, the hashes of its
+// configuration and profile), each unit's power-on as the run saw it, and the certificates
+// issued per serial with their SHA-256. Plain tables with one fact per column, so that a
+// replica (PostgreSQL) takes them as they are.
+constexpr const char* kIdentity = R"sql(
+CREATE TABLE run_identity (
+  run_id            INTEGER PRIMARY KEY REFERENCES runs (id) ON DELETE CASCADE,
+  station_id        TEXT NOT NULL DEFAULT '',
+  operator          TEXT NOT NULL DEFAULT '',
+  operator_source   TEXT NOT NULL DEFAULT 'none'
+                    CHECK (operator_source IN ('client', 'peer', 'import', 'none')),
+  software_version  TEXT NOT NULL,
+  git_hash          TEXT NOT NULL,
+  config_sha256     TEXT NOT NULL,
+  profile_sha256    TEXT NOT NULL
+);
+
+CREATE TABLE run_unit_identity (
+  run_id            INTEGER NOT NULL,
+  unit_index        INTEGER NOT NULL,
+  powered_on_at     TEXT,
+  since_power_on_s  REAL CHECK (since_power_on_s >= 0),
+  PRIMARY KEY (run_id, unit_index),
+  FOREIGN KEY (run_id, unit_index) REFERENCES run_units (run_id, unit_index) ON DELETE CASCADE
+) WITHOUT ROWID;
+
+CREATE TABLE certificates (
+  id             INTEGER PRIMARY KEY,
+  serial         TEXT NOT NULL,
+  model_id       INTEGER NOT NULL REFERENCES models (id),
+  model_version  INTEGER NOT NULL,
+  sha256         TEXT NOT NULL CHECK (length(sha256) = 64),
+  json           TEXT NOT NULL CHECK (json_valid(json)),
+  created_at     TEXT NOT NULL
+);
+CREATE INDEX certificates_serial ON certificates (serial);
+CREATE INDEX certificates_sha256 ON certificates (sha256);
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "recording tables", kRecording},
     {2, "models and verifications", kModels},
     {3, "time since power-on", kPowerOn},
+    {4, "run identity and certificates", kIdentity},
 };
 
 StoreResult<std::int64_t> query_int(Database& db, const std::string& sql, std::string_view what) {

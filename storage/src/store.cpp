@@ -15,6 +15,7 @@
 
 #include "schema.hpp"
 #include "sqlite.hpp"
+#include "store_identity.hpp"
 #include "store_rows.hpp"
 
 namespace fogbench::storage {
@@ -296,6 +297,9 @@ StoreResult<std::int64_t> Store::create_run(const NewRun& r) {
     q.bind(1, id).bind(2, static_cast<int>(i)).bind(3, r.unit_serials[i]);
     if (auto ok = run(db, q, what + ": unit " + std::to_string(i)); !ok)
       return fail(std::move(ok));
+  }
+  if (r.identity) {
+    if (auto ok = insert_identity(db, id, *r.identity, what); !ok) return fail(std::move(ok));
   }
   const std::string detail = nlohmann::json{{"to", "pending"}, {"reason", "created"}}.dump();
   if (auto ok = insert_event(db, id, std::nullopt, EventKind::state, detail); !ok)

@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "fogbench/storage/store.hpp"
+#include "store_identity.hpp"
 #include "store_rows.hpp"
 
 namespace fogbench::storage {
@@ -199,8 +200,8 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
   if (auto ok = tx.begin(what); !ok) return fail(std::move(ok));
   {
     auto stmt = db.statement(
-        "INSERT INTO runs (created_at, profile_name, purpose, state, state_reason, config_json) "
-        "VALUES (?1, ?2, ?3, 'completed', ?4, ?5)");
+        "INSERT INTO runs (created_at, profile_name, purpose, state, state_reason, config_json, profile_text) "
+        "VALUES (?1, ?2, ?3, 'completed', ?4, ?5, ?6)");
     if (!stmt) return fail(std::move(stmt));
     Query q(db, *stmt);
     const std::string reason = "imported from " + data.name;
@@ -208,7 +209,8 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
         .bind(2, options.profile_name)
         .bind(3, to_string(options.purpose))
         .bind(4, reason)
-        .bind(5, config);
+        .bind(5, config)
+        .bind(6, options.profile_text);
     if (auto ok = run(db, q, what); !ok) return fail(std::move(ok));
   }
   const std::int64_t id = sqlite3_last_insert_rowid(db.handle());
@@ -238,6 +240,13 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
         return std::unexpected(sample_error(db, rc, id, 0, data.time_s[i], what));
       q.reset();
     }
+  }
+  if (options.identity) {
+    RunIdentity identity = *options.identity;
+    identity.units.resize(1);  // the file's unit is the run's unit 0
+    identity.units[0].unit_index = 0;
+    identity.units[0].serial = options.serial;
+    if (auto ok = insert_identity(db, id, identity, what); !ok) return fail(std::move(ok));
   }
   const std::string detail =
       nlohmann::json{{"imported_from", data.name}, {"samples", n}, {"serial", options.serial}}

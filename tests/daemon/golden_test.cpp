@@ -20,10 +20,11 @@ using nlohmann::json;
 
 namespace {
 
-// Times of day and the daemon version change from one replay to the next.
+// Times of day, the daemon version and the commit it was built from (run identity) change from
+// one replay to the next.
 void mask(json& j) {
   static const std::set<std::string> volatile_keys = {"created_at", "at", "started_at", "ended_at",
-                                                      "wall_time", "version"};
+                                                      "wall_time", "version", "software_version", "git_hash"};
   if (j.is_object()) {
     for (auto& [k, v] : j.items()) {
       if (volatile_keys.contains(k) && !v.is_null()) v = "*";

@@ -88,6 +88,7 @@ struct DaemonConfig {
   // world (fogbench-sim --paced): one {"cmd":"advance"} per acquired second of a run, so a busy
   // host slows a run down instead of breaking it (docs/daemon.md, "Time scale").
   std::optional<std::filesystem::path> sim_clock;
+  std::string station_id;                  // station.id: recorded in every run's identity ("" when unset)
   nlohmann::json source;                   // the file as read, stored with every run
 };
 

@@ -24,6 +24,9 @@ struct SessionState {
   // On a connection that may only read: the token (socket.tcp.token) that lets a request
   // control anyway when it carries it in its `token` field. Empty: none is accepted.
   std::string control_token;
+  // The unix socket's peer (SO_PEERCRED): its user name, or "uid N" when it has none; empty on
+  // TCP. A run started without `operator` records it as its operator (docs/daemon.md).
+  std::string peer_user;
 };
 
 // The commands that change something; the others only read (docs/protocol.md).
@@ -52,7 +55,8 @@ class Handler {
   nlohmann::json handle(const nlohmann::json& request, SessionState& session);
 
   // The commands handed to the Offload: the analyses (model.fit, model.verify, model.compare,
-  // model.diagnose, model.add_term) and the reads that may be large (run.samples, run.get).
+  // model.diagnose, model.add_term) and the reads that may be large (run.samples, run.get,
+  // cert.get).
   static bool offloaded(std::string_view cmd);
 
   static nlohmann::json reply(const nlohmann::json& id, nlohmann::json result);
@@ -65,6 +69,7 @@ class Handler {
                                      SessionState& session);
   // An offloaded command: its arguments checked here, the rest submitted.
   void offload(const std::string& cmd, const nlohmann::json& req, const nlohmann::json& id, Done done);
+  void offload_certificate(const nlohmann::json& req, const nlohmann::json& id, Done done);
   Station& station_;
 };
 

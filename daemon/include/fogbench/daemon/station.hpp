@@ -25,6 +25,7 @@
 #include "fogbench/daemon/config.hpp"
 #include "fogbench/daemon/offload.hpp"
 #include "fogbench/daemon/power_on.hpp"
+#include "fogbench/daemon/run_identity.hpp"
 #include "fogbench/daemon/write_journal.hpp"
 #include "fogbench/profiles/executor.hpp"
 #include "fogbench/profiles/profile.hpp"
@@ -87,9 +88,12 @@ class Station {
 
   // Checks and creates a run in state pending; it starts at the next tick. `command` is the
   // request as received, stored as the run's first command event.
+  // `op` is who started it, recorded in the run's identity with the station, the software, the
+  // hashes of the configuration and the profile and each unit's power-on (run_identity.hpp).
   ApiResult<std::int64_t> start_run(const std::string& profile_name,
                                     const std::vector<std::string>& serials,
-                                    storage::Purpose purpose, const nlohmann::json& command);
+                                    storage::Purpose purpose, const nlohmann::json& command,
+                                    const OperatorId& op = {});
   // Takes up an interrupted run again (run.resume): the profile goes on from where its clock
   // stood at the last stored second (replayed from the stored samples, so settles decide as
   // they did), the run clock counts the time it was down, and the seconds of that gap are

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "fogbench/model/run.hpp"
+#include "fogbench/storage/identity.hpp"
 
 namespace fogbench::storage {
 
@@ -102,6 +103,7 @@ struct NewRun {
   std::string config_json = "{}";        // the configuration in force (JSON object text)
   double time_scale = 1.0;               // profile seconds per wall second (1 on hardware)
   std::vector<std::string> unit_serials; // unit_index = position in this list
+  std::optional<RunIdentity> identity;   // stored in the same transaction (identity.hpp)
 };
 
 struct RunUnit {
@@ -178,6 +180,8 @@ struct ImportOptions {
   std::string profile_name = "import";
   Purpose purpose = Purpose::fit;
   std::string config_json = "{}";
+  std::string profile_text;                // the profile as run, when known
+  std::optional<RunIdentity> identity;     // e.g. read back from the CSV's comments
 };
 
 struct NewModel {
@@ -293,6 +297,17 @@ class Store {
   StoreResult<std::vector<ModelRecord>> model_lineage(std::int64_t model_id);
   StoreResult<std::int64_t> put_verification(const NewVerification& v);
   StoreResult<std::vector<VerificationRecord>> list_verifications(std::int64_t run_id);
+
+  // --- identity and certificates (store_identity.cpp)
+  // The run's identity; empty for a run recorded without one (before schema 4, or imported
+  // from a CSV without identity comments). A missing run is not_found.
+  StoreResult<std::optional<RunIdentity>> get_run_identity(std::int64_t run_id);
+  // Stores a certificate (its JSON must be JSON, its model the serial's). Returns its id.
+  StoreResult<std::int64_t> put_certificate(const NewCertificate& c);
+  // Certificates with this hash (normally none or one), oldest first.
+  StoreResult<std::vector<CertificateRecord>> find_certificates(std::string_view sha256);
+  // The serial's certificates, oldest first.
+  StoreResult<std::vector<CertificateRecord>> list_certificates(std::string_view serial);
 
   // SQLite's integrity check and foreign-key check: an empty list when all is well, or the
   // problems found.

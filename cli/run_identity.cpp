@@ -1,0 +1,77 @@
+// A run's identity on fogctl's side: see run_identity.hpp.
+#include "run_identity.hpp"
+
+#include <fstream>
+#include <sstream>
+
+#include "table.hpp"
+
+namespace fogbench::cli {
+
+using nlohmann::json;
+
+namespace {
+std::string str(const json& j, const char* key) {
+  return j.contains(key) && j[key].is_string() ? j[key].get<std::string>() : std::string();
+}
+}  // namespace
+
+std::optional<storage::RunIdentity> identity_from_json(const json& j) {
+  if (!j.is_object()) return std::nullopt;
+  storage::RunIdentity id;
+  id.station_id = str(j, "station_id");
+  id.operator_name = str(j, "operator");
+  id.operator_source = str(j, "operator_source");
+  id.software_version = str(j, "software_version");
+  id.git_hash = str(j, "git_hash");
+  id.config_sha256 = str(j, "config_sha256");
+  id.profile_sha256 = str(j, "profile_sha256");
+  if (j.contains("units") && j["units"].is_array())
+    for (const auto& u : j["units"]) {
+      storage::UnitIdentity x;
+      x.unit_index = u.value("unit", 0);
+      x.serial = str(u, "serial");
+      if (u.contains("powered_on_at") && u["powered_on_at"].is_string()) x.powered_on_at = u["powered_on_at"].get<std::string>();
+      if (u.contains("since_power_on_s") && u["since_power_on_s"].is_number())
+        x.since_power_on_s = u["since_power_on_s"].get<double>();
+      id.units.push_back(std::move(x));
+    }
+  return id;
+}
+
+std::string identity_csv_comments(const json& run_get, int unit) {
+  auto id = identity_from_json(run_get.value("identity", json()));
+  if (!id) return {};
+  const json& run = run_get["run"];
+  return storage::identity_comment_lines(
+      storage::identity_fields(*id, run.value("id", std::int64_t{0}), run.value("profile", std::string()), unit));
+}
+
+void print_identity(const json& identity, std::ostream& out) {
+  auto id = identity_from_json(identity);
+  if (!id) {
+    out << "  identity: not recorded (a run from before schema 4, or imported without it)\n";
+    return;
+  }
+  out << "  station " << (id->station_id.empty() ? "-" : id->station_id) << ", operator "
+      << (id->operator_name.empty() ? "-" : id->operator_name) << " (" << id->operator_source << ")\n"
+      << "  fogbench " << id->software_version << " (" << id->git_hash << ")\n"
+      << "  config sha256 " << id->config_sha256 << "\n  profile sha256 " << id->profile_sha256 << "\n";
+  Table t({"unit", "serial", "powered on", "since power-on at creation, s"});
+  for (const auto& u : id->units)
+    t.add({std::to_string(u.unit_index), u.serial, u.powered_on_at.value_or("not seen"),
+           u.since_power_on_s ? fixed(*u.since_power_on_s, 0) : "-"});
+  out << t.str();
+}
+
+std::vector<std::pair<std::string, std::string>> csv_file_identity(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return {};
+  // The comments stand before the header row: the first 64 KiB hold them.
+  std::string head(65536, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(in.gcount()));
+  return storage::read_comment_fields(head);
+}
+
+}  // namespace fogbench::cli

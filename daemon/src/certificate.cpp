@@ -1,0 +1,212 @@
+// A certificate per serial: built from the store (certificate.hpp), hashed in its canonical
+// form, stored once per content.
+#include "fogbench/daemon/certificate.hpp"
+
+#include <cmath>
+#include <set>
+
+#include "fogbench/daemon/run_identity.hpp"
+#include "fogbench/model/allan.hpp"
+#include "fogbench/model/json.hpp"
+#include "fogbench/model/model.hpp"
+#include "fogbench/model/sha256.hpp"
+#include "fogbench/protocol/build_info.hpp"
+#include "fogbench/storage/run_data.hpp"
+
+namespace fogbench::daemon::certificate {
+
+using nlohmann::json;
+namespace allan = model::allan;
+
+namespace {
+
+json num_or_null(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+json estimate_json(const std::optional<allan::NoiseEstimate>& e, const std::string& note) {
+  json j = json::object();
+  if (e)
+    j = {{"value", num_or_null(e->value)}, {"ci_low", num_or_null(e->ci_low)}, {"ci_high", num_or_null(e->ci_high)},
+         {"from_tau_s", e->from_tau_s}, {"to_tau_s", e->to_tau_s}};
+  else
+    j = {{"value", nullptr}};
+  j["note"] = note;
+  return j;
+}
+
+// The Allan figures of the model's compensated output on a stored run's unit: the longest
+// even, unflagged stretch (every phase: compensation is meant to remove the ramps' drift).
+json allan_of(storage::Store& store, const model::Model& m, std::int64_t run_id, int unit) {
+  auto data = store.export_run(run_id, unit);
+  if (!data) return {{"error", data.error().message}};
+  storage::bridge_missing(*data);
+  auto mu = model::predict(m, *data);
+  if (!mu) return {{"error", mu.error().message}};
+  model::RunData comp = *data;
+  for (std::size_t i = 0; i < comp.size(); ++i) comp.gyro_dph[i] -= (*mu)[i];
+  std::optional<allan::Stretch> longest;
+  for (const auto& s : allan::even_stretches(comp, 7, true))
+    if (!longest || s.end - s.begin > longest->end - longest->begin) longest = s;
+  if (!longest) return {{"error", "no stretch of 7 or more evenly spaced, unflagged samples"}};
+  std::vector<double> rate(comp.gyro_dph.begin() + static_cast<std::ptrdiff_t>(longest->begin),
+                           comp.gyro_dph.begin() + static_cast<std::ptrdiff_t>(longest->end));
+  auto curve = allan::overlapping_adev(rate, longest->tau0_s, allan::octave_cluster_sizes(rate.size()));
+  if (!curve) return {{"error", curve.error()}};
+  const auto t = allan::noise_terms(*curve);
+  return {{"series", "compensated"},
+          {"from_s", comp.time_s[longest->begin]},
+          {"to_s", comp.time_s[longest->end - 1]},
+          {"samples", rate.size()},
+          {"arw_deg_per_sqrt_h", estimate_json(t.arw_deg_per_sqrt_h, t.arw_note)},
+          {"bias_instability_dph", estimate_json(t.bias_instability_dph, t.bias_instability_note)},
+          {"rrw_dph_per_sqrt_h", estimate_json(t.rrw_dph_per_sqrt_h, t.rrw_note)}};
+}
+
+ApiResult<json> run_json(storage::Store& store, std::int64_t run_id, const std::string& role) {
+  auto d = store.get_run(run_id);
+  if (!d) return std::unexpected(from_store(d.error()));
+  auto id = store.get_run_identity(run_id);
+  if (!id) return std::unexpected(from_store(id.error()));
+  return json{{"id", run_id},
+              {"role", role},
+              {"profile", d->run.profile_name},
+              {"purpose", std::string(storage::to_string(d->run.purpose))},
+              {"state", std::string(storage::to_string(d->run.state))},
+              {"started_at", d->run.started_at ? json(*d->run.started_at) : json(nullptr)},
+              {"ended_at", d->run.ended_at ? json(*d->run.ended_at) : json(nullptr)},
+              {"identity", identity_json(*id)}};
+}
+
+}  // namespace
+
+ApiResult<json> build(storage::Store& store, const AnalysisConfig& limits, const std::string& station_id,
+                      const std::string& serial) {
+  auto rec = store.current_model(serial);
+  if (!rec) return std::unexpected(from_store(rec.error()));
+  if (!*rec) return api_error(ErrorCode::not_found, "serial " + serial + ": no model, so no certificate");
+  const storage::ModelRecord& mr = **rec;
+  auto m = model::model_from_text(mr.model_json);
+  if (!m) return api_error(ErrorCode::internal, "serial " + serial + ": model " + std::to_string(mr.id) + " unreadable: " + m.error());
+
+  json coefficients = json::array();
+  coefficients.push_back({{"term", "mu0"}, {"value", num_or_null(m->mu0_dph)}, {"sigma", num_or_null(m->mu0_se_dph)},
+                          {"unit", "deg/h"}, {"lag_s", 0}});
+  const json mj = json::parse(mr.model_json);
+  for (const auto& t : mj.value("terms", json::array()))
+    coefficients.push_back({{"term", t.value("term", "")}, {"value", t.contains("coef") ? t["coef"] : json(nullptr)},
+                            {"sigma", t.contains("se") ? t["se"] : json(nullptr)}, {"unit", t.value("unit", "")},
+                            {"lag_s", t.contains("lag_s") ? t["lag_s"] : json(nullptr)}});
+
+  json runs = json::array();
+  std::set<std::int64_t> listed;
+  if (mr.run_id) {
+    auto r = run_json(store, *mr.run_id, "fit");
+    if (!r) return std::unexpected(r.error());
+    runs.push_back(*r);
+    listed.insert(*mr.run_id);
+  }
+  // Every verification of this model: the serial's runs, newest first from the store, taken oldest first.
+  storage::RunFilter f;
+  f.serial = serial;
+  f.limit = 10000;
+  auto all = store.list_runs(f);
+  if (!all) return std::unexpected(from_store(all.error()));
+  json verdicts = json::array();
+  json allans = json::array();
+  bool all_pass = true;
+  for (auto it = all->rbegin(); it != all->rend(); ++it) {
+    auto vs = store.list_verifications(it->id);
+    if (!vs) return std::unexpected(from_store(vs.error()));
+    for (const auto& v : *vs) {
+      if (v.model_id != mr.id) continue;
+      if (v.unit_index < 0 || v.unit_index >= static_cast<int>(it->units.size()) ||
+          it->units[static_cast<std::size_t>(v.unit_index)].serial != serial)
+        continue;
+      const json res = json::parse(v.result_json, nullptr, false);
+      if (!res.is_object()) continue;
+      const std::string verdict = res.value("verdict", v.pass ? "pass" : "fail");
+      all_pass = all_pass && verdict == "pass";
+      verdicts.push_back(
+          {{"run_id", it->id},
+           {"verification_id", v.id},
+           {"verdict", verdict},
+           {"checks",
+            {{{"check", "compensated std / raw std"}, {"value", res.value("ratio", json(nullptr))},
+              {"limit", res.value("threshold", json(nullptr))}, {"rule", "value < limit"},
+              {"pass", res.value("ratio_pass", json(nullptr))}},
+             {{"check", "compensated std / model noise std"}, {"value", res.value("noise_factor", json(nullptr))},
+              {"limit", limits.verify_max_noise_factor}, {"rule", "value <= limit (configured now)"},
+              {"pass", res.contains("noise_factor") && res["noise_factor"].is_number()
+                           ? json(res["noise_factor"].get<double>() <= limits.verify_max_noise_factor)
+                           : json(nullptr)}},
+             {{"check", "longest failing interval, s"}, {"value", res.value("longest_fail_s", json(nullptr))},
+              {"limit", limits.verify_max_fail_s}, {"rule", "value < limit (configured now)"},
+              {"pass", res.contains("longest_fail_s") && res["longest_fail_s"].is_number()
+                           ? json(res["longest_fail_s"].get<double>() < limits.verify_max_fail_s)
+                           : json(nullptr)}}}},
+           {"table1",
+            {{"raw_std_dph", res.value("meas_std", json(nullptr))},
+             {"comp_std_dph", res.value("comp_std", json(nullptr))},
+             {"n", res.value("n", json(nullptr))}}},
+           {"reasons", res.value("reasons", json::array())}});
+      json a = allan_of(store, *m, it->id, v.unit_index);
+      a["run_id"] = it->id;
+      allans.push_back(std::move(a));
+      if (!listed.contains(it->id)) {
+        auto r = run_json(store, it->id, "verify");
+        if (!r) return std::unexpected(r.error());
+        runs.push_back(*r);
+        listed.insert(it->id);
+      }
+    }
+  }
+  const auto& info = protocol::build_info();
+  return json{{"format", "fogbench.certificate"},
+              {"format_version", 1},
+              {"serial", serial},
+              {"station_id", station_id},
+              {"model",
+               {{"id", mr.id}, {"version", mr.version}, {"method", mr.method}, {"terms", mr.terms},
+                {"created_at", mr.created_at}, {"fitted_on_run", mr.run_id ? json(*mr.run_id) : json(nullptr)},
+                {"sigma_a_dph", num_or_null(m->sigma_a_dph)}, {"coefficients", coefficients}}},
+              {"verdicts", verdicts},
+              {"verdict", verdicts.empty() ? "not verified" : all_pass ? "pass" : "not passed"},
+              {"runs", runs},
+              {"allan", allans},
+              {"software", {{"version", std::string(info.version)}, {"git_hash", std::string(info.git_hash)},
+                            {"git_describe", std::string(info.git_describe)}}}};
+}
+
+std::string hash_of(const json& cert) {
+  json body = cert;
+  if (body.is_object()) body.erase("sha256");
+  return model::sha256_hex(body.dump());
+}
+
+ApiResult<std::pair<json, bool>> issue(storage::Store& writer, const json& body, const std::string& issued_at) {
+  const std::string serial = body.value("serial", "");
+  auto stored = writer.list_certificates(serial);
+  if (!stored) return std::unexpected(from_store(stored.error()));
+  if (!stored->empty()) {
+    json last = json::parse(stored->back().json, nullptr, false);
+    if (last.is_object()) {
+      json same = last;
+      same.erase("sha256");
+      same.erase("issued_at");
+      if (same == body) return std::pair{last, false};
+    }
+  }
+  json cert = body;
+  cert["issued_at"] = issued_at;
+  cert["sha256"] = hash_of(cert);
+  storage::NewCertificate nc;
+  nc.serial = serial;
+  nc.model_id = body["model"]["id"].get<std::int64_t>();
+  nc.model_version = body["model"]["version"].get<int>();
+  nc.sha256 = cert["sha256"].get<std::string>();
+  nc.json = cert.dump();
+  auto id = writer.put_certificate(nc);
+  if (!id) return std::unexpected(from_store(id.error()));
+  return std::pair{cert, true};
+}
+
+}  // namespace fogbench::daemon::certificate

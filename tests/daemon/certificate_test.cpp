@@ -1,0 +1,125 @@
+// The certificate per serial (issue 13, point 2) from a real store after a fit and a verify run
+// of the synthetic bench: issued automatically when the verify run completes, handed out again
+// by cert.get while nothing changes, its SHA-256 that of its canonical JSON, one altered digit
+// detected, the store knowing the hash; a serial without a model is not_found naming it.
+#include "fixture.hpp"
+
+#include "fogbench/daemon/certificate.hpp"
+#include "fogbench/daemon/handler.hpp"
+#include "fogbench/model/sha256.hpp"
+
+using namespace fogbench;
+using namespace fogbench::daemon;
+using namespace fogbench::daemon::test;
+using nlohmann::json;
+
+namespace {
+struct Rig {
+  storage::Store store = memory_store();
+  Station station{golden_config({{"station", {{"id", "bench-7"}}}}), store};
+  Handler handler{station};
+  SessionState session;
+  json send(const json& req) { return handler.handle(req, session); }
+};
+}  // namespace
+
+TEST_CASE("certificate: issued when a verify run completes, the same from cert.get, its hash over the canonical JSON") {
+  Rig r;
+  SyntheticBench bench(1);
+  double clock_s = 0.0;
+  REQUIRE(r.send({{"id", 1}, {"cmd", "run.start"}, {"profile", "short"}, {"units", {"FOG-0001"}}, {"operator", "Ada"}}).contains("result"));
+  run_to_end(r.station, bench, clock_s);
+  REQUIRE(r.store.current_model("FOG-0001")->has_value());
+  // A fit alone certifies a model with no verdict yet, and stores nothing until asked.
+  CHECK(r.store.list_certificates("FOG-0001")->empty());
+  REQUIRE(r.send({{"id", 2}, {"cmd", "run.start"}, {"profile", "short"}, {"units", {"FOG-0001"}}, {"purpose", "verify"}})
+              .contains("result"));
+  run_to_end(r.station, bench, clock_s);
+
+  // Issued automatically at the verify run's end; its note says which.
+  auto stored = r.store.list_certificates("FOG-0001");
+  REQUIRE(stored->size() == 1);
+  auto run2 = r.store.get_run(2);
+  std::string noted;
+  for (const auto& e : run2->events)
+    if (e.kind == storage::EventKind::note) {
+      json d = json::parse(e.detail_json);
+      if (d.contains("certificate_sha256")) noted = d["certificate_sha256"];
+    }
+  CHECK(noted == stored->front().sha256);
+
+  json reply = r.send({{"id", 3}, {"cmd", "cert.get"}, {"serial", "FOG-0001"}});
+  REQUIRE(reply.contains("result"));
+  CHECK(reply["result"]["issued_now"] == false);  // nothing changed: the stored one
+  const json cert = reply["result"]["certificate"];
+  CHECK(cert["sha256"] == stored->front().sha256);
+  CHECK(r.store.list_certificates("FOG-0001")->size() == 1);
+
+  // The hash is SHA-256 of the canonical JSON (sorted keys, no whitespace) without the field.
+  json body = cert;
+  body.erase("sha256");
+  CHECK(cert["sha256"] == model::sha256_hex(body.dump()));
+  CHECK(certificate::hash_of(cert) == cert["sha256"]);
+  CHECK(stored->front().json == cert.dump());
+
+  // Content: coefficients with 1 sigma, each verdict with value and limit, runs with identity,
+  // software, Allan figures of the compensated output.
+  CHECK(cert["serial"] == "FOG-0001");
+  CHECK(cert["station_id"] == "bench-7");
+  const json& coefs = cert["model"]["coefficients"];
+  REQUIRE(coefs.size() == 3);  // mu0, d(T1), grad
+  CHECK(coefs[0]["term"] == "mu0");
+  for (const auto& c : coefs) {
+    CHECK(c["value"].is_number());
+    CHECK(c["sigma"].get<double>() > 0.0);
+  }
+  // The synthetic bench's d(T1) coefficient is -2.7 deg/h per degC/min: within 5 sigma.
+  CHECK(std::abs(coefs[1]["value"].get<double>() + 2.7) < 5.0 * coefs[1]["sigma"].get<double>() + 0.05);
+  REQUIRE(cert["verdicts"].size() == 1);
+  const json& v = cert["verdicts"][0];
+  CHECK(v["run_id"] == 2);
+  REQUIRE(v["checks"].size() == 3);
+  CHECK(v["checks"][0]["limit"] == 0.2);
+  CHECK(v["checks"][0]["value"].get<double>() < 0.2);
+  CHECK(v["checks"][1]["limit"] == 1.5);
+  CHECK(v["checks"][2]["limit"] == 60.0);
+  CHECK(cert["verdict"] == (v["verdict"] == "pass" ? "pass" : "not passed"));
+  REQUIRE(cert["runs"].size() == 2);
+  CHECK(cert["runs"][0]["role"] == "fit");
+  CHECK(cert["runs"][0]["identity"]["operator"] == "Ada");
+  CHECK(cert["runs"][1]["role"] == "verify");
+  CHECK(cert["software"]["git_hash"].is_string());
+  REQUIRE(cert["allan"].size() == 1);
+  CHECK(cert["allan"][0]["samples"].get<int>() > 100);
+  CHECK(cert["allan"][0].contains("arw_deg_per_sqrt_h"));
+
+  // One digit altered: the hash no longer matches; the store knows the true hash, not the other.
+  json altered = cert;
+  altered["model"]["coefficients"][1]["value"] = coefs[1]["value"].get<double>() + 0.1;
+  CHECK(certificate::hash_of(altered) != cert["sha256"]);
+  json known = r.send({{"id", 4}, {"cmd", "cert.check"}, {"sha256", cert["sha256"]}});
+  CHECK(known["result"]["known"] == true);
+  CHECK(known["result"]["certificates"][0]["serial"] == "FOG-0001");
+  json unknown = r.send({{"id", 5}, {"cmd", "cert.check"}, {"sha256", certificate::hash_of(altered)}});
+  CHECK(unknown["result"]["known"] == false);
+
+  // A new model version: cert.get issues a new certificate.
+  REQUIRE(r.send({{"id", 6}, {"cmd", "model.add_term"}, {"run_id", 1}, {"term", "T1"}}).contains("result"));
+  json again = r.send({{"id", 7}, {"cmd", "cert.get"}, {"serial", "FOG-0001"}});
+  REQUIRE(again.contains("result"));
+  CHECK(again["result"]["issued_now"] == true);
+  CHECK(again["result"]["certificate"]["model"]["version"] == 2);
+  CHECK(again["result"]["certificate"]["verdicts"].empty());  // not verified yet
+  CHECK(r.store.list_certificates("FOG-0001")->size() == 2);
+}
+
+TEST_CASE("certificate: a serial without a model is not_found naming it, nothing stored, a missing serial field is bad_request") {
+  Rig r;
+  json reply = r.send({{"id", 1}, {"cmd", "cert.get"}, {"serial", "FOG-0002"}});
+  REQUIRE(reply.contains("error"));
+  CHECK(reply["error"]["code"] == "not_found");
+  CHECK(reply["error"]["message"].get<std::string>().find("FOG-0002") != std::string::npos);
+  CHECK(r.send({{"id", 2}, {"cmd", "cert.get"}})["error"]["code"] == "bad_request");
+  CHECK(r.send({{"id", 3}, {"cmd", "cert.check"}})["error"]["code"] == "bad_request");
+  CHECK(r.store.list_certificates("FOG-0002")->empty());
+}
