@@ -24,17 +24,34 @@ std::string value_text(const json& v) {
     for (const auto& x : v) s += (s.empty() ? "" : " ") + value_text(x);
     return "[" + s + "]";
   }
-  return v.dump();  // numbers that are integers, and nested objects
+  return v.dump();  // integers (and what detail_fields does not reach)
 }
 
-// "key value, key value": the detail of an event as a sentence of its fields.
-std::string detail_text(const json& d) {
-  if (!d.is_object()) return value_text(d);
-  std::string s;
-  for (const auto& [k, v] : d.items()) {
-    if (!s.empty()) s += ", ";
-    s += k + " " + value_text(v);
+// "key value, key value": the detail of an event as a sentence of its fields; a nested object's
+// fields as "outer.inner value", an array of objects as "key[i].field value".
+void detail_fields(const json& d, const std::string& prefix, std::string& s) {
+  auto add = [&](const std::string& k, const std::string& v) { s += (s.empty() ? "" : ", ") + k + " " + v; };
+  if (d.is_object()) {
+    for (const auto& [k, v] : d.items()) {
+      const std::string key = prefix.empty() ? k : prefix + "." + k;
+      if (v.is_object() || (v.is_array() && !v.empty() && !v.front().is_primitive())) detail_fields(v, key, s);
+      else add(key, value_text(v));
+    }
+  } else if (d.is_array()) {
+    for (std::size_t i = 0; i < d.size(); ++i) {
+      const std::string key = prefix + "[" + std::to_string(i) + "]";
+      if (d[i].is_structured()) detail_fields(d[i], key, s);
+      else add(key, value_text(d[i]));
+    }
+  } else {
+    add(prefix, value_text(d));
   }
+}
+
+std::string detail_text(const json& d) {
+  if (!d.is_structured()) return value_text(d);
+  std::string s;
+  detail_fields(d, "", s);
   return s;
 }
 

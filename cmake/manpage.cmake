@@ -14,6 +14,8 @@ function(help_of args out)
   if(NOT rc EQUAL 0)
     message(FATAL_ERROR "${EXE} ${args} --help failed (${rc}): ${err}")
   endif()
+  # CLI11 prints argv[0], the build tree's path: the page names the command.
+  string(REPLACE "${EXE}" "${NAME}" text "${text}")
   roff_escape("${text}" text)
   set(${out} "${text}" PARENT_SCOPE)
 endfunction()
