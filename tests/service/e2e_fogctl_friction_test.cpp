@@ -84,12 +84,18 @@ TEST_CASE("e2e fogctl: a run followed into files, as NDJSON with --raw, its even
   CHECK_THAT(ev, Catch::Contains("state"));
   CHECK(ev.find("{\"") == std::string::npos);  // words, not raw JSON
 
-  auto by_serial = fogctl(bench, "run export " + id + " --unit SIM-0002 -o unit2.csv");
+  const auto by_serial_csv = bench.dir / "unit2.csv", by_index_csv = bench.dir / "unit1.csv";
+  auto by_serial = fogctl(bench, "run export " + id + " --unit SIM-0002 -o '" + by_serial_csv.string() + "'");
   INFO(by_serial.err);
   CHECK(by_serial.code == 0);
-  auto by_index = fogctl(bench, "run export " + id + " --unit 1 -o unit1.csv");
+  auto by_index = fogctl(bench, "run export " + id + " --unit 1 -o '" + by_index_csv.string() + "'");
   CHECK(by_index.code == 0);
-  CHECK(slurp(bench.dir / "unit2.csv") == slurp(bench.dir / "unit1.csv"));
+  const std::string unit2 = slurp(by_serial_csv);
+  CHECK(unit2.size() > 1000);  // the run's samples of SIM-0002
+  CHECK(unit2 == slurp(by_index_csv));
+  auto first = fogctl(bench, "run export " + id + " --unit SIM-0001");  // to stdout
+  CHECK(first.code == 0);
+  CHECK(first.out != unit2);
   auto nobody = fogctl(bench, "run export " + id + " --unit SIM-9999");
   CHECK(nobody.code == 2);
   CHECK_THAT(nobody.err, Catch::Contains("SIM-0001") && Catch::Contains("SIM-0002"));
