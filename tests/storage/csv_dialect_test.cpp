@@ -15,7 +15,7 @@ CsvError error_of(const std::string& text, const CsvOptions& o = {}) {
 }
 }  // namespace
 
-TEST_CASE("csv dialect: ';' detected, decimal commas read as the same doubles as decimal points", "[csv]") {
+TEST_CASE("csv dialect: semicolons detected, decimal commas read as the same doubles as decimal points", "[csv]") {
   CsvOptions o;
   o.decimal_comma = true;
   auto r = parse_csv("time_s;gyro_dph;t1_c;t2_c\n0;1,25;-0,5;20\n1;1,5;-0,25;20,125\n", o);
@@ -38,7 +38,7 @@ TEST_CASE("csv dialect: tab detected, headers in any case, an exact name winning
   CHECK(e->gyro_dph[0] == 1.0);
 }
 
-TEST_CASE("csv dialect: a quoted header name with a comma in a ';' file stays one column", "[csv]") {
+TEST_CASE("csv dialect: a quoted header name with a comma in a semicolon file stays one column", "[csv]") {
   CsvOptions o;
   o.column_map = {{"gyro_dph", "Rate, deg/h"}};
   o.decimal_comma = true;
