@@ -101,5 +101,14 @@ std::expected<model::RunData, ClientError> fetch_run(Client& c, std::int64_t run
 // Registers status, run (start, watch, list, get, abort, resume, export) and extends fit and verify
 // with --run N; `code` receives the exit code.
 void add_client_commands(CLI::App& app, int& code);
+// The subcommand of that name, or null.
+CLI::App* find_subcommand(CLI::App& app, const std::string& name);
+// --run N (with --unit and where the daemon is) on fit, verify, compare, diagnose and report:
+// registered after every command (run_fetch.cpp).
+void add_stored_run_options(CLI::App& app);
+// fogctl profile list|validate (profile_commands.cpp).
+void add_profile_commands(CLI::App& app, int& code);
+// The hidden `fogctl __generate commands|bash|zsh` the build runs (generate.cpp).
+void add_generate_command(CLI::App& app, int& code);
 
 }  // namespace fogbench::cli

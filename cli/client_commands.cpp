@@ -195,10 +195,7 @@ int cmd_run_get(const Common& o, std::int64_t id, std::ostream& out, std::ostrea
     out << "verifications (Table 1, deg/h):\n";
     print_table1((*r)["verifications"], run, out);
   }
-  Table ev({"t_s", "kind", "detail"});
-  for (const auto& e : (*r)["events"])
-    ev.add({e["t_s"].is_number() ? fixed(e["t_s"].get<double>(), 0) : "-", e["kind"], e["detail"].dump()});
-  out << "events:\n" << ev.str();
+  out << "events:\n" << events_table((*r)["events"]).str();
   return kExitOk;
 }
 
@@ -214,11 +211,13 @@ int cmd_run_abort(const Common& o, const std::string& reason, std::ostream& out,
   return kExitOk;
 }
 
-int cmd_run_export(const Common& o, std::int64_t id, int unit, bool settle, const std::string& output,
+int cmd_run_export(const Common& o, std::int64_t id, const std::string& unit_arg, bool settle, const std::string& output,
                    std::ostream& out, std::ostream& err) {
   auto c = open(o);
   if (!c) return report(c.error(), err);
-  auto d = fetch_run(*c, id, unit, settle);
+  auto unit = resolve_unit(*c, id, unit_arg);
+  if (!unit) return report(unit.error(), err);
+  auto d = fetch_run(*c, id, *unit, settle);
   if (!d) return report(d.error(), err);
   // The run's identity as `# key: value` lines above the header (docs/csv.md).
   auto g = c->call("run.get", {{"run_id", id}});
@@ -232,7 +231,7 @@ int cmd_run_export(const Common& o, std::int64_t id, int unit, bool settle, cons
     err << "fogctl: " << ok.error() << "\n";
     return kExitError;
   }
-  if (!o.json_out) err << "run " << id << " unit " << unit << ": " << d->size() << " samples written to " << output << "\n";
+  if (!o.json_out) err << "run " << id << " unit " << unit_arg << ": " << d->size() << " samples written to " << output << "\n";
   return kExitOk;
 }
 
@@ -313,46 +312,6 @@ int cmd_run_resume(const Common& o, std::int64_t id, bool wait, bool quiet, std:
   return watch(o, id, quiet, 300.0, out, err);
 }
 
-// --- fit / verify on a stored run: the run is fetched into a CSV and the offline command runs
-// on it, exactly as on a file.
-struct TempFiles {
-  std::vector<std::filesystem::path> paths;
-  ~TempFiles() {
-    std::error_code ec;
-    for (const auto& p : paths) std::filesystem::remove(p, ec);
-  }
-};
-TempFiles& temp_files() {
-  static TempFiles t;
-  return t;
-}
-
-std::filesystem::path temp_path(const std::string& stem, const std::string& ext) {
-  auto p = std::filesystem::temp_directory_path() /
-           ("fogctl-" + stem + "-" + std::to_string(::getpid()) + ext);
-  temp_files().paths.push_back(p);
-  return p;
-}
-
-std::string fetch_to_csv(const Common& where, std::int64_t run_id, int unit) {
-  auto c = open(where);
-  if (!c) {
-    report(c.error(), std::cerr);
-    throw CLI::RuntimeError(kExitError);
-  }
-  auto d = fetch_run(*c, run_id, unit);
-  if (!d) {
-    report(d.error(), std::cerr);
-    throw CLI::RuntimeError(kExitError);
-  }
-  auto path = temp_path("run" + std::to_string(run_id) + "-unit" + std::to_string(unit), ".csv");
-  if (auto ok = storage::write_csv_file(path, *d); !ok) {
-    std::cerr << "fogctl: " << ok.error().message << "\n";
-    throw CLI::RuntimeError(kExitError);
-  }
-  return path.string();
-}
-
 }  // namespace
 
 // The subcommand of that name, or null (CLI11 2.1's get_subcommand throws).
@@ -374,7 +333,9 @@ void add_client_commands(CLI::App& app, int& code) {
   static std::vector<std::string> units;
   static bool wait = false, quiet = false, settle = false;
   static std::int64_t run_id = 0;
-  static int unit = 0, limit = 50;
+  static int limit = 50;
+  static std::string unit = "0";
+  static bool raw = false;
   static std::optional<std::int64_t> watch_id;
 
   auto* start = run->add_subcommand("start", "Start a run of a profile on units; --wait follows it to the end");
@@ -393,7 +354,8 @@ void add_client_commands(CLI::App& app, int& code) {
   add_common(w, common);
   w->add_option("run", watch_id, "Run id (default: the active run)");
   w->add_flag("-q,--quiet", quiet, "No progress line");
-  w->callback([&] { code = watch(common, watch_id, quiet, 300.0, std::cout, std::cerr); });
+  w->add_flag("--raw", raw, "Print the run's sample and event messages as they come, one JSON object a line (NDJSON)");
+  w->callback([&] { code = watch(common, watch_id, quiet, 300.0, std::cout, std::cerr, raw); });
 
   auto* list = run->add_subcommand("list", "List runs, newest first");
   add_common(list, common);
@@ -423,7 +385,7 @@ void add_client_commands(CLI::App& app, int& code) {
   auto* exp = run->add_subcommand("export", "Write a stored run's unit as CSV (the format fogctl fit reads)");
   add_common(exp, common);
   exp->add_option("run", run_id, "Run id")->required();
-  exp->add_option("--unit", unit, "Unit index in the run (default 0)");
+  exp->add_option("--unit", unit, "The unit, by serial or by index in the run (default 0, the first)");
   exp->add_option("-o,--output", output, "CSV file (default: standard output)");
   exp->add_flag("--include-settle", settle, "Keep the samples of the opening settle");
   exp->callback([&] { code = cmd_run_export(common, run_id, unit, settle, output, std::cout, std::cerr); });
@@ -445,71 +407,6 @@ void add_client_commands(CLI::App& app, int& code) {
     }
     code = cmd_model_get(common, model_serial, model_id, model_output, std::cout, std::cerr);
   });
-
-  // fogctl fit --run N / fogctl verify --run N: the offline commands on a stored run. The run
-  // is fetched when --run is parsed (after --socket and --unit, declared before it) and handed
-  // to the command as the file it would otherwise be given.
-  static Common fit_from, verify_from;
-  static int fit_unit = 0, verify_unit = 0;
-  if (auto* fit = find_subcommand(app, "fit")) {
-    if (auto* pos = fit->get_option_no_throw("run")) {
-      pos->required(false);
-      add_common(fit, fit_from, /*with_json=*/false);  // --socket, --connect, --token: where --run is fetched
-      fit->add_option("--unit", fit_unit, "With --run: unit index in the run (default 0)");
-      fit->add_option("--run", "Fit on a run stored by fogbenchd (fetched through its socket) instead of a CSV")
-          ->each([pos](const std::string& v) {
-            pos->clear();
-            pos->add_result(fetch_to_csv(fit_from, std::stoll(v), fit_unit));
-            pos->run_callback();
-          });
-    }
-  }
-  if (auto* ver = find_subcommand(app, "verify")) {
-    auto* pos = ver->get_option_no_throw("runs");
-    auto* model = ver->get_option_no_throw("--model");
-    if (pos && model) {
-      pos->required(false);
-      model->required(false);
-      add_common(ver, verify_from, /*with_json=*/false);
-      ver->add_option("--unit", verify_unit, "With --run: unit index in the run (default 0)");
-      ver->add_option("--run", "Verify on a run stored by fogbenchd; without --model, the unit's current model")
-          ->each([pos, model](const std::string& v) {
-            const auto id = std::stoll(v);
-            pos->clear();
-            pos->add_result(fetch_to_csv(verify_from, id, verify_unit));
-            pos->run_callback();
-            if (model->count() == 0) {
-              auto c = open(verify_from);
-              if (!c) {
-                report(c.error(), std::cerr);
-                throw CLI::RuntimeError(kExitError);
-              }
-              auto r = c->call("run.get", {{"run_id", id}});
-              if (!r) {
-                report(r.error(), std::cerr);
-                throw CLI::RuntimeError(kExitError);
-              }
-              const auto& serials = (*r)["run"]["units"];
-              if (verify_unit < 0 || static_cast<std::size_t>(verify_unit) >= serials.size()) {
-                std::cerr << "fogctl: run " << id << " has no unit " << verify_unit << "\n";
-                throw CLI::RuntimeError(kExitError);
-              }
-              auto m = c->call("model.get", {{"serial", serials[static_cast<std::size_t>(verify_unit)]}});
-              if (!m) {
-                report(m.error(), std::cerr);
-                throw CLI::RuntimeError(kExitError);
-              }
-              auto path = temp_path("model" + std::to_string((*m)["id"].get<std::int64_t>()), ".json");
-              if (auto ok = write_text(path.string(), (*m)["model"].dump(2)); !ok) {
-                std::cerr << "fogctl: " << ok.error() << "\n";
-                throw CLI::RuntimeError(kExitError);
-              }
-              model->add_result(path.string());
-              model->run_callback();
-            }
-          });
-    }
-  }
 }
 
 }  // namespace fogbench::cli

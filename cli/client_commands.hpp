@@ -46,14 +46,20 @@ Table quality_table(const nlohmann::json& serials, const nlohmann::json& quality
 // Table 1 of a run's verifications.
 void print_table1(const nlohmann::json& verifications, const nlohmann::json& run, std::ostream& out);
 
+// A run's unit named by serial (first) or by index in the run; an error lists its units.
+std::expected<int, ClientError> resolve_unit(Client& c, std::int64_t run_id, const std::string& unit);
+// A run's audit trail as a table: time, kind and the detail in words (key value, ...).
+Table events_table(const nlohmann::json& events);
+
 // Whether a run state is an end (completed, aborted, failed, interrupted).
 bool terminal(const std::string& state);
 // The exit code of a finished run (0 completed and passed, 3 marginal, 1 a verification
 // failed, 2 anything else), with its summary on out.
 int final_code(Client& c, std::int64_t run_id, std::ostream& out, bool json_out);
 // Follows a run (the active one when run_id is empty) to its end, reconnecting for up to
-// reconnect_s when the daemon goes away; progress on err unless quiet.
+// reconnect_s when the daemon goes away; progress on err unless quiet. raw: the run's sample and
+// event messages on out as NDJSON instead of the progress and the summary.
 int watch(const Common& o, std::optional<std::int64_t> run_id, bool quiet, double reconnect_s, std::ostream& out,
-          std::ostream& err);
+          std::ostream& err, bool raw = false);
 
 }  // namespace fogbench::cli::commands

@@ -21,6 +21,13 @@ std::expected<model::RunData, std::string> load_run(const std::string& path, con
   storage::CsvOptions o;
   o.resample_s = in.resample_s;
   o.skip = in.skip;
+  o.decimal_comma = in.decimal_comma;
+  if (!in.delimiter.empty()) {
+    const std::string& d = in.delimiter;
+    if (d == "\\t" || d == "tab" || d == "\t") o.delimiter = '\t';
+    else if (d == "," || d == ";") o.delimiter = d[0];
+    else return std::unexpected("--delimiter " + d + ": expected ',', ';' or tab (\"\\t\" or tab)");
+  }
   for (const auto& m : in.maps) {
     auto cm = storage::parse_column_mapping(m);
     if (!cm) return std::unexpected("--map " + m + ": " + cm.error().message);
@@ -34,6 +41,9 @@ std::expected<model::RunData, std::string> load_run(const std::string& path, con
 void add_run_input(CLI::App* c, RunInput& in) {
   c->add_option("--map", in.maps, "Column of another name: canonical=header, e.g. gyro_dph=Rate (repeatable)");
   c->add_option("--resample", in.resample_s, "Resample unevenly spaced time onto this step, s");
+  c->add_option("--delimiter", in.delimiter,
+                "Field separator: ',', ';' or tab (\"\\t\"); default: ';' or tab when the header row has no ',' (docs/csv.md)");
+  c->add_flag("--decimal-comma", in.decimal_comma, "Numbers written with a decimal comma (1,5), with ';' or tab between the fields");
 }
 
 namespace {

@@ -25,11 +25,14 @@ inline constexpr int kExitFailed = 1;
 inline constexpr int kExitError = 2;
 inline constexpr int kExitMarginal = 3;
 
-// Options to read a run's CSV: --map canonical=header (repeatable) and --resample S.
+// Options to read a run's CSV: --map canonical=header (repeatable), --resample S, --delimiter
+// and --decimal-comma.
 struct RunInput {
   std::vector<std::string> maps;
   std::optional<double> resample_s;
   std::vector<std::string> skip;  // optional columns the command does not use
+  std::string delimiter;          // --delimiter: ',', ';', tab or "\t"; empty: detected
+  bool decimal_comma = false;     // --decimal-comma
 };
 
 std::expected<model::RunData, std::string> load_run(const std::string& path, const RunInput& in);

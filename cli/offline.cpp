@@ -7,6 +7,8 @@
 
 #include "fogbench/model/json.hpp"
 #include "fogbench/storage/csv.hpp"
+#include "options.hpp"
+#include "progress.hpp"
 #include "simulate_profile.hpp"
 #include "table.hpp"
 #include "workbench.hpp"
@@ -42,11 +44,16 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
       return kExitError;
     }
   }
+  // Redrawn on a terminal; in a file a line a minute (progress.hpp).
+  std::optional<Progress> bar;
+  if (!o.quiet && !o.json) bar.emplace(err, progress_redraws());
   auto progress = [&](double t, double total) {
-    if (!o.quiet && !o.json) err << "\rsimulating " << profile->source_name << ": " << static_cast<int>(100.0 * t / std::max(1.0, total)) << "%" << std::flush;
+    if (bar)
+      bar->update("simulating", "simulating " + profile->source_name + ": " +
+                                    std::to_string(static_cast<int>(100.0 * t / std::max(1.0, total))) + "%");
   };
   auto r = simulate_profile(*profile, cfg, progress);
-  if (!o.quiet && !o.json) err << "\r" << std::string(40, ' ') << "\r";
+  bar.reset();  // ends the redrawn line
   if (!r) {
     err << "fogctl simulate: " << r.error() << "\n";
     return kExitError;
@@ -129,6 +136,12 @@ int run_fit(const FitCommandOptions& o, std::ostream& out, std::ostream& err) {
   fo.max_lag_s = o.max_lag_s;
   fo.tref_c = o.tref_c;
   fo.ar_order = o.ar_order;
+  // Checked before the run is read, in the options' names as typed.
+  if (auto ok = fo.validate(); !ok) {
+    err << "fogctl fit: " << as_typed(ok.error(), {{"ar_order", "--ar-order"}, {"max_lag_s", "--max-lag"}, {"tref_c", "--tref"}})
+        << "\n";
+    return kExitError;
+  }
   // The fit reads neither the profile step nor, unless a term uses Ta, the chamber's air.
   RunInput input = o.input;
   input.skip.push_back("step");
@@ -189,7 +202,7 @@ int run_verify(const VerifyOptions& o, std::ostream& out, std::ostream& err) {
   vo.max_noise_factor = o.noise_factor;
   vo.max_fail_s = o.max_fail_s;
   if (auto ok = vo.validate(); !ok) {
-    err << "fogctl verify: " << ok.error() << " (--noise-factor, --max-fail)\n";
+    err << "fogctl verify: " << as_typed(ok.error(), {{"max_noise_factor", "--noise-factor"}, {"max_fail_s", "--max-fail"}, {"threshold", "--threshold"}}) << "\n";
     return kExitError;
   }
   for (const auto& path : o.runs) {
@@ -240,7 +253,8 @@ void add_offline_commands(CLI::App& app, int& code) {
   auto* s = app.add_subcommand("simulate", "Simulate a thermal run of a gyro on the mock bench's physics, to CSV");
   s->add_option("--profile", sim.profile, "exp1, exp2, exp3, qualification or a profile file")->required();
   s->add_option("--effect", sim.effects, "Extra drift in the term language with its coefficient, e.g. \"0.05*T1\" (repeatable)");
-  s->add_option("--seed", sim.seed, "Random seed (same seed, same run)");
+  s->add_option("--seed", sim.seed, "Random seed, 0 to 18446744073709551615 (same seed, same run)")
+      ->check(seed_check());
   s->add_option("--serial", sim.serial, "Serial number of the simulated gyro");
   s->add_option("--coil", sim.coil,
                 "Coil model: distributed (radial layers, drift from the temperature field; default) or lumped (two nodes, the "

@@ -138,6 +138,11 @@ std::string identity_header(const std::vector<std::string>& paths) {
 }  // namespace
 
 int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
+  if (o.model.empty() || o.runs.empty()) {  // both optional on the command line, with --run N
+    err << "fogctl report: " << (o.model.empty() ? "--model MODEL.json is required (or --run N: the unit's current model)" : "which runs? give CSV files, or --run N")
+        << "\n";
+    return kExitError;
+  }
   auto m = load_model(o.model);
   if (!m) {
     err << "fogctl report: " << m.error() << "\n";
@@ -470,7 +475,8 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
   }
   out << "report written to " << o.output << " (" << html.size() / 1024 << " KiB; " << (d->adequate ? "model adequate" : "missing effect: " + d->candidates.front().term)
       << "; qualification " << (q.pass ? "PASS" : q.marginal ? "MARGINAL" : "FAIL") << ")\n";
-  return kExitOk;
+  // The report is written either way; its exit code is the qualification's, as verify's is.
+  return q.pass ? kExitOk : q.marginal ? kExitMarginal : kExitFailed;
 }
 
 }  // namespace fogbench::cli

@@ -10,6 +10,7 @@
 #include "client_commands.hpp"
 #include "common.hpp"
 #include "fogbench/protocol/protocol.hpp"
+#include "progress.hpp"
 
 namespace fogbench::cli::commands {
 
@@ -51,8 +52,14 @@ bool terminal(const std::string& s) {
 // Follows a run until it ends, reconnecting (every second, up to reconnect_s) when the daemon
 // goes away. Progress on `err`, unless quiet.
 int watch(const Common& o, std::optional<std::int64_t> run_id, bool quiet, double reconnect_s, std::ostream& out,
-          std::ostream& err) {
-  const bool tty_line = !quiet;
+          std::ostream& err, bool raw) {
+  const bool tty_line = !quiet && !raw;
+  // Redrawn on a terminal; in a file one line per phase change and one a minute (progress.hpp).
+  Progress progress(err, progress_redraws());
+  // --raw: the sample and event messages of the run on `out`, one JSON object a line (NDJSON,
+  // as gpspipe -w prints gpsd's), and no summary: the exit code still says how the run ended.
+  std::ostringstream no_summary;
+  std::ostream& summary = raw ? no_summary : out;
   auto lost_since = SteadyClock::now();
   bool warned = false;
   for (;;) {
@@ -61,7 +68,7 @@ int watch(const Common& o, std::optional<std::int64_t> run_id, bool quiet, doubl
     if (!c) {
       if (std::chrono::duration<double>(SteadyClock::now() - lost_since).count() > reconnect_s)
         return report(c.error(), err);
-      if (!warned) err << "\nfogctl: " << c.error().message << "; retrying\n";
+      if (!warned) progress.line("fogctl: " + c.error().message + "; retrying");
       warned = true;
       std::this_thread::sleep_for(std::chrono::seconds(1));
       continue;
@@ -82,48 +89,49 @@ int watch(const Common& o, std::optional<std::int64_t> run_id, bool quiet, doubl
     if (active.is_null() || active["id"] != *run_id) {
       auto g = c->call("run.get", {{"run_id", *run_id}});
       if (!g) return report(g.error(), err);
-      if (terminal((*g)["run"]["state"])) return final_code(*c, *run_id, out, o.json_out);
+      if (terminal((*g)["run"]["state"])) return final_code(*c, *run_id, summary, o.json_out);
     }
     std::map<int, protocol::SampleMessage> latest;  // by unit
-    auto last_draw = SteadyClock::now() - std::chrono::seconds(1);
     for (;;) {
       auto m = c->next_message(30000);
       if (!m) {
         if (m.error().code == ClientErrc::timeout) continue;  // a long settle: quiet but alive
-        if (tty_line) err << "\nfogctl: connection to fogbenchd lost; reconnecting\n";
+        if (tty_line) progress.line("fogctl: connection to fogbenchd lost; reconnecting");
         lost_since = SteadyClock::now();
         break;
       }
       if ((*m)["run_id"] != *run_id) continue;
+      if (raw && ((*m)["type"] == "sample" || (*m)["type"] == "event")) out << m->dump() << '\n' << std::flush;
       if ((*m)["type"] == "sample") {
         auto s = protocol::sample_message_from_json(*m);
         if (!s) return report(ClientError{ClientErrc::protocol, s.error(), std::nullopt, {}}, err);
         latest[s->unit] = *s;
-        const auto now = SteadyClock::now();
-        if (tty_line && now - last_draw > std::chrono::milliseconds(200)) {
-          last_draw = now;
+        if (tty_line) {
           std::ostringstream line;
-          line << "\rrun " << *run_id << " " << s->state << " " << s->phase << " step " << s->step << "  "
+          line << "run " << *run_id << " " << s->state << " " << s->phase << " step " << s->step << "  "
                << duration_text(s->elapsed_s) << " elapsed, " << duration_text(s->remaining_s) << " left  chamber "
                << num_text(s->chamber_c, 1) << "/" << num_text(s->setpoint_c, 1) << " C";
           for (const auto& [u, x] : latest)
             line << "  " << x.serial << " T1 " << num_text(x.t1_c) << " T2 " << num_text(x.t2_c) << " drift "
                  << num_text(x.gyro_dph) << " dph";
-          line << "   ";
-          err << line.str() << std::flush;
+          // A phase of the profile (its step and kind) is what gets a line of its own.
+          progress.update(s->state + " " + s->phase + " " + std::to_string(s->step), line.str());
         }
       } else if ((*m)["type"] == "event") {
         auto e = protocol::event_message_from_json(*m);
         if (!e) return report(ClientError{ClientErrc::protocol, e.error(), std::nullopt, {}}, err);
         if (e->kind != "state") continue;
         const std::string to = e->detail.value("to", "");
-        if (tty_line) err << "\n" << "run " << *run_id << ": " << to << " (" << e->detail.value("reason", "") << ")\n";
+        if (tty_line) progress.line("run " + std::to_string(*run_id) + ": " + to + " (" + e->detail.value("reason", "") + ")");
         if (terminal(to)) {
           // The analysis events follow the state change; run.get is answered after them. A
           // daemon that is stopping closes this connection right after the event: the
           // summary then comes from a new connection (the outer loop), when it is back.
           auto g = c->call("run.get", {{"run_id", *run_id}});
-          if (g) return final_code(*c, *run_id, out, o.json_out);
+          if (g) {
+            progress.finish();
+            return final_code(*c, *run_id, summary, o.json_out);
+          }
           lost_since = SteadyClock::now();
           break;
         }

@@ -1,6 +1,8 @@
 // compare, diagnose, fit --add and lineage: the model workbench from the command line.
 #include "workbench.hpp"
 
+#include "options.hpp"
+
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <iostream>
@@ -41,6 +43,11 @@ std::string step_name(int s) { return s < 0 ? "-" : std::to_string(s); }
 }  // namespace
 
 int run_compare(const CompareCommandOptions& o, std::ostream& out, std::ostream& err) {
+  if (o.model.empty() || o.runs.empty()) {  // both optional on the command line, with --run N
+    err << "fogctl compare: " << (o.model.empty() ? "--model MODEL.json is required (or --run N: the unit's current model)" : "which runs? give CSV files, or --run N")
+        << "\n";
+    return kExitError;
+  }
   auto m = load_model(o.model);
   if (!m) {
     err << "fogctl compare: " << m.error() << "\n";
@@ -51,7 +58,7 @@ int run_compare(const CompareCommandOptions& o, std::ostream& out, std::ostream&
   co.smooth_s = o.smooth_s;
   co.min_duration_s = o.min_duration_s;
   if (auto v = co.validate(); !v) {
-    err << "fogctl compare: " << v.error() << "\n";
+    err << "fogctl compare: " << as_typed(v.error(), {{"k_sigma", "--k-sigma"}, {"smooth_s", "--smooth"}, {"min_duration_s", "--min-duration"}}) << "\n";
     return kExitError;
   }
   nlohmann::json results = nlohmann::json::array();
@@ -112,6 +119,11 @@ int run_compare(const CompareCommandOptions& o, std::ostream& out, std::ostream&
 }
 
 int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostream& err) {
+  if (o.model.empty() || o.runs.empty()) {  // both optional on the command line, with --run N
+    err << "fogctl diagnose: " << (o.model.empty() ? "--model MODEL.json is required (or --run N: the unit's current model)" : "which runs? give CSV files, or --run N")
+        << "\n";
+    return kExitError;
+  }
   auto m = load_model(o.model);
   if (!m) {
     err << "fogctl diagnose: " << m.error() << "\n";
@@ -147,7 +159,9 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
     }
   auto d = wb::diagnose(*m, runs->front(), std::span<const model::RunData>(*runs).subspan(1), dopt);
   if (!d) {
-    err << "fogctl diagnose: " << d.error().message << "\n";
+    err << "fogctl diagnose: "
+        << as_typed(d.error().message, {{"max_terms", "--max-terms"}, {"tau_points", "--tau-points"}, {"max_lag_s", "--max-lag"}})
+        << "\n";
     return kExitError;
   }
   if (o.json) {
@@ -250,6 +264,20 @@ int run_fit_add(const FitAddOptions& o, std::ostream& out, std::ostream& err) {
   if (!run) {
     err << "fogctl fit: " << run.error() << "\n";
     return kExitError;
+  }
+  // A term the model has already, given without a lag (d(T1) when the model has d(T1)@120), is
+  // said as such rather than left to the fit to find collinear. With an explicit other lag it is
+  // a second thermal path, which add_term takes (and refuses at the same lag or @auto).
+  if (auto t = model::parse_term(o.add); t && o.add.find('@') == std::string::npos) {
+    const std::string name = model::to_string(*t, false);
+    for (const auto& ft : m->terms)
+      if (ft.name() == name) {
+        const int other = ft.term.lag.seconds + 120;
+        err << "fogctl fit: --add " << o.add << ": the model already has the term " << name << " (at lag "
+            << ft.term.lag.seconds << " s: " << m->terms_string() << "); to add it again as a second thermal path give "
+            << "it a fixed lag, e.g. " << name << "@" << other << "\n";
+        return kExitError;
+      }
   }
   auto r = wb::add_term(*m, *run, o.add);
   if (!r) {

@@ -1,20 +1,69 @@
-// fogbenchd: the bench daemon. Runs in the foreground, logs to stderr, stops on SIGTERM.
+// fogbenchd: the bench daemon. Runs in the foreground, logs to stderr (to the journal in its
+// format under systemd), stops on SIGTERM; Type=notify: READY=1 once its sockets are bound,
+// STATUS= lines, WATCHDOG=1 while its event loop turns.
 #include <CLI/CLI.hpp>
+#include <atomic>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <iostream>
+#include <mutex>
+#include <optional>
+#include <thread>
 
-#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include "fogbench/daemon/config.hpp"
 #include "fogbench/daemon/server.hpp"
+#include "fogbench/daemon/systemd.hpp"
+
+namespace {
+
+namespace sd = fogbench::daemon::systemd;
+
+// Pings systemd's watchdog at half its interval, but only while the event loop answers: each
+// round posts a task to the loop and pings when the previous one has run. A loop stuck in a
+// handler stops the pings and systemd restarts the daemon (WatchdogSec= in the unit).
+class Watchdog {
+ public:
+  Watchdog(fogbench::daemon::Server& server, std::chrono::microseconds interval) : server_(server) {
+    thread_ = std::thread([this, half = interval / 2] {
+      std::unique_lock lock(mutex_);
+      alive_ = true;
+      while (!cv_.wait_for(lock, half, [this] { return stop_; })) {
+        if (alive_.exchange(false)) sd::notify("WATCHDOG=1");
+        server_.post([this] { alive_ = true; });
+      }
+    });
+  }
+  ~Watchdog() {
+    {
+      std::lock_guard lock(mutex_);
+      stop_ = true;
+    }
+    cv_.notify_all();
+    thread_.join();
+  }
+
+ private:
+  fogbench::daemon::Server& server_;
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  bool stop_ = false;
+  std::atomic<bool> alive_{false};
+  std::thread thread_;
+};
+
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"fogbenchd: the fogbench bench daemon (fogbench " FOGBENCH_DAEMON_VERSION ")"};
-  std::string config_path;
+  std::string config_path, check_path;
   double time_scale = 1.0;
   std::string log_level = "info";
-  app.add_option("-c,--config", config_path, "configuration file (JSON, see docs/daemon.md)")->required();
+  app.add_option("-c,--config", config_path, "configuration file (JSON, see docs/daemon.md)");
+  app.add_option("--check-config", check_path,
+                 "validate a configuration file and exit: 0 valid, 2 invalid (the error names the key)");
   app.add_option("--time-scale", time_scale,
                  "run the daemon clock K times faster (mock bench only: needs \"simulated\": true)");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error");
@@ -25,9 +74,24 @@ int main(int argc, char** argv) {
     const int rc = app.exit(e);
     return rc == 0 ? 0 : 2;
   }
+  if (!check_path.empty()) {
+    auto config = fogbench::daemon::load_daemon_config(check_path);
+    if (!config) {
+      std::cerr << "fogbenchd: " << config.error() << "\n";
+      return 2;
+    }
+    std::cout << check_path << ": valid\n";
+    return 0;
+  }
+  if (config_path.empty()) {
+    std::cerr << "fogbenchd: --config is required (or --check-config FILE)\n"
+              << "Run with --help for more information.\n";
+    return 2;
+  }
 
-  // Logs go to stderr: stdout carries only the one "ready" line.
-  auto logger = spdlog::stderr_color_mt("fogbenchd");
+  // Logs go to stderr: stdout carries only the one "ready" line. Under the journal, lines in
+  // its format (a priority, no second timestamp).
+  auto logger = sd::stderr_logger("fogbenchd", sd::stderr_is_journal());
   spdlog::set_default_logger(logger);
   spdlog::set_level(spdlog::level::from_str(log_level));
 
@@ -44,10 +108,22 @@ int main(int argc, char** argv) {
     spdlog::error("--time-scale {} refused: the configuration does not say \"simulated\": true", time_scale);
     return 2;
   }
+  const std::string socket_path = config->socket.unix_path.string();
   fogbench::daemon::Server server(std::move(*config), {time_scale});
   if (auto ok = server.start(); !ok) {
+    sd::notify("STATUS=start-up failed: " + ok.error().message);
     spdlog::error("{}", ok.error().message);
     return ok.error().exit_code;
   }
-  return server.run();
+  // The sockets are bound and the store is open: clients can connect (they wait in the
+  // backlog until the loop accepts them).
+  sd::notify("READY=1\nSTATUS=serving on " + socket_path);
+  int rc = 0;
+  {
+    std::optional<Watchdog> watchdog;
+    if (auto interval = sd::watchdog_interval()) watchdog.emplace(server, *interval);
+    rc = server.run();
+  }
+  sd::notify("STOPPING=1\nSTATUS=stopped");
+  return rc;
 }

@@ -922,4 +922,6 @@ void Server::stop() {
   asio::post(impl_->io, [this] { impl_->begin_stop("stop requested"); });
 }
 
+void Server::post(std::function<void()> f) { asio::post(impl_->io, std::move(f)); }
+
 }  // namespace fogbench::daemon

@@ -1,6 +1,7 @@
 // JSON form of models and verifications (format "fogbench.model", version 1).
 #include "fogbench/model/json.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace fogbench::model {
@@ -222,8 +223,26 @@ std::expected<Model, std::string> model_from_json(const json& j) {
 }
 
 std::expected<Model, std::string> model_from_text(std::string_view text) {
-  json j = json::parse(text.begin(), text.end(), nullptr, false);
-  if (j.is_discarded()) return std::unexpected(std::string("not valid JSON"));
+  json j;
+  try {
+    j = json::parse(text.begin(), text.end());
+  } catch (const json::parse_error& e) {
+    // Where it broke, as an editor counts: line and column of the byte the parser stopped at
+    // (a truncated file stops at its end).
+    const std::size_t stop = std::min<std::size_t>(e.byte == 0 ? 0 : e.byte - 1, text.size());
+    std::size_t line = 1, column = 1;
+    for (std::size_t i = 0; i < stop; ++i) {
+      if (text[i] == '\n') {
+        ++line;
+        column = 1;
+      } else {
+        ++column;
+      }
+    }
+    std::string what = e.what();
+    if (const auto p = what.find(": "); p != std::string::npos) what = what.substr(p + 2);
+    return std::unexpected("not valid JSON at line " + std::to_string(line) + ", column " + std::to_string(column) + ": " + what);
+  }
   return model_from_json(j);
 }
 

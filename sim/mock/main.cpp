@@ -60,6 +60,7 @@ int main(int argc, char** argv) {
                "the clock moves only when told ({\"cmd\":\"advance\"} on the control socket, which it needs): "
                "fogbenchd paces the world");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")->capture_default_str();
+  app.set_version_flag("--version", std::string(FOGBENCH_SIM_VERSION));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -25,9 +25,12 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cctype>
 #include <cstring>
 #include <memory>
 #include <system_error>
+
+#include "csv_dialect.hpp"
 
 namespace fogbench::storage {
 
@@ -252,6 +255,15 @@ std::string join_names(const std::vector<std::string>& names) {
   return out;
 }
 
+bool same_ignoring_case(std::string_view a, std::string_view b) {
+  if (a.size() != b.size()) return false;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const auto x = static_cast<unsigned char>(a[i]), y = static_cast<unsigned char>(b[i]);
+    if (std::tolower(x) != std::tolower(y)) return false;
+  }
+  return true;
+}
+
 class Parser {
  public:
   Parser(std::string_view text, const CsvOptions& options)
@@ -300,7 +312,7 @@ class Parser {
   std::expected<void, CsvError> check_options() {
     if (const auto& dt = options_.resample_s; dt && !(std::isfinite(*dt) && *dt > 0))
       return fail(CsvErrc::bad_option, 0, 0,
-                  "resample interval must be a positive number of seconds, got " +
+                  "--resample: the interval must be a positive number of seconds, got " +
                       format_number(*dt));
     for (std::size_t i = 0; i < options_.column_map.size(); ++i) {
       const ColumnMapping& m = options_.column_map[i];
@@ -365,26 +377,35 @@ class Parser {
     }
 
     field_of_.fill(-1);
+    // A header name matches exactly, else in any case (Time_s, GYRO_DPH): spreadsheets and
+    // loggers capitalise. An exact match wins over a case-insensitive one.
     auto find = [&](std::string_view name) -> int {
       for (std::size_t i = 0; i < names_.size(); ++i)
         if (names_[i] == name) return static_cast<int>(i);
+      for (std::size_t i = 0; i < names_.size(); ++i)
+        if (same_ignoring_case(names_[i], name) && role_of_[i] == r_ignore) return static_cast<int>(i);
       return -1;
     };
+    // Every column not found is named in one message, the mapped ones and the required ones.
+    std::vector<std::string> missing;
+    std::string map_hint;
     // Mapped columns first: an explicit --map wins over a column that happens to carry the
     // canonical name.
     for (const ColumnMapping& m : options_.column_map) {
       const auto role = static_cast<int>(
           std::find(kNames.begin(), kNames.end(), m.canonical) - kNames.begin());
       const int i = find(m.header);
-      if (i < 0)
-        return fail(CsvErrc::missing_column, header_line_, 0,
-                    "column '" + m.header + "' (named by --map " + m.canonical + "=" + m.header +
-                        ") not found; the header has: " + join_names(names_));
+      if (i < 0) {
+        missing.push_back("'" + m.header + "' (named by --map " + m.canonical + "=" + m.header + ")");
+        field_of_[role] = -2;  // not looked for again under its canonical name
+        continue;
+      }
       field_of_[role] = i;
       role_of_[i] = role;
     }
+    std::size_t required_missing = 0;
     for (int role = 0; role < r_count; ++role) {
-      if (field_of_[role] >= 0) continue;
+      if (field_of_[role] != -1) continue;
       if (role >= kRequired && std::find(options_.skip.begin(), options_.skip.end(), kNames[role]) != options_.skip.end())
         continue;
       const int i = find(kNames[role]);
@@ -392,12 +413,25 @@ class Parser {
         field_of_[role] = i;
         role_of_[i] = role;
       } else if (role < kRequired) {
-        return fail(CsvErrc::missing_column, header_line_, 0,
-                    "required column '" + std::string(kNames[role]) +
-                        "' not found; the header has: " + join_names(names_) +
-                        "; if the file names it differently, use --map " +
-                        std::string(kNames[role]) + "=<name in the file>");
+        missing.push_back("'" + std::string(kNames[role]) + "'");
+        map_hint += (map_hint.empty() ? "" : " ") + std::string("--map ") + std::string(kNames[role]) + "=<name in the file>";
+        ++required_missing;
       }
+    }
+    for (auto& slot : field_of_)
+      if (slot == -2) slot = -1;
+    if (!missing.empty()) {
+      std::string what;
+      for (std::size_t k = 0; k < missing.size(); ++k) what += (k ? ", " : "") + missing[k];
+      std::string msg = std::string(missing.size() == 1 ? "column " : "columns ") + what +
+                        (missing.size() == 1 ? " not found" : " not found") + "; the header has: " + join_names(names_);
+      if (names_.size() == 1 && names_[0].find_first_of(";\t|") != std::string::npos)
+        msg += "; the header is one column: give its separator with --delimiter";
+      if (required_missing)
+        msg += "; if the file names " + std::string(required_missing == 1 ? "it" : "them") + " differently, use " + map_hint;
+      // "required column 'gyro_dph'": the wording of one missing required column, kept.
+      if (missing.size() == 1 && required_missing == 1) msg = "required " + msg;
+      return fail(CsvErrc::missing_column, header_line_, 0, msg);
     }
     return {};
   }
@@ -635,7 +669,10 @@ class Parser {
 
   static std::string not_a_number(std::string_view cell) {
     if (cell.empty()) return "empty cell, expected a number";
-    return "not a number: '" + std::string(cell) + "'";
+    std::string m = "not a number: '" + std::string(cell) + "'";
+    if (cell.find(',') != std::string_view::npos)
+      m += "; a decimal comma? give --decimal-comma (with ';' or tab between the fields)";
+    return m;
   }
 
   // The physical line of data row `row` (0-based), found again only on the error path so the
@@ -677,7 +714,7 @@ class Parser {
                       format_number(t[i]) + ") but the median step is " +
                       format_number(median) +
                       " s (tolerance 1%); time must be evenly spaced, or import with "
-                      "resampling (resample_s)");
+                      "resampling: --resample S");
     }
     return {};
   }
@@ -810,7 +847,29 @@ std::expected<ColumnMapping, CsvError> parse_column_mapping(std::string_view spe
 
 std::expected<model::RunData, CsvError> parse_csv(std::string_view text,
                                                   const CsvOptions& options) {
-  return Parser(text, options).run();
+  const char delimiter = options.delimiter.value_or(detail::detect_delimiter(text));
+  if (delimiter != ',' && delimiter != ';' && delimiter != '\t') {
+    CsvError e;
+    e.code = CsvErrc::bad_option;
+    e.source = options.source_name.empty() ? "<csv>" : options.source_name;
+    e.message = e.source + ": --delimiter must be ',', ';' or tab ('\\t'), got '" + std::string(1, delimiter) + "'";
+    return std::unexpected(std::move(e));
+  }
+  if (delimiter == ',' && options.decimal_comma) {
+    CsvError e;
+    e.code = CsvErrc::bad_option;
+    e.source = options.source_name.empty() ? "<csv>" : options.source_name;
+    e.message = e.source +
+                ": --decimal-comma needs ';' or tab between the fields (--delimiter): with ',' a decimal comma cannot be "
+                "told from the next field";
+    return std::unexpected(std::move(e));
+  }
+  if (delimiter == ',') return Parser(text, options).run();
+  // Another dialect: rewritten line for line into the plain one (csv_dialect.hpp).
+  const std::string plain = detail::to_plain_csv(text, delimiter, options.decimal_comma);
+  CsvOptions o = options;
+  o.delimiter = delimiter;
+  return Parser(plain, o).run();
 }
 
 std::expected<model::RunData, CsvError> read_csv_file(const std::filesystem::path& path,

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <expected>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -38,6 +39,9 @@ class Server {
   int run();
   // Asks the loop to stop as on SIGTERM (thread-safe).
   void stop();
+  // Runs `f` on the event loop (thread-safe): fogbenchd's systemd watchdog proves with it that
+  // the loop still turns.
+  void post(std::function<void()> f);
 
  private:
   struct Impl;

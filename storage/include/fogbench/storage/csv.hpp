@@ -17,10 +17,10 @@ namespace fogbench::storage {
 // What went wrong, for callers that react to the kind of failure (the message is for people).
 enum class CsvErrc {
   io,                   // the file cannot be read or written
-  bad_option,           // a CsvOptions value is invalid: a column map entry, resample_s
+  bad_option,           // a CsvOptions value is invalid: a column map entry, resample_s, delimiter
   empty,                // no header row: the file is empty or holds only comments
   duplicate_column,     // two header fields with the same name
-  missing_column,       // a required (or explicitly mapped) column is not in the header
+  missing_column,       // required (or explicitly mapped) columns not in the header: all named
   field_count,          // a data row with fewer or more fields than the header
   bad_quote,            // a quoted field that is not closed on its line
   not_a_number,         // a cell that is not a number (or not an integer for step and flags)
@@ -66,6 +66,11 @@ struct CsvOptions {
   // Optional columns (setpoint_c, chamber_c, phase, step, flags) not to read even when the file
   // has them: a caller that does not use them saves their parsing (and their checks).
   std::vector<std::string> skip;
+  // The field separator: ',', ';' or '\t'. Unset: detected from the header row where that is
+  // unambiguous (';' when it has no ',', tab when it has neither), else ','.
+  std::optional<char> delimiter;
+  // Numbers written with a decimal comma (1,5): only with a ';' or tab separator.
+  bool decimal_comma = false;
 };
 
 // The canonical column names, required first: time_s, gyro_dph, t1_c, t2_c, then the optional

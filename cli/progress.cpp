@@ -1,0 +1,60 @@
+// Progress lines: redrawn on a terminal, plain lines elsewhere (progress.hpp).
+#include "progress.hpp"
+
+#include <unistd.h>
+
+#include <cstdlib>
+#include <cstring>
+
+namespace fogbench::cli {
+
+bool progress_redraws() {
+  if (const char* p = std::getenv("FOGCTL_PROGRESS"); p && *p) {
+    if (std::strcmp(p, "lines") == 0) return false;
+    if (std::strcmp(p, "redraw") == 0) return true;
+  }
+  return ::isatty(STDERR_FILENO) == 1;
+}
+
+Progress::Progress(std::ostream& err, bool redraw, double every_s, Clock clock)
+    : err_(err), redraw_(redraw), every_(every_s), clock_(std::move(clock)) {}
+
+Progress::~Progress() { finish(); }
+
+std::chrono::steady_clock::time_point Progress::now() const {
+  return clock_ ? clock_() : std::chrono::steady_clock::now();
+}
+
+void Progress::update(const std::string& phase, const std::string& text) {
+  const auto t = now();
+  if (redraw_) {
+    // A screen redraw five times a second at most; a new phase at once.
+    if (started_ && phase == phase_ && t - last_ < std::chrono::milliseconds(200)) return;
+    std::string pad;
+    if (text.size() < drawn_width_) pad.assign(drawn_width_ - text.size(), ' ');
+    err_ << '\r' << text << pad << std::flush;
+    drawn_width_ = text.size();
+    open_line_ = true;
+  } else {
+    if (started_ && phase == phase_ && t - last_ < every_) return;
+    err_ << text << '\n' << std::flush;
+  }
+  started_ = true;
+  phase_ = phase;
+  last_ = t;
+}
+
+void Progress::line(const std::string& text) {
+  if (open_line_) err_ << '\n';
+  open_line_ = false;
+  drawn_width_ = 0;
+  err_ << text << '\n' << std::flush;
+}
+
+void Progress::finish() {
+  if (open_line_) err_ << '\n' << std::flush;
+  open_line_ = false;
+  drawn_width_ = 0;
+}
+
+}  // namespace fogbench::cli

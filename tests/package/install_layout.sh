@@ -1,0 +1,61 @@
+#!/usr/bin/env bash
+# `cmake --install` into a temporary prefix, component by component: the production tools
+# (runtime) with units that name that prefix, sysusers.d and tmpfiles.d entries, man pages and
+# completion; the mock bench (mockbench) apart. Then the installed pieces are used: the sample
+# configuration passes --check-config, the bash completion completes, the man page has the
+# commands.   install_layout.sh BUILD_DIR
+set -euo pipefail
+build=$1
+# Under the build tree, not /tmp: the checks below look for /tmp in what is installed.
+tmp=$(mktemp -d "$(cd "$build" && pwd)/install-test.XXXXXX")
+trap 'rm -rf "$tmp"' EXIT
+fail() { echo "install layout: $*" >&2; exit 1; }
+p=$tmp/prefix
+cmake --install "$build" --prefix "$p" --component runtime >/dev/null
+
+for f in bin/fogctl sbin/fogbenchd lib/systemd/system/fogbenchd.service lib/systemd/system/fogbenchd@.service \
+         lib/sysusers.d/fogbench.conf lib/tmpfiles.d/fogbench.conf share/man/man1/fogctl.1 share/man/man8/fogbenchd.8 \
+         share/bash-completion/completions/fogctl share/zsh/vendor-completions/_fogctl \
+         share/doc/fogbench/fogbenchd.json.example share/doc/fogbench/daemon.md share/fogbench/profiles/exp1.profile; do
+  [[ -e $p/$f ]] || fail "$f not installed"
+done
+# The mock bench is not a production tool: not in the runtime component.
+[[ ! -e $p/bin/fogbench-sim ]] || fail "fogbench-sim installed with the runtime component"
+
+unit=$p/lib/systemd/system/fogbenchd.service
+grep -qx "ExecStart=$p/sbin/fogbenchd --config $p/etc/fogbench/fogbenchd.json" "$unit" || fail "ExecStart does not name the prefix: $(grep ExecStart "$unit")"
+grep -qx "Documentation=man:fogbenchd(8) file:$p/share/doc/fogbench/daemon.md" "$unit" || fail "Documentation: $(grep Documentation "$unit")"
+grep -qx "Type=notify" "$unit" || fail "not Type=notify"
+grep -q "^WatchdogSec=" "$unit" || fail "no WatchdogSec"
+grep -q "/usr/sbin\|/usr/share" "$unit" && fail "the unit still names /usr: $(grep -n '/usr/' "$unit")"
+grep -q "$p/sbin/fogbenchd --config $p/etc/fogbench/%i.json" "$p/lib/systemd/system/fogbenchd@.service" || fail "fogbenchd@: ExecStart"
+grep -q "^u fogbench " "$p/lib/sysusers.d/fogbench.conf" || fail "sysusers.d: no fogbench user and group"
+grep -q "^d /var/lib/fogbench " "$p/lib/tmpfiles.d/fogbench.conf" || fail "tmpfiles.d: no state directory"
+
+example=$p/share/doc/fogbench/fogbenchd.json.example
+grep -q "/tmp" "$example" && fail "the sample configuration points at /tmp (the unit has PrivateTmp)"
+grep -q "\"$p/share/fogbench/profiles\"" "$example" || fail "sample profile_dir is not the prefix's"
+"$p/sbin/fogbenchd" --check-config "$example" >/dev/null || fail "the sample configuration does not pass --check-config"
+
+grep -q '^\.TH FOGCTL 1' "$p/share/man/man1/fogctl.1" || fail "fogctl.1 has no .TH"
+grep -q '^\.SS fogctl run start' "$p/share/man/man1/fogctl.1" || fail "fogctl.1 lacks run start"
+grep -q -- '--check-config' "$p/share/man/man8/fogbenchd.8" || fail "fogbenchd.8 lacks --check-config"
+
+# The bash completion, used as bash would.
+complete_words() {
+  bash -c 'source "$1"; shift; COMP_WORDS=("$@"); COMP_CWORD=$((${#COMP_WORDS[@]} - 1)); _fogctl; echo "${COMPREPLY[*]}"' _ \
+    "$p/share/bash-completion/completions/fogctl" "$@"
+}
+[[ " $(complete_words fogctl ru) " == *" run "* ]] || fail "bash: 'fogctl ru' does not complete to run"
+[[ " $(complete_words fogctl run st) " == *" start "* ]] || fail "bash: 'fogctl run st' does not complete to start"
+[[ " $(complete_words fogctl run start --pro) " == *" --profile "* ]] || fail "bash: no --profile after run start"
+[[ " $(complete_words fogctl fit --deci) " == *" --decimal-comma "* ]] || fail "bash: no --decimal-comma on fit"
+if command -v zsh >/dev/null; then zsh -n "$p/share/zsh/vendor-completions/_fogctl" || fail "zsh: syntax"; fi
+
+# The mock bench alone, with its man page; it says its version.
+m=$tmp/mock
+cmake --install "$build" --prefix "$m" --component mockbench >/dev/null
+[[ -x $m/bin/fogbench-sim && -e $m/share/man/man1/fogbench-sim.1 ]] || fail "mockbench component incomplete"
+[[ ! -e $m/bin/fogctl && ! -e $m/sbin/fogbenchd ]] || fail "the mockbench component installs production tools"
+"$m/bin/fogbench-sim" --version | grep -q '^[0-9]' || fail "fogbench-sim --version"
+echo "install layout: ok"

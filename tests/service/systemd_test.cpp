@@ -1,0 +1,158 @@
+// fogbenchd as a systemd service (issue 15): sd_notify over a real unix datagram socket
+// (READY=1, STATUS=, WATCHDOG=1 while the loop turns), the journal's line format when stderr
+// is the journal, and --check-config.
+#include "../daemon/live_bench.hpp"
+
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+#include "fogbench/daemon/systemd.hpp"
+
+using namespace fogbench::daemon::test;
+using namespace fogbench::daemon::test::live;
+using namespace std::chrono_literals;
+namespace sd = fogbench::daemon::systemd;
+
+namespace {
+
+// systemd's side of the protocol: a bound AF_UNIX datagram socket.
+struct NotifySocket {
+  std::filesystem::path path;
+  int fd = -1;
+  explicit NotifySocket(const std::filesystem::path& p) : path(p) {
+    fd = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+    sockaddr_un a{};
+    a.sun_family = AF_UNIX;
+    std::strncpy(a.sun_path, p.c_str(), sizeof a.sun_path - 1);
+    REQUIRE(::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0);
+    timeval tv{1, 0};
+    ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  }
+  ~NotifySocket() {
+    ::close(fd);
+    std::filesystem::remove(path);
+  }
+  // The next datagram, waiting up to `timeout`; empty when none came.
+  std::string receive(std::chrono::seconds timeout) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    char buf[4096];
+    while (std::chrono::steady_clock::now() < deadline) {
+      const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
+      if (n > 0) return std::string(buf, static_cast<std::size_t>(n));
+    }
+    return {};
+  }
+};
+
+std::string slurp(const std::filesystem::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+}  // namespace
+
+TEST_CASE("systemd: notify sends one datagram to the socket it is given, and nothing without one") {
+  char tmpl[] = "/tmp/fogbench-notify-XXXXXX";
+  const std::filesystem::path dir = ::mkdtemp(tmpl);
+  {
+    NotifySocket s(dir / "notify");
+    CHECK(sd::notify_to(s.path.string(), "READY=1\nSTATUS=serving"));
+    CHECK(s.receive(5s) == "READY=1\nSTATUS=serving");
+    ::unsetenv("NOTIFY_SOCKET");
+    CHECK_FALSE(sd::notify("READY=1"));
+    ::setenv("NOTIFY_SOCKET", s.path.c_str(), 1);
+    CHECK(sd::notify("WATCHDOG=1"));
+    CHECK(s.receive(5s) == "WATCHDOG=1");
+    ::unsetenv("NOTIFY_SOCKET");
+  }
+  CHECK_FALSE(sd::notify_to((dir / "nobody").string(), "READY=1"));  // no listener: false, no throw
+  CHECK_FALSE(sd::notify_to("relative", "READY=1"));
+  ::setenv("WATCHDOG_USEC", "30000000", 1);
+  CHECK(sd::watchdog_interval() == std::chrono::microseconds(30000000));
+  ::setenv("WATCHDOG_PID", "1", 1);  // another process's watchdog
+  CHECK_FALSE(sd::watchdog_interval());
+  ::unsetenv("WATCHDOG_PID");
+  ::setenv("WATCHDOG_USEC", "x", 1);
+  CHECK_FALSE(sd::watchdog_interval());
+  ::unsetenv("WATCHDOG_USEC");
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("systemd: fogbenchd says READY=1 once serving, pings the watchdog, logs in the journal's format") {
+  require_sim();
+  LiveBench bench(20.0);
+  // Restarted as systemd starts it: NOTIFY_SOCKET, WATCHDOG_USEC, and stderr the journal (its
+  // log file's device and inode in JOURNAL_STREAM, as systemd sets them for the stream).
+  bench.daemon.reset();
+  NotifySocket notify(bench.dir / "notify");
+  const auto log = bench.dir / "fogbenchd.log";
+  std::ofstream(log).close();
+  struct stat st {};
+  REQUIRE(::stat(log.c_str(), &st) == 0);
+  const std::string stream = std::to_string(st.st_dev) + ":" + std::to_string(st.st_ino);
+  ::setenv("NOTIFY_SOCKET", notify.path.c_str(), 1);
+  ::setenv("WATCHDOG_USEC", "400000", 1);  // pings every 0.2 s
+  ::setenv("JOURNAL_STREAM", stream.c_str(), 1);
+  bench.start_daemon();
+  ::unsetenv("NOTIFY_SOCKET");
+  ::unsetenv("WATCHDOG_USEC");
+  ::unsetenv("JOURNAL_STREAM");
+  const std::string ready = notify.receive(30s);
+  CHECK_THAT(ready, Catch::StartsWith("READY=1\nSTATUS=serving on "));
+  std::string ping;
+  for (int i = 0; i < 50 && ping != "WATCHDOG=1"; ++i) ping = notify.receive(10s);
+  CHECK(ping == "WATCHDOG=1");
+  bench.daemon.reset();  // SIGTERM
+  std::string last;
+  for (int i = 0; i < 200; ++i) {
+    auto m = notify.receive(1s);
+    if (m.empty()) break;
+    last = m;
+  }
+  CHECK_THAT(last, Catch::StartsWith("STOPPING=1"));
+  // Every line "<N>text": a syslog priority, no timestamp of spdlog's, no blank line.
+  const std::string text = slurp(log);
+  REQUIRE_FALSE(text.empty());
+  std::istringstream lines(text);
+  std::size_t n = 0;
+  for (std::string l; std::getline(lines, l); ++n) {
+    INFO(l);
+    REQUIRE(l.size() > 3);
+    CHECK(l[0] == '<');
+    CHECK(l[2] == '>');
+    CHECK(l.find("[20") == std::string::npos);  // spdlog's "[2026-..." stamp
+  }
+  CHECK(n > 2);
+}
+
+TEST_CASE("fogbenchd --check-config: 0 for a valid file, 2 naming the key of an invalid one") {
+  require_sim();
+  char tmpl[] = "/tmp/fogbench-check-XXXXXX";
+  const std::filesystem::path dir = ::mkdtemp(tmpl);
+  std::ofstream(dir / "bad.json") << R"({"simulated": true, "storage": {"path": "x.db"}, "socket": {"path": "s.sock"},
+    "chamber_limits": {"min_c": -30, "max_c": 60, "max_rate_c_per_min": "fast"}, "safe_setpoint_c": 20, "drivers": {}})";
+  auto run = [&](const std::string& args) {
+    const std::string cmd = "'" + (kBin / "fogbenchd").string() + "' " + args + " >'" + (dir / "out").string() + "' 2>&1";
+    const int s = std::system(cmd.c_str());
+    return WIFEXITED(s) ? WEXITSTATUS(s) : -1;
+  };
+  CHECK(run("--check-config '" + (dir / "bad.json").string() + "'") == 2);
+  CHECK_THAT(slurp(dir / "out"), Catch::Contains("max_rate_c_per_min"));
+  CHECK(run("--check-config '" + (dir / "missing.json").string() + "'") == 2);
+  CHECK(run("") == 2);  // neither --config nor --check-config
+  {
+    LiveBench bench(20.0);  // its configuration is a valid one
+    CHECK(run("--check-config '" + (bench.dir / "fogbenchd.json").string() + "'") == 0);
+    CHECK_THAT(slurp(dir / "out"), Catch::Contains("valid"));
+  }
+  CHECK(run("--version") == 0);
+  std::filesystem::remove_all(dir);
+}
