@@ -172,12 +172,12 @@ TEST_CASE("store: a new file gets the current schema, WAL and the fogbench id", 
   {
     Store s = open_ok(path);
     CHECK(s.schema_version() == Store::current_schema_version());
-    CHECK(Store::current_schema_version() == 3);
+    CHECK(Store::current_schema_version() >= 4);  // 4: the live compensated rate
     CHECK(s.path() == path);
   }
   Raw raw(path);
   CHECK(raw.text("PRAGMA journal_mode") == "wal");
-  CHECK(raw.integer("PRAGMA user_version") == 3);
+  CHECK(raw.integer("PRAGMA user_version") == Store::current_schema_version());
   CHECK(raw.integer("PRAGMA application_id") == 0x464F4742);
   for (const char* table : {"runs", "run_units", "samples", "run_events", "models", "verifications"})
     CHECK(raw.integer(std::string("SELECT count(*) FROM sqlite_schema WHERE name = '") + table +
@@ -940,4 +940,40 @@ TEST_CASE("store: the time since power-on is stored per sample and exported when
   neg.since_power_on_s = -1;
   const SampleRow bad[] = {neg};
   CHECK_FALSE(s.append_samples(run, bad).has_value());
+}
+
+TEST_CASE("store: the live compensated rate is stored per sample, exported and imported when any, NULL before it", "[store][compensated]") {
+  TempDir tmp;
+  Store s = open_ok(tmp / "live.db");
+  const auto run = s.create_run(two_unit_run()).value();
+  // Unit 0: warming up for 2 samples, then compensated; unit 1: no model, none at all.
+  std::vector<SampleRow> rows;
+  for (int i = 0; i < 5; ++i) {
+    SampleRow a = sample(0, i);
+    if (i >= 2) a.compensated_dph = 0.25 * i;
+    rows.push_back(a);
+    rows.push_back(sample(1, i));
+  }
+  REQUIRE(s.append_samples(run, rows).has_value());
+  auto got = s.get_samples(run, 0, 0, 10);
+  REQUIRE(got.has_value());
+  REQUIRE(got->size() == 5);
+  CHECK(std::isnan(got->at(1).compensated_dph));
+  CHECK(got->at(2).compensated_dph == 0.5);
+  auto a = s.export_run(run, 0, {.include_settle = true});
+  REQUIRE(a.has_value());
+  REQUIRE(a->compensated_dph.size() == 5);
+  CHECK(std::isnan(a->compensated_dph[0]));
+  CHECK(a->compensated_dph[4] == 1.0);
+  auto b = s.export_run(run, 1, {.include_settle = true});
+  REQUIRE(b.has_value());
+  CHECK_FALSE(b->has_compensated());
+  // Imported back (a CSV of an export): the column comes with it.
+  auto imported = s.import_run(*a, {.serial = "FOG-X"});
+  REQUIRE(imported.has_value());
+  auto again = s.export_run(*imported, 0, {.include_settle = true});
+  REQUIRE(again.has_value());
+  REQUIRE(again->compensated_dph.size() == 5);
+  CHECK(again->compensated_dph[3] == 0.75);
+  CHECK(std::isnan(again->compensated_dph[1]));
 }
