@@ -18,6 +18,8 @@
 #include "fogbench/daemon/station.hpp"
 #include "fogbench/model/json.hpp"
 
+#include <spdlog/spdlog.h>
+
 using namespace fogbench;
 
 namespace {
@@ -107,6 +109,7 @@ double run_once(const daemon::DaemonConfig& cfg, bool with_model, std::size_t& u
 
 int main(int argc, char** argv) {
   const int repeats = argc > 1 ? std::atoi(argv[1]) : 7;
+  spdlog::set_level(spdlog::level::warn);  // "no live compensation (no model)" for every run off
   const auto cfg = config();
   std::vector<double> off_ns, on_ns;
   std::size_t compensated = 0;
