@@ -23,6 +23,8 @@ LiveCompensation LiveCompensation::load(storage::Store& store, const std::vector
       auto m = store.get_model(*model_ids[i]);
       if (m) rec = *m;
       else u.none = "model " + std::to_string(*model_ids[i]) + " the run started with: " + m.error().message;
+    } else if (!model_ids.empty()) {
+      u.none = "none when the run started";  // a model fitted since is for the next run
     } else {
       auto m = store.current_model(serials[i]);
       if (!m) u.none = "reading the current model: " + m.error().message;

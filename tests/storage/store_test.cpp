@@ -215,11 +215,13 @@ TEST_CASE("store: migration from version 0 and version 1", "[store][schema]") {
           "VALUES (7, 0, 0, 0.5, 20, 21), (7, 0, 1, 0.6, 20, 21);");
     }
     Store s = open_ok(path);
-    CHECK(s.schema_version() == 3);
-    // Samples from before version 3 have no time since power-on: the export says not recorded.
+    CHECK(s.schema_version() == Store::current_schema_version());
+    // Samples from before version 3 have no time since power-on, and from before version 4 no
+    // live compensation: the export says not recorded.
     auto old = s.export_run(7, 0);
     REQUIRE(old.has_value());
     CHECK_FALSE(old->has_power_on());
+    CHECK_FALSE(old->has_compensated());
     auto run = s.get_run(7);
     REQUIRE(run.has_value());
     CHECK(run->run.profile_name == "old");

@@ -33,8 +33,8 @@ namespace fogbench::daemon {
 class LiveCompensation {
  public:
   LiveCompensation() = default;
-  // Each unit's current model, compiled (model_ids: the ones a run recorded, by unit; an empty
-  // entry, or none given, means the serial's current model).
+  // Each unit's model, compiled: the serial's current one when model_ids is empty (a run
+  // starts), else the one model_ids names by unit (a run resumes; an empty entry: none then).
   static LiveCompensation load(storage::Store& store, const std::vector<std::string>& serials,
                                const std::vector<std::optional<std::int64_t>>& model_ids = {});
   // The models a run recorded in its live_compensation note, by unit (empty: none recorded).
