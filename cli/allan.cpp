@@ -100,8 +100,8 @@ int run_allan(const AllanOptions& o, std::ostream& out, std::ostream& err) {
   Table t({"series", "from s", "to s", "samples", "ARW deg/sqrt(h)", "bias instab. deg/h", "RRW deg/h/sqrt(h)"});
   std::vector<std::string> notes;
   for (const auto& x : series) {
-    const auto m = allan::octave_cluster_sizes(x.rate_dph.size());
-    auto curve = allan::overlapping_adev(x.rate_dph, x.stretch.tau0_s, m);
+    const auto sizes = allan::octave_cluster_sizes(x.rate_dph.size());
+    auto curve = allan::overlapping_adev(x.rate_dph, x.stretch.tau0_s, sizes);
     if (!curve) {  // cannot happen for stretches of finite, evenly spaced samples; said if it does
       err << "fogctl allan: " << x.what << ": " << curve.error() << "\n";
       return kExitError;
