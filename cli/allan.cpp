@@ -32,13 +32,37 @@ std::string cell(const std::optional<allan::NoiseEstimate>& e, int digits) {
   return fixed(e->value, digits) + " (" + fixed(e->ci_low, digits) + ".." + fixed(e->ci_high, digits) + ")";
 }
 
-struct Series {
-  std::string what;  // "hold 3" / "compensated"
-  allan::Stretch stretch;
-  std::vector<double> rate_dph;
-};
-
 }  // namespace
+
+std::expected<std::vector<AllanSeries>, std::string> allan_series(const model::RunData& run, const model::Model* m,
+                                                                  std::size_t min_samples, bool whole_run) {
+  std::vector<AllanSeries> series;
+  int hold = 0;
+  for (const auto& s : allan::even_stretches(run, min_samples, whole_run)) {
+    AllanSeries x{whole_run || !run.has_phase() ? "run" : "hold " + std::to_string(++hold), s, {}};
+    x.rate_dph.assign(run.gyro_dph.begin() + static_cast<std::ptrdiff_t>(s.begin),
+                      run.gyro_dph.begin() + static_cast<std::ptrdiff_t>(s.end));
+    series.push_back(std::move(x));
+  }
+  if (m) {
+    auto predicted = model::predict(*m, run);
+    if (!predicted) return std::unexpected(predicted.error().message);
+    // The compensated output over the whole run: every phase, since compensation is meant to
+    // remove the ramps' drift. The longest even stretch is analysed.
+    model::RunData comp = run;
+    for (std::size_t i = 0; i < comp.size(); ++i) comp.gyro_dph[i] -= (*predicted)[i];
+    std::optional<allan::Stretch> longest;
+    for (const auto& s : allan::even_stretches(comp, min_samples, true))
+      if (!longest || s.end - s.begin > longest->end - longest->begin) longest = s;
+    if (longest) {
+      AllanSeries x{"compensated", *longest, {}};
+      x.rate_dph.assign(comp.gyro_dph.begin() + static_cast<std::ptrdiff_t>(longest->begin),
+                        comp.gyro_dph.begin() + static_cast<std::ptrdiff_t>(longest->end));
+      series.push_back(std::move(x));
+    }
+  }
+  return series;
+}
 
 int run_allan(const AllanOptions& o, std::ostream& out, std::ostream& err) {
   if (o.min_samples < 7) {
@@ -50,39 +74,21 @@ int run_allan(const AllanOptions& o, std::ostream& out, std::ostream& err) {
     err << "fogctl allan: " << run.error() << "\n";
     return kExitError;
   }
-  std::vector<Series> series;
-  int hold = 0;
-  for (const auto& s : allan::even_stretches(*run, o.min_samples, o.whole_run)) {
-    Series x{o.whole_run || !run->has_phase() ? "run" : "hold " + std::to_string(++hold), s, {}};
-    x.rate_dph.assign(run->gyro_dph.begin() + static_cast<std::ptrdiff_t>(s.begin),
-                      run->gyro_dph.begin() + static_cast<std::ptrdiff_t>(s.end));
-    series.push_back(std::move(x));
-  }
+  std::optional<model::Model> m;
   if (!o.model.empty()) {
-    auto m = load_model(o.model);
-    if (!m) {
-      err << "fogctl allan: " << m.error() << "\n";
+    auto loaded = load_model(o.model);
+    if (!loaded) {
+      err << "fogctl allan: " << loaded.error() << "\n";
       return kExitError;
     }
-    auto predicted = model::predict(*m, *run);
-    if (!predicted) {
-      err << "fogctl allan: " << o.model << " on " << o.run << ": " << predicted.error().message << "\n";
-      return kExitError;
-    }
-    // The compensated output over the whole run: every phase, since compensation is meant to
-    // remove the ramps' drift. The longest even stretch is analysed.
-    model::RunData comp = *run;
-    for (std::size_t i = 0; i < comp.size(); ++i) comp.gyro_dph[i] -= (*predicted)[i];
-    std::optional<allan::Stretch> longest;
-    for (const auto& s : allan::even_stretches(comp, o.min_samples, true))
-      if (!longest || s.end - s.begin > longest->end - longest->begin) longest = s;
-    if (longest) {
-      Series x{"compensated", *longest, {}};
-      x.rate_dph.assign(comp.gyro_dph.begin() + static_cast<std::ptrdiff_t>(longest->begin),
-                        comp.gyro_dph.begin() + static_cast<std::ptrdiff_t>(longest->end));
-      series.push_back(std::move(x));
-    }
+    m = std::move(*loaded);
   }
+  auto made = allan_series(*run, m ? &*m : nullptr, o.min_samples, o.whole_run);
+  if (!made) {
+    err << "fogctl allan: " << o.model << " on " << o.run << ": " << made.error() << "\n";
+    return kExitError;
+  }
+  const std::vector<AllanSeries>& series = *made;
   if (series.empty()) {
     err << "fogctl allan: " << o.run << ": no stretch of " << o.min_samples << " or more evenly spaced, unflagged "
         << (run->has_phase() && !o.whole_run ? "hold " : "") << "samples"
@@ -94,8 +100,8 @@ int run_allan(const AllanOptions& o, std::ostream& out, std::ostream& err) {
   Table t({"series", "from s", "to s", "samples", "ARW deg/sqrt(h)", "bias instab. deg/h", "RRW deg/h/sqrt(h)"});
   std::vector<std::string> notes;
   for (const auto& x : series) {
-    const auto m = allan::octave_cluster_sizes(x.rate_dph.size());
-    auto curve = allan::overlapping_adev(x.rate_dph, x.stretch.tau0_s, m);
+    const auto sizes = allan::octave_cluster_sizes(x.rate_dph.size());
+    auto curve = allan::overlapping_adev(x.rate_dph, x.stretch.tau0_s, sizes);
     if (!curve) {  // cannot happen for stretches of finite, evenly spaced samples; said if it does
       err << "fogctl allan: " << x.what << ": " << curve.error() << "\n";
       return kExitError;

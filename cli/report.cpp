@@ -9,6 +9,7 @@
 
 #include "fogbench/model/workbench.hpp"
 #include "report_plots.hpp"
+#include "report_allan.hpp"
 #include "report_runs.hpp"
 #include "run_identity.hpp"
 #include "table.hpp"
@@ -444,6 +445,7 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
     }
     const wb::QualRun* qr = k < q.runs.size() ? &q.runs[k] : nullptr;
     body += report::analysis_plots({*m, runs[k], *c, qr, key}, steps, specs, o.max_points);
+    body += report::allan_section(*m, runs[k], key, specs, o.max_points);
     HtmlTable t({"part", "samples", "est mean", "meas mean", "est std", "meas std", "comp std", "comp/raw"});
     auto row = [&](const std::string& name, const model::Table1& x) {
       t.row({name, std::to_string(x.n), fixed(x.est_mean, 3), fixed(x.meas_mean, 3), fixed(x.est_std, 3), fixed(x.meas_std, 3),

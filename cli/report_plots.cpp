@@ -153,7 +153,7 @@ Loop split_by_direction(std::span<const double> t1_c, std::span<const double> y,
 }
 
 std::string render(const Plot& p, json& specs, std::size_t max_points) {
-  json spec = {{"id", p.id}, {"kind", p.kind}, {"xlabel", p.xlabel}, {"ylabel", p.ylabel}, {"yzero", p.y_from_zero},
+  json spec = {{"id", p.id}, {"kind", p.kind}, {"xlabel", p.xlabel}, {"ylabel", p.ylabel}, {"yzero", p.y_from_zero}, {"log", p.log},
                {"xnames", p.x_names}, {"failures", p.failures}, {"series", json::array()}};
   std::string title = p.title;
   if (p.robust) {
@@ -313,6 +313,7 @@ const char* const kPlotScript = R"js(
       return o;
     }));
     const scales={x:{time:false}};
+    if(spec.log){ scales.x.distr=3; scales.x.log=10; scales.y={distr:3,log:10}; }
     if(spec.ylim) scales.y={range:()=>spec.ylim};
     else if(spec.yzero) scales.y={range:(u,lo,hi)=>[0,hi*1.1]};
     const xaxis={label:spec.xlabel};

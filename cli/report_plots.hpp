@@ -65,6 +65,7 @@ struct Plot {
   std::vector<double> always;            // y values the range must hold
   bool robust = true;                    // robust y-limits with outliers marked; else uPlot's own
   bool y_from_zero = false;
+  bool log = false;                      // both axes logarithmic (an Allan deviation: "xy", not robust)
   std::vector<std::string> x_names;      // "step": what each step is, for the legend and the print
   nlohmann::json failures = nlohmann::json::array();  // "time": intervals shaded
 };

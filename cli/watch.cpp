@@ -113,7 +113,7 @@ int watch(const Common& o, std::optional<std::int64_t> run_id, bool quiet, doubl
                << num_text(s->chamber_c, 1) << "/" << num_text(s->setpoint_c, 1) << " C";
           for (const auto& [u, x] : latest)
             line << "  " << x.serial << " T1 " << num_text(x.t1_c) << " T2 " << num_text(x.t2_c) << " drift "
-                 << num_text(x.gyro_dph) << " dph";
+                 << num_text(x.gyro_dph) << " comp " << num_text(x.compensated_dph) << " dph";
           // A phase of the profile (its step and kind) is what gets a line of its own.
           progress.update(s->state + " " + s->phase + " " + std::to_string(s->step), line.str());
         }

@@ -87,6 +87,7 @@ json sample_json(const storage::SampleRow& r) {
   s.step = r.step;
   s.flags = r.flags;
   s.since_power_on_s = finite(r.since_power_on_s);
+  s.compensated_dph = finite(r.compensated_dph);
   return protocol::to_json(s);
 }
 

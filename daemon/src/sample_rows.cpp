@@ -68,6 +68,7 @@ protocol::SampleMessage sample_message(const storage::SampleRow& r, std::int64_t
   m.t2_c = finite(r.t2_c);
   m.flags = r.flags;
   m.since_power_on_s = finite(r.since_power_on_s);
+  m.compensated_dph = finite(r.compensated_dph);
   return m;
 }
 

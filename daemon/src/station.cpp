@@ -164,6 +164,7 @@ ApiResult<std::int64_t> Station::start_run(const std::string& profile_name,
   run.serials = serials;
   run.config_index = std::move(index);
   run.executor = std::make_unique<profiles::Executor>(std::move(*profile));
+  run.live = LiveCompensation::load(store_, serials);
   run_ = std::move(run);
   event(*id, storage::EventKind::command, command, std::nullopt);
   return *id;
@@ -231,6 +232,13 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
   if (run.last.finished || run.last.failed)
     return api_error(ErrorCode::bad_request, "run_id: run " + std::to_string(run_id) +
                                                  ": its profile had already ended; nothing to resume");
+  // The live compensation with the models the run started with, its state rebuilt from the
+  // stored seconds (the gap's below restart it).
+  const auto recorded = LiveCompensation::recorded_models(*detail);
+  run.live = LiveCompensation::load(store_, run.serials, recorded);
+  run.live_noted = !recorded.empty();
+  for (std::size_t u = 0; u < rows.size(); ++u)
+    for (const auto& r : rows[u]) run.live.step(u, r);
   const double last_t_s = n == 0 ? -1.0 : rows[0][n - 1].t_s;
   // The time the bench was without the daemon, in run seconds: the run clock counts it.
   const double down_s = std::max(0.0, std::floor((now_wall_time - wall_last) * time_scale_));
@@ -246,6 +254,7 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
       r.phase = storage::model_phase(run.last.phase);
       r.step = static_cast<int>(run.last.step_index);
       r.flags = model::flag::missing | model::flag::link_gap;
+      r.compensated_dph = run.live.step(u, r);  // none: the gap restarts the compensators
       gap_rows.push_back(r);
     }
     if (auto ok = store_.append_samples(run_id, gap_rows); !ok) return std::unexpected(from_store(ok.error()));
@@ -426,9 +435,14 @@ TickOutput Station::tick(double clock_s, const TickInput& in) {
     const std::size_t ci = run.config_index[i];
     const UnitReading u = ci < in.units.size() ? in.units[ci] : UnitReading{};
     rows.push_back(sample_row(static_cast<int>(i), u, in, t_s, st, run.pv_frozen, power_.since_power_on_s(ci, clock_s)));
+    rows.back().compensated_dph = run.live.step(i, rows.back());
     run.quality[i].frames_lost += u.frames_lost;
     run.quality[i].frames_corrupt += u.frames_corrupt;
     run.quality[i].samples_flagged += rows.back().flags != 0;
+  }
+  if (!run.live_noted) {
+    run.live_noted = true;
+    event(run.id, storage::EventKind::note, run.live.describe(), t_s);
   }
   auto stored = store_.append_samples(run.id, rows);
   // The run's end that follows must not wait out the lock again (write_or_keep).

@@ -197,6 +197,32 @@ std::expected<Program, std::string> compile(const Model& m, double dt_s, bool al
   return p;
 }
 
+int warm_up_samples(const Program& p) {
+  std::vector<int> need(p.ops.size(), 0);  // earlier samples each op's value depends on
+  for (std::size_t k = 0; k < p.ops.size(); ++k) {
+    const Op& o = p.ops[k];
+    const int a = o.a >= 0 ? need[static_cast<std::size_t>(o.a)] : 0;
+    const int b = o.b >= 0 ? need[static_cast<std::size_t>(o.b)] : 0;
+    switch (o.kind) {
+      case K::slope: need[k] = a + o.n - 1; break;
+      case K::delay: need[k] = a + o.n; break;
+      default: need[k] = std::max(a, b); break;
+    }
+  }
+  int w = 0;
+  for (const auto& t : p.terms) w = std::max(w, need[static_cast<std::size_t>(t.op)]);
+  return w;
+}
+
+InputsUsed inputs_used(const Program& p) {
+  InputsUsed u;
+  for (const auto& o : p.ops) {
+    if (o.kind != K::signal) continue;
+    (o.n == 0 ? u.t1 : o.n == 1 ? u.t2 : o.n == 2 ? u.ta : u.ton) = true;
+  }
+  return u;
+}
+
 Compensator::Compensator(const Program& program)
     : program_(&program), value_(program.ops.size(), 0.0), state_(program.ops.size(), 0.0),
       ring_(static_cast<std::size_t>(program.ring_size), 0.0), pos_(program.ops.size(), 0) {}

@@ -125,7 +125,8 @@ json to_json(const Sample& s) {
           {"chamber_c", number_or_null(s.chamber_c)}, {"gyro_dph", number_or_null(s.gyro_dph)},
           {"frames", s.frames ? json(*s.frames) : json(nullptr)}, {"t1_c", number_or_null(s.t1_c)},
           {"t2_c", number_or_null(s.t2_c)}, {"phase", s.phase}, {"step", s.step ? json(*s.step) : json(nullptr)},
-          {"flags", s.flags}, {"since_power_on_s", number_or_null(s.since_power_on_s)}};
+          {"flags", s.flags}, {"since_power_on_s", number_or_null(s.since_power_on_s)},
+          {"compensated_dph", number_or_null(s.compensated_dph)}};
 }
 
 std::expected<Sample, std::string> sample_from_json(const json& j) {
@@ -144,6 +145,7 @@ std::expected<Sample, std::string> sample_from_json(const json& j) {
   s.step = r.opt_integer<int>("step");
   s.flags = r.integer<std::uint8_t>("flags", 0);
   s.since_power_on_s = r.opt_number("since_power_on_s");
+  s.compensated_dph = r.opt_number("compensated_dph");
   if (!r.ok()) return std::unexpected(r.error());
   return s;
 }
@@ -154,7 +156,8 @@ json to_json(const SampleMessage& s) {
           {"setpoint_c", s.setpoint_c}, {"chamber_c", number_or_null(s.chamber_c)}, {"unit", s.unit},
           {"serial", s.serial}, {"gyro_dph", number_or_null(s.gyro_dph)}, {"frames", s.frames},
           {"t1_c", number_or_null(s.t1_c)}, {"t2_c", number_or_null(s.t2_c)}, {"flags", s.flags},
-          {"since_power_on_s", number_or_null(s.since_power_on_s)}};
+          {"since_power_on_s", number_or_null(s.since_power_on_s)},
+          {"compensated_dph", number_or_null(s.compensated_dph)}};
 }
 
 std::expected<SampleMessage, std::string> sample_message_from_json(const json& j) {
@@ -179,6 +182,7 @@ std::expected<SampleMessage, std::string> sample_message_from_json(const json& j
   s.t2_c = r.opt_number("t2_c");
   s.flags = r.integer<std::uint8_t>("flags", 0);
   s.since_power_on_s = r.opt_number("since_power_on_s");
+  s.compensated_dph = r.opt_number("compensated_dph");
   if (!r.ok()) return std::unexpected(r.error());
   return s;
 }

@@ -56,16 +56,16 @@ std::string_view to_string(CsvErrc code) {
 namespace {
 
 // The role of a file column; the order is that of csv_columns() (to_csv writes the same
-// columns, since_power_on_s last).
-// The roles up to r_power_on are numbers (doubles).
+// columns, since_power_on_s and compensated_dph last).
+// The roles up to r_compensated are numbers (doubles).
 enum Role : int {
-  r_time, r_gyro, r_t1, r_t2, r_setpoint, r_chamber, r_power_on, r_phase, r_step, r_flags, r_count,
+  r_time, r_gyro, r_t1, r_t2, r_setpoint, r_chamber, r_power_on, r_compensated, r_phase, r_step, r_flags, r_count,
   r_ignore = -1
 };
 constexpr int kRequired = 4;
 constexpr std::array<std::string_view, r_count> kNames = {
     "time_s", "gyro_dph", "t1_c", "t2_c", "setpoint_c", "chamber_c", "since_power_on_s",
-    "phase", "step", "flags"};
+    "compensated_dph", "phase", "step", "flags"};
 
 // Even spacing tolerance, as a fraction of the median step: loose enough for time written
 // with %.3f at 1 Hz, tight enough to catch a skipped or doubled sample.
@@ -322,7 +322,7 @@ class Parser {
         return fail(CsvErrc::bad_option, 0, 0,
                     "--map " + spec + ": '" + m.canonical +
                         "' is not a fogbench column (time_s,gyro_dph,t1_c,t2_c,setpoint_c,"
-                        "chamber_c,since_power_on_s,phase,step,flags)");
+                        "chamber_c,since_power_on_s,compensated_dph,phase,step,flags)");
       if (m.header.empty())
         return fail(CsvErrc::bad_option, 0, 0, "--map " + spec + ": empty header name");
       for (std::size_t j = 0; j < i; ++j) {
@@ -471,6 +471,7 @@ class Parser {
     append(a.setpoint_c, b.setpoint_c);
     append(a.chamber_c, b.chamber_c);
     append(a.since_power_on_s, b.since_power_on_s);
+    append(a.compensated_dph, b.compensated_dph);
     append(a.phase, b.phase);
     append(a.step, b.step);
     append(a.flags, b.flags);
@@ -485,8 +486,8 @@ class Parser {
     data_.name = source_;
     std::vector<double>* doubles[r_count] = {&data_.time_s,     &data_.gyro_dph,  &data_.t1_c,
                                              &data_.t2_c,       &data_.setpoint_c, &data_.chamber_c,
-                                             &data_.since_power_on_s};
-    for (int role = 0; role <= r_power_on; ++role)
+                                             &data_.since_power_on_s, &data_.compensated_dph};
+    for (int role = 0; role <= r_compensated; ++role)
       if (field_of_[role] >= 0) doubles[role]->reserve(rows);
     if (field_of_[r_phase] >= 0) data_.phase.reserve(rows);
     if (field_of_[r_step] >= 0) data_.step.reserve(rows);
@@ -520,7 +521,7 @@ class Parser {
   bool fast_row(std::string_view line, std::vector<double>* doubles[]) {
     const char* p = line.data();
     const char* const end = p + line.size();
-    double values[r_power_on + 1];
+    double values[r_compensated + 1];
     model::Phase phase{};
     int step = 0;
     unsigned flags = 0;
@@ -530,7 +531,7 @@ class Parser {
       if (role == r_ignore) {
         for (; p != end && *p != ','; ++p)
           if (*p == '"') return false;  // a quoted cell may hold commas
-      } else if (role <= r_power_on) {
+      } else if (role <= r_compensated) {
         double v;
         const auto [q, ec] = std::from_chars(p, end, v);
         if (ec != std::errc{} || q == p || !std::isfinite(v)) return false;
@@ -555,7 +556,7 @@ class Parser {
         return false;
       }
     }
-    for (int role = 0; role <= r_power_on; ++role)
+    for (int role = 0; role <= r_compensated; ++role)
       if (field_of_[role] >= 0) doubles[role]->push_back(values[role]);
     if (field_of_[r_phase] >= 0) data_.phase.push_back(phase);
     if (field_of_[r_step] >= 0) data_.step.push_back(step);
@@ -607,10 +608,10 @@ class Parser {
 
   std::expected<void, CsvError> parse_cell(int role, std::string_view cell, std::size_t ln,
                                            std::size_t field, std::vector<double>* doubles[]) {
-    if (role <= r_power_on) {
-      if (cell.empty() && role == r_power_on) {
-        // The gyro's power-on was not known at this sample (the daemon saw none): nothing was
-        // missed, nothing is guessed.
+    if (role <= r_compensated) {
+      if (cell.empty() && (role == r_power_on || role == r_compensated)) {
+        // The gyro's power-on was not known at this sample (the daemon saw none), or the daemon
+        // computed no live compensation: nothing was missed, nothing is guessed.
         doubles[role]->push_back(std::numeric_limits<double>::quiet_NaN());
         return {};
       }
@@ -744,6 +745,7 @@ class Parser {
     if (in.has_phase()) out.phase.resize(m);
     if (in.has_step()) out.step.resize(m);
     if (in.has_power_on()) out.since_power_on_s.resize(m);
+    if (in.has_compensated()) out.compensated_dph.resize(m);
     out.flags.assign(m, 0);
     bool any_gap = false;
 
@@ -783,6 +785,12 @@ class Parser {
           }
         }
         out.since_power_on_s[k] = v;
+      }
+      if (in.has_compensated()) {
+        // Interpolated like a reading, but none where either side has none (never a missing
+        // reading: the daemon's own record, not a measurement).
+        const double a = in.compensated_dph[j];
+        out.compensated_dph[k] = w == 0 ? a : a + w * (in.compensated_dph[j + 1] - a);
       }
       if (in.has_phase()) out.phase[k] = in.phase[j];
       if (in.has_step()) out.step[k] = in.step[j];
@@ -913,7 +921,7 @@ std::string to_csv(const model::RunData& run) {
   auto fits = [n](const auto& column) { return column.empty() || column.size() == n; };
   assert(run.gyro_dph.size() == n && run.t1_c.size() == n && run.t2_c.size() == n);
   assert(fits(run.setpoint_c) && fits(run.chamber_c) && fits(run.phase) && fits(run.step) &&
-         fits(run.flags) && fits(run.since_power_on_s));
+         fits(run.flags) && fits(run.since_power_on_s) && fits(run.compensated_dph));
   (void)fits;
 
   std::string out = "time_s,gyro_dph,t1_c,t2_c";
@@ -923,6 +931,7 @@ std::string to_csv(const model::RunData& run) {
   if (run.has_step()) out += ",step";
   if (run.has_flags()) out += ",flags";
   if (run.has_power_on()) out += ",since_power_on_s";
+  if (run.has_compensated()) out += ",compensated_dph";
   out += '\n';
   out.reserve(out.size() + n * 96);
 
@@ -967,6 +976,10 @@ std::string to_csv(const model::RunData& run) {
     if (run.has_power_on()) {
       out += ',';
       put(run.since_power_on_s[i]);  // empty where the power-on was not known
+    }
+    if (run.has_compensated()) {
+      out += ',';
+      put(run.compensated_dph[i]);  // empty where the daemon computed none
     }
     out += '\n';
   }

@@ -155,11 +155,25 @@ CREATE INDEX certificates_serial ON certificates (serial);
 CREATE INDEX certificates_sha256 ON certificates (sha256);
 )sql";
 
+// Version 5: the daemon's live compensated rate per sample, deg/h (NULL: no model, the
+// compensator warming up or its inputs missing; every sample recorded before version 5).
+constexpr const char* kLiveCompensation = R"sql(
+ALTER TABLE samples ADD COLUMN compensated_dph REAL;
+DROP VIEW sample_view;
+CREATE VIEW sample_view AS
+SELECT run_id, unit_index, t_s, wall_time, setpoint_c, chamber_c, gyro_dph, frames, t1_c, t2_c,
+       CASE phase WHEN 0 THEN 'unknown' WHEN 1 THEN 'settle' WHEN 2 THEN 'hold'
+                  WHEN 3 THEN 'heating' WHEN 4 THEN 'cooling' END AS phase,
+       step, flags, since_power_on_s, compensated_dph
+FROM samples;
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "recording tables", kRecording},
     {2, "models and verifications", kModels},
     {3, "time since power-on", kPowerOn},
     {4, "run identity and certificates", kIdentity},
+    {5, "live compensated rate", kLiveCompensation},
 };
 
 StoreResult<std::int64_t> query_int(Database& db, const std::string& sql, std::string_view what) {

@@ -104,13 +104,13 @@ StoreResult<model::RunData> Store::export_run(std::int64_t run_id, int unit_inde
   d.step.reserve(n);
   d.flags.reserve(n);
   bool has_setpoint = false, has_chamber = false, has_phase = false, has_step = false,
-       has_flags = false, has_power_on = false;
+       has_flags = false, has_power_on = false, has_compensated = false;
   std::size_t settle_skipped = 0;
   bool in_leading_settle = !options.include_settle;
 
   auto stmt = db.statement(
-      "SELECT t_s, gyro_dph, t1_c, t2_c, setpoint_c, chamber_c, phase, step, flags, since_power_on_s "
-      "FROM samples WHERE run_id = ?1 AND unit_index = ?2 ORDER BY t_s");
+      "SELECT t_s, gyro_dph, t1_c, t2_c, setpoint_c, chamber_c, phase, step, flags, since_power_on_s, "
+      "compensated_dph FROM samples WHERE run_id = ?1 AND unit_index = ?2 ORDER BY t_s");
   if (!stmt) return fail(std::move(stmt));
   Query q(db, *stmt);
   q.bind(1, run_id).bind(2, unit_index);
@@ -141,6 +141,8 @@ StoreResult<model::RunData> Store::export_run(std::int64_t run_id, int unit_inde
     d.flags.push_back(static_cast<std::uint8_t>(q.int64(8)));
     has_power_on |= !q.is_null(9);
     d.since_power_on_s.push_back(q.real(9));
+    has_compensated |= !q.is_null(10);
+    d.compensated_dph.push_back(q.real(10));
   }
   if (rc != SQLITE_DONE) return std::unexpected(db.error(rc, "export " + label));
   if (d.size() == 0) {
@@ -163,6 +165,7 @@ StoreResult<model::RunData> Store::export_run(std::int64_t run_id, int unit_inde
   drop(has_step, d.step);
   drop(has_flags, d.flags);
   drop(has_power_on, d.since_power_on_s);
+  drop(has_compensated, d.compensated_dph);
   return d;
 }
 
@@ -182,7 +185,7 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
       {"t2_c", data.t2_c.size()},             {"setpoint_c", data.setpoint_c.size()},
       {"chamber_c", data.chamber_c.size()},   {"phase", data.phase.size()},
       {"step", data.step.size()},             {"flags", data.flags.size()},
-      {"since_power_on_s", data.since_power_on_s.size()}};
+      {"since_power_on_s", data.since_power_on_s.size()}, {"compensated_dph", data.compensated_dph.size()}};
   for (std::size_t c = 0; c < std::size(sizes); ++c) {
     const bool required = c < 3;
     const auto [name, size] = sizes[c];
@@ -236,6 +239,7 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
       if (data.has_step()) q.bind(12, data.step[i]);
       if (data.has_flags()) q.bind(13, static_cast<int>(data.flags[i]));
       if (data.has_power_on()) q.bind(14, data.since_power_on_s[i]);
+      if (data.has_compensated()) q.bind(15, data.compensated_dph[i]);
       if (int rc = q.step(); rc != SQLITE_DONE)
         return std::unexpected(sample_error(db, rc, id, 0, data.time_s[i], what));
       q.reset();

@@ -5,11 +5,15 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <regex>
 #include <sstream>
 #include <unistd.h>
 
+#include "common.hpp"
+#include "fogbench/model/allan.hpp"
 #include "offline.hpp"
+#include "table.hpp"
 #include "workbench.hpp"
 
 using namespace fogbench::cli;
@@ -117,16 +121,16 @@ TEST_CASE("fogctl report: self-contained HTML that renders its figures in headle
   INFO(l);
   // The figures: per run the profile, the drift, the residual, the residual along the lineage,
   // the ACF and the CCF of the prewhitened residual, the residual against T1 and the drift-vs-T1
-  // loop (2 x 8), then the candidates and the lineage: 18 plots, each a canvas; the page counts
-  // what it drew.
+  // loop and the Allan deviation (2 x 9), then the candidates and the lineage: 20 plots, each a
+  // canvas; the page counts what it drew.
   const std::vector<std::string> ids{"cand", "lineage"};
   std::vector<std::string> all = ids;
   for (const char* k : {"0", "1"})
-    for (const char* p : {"temp", "drift", "resid", "lres", "acf", "ccf", "rvt", "loop"}) all.push_back(std::string(p) + k);
-  REQUIRE(all.size() == 18);
-  CHECK(count(html, "<div class=\"plot\"") == 18);
-  CHECK(d.find("data-plots=\"18\"") != std::string::npos);
-  CHECK(count(d, "<canvas") == 18);
+    for (const char* p : {"temp", "drift", "resid", "lres", "acf", "ccf", "rvt", "loop", "allan"}) all.push_back(std::string(p) + k);
+  REQUIRE(all.size() == 20);
+  CHECK(count(html, "<div class=\"plot\"") == 20);
+  CHECK(d.find("data-plots=\"20\"") != std::string::npos);
+  CHECK(count(d, "<canvas") == 20);
   // Each plot drew something: coloured pixels (series, not the grey grid) in its plotting area,
   // counted by the page into data-ink after each draw. A line across the plot is over 500.
   for (const auto& id : all) {
@@ -169,4 +173,86 @@ TEST_CASE("fogctl report: self-contained HTML that renders its figures in headle
   REQUIRE(fs::exists(shot));
   CHECK(fs::file_size(shot) > 50000u);  // a blank page compresses to under 10 KB
   if (const char* keep = std::getenv("FOGBENCH_REPORT_SHOT")) fs::copy_file(shot, keep, fs::copy_options::overwrite_existing);
+}
+
+TEST_CASE("fogctl report: the Allan section of each run has model::allan's figures for each hold and the compensated output") {
+  ReportDir dir;
+  const std::string e1 = dir.file("e1.csv"), m = dir.file("m.json");
+  {
+    SimulateOptions s;
+    s.profile = "exp1";
+    s.output = e1;
+    s.seed = 11;
+    s.coil = "lumped";
+    s.quiet = true;
+    std::ostringstream o, e;
+    REQUIRE(run_simulate(s, o, e) == kExitOk);
+    FitCommandOptions f;
+    f.run = e1;
+    f.output = m;
+    REQUIRE(run_fit(f, o, e) == kExitOk);
+  }
+  ReportOptions r;
+  r.model = m;
+  r.runs = {e1};
+  r.output = dir.file("report.html");
+  std::ostringstream out, err;
+  REQUIRE(run_report(r, out, err) == kExitOk);
+  const std::string html = slurp(r.output);
+  REQUIRE(html.find("Allan deviation (IEEE Std 952 Annex C)") != std::string::npos);
+
+  // The same series computed here with model::allan alone: each hold of at least 600 even,
+  // unflagged samples, then the longest such stretch of the run compensated with the model.
+  auto run = load_run(e1, {});
+  REQUIRE(run.has_value());
+  auto model = load_model(m);
+  REQUIRE(model.has_value());
+  namespace allan = fogbench::model::allan;
+  std::vector<std::pair<std::string, std::vector<double>>> series;
+  int hold = 0;
+  for (const auto& s : allan::even_stretches(*run, 600))
+    series.push_back({"hold " + std::to_string(++hold), std::vector<double>(run->gyro_dph.begin() + static_cast<std::ptrdiff_t>(s.begin),
+                                                                             run->gyro_dph.begin() + static_cast<std::ptrdiff_t>(s.end))});
+  REQUIRE(hold >= 2);  // exp1: holds of 10 and 20 min
+  auto mu = fogbench::model::predict(*model, *run);
+  REQUIRE(mu.has_value());
+  fogbench::model::RunData comp = *run;
+  for (std::size_t i = 0; i < comp.size(); ++i) comp.gyro_dph[i] -= (*mu)[i];
+  std::optional<allan::Stretch> longest;
+  for (const auto& s : allan::even_stretches(comp, 600, true))
+    if (!longest || s.end - s.begin > longest->end - longest->begin) longest = s;
+  REQUIRE(longest);
+  series.push_back({"compensated", std::vector<double>(comp.gyro_dph.begin() + static_cast<std::ptrdiff_t>(longest->begin),
+                                                       comp.gyro_dph.begin() + static_cast<std::ptrdiff_t>(longest->end))});
+
+  auto cell = [](const std::optional<allan::NoiseEstimate>& e, int digits) {
+    return e ? fixed(e->value, digits) + " (" + fixed(e->ci_low, digits) + ".." + fixed(e->ci_high, digits) + ")" : std::string("-");
+  };
+  const auto table_at = html.find("<table class=\"allan\"");
+  REQUIRE(table_at != std::string::npos);
+  const std::string table = html.substr(table_at, html.find("</table>", table_at) - table_at);
+  std::size_t at = 0;
+  bool compensated_arw = false;
+  for (const auto& [what, rate] : series) {
+    INFO(what);
+    auto curve = allan::overlapping_adev(rate, 1.0, allan::octave_cluster_sizes(rate.size()));
+    REQUIRE(curve.has_value());
+    const auto t = allan::noise_terms(*curve);
+    const std::string row = ">" + what + "</td>";
+    at = table.find(row, at);
+    REQUIRE(at != std::string::npos);
+    const std::string tr = table.substr(at, table.find("</tr>", at) - at);
+    INFO(tr);
+    CHECK(tr.find("<td>" + std::to_string(rate.size()) + "</td>") != std::string::npos);
+    CHECK(tr.find("<td>" + cell(t.arw_deg_per_sqrt_h, 5) + "</td>") != std::string::npos);
+    CHECK(tr.find("<td>" + cell(t.bias_instability_dph, 4) + "</td>") != std::string::npos);
+    CHECK(tr.find("<td>" + cell(t.rrw_dph_per_sqrt_h, 4) + "</td>") != std::string::npos);
+    if (what == "compensated") compensated_arw = t.arw_deg_per_sqrt_h.has_value();
+  }
+  CHECK(compensated_arw);  // the simulated gyro's white noise shows: the -1/2 slope is read
+  // The plot: log-log, the curves and both reference slopes.
+  CHECK(html.find("\"id\":\"allan0\",\"kind\":\"xy\",\"log\":true") != std::string::npos);
+  CHECK(html.find("\"label\":\"slope -1/2: ARW of compensated\"") != std::string::npos);
+  CHECK(html.find("\"label\":\"slope +1/2") != std::string::npos);
+  CHECK(html.find("\"xlabel\":\"tau, s\"") != std::string::npos);
 }

@@ -64,6 +64,8 @@ TEST_CASE("protocol: a stored sample goes to JSON and back, values not read as n
   CHECK(j["chamber_c"].is_null());
   CHECK(j["t2_c"].is_null());
   CHECK(j["since_power_on_s"].is_null());
+  CHECK(j.contains("compensated_dph"));
+  CHECK(j["compensated_dph"].is_null());  // no live compensation: null, present
   auto back = sample_from_json(json::parse(j.dump()));
   REQUIRE(back.has_value());
   CHECK(back->t_s == 598.0);
@@ -74,6 +76,17 @@ TEST_CASE("protocol: a stored sample goes to JSON and back, values not read as n
   CHECK(back->phase == "hold");
   CHECK(back->step == 1);
   CHECK(back->flags == 1);
+  CHECK_FALSE(back->compensated_dph.has_value());
+  s.compensated_dph = 0.0125;
+  auto comp = sample_from_json(json::parse(to_json(s).dump()));
+  REQUIRE(comp.has_value());
+  CHECK(comp->compensated_dph == 0.0125);
+  // A row from a daemon before the field: read as none.
+  json old = to_json(s);
+  old.erase("compensated_dph");
+  CHECK_FALSE(sample_from_json(old)->compensated_dph.has_value());
+  old["compensated_dph"] = "low";
+  CHECK(sample_from_json(old).error() == "sample.compensated_dph: expected a number or null");
 }
 
 TEST_CASE("protocol: a malformed sample is refused naming the field") {
@@ -99,7 +112,9 @@ TEST_CASE("protocol: pushed sample and event messages go to JSON and back") {
   m.serial = "FOG-0002";
   m.gyro_dph = -8.11;
   m.frames = 100;
+  m.compensated_dph = 0.021;
   const json j = to_json(m);
+  CHECK(j["compensated_dph"] == 0.021);  // the web panel reads this name
   CHECK(j["type"] == "sample");
   CHECK(j["chamber_c"].is_null());
   auto back = sample_message_from_json(json::parse(j.dump()));
@@ -107,6 +122,7 @@ TEST_CASE("protocol: pushed sample and event messages go to JSON and back") {
   CHECK(back->serial == "FOG-0002");
   CHECK(back->step == 2);
   CHECK(back->gyro_dph == -8.11);
+  CHECK(back->compensated_dph == 0.021);
   CHECK_FALSE(back->chamber_c.has_value());
 
   const json e = to_json(EventMessage{3, std::nullopt, "state", {{"to", "aborted"}}});

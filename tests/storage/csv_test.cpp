@@ -633,3 +633,39 @@ TEST_CASE("csv: since_power_on_s round-trips, unknown cells stay unknown, and a 
     CHECK(r->since_power_on_s[4] == 0.5);
   }
 }
+
+TEST_CASE("csv: compensated_dph round-trips with empty cells where the daemon computed none, and a file without it still reads",
+          "[csv][compensated]") {
+  // The live compensation warms up (empty) and goes on; the empty cells are no missing reading.
+  const std::string text =
+      "time_s,gyro_dph,t1_c,t2_c,flags,compensated_dph\n"
+      "0,0.1,20,20.5,0,\n"
+      "1,0.2,20,20.5,0,\n"
+      "2,0.3,20,20.5,0,0.012\n"
+      "3,0.4,20,20.5,0,-0.25\n";
+  auto run = storage::parse_csv(text, named("live.csv"));
+  REQUIRE(run.has_value());
+  REQUIRE(run->has_compensated());
+  CHECK(std::isnan(run->compensated_dph[0]));
+  CHECK(std::isnan(run->compensated_dph[1]));
+  CHECK(run->compensated_dph[2] == 0.012);
+  CHECK(run->compensated_dph[3] == -0.25);
+  CHECK(run->flags == std::vector<std::uint8_t>{0, 0, 0, 0});
+  CHECK(storage::to_csv(*run) == text);
+
+  // Beside since_power_on_s, which comes first; a bad value names the column.
+  auto both = storage::parse_csv("time_s,gyro_dph,t1_c,t2_c,since_power_on_s,compensated_dph\n0,1,2,3,4,5\n", named("both.csv"));
+  REQUIRE(both.has_value());
+  CHECK(both->since_power_on_s == std::vector<double>{4});
+  CHECK(both->compensated_dph == std::vector<double>{5});
+  auto bad = storage::parse_csv("time_s,gyro_dph,t1_c,t2_c,compensated_dph\n0,1,2,3,x\n", named("bad.csv"));
+  REQUIRE_FALSE(bad.has_value());
+  CHECK(bad.error().column == 5);
+  CHECK_THAT(bad.error().message, Contains("compensated_dph"));
+
+  // A file written before the column existed reads as before: none recorded.
+  auto old = storage::parse_csv("time_s,gyro_dph,t1_c,t2_c,flags,since_power_on_s\n0,1,2,3,0,\n1,1,2,3,0,1\n", named("old.csv"));
+  REQUIRE(old.has_value());
+  CHECK_FALSE(old->has_compensated());
+  CHECK(storage::to_csv(*old).find("compensated_dph") == std::string::npos);
+}

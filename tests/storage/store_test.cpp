@@ -98,7 +98,7 @@ TEST_CASE("store: a new file gets the current schema, WAL and the fogbench id", 
   {
     Store s = open_ok(path);
     CHECK(s.schema_version() == Store::current_schema_version());
-    CHECK(Store::current_schema_version() >= 4);  // other branches add migrations: no exact number
+    CHECK(Store::current_schema_version() >= 5);  // 4: run identity, 5: the live compensated rate
     CHECK(s.path() == path);
   }
   Raw raw(path);
@@ -145,10 +145,12 @@ TEST_CASE("store: migration from version 0 and version 1", "[store][schema]") {
     CHECK(s.schema_version() == Store::current_schema_version());
     // A run from before version 4 has no identity: it says so.
     CHECK_FALSE(s.get_run_identity(7).value().has_value());
-    // Samples from before version 3 have no time since power-on: the export says not recorded.
+    // Samples from before version 3 have no time since power-on, and from before version 5 no
+    // live compensation: the export says not recorded.
     auto old = s.export_run(7, 0);
     REQUIRE(old.has_value());
     CHECK_FALSE(old->has_power_on());
+    CHECK_FALSE(old->has_compensated());
     auto run = s.get_run(7);
     REQUIRE(run.has_value());
     CHECK(run->run.profile_name == "old");
@@ -631,4 +633,40 @@ TEST_CASE("store: the time since power-on is stored per sample and exported when
   neg.since_power_on_s = -1;
   const SampleRow bad[] = {neg};
   CHECK_FALSE(s.append_samples(run, bad).has_value());
+}
+
+TEST_CASE("store: the live compensated rate is stored per sample, exported and imported when any, NULL before it", "[store][compensated]") {
+  TempDir tmp;
+  Store s = open_ok(tmp / "live.db");
+  const auto run = s.create_run(two_unit_run()).value();
+  // Unit 0: warming up for 2 samples, then compensated; unit 1: no model, none at all.
+  std::vector<SampleRow> rows;
+  for (int i = 0; i < 5; ++i) {
+    SampleRow a = sample(0, i);
+    if (i >= 2) a.compensated_dph = 0.25 * i;
+    rows.push_back(a);
+    rows.push_back(sample(1, i));
+  }
+  REQUIRE(s.append_samples(run, rows).has_value());
+  auto got = s.get_samples(run, 0, 0, 10);
+  REQUIRE(got.has_value());
+  REQUIRE(got->size() == 5);
+  CHECK(std::isnan(got->at(1).compensated_dph));
+  CHECK(got->at(2).compensated_dph == 0.5);
+  auto a = s.export_run(run, 0, {.include_settle = true});
+  REQUIRE(a.has_value());
+  REQUIRE(a->compensated_dph.size() == 5);
+  CHECK(std::isnan(a->compensated_dph[0]));
+  CHECK(a->compensated_dph[4] == 1.0);
+  auto b = s.export_run(run, 1, {.include_settle = true});
+  REQUIRE(b.has_value());
+  CHECK_FALSE(b->has_compensated());
+  // Imported back (a CSV of an export): the column comes with it.
+  auto imported = s.import_run(*a, {.serial = "FOG-X"});
+  REQUIRE(imported.has_value());
+  auto again = s.export_run(*imported, 0, {.include_settle = true});
+  REQUIRE(again.has_value());
+  REQUIRE(again->compensated_dph.size() == 5);
+  CHECK(again->compensated_dph[3] == 0.75);
+  CHECK(std::isnan(again->compensated_dph[1]));
 }

@@ -23,6 +23,7 @@
 
 #include "fogbench/daemon/api.hpp"
 #include "fogbench/daemon/config.hpp"
+#include "fogbench/daemon/live_compensation.hpp"
 #include "fogbench/daemon/offload.hpp"
 #include "fogbench/daemon/power_on.hpp"
 #include "fogbench/daemon/run_identity.hpp"
@@ -171,6 +172,8 @@ class Station {
     double pv_same_since_s = 0.0;               // ... since this run time,
     double sp_min_c = 0.0, sp_max_c = 0.0;      // the setpoints commanded meanwhile
     bool pv_frozen = false;                     // this second's PV is a frozen one (flag pv_frozen)
+    LiveCompensation live;                      // each unit's compensated rate (live_compensation.hpp)
+    bool live_noted = false;                    // its models are in the run's events
   };
 
   static nlohmann::json quality_json(const ActiveRun& run);

@@ -78,6 +78,17 @@ inline constexpr int kMaxRing = 8192;
 // instead (ProgramTerm::late_s says by how much); the compensation is then no longer the model's.
 std::expected<Program, std::string> compile(const Model& m, double dt_s = 1.0, bool allow_late = false);
 
+// How many opening samples of a program lean on the steady-hold fill of its windows and delays:
+// from sample index warm_up_samples(p) on (0-based), every slope and delay reads only samples
+// really given (lp filters start at their first input, as in the firmware, and never "fill").
+int warm_up_samples(const Program& p);
+
+// Which of the four inputs (t1, t2, ta, ton) a program reads.
+struct InputsUsed {
+  bool t1 = false, t2 = false, ta = false, ton = false;
+};
+InputsUsed inputs_used(const Program& p);
+
 // One sample of the firmware's inputs: temperatures in degC (absolute), ton in s.
 struct Input {
   double t1_c = 0.0, t2_c = 0.0, ta_c = 0.0, ton_s = 0.0;

@@ -40,6 +40,9 @@ struct RunData {
   // Time since the gyro's last power-on, s (optional: empty when the recording did not capture
   // it; never guessed). The term language's signal `ton`; CSV column `since_power_on_s`.
   std::vector<double> since_power_on_s;
+  // The daemon's live compensated rate, deg/h (optional: empty when the recording has none;
+  // NaN where the daemon computed none). Never an input of a fit. CSV column `compensated_dph`.
+  std::vector<double> compensated_dph;
 
   std::size_t size() const { return time_s.size(); }
   bool has_setpoint() const { return !setpoint_c.empty(); }
@@ -48,6 +51,7 @@ struct RunData {
   bool has_step() const { return !step.empty(); }
   bool has_flags() const { return !flags.empty(); }
   bool has_power_on() const { return !since_power_on_s.empty(); }
+  bool has_compensated() const { return !compensated_dph.empty(); }
   // True when sample i carries any quality flag.
   bool flagged(std::size_t i) const { return !flags.empty() && flags[i] != 0; }
 };

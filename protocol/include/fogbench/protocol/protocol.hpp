@@ -77,6 +77,8 @@ struct Sample {
   std::optional<int> step;
   std::uint8_t flags = 0;  // quality bits of model/run.hpp
   std::optional<double> since_power_on_s;
+  // The daemon's live compensated rate, deg/h: null when it computed none (docs/daemon.md).
+  std::optional<double> compensated_dph;
 };
 nlohmann::json to_json(const Sample& s);
 // A row of run.samples as received; the error names the field.
@@ -99,6 +101,9 @@ struct SampleMessage {
   std::optional<double> t1_c, t2_c;
   std::uint8_t flags = 0;
   std::optional<double> since_power_on_s;
+  // gyro_dph minus the unit's model's drift, computed live as the firmware would, deg/h; null
+  // without a model, while the compensator warms up, or when an input is missing.
+  std::optional<double> compensated_dph;
 };
 nlohmann::json to_json(const SampleMessage& s);
 std::expected<SampleMessage, std::string> sample_message_from_json(const nlohmann::json& j);

@@ -74,7 +74,7 @@ struct CsvOptions {
 };
 
 // The canonical column names, required first: time_s, gyro_dph, t1_c, t2_c, then the optional
-// setpoint_c, chamber_c, phase, step, flags.
+// setpoint_c, chamber_c, since_power_on_s, compensated_dph, phase, step, flags.
 const std::vector<std::string_view>& csv_columns();
 
 // Parses a whole CSV text. Never throws; every problem in the text is a CsvError.

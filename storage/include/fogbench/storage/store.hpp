@@ -168,6 +168,10 @@ struct SampleRow {
   std::uint8_t flags = 0;              // model::flag bits
   double since_power_on_s = kNoValue;  // time since the gyro's last power-on as the daemon saw
                                        // it, s; kNoValue when it did not see one
+  // The daemon's live compensation of this second: gyro_dph minus the drift the unit's model
+  // computed in its firmware form (model/firmware.hpp), deg/h; kNoValue when there was none
+  // (no model, warming up, inputs missing; docs/daemon.md "Live compensation").
+  double compensated_dph = kNoValue;
 };
 
 struct ExportOptions {
