@@ -15,8 +15,8 @@
 namespace fogbench::plans {
 
 // Why a step's run is recorded. fit and verify are the daemon's run purposes (the fit step's
-// model is the one the later verify steps use); soak and custom are recorded as verify runs
-// whose automatic verification is not judged (a soak gives the Allan figures).
+// model is the one the later verify steps use); soak and custom runs are recorded without the
+// automatic analysis (a soak gives the Allan figures).
 enum class StepPurpose : std::uint8_t { fit, verify, soak, custom };
 std::string_view to_string(StepPurpose p);
 std::optional<StepPurpose> step_purpose_from_string(std::string_view s);
