@@ -14,6 +14,7 @@
 #include "coefficients.hpp"
 #include "common.hpp"
 #include "offline.hpp"
+#include "plan.hpp"
 #include "workbench.hpp"
 
 int main(int argc, char** argv) {
@@ -42,6 +43,7 @@ int main(int argc, char** argv) {
   fogbench::cli::add_workbench_commands(app, code);
   fogbench::cli::add_allan_command(app, code);
   fogbench::cli::add_coefficients_command(app, code);
+  fogbench::cli::add_plan_commands(app, code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "fogbench/daemon/station.hpp"
 #include "fogbench/model/allan.hpp"
@@ -37,6 +38,13 @@ json* find_unit(json& progress, const std::string& serial) {
   for (auto& u : progress["units"])
     if (u["serial"] == serial) return &u;
   return nullptr;
+}
+
+// Four significant digits, for the reasons people read ("1.863"); the measurements keep the value.
+std::string short_number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.4g", v);
+  return buf;
 }
 
 // The compensated output's largest distance from its mean, deg/h (flagged samples left out).
@@ -482,7 +490,7 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
       if (!note_text.empty()) m["note"] = note_text;
       (*u)["measurements"].push_back(m);
       if (met || !(*u)["active"].get<bool>()) continue;
-      const std::string why = where + ": " + l.name() + " = " + (value ? json(*value).dump() : std::string("not measured")) +
+      const std::string why = where + ": " + l.name() + " = " + (value ? short_number(*value) : std::string("not measured")) +
                               ", limit " + l.describe() + " (line " + std::to_string(l.line) + ")";
       if (l.on_fail == plans::OnFail::go_on) {
         (*u)["marginal"] = true;

@@ -297,3 +297,37 @@ TEST_CASE("plan e2e: bad plans are refused naming the line or field, and nothing
   auto st = c.call({{"cmd", "status"}});
   CHECK(st["result"]["run"].is_null());
 }
+
+TEST_CASE("plan e2e: a retest-limit runs the step once more for the failing unit only, a second failure drops it") {
+  require_sim();
+  json sim = {{"units", {{{"serial", "SIM-0001"}}, {{"serial", "SIM-0002"}, {"effects", "0.8*T1"}}}}};
+  LiveBench bench(100.0, json::object(), false, sim);
+  INFO("test dir " << bench.dir);
+  write_profiles(bench);
+  LineClient c(bench.socket());
+  REQUIRE(c.ok());
+  const std::string text = "step pfit fit\nstep pver_a verify\nlimit comp_raw < 0.2 retest\n";
+  auto s = plan_call(c, "plan.start", text, {"SIM-0001", "SIM-0002"});
+  INFO(s.dump());
+  REQUIRE(code_of(s) == "ok");
+  json done = wait_plan(c, s["result"]["plan_id"].get<std::int64_t>(), {"completed", "aborted", "failed"}, 600s);
+  INFO(done.dump(1));
+  REQUIRE(done["result"]["state"] == "completed");
+  const auto& runs = done["result"]["progress"]["runs"];
+  REQUIRE(runs.size() == 3);
+  CHECK(runs[1]["units"] == json({"SIM-0001", "SIM-0002"}));
+  CHECK(runs[2]["step"] == 2);
+  CHECK(runs[2]["attempt"] == 1);
+  CHECK(runs[2]["units"] == json({"SIM-0002"}));
+  CHECK(unit_in(done, "SIM-0001")["verdict"] == "pass");
+  const json& bad = unit_in(done, "SIM-0002");
+  CHECK(bad["verdict"] == "fail");
+  int attempts = 0;
+  for (const auto& m : bad["measurements"])
+    if (m["measurement"] == "comp_raw") {
+      ++attempts;
+      CHECK(m["met"] == false);
+    }
+  CHECK(attempts == 2);
+  CHECK_THAT(bad["reasons"].dump(), Catch::Contains("retest once") && Catch::Contains("failed its retest too"));
+}
