@@ -191,12 +191,9 @@ ApiResult<json> PlanRunner::status(std::optional<std::int64_t> plan_id) const {
     const storage::PlanRecord* pick = nullptr;
     for (const auto& r : *all)
       if (r.state == "running") pick = &r;
-    for (const auto& r : *all)
-      if (!pick && r.state != "queued" && (!pick || r.id > pick->id)) pick = &r;
-    if (!pick) {
+    if (!pick)  // the last one that ran
       for (const auto& r : *all)
         if (r.state != "queued" && (!pick || r.id > pick->id)) pick = &r;
-    }
     if (!pick) return api_error(ErrorCode::not_found, "no plan has run yet");
     rec = *pick;
   }
