@@ -15,6 +15,7 @@
 #include "coefficients.hpp"
 #include "common.hpp"
 #include "offline.hpp"
+#include "plan.hpp"
 #include "workbench.hpp"
 
 int main(int argc, char** argv) {
@@ -44,6 +45,7 @@ int main(int argc, char** argv) {
   fogbench::cli::add_allan_command(app, code);
   fogbench::cli::add_coefficients_command(app, code);
   fogbench::cli::add_cert_command(app, code);
+  fogbench::cli::add_plan_commands(app, code);
   fogbench::cli::add_profile_commands(app, code);
   fogbench::cli::add_stored_run_options(app);  // after the commands it extends
   fogbench::cli::add_generate_command(app, code);  // last: it walks the whole table

@@ -6,14 +6,14 @@
 include(CMakePackageConfigHelpers)
 
 set(fogbench_package_libs)
-foreach(lib model profiles protocol storage sim drivers_protocol drivers)
+foreach(lib model profiles plans protocol storage sim drivers_protocol drivers)
   if(TARGET fogbench_${lib})
     list(APPEND fogbench_package_libs fogbench_${lib})
     # fogbench_model is exported as fogbench::model.
     set_target_properties(fogbench_${lib} PROPERTIES EXPORT_NAME ${lib})
   endif()
 endforeach()
-foreach(dir model profiles protocol storage sim drivers)
+foreach(dir model profiles plans protocol storage sim drivers)
   if(IS_DIRECTORY ${PROJECT_SOURCE_DIR}/${dir}/include)
     install(DIRECTORY ${PROJECT_SOURCE_DIR}/${dir}/include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
             COMPONENT dev FILES_MATCHING PATTERN "*.hpp" PATTERN "*.h")

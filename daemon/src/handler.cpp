@@ -1,6 +1,7 @@
 // The command handler: request validation with messages that name the field, and one function
 // per command. Every failure is an error reply; nothing here throws to the caller.
 #include "fogbench/daemon/handler.hpp"
+#include "fogbench/daemon/plan_runner.hpp"
 
 #include <cassert>
 #include <chrono>
@@ -119,7 +120,7 @@ ApiResult<int> resolve_unit(storage::Store& store, std::int64_t run_id, const js
 
 bool is_control_command(std::string_view cmd) {
   return cmd == "run.start" || cmd == "run.abort" || cmd == "run.resume" || cmd == "model.fit" ||
-         cmd == "model.verify" || cmd == "model.add_term";
+         cmd == "model.verify" || cmd == "model.add_term" || is_plan_control_command(cmd);
 }
 
 namespace {
@@ -459,6 +460,8 @@ ApiResult<json> Handler::dispatch(const std::string& cmd, const json& req, Sessi
     session.subscribed = false;
     return json{{"subscribed", false}};
   }
+
+  if (is_plan_command(cmd)) return plan_command(station_.plan_runner(), cmd, req);  // plan_commands.cpp
 
   if (cmd == "run.start") {
     auto profile = req_string(req, "profile");

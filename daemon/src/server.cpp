@@ -13,6 +13,7 @@
 // share that state and its order of shutdown; split further they would pass Impl's internals
 // between files instead of keeping one owner.
 #include "fogbench/daemon/server.hpp"
+#include "fogbench/daemon/plan_runner.hpp"
 
 #include <grp.h>
 #include <sys/resource.h>
@@ -101,6 +102,7 @@ struct Server::Impl {
   std::optional<storage::Store> store;
   std::unique_ptr<Station> station;
   std::unique_ptr<Handler> handler;
+  std::unique_ptr<PlanRunner> plans;  // qualification plans (plan_runner.hpp), told after each tick
   Turns turns{io};
   // Fits, verifications and large reads (offload.hpp); declared after the station so that it
   // stops (joins) before the station goes.
@@ -815,6 +817,8 @@ std::expected<void, Server::StartError> Server::start() {
     m.web = std::make_unique<web::WebServer>(m.io, *m.handler, *m.config.web, m.config.socket.tcp_token, std::move(hooks));
     if (auto ok = m.web->bind(); !ok) return fail(ok.error());
   }
+  m.plans = std::make_unique<PlanRunner>(*m.station);
+  m.station->set_plan_runner(m.plans.get());
   // The analysis worker reads through its own connection (WAL: beside the loop's writes). A
   // store it cannot open (":memory:") leaves the analysis on the loop, as before issue 11.
   {

@@ -1,6 +1,7 @@
 // The run state machine: start, resume, abort, the tick (profile, chamber faults, the second's
 // samples) and the end of a run. The station's other rooms are listed in station.hpp.
 #include "fogbench/daemon/station.hpp"
+#include "fogbench/daemon/plan_runner.hpp"
 
 #include "fogbench/daemon/sample_rows.hpp"
 #include "fogbench/storage/run_data.hpp"
@@ -324,10 +325,16 @@ void Station::finish(RunState to, const std::string& reason) {
   const auto serials = run.serials;
   run_.reset();
   setpoint_c_ = config_.safe_setpoint_c;
-  if (to == RunState::completed) analyse(id, purpose, serials);
+  if (to == RunState::completed && !skip_analysis_.erase(id)) analyse(id, purpose, serials);
 }
 
 TickOutput Station::tick(double clock_s, const TickInput& in) {
+  const TickOutput out = tick_station(clock_s, in);
+  if (plans_) plans_->after_tick(clock_s, in.wall_time);  // a plan's next step (plan_runner.hpp)
+  return out;
+}
+
+TickOutput Station::tick_station(double clock_s, const TickInput& in) {
   clock_s_ = clock_s;
   last_input_ = in;
   ++ticks_;

@@ -168,12 +168,44 @@ SELECT run_id, unit_index, t_s, wall_time, setpoint_c, chamber_c, gyro_dph, fram
 FROM samples;
 )sql";
 
+// Version 6: qualification plans (docs/plans.md). A plan is queued (queue_pos gives the order)
+// or running, then completed, aborted or failed; progress_json is the daemon's plan runner's
+// whole state (the step it is in, its runs, each unit's measurements and verdict), rewritten at
+// each change so a restart resumes where it stood. plan_events is the audit trail of plans and
+// of the queue (plan_id NULL: about no one plan).
+constexpr const char* kPlans = R"sql(
+CREATE TABLE plans (
+  id            INTEGER PRIMARY KEY,
+  name          TEXT NOT NULL,
+  source        TEXT NOT NULL,
+  plan_text     TEXT NOT NULL,
+  units_json    TEXT NOT NULL CHECK (json_valid(units_json)),
+  state         TEXT NOT NULL CHECK (state IN ('queued', 'running', 'completed', 'aborted', 'failed')),
+  queue_pos     INTEGER,
+  created_at    TEXT NOT NULL,
+  started_at    TEXT,
+  ended_at      TEXT,
+  reason        TEXT NOT NULL DEFAULT '',
+  progress_json TEXT NOT NULL DEFAULT '{}' CHECK (json_valid(progress_json))
+);
+CREATE INDEX plans_state ON plans (state, queue_pos);
+CREATE TABLE plan_events (
+  id          INTEGER PRIMARY KEY,
+  at          TEXT NOT NULL,
+  plan_id     INTEGER REFERENCES plans (id),
+  kind        TEXT NOT NULL,
+  detail_json TEXT NOT NULL DEFAULT '{}' CHECK (json_valid(detail_json))
+);
+CREATE INDEX plan_events_plan ON plan_events (plan_id);
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "recording tables", kRecording},
     {2, "models and verifications", kModels},
     {3, "time since power-on", kPowerOn},
     {4, "run identity and certificates", kIdentity},
     {5, "live compensated rate", kLiveCompensation},
+    {6, "qualification plans and their queue", kPlans},
 };
 
 StoreResult<std::int64_t> query_int(Database& db, const std::string& sql, std::string_view what) {

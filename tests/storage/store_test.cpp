@@ -106,7 +106,8 @@ TEST_CASE("store: a new file gets the current schema, WAL and the fogbench id", 
   CHECK(raw.integer("PRAGMA user_version") == Store::current_schema_version());
   CHECK(raw.integer("PRAGMA application_id") == 0x464F4742);
   for (const char* table : {"runs", "run_units", "samples", "run_events", "models", "verifications",
-                            "run_identity", "run_unit_identity", "certificates"})
+                            "run_identity", "run_unit_identity", "certificates",
+                            "plans", "plan_events"})
     CHECK(raw.integer(std::string("SELECT count(*) FROM sqlite_schema WHERE name = '") + table +
                       "'") == 1);
 }

@@ -16,6 +16,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -34,6 +35,8 @@
 #include "fogbench/storage/store.hpp"
 
 namespace fogbench::daemon {
+
+class PlanRunner;
 
 // One configured unit's readings at one tick; an empty optional was not read.
 struct UnitReading {
@@ -137,6 +140,13 @@ class Station {
   double time_scale() const { return time_scale_; }
   // Records an operator command in the audit trail of a run.
   void audit(std::int64_t run_id, const nlohmann::json& command);
+  // The qualification plans' runner (plan_runner.hpp), told after every tick; not owned. None:
+  // the plan.* and queue.* commands answer unavailable.
+  void set_plan_runner(PlanRunner* r) { plans_ = r; }
+  PlanRunner* plan_runner() const { return plans_; }
+  // The run (active, or resumed at the next tick) ends without the automatic fit or
+  // verification: a plan's soak and custom steps (docs/plans.md). Forgotten at a restart.
+  void skip_analysis(std::int64_t run_id) { skip_analysis_.insert(run_id); }
 
  private:
   struct ActiveRun {
@@ -177,6 +187,7 @@ class Station {
   };
 
   static nlohmann::json quality_json(const ActiveRun& run);
+  TickOutput tick_station(double clock_s, const TickInput& in);
   // Why no run may start now (the chamber link is down), if so.
   std::optional<ApiError> chamber_unavailable() const;
   // `why` a run fails or aborts for, said after the loop fell behind real time if it did.
@@ -222,6 +233,8 @@ class Station {
   std::int64_t ticks_ = 0;
   // Each configured unit's power-on as seen in its frames, whether a run is active or not.
   PowerWatch power_;
+  PlanRunner* plans_ = nullptr;
+  std::set<std::int64_t> skip_analysis_;
 };
 
 // ISO 8601 UTC now, to the second.

@@ -232,6 +232,31 @@ struct VerificationRecord {
   bool pass = false;
 };
 
+// A qualification plan as stored (docs/plans.md): its text, units and the daemon's progress.
+struct PlanRecord {
+  std::int64_t id = 0;
+  std::string name, source, plan_text;
+  std::vector<std::string> units;  // serials
+  std::string state;               // queued, running, completed, aborted, failed
+  std::optional<std::int64_t> queue_pos;
+  std::string created_at;
+  std::optional<std::string> started_at, ended_at;
+  std::string reason;
+  std::string progress_json;
+};
+struct NewPlan {
+  std::string name, source, plan_text;
+  std::vector<std::string> units;
+  std::string state = "queued";  // or running
+};
+// An entry of the plans' audit trail (queue edits, plan starts, steps, verdicts).
+struct PlanEvent {
+  std::int64_t id = 0;
+  std::string at;
+  std::optional<std::int64_t> plan_id;
+  std::string kind, detail_json;
+};
+
 class Store {
  public:
   // Opens (creating when allowed) and migrates the database at `path` (":memory:" for a
@@ -312,6 +337,26 @@ class Store {
   StoreResult<std::vector<CertificateRecord>> find_certificates(std::string_view sha256);
   // The serial's certificates, oldest first.
   StoreResult<std::vector<CertificateRecord>> list_certificates(std::string_view serial);
+  // --- qualification plans and their queue (store_plans.cpp)
+  // A queued plan goes to the end of the queue. Adds a plan_events entry of `event_kind` with
+  // `event_detail` in the same transaction.
+  StoreResult<std::int64_t> create_plan(const NewPlan& p, std::string_view event_kind,
+                                        std::string_view event_detail_json);
+  // Sets the state, reason and progress; stamps started_at (running) and ended_at (an end
+  // state); leaves the queue when not queued.
+  StoreResult<void> update_plan(std::int64_t plan_id, std::string_view state, std::string_view reason,
+                                std::string_view progress_json);
+  StoreResult<PlanRecord> get_plan(std::int64_t plan_id);
+  // Plans in the state (every plan when empty), queued ones in queue order, the rest by id.
+  StoreResult<std::vector<PlanRecord>> list_plans(std::optional<std::string_view> state = std::nullopt);
+  // Rewrites the queue order to `ids` (exactly the queued plans) and takes out `removed` (a
+  // queued plan: it ends aborted, "removed from the queue"), with an audit entry, in one
+  // transaction.
+  StoreResult<void> set_queue(const std::vector<std::int64_t>& ids, std::optional<std::int64_t> removed,
+                              std::string_view event_kind, std::string_view event_detail_json);
+  StoreResult<std::int64_t> add_plan_event(std::optional<std::int64_t> plan_id, std::string_view kind,
+                                           std::string_view detail_json);
+  StoreResult<std::vector<PlanEvent>> plan_events(std::optional<std::int64_t> plan_id);
 
   // SQLite's integrity check and foreign-key check: an empty list when all is well, or the
   // problems found.

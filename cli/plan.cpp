@@ -1,0 +1,414 @@
+// fogctl plan ... and fogctl queue ...: the plan file read here and sent as text (the daemon
+// parses and checks it, so its errors name the file's lines), progress of --wait from
+// plan.status, and the plan's HTML report.
+#include "plan.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <thread>
+
+#include "client_commands.hpp"
+#include "common.hpp"
+
+namespace fogbench::cli {
+
+using nlohmann::json;
+using namespace commands;
+
+namespace {
+
+// The plan file: a path, or the name of a shipped plan (<prefix>/share/fogbench/plans).
+std::expected<std::pair<std::string, std::string>, std::string> read_plan(const std::string& name) {
+  std::filesystem::path path = name;
+  if (!std::filesystem::exists(path)) {
+    std::error_code ec;
+    const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+    const auto dir = exe.parent_path().parent_path() / "share" / "fogbench" / "plans";
+    for (const auto& c : {dir / name, dir / (name + ".plan")})
+      if (!ec && std::filesystem::is_regular_file(c)) path = c;
+    if (!std::filesystem::exists(path))
+      return std::unexpected("plan '" + name + "': no such file, and no shipped plan of that name in " + dir.string());
+  }
+  std::ifstream in(path);
+  if (!in) return std::unexpected("plan '" + path.string() + "': cannot be read");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return std::make_pair(ss.str(), path.filename().string());
+}
+
+std::string text_of(const json& v) { return v.is_string() ? v.get<std::string>() : v.is_null() ? "-" : v.dump(); }
+
+void print_status(const json& s, std::ostream& out) {
+  out << "plan " << s["plan_id"] << " " << text_of(s["name"]) << " (" << text_of(s["source"]) << "): " << text_of(s["state"]);
+  if (!s["reason"].get<std::string>().empty()) out << ": " << text_of(s["reason"]);
+  out << "\n";
+  const json& p = s["progress"];
+  if (p.is_object() && p.contains("runs")) {
+    Table runs({"step", "profile", "purpose", "attempt", "run", "units"});
+    for (const auto& r : p["runs"]) {
+      std::string units;
+      for (const auto& u : r["units"]) units += (units.empty() ? "" : " ") + u.get<std::string>();
+      runs.add({text_of(r["step"]), text_of(r["profile"]), text_of(r["purpose"]),
+                std::to_string(r["attempt"].get<int>() + 1), text_of(r["run_id"]), units});
+    }
+    out << "\n" << runs.str();
+    Table units({"serial", "verdict", "measurement", "step", "value", "limit", "met", "on fail"});
+    for (const auto& u : p["units"]) {
+      bool first = true;
+      const std::string verdict = u["verdict"].is_null() ? (u["active"].get<bool>() ? "running" : "-") : text_of(u["verdict"]);
+      for (const auto& m : u["measurements"]) {
+        units.add({first ? text_of(u["serial"]) : "", first ? verdict : "", text_of(m["measurement"]), text_of(m["step"]),
+                   m["value"].is_number() ? num_text(m["value"], 4) : "-", text_of(m["limit"]),
+                   m["met"].get<bool>() ? "yes" : "NO", text_of(m["on_fail"])});
+        first = false;
+      }
+      if (first) units.add({text_of(u["serial"]), verdict, "-", "-", "-", "-", "-", "-"});
+    }
+    out << "\n" << units.str();
+    for (const auto& u : p["units"])
+      for (const auto& r : u["reasons"]) out << text_of(u["serial"]) << ": " << r.get<std::string>() << "\n";
+  }
+}
+
+// One progress line per change on err until the plan ends; the final status.
+std::expected<json, ClientError> follow(const Common& o, std::int64_t id, bool quiet, std::ostream& err) {
+  std::string last;
+  auto deadline_reconnect = std::chrono::steady_clock::now() + std::chrono::seconds(300);
+  for (;;) {
+    auto c = open(o);
+    if (!c) {
+      if (std::chrono::steady_clock::now() > deadline_reconnect) return std::unexpected(c.error());
+      std::this_thread::sleep_for(std::chrono::seconds(1));
+      continue;
+    }
+    for (;;) {
+      auto r = c->call("plan.status", {{"plan_id", id}});
+      if (!r) break;  // the daemon went away: reconnect (a restart resumes the plan)
+      deadline_reconnect = std::chrono::steady_clock::now() + std::chrono::seconds(300);
+      const json& s = *r;
+      const std::string state = s["state"];
+      if (state != "running" && state != "queued") return s;
+      if (!quiet) {
+        const json& p = s["progress"];
+        std::ostringstream line;
+        if (state == "queued") line << "plan " << id << " queued";
+        else {
+          line << "plan " << id << " step " << (p.value("step", 0) + 1) << "/" << p.value("steps", 0);
+          if (p.value("attempt", 0) > 0) line << " (retest)";
+          if (p["run_id"].is_number()) line << " run " << p["run_id"];
+          if (!s.contains("run") || !s["run"].is_object()) line << " waiting for the " << text_of(p["waiting"]);
+          if (s.contains("run") && s["run"].is_object()) {
+            const json& run = s["run"];
+            line << " " << text_of(run.value("state", json("?")));
+            if (run.contains("elapsed_s")) line << " " << duration_text(run["elapsed_s"].get<double>());
+            if (run.contains("remaining_s") && run["remaining_s"].is_number())
+              line << ", " << duration_text(run["remaining_s"].get<double>()) << " left in the step";
+          }
+        }
+        if (line.str() != last) {
+          err << line.str() << "\n";
+          last = line.str();
+        }
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    }
+  }
+}
+
+std::string esc(const std::string& s) {
+  std::string o;
+  for (char ch : s) {
+    switch (ch) {
+      case '&': o += "&amp;"; break;
+      case '<': o += "&lt;"; break;
+      case '>': o += "&gt;"; break;
+      case '"': o += "&quot;"; break;
+      default: o += ch;
+    }
+  }
+  return o;
+}
+
+}  // namespace
+
+int plan_exit_code(const json& s) {
+  if (s.value("state", "") != "completed") return kExitError;
+  bool fail = false, marginal = false;
+  for (const auto& u : s["progress"]["units"]) {
+    fail = fail || u["verdict"] == "fail";
+    marginal = marginal || u["verdict"] == "marginal";
+  }
+  return fail ? kExitFailed : marginal ? kExitMarginal : kExitOk;
+}
+
+std::string plan_report_html(const json& s) {
+  std::ostringstream h;
+  const json& p = s["progress"];
+  h << "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>plan " << s["plan_id"] << " "
+    << esc(text_of(s["name"])) << "</title>\n<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse;"
+    << "margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;text-align:left}.pass{background:#dfd}"
+    << ".marginal{background:#ffd}.fail,.no{background:#fdd}pre{background:#f6f6f6;padding:1em}</style></head><body>\n";
+  h << "<h1>Qualification plan " << s["plan_id"] << ": " << esc(text_of(s["name"])) << "</h1>\n";
+  h << "<p>Source " << esc(text_of(s["source"])) << ", state <b>" << esc(text_of(s["state"])) << "</b>"
+    << (s["reason"].get<std::string>().empty() ? "" : ": " + esc(s["reason"].get<std::string>())) << ". Started "
+    << esc(text_of(s["started_at"])) << ", ended " << esc(text_of(s["ended_at"])) << ".</p>\n";
+  h << "<h2>Verdicts</h2>\n<table><tr><th>serial</th><th>verdict</th><th>why</th></tr>\n";
+  for (const auto& u : p["units"]) {
+    const std::string v = text_of(u["verdict"]);
+    std::string why;
+    for (const auto& r : u["reasons"]) why += esc(r.get<std::string>()) + "<br>";
+    h << "<tr class=\"" << esc(v) << "\"><td>" << esc(text_of(u["serial"])) << "</td><td>" << esc(v) << "</td><td>"
+      << why << "</td></tr>\n";
+  }
+  h << "</table>\n<h2>Steps and runs</h2>\n<table><tr><th>step</th><th>profile</th><th>purpose</th><th>attempt</th>"
+    << "<th>run</th><th>units</th></tr>\n";
+  for (const auto& r : p["runs"]) {
+    std::string units;
+    for (const auto& u : r["units"]) units += (units.empty() ? "" : ", ") + u.get<std::string>();
+    h << "<tr><td>" << r["step"] << "</td><td>" << esc(text_of(r["profile"])) << "</td><td>" << esc(text_of(r["purpose"]))
+      << "</td><td>" << (r["attempt"].get<int>() + 1) << "</td><td>" << r["run_id"] << "</td><td>" << esc(units)
+      << "</td></tr>\n";
+  }
+  h << "</table>\n<h2>Measurements against the limits</h2>\n<table><tr><th>serial</th><th>step</th><th>run</th>"
+    << "<th>measurement</th><th>value</th><th>limit</th><th>met</th><th>on fail</th><th>note</th></tr>\n";
+  for (const auto& u : p["units"])
+    for (const auto& m : u["measurements"]) {
+      const bool met = m["met"].get<bool>();
+      h << "<tr class=\"" << (met ? "" : "no") << "\"><td>" << esc(text_of(u["serial"])) << "</td><td>" << m["step"]
+        << "</td><td>" << m["run_id"] << "</td><td>" << esc(text_of(m["measurement"])) << "</td><td>"
+        << (m["value"].is_number() ? num_text(m["value"], 4) + " " + esc(text_of(m["unit"])) : "not measured")
+        << "</td><td>" << esc(text_of(m["limit"])) << " (line " << m["line"] << ")</td><td>" << (met ? "yes" : "no")
+        << "</td><td>" << esc(text_of(m["on_fail"])) << "</td><td>" << esc(m.value("note", "")) << "</td></tr>\n";
+    }
+  h << "</table>\n<h2>The plan</h2>\n<pre>" << esc(text_of(s["plan_text"])) << "</pre>\n"
+    << "<p>Each run's own report: <code>fogctl report RUN</code>.</p>\n</body></html>\n";
+  return h.str();
+}
+
+void add_plan_commands(CLI::App& app, int& code) {
+  static Common common;
+  static std::string file, reason, output;
+  static std::vector<std::string> units;
+  static bool wait = false, quiet = false;
+  static std::int64_t plan_id = 0, position = 0;
+  static std::optional<std::int64_t> status_id;
+
+  auto* plan = app.add_subcommand("plan", "Qualification plans on fogbenchd: validate, start, follow, abort, report");
+  plan->require_subcommand(1);
+
+  auto send_plan = [&](const std::string& cmd, bool need_units) -> std::expected<json, int> {
+    auto text = read_plan(file);
+    if (!text) {
+      std::cerr << "fogctl: " << text.error() << "\n";
+      return std::unexpected(kExitError);
+    }
+    auto c = open(common);
+    if (!c) return std::unexpected(report(c.error(), std::cerr));
+    json args = {{"text", text->first}, {"source", text->second}};
+    if (need_units || !units.empty()) args["units"] = units;
+    auto r = c->call(cmd, args);
+    if (!r) return std::unexpected(report(r.error(), std::cerr));
+    return *r;
+  };
+
+  auto* validate = plan->add_subcommand("validate", "Check a plan file against the daemon's profiles (and units, models)");
+  add_common(validate, common);
+  validate->add_option("plan", file, "Plan file, or the name of a shipped plan (paper, qualification)")->required();
+  validate->add_option("--unit", units, "Serial of a unit (repeatable): also checks it is configured and has a model "
+                                        "where a verify step needs one");
+  validate->callback([&] {
+    auto r = send_plan("plan.validate", false);
+    if (!r) {
+      code = r.error();
+      return;
+    }
+    if (common.json_out) std::cout << r->dump() << "\n";
+    else {
+      std::cout << "plan " << text_of((*r)["name"]) << ": valid, " << (*r)["steps"].size() << " steps, nominally "
+                << duration_text((*r)["nominal_duration_s"].get<double>()) << "\n";
+      Table t({"line", "profile", "purpose", "nominal"});
+      for (const auto& s : (*r)["steps"])
+        t.add({text_of(s["line"]), text_of(s["profile"]), text_of(s["purpose"]),
+               duration_text(s["nominal_duration_s"].get<double>())});
+      std::cout << t.str();
+      Table l({"line", "limit", "on fail"});
+      for (const auto& s : (*r)["limits"]) l.add({text_of(s["line"]), text_of(s["limit"]), text_of(s["on_fail"])});
+      if (!(*r)["limits"].empty()) std::cout << l.str();
+    }
+    code = kExitOk;
+  });
+
+  auto* start = plan->add_subcommand("start", "Start a plan on units; --wait follows it to the end and exits with the verdict");
+  add_common(start, common);
+  start->add_option("plan", file, "Plan file, or the name of a shipped plan (paper, qualification)")->required();
+  start->add_option("--unit", units, "Serial of a unit under test (repeatable)")->required();
+  start->add_flag("--wait", wait, "Follow the plan with a progress line on stderr until it ends; exit 0 all pass, "
+                                  "3 marginal, 1 a unit failed, 2 the plan did not complete");
+  start->add_flag("-q,--quiet", quiet, "With --wait: no progress line");
+  start->callback([&] {
+    auto r = send_plan("plan.start", true);
+    if (!r) {
+      code = r.error();
+      return;
+    }
+    const auto id = (*r)["plan_id"].get<std::int64_t>();
+    if (!wait) {
+      if (common.json_out) std::cout << r->dump() << "\n";
+      else std::cout << "plan " << id << " started\n";
+      code = kExitOk;
+      return;
+    }
+    if (!common.json_out) std::cerr << "plan " << id << " started\n";
+    auto s = follow(common, id, quiet, std::cerr);
+    if (!s) {
+      code = report(s.error(), std::cerr);
+      return;
+    }
+    if (common.json_out) std::cout << s->dump() << "\n";
+    else print_status(*s, std::cout);
+    code = plan_exit_code(*s);
+  });
+
+  auto* status = plan->add_subcommand("status", "Show a plan (the running one, else the last) with every measurement");
+  add_common(status, common);
+  status->add_option("id", status_id, "Plan id");
+  status->callback([&] {
+    auto c = open(common);
+    if (!c) {
+      code = report(c.error(), std::cerr);
+      return;
+    }
+    json args = json::object();
+    if (status_id) args["plan_id"] = *status_id;
+    auto r = c->call("plan.status", args);
+    if (!r) {
+      code = report(r.error(), std::cerr);
+      return;
+    }
+    if (common.json_out) std::cout << r->dump() << "\n";
+    else print_status(*r, std::cout);
+    code = kExitOk;
+  });
+
+  auto* abort = plan->add_subcommand("abort", "Abort the running plan and its run; the chamber goes to its safe setpoint");
+  add_common(abort, common);
+  abort->add_option("--reason", reason, "Why, for the audit trail");
+  abort->callback([&] {
+    auto c = open(common);
+    if (!c) {
+      code = report(c.error(), std::cerr);
+      return;
+    }
+    auto r = c->call("plan.abort", {{"reason", reason}});
+    if (!r) {
+      code = report(r.error(), std::cerr);
+      return;
+    }
+    if (common.json_out) std::cout << r->dump() << "\n";
+    else std::cout << "plan " << (*r)["plan_id"] << " aborted\n";
+    code = kExitOk;
+  });
+
+  auto* rep = plan->add_subcommand("report", "One HTML report for a whole plan: verdicts, runs, measurements vs limits");
+  add_common(rep, common, false);
+  rep->add_option("id", plan_id, "Plan id")->required();
+  rep->add_option("-o,--output", output, "HTML file to write (default plan-ID.html)");
+  rep->callback([&] {
+    auto c = open(common);
+    if (!c) {
+      code = report(c.error(), std::cerr);
+      return;
+    }
+    auto r = c->call("plan.status", {{"plan_id", plan_id}});
+    if (!r) {
+      code = report(r.error(), std::cerr);
+      return;
+    }
+    const std::string path = output.empty() ? "plan-" + std::to_string(plan_id) + ".html" : output;
+    if (auto ok = write_text(path, plan_report_html(*r)); !ok) {
+      std::cerr << "fogctl: " << ok.error() << "\n";
+      code = kExitError;
+      return;
+    }
+    std::cout << "wrote " << path << "\n";
+    code = kExitOk;
+  });
+
+  auto* queue = app.add_subcommand("queue", "The plans waiting for the chamber: list, add, remove, move");
+  queue->require_subcommand(1);
+  auto simple = [&](const std::string& cmd, json args, const std::string& said) {
+    auto c = open(common);
+    if (!c) {
+      code = report(c.error(), std::cerr);
+      return;
+    }
+    auto r = c->call(cmd, std::move(args));
+    if (!r) {
+      code = report(r.error(), std::cerr);
+      return;
+    }
+    if (common.json_out) std::cout << r->dump() << "\n";
+    else std::cout << said << "\n";
+    code = kExitOk;
+  };
+  auto* list = queue->add_subcommand("list", "The queued plans in the order they will run");
+  add_common(list, common);
+  list->callback([&] {
+    auto c = open(common);
+    if (!c) {
+      code = report(c.error(), std::cerr);
+      return;
+    }
+    auto r = c->call("queue.list");
+    if (!r) {
+      code = report(r.error(), std::cerr);
+      return;
+    }
+    if (common.json_out) std::cout << r->dump() << "\n";
+    else {
+      std::cout << "running: " << ((*r)["running"].is_null() ? "no plan" : "plan " + (*r)["running"].dump()) << "\n";
+      Table t({"#", "plan", "name", "source", "units", "queued at"});
+      for (const auto& q : (*r)["queue"]) {
+        std::string us;
+        for (const auto& u : q["units"]) us += (us.empty() ? "" : " ") + u.get<std::string>();
+        t.add({text_of(q["position"]), text_of(q["plan_id"]), text_of(q["name"]), text_of(q["source"]), us,
+               text_of(q["created_at"])});
+      }
+      std::cout << t.str();
+    }
+    code = kExitOk;
+  });
+  auto* add = queue->add_subcommand("add", "Queue a plan on units; it starts when the chamber is free");
+  add_common(add, common);
+  add->add_option("plan", file, "Plan file, or the name of a shipped plan")->required();
+  add->add_option("--unit", units, "Serial of a unit under test (repeatable)")->required();
+  add->callback([&] {
+    auto r = send_plan("queue.add", true);
+    if (!r) {
+      code = r.error();
+      return;
+    }
+    if (common.json_out) std::cout << r->dump() << "\n";
+    else std::cout << "plan " << (*r)["plan_id"] << " queued at position " << (*r)["position"] << "\n";
+    code = kExitOk;
+  });
+  auto* remove = queue->add_subcommand("remove", "Take a queued plan out of the queue (a running one: plan abort)");
+  add_common(remove, common);
+  remove->add_option("id", plan_id, "Plan id")->required();
+  remove->callback([&] { simple("queue.remove", {{"plan_id", plan_id}}, "plan " + std::to_string(plan_id) + " removed from the queue"); });
+  auto* move = queue->add_subcommand("move", "Move a queued plan to a position (1: next)");
+  add_common(move, common);
+  move->add_option("id", plan_id, "Plan id")->required();
+  move->add_option("position", position, "New position, 1 = next")->required();
+  move->callback([&] {
+    simple("queue.move", {{"plan_id", plan_id}, {"position", position}},
+           "plan " + std::to_string(plan_id) + " moved to position " + std::to_string(position));
+  });
+}
+
+}  // namespace fogbench::cli

@@ -1,0 +1,79 @@
+// Qualification plans run by the daemon (docs/plans.md): a plan is one job for the units
+// loaded. After every tick the runner looks at the station: it starts the next step's run when
+// the chamber is free, resumes the step's run after a restart (the run.resume mechanism), waits
+// for the run's automatic fit or verification, judges each unit's measurements against the
+// plan's limits (a stop-limit drops the unit, continue marks it marginal, retest runs the step
+// once more for it), and at the end gives each unit its verdict. Its whole state is the plan's
+// progress in the store, rewritten at each change, so a restart takes it up where it stood.
+// The queue: plans waiting for the chamber; the first starts when no run or plan is active.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "fogbench/daemon/api.hpp"
+#include "fogbench/plans/plan.hpp"
+
+namespace fogbench::daemon {
+
+class Station;
+
+class PlanRunner {
+ public:
+  explicit PlanRunner(Station& station) : station_(station) {}
+
+  // Parses the plan and checks it against the station: every step's profile exists and is
+  // within the chamber's limits, the units are configured, and a verify step that no fit step
+  // precedes has a model on file for every unit. Errors name the line (and the field).
+  ApiResult<plans::Plan> check(const std::string& text, const std::string& source,
+                               const std::vector<std::string>& units) const;
+  // plan.validate: the check's summary ({name, steps, limits, nominal_duration_s}).
+  ApiResult<nlohmann::json> validate(const std::string& text, const std::string& source,
+                                     const std::vector<std::string>& units) const;
+  // plan.start: checked, stored as running; its first run starts at the next tick. Refused
+  // (busy) while a run or another plan is active: queue it instead.
+  ApiResult<nlohmann::json> start(const std::string& text, const std::string& source,
+                                  const std::vector<std::string>& units, const nlohmann::json& command);
+  // plan.status: the plan (the running one, else the last one, when id is empty).
+  ApiResult<nlohmann::json> status(std::optional<std::int64_t> plan_id) const;
+  // plan.abort: the running plan ends aborted, its active run too.
+  ApiResult<nlohmann::json> abort(const std::string& reason, const nlohmann::json& command);
+
+  ApiResult<nlohmann::json> queue_list() const;
+  ApiResult<nlohmann::json> queue_add(const std::string& text, const std::string& source,
+                                      const std::vector<std::string>& units, const nlohmann::json& command);
+  ApiResult<nlohmann::json> queue_remove(std::int64_t plan_id, const nlohmann::json& command);
+  // Moves a queued plan to `position` (1 = next).
+  ApiResult<nlohmann::json> queue_move(std::int64_t plan_id, std::int64_t position, const nlohmann::json& command);
+
+  // Called after every station tick (the daemon time and the tick's wall time, unix s).
+  void after_tick(double clock_s, double wall_time);
+
+  std::optional<std::int64_t> running_plan_id() const;
+
+ private:
+  // One pass of the running plan's state machine; returns whether it changed something.
+  bool advance(std::int64_t plan_id, double wall_time);
+  // The verdicts of the completed run's units, per the limits; updates progress.
+  void judge(std::int64_t plan_id, nlohmann::json& progress, const plans::Plan& plan, const nlohmann::json& run_detail_events,
+             std::int64_t run_id);
+  void finish_plan(std::int64_t plan_id, nlohmann::json& progress, const std::string& state,
+                   const std::string& reason);
+  void save(std::int64_t plan_id, const std::string& state, const std::string& reason,
+            const nlohmann::json& progress);
+  void plan_event(std::optional<std::int64_t> plan_id, const std::string& kind, const nlohmann::json& detail);
+
+  Station& station_;
+  double last_queue_look_s_ = -1e300;
+};
+
+// The socket commands plan.* and queue.* (docs/protocol.md), for the handler.
+bool is_plan_command(std::string_view cmd);
+bool is_plan_control_command(std::string_view cmd);
+ApiResult<nlohmann::json> plan_command(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
+
+}  // namespace fogbench::daemon

@@ -1,0 +1,112 @@
+// The plan.* and queue.* socket commands (docs/protocol.md): arguments checked here, the work
+// done by the PlanRunner (plan_runner.hpp).
+#include <string>
+#include <vector>
+
+#include "fogbench/daemon/plan_runner.hpp"
+
+namespace fogbench::daemon {
+
+using nlohmann::json;
+
+bool is_plan_command(std::string_view cmd) {
+  return cmd == "plan.validate" || cmd == "plan.start" || cmd == "plan.status" || cmd == "plan.abort" ||
+         cmd == "queue.list" || cmd == "queue.add" || cmd == "queue.remove" || cmd == "queue.move";
+}
+
+bool is_plan_control_command(std::string_view cmd) {
+  return cmd == "plan.start" || cmd == "plan.abort" || cmd == "queue.add" || cmd == "queue.remove" ||
+         cmd == "queue.move";
+}
+
+namespace {
+
+ApiResult<std::string> string_field(const json& req, const char* key, bool required) {
+  if (!req.contains(key)) {
+    if (required) return api_error(ErrorCode::bad_request, std::string(key) + ": missing");
+    return std::string();
+  }
+  if (!req[key].is_string()) return api_error(ErrorCode::bad_request, std::string(key) + ": expected a string");
+  return req[key].get<std::string>();
+}
+
+ApiResult<std::int64_t> id_field(const json& req, const char* key) {
+  if (!req.contains(key)) return api_error(ErrorCode::bad_request, std::string(key) + ": missing");
+  if (!req[key].is_number_integer() || req[key].get<std::int64_t>() < 1)
+    return api_error(ErrorCode::bad_request, std::string(key) + ": expected a positive integer");
+  return req[key].get<std::int64_t>();
+}
+
+// The plan as sent: its text (`text`, the file's content) and where it came from (`source`,
+// for the line errors), and the units.
+struct PlanArgs {
+  std::string text, source;
+  std::vector<std::string> units;
+};
+ApiResult<PlanArgs> plan_args(const json& req, bool units_required) {
+  PlanArgs a;
+  auto text = string_field(req, "text", true);
+  if (!text) return std::unexpected(text.error());
+  a.text = *text;
+  auto source = string_field(req, "source", false);
+  if (!source) return std::unexpected(source.error());
+  a.source = source->empty() ? "plan" : *source;
+  if (!req.contains("units")) {
+    if (units_required) return api_error(ErrorCode::bad_request, "units: missing");
+    return a;
+  }
+  if (!req["units"].is_array()) return api_error(ErrorCode::bad_request, "units: expected an array of serials");
+  for (const auto& u : req["units"]) {
+    if (!u.is_string()) return api_error(ErrorCode::bad_request, "units: expected an array of serials");
+    a.units.push_back(u.get<std::string>());
+  }
+  return a;
+}
+
+}  // namespace
+
+ApiResult<json> plan_command(PlanRunner* runner, const std::string& cmd, const json& req) {
+  if (!runner) return api_error(ErrorCode::unavailable, cmd + ": this station runs no plans");
+  if (cmd == "plan.validate") {
+    auto a = plan_args(req, false);
+    if (!a) return std::unexpected(a.error());
+    // Without units: the text and the profiles only (no unit, no model on file checked).
+    return runner->validate(a->text, a->source, a->units);
+  }
+  if (cmd == "plan.start" || cmd == "queue.add") {
+    auto a = plan_args(req, true);
+    if (!a) return std::unexpected(a.error());
+    return cmd == "plan.start" ? runner->start(a->text, a->source, a->units, req)
+                               : runner->queue_add(a->text, a->source, a->units, req);
+  }
+  if (cmd == "plan.status") {
+    std::optional<std::int64_t> id;
+    if (req.contains("plan_id")) {
+      auto i = id_field(req, "plan_id");
+      if (!i) return std::unexpected(i.error());
+      id = *i;
+    }
+    return runner->status(id);
+  }
+  if (cmd == "plan.abort") {
+    auto reason = string_field(req, "reason", false);
+    if (!reason) return std::unexpected(reason.error());
+    return runner->abort(*reason, req);
+  }
+  if (cmd == "queue.list") return runner->queue_list();
+  if (cmd == "queue.remove") {
+    auto i = id_field(req, "plan_id");
+    if (!i) return std::unexpected(i.error());
+    return runner->queue_remove(*i, req);
+  }
+  if (cmd == "queue.move") {
+    auto i = id_field(req, "plan_id");
+    if (!i) return std::unexpected(i.error());
+    auto pos = id_field(req, "position");
+    if (!pos) return std::unexpected(pos.error());
+    return runner->queue_move(*i, *pos, req);
+  }
+  return api_error(ErrorCode::unknown_command, "unknown command '" + cmd + "'");
+}
+
+}  // namespace fogbench::daemon

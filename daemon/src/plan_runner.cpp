@@ -1,0 +1,578 @@
+// The qualification-plan runner (plan_runner.hpp, docs/plans.md): checks, the step machine run
+// after each tick, the judgement of measurements against limits, and the queue.
+#include "fogbench/daemon/plan_runner.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "fogbench/daemon/station.hpp"
+#include "fogbench/model/allan.hpp"
+#include "fogbench/model/json.hpp"
+#include "fogbench/model/model.hpp"
+
+namespace fogbench::daemon {
+
+using nlohmann::json;
+
+namespace {
+
+// Where an error of the plan points: "source:line: ".
+std::string at_line(const plans::Plan& p, int line) { return p.source + ":" + std::to_string(line) + ": "; }
+
+storage::Purpose run_purpose(plans::StepPurpose p) {
+  // soak and custom steps are recorded as fit runs without the automatic fit (docs/plans.md):
+  // a fit run needs no model on file.
+  return p == plans::StepPurpose::verify ? storage::Purpose::verify : storage::Purpose::fit;
+}
+bool analysed(plans::StepPurpose p) { return p == plans::StepPurpose::fit || p == plans::StepPurpose::verify; }
+
+json limit_json(const plans::Limit& l) {
+  return {{"measurement", l.name()}, {"limit", l.describe()}, {"on_fail", std::string(plans::to_string(l.on_fail))},
+          {"line", l.line}};
+}
+
+json* find_unit(json& progress, const std::string& serial) {
+  for (auto& u : progress["units"])
+    if (u["serial"] == serial) return &u;
+  return nullptr;
+}
+
+// Four significant digits, for the reasons people read ("1.863"); the measurements keep the value.
+std::string short_number(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.4g", v);
+  return buf;
+}
+
+// The compensated output's largest distance from its mean, deg/h (flagged samples left out).
+std::optional<double> peak_excursion_dph(const model::Model& m, const model::RunData& run) {
+  auto pred = model::predict(m, run);
+  if (!pred) return std::nullopt;
+  std::vector<double> comp;
+  for (std::size_t i = 0; i < run.gyro_dph.size() && i < pred->size(); ++i)
+    if (!run.flagged(i) && std::isfinite(run.gyro_dph[i]) && std::isfinite((*pred)[i]))
+      comp.push_back(run.gyro_dph[i] - (*pred)[i]);
+  if (comp.empty()) return std::nullopt;
+  double mean = 0.0;
+  for (double c : comp) mean += c;
+  mean /= static_cast<double>(comp.size());
+  double peak = 0.0;
+  for (double c : comp) peak = std::max(peak, std::abs(c - mean));
+  return peak;
+}
+
+// The Allan figures of the unit's raw output (1 Hz), or why not.
+struct AllanFigures {
+  std::optional<double> arw, bias_instability;
+  std::string note;
+};
+AllanFigures allan_figures(const model::RunData& run) {
+  AllanFigures f;
+  std::vector<double> rate;
+  for (std::size_t i = 0; i < run.gyro_dph.size(); ++i)
+    if (!run.flagged(i) && std::isfinite(run.gyro_dph[i])) rate.push_back(run.gyro_dph[i]);
+  auto curve = model::allan::overlapping_adev(rate, 1.0, model::allan::octave_cluster_sizes(rate.size()));
+  if (!curve) {
+    f.note = curve.error();
+    return f;
+  }
+  auto terms = model::allan::noise_terms(*curve);
+  if (terms.arw_deg_per_sqrt_h) f.arw = terms.arw_deg_per_sqrt_h->value;
+  if (terms.bias_instability_dph) f.bias_instability = terms.bias_instability_dph->value;
+  f.note = terms.arw_note.empty() ? terms.bias_instability_note : terms.arw_note;
+  return f;
+}
+
+}  // namespace
+
+ApiResult<plans::Plan> PlanRunner::check(const std::string& text, const std::string& source,
+                                         const std::vector<std::string>& units) const {
+  auto p = plans::parse_plan(text, source);
+  if (!p) return api_error(ErrorCode::bad_request, p.error().to_string());
+  const auto& configured = station_.config().drivers.units;
+  for (std::size_t i = 0; i < units.size(); ++i) {
+    for (std::size_t j = 0; j < i; ++j)
+      if (units[j] == units[i]) return api_error(ErrorCode::bad_request, "units: " + units[i] + " given twice");
+    if (std::none_of(configured.begin(), configured.end(), [&](const auto& u) { return u.serial == units[i]; }))
+      return api_error(ErrorCode::unknown_serial, "units: " + units[i] + " is not configured on this bench");
+  }
+  bool fitted = false;
+  for (const plans::Step& s : p->steps) {
+    auto prof = station_.load_profile(s.profile);
+    if (!prof) return api_error(prof.error().code, at_line(*p, s.line) + "step " + s.profile + ": " + prof.error().message);
+    if (s.purpose == plans::StepPurpose::fit) fitted = true;
+    if (s.purpose == plans::StepPurpose::verify && !fitted) {
+      for (const auto& serial : units) {
+        auto m = const_cast<Station&>(station_).store().current_model(serial);
+        if (!m) return std::unexpected(from_store(m.error()));
+        if (!*m)
+          return api_error(ErrorCode::unknown_serial, at_line(*p, s.line) + "step " + s.profile +
+                                                          " verify: unit " + serial +
+                                                          " has no model on file and no fit step comes before it");
+      }
+    }
+  }
+  return std::move(*p);
+}
+
+ApiResult<json> PlanRunner::validate(const std::string& text, const std::string& source,
+                                     const std::vector<std::string>& units) const {
+  auto p = check(text, source, units);
+  if (!p) return std::unexpected(p.error());
+  double nominal_s = 0.0;
+  json steps = json::array(), limits = json::array();
+  for (const auto& s : p->steps) {
+    auto prof = station_.load_profile(s.profile);
+    const double d = prof ? prof->nominal_duration_s() : 0.0;
+    nominal_s += d;
+    steps.push_back({{"profile", s.profile}, {"purpose", std::string(plans::to_string(s.purpose))}, {"line", s.line},
+                     {"nominal_duration_s", d}});
+  }
+  for (const auto& l : p->limits) limits.push_back(limit_json(l));
+  return json{{"valid", true}, {"name", p->name}, {"steps", steps}, {"limits", limits}, {"nominal_duration_s", nominal_s}};
+}
+
+std::optional<std::int64_t> PlanRunner::running_plan_id() const {
+  auto r = const_cast<Station&>(station_).store().list_plans("running");
+  if (!r || r->empty()) return std::nullopt;
+  return r->front().id;
+}
+
+void PlanRunner::plan_event(std::optional<std::int64_t> plan_id, const std::string& kind, const json& detail) {
+  if (auto ok = station_.store().add_plan_event(plan_id, kind, detail.dump()); !ok)
+    spdlog::error("plan {}: could not store the event {}: {}", plan_id.value_or(0), kind, ok.error().message);
+}
+
+void PlanRunner::save(std::int64_t plan_id, const std::string& state, const std::string& reason, const json& progress) {
+  if (auto ok = station_.store().update_plan(plan_id, state, reason, progress.dump()); !ok)
+    spdlog::error("plan {}: could not store its progress: {}", plan_id, ok.error().message);
+}
+
+namespace {
+json initial_progress(const plans::Plan& p, const std::vector<std::string>& units) {
+  json us = json::array();
+  for (const auto& s : units)
+    us.push_back({{"serial", s}, {"active", true}, {"verdict", nullptr}, {"marginal", false},
+                  {"measurements", json::array()}, {"reasons", json::array()}});
+  return json{{"step", 0}, {"steps", p.steps.size()}, {"attempt", 0}, {"run_id", nullptr}, {"waiting", "start"},
+              {"step_units", nullptr}, {"runs", json::array()}, {"units", us}};
+}
+}  // namespace
+
+ApiResult<json> PlanRunner::start(const std::string& text, const std::string& source,
+                                  const std::vector<std::string>& units, const json& command) {
+  if (units.empty()) return api_error(ErrorCode::bad_request, "units: expected at least one serial");
+  auto p = check(text, source, units);
+  if (!p) return std::unexpected(p.error());
+  if (auto running = running_plan_id())
+    return api_error(ErrorCode::busy, "plan " + std::to_string(*running) + " is running: queue this one (queue.add)");
+  if (auto run = station_.active_run_id())
+    return api_error(ErrorCode::busy, "run " + std::to_string(*run) + " is active: queue the plan (queue.add)");
+  storage::NewPlan np{p->name, source, text, units, "running"};
+  auto id = station_.store().create_plan(np, "plan.start", command.dump());
+  if (!id) return std::unexpected(from_store(id.error()));
+  save(*id, "running", "", initial_progress(*p, units));
+  return json{{"plan_id", *id}, {"name", p->name}, {"state", "running"}, {"steps", p->steps.size()}};
+}
+
+ApiResult<json> PlanRunner::status(std::optional<std::int64_t> plan_id) const {
+  auto& store = const_cast<Station&>(station_).store();
+  storage::PlanRecord rec;
+  if (plan_id) {
+    auto r = store.get_plan(*plan_id);
+    if (!r) return std::unexpected(from_store(r.error()));
+    rec = std::move(*r);
+  } else {
+    auto all = store.list_plans();
+    if (!all) return std::unexpected(from_store(all.error()));
+    const storage::PlanRecord* pick = nullptr;
+    for (const auto& r : *all)
+      if (r.state == "running") pick = &r;
+    if (!pick)  // the last one that ran
+      for (const auto& r : *all)
+        if (r.state != "queued" && (!pick || r.id > pick->id)) pick = &r;
+    if (!pick) return api_error(ErrorCode::not_found, "no plan has run yet");
+    rec = *pick;
+  }
+  json progress = json::parse(rec.progress_json, nullptr, false);
+  json j = {{"plan_id", rec.id}, {"name", rec.name}, {"source", rec.source}, {"state", rec.state}, {"reason", rec.reason},
+            {"units", rec.units}, {"created_at", rec.created_at},
+            {"started_at", rec.started_at ? json(*rec.started_at) : json(nullptr)},
+            {"ended_at", rec.ended_at ? json(*rec.ended_at) : json(nullptr)}, {"progress", progress},
+            {"plan_text", rec.plan_text}};
+  if (auto p = plans::parse_plan(rec.plan_text, rec.source)) {
+    json steps = json::array();
+    for (const auto& s : p->steps)
+      steps.push_back({{"profile", s.profile}, {"purpose", std::string(plans::to_string(s.purpose))}, {"line", s.line}});
+    j["steps"] = steps;
+  }
+  if (rec.state == "running") {
+    if (auto run = station_.active_run_id(); run && progress.value("run_id", json()) == *run) {
+      auto st = station_.status();
+      j["run"] = st.contains("run") ? st["run"] : json(nullptr);
+    }
+  }
+  return j;
+}
+
+ApiResult<json> PlanRunner::abort(const std::string& reason, const json& command) {
+  auto id = running_plan_id();
+  if (!id) return api_error(ErrorCode::not_found, "no plan is running");
+  auto rec = station_.store().get_plan(*id);
+  if (!rec) return std::unexpected(from_store(rec.error()));
+  json progress = json::parse(rec->progress_json, nullptr, false);
+  const std::string why = "aborted by operator" + (reason.empty() ? std::string() : ": " + reason);
+  plan_event(*id, "plan.abort", command);
+  if (auto run = station_.active_run_id(); run && progress.value("run_id", json()) == *run)
+    (void)station_.abort_run(why + " (plan " + std::to_string(*id) + ")", command);
+  finish_plan(*id, progress, "aborted", why);
+  return json{{"plan_id", *id}, {"state", "aborted"}};
+}
+
+void PlanRunner::finish_plan(std::int64_t plan_id, json& progress, const std::string& state, const std::string& reason) {
+  for (auto& u : progress["units"]) {
+    if (!u["verdict"].is_null()) continue;
+    if (state == "completed") u["verdict"] = u["marginal"].get<bool>() ? "marginal" : "pass";
+    else u["verdict"] = "incomplete";
+  }
+  progress["waiting"] = nullptr;
+  save(plan_id, state, reason, progress);
+  json verdicts = json::object();
+  for (const auto& u : progress["units"]) verdicts[u["serial"].get<std::string>()] = u["verdict"];
+  plan_event(plan_id, "plan.end", {{"state", state}, {"reason", reason}, {"verdicts", verdicts}});
+  spdlog::info("plan {} {}{}", plan_id, state, reason.empty() ? "" : ": " + reason);
+}
+
+void PlanRunner::after_tick(double clock_s, double wall_time) {
+  auto id = running_plan_id();
+  if (id) {
+    // A pass may start a run or judge one; a few passes per tick at most.
+    for (int i = 0; i < 4 && advance(*id, wall_time); ++i) {
+    }
+    return;
+  }
+  // The queue: the next plan starts when the chamber is free (no run active), looked at once
+  // per daemon second at most.
+  if (clock_s - last_queue_look_s_ < 1.0 || station_.active_run_id()) return;
+  last_queue_look_s_ = clock_s;
+  auto queued = station_.store().list_plans("queued");
+  if (!queued || queued->empty()) return;
+  const auto& next = queued->front();
+  auto p = check(next.plan_text, next.source, next.units);
+  if (!p) {
+    json progress = json::object();
+    save(next.id, "failed", "not started: " + p.error().message, progress);
+    plan_event(next.id, "plan.end", {{"state", "failed"}, {"reason", p.error().message}});
+    return;
+  }
+  save(next.id, "running", "", initial_progress(*p, next.units));
+  plan_event(next.id, "plan.start", {{"from", "queue"}});
+  spdlog::info("plan {} ({}) starts from the queue", next.id, next.name);
+}
+
+bool PlanRunner::advance(std::int64_t plan_id, double wall_time) {
+  auto rec = station_.store().get_plan(plan_id);
+  if (!rec) return false;
+  auto plan = plans::parse_plan(rec->plan_text, rec->source);
+  json progress = json::parse(rec->progress_json, nullptr, false);
+  if (!plan || progress.is_discarded() || !progress.contains("step")) {
+    json p = progress.is_discarded() ? json::object() : progress;
+    finish_plan(plan_id, p, "failed", "its stored text or progress does not read back");
+    return false;
+  }
+  const auto step_index = progress["step"].get<std::size_t>();
+  if (step_index >= plan->steps.size()) {
+    finish_plan(plan_id, progress, "completed", "");
+    return false;
+  }
+  const plans::Step& step = plan->steps[step_index];
+
+  if (progress["run_id"].is_null()) {
+    if (station_.active_run_id()) return false;  // someone else's run: wait for the chamber
+    std::vector<std::string> units;
+    if (progress["step_units"].is_array()) {
+      for (const auto& s : progress["step_units"]) units.push_back(s.get<std::string>());
+    } else {
+      for (const auto& u : progress["units"])
+        if (u["active"].get<bool>()) units.push_back(u["serial"].get<std::string>());
+    }
+    if (units.empty()) {
+      finish_plan(plan_id, progress, "completed", "every unit was dropped before step " + std::to_string(step_index + 1));
+      return false;
+    }
+    json command = {{"cmd", "plan.step"}, {"plan_id", plan_id}, {"step", step_index + 1}, {"line", step.line},
+                    {"attempt", progress["attempt"]}};
+    auto run = station_.start_run(step.profile, units, run_purpose(step.purpose), command);
+    if (!run) {
+      if (run.error().code == ErrorCode::unavailable || run.error().code == ErrorCode::busy) return false;  // try again
+      finish_plan(plan_id, progress, "failed",
+                  at_line(*plan, step.line) + "step " + step.profile + " could not start: " + run.error().message);
+      return false;
+    }
+    if (!analysed(step.purpose)) station_.skip_analysis(*run);
+    progress["run_id"] = *run;
+    progress["step_units"] = units;
+    progress["waiting"] = "run";
+    progress["runs"].push_back({{"step", step_index + 1}, {"profile", step.profile},
+                                {"purpose", std::string(plans::to_string(step.purpose))}, {"attempt", progress["attempt"]},
+                                {"run_id", *run}, {"units", units}});
+    save(plan_id, "running", "", progress);
+    plan_event(plan_id, "plan.step", {{"step", step_index + 1}, {"profile", step.profile}, {"run_id", *run}, {"units", units}});
+    return false;
+  }
+
+  const auto run_id = progress["run_id"].get<std::int64_t>();
+  if (station_.active_run_id() == run_id) return false;
+  auto detail = station_.store().get_run(run_id);
+  if (!detail) return false;
+  const auto state = detail->run.state;
+  if (state == storage::RunState::interrupted || state == storage::RunState::pending) {
+    // The daemon stopped during the step: the run is taken up again as run.resume does.
+    json command = {{"cmd", "plan.resume"}, {"plan_id", plan_id}, {"run_id", run_id}};
+    auto r = station_.resume_run(run_id, wall_time, command);
+    if (r && !analysed(step.purpose)) station_.skip_analysis(run_id);
+    if (r) {
+      plan_event(plan_id, "plan.resume", {{"step", step_index + 1}, {"run_id", run_id}});
+      spdlog::info("plan {}: run {} of step {} resumed", plan_id, run_id, step_index + 1);
+    } else if (r.error().code != ErrorCode::unavailable && r.error().code != ErrorCode::busy) {
+      finish_plan(plan_id, progress, "failed", "run " + std::to_string(run_id) + " could not resume: " + r.error().message);
+    }
+    return false;
+  }
+  if (state != storage::RunState::completed) {
+    finish_plan(plan_id, progress, state == storage::RunState::aborted ? "aborted" : "failed",
+                "step " + std::to_string(step_index + 1) + " (" + step.profile + "): run " + std::to_string(run_id) + " " +
+                    std::string(storage::to_string(state)) + ": " + detail->run.state_reason);
+    return false;
+  }
+  // Completed: wait until every unit's automatic analysis has been stored (its note event).
+  json notes = json::array();
+  if (!analysed(step.purpose))  // nothing to wait for: every unit of the run as if noted
+    for (const auto& ru : detail->run.units) notes.push_back({{"unit", ru.unit_index}, {"serial", ru.serial}, {"ok", true}});
+  for (const auto& e : detail->events) {
+    if (!analysed(step.purpose)) break;
+    if (e.kind != storage::EventKind::note) continue;
+    json d = json::parse(e.detail_json, nullptr, false);
+    if (d.is_object() && d.contains("analysis") && d.contains("unit")) notes.push_back(d);
+  }
+  if (notes.size() < detail->run.units.size()) {
+    progress["waiting"] = "analysis";
+    return false;
+  }
+  judge(plan_id, progress, *plan, notes, run_id);
+  // The units that must run the step again, if any; else the next step.
+  json retest = json::array();
+  for (auto& u : progress["units"])
+    if (u.value("retest_step", -1) == static_cast<int>(step_index) && u["active"].get<bool>() &&
+        u.value("retested", false) == false)
+      retest.push_back(u["serial"]);
+  if (!retest.empty() && progress["attempt"].get<int>() == 0) {
+    for (auto& u : progress["units"])
+      if (std::find(retest.begin(), retest.end(), u["serial"]) != retest.end()) u["retested"] = true;
+    progress["attempt"] = 1;
+    progress["step_units"] = retest;
+  } else {
+    for (auto& u : progress["units"]) u.erase("retested");
+    progress["step"] = step_index + 1;
+    progress["attempt"] = 0;
+    progress["step_units"] = nullptr;
+  }
+  progress["run_id"] = nullptr;
+  progress["waiting"] = "start";
+  save(plan_id, "running", "", progress);
+  return true;
+}
+
+void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& plan, const json& notes,
+                       std::int64_t run_id) {
+  const auto step_index = progress["step"].get<std::size_t>();
+  const plans::Step& step = plan.steps[step_index];
+  const bool retest_attempt = progress["attempt"].get<int>() > 0;
+  auto& store = station_.store();
+  for (const auto& note : notes) {
+    const int unit_index = note["unit"].get<int>();
+    const std::string serial = note.value("serial", "");
+    json* u = find_unit(progress, serial);
+    if (!u) continue;
+    auto drop = [&](const std::string& why) {
+      (*u)["active"] = false;
+      (*u)["verdict"] = "fail";
+      (*u)["reasons"].push_back(why);
+      plan_event(plan_id, "plan.unit", {{"run_id", run_id}, {"serial", serial}, {"verdict", "fail"}, {"why", why}});
+    };
+    const std::string where = "step " + std::to_string(step_index + 1) + " (" + step.profile + ", run " +
+                              std::to_string(run_id) + ")";
+    if (!note.value("ok", false) && (step.purpose == plans::StepPurpose::fit || step.purpose == plans::StepPurpose::verify)) {
+      drop(where + ": the " + note.value("analysis", std::string("analysis")) + " failed: " + note.value("error", ""));
+      continue;
+    }
+    // The measurements of this step for this unit.
+    std::optional<model::Model> fitted;
+    json verification;
+    std::optional<model::RunData> data;
+    auto load_data = [&]() -> const model::RunData* {
+      if (!data) {
+        auto d = store.export_run(run_id, unit_index);
+        if (d) data = std::move(*d);
+      }
+      return data ? &*data : nullptr;
+    };
+    std::optional<model::Model> verified_model;
+    if (step.purpose == plans::StepPurpose::fit && note.contains("model_id")) {
+      auto m = store.get_model(note["model_id"].get<std::int64_t>());
+      if (m) {
+        auto mm = model::model_from_text(m->model_json);
+        if (mm) fitted = std::move(*mm);
+      }
+    }
+    if (step.purpose == plans::StepPurpose::verify && note.contains("verification_id")) {
+      auto vs = store.list_verifications(run_id);
+      if (vs)
+        for (const auto& v : *vs)
+          if (v.id == note["verification_id"].get<std::int64_t>()) {
+            verification = json::parse(v.result_json, nullptr, false);
+            auto m = store.get_model(v.model_id);
+            if (m) {
+              auto mm = model::model_from_text(m->model_json);
+              if (mm) verified_model = std::move(*mm);
+            }
+          }
+    }
+    std::optional<AllanFigures> allan;
+    for (const plans::Limit& l : plan.limits) {
+      if (!plans::measured_in(l.measurement, step.purpose)) continue;
+      std::optional<double> value;
+      std::string note_text;
+      switch (l.measurement) {
+        case plans::Measurement::comp_raw:
+          if (verification.contains("ratio") && verification["ratio"].is_number()) value = verification["ratio"].get<double>();
+          break;
+        case plans::Measurement::noise_factor:
+          if (verification.contains("noise_factor") && verification["noise_factor"].is_number())
+            value = verification["noise_factor"].get<double>();
+          break;
+        case plans::Measurement::fail_s:
+          if (verification.contains("longest_fail_s") && verification["longest_fail_s"].is_number())
+            value = verification["longest_fail_s"].get<double>();
+          break;
+        case plans::Measurement::peak_excursion:
+          if (verified_model)
+            if (const auto* d = load_data()) value = peak_excursion_dph(*verified_model, *d);
+          break;
+        case plans::Measurement::sensitivity:
+          if (fitted) {
+            for (const auto& t : fitted->terms)
+              if (t.name() == l.term) value = t.coef;
+            if (!value) note_text = "the model has no term " + l.term + " (terms: " + fitted->terms_string() + ")";
+          }
+          break;
+        case plans::Measurement::arw:
+        case plans::Measurement::bias_instability:
+          if (!allan)
+            if (const auto* d = load_data()) allan = allan_figures(*d);
+          if (allan) {
+            value = l.measurement == plans::Measurement::arw ? allan->arw : allan->bias_instability;
+            if (!value) note_text = allan->note;
+          }
+          break;
+      }
+      const bool met = value && l.met(*value);
+      json m = {{"step", step_index + 1}, {"profile", step.profile}, {"run_id", run_id}, {"measurement", l.name()},
+                {"value", value ? json(*value) : json(nullptr)}, {"unit", std::string(plans::unit_of(l.measurement))},
+                {"limit", l.describe()}, {"line", l.line}, {"met", met},
+                {"on_fail", std::string(plans::to_string(l.on_fail))}, {"attempt", retest_attempt ? 2 : 1}};
+      if (!note_text.empty()) m["note"] = note_text;
+      (*u)["measurements"].push_back(m);
+      if (met || !(*u)["active"].get<bool>()) continue;
+      const std::string why = where + ": " + l.name() + " = " + (value ? short_number(*value) : std::string("not measured")) +
+                              ", limit " + l.describe() + " (line " + std::to_string(l.line) + ")";
+      if (l.on_fail == plans::OnFail::go_on) {
+        (*u)["marginal"] = true;
+        (*u)["reasons"].push_back(why + ": marginal, goes on");
+      } else if (l.on_fail == plans::OnFail::retest && !retest_attempt) {
+        (*u)["retest_step"] = static_cast<int>(step_index);
+        (*u)["reasons"].push_back(why + ": retest once");
+      } else {
+        drop(why + (l.on_fail == plans::OnFail::retest ? ": failed its retest too" : ""));
+      }
+    }
+    // A unit that was to retest but then hit a stop-limit is not retested.
+    if (!(*u)["active"].get<bool>()) u->erase("retest_step");
+  }
+}
+
+// ------------------------------------------------------------------ the queue
+
+ApiResult<json> PlanRunner::queue_list() const {
+  auto q = const_cast<Station&>(station_).store().list_plans("queued");
+  if (!q) return std::unexpected(from_store(q.error()));
+  json arr = json::array();
+  std::int64_t pos = 1;
+  for (const auto& p : *q)
+    arr.push_back({{"position", pos++}, {"plan_id", p.id}, {"name", p.name}, {"source", p.source}, {"units", p.units},
+                   {"created_at", p.created_at}});
+  json j = {{"queue", arr}};
+  auto running = running_plan_id();
+  j["running"] = running ? json(*running) : json(nullptr);
+  return j;
+}
+
+ApiResult<json> PlanRunner::queue_add(const std::string& text, const std::string& source,
+                                      const std::vector<std::string>& units, const json& command) {
+  if (units.empty()) return api_error(ErrorCode::bad_request, "units: expected at least one serial");
+  auto p = check(text, source, units);
+  if (!p) return std::unexpected(p.error());
+  storage::NewPlan np{p->name, source, text, units, "queued"};
+  auto id = station_.store().create_plan(np, "queue.add", command.dump());
+  if (!id) return std::unexpected(from_store(id.error()));
+  auto q = queue_list();
+  if (!q) return q;
+  json& queue = (*q)["queue"];
+  return json{{"plan_id", *id}, {"name", p->name}, {"state", "queued"}, {"position", queue.size()}};
+}
+
+namespace {
+// The queued ids in order, or an error naming the plan when it is not queued.
+ApiResult<std::vector<std::int64_t>> queued_ids(storage::Store& store, std::int64_t plan_id, const char* what) {
+  auto q = store.list_plans("queued");
+  if (!q) return std::unexpected(from_store(q.error()));
+  std::vector<std::int64_t> ids;
+  for (const auto& p : *q) ids.push_back(p.id);
+  if (std::find(ids.begin(), ids.end(), plan_id) == ids.end()) {
+    auto p = store.get_plan(plan_id);
+    if (!p) return api_error(ErrorCode::not_found, "plan_id: no plan " + std::to_string(plan_id));
+    return api_error(p->state == "running" ? ErrorCode::busy : ErrorCode::bad_request,
+                     std::string("plan_id: plan ") + std::to_string(plan_id) + " is " + p->state + ", not queued: " + what +
+                         " only a queued plan (plan.abort stops a running one)");
+  }
+  return ids;
+}
+}  // namespace
+
+ApiResult<json> PlanRunner::queue_remove(std::int64_t plan_id, const json& command) {
+  auto ids = queued_ids(station_.store(), plan_id, "queue.remove takes out");
+  if (!ids) return std::unexpected(ids.error());
+  std::erase(*ids, plan_id);
+  if (auto ok = station_.store().set_queue(*ids, plan_id, "queue.remove", command.dump()); !ok)
+    return std::unexpected(from_store(ok.error()));
+  return json{{"plan_id", plan_id}, {"state", "aborted"}, {"reason", "removed from the queue"}};
+}
+
+ApiResult<json> PlanRunner::queue_move(std::int64_t plan_id, std::int64_t position, const json& command) {
+  auto ids = queued_ids(station_.store(), plan_id, "queue.move moves");
+  if (!ids) return std::unexpected(ids.error());
+  if (position < 1 || position > static_cast<std::int64_t>(ids->size()))
+    return api_error(ErrorCode::bad_request, "position: expected 1.." + std::to_string(ids->size()) + ", found " +
+                                                 std::to_string(position));
+  std::erase(*ids, plan_id);
+  ids->insert(ids->begin() + (position - 1), plan_id);
+  json detail = command;
+  if (auto ok = station_.store().set_queue(*ids, std::nullopt, "queue.move", detail.dump()); !ok)
+    return std::unexpected(from_store(ok.error()));
+  return json{{"plan_id", plan_id}, {"position", position}, {"queue", *ids}};
+}
+
+}  // namespace fogbench::daemon

@@ -1,0 +1,128 @@
+// The plan language (docs/plans.md): what parses, what each statement gives, and the errors
+// that name the line and column; the shipped plans parse.
+#include <catch2/catch.hpp>
+
+#include <fstream>
+#include <sstream>
+
+#include "fogbench/plans/plan.hpp"
+
+using namespace fogbench::plans;
+
+namespace {
+PlanError error_of(std::string_view text) {
+  auto p = parse_plan(text, "t.plan");
+  REQUIRE_FALSE(p.has_value());
+  return p.error();
+}
+std::string read(const std::string& rel) {
+  std::ifstream in(std::string(FOGBENCH_SOURCE_DIR) + "/" + rel);
+  REQUIRE(in);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+}  // namespace
+
+TEST_CASE("a plan gives its steps and limits in order") {
+  auto p = parse_plan(
+      "# comment\nplan batch-7\nstep exp1 fit\r\nstep exp2 verify   # a comment\nstep soak1 soak\n"
+      "limit comp_raw < 0.2\nlimit sensitivity d(T1)@60 within -3 .. -2 continue\n"
+      "limit fail_s <= 60 s retest\nlimit arw < 0.01 deg/sqrt(h)\n",
+      "t.plan");
+  REQUIRE(p.has_value());
+  CHECK(p->name == "batch-7");
+  REQUIRE(p->steps.size() == 3);
+  CHECK(p->steps[0].profile == "exp1");
+  CHECK(p->steps[0].purpose == StepPurpose::fit);
+  CHECK(p->steps[1].purpose == StepPurpose::verify);
+  CHECK(p->steps[2].purpose == StepPurpose::soak);
+  CHECK(p->steps[2].line == 5);
+  REQUIRE(p->limits.size() == 4);
+  CHECK(p->limits[0].on_fail == OnFail::stop);
+  CHECK(p->limits[0].met(0.19));
+  CHECK_FALSE(p->limits[0].met(0.2));
+  CHECK_FALSE(p->limits[0].met(std::nan("")));
+  CHECK(p->limits[1].term == "d(T1)");  // the name without the lag, as the model prints it
+  CHECK(p->limits[1].on_fail == OnFail::go_on);
+  CHECK(p->limits[1].met(-2.5));
+  CHECK_FALSE(p->limits[1].met(-1.9));
+  CHECK(p->limits[1].describe() == "sensitivity d(T1) within -3 .. -2");
+  CHECK(p->limits[2].on_fail == OnFail::retest);
+  CHECK(p->limits[2].met(60.0));
+  CHECK(p->limits[2].describe() == "fail_s <= 60 s");
+  CHECK(p->limits[3].line == 9);
+}
+
+TEST_CASE("the name defaults to the source's stem") {
+  auto p = parse_plan("step exp1 fit\n", "dir/night.plan");
+  REQUIRE(p.has_value());
+  CHECK(p->name == "night");
+}
+
+TEST_CASE("errors name the line and column of what is wrong") {
+  auto e = error_of("step exp1 fit\nlimit drift_rate < 3\n");
+  CHECK(e.line == 2);
+  CHECK(e.column == 7);
+  CHECK(e.message.find("unknown measurement 'drift_rate'") != std::string::npos);
+  CHECK(e.to_string().starts_with("t.plan:2:7: unknown measurement"));
+  CHECK(e.excerpt() == "limit drift_rate < 3\n      ^");
+
+  e = error_of("step exp1 calibrate\n");
+  CHECK(e.line == 1);
+  CHECK(e.column == 11);
+  CHECK(e.message == "expected a purpose 'fit', 'verify', 'soak' or 'custom', found 'calibrate'");
+
+  e = error_of("step exp1 fit\nlimit comp_raw < 0.2\n");  // no verify step measures it
+  CHECK(e.line == 2);
+  CHECK(e.message.find("no step of this plan measures comp_raw") != std::string::npos);
+
+  e = error_of("step exp1 fit\nstep exp2 verify\nlimit comp_raw < 0.2\nlimit comp_raw < 0.3\n");
+  CHECK(e.line == 4);
+  CHECK(e.message.find("given twice (first on line 3)") != std::string::npos);
+
+  e = error_of("step exp1 fit\nlimit sensitivity d(T9) within 1 .. 2\n");
+  CHECK(e.line == 2);
+  CHECK(e.message.find("not a term") != std::string::npos);
+
+  e = error_of("step exp1 fit\nlimit sensitivity grad within 2 .. 1\n");
+  CHECK(e.line == 2);
+  CHECK(e.column == 36);
+
+  e = error_of("step exp1 fit\nstep exp2 verify\nlimit fail_s < 60 min\n");
+  CHECK(e.column == 19);
+  CHECK(e.message.find("the unit 's'") != std::string::npos);
+
+  e = error_of("step exp1 fit\nstep exp2 verify\nlimit comp_raw < 0.2 stop now\n");
+  CHECK(e.message == "unexpected 'now' after the end of the 'limit' statement");
+
+  e = error_of("step exp1 fit\nstep exp2 verify\nlimit comp_raw < .2\n");
+  CHECK(e.message == "expected a number after '<', found '.2'");
+
+  e = error_of("wait 5\n");
+  CHECK(e.message == "unknown statement 'wait'; expected 'plan', 'step' or 'limit'");
+
+  e = error_of("# nothing\n");
+  CHECK(e.line == 0);
+  CHECK(e.to_string() == "t.plan: a plan needs at least one 'step <profile> <purpose>'");
+
+  e = error_of("step exp1 fit\nplan late\n");
+  CHECK(e.message == "'plan <name>' must come before the steps and limits");
+}
+
+TEST_CASE("the shipped plans parse") {
+  for (const char* name : {"paper", "qualification"}) {
+    INFO(name);
+    auto p = parse_plan(read(std::string("plans/") + name + ".plan"), std::string(name) + ".plan");
+    if (!p) FAIL(p.error().to_string());
+    CHECK(p->name == name);
+    REQUIRE(p->steps.size() == 3);
+    CHECK(p->steps[0].purpose == StepPurpose::fit);
+    CHECK(p->steps[1].purpose == StepPurpose::verify);
+    CHECK(p->steps[2].purpose == StepPurpose::verify);
+  }
+  auto paper = parse_plan(read("plans/paper.plan"), "paper.plan");
+  REQUIRE(paper.has_value());
+  CHECK(paper->limits[0].describe() == "comp_raw < 0.2");
+  CHECK(paper->limits[0].on_fail == OnFail::stop);
+}
