@@ -222,7 +222,7 @@ int cmd_run_export(const Common& o, std::int64_t id, const std::string& unit_arg
   // The run's identity as `# key: value` lines above the header (docs/csv.md).
   auto g = c->call("run.get", {{"run_id", id}});
   if (!g) return report(g.error(), err);
-  const std::string csv = identity_csv_comments(*g, unit) + storage::to_csv(*d);
+  const std::string csv = identity_csv_comments(*g, *unit) + storage::to_csv(*d);
   if (output.empty() || output == "-") {
     out << csv;
     return kExitOk;
