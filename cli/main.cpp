@@ -13,6 +13,7 @@
 #include "client.hpp"
 #include "coefficients.hpp"
 #include "common.hpp"
+#include "fleet.hpp"
 #include "offline.hpp"
 #include "workbench.hpp"
 
@@ -42,6 +43,7 @@ int main(int argc, char** argv) {
   fogbench::cli::add_workbench_commands(app, code);
   fogbench::cli::add_allan_command(app, code);
   fogbench::cli::add_coefficients_command(app, code);
+  fogbench::cli::add_fleet_command(app, code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
