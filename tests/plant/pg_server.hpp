@@ -93,8 +93,9 @@ class PgServer {
 
  private:
   static std::string find_bin() {
-    if (const char* e = std::getenv("FOGBENCH_PG_BIN"); e && std::filesystem::exists(std::filesystem::path(e) / "initdb"))
-      return e;
+    // Named explicitly: that folder or nothing (FOGBENCH_PG_BIN=/nonexistent shows the skip).
+    if (const char* e = std::getenv("FOGBENCH_PG_BIN"))
+      return std::filesystem::exists(std::filesystem::path(e) / "initdb") ? std::string(e) : std::string();
     std::string best;
     std::error_code ec;
     for (const auto& d : std::filesystem::directory_iterator("/usr/lib/postgresql", ec)) {

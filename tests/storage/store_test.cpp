@@ -172,12 +172,12 @@ TEST_CASE("store: a new file gets the current schema, WAL and the fogbench id", 
   {
     Store s = open_ok(path);
     CHECK(s.schema_version() == Store::current_schema_version());
-    CHECK(Store::current_schema_version() == 3);
+    CHECK(Store::current_schema_version() >= 4);  // 4: unit lots and the plant outbox (issue 14)
     CHECK(s.path() == path);
   }
   Raw raw(path);
   CHECK(raw.text("PRAGMA journal_mode") == "wal");
-  CHECK(raw.integer("PRAGMA user_version") == 3);
+  CHECK(raw.integer("PRAGMA user_version") == Store::current_schema_version());
   CHECK(raw.integer("PRAGMA application_id") == 0x464F4742);
   for (const char* table : {"runs", "run_units", "samples", "run_events", "models", "verifications"})
     CHECK(raw.integer(std::string("SELECT count(*) FROM sqlite_schema WHERE name = '") + table +
@@ -215,7 +215,9 @@ TEST_CASE("store: migration from version 0 and version 1", "[store][schema]") {
           "VALUES (7, 0, 0, 0.5, 20, 21), (7, 0, 1, 0.6, 20, 21);");
     }
     Store s = open_ok(path);
-    CHECK(s.schema_version() == 3);
+    CHECK(s.schema_version() == Store::current_schema_version());
+    // A unit from before version 4 has no lot.
+    CHECK_FALSE(s.get_run(7)->run.units.at(0).lot.has_value());
     // Samples from before version 3 have no time since power-on: the export says not recorded.
     auto old = s.export_run(7, 0);
     REQUIRE(old.has_value());
