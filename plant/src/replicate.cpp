@@ -104,6 +104,9 @@ PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& ben
     return std::unexpected(std::move(e));
   };
   if (auto ok = plant.exec("BEGIN", what); !ok) return fail(ok.error());
+  // The bench marks the run sent once COMMIT returns: the commit must then be on the plant's
+  // disk, whatever the server's default (synchronous_commit = off would lose it in a crash).
+  if (auto ok = plant.exec("SET LOCAL synchronous_commit = on", what); !ok) return fail(ok.error());
   if (auto ok = plant.query("DELETE FROM fogbench.samples WHERE bench_id = $1 AND run_id = $2", {b, rid},
                             "delete the samples held before");
       !ok)
