@@ -72,7 +72,7 @@ TEST_CASE("plant lots: run.start stores each unit's lot, and a bad lot is refuse
   CHECK(d->run.units[1].lot == std::optional<std::string>("LOT \"7\" O'Neil"));
 }
 
-TEST_CASE("plant outbox: a completed run is queued once analysed, and status shows the depth; none without the section") {
+TEST_CASE("plant outbox: a completed run is queued once analysed, and status shows the depth, none without the section") {
   for (bool configured : {false, true}) {
     auto store = memory_store();
     Station st(golden_config(configured ? plant_section() : json::object()), store, 1.0,
