@@ -272,8 +272,8 @@ using namespace commands;
 using nlohmann::json;
 
 int cmd_run_start(const Common& o, const std::string& profile, const std::vector<std::string>& units,
-                  const std::string& purpose, const std::string& operator_name, bool wait, bool quiet,
-                  std::ostream& out, std::ostream& err) {
+                  const std::vector<std::string>& lots, const std::string& purpose, const std::string& operator_name,
+                  bool wait, bool quiet, std::ostream& out, std::ostream& err) {
   // Checked here too, so that a bad name is refused before anything is sent.
   if (!operator_name.empty()) {
     if (auto why = storage::check_operator_name(operator_name); !why.empty()) {
@@ -281,11 +281,24 @@ int cmd_run_start(const Common& o, const std::string& profile, const std::vector
       return kExitError;
     }
   }
+  json req = {{"profile", profile}, {"units", units}, {"purpose", purpose}};
+  if (!operator_name.empty()) req["operator"] = operator_name;
+  // --lot LOT (every unit) or --lot SERIAL=LOT (repeatable): the units' lots (issue 14).
+  for (const auto& l : lots) {
+    const auto eq = l.find('=');
+    if (eq == std::string::npos) {
+      if (lots.size() > 1 || l.empty()) {
+        err << "fogctl run start: --lot: expected LOT (every unit) or SERIAL=LOT (repeatable), not '" << l << "'\n";
+        return kExitError;
+      }
+      req["lot"] = l;
+    } else {
+      req["lots"][l.substr(0, eq)] = l.substr(eq + 1);
+    }
+  }
   auto c = open(o);
   if (!c) return report(c.error(), err);
-  json args = {{"profile", profile}, {"units", units}, {"purpose", purpose}};
-  if (!operator_name.empty()) args["operator"] = operator_name;
-  auto r = c->call("run.start", args);
+  auto r = c->call("run.start", req);
   if (!r) return report(r.error(), err);
   const auto id = (*r)["run_id"].get<std::int64_t>();
   if (!wait) {
@@ -330,7 +343,7 @@ void add_client_commands(CLI::App& app, int& code) {
   run->require_subcommand(1);
 
   static std::string profile, purpose = "fit", reason, state, output, operator_name;
-  static std::vector<std::string> units;
+  static std::vector<std::string> units, lots;
   static bool wait = false, quiet = false, settle = false;
   static std::int64_t run_id = 0;
   static int limit = 50;
@@ -346,9 +359,10 @@ void add_client_commands(CLI::App& app, int& code) {
       ->check(CLI::IsMember({"fit", "verify"}));
   start->add_option("--operator", operator_name,
                     "Who runs it, recorded in the run's identity (default: the unix socket's user)");
+  start->add_option("--lot", lots, "The units' production lot: LOT for every unit, or SERIAL=LOT (repeatable)");
   start->add_flag("--wait", wait, "Follow the run with a progress line on stderr until it ends");
   start->add_flag("-q,--quiet", quiet, "With --wait: no progress line");
-  start->callback([&] { code = cmd_run_start(common, profile, units, purpose, operator_name, wait, quiet, std::cout, std::cerr); });
+  start->callback([&] { code = cmd_run_start(common, profile, units, lots, purpose, operator_name, wait, quiet, std::cout, std::cerr); });
 
   auto* w = run->add_subcommand("watch", "Follow a run (the active one by default) to its end; reconnects if the daemon restarts");
   add_common(w, common);

@@ -14,6 +14,7 @@
 #include "cert.hpp"
 #include "coefficients.hpp"
 #include "common.hpp"
+#include "fleet.hpp"
 #include "offline.hpp"
 #include "plan.hpp"
 #include "workbench.hpp"
@@ -46,6 +47,7 @@ int main(int argc, char** argv) {
   fogbench::cli::add_coefficients_command(app, code);
   fogbench::cli::add_cert_command(app, code);
   fogbench::cli::add_plan_commands(app, code);
+  fogbench::cli::add_fleet_command(app, code);
   fogbench::cli::add_profile_commands(app, code);
   fogbench::cli::add_stored_run_options(app);  // after the commands it extends
   fogbench::cli::add_generate_command(app, code);  // last: it walks the whole table

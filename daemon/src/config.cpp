@@ -64,12 +64,19 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   if (auto ok = only_keys(j, "", {"simulated", "storage", "socket", "chamber_limits",
                                   "safe_setpoint_c", "profile_dir", "map_dir", "analysis",
                                   "link_loss", "tracking", "drivers", "sim_clock", "web",
-                                  "station"});
+                                  "station", "plant"});
       !ok)
     return Err(ok.error());
   DaemonConfig c;
   c.source = j;
 
+  if (j.contains("plant")) {
+    auto p = parse_plant_config(j["plant"]);
+    if (!p) return Err(p.error());
+    c.plant = std::move(*p);
+    // The connection string may hold a password: it is not copied into every run.
+    c.source["plant"].erase("conninfo");
+  }
   if (j.contains("simulated")) {
     if (!j["simulated"].is_boolean()) return Err("simulated: expected true or false");
     c.simulated = j["simulated"].get<bool>();

@@ -40,6 +40,7 @@
 #include "fogbench/drivers/thermistor_module.hpp"
 #include "fogbench/daemon/run_identity.hpp"
 #include "analysis_worker.hpp"
+#include "plant_link.hpp"
 #include "session.hpp"
 #include "sim_clock.hpp"
 #include "web_server.hpp"
@@ -107,6 +108,8 @@ struct Server::Impl {
   // Fits, verifications and large reads (offload.hpp); declared after the station so that it
   // stops (joins) before the station goes.
   std::unique_ptr<AnalysisWorker> analysis;
+  // The plant store's replication (plant_link.hpp), when configured.
+  std::unique_ptr<PlantLink> plant;
 
   // The worker: a job queue on its own thread. The chamber and module are touched only there.
   asio::io_context wio;
@@ -833,6 +836,10 @@ std::expected<void, Server::StartError> Server::start() {
                    reader ? "in-memory store" : reader.error().message);
     }
   }
+  if (m.config.plant) {
+    if (m.config.storage_path == ":memory:") spdlog::warn("plant: an in-memory store is not replicated");
+    else m.plant = std::make_unique<PlantLink>(*m.config.plant, m.config.storage_path);
+  }
   m.station->set_publisher([&m](const json& msg) { m.publish(msg); });
   // A store that cannot take the interrupted marks now (a full disk, a lock held) must not keep
   // the daemon from starting and sending the chamber to its safe setpoint: the station retries.
@@ -912,6 +919,7 @@ int Server::run() {
     }
   }
   if (m.analysis) m.analysis->stop();
+  if (m.plant) m.plant->stop();
   m.wguard.reset();
   m.wthread.join();
   m.tguard.reset();

@@ -145,6 +145,9 @@ ApiResult<std::int64_t> Station::start_run(const std::string& profile_name,
   nr.config_json = config_.source.dump();
   nr.time_scale = time_scale_;
   nr.unit_serials = serials;
+  auto lots = unit_lots(command, serials);  // station_plant.cpp
+  if (!lots) return std::unexpected(lots.error());
+  nr.unit_lots = std::move(*lots);
   std::vector<UnitPowerOn> power;
   for (std::size_t ci : index) {
     UnitPowerOn p;

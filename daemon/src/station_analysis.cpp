@@ -57,6 +57,8 @@ void Station::analyse(std::int64_t run_id, storage::Purpose purpose,
         if (!r) detail["error"] = r.error().message;
         event(run_id, storage::EventKind::note, detail, std::nullopt);
       }
+      // The run, its models and verdicts are all stored: queue it for the plant (issue 14).
+      if (config_.plant) queue_for_plant(run_id);
     };
   });
 }

@@ -74,6 +74,7 @@ json Station::status() const {
   } else {
     s["run"] = nullptr;
   }
+  if (config_.plant) s["plant"] = plant_status();
   s["last_run"] = last_run_;
   s["recovery"] = recovery_error_ ? json{{"pending", true}, {"error", *recovery_error_}} : json(nullptr);
   if (last_run_.is_object()) {

@@ -199,6 +199,26 @@ CREATE TABLE plan_events (
 CREATE INDEX plan_events_plan ON plan_events (plan_id);
 )sql";
 
+// Version 7 (issue 14, the plant): a unit's optional lot id, and the outbox of runs waiting to be
+// replicated to the plant's PostgreSQL (fogbench::plant). A row per queuing: sent_at is set
+// once the plant has committed the run; a run queued again (re-sent) gets a new row. Rows are
+// taken in id order, so the plant receives runs in the order they completed.
+constexpr const char* kPlant = R"sql(
+ALTER TABLE run_units ADD COLUMN lot TEXT CHECK (lot IS NULL OR length(lot) BETWEEN 1 AND 64);
+CREATE INDEX run_units_lot ON run_units (lot) WHERE lot IS NOT NULL;
+CREATE TABLE plant_outbox (
+  id               INTEGER PRIMARY KEY,
+  run_id           INTEGER NOT NULL REFERENCES runs (id) ON DELETE CASCADE,
+  queued_at        TEXT NOT NULL,
+  attempts         INTEGER NOT NULL DEFAULT 0,
+  last_error       TEXT NOT NULL DEFAULT '',
+  last_attempt_at  TEXT,
+  sent_at          TEXT
+);
+CREATE INDEX plant_outbox_pending ON plant_outbox (id) WHERE sent_at IS NULL;
+CREATE INDEX plant_outbox_run ON plant_outbox (run_id);
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "recording tables", kRecording},
     {2, "models and verifications", kModels},
@@ -206,6 +226,7 @@ constexpr Migration kMigrations[] = {
     {4, "run identity and certificates", kIdentity},
     {5, "live compensated rate", kLiveCompensation},
     {6, "qualification plans and their queue", kPlans},
+    {7, "unit lots and the plant outbox", kPlant},
 };
 
 StoreResult<std::int64_t> query_int(Database& db, const std::string& sql, std::string_view what) {

@@ -98,7 +98,7 @@ TEST_CASE("store: a new file gets the current schema, WAL and the fogbench id", 
   {
     Store s = open_ok(path);
     CHECK(s.schema_version() == Store::current_schema_version());
-    CHECK(Store::current_schema_version() >= 5);  // 4: run identity, 5: the live compensated rate
+    CHECK(Store::current_schema_version() >= 7);  // 4 identity, 5 live compensation, 6 plans, 7 lots and outbox
     CHECK(s.path() == path);
   }
   Raw raw(path);
@@ -146,6 +146,8 @@ TEST_CASE("store: migration from version 0 and version 1", "[store][schema]") {
     CHECK(s.schema_version() == Store::current_schema_version());
     // A run from before version 4 has no identity: it says so.
     CHECK_FALSE(s.get_run_identity(7).value().has_value());
+    // A unit from before version 7 has no lot.
+    CHECK_FALSE(s.get_run(7)->run.units.at(0).lot.has_value());
     // Samples from before version 3 have no time since power-on, and from before version 5 no
     // live compensation: the export says not recorded.
     auto old = s.export_run(7, 0);

@@ -70,6 +70,15 @@ struct TrackingConfig {
   double frozen_s = 300.0;   // the PV exactly unchanged this long while the setpoint moves
 };
 
+// The plant store (issue 14, docs/plant.md): completed runs are replicated to PostgreSQL from an
+// outbox in the bench's store. Absent: no outbox is written and nothing is sent.
+struct PlantConfig {
+  std::string conninfo;        // libpq connection string or URI ("service=plant", "host=... dbname=...")
+  std::string bench_id;        // this bench's name in the plant, 1..64 characters
+  double poll_s = 2.0;         // how often the outbox is looked at when idle, wall s
+  double retry_max_s = 60.0;   // the longest wait between failed attempts (doubling from 1 s), wall s
+};
+
 struct DaemonConfig {
   bool simulated = false;                  // --time-scale is refused unless true
   std::filesystem::path storage_path;      // the SQLite store
@@ -89,8 +98,12 @@ struct DaemonConfig {
   // host slows a run down instead of breaking it (docs/daemon.md, "Time scale").
   std::optional<std::filesystem::path> sim_clock;
   std::string station_id;                  // station.id: recorded in every run's identity ("" when unset)
-  nlohmann::json source;                   // the file as read, stored with every run
+  std::optional<PlantConfig> plant;        // replication to the plant store; none when absent
+  nlohmann::json source;                   // the file as read, stored with every run (plant.conninfo left out)
 };
+
+// The `plant` section (config_plant.cpp).
+std::expected<PlantConfig, std::string> parse_plant_config(const nlohmann::json& j);
 
 // Parses the configuration; relative paths are resolved against base_dir (the file's folder).
 std::expected<DaemonConfig, std::string> parse_daemon_config(const nlohmann::json& j,

@@ -211,6 +211,13 @@ class Station {
     if (publish_) publish_(message);
   }
 
+  // The plant outbox (station_plant.cpp, issue 14).
+  void queue_for_plant(std::int64_t run_id);
+  // The units' lots from run.start's "lot" (every unit) or "lots" ({serial: lot}).
+  static ApiResult<std::vector<std::optional<std::string>>> unit_lots(const nlohmann::json& command,
+                                                                      const std::vector<std::string>& serials);
+  nlohmann::json plant_status() const;
+
   DaemonConfig config_;
   storage::Store& store_;
   InlineOffload inline_offload_{store_};

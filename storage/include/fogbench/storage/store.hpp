@@ -104,11 +104,14 @@ struct NewRun {
   double time_scale = 1.0;               // profile seconds per wall second (1 on hardware)
   std::vector<std::string> unit_serials; // unit_index = position in this list
   std::optional<RunIdentity> identity;   // stored in the same transaction (identity.hpp)
+  // Each unit's lot id (same positions; shorter or empty: no lot), 1..64 characters.
+  std::vector<std::optional<std::string>> unit_lots;
 };
 
 struct RunUnit {
   int unit_index = 0;
   std::string serial;
+  std::optional<std::string> lot;  // the production lot the unit came from, when given
 };
 
 struct RunRecord {
@@ -257,6 +260,24 @@ struct PlanEvent {
   std::string kind, detail_json;
 };
 
+// One run waiting in the plant outbox.
+struct OutboxEntry {
+  std::int64_t id = 0;
+  std::int64_t run_id = 0;
+  std::string queued_at;    // ISO 8601 UTC
+  int attempts = 0;         // failed attempts so far
+  std::string last_error;   // the last attempt's error, "" when none failed
+};
+
+struct OutboxStatus {
+  std::int64_t depth = 0;                     // entries waiting
+  std::optional<std::string> oldest_queued_at;
+  int attempts = 0;                           // failed attempts of the oldest entry
+  std::string last_error;                     // and its last error
+  std::optional<std::string> last_sent_at;    // the last entry the plant committed
+  std::int64_t sent = 0;                      // entries sent, ever
+};
+
 class Store {
  public:
   // Opens (creating when allowed) and migrates the database at `path` (":memory:" for a
@@ -357,6 +378,21 @@ class Store {
   StoreResult<std::int64_t> add_plan_event(std::optional<std::int64_t> plan_id, std::string_view kind,
                                            std::string_view detail_json);
   StoreResult<std::vector<PlanEvent>> plan_events(std::optional<std::int64_t> plan_id);
+};
+
+  // --- the plant outbox (issue 14): runs waiting to be replicated to the plant's PostgreSQL,
+  // taken in the order queued (store_outbox.cpp, docs/plant.md).
+  // Queues the run; a run already waiting keeps its entry (whose id is returned).
+  StoreResult<std::int64_t> enqueue_replication(std::int64_t run_id);
+  // Queues every completed run never queued (a bench joining a plant sends its history).
+  // Returns how many were queued.
+  StoreResult<std::int64_t> enqueue_unqueued_completed_runs();
+  // The oldest waiting entries, oldest first.
+  StoreResult<std::vector<OutboxEntry>> pending_replications(std::int64_t limit);
+  StoreResult<void> mark_replicated(std::int64_t entry_id);
+  // Counts the attempt and keeps its error; the entry keeps its place at the head.
+  StoreResult<void> mark_replication_failed(std::int64_t entry_id, std::string_view error);
+  StoreResult<OutboxStatus> outbox_status();
 
   // SQLite's integrity check and foreign-key check: an empty list when all is well, or the
   // problems found.

@@ -1,0 +1,283 @@
+// fogctl fleet (fleet.hpp): reads the plant's PostgreSQL, never writes it.
+#include "fleet.hpp"
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "fleet_html.hpp"
+#include "fogbench/plant/fleet_spc.hpp"
+#include "table.hpp"
+
+namespace fogbench::cli {
+
+using nlohmann::json;
+
+namespace {
+
+json opt(const std::optional<std::string>& s) { return s ? json(*s) : json(nullptr); }
+
+json summary_json(const plant::spc::Summary& s) {
+  return {{"n", s.n}, {"mean", s.mean}, {"sd", s.sd}, {"min", s.min}, {"median", s.median}, {"max", s.max}};
+}
+
+json value_json(const plant::FigureValue& v) {
+  return {{"bench", v.bench}, {"run_id", v.run_id}, {"unit", v.unit_index}, {"serial", v.serial},
+          {"lot", opt(v.lot)}, {"ended_at", opt(v.ended_at)}, {"value", v.value}};
+}
+
+std::string num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+// The figures asked for, or every figure present.
+std::expected<std::vector<std::string>, std::string> figure_list(plant::Connection& c, const FleetOptions& o) {
+  if (!o.figures.empty()) return o.figures;
+  auto names = plant::figure_names(c, o.filter);
+  if (!names) return std::unexpected(names.error().message);
+  std::vector<std::string> out;
+  for (const auto& n : *names)
+    if (std::find(out.begin(), out.end(), n.name) == out.end()) out.push_back(n.name);
+  return out;
+}
+
+}  // namespace
+
+int run_fleet(const std::string& command, const FleetOptions& o, std::ostream& out, std::ostream& err) {
+  const std::string where = "fogctl fleet " + command + ": ";
+  if (o.db.empty() == o.service.empty()) {
+    err << where << "give the plant store with exactly one of --db CONNSTR or --service NAME\n";
+    return kExitError;
+  }
+  std::optional<std::pair<std::string, std::string>> lots;
+  if (!o.compare.empty()) {
+    const auto comma = o.compare.find(',');
+    if (comma == std::string::npos || comma == 0 || comma + 1 == o.compare.size()) {
+      err << where << "--compare: expected two lots as LOT_A,LOT_B, not '" << o.compare << "'\n";
+      return kExitError;
+    }
+    lots.emplace(o.compare.substr(0, comma), o.compare.substr(comma + 1));
+  }
+  if (!(o.level > 0 && o.level < 1)) {
+    err << where << "--level: expected a number between 0 and 1 (e.g. 0.95)\n";
+    return kExitError;
+  }
+  auto c = plant::Connection::open(o.db.empty() ? "service=" + o.service : o.db, false);
+  if (!c) {
+    err << where << c.error().message << "\n";
+    return kExitError;
+  }
+
+  if (command == "serials") {
+    auto rows = plant::serials(*c, o.filter);
+    if (!rows) return err << where << rows.error().message << "\n", kExitError;
+    if (o.json) {
+      json a = json::array();
+      for (const auto& s : *rows)
+        a.push_back({{"serial", s.serial}, {"runs", s.runs}, {"lots", s.lots}, {"benches", s.benches},
+                     {"first_at", opt(s.first_at)}, {"last_at", opt(s.last_at)}, {"last_verdict", opt(s.last_verdict)}});
+      out << json{{"serials", a}}.dump(2) << "\n";
+    } else {
+      Table t({"serial", "runs", "lots", "benches", "first run end", "last run end", "last verdict"});
+      for (const auto& s : *rows)
+        t.add({s.serial, std::to_string(s.runs), s.lots, s.benches, s.first_at.value_or("-"), s.last_at.value_or("-"),
+               s.last_verdict.value_or("-")});
+      out << t.str() << rows->size() << " serials\n";
+    }
+    return kExitOk;
+  }
+  if (command == "history") {
+    auto rows = plant::serial_history(*c, o.serial, o.filter);
+    if (!rows) return err << where << rows.error().message << "\n", kExitError;
+    if (rows->empty()) {
+      err << where << "no runs of serial '" << o.serial << "' in the plant store (with these filters)\n";
+      return kExitError;
+    }
+    if (o.json) {
+      json a = json::array();
+      for (const auto& h : *rows) {
+        json f = json::object();
+        for (const auto& [k, v] : h.figures) f[k] = v;
+        a.push_back({{"bench", h.bench}, {"run_id", h.run_id}, {"unit", h.unit_index}, {"lot", opt(h.lot)},
+                     {"ended_at", opt(h.ended_at)}, {"purpose", h.purpose}, {"state", h.state},
+                     {"verdict", opt(h.verdict)}, {"figures", f}});
+      }
+      out << json{{"serial", o.serial}, {"runs", a}}.dump(2) << "\n";
+    } else {
+      Table t({"run end", "bench", "run", "unit", "lot", "purpose", "verdict", "figures"});
+      for (const auto& h : *rows) {
+        std::string f;
+        for (const auto& [k, v] : h.figures) f += (f.empty() ? "" : " ") + k + "=" + num(v);
+        t.add({h.ended_at.value_or("-"), h.bench, std::to_string(h.run_id), std::to_string(h.unit_index),
+               h.lot.value_or("-"), h.purpose, h.verdict.value_or("-"), f});
+      }
+      out << "history of " << o.serial << "\n" << t.str();
+    }
+    return kExitOk;
+  }
+  if (command == "figures") {
+    auto names = plant::figure_names(*c, o.filter);
+    if (!names) return err << where << names.error().message << "\n", kExitError;
+    if (o.json) {
+      json a = json::array();
+      for (const auto& n : *names) a.push_back({{"name", n.name}, {"source", n.source}, {"count", n.count}});
+      out << json{{"figures", a}}.dump(2) << "\n";
+    } else {
+      Table t({"figure", "source", "values"});
+      for (const auto& n : *names) t.add({n.name, n.source, std::to_string(n.count)});
+      out << t.str();
+    }
+    return kExitOk;
+  }
+  auto figures = figure_list(*c, o);
+  if (!figures) return err << where << figures.error() << "\n", kExitError;
+  if (figures->empty()) return err << where << "no figures in the plant store (with these filters)\n", kExitError;
+
+  if (command == "dist") {
+    json j = json::object();
+    std::string text;
+    for (const auto& name : *figures) {
+      auto values = plant::figure_values(*c, name, o.filter);
+      if (!values) return err << where << values.error().message << "\n", kExitError;
+      auto d = plant::distribution(*values, o.by);
+      if (!d) return err << where << d.error() << "\n", kExitError;
+      json g = json::array();
+      Table t({o.by, "n", "mean", "sd", "min", "median", "max"});
+      for (const auto& [k, s] : *d) {
+        g.push_back({{o.by, k}, {"summary", summary_json(s)}});
+        t.add({k, std::to_string(s.n), num(s.mean), num(s.sd), num(s.min), num(s.median), num(s.max)});
+      }
+      j[name] = g;
+      text += name + " by " + o.by + "\n" + t.str() + "\n";
+    }
+    if (o.json) out << json{{"by", o.by}, {"figures", j}}.dump(2) << "\n";
+    else out << text;
+    return kExitOk;
+  }
+
+  if (command == "spc") {
+    plant::Baseline b{o.baseline_n, o.baseline_from, o.baseline_to};
+    json charts = json::array();
+    std::vector<plant::FigureSpc> all;
+    std::string text;
+    std::size_t n_flagged = 0;
+    for (const auto& name : *figures) {
+      auto values = plant::figure_values(*c, name, o.filter);
+      if (!values) return err << where << values.error().message << "\n", kExitError;
+      if (values->empty()) {
+        err << where << "no values of figure '" << name << "' (see `fogctl fleet figures`)\n";
+        return kExitError;
+      }
+      std::optional<plant::spc::Comparison> cmp;
+      if (lots) {
+        auto r = plant::compare_lots(*values, lots->first, lots->second, o.level);
+        if (!r) return err << where << "figure '" << name << "': " << r.error() << "\n", kExitError;
+        cmp = *r;
+      }
+      auto f = plant::figure_spc(name, std::move(*values), b);
+      if (!f) return err << where << f.error() << "\n", kExitError;
+      const auto& ch = f->chart;
+      n_flagged += f->flagged_units.size();
+      json signals = json::array();
+      for (const auto& s : ch.signals)
+        signals.push_back({{"rule", plant::spc::to_string(s.rule)}, {"index", s.index}, {"first", s.first},
+                           {"side", s.side}, {"at", value_json(f->values[s.index])}});
+      json flagged = json::array();
+      for (auto i : f->flagged_units) {
+        json u = value_json(f->values[i]);
+        u["z"] = ch.sigma > 0 ? (f->values[i].value - ch.center) / ch.sigma : 0.0;
+        flagged.push_back(u);
+      }
+      json cj = {{"figure", name}, {"n", f->values.size()}, {"baseline", f->baseline},
+                 {"center", ch.center}, {"sigma", ch.sigma}, {"ucl", ch.ucl}, {"lcl", ch.lcl},
+                 {"mr_bar", ch.mr_bar}, {"mr_ucl", ch.mr_ucl}, {"flagged_units", flagged}, {"signals", signals}};
+      if (cmp)
+        cj["lot_comparison"] = {{"lot_a", lots->first}, {"lot_b", lots->second}, {"a", summary_json(cmp->a)},
+                                {"b", summary_json(cmp->b)}, {"difference", cmp->diff}, {"se", cmp->se},
+                                {"dof", cmp->dof}, {"level", cmp->level}, {"low", cmp->low}, {"high", cmp->high},
+                                {"t", cmp->t}, {"p_value", cmp->p_value}};
+      charts.push_back(cj);
+
+      std::size_t by_rule[6] = {};
+      for (const auto& s : ch.signals) ++by_rule[static_cast<int>(s.rule)];
+      text += name + ": n " + std::to_string(f->values.size()) + ", limits from " + f->baseline + "\n";
+      text += "  individuals: centre " + num(ch.center) + ", limits " + num(ch.lcl) + " .. " + num(ch.ucl) +
+              " (sigma " + num(ch.sigma) + " = MRbar/1.128); moving range: MRbar " + num(ch.mr_bar) + ", limit " +
+              num(ch.mr_ucl) + "\n";
+      text += "  signals: rule 1 " + std::to_string(by_rule[1]) + ", rule 2 " + std::to_string(by_rule[2]) +
+              ", rule 3 " + std::to_string(by_rule[3]) + ", rule 4 " + std::to_string(by_rule[4]) +
+              ", moving range " + std::to_string(by_rule[5]) + "\n";
+      if (!f->flagged_units.empty()) {
+        Table t({"serial", "lot", "bench", "run", "unit", "run end", "value", "z"});
+        for (auto i : f->flagged_units) {
+          const auto& v = f->values[i];
+          t.add({v.serial, v.lot.value_or("-"), v.bench, std::to_string(v.run_id), std::to_string(v.unit_index),
+                 v.ended_at.value_or("-"), num(v.value), num(ch.sigma > 0 ? (v.value - ch.center) / ch.sigma : 0)});
+        }
+        text += "  flagged units (beyond the limits):\n" + t.str();
+      }
+      if (cmp)
+        text += "  lot " + lots->first + " - lot " + lots->second + ": " + num(cmp->diff) + " [" + num(cmp->low) +
+                ", " + num(cmp->high) + "] at " + num(100 * cmp->level) + "% (Welch, " + num(cmp->dof) +
+                " dof, p " + num(cmp->p_value) + "; n " + std::to_string(cmp->a.n) + " and " +
+                std::to_string(cmp->b.n) + ")\n";
+      text += "\n";
+      all.push_back(std::move(*f));
+    }
+    if (!o.html.empty()) {
+      if (auto w = write_text(o.html, fleet_html(all, charts)); !w)
+        return err << where << w.error() << "\n", kExitError;
+    }
+    if (o.json) out << json{{"charts", charts}, {"flagged_units", n_flagged}}.dump(2) << "\n";
+    else out << text << n_flagged << " flagged units\n";
+    return kExitOk;
+  }
+  err << where << "unknown command\n";
+  return kExitError;
+}
+
+void add_fleet_command(CLI::App& app, int& code) {
+  static FleetOptions o;
+  auto* f = app.add_subcommand("fleet", "The plant store (PostgreSQL): serials, histories, distributions and control charts across benches and lots");
+  f->require_subcommand(1);
+  auto common = [](CLI::App* s) {
+    s->add_option("--db", o.db, "The plant store: a libpq connection string or URI (\"host=... dbname=plant\")");
+    s->add_option("--service", o.service, "The plant store by its name in pg_service.conf");
+    s->add_option("--lot", o.filter.lot, "Only units of this lot");
+    s->add_option("--bench", o.filter.bench, "Only runs of this bench");
+    s->add_option("--serial", o.filter.serial, "Only this serial");
+    s->add_option("--since", o.filter.since, "Only runs that ended at or after this time (ISO 8601, e.g. 2026-01-01)");
+    s->add_option("--until", o.filter.until, "Only runs that ended before this time (ISO 8601)");
+    s->add_flag("--json", o.json, "Print JSON instead of tables");
+  };
+  auto* s = f->add_subcommand("serials", "Every serial with its runs, lots, benches and last verdict");
+  common(s);
+  s->callback([&] { code = run_fleet("serials", o, std::cout, std::cerr); });
+  auto* h = f->add_subcommand("history", "One serial's runs across benches, with verdicts and figures");
+  common(h);
+  h->add_option("serial", o.serial, "The serial")->required();
+  h->callback([&] { code = run_fleet("history", o, std::cout, std::cerr); });
+  auto* g = f->add_subcommand("figures", "The figures stored: model coefficients and verdict figures, with counts");
+  common(g);
+  g->callback([&] { code = run_fleet("figures", o, std::cout, std::cerr); });
+  auto* d = f->add_subcommand("dist", "A figure's distribution by lot, bench or month");
+  common(d);
+  d->add_option("--figure", o.figures, "The figure (repeatable; default every figure)");
+  d->add_option("--by", o.by, "Group by lot, bench or month (default lot)");
+  d->callback([&] { code = run_fleet("dist", o, std::cout, std::cerr); });
+  auto* c = f->add_subcommand("spc", "Individuals and moving-range charts, Western Electric rules, flagged units, lot comparison");
+  common(c);
+  c->add_option("--figure", o.figures, "The figure (repeatable; default every figure)");
+  c->add_option("--baseline", o.baseline_n, "Limits from the first N values (default 100)");
+  c->add_option("--baseline-from", o.baseline_from, "Limits from runs that ended at or after this time (ISO 8601)");
+  c->add_option("--baseline-to", o.baseline_to, "... and before this time");
+  c->add_option("--compare", o.compare, "Compare two lots, LOT_A,LOT_B: difference of means with its interval (Welch)");
+  c->add_option("--level", o.level, "The comparison interval's level (default 0.95)");
+  c->add_option("--html", o.html, "Also write the charts as an HTML report to this file");
+  c->callback([&] { code = run_fleet("spc", o, std::cout, std::cerr); });
+}
+
+}  // namespace fogbench::cli

@@ -1,0 +1,17 @@
+// fogctl fleet spc --html: the fleet's control charts as one self-contained HTML page (the
+// report's vendored uPlot inline, so it opens offline).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "fogbench/plant/fleet_spc.hpp"
+
+namespace fogbench::cli {
+
+// charts: the JSON of each chart as `fleet spc --json` prints it (limits, signals, comparison).
+std::string fleet_html(const std::vector<plant::FigureSpc>& figures, const nlohmann::json& charts);
+
+}  // namespace fogbench::cli

@@ -1,0 +1,42 @@
+// A plant's worth of runs for measuring and testing the fleet queries (issue 14, point 5):
+// runs of N units on several benches, each unit's model coefficients and verdict figures drawn
+// per lot, one lot shifted and a few outlier units planted, and samples for a subset of runs.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "fogbench/plant/plant.hpp"
+
+namespace fogbench::plant {
+
+struct GenerateOptions {
+  int runs = 10000;
+  int units_per_run = 2;
+  int lots = 20;            // lot k holds the units of runs [k * runs / lots, (k + 1) * runs / lots)
+  int benches = 4;          // runs go to benches in turn
+  int shifted_lot = 13;     // this lot's `figure` mean is shifted by shift_sigma
+  double shift_sigma = 1.0;
+  int outliers = 5;         // units whose `figure` is outlier_sigma away, outside the shifted lot
+  double outlier_sigma = 6.0;
+  std::string figure = "d(T1)";  // the figure shifted and planted
+  int sample_runs = 0;           // the first runs that also get samples ...
+  int samples_per_unit = 10000;  // ... this many per unit (1 s apart)
+  std::uint64_t seed = 1;
+  std::string bench_prefix = "gen-bench-";
+};
+
+struct GeneratedPlant {
+  std::string shifted_lot;
+  std::vector<std::string> outlier_serials;
+  std::int64_t runs = 0, units = 0, figures = 0, samples = 0;
+};
+
+// Replaces what the plant held for the generated benches (bench ids starting with
+// bench_prefix), in one transaction. Every figure but the planted ones is drawn from a normal
+// distribution truncated at 2.5 sigma (the units a plant's incoming inspection lets through):
+// no natural value lies beyond the 3-sigma limits, so a flag means a planted unit.
+PlantResult<GeneratedPlant> generate_fleet(Connection& c, const GenerateOptions& o);
+
+}  // namespace fogbench::plant

@@ -1,0 +1,109 @@
+// The plant store (issue 14): every bench's completed runs in one PostgreSQL, schema with
+// migrations, replication of a run from a bench's SQLite store (docs/plant.md).
+//
+// A Connection is one libpq connection; use it from one thread at a time. Every failure is a
+// returned PlantError naming what was being done and PostgreSQL's own message.
+#pragma once
+
+#include <cstdint>
+#include <expected>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace fogbench::storage {
+class Store;
+}
+
+namespace fogbench::plant {
+
+enum class PlantErrc {
+  connect_failed,    // the server refused the login or cannot be reached
+  connection_lost,   // the server went away during a call: nothing of the call was committed
+  schema_too_new,    // written by a newer fogbench: refused, never modified
+  schema_missing,    // a reader found no fogbench plant schema (a bench has never sent a run)
+  migration_failed,  // a migration failed; the plant keeps its old version
+  invalid_argument,  // a caller's value is unusable (an empty bench id, a lot id too long)
+  bench_store,       // the bench's SQLite store failed while its run was read
+  sql,               // any other PostgreSQL failure
+};
+std::string_view to_string(PlantErrc code);
+
+struct PlantError {
+  PlantErrc code = PlantErrc::sql;
+  std::string message;
+};
+
+template <class T>
+using PlantResult = std::expected<T, PlantError>;
+
+namespace detail {
+struct Conn;
+}
+
+// One query's rows as text (NULL: empty optional).
+struct Rows {
+  std::vector<std::string> columns;
+  std::vector<std::vector<std::optional<std::string>>> rows;
+};
+
+class Connection {
+ public:
+  // Connects (conninfo: a libpq connection string or URI, e.g. "host=/tmp port=5433
+  // dbname=plant" or "service=plant"). With `migrate` the schema is created or brought up to
+  // date (the bench side); without, a missing or older schema is refused (the readers). A
+  // schema newer than this fogbench knows is refused either way, untouched.
+  static PlantResult<Connection> open(const std::string& conninfo, bool migrate);
+
+  Connection(Connection&&) noexcept;
+  Connection& operator=(Connection&&) noexcept;
+  ~Connection();
+
+  int schema_version() const { return version_; }
+  static int current_schema_version();
+
+  // Runs SQL returning no rows, or rows as text; $1.. take `params` (never spliced in the text).
+  PlantResult<void> exec(const std::string& sql, std::string_view what);
+  PlantResult<Rows> query(const std::string& sql, const std::vector<std::optional<std::string>>& params,
+                          std::string_view what);
+
+  // COPY FROM STDIN of text-format lines (copy_escape for text fields), sent in chunks.
+  PlantResult<std::int64_t> copy_in(const std::string& copy_sql, std::string_view data, std::string_view what);
+
+  detail::Conn& raw() { return *conn_; }
+
+ private:
+  explicit Connection(std::unique_ptr<detail::Conn> c);
+  std::unique_ptr<detail::Conn> conn_;
+  int version_ = 0;
+};
+
+// A COPY text field: backslash, tab, newline and carriage return escaped.
+void copy_escape(std::string& out, std::string_view field);
+
+struct ReplicateStats {
+  std::int64_t units = 0, samples = 0, events = 0, models = 0, verifications = 0, figures = 0;
+};
+
+// Replicates one run of the bench's store to the plant in ONE transaction: what the plant held
+// for (bench_id, run_id) is replaced (sending twice is harmless), and a failure anywhere (the
+// server gone mid-COPY) commits nothing. Sends the run, its units (serial, lot), samples (COPY),
+// events, the models fitted on it, its verifications and their figures.
+PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& bench, std::string_view bench_id,
+                                          std::int64_t run_id);
+
+// Sends the bench's outbox in order, at most `limit` entries: each run replicated, then marked
+// sent in the bench's store. Stops at the first failure, which is noted on its entry (attempts,
+// last_error; the entry keeps its place at the head) and returned. Returns how many were sent.
+// A run replicated but not marked (the bench's store failed just then) is sent again later,
+// which is harmless.
+PlantResult<std::int64_t> send_outbox(Connection& plant, storage::Store& bench, std::string_view bench_id,
+                                      std::int64_t limit);
+
+// A bench id or lot id: 1..64 characters, none a control character. "" when fine, else why.
+std::string check_id(std::string_view value, std::string_view field);
+
+}  // namespace fogbench::plant

@@ -1,0 +1,287 @@
+// Replication of one completed run from a bench's SQLite store to the plant, in one
+// transaction: delete what the plant held for (bench_id, run_id), then insert the run, its units,
+// events, models, verifications and figures, and COPY its samples.
+#include <charconv>
+#include <cmath>
+
+#include <nlohmann/json.hpp>
+
+#include "fogbench/plant/plant.hpp"
+#include "fogbench/storage/store.hpp"
+
+namespace fogbench::plant {
+namespace {
+
+using Params = std::vector<std::optional<std::string>>;
+
+void put_number(std::string& out, double v) {
+  if (!std::isfinite(v)) {
+    out += "\\N";
+    return;
+  }
+  char buf[32];
+  auto r = std::to_chars(buf, buf + sizeof buf, v);
+  out.append(buf, r.ptr);
+}
+
+void put_int(std::string& out, std::int64_t v) {
+  char buf[24];
+  auto r = std::to_chars(buf, buf + sizeof buf, v);
+  out.append(buf, r.ptr);
+}
+
+std::optional<std::string> num_text(double v) {
+  if (!std::isfinite(v)) return std::nullopt;
+  std::string s;
+  put_number(s, v);
+  return s;
+}
+
+PlantError from_store(const storage::StoreError& e) { return {PlantErrc::bench_store, "the bench's store: " + e.message}; }
+
+// One figure row of COPY fogbench.figures.
+void figure(std::string& out, std::string_view bench, std::int64_t run, int unit, std::string_view source,
+            std::int64_t source_id, std::string_view name, const nlohmann::json* v) {
+  if (!v || !v->is_number()) return;
+  const double x = v->get<double>();
+  if (!std::isfinite(x)) return;
+  copy_escape(out, bench);
+  out += '\t';
+  put_int(out, run);
+  out += '\t';
+  put_int(out, unit);
+  out += '\t';
+  out += source;
+  out += '\t';
+  put_int(out, source_id);
+  out += '\t';
+  copy_escape(out, name);
+  out += '\t';
+  put_number(out, x);
+  out += '\n';
+}
+
+const nlohmann::json* at(const nlohmann::json& j, const char* key) {
+  if (!j.is_object()) return nullptr;
+  auto it = j.find(key);
+  return it == j.end() ? nullptr : &*it;
+}
+
+}  // namespace
+
+PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& bench, std::string_view bench_id,
+                                          std::int64_t run_id) {
+  const std::string what = "replicate run " + std::to_string(run_id) + " of bench '" + std::string(bench_id) + "'";
+  if (auto why = check_id(bench_id, "bench id"); !why.empty())
+    return std::unexpected(PlantError{PlantErrc::invalid_argument, what + ": " + why});
+
+  // Everything is read from the bench first: the plant's transaction stays short.
+  auto detail = bench.get_run(run_id);
+  if (!detail) return std::unexpected(from_store(detail.error()));
+  const storage::RunRecord& run = detail->run;
+  for (const auto& u : run.units) {
+    if (u.lot) {
+      if (auto why = check_id(*u.lot, "lot id of unit " + std::to_string(u.unit_index)); !why.empty())
+        return std::unexpected(PlantError{PlantErrc::invalid_argument, what + ": " + why});
+    }
+  }
+  std::vector<storage::ModelRecord> models;
+  for (const auto& u : run.units) {
+    auto ms = bench.list_models(u.serial);
+    if (!ms) return std::unexpected(from_store(ms.error()));
+    for (auto& m : *ms)
+      if (m.run_id == run_id) models.push_back(std::move(m));
+  }
+  auto verifications = bench.list_verifications(run_id);
+  if (!verifications) return std::unexpected(from_store(verifications.error()));
+
+  ReplicateStats stats;
+  const std::string b(bench_id);
+  const std::string rid = std::to_string(run_id);
+  auto fail = [&](PlantError e) {
+    if (e.code != PlantErrc::connection_lost) (void)plant.exec("ROLLBACK", what);
+    e.message = what + ": " + e.message;
+    return std::unexpected(std::move(e));
+  };
+  if (auto ok = plant.exec("BEGIN", what); !ok) return fail(ok.error());
+  // The bench marks the run sent once COMMIT returns: the commit must then be on the plant's
+  // disk, whatever the server's default (synchronous_commit = off would lose it in a crash).
+  if (auto ok = plant.exec("SET LOCAL synchronous_commit = on", what); !ok) return fail(ok.error());
+  if (auto ok = plant.query("DELETE FROM fogbench.samples WHERE bench_id = $1 AND run_id = $2", {b, rid},
+                            "delete the samples held before");
+      !ok)
+    return fail(ok.error());
+  if (auto ok = plant.query("DELETE FROM fogbench.runs WHERE bench_id = $1 AND run_id = $2", {b, rid},
+                            "delete the run held before");
+      !ok)
+    return fail(ok.error());
+  if (auto ok = plant.query(
+          "INSERT INTO fogbench.runs (bench_id, run_id, created_at, profile_name, purpose, state, state_reason, "
+          "config_json, started_at, ended_at, time_scale) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11)",
+          {b, rid, run.created_at, run.profile_name, std::string(storage::to_string(run.purpose)),
+           std::string(storage::to_string(run.state)), run.state_reason, run.config_json, run.started_at,
+           run.ended_at, num_text(run.time_scale)},
+          "insert the run");
+      !ok)
+    return fail(ok.error());
+  for (const auto& u : run.units) {
+    if (auto ok = plant.query("INSERT INTO fogbench.units (bench_id, run_id, unit_index, serial, lot) "
+                              "VALUES ($1, $2, $3, $4, $5)",
+                              {b, rid, std::to_string(u.unit_index), u.serial, u.lot}, "insert a unit");
+        !ok)
+      return fail(ok.error());
+    ++stats.units;
+  }
+
+  // Events by COPY.
+  {
+    std::string data;
+    for (const auto& e : detail->events) {
+      copy_escape(data, b);
+      data += '\t';
+      put_int(data, run_id);
+      data += '\t';
+      put_int(data, e.id);
+      data += '\t';
+      if (e.t_s) put_number(data, *e.t_s);
+      else data += "\\N";
+      data += '\t';
+      copy_escape(data, e.at);
+      data += '\t';
+      copy_escape(data, storage::to_string(e.kind));
+      data += '\t';
+      copy_escape(data, e.detail_json.empty() ? "{}" : e.detail_json);
+      data += '\n';
+    }
+    auto n = plant.copy_in("COPY fogbench.events (bench_id, run_id, event_id, t_s, at, kind, detail) FROM STDIN",
+                           data, "copy the events");
+    if (!n) return fail(n.error());
+    stats.events = *n;
+  }
+
+  // Samples by COPY, a page of each unit at a time (a few MB in memory, never the whole run).
+  constexpr std::int64_t kPage = 50000;
+  for (const auto& u : run.units) {
+    for (std::int64_t offset = 0;; offset += kPage) {
+      auto page = bench.get_samples(run_id, u.unit_index, offset, kPage);
+      if (!page) return fail(from_store(page.error()));
+      if (page->empty()) break;
+      std::string data;
+      data.reserve(page->size() * 120);
+      for (const auto& s : *page) {
+        copy_escape(data, b);
+        data += '\t';
+        put_int(data, run_id);
+        data += '\t';
+        put_int(data, u.unit_index);
+        for (double v : {s.t_s, s.wall_time, s.setpoint_c, s.chamber_c, s.gyro_dph}) {
+          data += '\t';
+          put_number(data, v);
+        }
+        data += '\t';
+        if (s.frames) put_int(data, *s.frames);
+        else data += "\\N";
+        for (double v : {s.t1_c, s.t2_c}) {
+          data += '\t';
+          put_number(data, v);
+        }
+        data += '\t';
+        put_int(data, static_cast<int>(s.phase));
+        data += '\t';
+        if (s.step) put_int(data, *s.step);
+        else data += "\\N";
+        data += '\t';
+        put_int(data, s.flags);
+        data += '\t';
+        put_number(data, s.since_power_on_s);
+        data += '\n';
+      }
+      auto n = plant.copy_in(
+          "COPY fogbench.samples (bench_id, run_id, unit_index, t_s, wall_time, setpoint_c, chamber_c, gyro_dph, "
+          "frames, t1_c, t2_c, phase, step, flags, since_power_on_s) FROM STDIN",
+          data, "copy the samples of unit " + std::to_string(u.unit_index));
+      if (!n) return fail(n.error());
+      stats.samples += *n;
+      if (static_cast<std::int64_t>(page->size()) < kPage) break;
+    }
+  }
+
+  // Models fitted on the run, verifications of it, and the figures the fleet statistics read.
+  std::string figures;
+  for (const auto& m : models) {
+    std::optional<std::string> unit;
+    int unit_index = 0;
+    for (const auto& u : run.units)
+      if (u.serial == m.serial) {
+        unit = std::to_string(u.unit_index);
+        unit_index = u.unit_index;
+        break;
+      }
+    if (auto ok = plant.query(
+            "INSERT INTO fogbench.models (bench_id, model_id, run_id, unit_index, serial, version, parent_id, "
+            "created_at, method, terms, model_json) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11)",
+            {b, std::to_string(m.id), rid, unit, m.serial, std::to_string(m.version),
+             m.parent_id ? std::optional(std::to_string(*m.parent_id)) : std::nullopt, m.created_at, m.method, m.terms,
+             m.model_json},
+            "insert model " + std::to_string(m.id));
+        !ok)
+      return fail(ok.error());
+    ++stats.models;
+    const auto j = nlohmann::json::parse(m.model_json, nullptr, false);
+    figure(figures, b, run_id, unit_index, "model", m.id, "mu0", at(j, "mu0"));
+    figure(figures, b, run_id, unit_index, "model", m.id, "sigma_a", at(j, "sigma_a"));
+    if (const auto* terms = at(j, "terms"); terms && terms->is_array()) {
+      for (const auto& t : *terms) {
+        const auto* name = at(t, "term");
+        if (name && name->is_string()) figure(figures, b, run_id, unit_index, "model", m.id, name->get<std::string>(), at(t, "coef"));
+      }
+    }
+  }
+  for (const auto& v : *verifications) {
+    const auto j = nlohmann::json::parse(v.result_json, nullptr, false);
+    const auto* verdict = at(j, "verdict");
+    if (auto ok = plant.query(
+            "INSERT INTO fogbench.verifications (bench_id, verification_id, run_id, unit_index, model_id, created_at, "
+            "pass, verdict, result_json) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9)",
+            {b, std::to_string(v.id), rid, std::to_string(v.unit_index), std::to_string(v.model_id), v.created_at,
+             v.pass ? "true" : "false",
+             verdict && verdict->is_string() ? std::optional(verdict->get<std::string>()) : std::nullopt,
+             v.result_json},
+            "insert verification " + std::to_string(v.id));
+        !ok)
+      return fail(ok.error());
+    ++stats.verifications;
+    for (const char* name : {"ratio", "comp_std", "meas_std", "noise_std", "noise_factor", "longest_fail_s"})
+      figure(figures, b, run_id, v.unit_index, "verification", v.id, name, at(j, name));
+  }
+  if (!figures.empty()) {
+    auto n = plant.copy_in(
+        "COPY fogbench.figures (bench_id, run_id, unit_index, source, source_id, name, value) FROM STDIN", figures,
+        "copy the figures");
+    if (!n) return fail(n.error());
+    stats.figures = *n;
+  }
+  if (auto ok = plant.exec("COMMIT", what); !ok) return fail(ok.error());
+  return stats;
+}
+
+PlantResult<std::int64_t> send_outbox(Connection& plant, storage::Store& bench, std::string_view bench_id,
+                                      std::int64_t limit) {
+  std::int64_t sent = 0;
+  while (sent < limit) {
+    auto head = bench.pending_replications(1);
+    if (!head) return std::unexpected(from_store(head.error()));
+    if (head->empty()) break;
+    const storage::OutboxEntry entry = head->front();
+    auto r = replicate_run(plant, bench, bench_id, entry.run_id);
+    if (!r) {
+      (void)bench.mark_replication_failed(entry.id, r.error().message);
+      return std::unexpected(r.error());
+    }
+    if (auto ok = bench.mark_replicated(entry.id); !ok) return std::unexpected(from_store(ok.error()));
+    ++sent;
+  }
+  return sent;
+}
+
+}  // namespace fogbench::plant

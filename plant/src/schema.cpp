@@ -1,0 +1,228 @@
+// The plant's PostgreSQL schema and its migrations, versioned like the bench's SQLite one
+// (storage/src/schema.cpp): fogbench.schema_version holds one row per applied migration.
+//
+// Everything lives in the schema `fogbench`. Every table is keyed by (bench_id, run_id, ...):
+// a bench's own ids are unique only on that bench. Later migrations add what other parts
+// bring (issue 13: the run identity and certificates get tables keyed the same way, with
+// ON DELETE CASCADE from fogbench.runs, so that a re-sent run replaces them too).
+#include <libpq-fe.h>
+
+#include "fogbench/plant/plant.hpp"
+#include "pg.hpp"
+
+namespace fogbench::plant {
+namespace {
+
+struct Migration {
+  int version;
+  const char* what;
+  const char* sql;
+};
+
+// Version 1: runs, units (serial, lot), samples, events, models, verifications, and the figures
+// the fleet statistics read (one number per row: a model's coefficients, a verification's
+// figures). Samples carry no foreign key: a key checked per row would halve the COPY's rate,
+// and replication deletes them by (bench_id, run_id) itself.
+constexpr const char* kV1 = R"sql(
+CREATE TABLE fogbench.runs (
+  bench_id      text NOT NULL,
+  run_id        bigint NOT NULL,
+  created_at    timestamptz NOT NULL,
+  profile_name  text NOT NULL,
+  purpose       text NOT NULL CHECK (purpose IN ('fit', 'verify')),
+  state         text NOT NULL,
+  state_reason  text NOT NULL DEFAULT '',
+  config_json   jsonb NOT NULL DEFAULT '{}',
+  started_at    timestamptz,
+  ended_at      timestamptz,
+  time_scale    double precision NOT NULL DEFAULT 1,
+  replicated_at timestamptz NOT NULL DEFAULT now(),
+  PRIMARY KEY (bench_id, run_id)
+);
+CREATE INDEX runs_ended ON fogbench.runs (ended_at);
+
+CREATE TABLE fogbench.units (
+  bench_id    text NOT NULL,
+  run_id      bigint NOT NULL,
+  unit_index  integer NOT NULL CHECK (unit_index >= 0),
+  serial      text NOT NULL,
+  lot         text,
+  PRIMARY KEY (bench_id, run_id, unit_index),
+  FOREIGN KEY (bench_id, run_id) REFERENCES fogbench.runs ON DELETE CASCADE
+);
+CREATE INDEX units_serial ON fogbench.units (serial);
+CREATE INDEX units_lot ON fogbench.units (lot);
+
+CREATE TABLE fogbench.samples (
+  bench_id          text NOT NULL,
+  run_id            bigint NOT NULL,
+  unit_index        integer NOT NULL,
+  t_s               double precision NOT NULL,
+  wall_time         double precision,
+  setpoint_c        double precision,
+  chamber_c         double precision,
+  gyro_dph          double precision,
+  frames            bigint,
+  t1_c              double precision,
+  t2_c              double precision,
+  phase             smallint,
+  step              integer,
+  flags             smallint,
+  since_power_on_s  double precision,
+  PRIMARY KEY (bench_id, run_id, unit_index, t_s)
+);
+
+CREATE TABLE fogbench.events (
+  bench_id  text NOT NULL,
+  run_id    bigint NOT NULL,
+  event_id  bigint NOT NULL,
+  t_s       double precision,
+  at        timestamptz NOT NULL,
+  kind      text NOT NULL,
+  detail    jsonb NOT NULL DEFAULT '{}',
+  PRIMARY KEY (bench_id, run_id, event_id),
+  FOREIGN KEY (bench_id, run_id) REFERENCES fogbench.runs ON DELETE CASCADE
+);
+
+CREATE TABLE fogbench.models (
+  bench_id    text NOT NULL,
+  model_id    bigint NOT NULL,
+  run_id      bigint NOT NULL,
+  unit_index  integer,
+  serial      text NOT NULL,
+  version     integer NOT NULL,
+  parent_id   bigint,
+  created_at  timestamptz NOT NULL,
+  method      text NOT NULL DEFAULT '',
+  terms       text NOT NULL DEFAULT '',
+  model_json  jsonb NOT NULL,
+  PRIMARY KEY (bench_id, model_id),
+  FOREIGN KEY (bench_id, run_id) REFERENCES fogbench.runs ON DELETE CASCADE
+);
+CREATE INDEX models_serial ON fogbench.models (serial);
+
+CREATE TABLE fogbench.verifications (
+  bench_id         text NOT NULL,
+  verification_id  bigint NOT NULL,
+  run_id           bigint NOT NULL,
+  unit_index       integer NOT NULL,
+  model_id         bigint NOT NULL,
+  created_at       timestamptz NOT NULL,
+  pass             boolean NOT NULL,
+  verdict          text,
+  result_json      jsonb NOT NULL,
+  PRIMARY KEY (bench_id, verification_id),
+  FOREIGN KEY (bench_id, run_id) REFERENCES fogbench.runs ON DELETE CASCADE
+);
+
+CREATE TABLE fogbench.figures (
+  bench_id    text NOT NULL,
+  run_id      bigint NOT NULL,
+  unit_index  integer NOT NULL,
+  source      text NOT NULL CHECK (source IN ('model', 'verification')),
+  source_id   bigint NOT NULL,
+  name        text NOT NULL,
+  value       double precision NOT NULL,
+  PRIMARY KEY (bench_id, source, source_id, name),
+  FOREIGN KEY (bench_id, run_id) REFERENCES fogbench.runs ON DELETE CASCADE
+);
+CREATE INDEX figures_name ON fogbench.figures (name, bench_id, run_id);
+)sql";
+
+constexpr Migration kMigrations[] = {
+    {1, "runs, units, samples, events, models, verifications, figures", kV1},
+};
+
+constexpr int kCurrent = 1;
+
+// The version recorded, 0 when the schema is absent.
+PlantResult<int> read_version(Connection& c) {
+  auto has = c.query("SELECT to_regclass('fogbench.schema_version') IS NOT NULL", {}, "read the plant's schema version");
+  if (!has) return std::unexpected(has.error());
+  if (has->rows.at(0).at(0).value_or("f") != "t") return 0;
+  auto v = c.query("SELECT coalesce(max(version), 0) FROM fogbench.schema_version", {},
+                   "read the plant's schema version");
+  if (!v) return std::unexpected(v.error());
+  return std::stoi(v->rows.at(0).at(0).value_or("0"));
+}
+
+PlantError too_new(int v) {
+  return {PlantErrc::schema_too_new,
+          "the plant's schema version " + std::to_string(v) + " is newer than this fogbench knows (" +
+              std::to_string(kCurrent) + "); it was written by a newer fogbench: use that, this one will not touch it"};
+}
+
+PlantResult<int> migrate(Connection& c) {
+  // One transaction per step, serialised between benches by an advisory lock: two benches
+  // starting at once do not both create the tables.
+  for (const Migration& m : kMigrations) {
+    const std::string what = "migrate the plant's schema " + std::to_string(m.version - 1) + " -> " +
+                             std::to_string(m.version) + " (" + m.what + ")";
+    auto fail = [&](PlantError e) {
+      (void)c.exec("ROLLBACK", what);
+      if (e.code == PlantErrc::sql) e.code = PlantErrc::migration_failed;
+      return std::unexpected(std::move(e));
+    };
+    if (auto ok = c.exec("BEGIN", what); !ok) return std::unexpected(ok.error());
+    if (auto ok = c.exec("SELECT pg_advisory_xact_lock(745201414)", what); !ok) return fail(ok.error());
+    if (auto ok = c.exec("CREATE SCHEMA IF NOT EXISTS fogbench; "
+                         "CREATE TABLE IF NOT EXISTS fogbench.schema_version (version integer PRIMARY KEY, "
+                         "what text NOT NULL, migrated_at timestamptz NOT NULL DEFAULT now())",
+                         what);
+        !ok)
+      return fail(ok.error());
+    auto now = read_version(c);
+    if (!now) return fail(now.error());
+    if (*now > kCurrent) return fail(too_new(*now));
+    if (*now >= m.version) {
+      if (auto ok = c.exec("COMMIT", what); !ok) return std::unexpected(ok.error());
+      continue;
+    }
+    if (auto ok = c.exec(m.sql, what); !ok) return fail(ok.error());
+    if (auto ok = c.query("INSERT INTO fogbench.schema_version (version, what) VALUES ($1, $2)",
+                          {std::to_string(m.version), std::string(m.what)}, what);
+        !ok)
+      return fail(ok.error());
+    if (auto ok = c.exec("COMMIT", what); !ok) return std::unexpected(ok.error());
+  }
+  return kCurrent;
+}
+
+}  // namespace
+
+int Connection::current_schema_version() { return kCurrent; }
+
+PlantResult<Connection> Connection::open(const std::string& conninfo, bool do_migrate) {
+  auto conn = std::make_unique<detail::Conn>();
+  conn->pg = PQconnectdb(conninfo.c_str());
+  if (!conn->pg || PQstatus(conn->pg) != CONNECTION_OK) {
+    std::string msg = conn->pg ? PQerrorMessage(conn->pg) : "out of memory";
+    while (!msg.empty() && (msg.back() == '\n' || msg.back() == ' ')) msg.pop_back();
+    return std::unexpected(PlantError{PlantErrc::connect_failed, "connect to the plant store: " + msg});
+  }
+  // The server's notices (a connection terminated by a shutdown...) are not printed on stderr:
+  // what matters comes back as the failing call's error.
+  PQsetNoticeProcessor(conn->pg, [](void*, const char*) {}, nullptr);
+  Connection c(std::move(conn));
+  (void)c.exec("SET client_min_messages = warning; SET TIME ZONE 'UTC'", "set the session");
+  auto v = read_version(c);
+  if (!v) return std::unexpected(v.error());
+  if (*v > kCurrent) return std::unexpected(too_new(*v));
+  if (*v < kCurrent) {
+    if (!do_migrate) {
+      if (*v == 0)
+        return std::unexpected(PlantError{PlantErrc::schema_missing,
+                                          "the plant store has no fogbench schema (no bench has replicated to it yet)"});
+      return std::unexpected(PlantError{PlantErrc::schema_missing,
+                                        "the plant's schema version " + std::to_string(*v) + " is older than " +
+                                            std::to_string(kCurrent) + ": a bench running this fogbench migrates it"});
+    }
+    auto m = migrate(c);
+    if (!m) return std::unexpected(m.error());
+    v = *m;
+  }
+  c.version_ = *v;
+  return c;
+}
+
+}  // namespace fogbench::plant

@@ -1,0 +1,120 @@
+// fogctl fleet called as a function (cli/fleet.hpp) against a generated plant in a real
+// PostgreSQL: tables, --json, the HTML report, the filters, and the refusals with exit 2.
+#include <catch2/catch.hpp>
+
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "fleet.hpp"
+#include "fogbench/plant/generate.hpp"
+#include "pg_server.hpp"
+
+using namespace fogbench;
+
+namespace {
+struct Out {
+  int code = -1;
+  std::string out, err;
+};
+Out fleet(const std::string& cmd, const cli::FleetOptions& o) {
+  std::ostringstream out, err;
+  Out r;
+  r.code = cli::run_fleet(cmd, o, out, err);
+  r.out = out.str();
+  r.err = err.str();
+  return r;
+}
+}  // namespace
+
+TEST_CASE("fogctl fleet: serials, history, dist and spc with --json and --html on a generated plant, and its refusals") {
+  test::PgServer pg;
+  cli::FleetOptions o;
+  o.db = pg.conninfo();
+  // Before any bench wrote: the reader says so.
+  auto empty = fleet("serials", o);
+  CHECK(empty.code == cli::kExitError);
+  CHECK_THAT(empty.err, Catch::Contains("no fogbench schema"));
+
+  auto c = plant::Connection::open(pg.conninfo(), true);
+  REQUIRE(c);
+  plant::GenerateOptions g;
+  g.runs = 400;
+  g.lots = 4;
+  g.shifted_lot = 3;
+  g.outliers = 2;
+  g.seed = 3;
+  auto gen = plant::generate_fleet(*c, g);
+  REQUIRE(gen);
+
+  auto serials = fleet("serials", o);
+  REQUIRE(serials.code == 0);
+  CHECK_THAT(serials.out, Catch::Contains("800 serials"));
+  o.json = true;
+  o.filter.lot = "LOT-1001";
+  serials = fleet("serials", o);
+  REQUIRE(serials.code == 0);
+  CHECK(nlohmann::json::parse(serials.out)["serials"].size() == 200);
+  o.filter.lot.reset();
+
+  o.serial = gen->outlier_serials.front();
+  auto history = fleet("history", o);
+  REQUIRE(history.code == 0);
+  auto hj = nlohmann::json::parse(history.out);
+  REQUIRE(hj["runs"].size() == 1);
+  CHECK(hj["runs"][0]["figures"].contains("model:d(T1)"));
+
+  o.figures = {"d(T1)"};
+  o.by = "lot";
+  auto dist = fleet("dist", o);
+  REQUIRE(dist.code == 0);
+  CHECK(nlohmann::json::parse(dist.out)["figures"]["d(T1)"].size() == 4);
+
+  o.baseline_n = 200;
+  o.compare = gen->shifted_lot + ",LOT-1000";
+  const auto html = pg.dir() / "fleet.html";
+  o.html = html.string();
+  auto spc = fleet("spc", o);
+  REQUIRE(spc.code == 0);
+  auto sj = nlohmann::json::parse(spc.out);
+  REQUIRE(sj["charts"].size() == 1);
+  const auto& chart = sj["charts"][0];
+  CHECK(chart["baseline"].get<std::string>().starts_with("the first 200 values"));
+  std::set<std::string> flagged;
+  for (const auto& u : chart["flagged_units"]) flagged.insert(u["serial"].get<std::string>());
+  for (const auto& s : gen->outlier_serials) CHECK(flagged.contains(s));
+  CHECK(chart["lot_comparison"]["low"].get<double>() > 0);
+  std::ifstream f(html);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  CHECK_THAT(ss.str(), Catch::Contains("uPlot"));
+  CHECK_THAT(ss.str(), Catch::Contains(gen->outlier_serials.front()));
+  // The table form names the flagged units and the comparison.
+  o.json = false;
+  o.html.clear();
+  spc = fleet("spc", o);
+  REQUIRE(spc.code == 0);
+  CHECK_THAT(spc.out, Catch::Contains("flagged units (beyond the limits)"));
+  CHECK_THAT(spc.out, Catch::Contains("(Welch, "));
+
+  // Refusals: exit 2, each named.
+  cli::FleetOptions bad = o;
+  bad.db.clear();
+  CHECK_THAT(fleet("spc", bad).err, Catch::Contains("exactly one of --db CONNSTR or --service NAME"));
+  bad = o;
+  bad.compare = "LOT-1000";
+  CHECK_THAT(fleet("spc", bad).err, Catch::Contains("--compare: expected two lots"));
+  bad = o;
+  bad.compare = "LOT-1000,NO-SUCH-LOT";
+  CHECK_THAT(fleet("spc", bad).err, Catch::Contains("'NO-SUCH-LOT' (0 values)"));
+  bad = o;
+  bad.db = pg.tcp_conninfo("wrong");
+  auto refused = fleet("serials", bad);
+  CHECK(refused.code == cli::kExitError);
+  CHECK_THAT(refused.err, Catch::Contains("password authentication failed"));
+  bad = o;
+  bad.figures = {"no-such-figure"};
+  CHECK_THAT(fleet("spc", bad).err, Catch::Contains("no values of figure 'no-such-figure'"));
+}

@@ -1,0 +1,247 @@
+// Replication to a real PostgreSQL started by the test (issue 14, points 1 and 4): a real
+// completed run from a real SQLite store, sent twice, the server killed mid-COPY, and the
+// refusals (a login refused, a newer schema, a bad lot id).
+#include <catch2/catch.hpp>
+
+#include <chrono>
+#include <future>
+#include <thread>
+
+#include "bench_run.hpp"
+#include "fogbench/plant/fleet.hpp"
+#include "fogbench/plant/plant.hpp"
+#include "pg_server.hpp"
+
+using namespace fogbench;
+using test::PgServer;
+
+namespace {
+
+std::int64_t count(plant::Connection& c, const std::string& sql) {
+  auto r = c.query(sql, {}, "count");
+  REQUIRE(r);
+  return std::stoll(r->rows.at(0).at(0).value_or("0"));
+}
+
+storage::Store open_store(const std::filesystem::path& p) {
+  auto s = storage::Store::open(p);
+  REQUIRE(s);
+  return std::move(*s);
+}
+
+}  // namespace
+
+TEST_CASE("a completed run of a real SQLite store replicates whole, and sending it twice changes nothing") {
+  PgServer pg;
+  auto path = test::temp_store_path("whole");
+  auto bench = open_store(path);
+  const std::string quoted = "LOT-\"7\" O'Neil; DROP TABLE x --";
+  const auto id = test::record_run(bench, {std::string("LOT-A"), quoted});
+  REQUIRE(bench.enqueue_replication(id));
+  // Queued twice while waiting: one entry.
+  CHECK(*bench.enqueue_replication(id) == *bench.enqueue_replication(id));
+  CHECK(bench.outbox_status()->depth == 1);
+
+  auto c = plant::Connection::open(pg.conninfo(), true);
+  REQUIRE(c);
+  CHECK(c->schema_version() == plant::Connection::current_schema_version());
+  auto sent = plant::send_outbox(*c, bench, "bench-1", 100);
+  REQUIRE(sent);
+  CHECK(*sent == 1);
+  auto st = bench.outbox_status();
+  CHECK(st->depth == 0);
+  CHECK(st->sent == 1);
+  CHECK(st->last_sent_at.has_value());
+
+  const std::int64_t n = *bench.count_samples(id);
+  REQUIRE(n > 10000);
+  const std::string rid = std::to_string(id);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.samples WHERE bench_id = 'bench-1' AND run_id = " + rid) == n);
+  // Every value as stored: the sums over the bench's samples and the plant's agree to rounding,
+  // and NULLs (a signal not read) stay NULL.
+  double gyro = 0, t1 = 0;
+  std::int64_t no_power_on = 0, flagged = 0;
+  for (int u = 0; u < 2; ++u) {
+    auto rows = bench.get_samples(id, u, 0, 1000000);
+    REQUIRE(rows);
+    for (const auto& r : *rows) {
+      gyro += r.gyro_dph;
+      t1 += r.t1_c;
+      no_power_on += std::isnan(r.since_power_on_s);
+      flagged += r.flags != 0;
+    }
+  }
+  auto sums = c->query("SELECT sum(gyro_dph), sum(t1_c), count(*) FILTER (WHERE since_power_on_s IS NULL), "
+                       "count(*) FILTER (WHERE flags <> 0) FROM fogbench.samples WHERE run_id = $1",
+                       {rid}, "sums");
+  REQUIRE(sums);
+  CHECK(std::stod(*sums->rows[0][0]) == Approx(gyro).epsilon(1e-12));
+  CHECK(std::stod(*sums->rows[0][1]) == Approx(t1).epsilon(1e-12));
+  CHECK(std::stoll(*sums->rows[0][2]) == no_power_on);
+  CHECK(std::stoll(*sums->rows[0][3]) == flagged);
+  CHECK(no_power_on > 0);
+
+  // Units with their lots exactly (the quotes are data, never SQL).
+  auto units = c->query("SELECT serial, lot FROM fogbench.units WHERE run_id = $1 ORDER BY unit_index", {rid}, "units");
+  REQUIRE(units);
+  REQUIRE(units->rows.size() == 2);
+  CHECK(units->rows[0][1] == std::optional<std::string>("LOT-A"));
+  CHECK(units->rows[1][1] == std::optional<std::string>(quoted));
+  // Events with their JSON detail intact (tabs, quotes, backslashes through COPY).
+  auto detail = bench.get_run(id);
+  REQUIRE(detail);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.events WHERE run_id = " + rid) ==
+        static_cast<std::int64_t>(detail->events.size()));
+  auto note = c->query("SELECT detail::text FROM fogbench.events WHERE run_id = $1 AND kind = 'note'", {rid}, "note");
+  REQUIRE(note);
+  REQUIRE(note->rows.size() == 1);
+  CHECK(nlohmann::json::parse(*note->rows[0][0])["text"] == "a tab\there, a quote ' and \" and a \\ backslash");
+  // Models, verifications, and each model's coefficients as figures.
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.models WHERE run_id = " + rid) == 2);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.verifications WHERE run_id = " + rid) == 2);
+  auto models = bench.list_models("FOG-0002");
+  REQUIRE(models);
+  REQUIRE(models->size() == 1);
+  const auto mj = nlohmann::json::parse(models->front().model_json);
+  for (const auto& t : mj["terms"]) {
+    auto v = c->query("SELECT value FROM fogbench.figures WHERE source = 'model' AND source_id = $1 AND name = $2",
+                      {std::to_string(models->front().id), t["term"].get<std::string>()}, "figure");
+    REQUIRE(v);
+    REQUIRE(v->rows.size() == 1);
+    CHECK(std::stod(*v->rows[0][0]) == Approx(t["coef"].get<double>()).epsilon(1e-12));
+  }
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.figures WHERE source = 'verification' AND name = 'ratio'") == 2);
+
+  // The fleet queries find the unit by its quoted lot.
+  plant::FleetFilter f;
+  f.lot = quoted;
+  auto serials = plant::serials(*c, f);
+  REQUIRE(serials);
+  REQUIRE(serials->size() == 1);
+  CHECK(serials->front().serial == "FOG-0002");
+  CHECK(serials->front().last_verdict.has_value());
+  auto history = plant::serial_history(*c, "FOG-0002", {});
+  REQUIRE(history);
+  REQUIRE(history->size() == 1);
+  CHECK(history->front().lot == std::optional<std::string>(quoted));
+  CHECK(history->front().figures.size() >= 5);
+
+  // Sending again replaces: the same rows, none twice.
+  REQUIRE(bench.enqueue_replication(id));
+  REQUIRE(*plant::send_outbox(*c, bench, "bench-1", 100) == 1);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.samples") == n);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.runs") == 1);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.models") == 2);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.figures WHERE name = 'ratio'") == 2);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.events WHERE run_id = " + rid) ==
+        static_cast<std::int64_t>(detail->events.size()));
+  // Another bench's run 1 is another run.
+  REQUIRE(bench.enqueue_replication(id));
+  REQUIRE(*plant::send_outbox(*c, bench, "bench-2", 100) == 1);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.samples") == 2 * n);
+  CHECK(count(*c, "SELECT count(DISTINCT bench_id) FROM fogbench.runs") == 2);
+  std::filesystem::remove(path);
+}
+
+TEST_CASE("the server killed mid-COPY commits nothing, the outbox keeps the run, and it catches up in order") {
+  PgServer pg;
+  auto path = test::temp_store_path("kill");
+  auto bench = open_store(path);
+  // A large run (40 copies of exp1 per unit: about 430,000 samples) and a small one after it.
+  const auto big = test::record_run(bench, {std::string("L1"), std::string("L1")}, 40, 7, false);
+  const auto small = test::record_run(bench, {std::string("L2"), std::nullopt}, 1, 8, false);
+  REQUIRE(bench.enqueue_replication(big));
+  REQUIRE(bench.enqueue_replication(small));
+  const std::int64_t n_big = *bench.count_samples(big), n_small = *bench.count_samples(small);
+
+  {
+    auto c = plant::Connection::open(pg.conninfo(), true);
+    REQUIRE(c);
+    auto sending = std::async(std::launch::async, [&] { return plant::send_outbox(*c, bench, "b1", 100); });
+    // The server is killed while the big run's samples are being copied.
+    bool copying = false;
+    for (int i = 0; i < 3000 && !copying; ++i) {
+      copying = pg.psql("SELECT count(*) FROM pg_stat_activity WHERE query LIKE 'COPY fogbench.samples%' AND "
+                        "state IN ('active', 'idle in transaction')") != "0";
+      if (!copying) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    REQUIRE(copying);
+    pg.kill_immediate();
+    auto r = sending.get();
+    REQUIRE_FALSE(r);
+    CHECK(r.error().code == plant::PlantErrc::connection_lost);
+    CHECK_THAT(r.error().message, Catch::Contains("run " + std::to_string(big)));
+  }
+  // Nothing lost on the bench: both still queued, the first with its error.
+  auto st = bench.outbox_status();
+  REQUIRE(st);
+  CHECK(st->depth == 2);
+  CHECK(st->attempts == 1);
+  CHECK_FALSE(st->last_error.empty());
+
+  pg.start();
+  auto c = plant::Connection::open(pg.conninfo(), true);
+  REQUIRE(c);
+  // Nothing half-written in the plant.
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.samples") == 0);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.runs") == 0);
+  // Catch-up: both, in the order queued, every sample once.
+  auto sent = plant::send_outbox(*c, bench, "b1", 100);
+  REQUIRE(sent);
+  CHECK(*sent == 2);
+  CHECK(bench.outbox_status()->depth == 0);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.samples WHERE run_id = " + std::to_string(big)) == n_big);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.samples WHERE run_id = " + std::to_string(small)) == n_small);
+  CHECK(count(*c, "SELECT count(*) FROM (SELECT 1 FROM fogbench.samples GROUP BY bench_id, run_id, unit_index, t_s "
+                  "HAVING count(*) > 1) d") == 0);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.runs a JOIN fogbench.runs b ON a.run_id = " + std::to_string(big) +
+                      " AND b.run_id = " + std::to_string(small) + " WHERE a.replicated_at < b.replicated_at") == 1);
+  std::filesystem::remove(path);
+}
+
+TEST_CASE("a refused login, a newer schema and bad ids are clear errors and write nothing") {
+  PgServer pg;
+  SECTION("a login refused") {
+    auto c = plant::Connection::open(pg.tcp_conninfo("wrong"), true);
+    REQUIRE_FALSE(c);
+    CHECK(c.error().code == plant::PlantErrc::connect_failed);
+    CHECK_THAT(c.error().message, Catch::Contains("password authentication failed for user \"postgres\""));
+  }
+  SECTION("a reader of a database no bench has written") {
+    auto c = plant::Connection::open(pg.conninfo(), false);
+    REQUIRE_FALSE(c);
+    CHECK(c.error().code == plant::PlantErrc::schema_missing);
+  }
+  SECTION("a schema newer than this fogbench") {
+    REQUIRE(plant::Connection::open(pg.conninfo(), true));
+    pg.psql("INSERT INTO fogbench.schema_version (version, what) VALUES (99, 'from the future')");
+    for (bool migrate : {true, false}) {
+      auto c = plant::Connection::open(pg.conninfo(), migrate);
+      REQUIRE_FALSE(c);
+      CHECK(c.error().code == plant::PlantErrc::schema_too_new);
+      CHECK_THAT(c.error().message, Catch::Contains("schema version 99 is newer"));
+    }
+    CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,99");
+  }
+  SECTION("a lot id with a control character, an empty bench id") {
+    auto path = test::temp_store_path("badlot");
+    auto bench = open_store(path);
+    const auto id = test::record_run(bench, {std::string("ok"), std::string("bad\nlot")}, 1, 3, false);
+    REQUIRE(bench.enqueue_replication(id));
+    auto c = plant::Connection::open(pg.conninfo(), true);
+    REQUIRE(c);
+    auto r = plant::send_outbox(*c, bench, "b1", 10);
+    REQUIRE_FALSE(r);
+    CHECK(r.error().code == plant::PlantErrc::invalid_argument);
+    CHECK_THAT(r.error().message, Catch::Contains("lot id of unit 1: a control character at position 4"));
+    auto st = bench.outbox_status();
+    CHECK(st->depth == 1);
+    CHECK_THAT(st->last_error, Catch::Contains("lot id of unit 1"));
+    auto e = plant::replicate_run(*c, bench, "", id);
+    REQUIRE_FALSE(e);
+    CHECK_THAT(e.error().message, Catch::Contains("bench id: empty"));
+    CHECK(count(*c, "SELECT count(*) FROM fogbench.runs") == 0);
+    CHECK(count(*c, "SELECT count(*) FROM fogbench.samples") == 0);
+    std::filesystem::remove(path);
+  }
+}
