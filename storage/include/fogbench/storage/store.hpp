@@ -378,8 +378,6 @@ class Store {
   StoreResult<std::int64_t> add_plan_event(std::optional<std::int64_t> plan_id, std::string_view kind,
                                            std::string_view detail_json);
   StoreResult<std::vector<PlanEvent>> plan_events(std::optional<std::int64_t> plan_id);
-};
-
   // --- the plant outbox (issue 14): runs waiting to be replicated to the plant's PostgreSQL,
   // taken in the order queued (store_outbox.cpp, docs/plant.md).
   // Queues the run; a run already waiting keeps its entry (whose id is returned).
