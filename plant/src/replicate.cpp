@@ -1,6 +1,7 @@
 // Replication of one completed run from a bench's SQLite store to the plant, in one
-// transaction: delete what the plant held for (bench_id, run_id), then insert the run, its units,
-// events, models, verifications and figures, and COPY its samples.
+// transaction: delete what the plant held for (bench_id, run_id), then insert the run, its
+// identity, its units, events, models, verifications and figures, and COPY its samples; the
+// certificates of its units' serials are inserted when the plant does not hold them yet.
 #include <charconv>
 #include <cmath>
 
@@ -94,6 +95,14 @@ PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& ben
   }
   auto verifications = bench.list_verifications(run_id);
   if (!verifications) return std::unexpected(from_store(verifications.error()));
+  auto identity = bench.get_run_identity(run_id);
+  if (!identity) return std::unexpected(from_store(identity.error()));
+  std::vector<storage::CertificateRecord> certificates;
+  for (const auto& u : run.units) {
+    auto cs = bench.list_certificates(u.serial);
+    if (!cs) return std::unexpected(from_store(cs.error()));
+    for (auto& cert : *cs) certificates.push_back(std::move(cert));
+  }
 
   ReplicateStats stats;
   const std::string b(bench_id);
@@ -131,6 +140,38 @@ PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& ben
         !ok)
       return fail(ok.error());
     ++stats.units;
+  }
+  // The identity (none for a run recorded before the bench kept one).
+  if (*identity) {
+    const storage::RunIdentity& ri = **identity;
+    if (auto ok = plant.query(
+            "INSERT INTO fogbench.run_identity (bench_id, run_id, station_id, operator, operator_source, "
+            "software_version, git_hash, config_sha256, profile_sha256) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9)",
+            {b, rid, ri.station_id, ri.operator_name, ri.operator_source, ri.software_version, ri.git_hash,
+             ri.config_sha256, ri.profile_sha256},
+            "insert the run's identity");
+        !ok)
+      return fail(ok.error());
+    for (const auto& ui : ri.units) {
+      if (auto ok = plant.query("INSERT INTO fogbench.unit_identity (bench_id, run_id, unit_index, powered_on_at, "
+                                "since_power_on_s) VALUES ($1, $2, $3, $4, $5)",
+                                {b, rid, std::to_string(ui.unit_index), ui.powered_on_at,
+                                 ui.since_power_on_s ? num_text(*ui.since_power_on_s) : std::nullopt},
+                                "insert the identity of unit " + std::to_string(ui.unit_index));
+          !ok)
+        return fail(ok.error());
+    }
+  }
+  // Certificates are immutable and belong to a serial: one sent before stays as it is.
+  for (const auto& cert : certificates) {
+    if (auto ok = plant.query(
+            "INSERT INTO fogbench.certificates (bench_id, certificate_id, serial, model_id, model_version, sha256, "
+            "json, created_at) VALUES ($1, $2, $3, $4, $5, $6, $7, $8) ON CONFLICT DO NOTHING",
+            {b, std::to_string(cert.id), cert.serial, std::to_string(cert.model_id),
+             std::to_string(cert.model_version), cert.sha256, cert.json, cert.created_at},
+            "insert certificate " + std::to_string(cert.id));
+        !ok)
+      return fail(ok.error());
   }
 
   // Events by COPY.
@@ -192,13 +233,15 @@ PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& ben
         else data += "\\N";
         data += '\t';
         put_int(data, s.flags);
-        data += '\t';
-        put_number(data, s.since_power_on_s);
+        for (double v : {s.since_power_on_s, s.compensated_dph}) {
+          data += '\t';
+          put_number(data, v);
+        }
         data += '\n';
       }
       auto n = plant.copy_in(
           "COPY fogbench.samples (bench_id, run_id, unit_index, t_s, wall_time, setpoint_c, chamber_c, gyro_dph, "
-          "frames, t1_c, t2_c, phase, step, flags, since_power_on_s) FROM STDIN",
+          "frames, t1_c, t2_c, phase, step, flags, since_power_on_s, compensated_dph) FROM STDIN",
           data, "copy the samples of unit " + std::to_string(u.unit_index));
       if (!n) return fail(n.error());
       stats.samples += *n;

@@ -3,8 +3,9 @@
 //
 // Everything lives in the schema `fogbench`. Every table is keyed by (bench_id, run_id, ...):
 // a bench's own ids are unique only on that bench. Later migrations add what other parts
-// bring (issue 13: the run identity and certificates get tables keyed the same way, with
-// ON DELETE CASCADE from fogbench.runs, so that a re-sent run replaces them too).
+// bring: version 2 adds the run identity (keyed the same way, with ON DELETE CASCADE from
+// fogbench.runs, so that a re-sent run replaces it too), the certificates and each sample's
+// compensated rate.
 #include <libpq-fe.h>
 
 #include "fogbench/plant/plant.hpp"
@@ -129,11 +130,61 @@ CREATE TABLE fogbench.figures (
 CREATE INDEX figures_name ON fogbench.figures (name, bench_id, run_id);
 )sql";
 
+// Version 2: what issue 13 and the live compensation added to the bench. The run's identity and
+// its units' power-on, replaced with the run (ON DELETE CASCADE); certificates belong to a
+// serial, not to a run (immutable: no foreign key, inserted once, never deleted by a re-send);
+// each sample's compensated rate (deg/h, NULL when the daemon computed none). A certificate's
+// JSON is text, not jsonb: its sha256 is of those exact bytes (jsonb would reorder the keys).
+constexpr const char* kV2 = R"sql(
+ALTER TABLE fogbench.samples ADD COLUMN compensated_dph double precision;
+
+CREATE TABLE fogbench.run_identity (
+  bench_id          text NOT NULL,
+  run_id            bigint NOT NULL,
+  station_id        text NOT NULL DEFAULT '',
+  operator          text NOT NULL DEFAULT '',
+  operator_source   text NOT NULL DEFAULT 'none',
+  software_version  text NOT NULL,
+  git_hash          text NOT NULL,
+  config_sha256     text NOT NULL,
+  profile_sha256    text NOT NULL,
+  PRIMARY KEY (bench_id, run_id),
+  FOREIGN KEY (bench_id, run_id) REFERENCES fogbench.runs ON DELETE CASCADE
+);
+CREATE INDEX run_identity_station ON fogbench.run_identity (station_id);
+CREATE INDEX run_identity_operator ON fogbench.run_identity (operator);
+
+CREATE TABLE fogbench.unit_identity (
+  bench_id          text NOT NULL,
+  run_id            bigint NOT NULL,
+  unit_index        integer NOT NULL CHECK (unit_index >= 0),
+  powered_on_at     timestamptz,
+  since_power_on_s  double precision,
+  PRIMARY KEY (bench_id, run_id, unit_index),
+  FOREIGN KEY (bench_id, run_id) REFERENCES fogbench.runs ON DELETE CASCADE
+);
+
+CREATE TABLE fogbench.certificates (
+  bench_id        text NOT NULL,
+  certificate_id  bigint NOT NULL,
+  serial          text NOT NULL,
+  model_id        bigint NOT NULL,
+  model_version   integer NOT NULL,
+  sha256          text NOT NULL,
+  json            text NOT NULL,
+  created_at      timestamptz NOT NULL,
+  PRIMARY KEY (bench_id, certificate_id)
+);
+CREATE INDEX certificates_serial ON fogbench.certificates (serial);
+CREATE INDEX certificates_sha256 ON fogbench.certificates (sha256);
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "runs, units, samples, events, models, verifications, figures", kV1},
+    {2, "samples.compensated_dph, run_identity, unit_identity, certificates", kV2},
 };
 
-constexpr int kCurrent = 1;
+constexpr int kCurrent = 2;
 
 // The version recorded, 0 when the schema is absent.
 PlantResult<int> read_version(Connection& c) {

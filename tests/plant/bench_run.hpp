@@ -36,9 +36,12 @@ inline std::vector<sim::SetpointSample> exp1_program() {
 }
 
 // Records one completed run of two units (lots as given) with `repeat` copies of the profile's
-// samples per unit (time shifted), fits and verifies each unit. Returns the run id.
+// samples per unit (time shifted), fits and verifies each unit. Every seventh sample carries a
+// compensated rate (gyro_dph - 0.5 deg/h), the others none. The run carries `identity` when
+// given (a run of a bench before issue 13 has none). Returns the run id.
 inline std::int64_t record_run(storage::Store& store, const std::vector<std::optional<std::string>>& lots,
-                               int repeat = 1, std::uint64_t seed = 5, bool analyse = true) {
+                               int repeat = 1, std::uint64_t seed = 5, bool analyse = true,
+                               const std::optional<storage::RunIdentity>& identity = std::nullopt) {
   sim::SimConfig cfg;
   cfg.seed = seed;
   cfg.units = {sim::UnitParams{}, sim::UnitParams{}};
@@ -50,6 +53,7 @@ inline std::int64_t record_run(storage::Store& store, const std::vector<std::opt
   nr.profile_name = "exp1";
   nr.unit_serials = {"FOG-0001", "FOG-0002"};
   nr.unit_lots = lots;
+  nr.identity = identity;
   auto id = store.create_run(nr);
   REQUIRE(id);
   REQUIRE(store.set_run_state(*id, storage::RunState::running, "started"));
@@ -73,6 +77,7 @@ inline std::int64_t record_run(storage::Store& store, const std::vector<std::opt
         r.step = d.step.empty() ? 0 : d.step[i];
         r.flags = static_cast<std::uint8_t>(i % 97 == 0 ? 1 : 0);
         r.since_power_on_s = i % 2 ? storage::kNoValue : r.t_s + 60;
+        r.compensated_dph = i % 7 ? storage::kNoValue : r.gyro_dph - 0.5;
         rows.push_back(r);
       }
     }

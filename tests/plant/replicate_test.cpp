@@ -29,6 +29,29 @@ storage::Store open_store(const std::filesystem::path& p) {
   return std::move(*s);
 }
 
+// The identity a bench's fogbenchd records with a run (issue 13): unit 0 seen powering on,
+// unit 1 not (it was on before the daemon started).
+storage::RunIdentity bench_identity() {
+  storage::RunIdentity id;
+  id.station_id = "station-7";
+  id.operator_name = "Ada O'Lovelace";
+  id.operator_source = "client";
+  id.software_version = "0.1.0";
+  id.git_hash = "58b9f8ad20ce2bfcb4bae6985d95cf60120ac562";
+  id.config_sha256 = std::string(64, 'a');
+  id.profile_sha256 = std::string(64, 'b');
+  id.units = {{0, "FOG-0001", "2026-11-25T08:00:00Z", 120.5}, {1, "FOG-0002", std::nullopt, std::nullopt}};
+  return id;
+}
+
+// One value of a one-row query, or nullopt for NULL.
+std::optional<std::string> value(plant::Connection& c, const std::string& sql, const std::vector<std::optional<std::string>>& params) {
+  auto r = c.query(sql, params, "value");
+  REQUIRE(r);
+  REQUIRE(r->rows.size() == 1);
+  return r->rows.at(0).at(0);
+}
+
 }  // namespace
 
 TEST_CASE("a completed run of a real SQLite store replicates whole, and sending it twice changes nothing") {
@@ -36,7 +59,15 @@ TEST_CASE("a completed run of a real SQLite store replicates whole, and sending 
   auto path = test::temp_store_path("whole");
   auto bench = open_store(path);
   const std::string quoted = "LOT-\"7\" O'Neil; DROP TABLE x --";
-  const auto id = test::record_run(bench, {std::string("LOT-A"), quoted});
+  const auto id = test::record_run(bench, {std::string("LOT-A"), quoted}, 1, 5, true, bench_identity());
+  // A certificate of unit 1's model (its JSON as canonical bytes, which its hash is of).
+  const std::string cert_json = R"({"model":{"id":2},"serial":"FOG-0002","sha256":"","text":"a tab\there"})";
+  {
+    auto ms = bench.list_models("FOG-0002");
+    REQUIRE(ms);
+    REQUIRE(ms->size() == 1);
+    REQUIRE(bench.put_certificate({"FOG-0002", ms->front().id, ms->front().version, std::string(64, 'c'), cert_json}));
+  }
   REQUIRE(bench.enqueue_replication(id));
   // Queued twice while waiting: one entry.
   CHECK(*bench.enqueue_replication(id) == *bench.enqueue_replication(id));
@@ -80,6 +111,60 @@ TEST_CASE("a completed run of a real SQLite store replicates whole, and sending 
   CHECK(std::stoll(*sums->rows[0][2]) == no_power_on);
   CHECK(std::stoll(*sums->rows[0][3]) == flagged);
   CHECK(no_power_on > 0);
+  // The compensated rate, NULL where the daemon computed none.
+  double compensated = 0;
+  std::int64_t n_compensated = 0;
+  for (int u = 0; u < 2; ++u) {
+    auto rows = bench.get_samples(id, u, 0, 1000000);
+    REQUIRE(rows);
+    for (const auto& r : *rows)
+      if (!std::isnan(r.compensated_dph)) {
+        compensated += r.compensated_dph;
+        ++n_compensated;
+      }
+  }
+  REQUIRE(n_compensated > 0);
+  REQUIRE(n_compensated < n);
+  auto comp = c->query("SELECT sum(compensated_dph), count(compensated_dph) FROM fogbench.samples WHERE run_id = $1",
+                       {rid}, "compensated");
+  REQUIRE(comp);
+  CHECK(std::stod(*comp->rows[0][0]) == Approx(compensated).epsilon(1e-12));
+  CHECK(std::stoll(*comp->rows[0][1]) == n_compensated);
+
+  // The run's identity and its units' power-on, exactly as the bench holds them.
+  auto ident = c->query("SELECT station_id, operator, operator_source, software_version, git_hash, config_sha256, "
+                        "profile_sha256 FROM fogbench.run_identity WHERE bench_id = 'bench-1' AND run_id = $1",
+                        {rid}, "identity");
+  REQUIRE(ident);
+  REQUIRE(ident->rows.size() == 1);
+  const auto want = bench_identity();
+  CHECK(ident->rows[0][0] == std::optional(want.station_id));
+  CHECK(ident->rows[0][1] == std::optional(want.operator_name));
+  CHECK(ident->rows[0][2] == std::optional<std::string>("client"));
+  CHECK(ident->rows[0][3] == std::optional(want.software_version));
+  CHECK(ident->rows[0][4] == std::optional(want.git_hash));
+  CHECK(ident->rows[0][5] == std::optional(want.config_sha256));
+  CHECK(ident->rows[0][6] == std::optional(want.profile_sha256));
+  auto uid = c->query("SELECT unit_index, powered_on_at = '2026-11-25T08:00:00Z'::timestamptz, since_power_on_s "
+                      "FROM fogbench.unit_identity WHERE run_id = $1 ORDER BY unit_index",
+                      {rid}, "unit identity");
+  REQUIRE(uid);
+  REQUIRE(uid->rows.size() == 2);
+  CHECK(uid->rows[0][1] == std::optional<std::string>("t"));
+  CHECK(std::stod(*uid->rows[0][2]) == 120.5);
+  CHECK_FALSE(uid->rows[1][1].has_value());
+  CHECK_FALSE(uid->rows[1][2].has_value());
+
+  // The certificate of unit 1's serial, its JSON byte for byte (its hash is of those bytes).
+  auto certs = bench.list_certificates("FOG-0002");
+  REQUIRE(certs);
+  REQUIRE(certs->size() == 1);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.certificates") == 1);
+  CHECK(value(*c, "SELECT json FROM fogbench.certificates WHERE bench_id = 'bench-1' AND certificate_id = $1",
+              {std::to_string(certs->front().id)}) == std::optional(cert_json));
+  CHECK(value(*c, "SELECT serial || ' ' || model_id || ' ' || model_version || ' ' || sha256 FROM fogbench.certificates",
+              {}) == std::optional("FOG-0002 " + std::to_string(certs->front().model_id) + " " +
+                                   std::to_string(certs->front().model_version) + " " + std::string(64, 'c')));
 
   // Units with their lots exactly (the quotes are data, never SQL).
   auto units = c->query("SELECT serial, lot FROM fogbench.units WHERE run_id = $1 ORDER BY unit_index", {rid}, "units");
@@ -135,11 +220,17 @@ TEST_CASE("a completed run of a real SQLite store replicates whole, and sending 
   CHECK(count(*c, "SELECT count(*) FROM fogbench.figures WHERE name = 'ratio'") == 2);
   CHECK(count(*c, "SELECT count(*) FROM fogbench.events WHERE run_id = " + rid) ==
         static_cast<std::int64_t>(detail->events.size()));
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.run_identity") == 1);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.unit_identity") == 2);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.certificates") == 1);
+  CHECK(count(*c, "SELECT count(compensated_dph) FROM fogbench.samples") == n_compensated);
   // Another bench's run 1 is another run.
   REQUIRE(bench.enqueue_replication(id));
   REQUIRE(*plant::send_outbox(*c, bench, "bench-2", 100) == 1);
   CHECK(count(*c, "SELECT count(*) FROM fogbench.samples") == 2 * n);
   CHECK(count(*c, "SELECT count(DISTINCT bench_id) FROM fogbench.runs") == 2);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.run_identity") == 2);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.certificates") == 2);
   std::filesystem::remove(path);
 }
 
@@ -196,6 +287,10 @@ TEST_CASE("the server killed mid-COPY commits nothing, the outbox keeps the run,
                   "HAVING count(*) > 1) d") == 0);
   CHECK(count(*c, "SELECT count(*) FROM fogbench.runs a JOIN fogbench.runs b ON a.run_id = " + std::to_string(big) +
                       " AND b.run_id = " + std::to_string(small) + " WHERE a.replicated_at < b.replicated_at") == 1);
+  // Runs recorded without an identity (as before issue 13) and with no certificates: none sent.
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.run_identity") == 0);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.unit_identity") == 0);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.certificates") == 0);
   std::filesystem::remove(path);
 }
 
@@ -221,7 +316,7 @@ TEST_CASE("a refused login, a newer schema and bad ids are clear errors and writ
       CHECK(c.error().code == plant::PlantErrc::schema_too_new);
       CHECK_THAT(c.error().message, Catch::Contains("schema version 99 is newer"));
     }
-    CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,99");
+    CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2,99");
   }
   SECTION("a lot id with a control character, an empty bench id") {
     auto path = test::temp_store_path("badlot");
@@ -244,4 +339,45 @@ TEST_CASE("a refused login, a newer schema and bad ids are clear errors and writ
     CHECK(count(*c, "SELECT count(*) FROM fogbench.samples") == 0);
     std::filesystem::remove(path);
   }
+}
+
+TEST_CASE("a plant at schema 1 migrates to 2 on a bench's connection, keeping what it held") {
+  PgServer pg;
+  auto path = test::temp_store_path("migrate");
+  auto bench = open_store(path);
+  const auto old_run = test::record_run(bench, {std::string("L1"), std::nullopt}, 1, 3, false);
+  {
+    // A plant as a fogbench of schema 1 left it: a run replicated, then version 2's additions
+    // taken away again (exactly what migration 2 adds).
+    auto c = plant::Connection::open(pg.conninfo(), true);
+    REQUIRE(c);
+    REQUIRE(plant::replicate_run(*c, bench, "b1", old_run));
+    REQUIRE(c->exec("ALTER TABLE fogbench.samples DROP COLUMN compensated_dph; "
+                    "DROP TABLE fogbench.run_identity, fogbench.unit_identity, fogbench.certificates; "
+                    "DELETE FROM fogbench.schema_version WHERE version = 2",
+                    "back to schema 1"));
+  }
+  CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1");
+  CHECK(pg.psql("SELECT to_regclass('fogbench.run_identity') IS NULL") == "t");
+  // A reader does not migrate: it names the versions.
+  auto reader = plant::Connection::open(pg.conninfo(), false);
+  REQUIRE_FALSE(reader);
+  CHECK(reader.error().code == plant::PlantErrc::schema_missing);
+  CHECK_THAT(reader.error().message, Catch::Contains("schema version 1 is older than 2"));
+
+  // A bench migrates: version 2 recorded, the run held before kept (its samples' compensated
+  // rate NULL), and a run with identity and compensated rates then replicates in full.
+  auto c = plant::Connection::open(pg.conninfo(), true);
+  REQUIRE(c);
+  CHECK(c->schema_version() == 2);
+  CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2");
+  const std::string old_rid = std::to_string(old_run);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.samples WHERE run_id = " + old_rid) == *bench.count_samples(old_run));
+  CHECK(count(*c, "SELECT count(compensated_dph) FROM fogbench.samples") == 0);
+  const auto run = test::record_run(bench, {std::string("L2"), std::nullopt}, 1, 4, false, bench_identity());
+  REQUIRE(plant::replicate_run(*c, bench, "b1", run));
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.run_identity WHERE run_id = " + std::to_string(run)) == 1);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.unit_identity WHERE run_id = " + std::to_string(run)) == 2);
+  CHECK(count(*c, "SELECT count(compensated_dph) FROM fogbench.samples WHERE run_id = " + std::to_string(run)) > 0);
+  std::filesystem::remove(path);
 }

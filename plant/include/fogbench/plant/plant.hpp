@@ -90,8 +90,10 @@ struct ReplicateStats {
 
 // Replicates one run of the bench's store to the plant in ONE transaction: what the plant held
 // for (bench_id, run_id) is replaced (sending twice is harmless), and a failure anywhere (the
-// server gone mid-COPY) commits nothing. Sends the run, its units (serial, lot), samples (COPY),
-// events, the models fitted on it, its verifications and their figures.
+// server gone mid-COPY) commits nothing. Sends the run, its identity (when it has one), its units
+// (serial, lot), samples (COPY, with the compensated rate), events, the models fitted on it, its
+// verifications and their figures, and the certificates of its units' serials (each once: a
+// certificate the plant holds is left as it is).
 PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& bench, std::string_view bench_id,
                                           std::int64_t run_id);
 
