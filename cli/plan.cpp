@@ -201,6 +201,7 @@ void add_plan_commands(CLI::App& app, int& code) {
   auto* plan = app.add_subcommand("plan", "Qualification plans on fogbenchd: validate, start, follow, abort, report");
   plan->require_subcommand(1);
 
+  // send_plan and simple are copied into the callbacks that use them: they outlive this function.
   auto send_plan = [&](const std::string& cmd, bool need_units) -> std::expected<json, int> {
     auto text = read_plan(file);
     if (!text) {
@@ -221,7 +222,7 @@ void add_plan_commands(CLI::App& app, int& code) {
   validate->add_option("plan", file, "Plan file, or the name of a shipped plan (paper, qualification)")->required();
   validate->add_option("--unit", units, "Serial of a unit (repeatable): also checks it is configured and has a model "
                                         "where a verify step needs one");
-  validate->callback([&] {
+  validate->callback([&, send_plan] {
     auto r = send_plan("plan.validate", false);
     if (!r) {
       code = r.error();
@@ -250,7 +251,7 @@ void add_plan_commands(CLI::App& app, int& code) {
   start->add_flag("--wait", wait, "Follow the plan with a progress line on stderr until it ends; exit 0 all pass, "
                                   "3 marginal, 1 a unit failed, 2 the plan did not complete");
   start->add_flag("-q,--quiet", quiet, "With --wait: no progress line");
-  start->callback([&] {
+  start->callback([&, send_plan] {
     auto r = send_plan("plan.start", true);
     if (!r) {
       code = r.error();
@@ -387,7 +388,7 @@ void add_plan_commands(CLI::App& app, int& code) {
   add_common(add, common);
   add->add_option("plan", file, "Plan file, or the name of a shipped plan")->required();
   add->add_option("--unit", units, "Serial of a unit under test (repeatable)")->required();
-  add->callback([&] {
+  add->callback([&, send_plan] {
     auto r = send_plan("queue.add", true);
     if (!r) {
       code = r.error();
@@ -400,12 +401,12 @@ void add_plan_commands(CLI::App& app, int& code) {
   auto* remove = queue->add_subcommand("remove", "Take a queued plan out of the queue (a running one: plan abort)");
   add_common(remove, common);
   remove->add_option("id", plan_id, "Plan id")->required();
-  remove->callback([&] { simple("queue.remove", {{"plan_id", plan_id}}, "plan " + std::to_string(plan_id) + " removed from the queue"); });
+  remove->callback([&, simple] { simple("queue.remove", {{"plan_id", plan_id}}, "plan " + std::to_string(plan_id) + " removed from the queue"); });
   auto* move = queue->add_subcommand("move", "Move a queued plan to a position (1: next)");
   add_common(move, common);
   move->add_option("id", plan_id, "Plan id")->required();
   move->add_option("position", position, "New position, 1 = next")->required();
-  move->callback([&] {
+  move->callback([&, simple] {
     simple("queue.move", {{"plan_id", plan_id}, {"position", position}},
            "plan " + std::to_string(plan_id) + " moved to position " + std::to_string(position));
   });
