@@ -12,6 +12,7 @@
 #include "common.hpp"
 #include "fogbench/model/sha256.hpp"
 #include "table.hpp"
+#include "html.hpp"
 
 namespace fogbench::cli {
 
@@ -20,20 +21,6 @@ using nlohmann::json;
 namespace {
 
 constexpr const char* kScriptOpen = "<script type=\"application/json\" id=\"fogbench-certificate\">";
-
-std::string esc(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    switch (c) {
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '&': o += "&amp;"; break;
-      case '"': o += "&quot;"; break;
-      default: o += c;
-    }
-  }
-  return o;
-}
 
 std::string text_of(const json& v, int digits = 4) {
   if (v.is_null()) return "-";
@@ -72,11 +59,11 @@ th{background:#f1f3f6}.sub{color:#5a6472}.hash{font-family:monospace;font-size:8
 
 std::string table(const std::vector<std::string>& head, const std::vector<std::vector<std::string>>& rows) {
   std::string s = "<table><tr>";
-  for (const auto& h : head) s += "<th>" + esc(h) + "</th>";
+  for (const auto& h : head) s += "<th>" + html_escape(h) + "</th>";
   s += "</tr>";
   for (const auto& r : rows) {
     s += "<tr>";
-    for (const auto& c : r) s += "<td>" + esc(c) + "</td>";
+    for (const auto& c : r) s += "<td>" + html_escape(c) + "</td>";
     s += "</tr>";
   }
   return s + "</table>";
@@ -111,13 +98,13 @@ std::string certificate_html(const json& cert) {
   const json& m = cert["model"];
   const std::string verdict = str(cert, "verdict");
   std::string b;
-  b += "<h1>Certificate of qualification: " + esc(str(cert, "serial")) + "</h1>";
-  b += "<div class=\"sub\">Thermal drift model, version " + esc(str(m, "version")) + ", issued " + esc(str(cert, "issued_at")) +
-       " by station " + esc(str(cert, "station_id")) + " with fogbench " + esc(str(cert["software"], "version")) + " (" +
-       esc(str(cert["software"], "git_hash")) + ")</div>";
-  b += "<p>Verdict: <span class=\"" + std::string(verdict == "pass" ? "pass" : "fail") + "\">" + esc(verdict) + "</span></p>";
-  b += "<h2>Model coefficients (1 sigma)</h2><p class=\"sub\">" + esc(str(m, "terms")) + " (" + esc(str(m, "method")) +
-       " method), noise std sigma_a " + esc(text_of(m["sigma_a_dph"])) + " deg/h</p>";
+  b += "<h1>Certificate of qualification: " + html_escape(str(cert, "serial")) + "</h1>";
+  b += "<div class=\"sub\">Thermal drift model, version " + html_escape(str(m, "version")) + ", issued " + html_escape(str(cert, "issued_at")) +
+       " by station " + html_escape(str(cert, "station_id")) + " with fogbench " + html_escape(str(cert["software"], "version")) + " (" +
+       html_escape(str(cert["software"], "git_hash")) + ")</div>";
+  b += "<p>Verdict: <span class=\"" + std::string(verdict == "pass" ? "pass" : "fail") + "\">" + html_escape(verdict) + "</span></p>";
+  b += "<h2>Model coefficients (1 sigma)</h2><p class=\"sub\">" + html_escape(str(m, "terms")) + " (" + html_escape(str(m, "method")) +
+       " method), noise std sigma_a " + html_escape(text_of(m["sigma_a_dph"])) + " deg/h</p>";
   std::vector<std::vector<std::string>> rows;
   for (const auto& t : m["coefficients"])
     rows.push_back({str(t, "term"), text_of(t["value"], 6), text_of(t["sigma"], 3), str(t, "unit"), text_of(t["lag_s"])});
@@ -144,12 +131,12 @@ std::string certificate_html(const json& cert) {
                     id.is_object() ? str(id, "software_version") + " " + str(id, "git_hash").substr(0, 12) : "-"});
   }
   b += table({"run", "role", "profile", "ended", "station", "operator", "software"}, rows);
-  b += "<h2>Integrity</h2><p class=\"hash\">SHA-256 " + esc(str(cert, "sha256")) +
+  b += "<h2>Integrity</h2><p class=\"hash\">SHA-256 " + html_escape(str(cert, "sha256")) +
        "</p><p class=\"sub\">Check with <code>fogctl cert --check FILE</code>: the hash of the canonical JSON embedded in this page.</p>";
   // "</" inside a script would end it: JSON's "\/" keeps it out and parses back to "/".
   std::string j = cert.dump(), safe;
   for (std::size_t i = 0; i < j.size(); ++i) safe += (j[i] == '/' && i > 0 && j[i - 1] == '<') ? std::string("\\/") : std::string(1, j[i]);
-  return "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>Certificate " + esc(str(cert, "serial")) +
+  return "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>Certificate " + html_escape(str(cert, "serial")) +
          "</title><style>" + kStyle + "</style></head><body>" + b + kScriptOpen + safe + "</script></body></html>\n";
 }
 

@@ -1,5 +1,6 @@
 // fogctl fleet spc --html (fleet_html.hpp).
 #include "fleet_html.hpp"
+#include "html.hpp"
 
 #include <cmath>
 
@@ -10,20 +11,6 @@ extern const char* const kUplotCss;
 }  // namespace vendor
 
 namespace {
-
-std::string escape(const std::string& s) {
-  std::string out;
-  for (char c : s) {
-    switch (c) {
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '&': out += "&amp;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
-    }
-  }
-  return out;
-}
 
 // JSON inside a <script>: "</" would end it.
 std::string script_json(const nlohmann::json& j) {
@@ -82,23 +69,23 @@ std::string fleet_html(const std::vector<plant::FigureSpc>& figures, const nlohm
     }
     data.push_back({{"name", f.name}, {"x", x}, {"mr", mr}, {"flag", flag}, {"center", f.chart.center},
                     {"ucl", f.chart.ucl}, {"lcl", f.chart.lcl}, {"mr_bar", f.chart.mr_bar}, {"mr_ucl", f.chart.mr_ucl}});
-    body += "<h2>" + escape(f.name) + "</h2><p class=note>" + std::to_string(f.values.size()) +
-            " values; limits from " + escape(f.baseline) + "; " + std::to_string(c["signals"].size()) +
+    body += "<h2>" + html_escape(f.name) + "</h2><p class=note>" + std::to_string(f.values.size()) +
+            " values; limits from " + html_escape(f.baseline) + "; " + std::to_string(c["signals"].size()) +
             " signals</p><div id=chart" + std::to_string(i) + "></div><div id=mr" + std::to_string(i) + "></div>";
     if (!f.flagged_units.empty()) {
       body += "<table><tr><th>serial</th><th>lot</th><th>bench</th><th>run</th><th>unit</th><th>value</th></tr>";
       for (auto k : f.flagged_units) {
         const auto& v = f.values[k];
-        body += "<tr><td>" + escape(v.serial) + "</td><td>" + escape(v.lot.value_or("-")) + "</td><td>" +
-                escape(v.bench) + "</td><td>" + std::to_string(v.run_id) + "</td><td>" +
+        body += "<tr><td>" + html_escape(v.serial) + "</td><td>" + html_escape(v.lot.value_or("-")) + "</td><td>" +
+                html_escape(v.bench) + "</td><td>" + std::to_string(v.run_id) + "</td><td>" +
                 std::to_string(v.unit_index) + "</td><td>" + std::to_string(v.value) + "</td></tr>";
       }
       body += "</table>";
     }
     if (c.contains("lot_comparison")) {
       const json& l = c["lot_comparison"];
-      body += "<p>lot " + escape(l["lot_a"].get<std::string>()) + " &minus; lot " +
-              escape(l["lot_b"].get<std::string>()) + ": " + std::to_string(l["difference"].get<double>()) + " [" +
+      body += "<p>lot " + html_escape(l["lot_a"].get<std::string>()) + " &minus; lot " +
+              html_escape(l["lot_b"].get<std::string>()) + ": " + std::to_string(l["difference"].get<double>()) + " [" +
               std::to_string(l["low"].get<double>()) + ", " + std::to_string(l["high"].get<double>()) + "] (Welch, " +
               std::to_string(static_cast<int>(std::lround(100 * l["level"].get<double>()))) + "%)</p>";
     }

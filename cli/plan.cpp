@@ -14,6 +14,7 @@
 
 #include "client_commands.hpp"
 #include "common.hpp"
+#include "html.hpp"
 
 namespace fogbench::cli {
 
@@ -120,20 +121,6 @@ std::expected<json, ClientError> follow(const Common& o, std::int64_t id, bool q
   }
 }
 
-std::string esc(const std::string& s) {
-  std::string o;
-  for (char ch : s) {
-    switch (ch) {
-      case '&': o += "&amp;"; break;
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '"': o += "&quot;"; break;
-      default: o += ch;
-    }
-  }
-  return o;
-}
-
 }  // namespace
 
 int plan_exit_code(const json& s) {
@@ -150,19 +137,19 @@ std::string plan_report_html(const json& s) {
   std::ostringstream h;
   const json& p = s["progress"];
   h << "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>plan " << s["plan_id"] << " "
-    << esc(text_of(s["name"])) << "</title>\n<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse;"
+    << html_escape(text_of(s["name"])) << "</title>\n<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse;"
     << "margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;text-align:left}.pass{background:#dfd}"
     << ".marginal{background:#ffd}.fail,.no{background:#fdd}pre{background:#f6f6f6;padding:1em}</style></head><body>\n";
-  h << "<h1>Qualification plan " << s["plan_id"] << ": " << esc(text_of(s["name"])) << "</h1>\n";
-  h << "<p>Source " << esc(text_of(s["source"])) << ", state <b>" << esc(text_of(s["state"])) << "</b>"
-    << (s["reason"].get<std::string>().empty() ? "" : ": " + esc(s["reason"].get<std::string>())) << ". Started "
-    << esc(text_of(s["started_at"])) << ", ended " << esc(text_of(s["ended_at"])) << ".</p>\n";
+  h << "<h1>Qualification plan " << s["plan_id"] << ": " << html_escape(text_of(s["name"])) << "</h1>\n";
+  h << "<p>Source " << html_escape(text_of(s["source"])) << ", state <b>" << html_escape(text_of(s["state"])) << "</b>"
+    << (s["reason"].get<std::string>().empty() ? "" : ": " + html_escape(s["reason"].get<std::string>())) << ". Started "
+    << html_escape(text_of(s["started_at"])) << ", ended " << html_escape(text_of(s["ended_at"])) << ".</p>\n";
   h << "<h2>Verdicts</h2>\n<table><tr><th>serial</th><th>verdict</th><th>why</th></tr>\n";
   for (const auto& u : p["units"]) {
     const std::string v = text_of(u["verdict"]);
     std::string why;
-    for (const auto& r : u["reasons"]) why += esc(r.get<std::string>()) + "<br>";
-    h << "<tr class=\"" << esc(v) << "\"><td>" << esc(text_of(u["serial"])) << "</td><td>" << esc(v) << "</td><td>"
+    for (const auto& r : u["reasons"]) why += html_escape(r.get<std::string>()) + "<br>";
+    h << "<tr class=\"" << html_escape(v) << "\"><td>" << html_escape(text_of(u["serial"])) << "</td><td>" << html_escape(v) << "</td><td>"
       << why << "</td></tr>\n";
   }
   h << "</table>\n<h2>Steps and runs</h2>\n<table><tr><th>step</th><th>profile</th><th>purpose</th><th>attempt</th>"
@@ -170,8 +157,8 @@ std::string plan_report_html(const json& s) {
   for (const auto& r : p["runs"]) {
     std::string units;
     for (const auto& u : r["units"]) units += (units.empty() ? "" : ", ") + u.get<std::string>();
-    h << "<tr><td>" << r["step"] << "</td><td>" << esc(text_of(r["profile"])) << "</td><td>" << esc(text_of(r["purpose"]))
-      << "</td><td>" << (r["attempt"].get<int>() + 1) << "</td><td>" << r["run_id"] << "</td><td>" << esc(units)
+    h << "<tr><td>" << r["step"] << "</td><td>" << html_escape(text_of(r["profile"])) << "</td><td>" << html_escape(text_of(r["purpose"]))
+      << "</td><td>" << (r["attempt"].get<int>() + 1) << "</td><td>" << r["run_id"] << "</td><td>" << html_escape(units)
       << "</td></tr>\n";
   }
   h << "</table>\n<h2>Measurements against the limits</h2>\n<table><tr><th>serial</th><th>step</th><th>run</th>"
@@ -179,13 +166,13 @@ std::string plan_report_html(const json& s) {
   for (const auto& u : p["units"])
     for (const auto& m : u["measurements"]) {
       const bool met = m["met"].get<bool>();
-      h << "<tr class=\"" << (met ? "" : "no") << "\"><td>" << esc(text_of(u["serial"])) << "</td><td>" << m["step"]
-        << "</td><td>" << m["run_id"] << "</td><td>" << esc(text_of(m["measurement"])) << "</td><td>"
-        << (m["value"].is_number() ? num_text(m["value"], 4) + " " + esc(text_of(m["unit"])) : "not measured")
-        << "</td><td>" << esc(text_of(m["limit"])) << " (line " << m["line"] << ")</td><td>" << (met ? "yes" : "no")
-        << "</td><td>" << esc(text_of(m["on_fail"])) << "</td><td>" << esc(m.value("note", "")) << "</td></tr>\n";
+      h << "<tr class=\"" << (met ? "" : "no") << "\"><td>" << html_escape(text_of(u["serial"])) << "</td><td>" << m["step"]
+        << "</td><td>" << m["run_id"] << "</td><td>" << html_escape(text_of(m["measurement"])) << "</td><td>"
+        << (m["value"].is_number() ? num_text(m["value"], 4) + " " + html_escape(text_of(m["unit"])) : "not measured")
+        << "</td><td>" << html_escape(text_of(m["limit"])) << " (line " << m["line"] << ")</td><td>" << (met ? "yes" : "no")
+        << "</td><td>" << html_escape(text_of(m["on_fail"])) << "</td><td>" << html_escape(m.value("note", "")) << "</td></tr>\n";
     }
-  h << "</table>\n<h2>The plan</h2>\n<pre>" << esc(text_of(s["plan_text"])) << "</pre>\n"
+  h << "</table>\n<h2>The plan</h2>\n<pre>" << html_escape(text_of(s["plan_text"])) << "</pre>\n"
     << "<p>Each run's own report: <code>fogctl report RUN</code>.</p>\n</body></html>\n";
   return h.str();
 }

@@ -14,6 +14,7 @@
 #include "run_identity.hpp"
 #include "table.hpp"
 #include "workbench.hpp"
+#include "html.hpp"
 
 namespace fogbench::cli {
 namespace vendor {
@@ -26,20 +27,6 @@ namespace wb = model::workbench;
 using nlohmann::json;
 
 namespace {
-
-std::string esc(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    switch (c) {
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '&': o += "&amp;"; break;
-      case '"': o += "&quot;"; break;
-      default: o += c;
-    }
-  }
-  return o;
-}
 
 // JSON inside a <script>: "</" would end the script element.
 std::string script_json(const json& j) {
@@ -69,7 +56,7 @@ struct HtmlTable {
   std::string s = "<table>";
   explicit HtmlTable(const std::vector<std::string>& head) {
     s += "<tr>";
-    for (const auto& h : head) s += "<th>" + esc(h) + "</th>";
+    for (const auto& h : head) s += "<th>" + html_escape(h) + "</th>";
     s += "</tr>";
   }
   void row(const std::vector<std::string>& cells, const std::string& cls = "") {
@@ -77,7 +64,7 @@ struct HtmlTable {
     // Words align left, numbers right (so that digits line up).
     for (const auto& c : cells) {
       const bool num = !c.empty() && c.find_first_not_of("0123456789+-.e%<> →") == std::string::npos;
-      s += num ? "<td>" + esc(c) + "</td>" : "<td class=\"w\">" + esc(c) + "</td>";
+      s += num ? "<td>" + html_escape(c) + "</td>" : "<td class=\"w\">" + html_escape(c) + "</td>";
     }
     s += "</tr>";
   }
@@ -127,11 +114,11 @@ std::string identity_header(const std::vector<std::string>& paths) {
       return std::string("-");
     };
     if (get("software_version") == "-") continue;
-    html += "<div class=\"sub\">" + esc(p) + ": run " + esc(get("run")) + " of " + esc(get("serial")) + ", station " +
-            esc(get("station_id")) + ", operator " + esc(get("operator")) + ", fogbench " + esc(get("software_version")) +
-            " (" + esc(get("git_hash").substr(0, 12)) + "), profile " + esc(get("profile")) + " (sha256 " +
-            esc(get("profile_sha256").substr(0, 12)) + "), config sha256 " + esc(get("config_sha256").substr(0, 12)) +
-            ", powered on " + esc(get("powered_on_at")) + "</div>";
+    html += "<div class=\"sub\">" + html_escape(p) + ": run " + html_escape(get("run")) + " of " + html_escape(get("serial")) + ", station " +
+            html_escape(get("station_id")) + ", operator " + html_escape(get("operator")) + ", fogbench " + html_escape(get("software_version")) +
+            " (" + html_escape(get("git_hash").substr(0, 12)) + "), profile " + html_escape(get("profile")) + " (sha256 " +
+            html_escape(get("profile_sha256").substr(0, 12)) + "), config sha256 " + html_escape(get("config_sha256").substr(0, 12)) +
+            ", powered on " + html_escape(get("powered_on_at")) + "</div>";
   }
   return html;
 }
@@ -176,10 +163,10 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
 
   json specs = json::array();  // the plots, drawn by plots::kPlotScript
   std::string body;
-  body += "<h1>fogbench report: model " + esc(m->terms_string()) + "</h1>";
-  body += "<div class=\"sub\">" + esc(o.model) + " (" + std::string(to_string(m->method)) + " method, fitted on " +
-          esc(m->fitted_on.name) + (m->created_at.empty() ? "" : ", " + esc(m->created_at)) + "); runs: ";
-  for (std::size_t i = 0; i < runs.size(); ++i) body += (i ? ", " : "") + esc(runs[i].name) + (i ? " (held out)" : " (fit run)");
+  body += "<h1>fogbench report: model " + html_escape(m->terms_string()) + "</h1>";
+  body += "<div class=\"sub\">" + html_escape(o.model) + " (" + std::string(to_string(m->method)) + " method, fitted on " +
+          html_escape(m->fitted_on.name) + (m->created_at.empty() ? "" : ", " + html_escape(m->created_at)) + "); runs: ";
+  for (std::size_t i = 0; i < runs.size(); ++i) body += (i ? ", " : "") + html_escape(runs[i].name) + (i ? " (held out)" : " (fit run)");
   body += "</div>";
   body += identity_header(o.runs);
 
@@ -189,7 +176,7 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
           "</span> compensated std under " + fixed(100.0 * q.threshold, 0) +
           "% of the raw std on every run, within 1.5 x the model's noise std and no failing interval of 60 s or more</p>";
   for (const auto& x : q.runs)
-    for (const auto& why : x.reasons) body += "<p class=\"note\">" + esc(x.run) + ": " + esc(why) + "</p>";
+    for (const auto& why : x.reasons) body += "<p class=\"note\">" + html_escape(x.run) + ": " + html_escape(why) + "</p>";
   {
     HtmlTable t({"sensitivity", "term", "value", "1 sigma", "unit", "source"});
     t.row({"bias", "mu0", fixed(q.mu0_dph, 3), fixed(q.mu0_se_dph, 3), "deg/h", "the model"});
@@ -234,7 +221,7 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
   }
 
   // Diagnosis.
-  body += "<h2>Diagnosis</h2><div class=\"summary\">" + esc(d->summary) + "</div>";
+  body += "<h2>Diagnosis</h2><div class=\"summary\">" + html_escape(d->summary) + "</div>";
   {
     std::vector<std::string> head{"#", "term", "effect", "lag, s", "rms fit, deg/h", "fall", "delta BIC", "p"};
     for (const auto& h : d->held_out_runs) head.push_back("rms " + h);
@@ -253,16 +240,16 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
     body += t.str();
     std::string notes;
     for (const auto& c : d->candidates)
-      if (!c.evaluated) notes += "<li>" + esc(c.term) + ": " + esc(c.skipped) + "</li>";
+      if (!c.evaluated) notes += "<li>" + html_escape(c.term) + ": " + html_escape(c.skipped) + "</li>";
     if (!notes.empty()) body += "<p class=\"note\">Skipped:</p><ul class=\"note\">" + notes + "</ul>";
     if (!d->candidates.empty() && d->candidates.front().detected)
-      body += "<p class=\"note\"><b>Why " + esc(d->candidates.front().expr) + ":</b> " + esc(d->candidates.front().explanation) + "</p>";
-    body += "<p class=\"note\">Rule: " + esc(d->rule) + ".</p>";
+      body += "<p class=\"note\"><b>Why " + html_escape(d->candidates.front().expr) + ":</b> " + html_escape(d->candidates.front().explanation) + "</p>";
+    body += "<p class=\"note\">Rule: " + html_escape(d->rule) + ".</p>";
     HtmlTable c({"coefficient", "value", "1 sigma", "unit"});
     for (const auto& x : d->coefs) c.row({x.term, sig(x.coef), sig(x.se_in_unit), x.unit});
-    body += "<h3>Coefficients of the model refitted on " + esc(d->fit_run) + "</h3>" + c.str();
+    body += "<h3>Coefficients of the model refitted on " + html_escape(d->fit_run) + "</h3>" + c.str();
     for (const auto& p : d->collinear_coefs)
-      body += "<p class=\"note\">Collinear: " + esc(p.a) + " and " + esc(p.b) + " (r = " + fixed(p.r, 3) + "): " + esc(p.why) + "</p>";
+      body += "<p class=\"note\">Collinear: " + html_escape(p.a) + " and " + html_escape(p.b) + " (r = " + fixed(p.r, 3) + "): " + html_escape(p.why) + "</p>";
     const auto& w = d->whiteness;
     body += "<p class=\"note\">Residual prewhitened by the model's AR filter: Ljung-Box Q " + fixed(w.lb.q, 1) + " on " +
             std::to_string(w.lb.dof) + " dof, p " + fixed(w.lb.p_value, 4) + (w.white() ? " (white)" : " (not white)") + ".</p>";
@@ -354,7 +341,7 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
       s.keys = "compensated std " + k + " deg/h";
     }
     body += t.str();
-    for (const auto& n : step_notes) body += "<p class=\"note\">" + esc(n) + "</p>";
+    for (const auto& n : step_notes) body += "<p class=\"note\">" + html_escape(n) + "</p>";
     if (steps.size() > 1) body += plots::render(p, specs, o.max_points);
   }
 
@@ -366,7 +353,7 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
       return kExitError;
     }
     const auto& v = c->verification;
-    body += "<h2>Run " + esc(runs[k].name) + (k ? " (held out)" : " (fit run)") + "</h2>";
+    body += "<h2>Run " + html_escape(runs[k].name) + (k ? " (held out)" : " (fit run)") + "</h2>";
     body += "<p class=\"note\">" + std::to_string(v.run.n) + " samples; raw std " + fixed(v.run.meas_std, 3) + " deg/h, compensated " +
             fixed(v.run.comp_std, 3) + " deg/h (" + pct(v.run.ratio) + "); " + std::to_string(c->failures.size()) +
             " failing interval(s) beyond " + fixed(c->threshold_dph, 3) + " deg/h. Plotted: at most " + std::to_string(o.max_points) +
@@ -467,7 +454,7 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
   }
   body += std::string("<p class=\"note\">Plots: uPlot ") + vendor::kUplotVersion + " (MIT), embedded. Generated by fogctl " FOGBENCH_VERSION ".</p>";
 
-  std::string html = "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>fogbench report: " + esc(m->terms_string()) +
+  std::string html = "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>fogbench report: " + html_escape(m->terms_string()) +
                      "</title><style>" + std::string(vendor::kUplotCss) + "</style><style>" + kStyle + plots::kPlotStyle +
                      "</style></head><body>" + body + "<script>" + std::string(vendor::kUplotJs) + "</script><script>const DATA=" +
                      script_json(json{{"plots", specs}}) + ";</script><script>" + plots::kPlotScript + "</script></body></html>\n";

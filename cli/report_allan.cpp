@@ -9,6 +9,7 @@
 #include "allan.hpp"
 #include "report_plots.hpp"
 #include "table.hpp"
+#include "html.hpp"
 
 namespace fogbench::cli::report {
 
@@ -18,20 +19,6 @@ namespace {
 
 const char* const kColours[] = {"#3d6fb6", "#d9822b", "#2e7d32", "#8e44ad", "#16a085", "#7f8c8d"};
 constexpr const char* kCompensatedColour = "#b3261e";
-
-std::string esc(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    switch (c) {
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '&': o += "&amp;"; break;
-      case '"': o += "&quot;"; break;
-      default: o += c;
-    }
-  }
-  return o;
-}
 
 std::string sig3(double v) {
   char buf[32];
@@ -65,9 +52,9 @@ std::string allan_cell(const std::optional<allan::NoiseEstimate>& e, int digits)
 
 std::string allan_section(const model::Model& m, const model::RunData& run, const std::string& key, nlohmann::json& specs,
                           std::size_t max_points) {
-  std::string html = "<h3>Allan deviation (IEEE Std 952 Annex C): " + esc(run.name) + "</h3>";
+  std::string html = "<h3>Allan deviation (IEEE Std 952 Annex C): " + html_escape(run.name) + "</h3>";
   auto series = allan_series(run, &m, kAllanMinSamples, false);
-  if (!series) return html + "<p class=\"note\">No Allan deviation: " + esc(series.error()) + "</p>";
+  if (!series) return html + "<p class=\"note\">No Allan deviation: " + html_escape(series.error()) + "</p>";
   if (series->empty())
     return html + "<p class=\"note\">No stretch of " + std::to_string(kAllanMinSamples) +
            " or more evenly spaced, unflagged samples in a hold or of the compensated output.</p>";
@@ -80,7 +67,7 @@ std::string allan_section(const model::Model& m, const model::RunData& run, cons
   p.title = "Overlapping Allan deviation of each hold and of the compensated output: " + run.name;
   p.xlabel = "tau, s";
   p.ylabel = "Allan deviation, deg/h";
-  std::string rows = "<table class=\"allan\" data-run=\"" + esc(run.name) +
+  std::string rows = "<table class=\"allan\" data-run=\"" + html_escape(run.name) +
                      "\"><tr><th>series</th><th>from, s</th><th>to, s</th><th>samples</th><th>ARW, deg/sqrt(h)</th>"
                      "<th>bias instability, deg/h</th><th>RRW, deg/h/sqrt(h)</th></tr>";
   std::vector<std::string> notes;
@@ -101,7 +88,7 @@ std::string allan_section(const model::Model& m, const model::RunData& run, cons
     const auto t = allan::noise_terms(*curve);
     const double from_s = run.time_s[x.stretch.begin], to_s = run.time_s[x.stretch.end - 1];
     const bool comp = x.what == "compensated";
-    rows += std::string("<tr") + (comp ? " class=\"hit\"" : "") + "><td class=\"w\">" + esc(x.what) + "</td><td>" + fixed(from_s, 0) +
+    rows += std::string("<tr") + (comp ? " class=\"hit\"" : "") + "><td class=\"w\">" + html_escape(x.what) + "</td><td>" + fixed(from_s, 0) +
             "</td><td>" + fixed(to_s, 0) + "</td><td>" + std::to_string(x.rate_dph.size()) + "</td><td>" +
             allan_cell(t.arw_deg_per_sqrt_h, 5) + "</td><td>" + allan_cell(t.bias_instability_dph, 4) + "</td><td>" +
             allan_cell(t.rrw_dph_per_sqrt_h, 4) + "</td></tr>";
@@ -163,7 +150,7 @@ std::string allan_section(const model::Model& m, const model::RunData& run, cons
           "+1/2 slope where the curve shows it. fogctl allan prints the same figures.</p>";
   if (!notes.empty()) {
     html += "<ul class=\"note\">";
-    for (const auto& n : notes) html += "<li>" + esc(n) + "</li>";
+    for (const auto& n : notes) html += "<li>" + html_escape(n) + "</li>";
     html += "</ul>";
   }
   return html;

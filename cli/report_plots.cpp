@@ -8,26 +8,13 @@
 #include <limits>
 
 #include "fogbench/model/workbench.hpp"
+#include "html.hpp"
 
 namespace fogbench::cli::plots {
 
 using nlohmann::json;
 
 namespace {
-
-std::string esc(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    switch (c) {
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '&': o += "&amp;"; break;
-      case '"': o += "&quot;"; break;
-      default: o += c;
-    }
-  }
-  return o;
-}
 
 std::string g3(double v) {
   if (!std::isfinite(v)) return "-";
@@ -181,7 +168,7 @@ std::string render(const Plot& p, json& specs, std::size_t max_points) {
     idx = all_indices(p.x.size());
     spec["x"] = pick(p.x, idx);
   }
-  std::string legend = "<div class=\"keys\" data-for=\"" + esc(p.id) + "\"><div class=\"keyt\">" + esc(title) + "</div>";
+  std::string legend = "<div class=\"keys\" data-for=\"" + html_escape(p.id) + "\"><div class=\"keyt\">" + html_escape(title) + "</div>";
   for (const auto& s : p.series) {
     json js = {{"label", s.name}, {"stroke", s.stroke}, {"width", s.width}, {"dash", s.dash}, {"points", s.points}, {"line", s.line}};
     const bool constant = !s.y.empty() && std::all_of(s.y.begin(), s.y.end(), [&](double v) { return v == s.y.front(); });
@@ -208,13 +195,13 @@ std::string render(const Plot& p, json& specs, std::size_t max_points) {
     }
     spec["series"].push_back(js);
     if (!s.keys.empty())
-      legend += "<div class=\"key\"><i style=\"background:" + esc(s.stroke) + "\"></i><b>" + esc(s.name) + "</b>: " + esc(s.keys) + "</div>";
+      legend += "<div class=\"key\"><i style=\"background:" + html_escape(s.stroke) + "\"></i><b>" + html_escape(s.name) + "</b>: " + html_escape(s.keys) + "</div>";
   }
   for (std::size_t i = 0; i < p.x_names.size(); ++i)
-    legend += "<div class=\"key\">step " + std::to_string(i) + ": " + esc(p.x_names[i]) + "</div>";
+    legend += "<div class=\"key\">step " + std::to_string(i) + ": " + html_escape(p.x_names[i]) + "</div>";
   legend += "</div>";
   specs.push_back(spec);
-  return "<div class=\"plot\" id=\"" + esc(p.id) + "\"></div>" + legend;
+  return "<div class=\"plot\" id=\"" + html_escape(p.id) + "\"></div>" + legend;
 }
 
 const char* const kPlotStyle = R"css(
