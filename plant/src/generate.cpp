@@ -42,7 +42,7 @@ void num(std::string& out, double v) {
 
 PlantResult<GeneratedPlant> generate_fleet(Connection& c, const GenerateOptions& o) {
   if (o.runs < 1 || o.units_per_run < 1 || o.lots < 1 || o.lots > o.runs || o.benches < 1 || o.shifted_lot < 0 ||
-      o.shifted_lot >= o.lots || o.outliers < 0 || o.sample_runs < 0 || o.samples_per_unit < 1)
+      o.shifted_lot >= o.lots || o.outliers < 0 || o.sample_runs.value_or(0) < 0 || o.samples_per_unit < 1 || o.samples_commit_runs < 1)
     return std::unexpected(PlantError{PlantErrc::invalid_argument, "generate a fleet: inconsistent options"});
   std::mt19937_64 rng(o.seed);
   std::normal_distribution<double> normal;
@@ -133,36 +133,53 @@ PlantResult<GeneratedPlant> generate_fleet(Connection& c, const GenerateOptions&
              &figures}}) {
     if (auto n = c.copy_in(cp.sql, *cp.data, cp.sql); !n) return fail(n.error());
   }
-  // Samples for the first sample_runs runs, a run at a time: a slow drift with the chamber's
-  // ramp and noise (what they look like matters little here: they measure the store).
-  for (int r = 0; r < std::min(o.sample_runs, o.runs); ++r) {
-    const std::string bench = o.bench_prefix + std::to_string(1 + r % o.benches);
-    const std::string head = bench + "\t" + std::to_string(1 + r / o.benches) + "\t";
-    samples.clear();
-    for (int u = 0; u < o.units_per_run; ++u) {
-      for (int i = 0; i < o.samples_per_unit; ++i) {
-        const double t = i, temp = 20 + 20 * std::sin(t / 3000.0);
-        samples += head;
-        samples += std::to_string(u);
-        samples += '\t';
-        num(samples, t);
-        samples += '\t';
-        num(samples, temp);
-        samples += '\t';
-        num(samples, 0.5 + 0.02 * temp + 0.1 * normal(rng));
-        samples += '\t';
-        num(samples, temp - 0.5);
-        samples += "\t100\t2\t0\n";
-        ++g.samples;
-      }
-    }
-    if (auto n = c.copy_in("COPY fogbench.samples (bench_id, run_id, unit_index, t_s, chamber_c, gyro_dph, t1_c, "
-                           "frames, phase, flags) FROM STDIN",
-                           samples, "copy samples");
-        !n)
-      return fail(n.error());
-  }
   if (auto ok = c.exec("COMMIT", "commit"); !ok) return fail(ok.error());
+  for (std::string* s : {&runs, &units, &models, &verifications, &figures}) std::string().swap(*s);
+
+  // The samples of the first sample_runs runs (every run by default): a slow drift with the
+  // chamber's ramp and noise (what they look like matters little here: they measure the store).
+  // One COPY per run (units_per_run x samples_per_unit rows: the buffer is that big, whatever the
+  // plant's size), in key order (bench, then run) so the primary key's index grows at its right
+  // edge; committed every samples_commit_runs runs.
+  const int sample_runs = std::min(o.sample_runs.value_or(o.runs), o.runs);
+  std::int64_t done = 0;
+  bool open = false;
+  for (int b = 0; b < o.benches; ++b) {
+    for (int r = b; r < sample_runs; r += o.benches) {
+      if (!open) {
+        if (auto ok = c.exec("BEGIN", "begin"); !ok) return fail(ok.error());
+        open = true;
+      }
+      const std::string head = o.bench_prefix + std::to_string(1 + b) + "\t" + std::to_string(1 + r / o.benches) + "\t";
+      samples.clear();
+      for (int u = 0; u < o.units_per_run; ++u) {
+        const std::string unit = head + std::to_string(u) + "\t";
+        for (int i = 0; i < o.samples_per_unit; ++i) {
+          const double t = i, temp = 20 + 20 * std::sin(t / 3000.0);
+          samples += unit;
+          num(samples, t);
+          samples += '\t';
+          num(samples, temp);
+          samples += '\t';
+          num(samples, 0.5 + 0.02 * temp + 0.1 * normal(rng));
+          samples += '\t';
+          num(samples, temp - 0.5);
+          samples += "\t100\t2\t0\n";
+        }
+      }
+      auto n = c.copy_in("COPY fogbench.samples (bench_id, run_id, unit_index, t_s, chamber_c, gyro_dph, t1_c, "
+                         "frames, phase, flags) FROM STDIN",
+                         samples, "copy samples");
+      if (!n) return fail(n.error());
+      g.samples += *n;
+      ++done;
+      if (done % o.samples_commit_runs == 0 || done == sample_runs) {
+        if (auto ok = c.exec("COMMIT", "commit"); !ok) return fail(ok.error());
+        open = false;
+      }
+      if (o.progress) o.progress(done, sample_runs, g.samples);
+    }
+  }
   return g;
 }
 
