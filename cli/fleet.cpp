@@ -5,8 +5,10 @@
 #include <algorithm>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <set>
 
 #include "fleet_html.hpp"
+#include "fleet_pchart.hpp"
 #include "fogbench/plant/fleet_spc.hpp"
 #include "table.hpp"
 
@@ -227,12 +229,31 @@ int run_fleet(const std::string& command, const FleetOptions& o, std::ostream& o
       text += "\n";
       all.push_back(std::move(*f));
     }
+    // The p-charts of marginal and fail verdicts per bench per period.
+    auto verdicts = plant::verdict_values(*c, o.filter);
+    if (!verdicts) return err << where << verdicts.error().message << "\n", kExitError;
+    json proportions = json::array();
+    std::set<std::string> flagged_benches;
+    if (!verdicts->empty()) {
+      plant::Baseline pb{o.p_baseline_n.value_or(2000), o.baseline_from, o.baseline_to};
+      for (const char* v : {"marginal", "fail"}) {
+        auto p = plant::proportion_chart(*verdicts, v, pb, o.period);
+        if (!p) return err << where << p.error() << "\n", kExitError;
+        proportions.push_back(proportion_json(*p));
+        text += proportion_text(*p) + "\n";
+        flagged_benches.insert(p->flagged_benches.begin(), p->flagged_benches.end());
+      }
+    } else {
+      text += "no verdicts: no p-charts\n\n";
+    }
     if (!o.html.empty()) {
-      if (auto w = write_text(o.html, fleet_html(all, charts)); !w)
+      if (auto w = write_text(o.html, fleet_html(all, charts, proportions)); !w)
         return err << where << w.error() << "\n", kExitError;
     }
-    if (o.json) out << json{{"charts", charts}, {"flagged_units", n_flagged}}.dump(2) << "\n";
-    else out << text << n_flagged << " flagged units\n";
+    if (o.json)
+      out << json{{"charts", charts}, {"flagged_units", n_flagged}, {"proportions", proportions},
+                  {"flagged_benches", flagged_benches}}.dump(2) << "\n";
+    else out << text << n_flagged << " flagged units; " << flagged_benches.size() << " benches out of limits\n";
     return kExitOk;
   }
   err << where << "unknown command\n";
@@ -268,7 +289,7 @@ void add_fleet_command(CLI::App& app, int& code) {
   d->add_option("--figure", o.figures, "The figure (repeatable; default every figure)");
   d->add_option("--by", o.by, "Group by lot, bench or month (default lot)");
   d->callback([&] { code = run_fleet("dist", o, std::cout, std::cerr); });
-  auto* c = f->add_subcommand("spc", "Individuals and moving-range charts, Western Electric rules, flagged units, lot comparison");
+  auto* c = f->add_subcommand("spc", "Individuals and moving-range charts, Western Electric rules, flagged units, lot comparison, p-charts of marginal and fail verdicts per bench");
   common(c);
   c->add_option("--figure", o.figures, "The figure (repeatable; default every figure)");
   c->add_option("--baseline", o.baseline_n, "Limits from the first N values (default 100)");
@@ -277,6 +298,9 @@ void add_fleet_command(CLI::App& app, int& code) {
   c->add_option("--compare", o.compare, "Compare two lots, LOT_A,LOT_B: difference of means with its interval (Welch)");
   c->add_option("--level", o.level, "The comparison interval's level (default 0.95)");
   c->add_option("--html", o.html, "Also write the charts as an HTML report to this file");
+  c->add_option("--period", o.period, "The p-charts' period: month (default), week or day");
+  c->add_option("--p-baseline", o.p_baseline_n,
+                "The p-charts' limits from the first N verdicts (default 2000; --baseline-from/--baseline-to apply too)");
   c->callback([&] { code = run_fleet("spc", o, std::cout, std::cerr); });
 }
 

@@ -30,6 +30,8 @@ struct FleetOptions {
   std::string compare;  // "LOT_A,LOT_B"
   double level = 0.95;
   std::string html;     // spc: the report's file
+  std::string period = "month";            // spc: the p-charts' period (month, week, day)
+  std::optional<std::size_t> p_baseline_n; // spc: the p-charts' limits from the first N verdicts (2000)
 };
 
 // command: serials | history | figures | dist | spc.

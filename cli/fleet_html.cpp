@@ -1,5 +1,6 @@
 // fogctl fleet spc --html (fleet_html.hpp).
 #include "fleet_html.hpp"
+#include "fleet_pchart.hpp"
 #include "html.hpp"
 
 #include <cmath>
@@ -46,16 +47,18 @@ for (const [i, c] of DATA.entries()) {
 constexpr const char* kStyle =
     "body{font-family:system-ui,sans-serif;margin:20px;color:#222}h1{font-size:22px}h2{font-size:17px;margin-top:28px}"
     "table{border-collapse:collapse;font-size:13px}td,th{border:1px solid #ccc;padding:2px 6px;text-align:left}"
-    ".note{color:#555;font-size:13px}";
+    ".note{color:#555;font-size:13px}.pchart td.out{color:#d62728;font-weight:bold;background:#fde8e8}";
 
 }  // namespace
 
-std::string fleet_html(const std::vector<plant::FigureSpc>& figures, const nlohmann::json& charts) {
+std::string fleet_html(const std::vector<plant::FigureSpc>& figures, const nlohmann::json& charts,
+                       const nlohmann::json& proportions) {
   using nlohmann::json;
   json data = json::array();
   std::string body = "<h1>Fleet control charts</h1><p class=note>Individuals and moving-range charts (limits: "
                      "centre &plusmn; 3 MRbar/1.128; MR limit 3.267 MRbar), the Western Electric rules, units beyond "
                      "the limits in red.</p>";
+  body += proportion_html(proportions);
   for (std::size_t i = 0; i < figures.size(); ++i) {
     const auto& f = figures[i];
     const json& c = charts.at(i);

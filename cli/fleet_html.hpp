@@ -11,7 +11,9 @@
 
 namespace fogbench::cli {
 
-// charts: the JSON of each chart as `fleet spc --json` prints it (limits, signals, comparison).
-std::string fleet_html(const std::vector<plant::FigureSpc>& figures, const nlohmann::json& charts);
+// charts: the JSON of each chart as `fleet spc --json` prints it (limits, signals, comparison);
+// proportions: its p-charts of verdicts (fleet_pchart.hpp), drawn as tables first.
+std::string fleet_html(const std::vector<plant::FigureSpc>& figures, const nlohmann::json& charts,
+                       const nlohmann::json& proportions);
 
 }  // namespace fogbench::cli

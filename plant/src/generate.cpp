@@ -42,7 +42,10 @@ void num(std::string& out, double v) {
 
 PlantResult<GeneratedPlant> generate_fleet(Connection& c, const GenerateOptions& o) {
   if (o.runs < 1 || o.units_per_run < 1 || o.lots < 1 || o.lots > o.runs || o.benches < 1 || o.shifted_lot < 0 ||
-      o.shifted_lot >= o.lots || o.outliers < 0 || o.sample_runs.value_or(0) < 0 || o.samples_per_unit < 1 || o.samples_commit_runs < 1)
+      o.shifted_lot >= o.lots || o.outliers < 0 || o.sample_runs.value_or(0) < 0 || o.samples_per_unit < 1 || o.samples_commit_runs < 1 ||
+      !(o.fail_rate >= 0 && o.marginal_rate >= 0 && o.marginal_bench_rate >= 0 && o.fail_rate + o.marginal_rate <= 1 &&
+        o.fail_rate + o.marginal_bench_rate <= 1) ||
+      o.marginal_bench < 0 || o.marginal_bench > o.benches)
     return std::unexpected(PlantError{PlantErrc::invalid_argument, "generate a fleet: inconsistent options"});
   std::mt19937_64 rng(o.seed);
   std::normal_distribution<double> normal;
@@ -63,8 +66,12 @@ PlantResult<GeneratedPlant> generate_fleet(Connection& c, const GenerateOptions&
     if (lot_of(r) != o.shifted_lot) outliers.insert({r, pick_unit(rng)});
   }
 
+  // The verdicts from a generator of their own: the figures are the same whatever the rates.
+  std::mt19937_64 verdict_rng(o.seed ^ 0x9e3779b97f4a7c15ULL);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
   GeneratedPlant g;
   g.shifted_lot = lot_name(o.shifted_lot);
+  if (o.marginal_bench > 0) g.marginal_bench = o.bench_prefix + std::to_string(o.marginal_bench);
   std::string runs, units, models, verifications, figures, samples;
   const std::int64_t t0 = 1767225600;  // 2026-01-01T00:00:00Z
   for (int r = 0; r < o.runs; ++r) {
@@ -84,22 +91,25 @@ PlantResult<GeneratedPlant> generate_fleet(Connection& c, const GenerateOptions&
                 "\t1\t" + iso(end) + "\tpaper\td(T1)@auto + grad@auto\t{\"generated\": true}\n";
       const bool planted = outliers.contains({r, u});
       if (planted) g.outlier_serials.push_back(serial);
-      double ratio = 0;
       for (const auto& law : kLaws) {
         double z = truncated();
         if (law.name == o.figure && lot_of(r) == o.shifted_lot) z += o.shift_sigma;
         if (law.name == o.figure && planted) z = (u % 2 ? -1 : 1) * o.outlier_sigma;
         const double v = law.mean + law.sd * z;
-        if (std::string_view(law.name) == "ratio") ratio = v;
         figures += bench + "\t" + std::to_string(run_id) + "\t" + std::to_string(u) + "\t" + law.source + "\t" +
                    (std::string_view(law.source) == "model" ? model_id : ver_id) + "\t" + law.name + "\t";
         num(figures, v);
         figures += "\n";
         ++g.figures;
       }
-      const bool pass = ratio < 0.2;
+      const bool planted_bench = 1 + r % o.benches == o.marginal_bench && r >= o.marginal_from_run;
+      const double draw = uniform(verdict_rng);
+      const char* verdict = draw < o.fail_rate ? "f\tfail"
+                            : draw < o.fail_rate + (planted_bench ? o.marginal_bench_rate : o.marginal_rate)
+                                ? "f\tmarginal"
+                                : "t\tpass";
       verifications += bench + "\t" + ver_id + "\t" + std::to_string(run_id) + "\t" + std::to_string(u) + "\t" +
-                       model_id + "\t" + iso(end) + "\t" + (pass ? "t\tpass" : "f\tfail") + "\t{\"generated\": true}\n";
+                       model_id + "\t" + iso(end) + "\t" + verdict + "\t{\"generated\": true}\n";
     }
   }
 

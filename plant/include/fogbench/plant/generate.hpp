@@ -24,6 +24,13 @@ struct GenerateOptions {
   int outliers = 5;         // units whose `figure` is outlier_sigma away, outside the shifted lot
   double outlier_sigma = 6.0;
   std::string figure = "d(T1)";  // the figure shifted and planted
+  // Each unit's verdict, drawn independently of its figures (they exercise the p-charts):
+  // fail with fail_rate, marginal with marginal_rate, else pass; the bench marginal_bench
+  // (1-based, 0: none) gives marginal with marginal_bench_rate from run marginal_from_run on.
+  double fail_rate = 0.01, marginal_rate = 0.05;
+  int marginal_bench = 0;
+  double marginal_bench_rate = 0.20;
+  int marginal_from_run = 0;
   std::optional<int> sample_runs;  // the first runs that also get samples (unset: every run) ...
   int samples_per_unit = 10000;    // ... this many per unit (1 s apart)
   int samples_commit_runs = 100;   // the samples are committed every this many runs
@@ -35,6 +42,7 @@ struct GenerateOptions {
 
 struct GeneratedPlant {
   std::string shifted_lot;
+  std::string marginal_bench;  // the bench with extra marginal verdicts ("" when none)
   std::vector<std::string> outlier_serials;
   std::int64_t runs = 0, units = 0, figures = 0, samples = 0;
 };
