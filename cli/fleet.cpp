@@ -91,32 +91,65 @@ int run_fleet(const std::string& command, const FleetOptions& o, std::ostream& o
     }
     return kExitOk;
   }
-  if (command == "history") {
+  if (command == "history" || command == "serial") {
     auto rows = plant::serial_history(*c, o.serial, o.filter);
     if (!rows) return err << where << rows.error().message << "\n", kExitError;
     if (rows->empty()) {
       err << where << "no runs of serial '" << o.serial << "' in the plant store (with these filters)\n";
       return kExitError;
     }
+    auto certs = plant::serial_certificates(*c, o.serial, o.filter);
+    if (!certs) return err << where << certs.error().message << "\n", kExitError;
     if (o.json) {
       json a = json::array();
       for (const auto& h : *rows) {
         json f = json::object();
         for (const auto& [k, v] : h.figures) f[k] = v;
+        json id = nullptr;
+        if (h.identity)
+          id = {{"station_id", h.identity->station_id}, {"operator", h.identity->operator_name},
+                {"operator_source", h.identity->operator_source}, {"software_version", h.identity->software_version},
+                {"git_hash", h.identity->git_hash}, {"config_sha256", h.identity->config_sha256},
+                {"profile_sha256", h.identity->profile_sha256}};
         a.push_back({{"bench", h.bench}, {"run_id", h.run_id}, {"unit", h.unit_index}, {"lot", opt(h.lot)},
                      {"ended_at", opt(h.ended_at)}, {"purpose", h.purpose}, {"state", h.state},
-                     {"verdict", opt(h.verdict)}, {"figures", f}});
+                     {"verdict", opt(h.verdict)}, {"identity", id}, {"powered_on_at", opt(h.powered_on_at)},
+                     {"since_power_on_s", h.since_power_on_s ? json(*h.since_power_on_s) : json(nullptr)},
+                     {"figures", f}});
       }
-      out << json{{"serial", o.serial}, {"runs", a}}.dump(2) << "\n";
+      json cj = json::array();
+      for (const auto& ce : *certs)
+        cj.push_back({{"bench", ce.bench}, {"certificate_id", ce.certificate_id}, {"model_id", ce.model_id},
+                      {"model_version", ce.model_version}, {"sha256", ce.sha256}, {"issued_at", opt(ce.issued_at)},
+                      {"verdict", opt(ce.verdict)}, {"run_id", ce.run_id ? json(*ce.run_id) : json(nullptr)}});
+      out << json{{"serial", o.serial}, {"runs", a}, {"certificates", cj}}.dump(2) << "\n";
     } else {
-      Table t({"run end", "bench", "run", "unit", "lot", "purpose", "verdict", "figures"});
+      // Hashes shortened to 12 hex digits in the table (--json has them whole).
+      auto short_hash = [](const std::string& h) { return h.size() > 12 ? h.substr(0, 12) : h; };
+      Table t({"run end", "bench", "run", "unit", "lot", "purpose", "verdict", "station", "operator", "software",
+               "config sha256", "profile sha256"});
+      Table ft({"run end", "bench", "run", "figures"});
       for (const auto& h : *rows) {
         std::string f;
         for (const auto& [k, v] : h.figures) f += (f.empty() ? "" : " ") + k + "=" + num(v);
+        const auto& id = h.identity;
         t.add({h.ended_at.value_or("-"), h.bench, std::to_string(h.run_id), std::to_string(h.unit_index),
-               h.lot.value_or("-"), h.purpose, h.verdict.value_or("-"), f});
+               h.lot.value_or("-"), h.purpose, h.verdict.value_or("-"), id ? id->station_id : "-",
+               id ? id->operator_name : "-", id ? id->software_version + " " + short_hash(id->git_hash) : "-",
+               id ? short_hash(id->config_sha256) : "-", id ? short_hash(id->profile_sha256) : "-"});
+        ft.add({h.ended_at.value_or("-"), h.bench, std::to_string(h.run_id), f.empty() ? "-" : f});
       }
-      out << "history of " << o.serial << "\n" << t.str();
+      out << "history of " << o.serial << " (" << rows->size() << " runs)\n" << t.str() << "\nfigures\n" << ft.str();
+      if (certs->empty()) {
+        out << "\nno certificates of " << o.serial << " in the plant store\n";
+      } else {
+        Table ct({"issued", "bench", "certificate", "model", "version", "run", "verdict", "sha256"});
+        for (const auto& ce : *certs)
+          ct.add({ce.issued_at.value_or("-"), ce.bench, std::to_string(ce.certificate_id), std::to_string(ce.model_id),
+                  std::to_string(ce.model_version), ce.run_id ? std::to_string(*ce.run_id) : "-",
+                  ce.verdict.value_or("-"), ce.sha256});
+        out << "\ncertificates\n" << ct.str();
+      }
     }
     return kExitOk;
   }
@@ -277,10 +310,13 @@ void add_fleet_command(CLI::App& app, int& code) {
   auto* s = f->add_subcommand("serials", "Every serial with its runs, lots, benches and last verdict");
   common(s);
   s->callback([&] { code = run_fleet("serials", o, std::cout, std::cerr); });
-  auto* h = f->add_subcommand("history", "One serial's runs across benches, with verdicts and figures");
+  auto* h = f->add_subcommand("serial",
+                              "One serial's history: its runs across benches with their identity (station, operator, "
+                              "software, config and profile hashes), lot, verdict and figures, and its certificates");
+  h->alias("history");
   common(h);
   h->add_option("serial", o.serial, "The serial")->required();
-  h->callback([&] { code = run_fleet("history", o, std::cout, std::cerr); });
+  h->callback([&] { code = run_fleet("serial", o, std::cout, std::cerr); });
   auto* g = f->add_subcommand("figures", "The figures stored: model coefficients and verdict figures, with counts");
   common(g);
   g->callback([&] { code = run_fleet("figures", o, std::cout, std::cerr); });

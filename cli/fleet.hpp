@@ -22,7 +22,7 @@ struct FleetOptions {
   std::string service;  // --service: a name in pg_service.conf
   plant::FleetFilter filter;
   bool json = false;
-  std::string serial;                // history
+  std::string serial;                // serial (history)
   std::vector<std::string> figures;  // dist, spc (default: every figure present)
   std::string by = "lot";            // dist
   std::optional<std::size_t> baseline_n;
@@ -34,7 +34,7 @@ struct FleetOptions {
   std::optional<std::size_t> p_baseline_n; // spc: the p-charts' limits from the first N verdicts (2000)
 };
 
-// command: serials | history | figures | dist | spc.
+// command: serials | serial (alias history) | figures | dist | spc.
 int run_fleet(const std::string& command, const FleetOptions& o, std::ostream& out, std::ostream& err);
 void add_fleet_command(CLI::App& app, int& code);
 

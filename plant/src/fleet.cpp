@@ -1,6 +1,8 @@
 // The fleet queries (fleet.hpp).
 #include "fogbench/plant/fleet.hpp"
 
+#include <nlohmann/json.hpp>
+
 namespace fogbench::plant {
 namespace {
 
@@ -48,7 +50,13 @@ PlantResult<std::vector<HistoryEntry>> serial_history(Connection& c, const std::
       "v.run_id = u.run_id AND v.unit_index = u.unit_index ORDER BY v.verification_id DESC LIMIT 1), "
       "(SELECT string_agg(fg.source || ':' || fg.name || '=' || fg.value::text, E'\\t' ORDER BY fg.source, fg.name) "
       "FROM fogbench.figures fg WHERE fg.bench_id = u.bench_id AND fg.run_id = u.run_id AND fg.unit_index = "
-      "u.unit_index) FROM fogbench.units u JOIN fogbench.runs r USING (bench_id, run_id) WHERE " +
+      "u.unit_index), ri.station_id, ri.operator, ri.operator_source, ri.software_version, ri.git_hash, "
+      "ri.config_sha256, ri.profile_sha256, "
+      "to_char(ui.powered_on_at AT TIME ZONE 'UTC', 'YYYY-MM-DD\"T\"HH24:MI:SS\"Z\"'), ui.since_power_on_s "
+      "FROM fogbench.units u JOIN fogbench.runs r USING (bench_id, run_id) "
+      "LEFT JOIN fogbench.run_identity ri ON ri.bench_id = u.bench_id AND ri.run_id = u.run_id "
+      "LEFT JOIN fogbench.unit_identity ui ON ui.bench_id = u.bench_id AND ui.run_id = u.run_id AND "
+      "ui.unit_index = u.unit_index WHERE " +
       kWhere + " ORDER BY r.ended_at NULLS LAST, r.bench_id, r.run_id";
   auto rows = c.query(sql, params(g), "read the history of serial '" + serial + "'");
   if (!rows) return std::unexpected(rows.error());
@@ -74,7 +82,40 @@ PlantResult<std::vector<HistoryEntry>> serial_history(Connection& c, const std::
         start = end + 1;
       }
     }
+    if (r[9])  // station_id is NOT NULL in run_identity: present exactly when the run has one
+      e.identity = RunIdentityInfo{r[9].value_or(""),  r[10].value_or(""), r[11].value_or(""), r[12].value_or(""),
+                                   r[13].value_or(""), r[14].value_or(""), r[15].value_or("")};
+    e.powered_on_at = r[16];
+    if (r[17]) e.since_power_on_s = to_d(r[17]);
     out.push_back(std::move(e));
+  }
+  return out;
+}
+
+PlantResult<std::vector<SerialCertificate>> serial_certificates(Connection& c, const std::string& serial,
+                                                                const FleetFilter& f) {
+  const std::string sql =
+      "SELECT ce.bench_id, ce.certificate_id, ce.model_id, ce.model_version, ce.sha256, "
+      "to_char(ce.created_at AT TIME ZONE 'UTC', 'YYYY-MM-DD\"T\"HH24:MI:SS\"Z\"'), ce.json, m.run_id "
+      "FROM fogbench.certificates ce LEFT JOIN fogbench.models m ON m.bench_id = ce.bench_id AND m.model_id = "
+      "ce.model_id WHERE ce.serial = $1 AND ($2::text IS NULL OR ce.bench_id = $2) "
+      "ORDER BY ce.created_at, ce.bench_id, ce.certificate_id";
+  auto rows = c.query(sql, {serial, f.bench}, "read the certificates of serial '" + serial + "'");
+  if (!rows) return std::unexpected(rows.error());
+  std::vector<SerialCertificate> out;
+  for (auto& r : rows->rows) {
+    SerialCertificate ce;
+    ce.bench = r[0].value_or("");
+    ce.certificate_id = to_i64(r[1]);
+    ce.model_id = to_i64(r[2]);
+    ce.model_version = static_cast<int>(to_i64(r[3]));
+    ce.sha256 = r[4].value_or("");
+    ce.issued_at = r[5];
+    // The verdict from the certificate's canonical JSON (kept as text: its hash is of those bytes).
+    const auto j = nlohmann::json::parse(r[6].value_or(""), nullptr, false);
+    if (j.is_object() && j.contains("verdict") && j["verdict"].is_string()) ce.verdict = j["verdict"].get<std::string>();
+    if (r[7]) ce.run_id = to_i64(r[7]);
+    out.push_back(std::move(ce));
   }
   return out;
 }

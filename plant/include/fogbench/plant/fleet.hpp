@@ -25,6 +25,11 @@ struct SerialSummary {
 };
 PlantResult<std::vector<SerialSummary>> serials(Connection& c, const FleetFilter& f);
 
+// The identity a run was recorded with (issue 13, docs/storage.md), as replicated.
+struct RunIdentityInfo {
+  std::string station_id, operator_name, operator_source, software_version, git_hash, config_sha256, profile_sha256;
+};
+
 struct HistoryEntry {
   std::string bench;
   std::int64_t run_id = 0;
@@ -32,8 +37,25 @@ struct HistoryEntry {
   std::optional<std::string> lot, ended_at, verdict;
   std::string purpose, state;
   std::vector<std::pair<std::string, double>> figures;  // by source then name
+  std::optional<RunIdentityInfo> identity;               // none for a run recorded without one
+  std::optional<std::string> powered_on_at;              // the unit's power-on (ISO 8601 UTC), when seen
+  std::optional<double> since_power_on_s;                // s from it to the run's creation
 };
 PlantResult<std::vector<HistoryEntry>> serial_history(Connection& c, const std::string& serial, const FleetFilter& f);
+
+// A certificate issued for a serial, as replicated with that serial's runs.
+struct SerialCertificate {
+  std::string bench;
+  std::int64_t certificate_id = 0, model_id = 0;
+  int model_version = 0;
+  std::string sha256;
+  std::optional<std::string> issued_at;  // ISO 8601 UTC
+  std::optional<std::string> verdict;    // the certificate's own "verdict" field
+  std::optional<std::int64_t> run_id;    // the run the certified model was fitted on, when the plant holds it
+};
+// In the order issued (then bench, id). Filters by bench only (a certificate has no lot or run end).
+PlantResult<std::vector<SerialCertificate>> serial_certificates(Connection& c, const std::string& serial,
+                                                                const FleetFilter& f);
 
 // One unit's value of one figure ("T1", "mu0", "ratio", ...), with where it came from.
 struct FigureValue {
