@@ -226,7 +226,12 @@ int run_fleet(const std::string& command, const FleetOptions& o, std::ostream& o
         u["z"] = ch.sigma > 0 ? (f->values[i].value - ch.center) / ch.sigma : 0.0;
         flagged.push_back(u);
       }
-      json cj = {{"figure", name}, {"n", f->values.size()}, {"baseline", f->baseline},
+      json lots_j = json::array();
+      for (const auto& l : f->lots)
+        lots_j.push_back({{"lot", l.lot}, {"n", l.n}, {"mean", l.mean}, {"lcl", l.lcl}, {"ucl", l.ucl}, {"z", l.z},
+                          {"side", l.side}});
+      json cj = {{"figure", name}, {"n", f->values.size()}, {"baseline", f->baseline}, {"lots", lots_j},
+                 {"flagged_lots", f->flagged_lots},
                  {"center", ch.center}, {"sigma", ch.sigma}, {"ucl", ch.ucl}, {"lcl", ch.lcl},
                  {"mr_bar", ch.mr_bar}, {"mr_ucl", ch.mr_ucl}, {"flagged_units", flagged}, {"signals", signals}};
       if (cmp)
@@ -253,6 +258,14 @@ int run_fleet(const std::string& command, const FleetOptions& o, std::ostream& o
                  v.ended_at.value_or("-"), num(v.value), num(ch.sigma > 0 ? (v.value - ch.center) / ch.sigma : 0)});
         }
         text += "  flagged units (beyond the limits):\n" + t.str();
+      }
+      if (!f->flagged_lots.empty()) {
+        Table t({"lot", "n", "mean", "limits", "z"});
+        for (const auto& l : f->lots)
+          if (l.side != 0) t.add({l.lot, std::to_string(l.n), num(l.mean), num(l.lcl) + " .. " + num(l.ucl), num(l.z)});
+        text += "  lots out of limits (lot mean against centre +- 3 sigma sqrt(1/n + 1/n_baseline)):\n" + t.str();
+      } else if (!f->lots.empty()) {
+        text += "  lots out of limits: none of " + std::to_string(f->lots.size()) + "\n";
       }
       if (cmp)
         text += "  lot " + lots->first + " - lot " + lots->second + ": " + num(cmp->diff) + " [" + num(cmp->low) +

@@ -85,6 +85,15 @@ std::string fleet_html(const std::vector<plant::FigureSpc>& figures, const nlohm
       }
       body += "</table>";
     }
+    if (c.contains("flagged_lots") && !c["flagged_lots"].empty()) {
+      body += "<p>Lots out of limits (lot mean against centre &plusmn; 3 sigma sqrt(1/n + 1/n<sub>baseline</sub>)):";
+      for (const auto& l : c["lots"])
+        if (l["side"].get<int>() != 0)
+          body += " <b style=\"color:#d62728\">" + html_escape(l["lot"].get<std::string>()) + "</b> (mean " +
+                  std::to_string(l["mean"].get<double>()) + ", n " + std::to_string(l["n"].get<std::size_t>()) +
+                  ", z " + std::to_string(l["z"].get<double>()) + ")";
+      body += "</p>";
+    }
     if (c.contains("lot_comparison")) {
       const json& l = c["lot_comparison"];
       body += "<p>lot " + html_escape(l["lot_a"].get<std::string>()) + " &minus; lot " +

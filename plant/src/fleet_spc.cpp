@@ -1,6 +1,7 @@
 // One figure's control chart over the fleet (fleet_spc.hpp). Pure.
 #include "fogbench/plant/fleet_spc.hpp"
 
+#include <cmath>
 #include <map>
 
 namespace fogbench::plant {
@@ -36,6 +37,28 @@ std::expected<FigureSpc, std::string> figure_spc(const std::string& name, std::v
   f.chart = spc::imr_chart(x, begin, end);
   for (const auto& s : f.chart.signals)
     if (s.rule == spc::Rule::beyond_3_sigma) f.flagged_units.push_back(s.index);
+  // Each lot's mean against the centre.
+  std::map<std::string, std::pair<std::size_t, double>> by_lot;
+  for (const auto& v : values)
+    if (v.lot) {
+      auto& [n, sum] = by_lot[*v.lot];
+      ++n;
+      sum += v.value;
+    }
+  const double n_base = static_cast<double>(end - begin);
+  for (const auto& [lot, ns] : by_lot) {
+    LotMean m;
+    m.lot = lot;
+    m.n = ns.first;
+    m.mean = ns.second / static_cast<double>(ns.first);
+    const double se = f.chart.sigma * std::sqrt(1.0 / static_cast<double>(m.n) + 1.0 / n_base);
+    m.lcl = f.chart.center - 3 * se;
+    m.ucl = f.chart.center + 3 * se;
+    m.z = se > 0 ? (m.mean - f.chart.center) / se : 0.0;
+    m.side = m.mean > m.ucl ? 1 : m.mean < m.lcl ? -1 : 0;
+    if (m.side != 0) f.flagged_lots.push_back(lot);
+    f.lots.push_back(std::move(m));
+  }
   f.values = std::move(values);
   return f;
 }

@@ -86,12 +86,15 @@ TEST_CASE("fogctl fleet: serials, history, dist and spc with --json and --html o
   std::set<std::string> flagged;
   for (const auto& u : chart["flagged_units"]) flagged.insert(u["serial"].get<std::string>());
   for (const auto& s : gen->outlier_serials) CHECK(flagged.contains(s));
+  CHECK(chart["flagged_lots"] == nlohmann::json::array({gen->shifted_lot}));
+  CHECK(chart["lots"].size() == 4);
   CHECK(chart["lot_comparison"]["low"].get<double>() > 0);
   std::ifstream f(html);
   std::stringstream ss;
   ss << f.rdbuf();
   CHECK_THAT(ss.str(), Catch::Contains("uPlot"));
   CHECK_THAT(ss.str(), Catch::Contains(gen->outlier_serials.front()));
+  CHECK_THAT(ss.str(), Catch::Contains("Lots out of limits"));
   // The table form names the flagged units and the comparison.
   o.json = false;
   o.html.clear();
@@ -99,6 +102,7 @@ TEST_CASE("fogctl fleet: serials, history, dist and spc with --json and --html o
   REQUIRE(spc.code == 0);
   CHECK_THAT(spc.out, Catch::Contains("flagged units (beyond the limits)"));
   CHECK_THAT(spc.out, Catch::Contains("(Welch, "));
+  CHECK_THAT(spc.out, Catch::Contains("lots out of limits (lot mean"));
 
   // Refusals: exit 2, each named.
   cli::FleetOptions bad = o;

@@ -45,14 +45,29 @@ TEST_CASE("fleet: on a generated plant the SPC flags the planted units and the s
   auto f = plant::figure_spc("d(T1)", *values, b);
   REQUIRE(f);
   std::set<std::string> flagged;
+  int false_positives = 0;
   for (auto i : f->flagged_units) {
     const auto& v = f->values[i];
     const bool planted = std::count(g->outlier_serials.begin(), g->outlier_serials.end(), v.serial) > 0;
-    // Anything flagged is planted: an outlier or a unit of the shifted lot.
+    // Anything flagged is planted: an outlier or a unit of the shifted lot (shifted by 1 sigma,
+    // some of its units lie beyond 3 sigma: true signals of the shift).
+    INFO(v.serial << " " << v.lot.value_or("-") << " " << v.value);
     CHECK((planted || v.lot == g->shifted_lot));
+    false_positives += !(planted || v.lot == g->shifted_lot);
     flagged.insert(v.serial);
   }
+  // The generator truncates natural values at 2.5 sigma: no unit beyond 3 sigma is natural, so
+  // the expected count of false positives is 0, not the 0.27% of an untruncated normal law.
+  CHECK(false_positives == 0);
   for (const auto& s : g->outlier_serials) CHECK(flagged.contains(s));
+  // The shifted lot, and no other, is out of limits on the lot means (without being told which).
+  CHECK(f->flagged_lots == std::vector<std::string>{g->shifted_lot});
+  REQUIRE(f->lots.size() == 10);
+  for (const auto& l : f->lots) {
+    INFO(l.lot << " mean " << l.mean << " limits " << l.lcl << " .. " << l.ucl << " z " << l.z);
+    if (l.lot == g->shifted_lot) CHECK(l.z > 10);  // 1 sigma on 400 units: some 20 standard errors
+    else CHECK(std::abs(l.z) < 3);
+  }
   // The shifted lot: Welch's interval against an unshifted lot holds the planted shift (1 sigma
   // = 0.30) and not 0; two unshifted lots differ by less than 4 standard errors.
   auto shifted = plant::compare_lots(f->values, g->shifted_lot, "LOT-1002");
@@ -71,6 +86,7 @@ TEST_CASE("fleet: on a generated plant the SPC flags the planted units and the s
     REQUIRE(s);
     INFO(name);
     CHECK(s->flagged_units.empty());
+    CHECK(s->flagged_lots.empty());
   }
   // Filters: one lot, one bench; a baseline window that holds nothing is a clear error.
   plant::FleetFilter lot;

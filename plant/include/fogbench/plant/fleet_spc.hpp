@@ -21,6 +21,16 @@ struct Baseline {
   std::optional<std::string> from, to;
 };
 
+// One lot's mean against the chart's centre: limits centre +- 3 sigma sqrt(1/n + 1/n_baseline)
+// (the difference of two means, the lot's and the baseline's, with the chart's sigma), so a lot
+// whose units all shifted a little stands out even when none of its units is beyond the limits.
+struct LotMean {
+  std::string lot;
+  std::size_t n = 0;
+  double mean = 0, lcl = 0, ucl = 0, z = 0;  // z: (mean - centre) / (sigma sqrt(1/n + 1/n_baseline))
+  int side = 0;                              // +1 above, -1 below, 0 within
+};
+
 struct FigureSpc {
   std::string name;
   std::vector<FigureValue> values;   // in time order
@@ -28,6 +38,8 @@ struct FigureSpc {
   std::string baseline;              // the window in words: "values 1..100 (runs ended ... to ...)"
   // Units whose value is beyond the individuals' limits (rule 1): outliers against the fleet.
   std::vector<std::size_t> flagged_units;  // indices into values
+  std::vector<LotMean> lots;               // every lot's mean (values without a lot: none), by name
+  std::vector<std::string> flagged_lots;   // lots whose mean is beyond its limits
 };
 
 // Needs two values in the window; the error says which window and how many it held.
