@@ -15,6 +15,7 @@
 
 #include "fogbench/plant/fleet_spc.hpp"
 #include "fogbench/plant/generate.hpp"
+#include "fogbench/plant/verdicts.hpp"
 
 using namespace fogbench;
 using Clock = std::chrono::steady_clock;
@@ -22,22 +23,28 @@ using Clock = std::chrono::steady_clock;
 int main(int argc, char** argv) {
   std::string db;
   plant::GenerateOptions o;
+  // Bench 3 gives marginal verdicts at 20% (5% elsewhere) from the middle of the plant on: the
+  // p-charts have a bench to flag.
+  o.marginal_bench = 3;
+  o.marginal_from_run = o.runs / 2;
   bool generate = true;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--help" || a == "-h") {
-      std::printf("bench_plant_generate --db CONNSTR [--runs N] [--sample-runs N] [--no-generate]\n"
+      std::printf("bench_plant_generate --db CONNSTR [--runs N] [--sample-runs N] [--marginal-bench K] [--no-generate]\n"
                   "  fills the plant store with a generated fleet (default 10,000 runs of 2 units, every run's\n"
                   "  samples: 200 million rows; --sample-runs N: samples for the first N runs only) and times\n"
-                  "  fleet spc over it. --no-generate: time fleet spc over what the plant holds.\n");
+                  "  fleet spc over it. --marginal-bench K: the bench given extra marginal verdicts from the middle\n"
+                  "  of the plant on (default 3; 0: none). --no-generate: time fleet spc over what the plant holds.\n");
       return 0;
     }
     if (a == "--db" && i + 1 < argc) db = argv[++i];
-    else if (a == "--runs" && i + 1 < argc) o.runs = std::stoi(argv[++i]);
+    else if (a == "--runs" && i + 1 < argc) o.runs = std::stoi(argv[++i]), o.marginal_from_run = o.runs / 2;
+    else if (a == "--marginal-bench" && i + 1 < argc) o.marginal_bench = std::stoi(argv[++i]);
     else if (a == "--sample-runs" && i + 1 < argc) o.sample_runs = std::stoi(argv[++i]);
     else if (a == "--no-generate") generate = false;
     else {
-      std::fprintf(stderr, "usage: bench_plant_generate --db CONNSTR [--runs N] [--sample-runs N] [--no-generate]\n");
+      std::fprintf(stderr, "usage: bench_plant_generate --db CONNSTR [--runs N] [--sample-runs N] [--marginal-bench K] [--no-generate]\n");
       return 2;
     }
   }
@@ -74,6 +81,7 @@ int main(int argc, char** argv) {
   // fleet spc over every figure, as `fogctl fleet spc` does it (query, chart, rules); best of 5.
   double best = 1e9, best_one = 1e9;
   std::size_t flagged = 0, values = 0;
+  std::string flagged_benches;
   for (int rep = 0; rep < 5; ++rep) {
     const auto t0 = Clock::now();
     auto names = plant::figure_names(*c, {});
@@ -92,10 +100,22 @@ int main(int argc, char** argv) {
       values += f->values.size();
       if (n.name == "d(T1)") one = std::chrono::duration<double>(Clock::now() - t1).count();
     }
+    // The p-charts of marginal and fail verdicts per bench per month.
+    auto verdicts = plant::verdict_values(*c, {});
+    if (!verdicts) return std::fprintf(stderr, "%s\n", verdicts.error().message.c_str()), 1;
+    flagged_benches.clear();
+    for (const char* v : {"marginal", "fail"}) {
+      plant::Baseline pb;
+      pb.first_n = 2000;
+      auto p = plant::proportion_chart(*verdicts, v, pb);
+      if (!p) return std::fprintf(stderr, "%s\n", p.error().c_str()), 1;
+      for (const auto& b : p->flagged_benches) flagged_benches += std::string(v) + ":" + b + " ";
+    }
     best = std::min(best, std::chrono::duration<double>(Clock::now() - t0).count());
     best_one = std::min(best_one, one);
   }
-  std::printf("fleet spc: every figure (%zu values) %.3f s, d(T1) alone %.3f s (best of 5); %zu units flagged\n",
-              values, best, best_one, flagged);
+  std::printf("fleet spc: every figure (%zu values) and the p-charts %.3f s, d(T1) alone %.3f s (best of 5); %zu units "
+              "flagged; benches out of limits: %s\n",
+              values, best, best_one, flagged, flagged_benches.empty() ? "none" : flagged_benches.c_str());
   return 0;
 }

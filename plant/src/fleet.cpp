@@ -3,6 +3,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "fleet_query.hpp"
+
 namespace fogbench::plant {
 namespace {
 
@@ -128,7 +130,7 @@ PlantResult<std::vector<FigureValue>> figure_values(Connection& c, const std::st
       ", fg.source, fg.value FROM fogbench.figures fg JOIN fogbench.units u USING (bench_id, run_id, unit_index) "
       "JOIN fogbench.runs r USING (bench_id, run_id) WHERE fg.name = $6 AND " +
       kWhere + " ORDER BY r.ended_at NULLS LAST, r.bench_id, r.run_id, u.unit_index, fg.source_id";
-  auto rows = c.query(sql, p, "read the values of '" + name + "'");
+  auto rows = detail::query_scan(c, sql, p, "read the values of '" + name + "'");
   if (!rows) return std::unexpected(rows.error());
   std::vector<FigureValue> out;
   out.reserve(rows->rows.size());

@@ -8,6 +8,8 @@
 #include <map>
 #include <set>
 
+#include "fleet_query.hpp"
+
 namespace fogbench::plant {
 
 PlantResult<std::vector<VerdictValue>> verdict_values(Connection& c, const FleetFilter& f) {
@@ -22,7 +24,7 @@ PlantResult<std::vector<VerdictValue>> verdict_values(Connection& c, const Fleet
       "AND ($3::text IS NULL OR u.serial = $3) AND ($4::timestamptz IS NULL OR r.ended_at >= $4::timestamptz) "
       "AND ($5::timestamptz IS NULL OR r.ended_at < $5::timestamptz) "
       "ORDER BY r.ended_at NULLS LAST, r.bench_id, r.run_id, u.unit_index";
-  auto rows = c.query(sql, {f.lot, f.bench, f.serial, f.since, f.until}, "read the verdicts");
+  auto rows = detail::query_scan(c, sql, {f.lot, f.bench, f.serial, f.since, f.until}, "read the verdicts");
   if (!rows) return std::unexpected(rows.error());
   std::vector<VerdictValue> out;
   out.reserve(rows->rows.size());
