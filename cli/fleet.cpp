@@ -139,7 +139,7 @@ int run_fleet(const std::string& command, const FleetOptions& o, std::ostream& o
                id ? short_hash(id->config_sha256) : "-", id ? short_hash(id->profile_sha256) : "-"});
         ft.add({h.ended_at.value_or("-"), h.bench, std::to_string(h.run_id), f.empty() ? "-" : f});
       }
-      out << "history of " << o.serial << " (" << rows->size() << " runs)\n" << t.str() << "\nfigures\n" << ft.str();
+      out << "history of " << o.serial << " (" << rows->size() << (rows->size() == 1 ? " run)\n" : " runs)\n") << t.str() << "\nfigures\n" << ft.str();
       if (certs->empty()) {
         out << "\nno certificates of " << o.serial << " in the plant store\n";
       } else {

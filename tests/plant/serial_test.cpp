@@ -117,7 +117,7 @@ TEST_CASE("fogctl fleet serial: each run's identity, lot and bench, and the seri
   o.filter.bench = "bench-B";
   std::ostringstream onlyb;
   REQUIRE(cli::run_fleet("serial", o, onlyb, err) == 0);
-  CHECK_THAT(onlyb.str(), Catch::Contains("(1 runs)"));
+  CHECK_THAT(onlyb.str(), Catch::Contains("(1 run)"));
   CHECK_THAT(onlyb.str(), Catch::Contains("no certificates of FOG-0002"));
   o.filter.bench.reset();
   o.serial = "FOG-9999";
