@@ -63,6 +63,10 @@ int run_fleet(const std::string& command, const FleetOptions& o, std::ostream& o
     }
     lots.emplace(o.compare.substr(0, comma), o.compare.substr(comma + 1));
   }
+  if (o.period != "month" && o.period != "week" && o.period != "day") {
+    err << where << "--period: expected month, week or day, not '" << o.period << "'\n";
+    return kExitError;
+  }
   if (!(o.level > 0 && o.level < 1)) {
     err << where << "--level: expected a number between 0 and 1 (e.g. 0.95)\n";
     return kExitError;
