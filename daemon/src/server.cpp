@@ -23,6 +23,7 @@
 #include <boost/asio.hpp>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <deque>
 #include <iostream>
 #include <list>
@@ -35,11 +36,13 @@
 #include "fogbench/daemon/instance.hpp"
 #include "fogbench/daemon/metrics.hpp"
 #include "fogbench/daemon/station.hpp"
+#include "fogbench/daemon/systemd.hpp"
 #include "fogbench/drivers/chamber.hpp"
 #include "fogbench/drivers/gyro_bus.hpp"
 #include "fogbench/drivers/thermistor_module.hpp"
 #include "fogbench/daemon/run_identity.hpp"
 #include "analysis_worker.hpp"
+#include "notify_status.hpp"
 #include "plant_link.hpp"
 #include "session.hpp"
 #include "sim_clock.hpp"
@@ -104,6 +107,7 @@ struct Server::Impl {
   std::unique_ptr<Station> station;
   std::unique_ptr<Handler> handler;
   std::unique_ptr<PlanRunner> plans;  // qualification plans (plan_runner.hpp), told after each tick
+  std::unique_ptr<StatusNotifier> notifier;  // systemd's STATUS= line, under systemd (notify_status.hpp)
   Turns turns{io};
   // Fits, verifications and large reads (offload.hpp); declared after the station so that it
   // stops (joins) before the station goes.
@@ -695,6 +699,9 @@ struct Server::Impl {
   void begin_stop(const std::string& why) {
     if (stopping) return;
     stopping = true;
+    // systemd hears it before the shutdown work (the run's end, the safe setpoint) begins.
+    systemd::notify("STOPPING=1\nSTATUS=stopping: " + why);
+    if (notifier) notifier->stop();
     spdlog::info("stopping: {}", why);
     station->shutdown("fogbenchd stopping: " + why);
     boost::system::error_code ec;
@@ -868,6 +875,11 @@ int Server::run() {
   m.accept_unix();
   if (m.tcp_acceptor) m.accept_tcp();
   if (m.web) m.web->start();
+  if (const char* ns = std::getenv("NOTIFY_SOCKET"); ns && *ns) {
+    m.notifier = std::make_unique<StatusNotifier>(m.io, *m.station, m.plans.get(),
+                                                  [](std::string_view st) { return systemd::notify(st); });
+    m.notifier->start();
+  }
 
   // Start-up: the chamber goes to its safe setpoint and runs, before anything else is asked.
   const double safe = m.config.safe_setpoint_c;
