@@ -211,10 +211,14 @@ struct Server::Impl {
     return sessions.size();
   }
 
+  // Connections open now, every transport: the sockets' and the WebSockets' sessions, and the
+  // web side's HTTP connections. What socket.max_clients limits.
+  std::size_t open_clients() { return open_sessions() + (web ? web->open_http() : 0); }
+
   // A new connection: a session, or a refusal past socket.max_clients.
   template <class Socket>
   void admit(Socket socket, std::string peer, bool may_control) {
-    const std::size_t open = open_sessions();
+    const std::size_t open = open_clients();
     if (open >= static_cast<std::size_t>(config.socket.max_clients)) {
       spdlog::warn("client {}: {} clients connected (socket.max_clients); refused", peer, open);
       refuse(std::move(socket), "too many clients (" + std::to_string(open) +
@@ -682,9 +686,10 @@ struct Server::Impl {
       }
       in.store_bytes = bytes;
     }
-    in.web_clients = web ? web->open_websockets() : 0;
+    in.web_clients = web ? web->open_websockets() + web->open_http() : 0;
     const std::size_t all = open_sessions();
-    in.socket_clients = all >= in.web_clients ? all - in.web_clients : 0;
+    const std::size_t ws = web ? web->open_websockets() : 0;
+    in.socket_clients = all >= ws ? all - ws : 0;
     in.http_requests = web ? web->requests() : 0;
     in.ticks = ticks_done;
     in.ticks_skipped = ticks_skipped;
@@ -821,7 +826,7 @@ std::expected<void, Server::StartError> Server::start() {
   m.handler = std::make_unique<Handler>(*m.station);
   if (m.config.web) {
     web::WebServer::Hooks hooks;
-    hooks.full = [&m] { return m.open_sessions() >= static_cast<std::size_t>(m.config.socket.max_clients); };
+    hooks.full = [&m] { return m.open_clients() >= static_cast<std::size_t>(m.config.socket.max_clients); };
     hooks.admit = [&m](const std::shared_ptr<SessionBase>& s) { m.sessions.push_back(s); };
     hooks.metrics = [&m] { return m.metrics(); };
     m.web = std::make_unique<web::WebServer>(m.io, *m.handler, *m.config.web, m.config.socket.tcp_token, std::move(hooks));
