@@ -829,7 +829,8 @@ std::expected<void, Server::StartError> Server::start() {
     hooks.full = [&m] { return m.open_clients() >= static_cast<std::size_t>(m.config.socket.max_clients); };
     hooks.admit = [&m](const std::shared_ptr<SessionBase>& s) { m.sessions.push_back(s); };
     hooks.metrics = [&m] { return m.metrics(); };
-    m.web = std::make_unique<web::WebServer>(m.io, *m.handler, *m.config.web, m.config.socket.tcp_token, std::move(hooks));
+    const std::string& token = m.config.web->token.empty() ? m.config.socket.tcp_token : m.config.web->token;
+    m.web = std::make_unique<web::WebServer>(m.io, *m.handler, *m.config.web, token, std::move(hooks));
     if (auto ok = m.web->bind(); !ok) return fail(ok.error());
   }
   m.plans = std::make_unique<PlanRunner>(*m.station);
