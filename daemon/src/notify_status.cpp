@@ -102,17 +102,24 @@ void StatusNotifier::look() {
   if (plans_)
     if (auto id = plans_->running_plan_id())
       if (auto p = plans_->status(*id)) plan = std::move(*p);
-  json last = nullptr;
-  if (!plan.is_object() && status.value("run", json(nullptr)).is_null()) {
+  // The newest stored run, for the idle line: read again only when a run has ended since (the
+  // station's last_run changed), not at every look.
+  const json ended = status.value("last_run", json(nullptr));
+  if (!plan.is_object() && status.value("run", json(nullptr)).is_null() && (!last_read_ || ended != last_ended_)) {
     storage::RunFilter f;
     f.limit = 1;
-    if (auto runs = station_.store().list_runs(f); runs && !runs->empty())
-      last = {{"id", runs->front().id},
-              {"profile", runs->front().profile_name},
-              {"state", std::string(storage::to_string(runs->front().state))}};
+    auto runs = station_.store().list_runs(f);
+    if (runs) {
+      last_run_ = runs->empty() ? json(nullptr)
+                                : json{{"id", runs->front().id},
+                                       {"profile", runs->front().profile_name},
+                                       {"state", std::string(storage::to_string(runs->front().state))}};
+      last_ended_ = ended;
+      last_read_ = true;
+    }
   }
   std::string key;
-  const std::string text = status_text(status, plan, last, &key);
+  const std::string text = status_text(status, plan, last_run_, &key);
   const auto now = std::chrono::steady_clock::now();
   const bool changed_kind = key != sent_key_;
   const bool due = !sent_at_ || now - *sent_at_ >= kEvery;

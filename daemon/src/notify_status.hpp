@@ -48,6 +48,8 @@ class StatusNotifier {
   Send send_;
   std::string sent_key_, sent_text_;
   std::optional<std::chrono::steady_clock::time_point> sent_at_;
+  nlohmann::json last_run_, last_ended_;  // the newest stored run; the station's last_run then
+  bool last_read_ = false;
   bool stopped_ = false;
 };
 
