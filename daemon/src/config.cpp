@@ -126,9 +126,9 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   }
 
   if (j.contains("web") && !j["web"].is_null()) {
-    auto w = parse_web_config(j["web"]);
+    auto w = parse_web_config(j["web"], base_dir);
     if (!w) return Err(w.error());
-    c.web = *w;
+    if (w->enabled) c.web = *w;
   }
 
   if (j.contains("socket")) {

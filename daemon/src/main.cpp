@@ -124,6 +124,6 @@ int main(int argc, char** argv) {
     if (auto interval = sd::watchdog_interval()) watchdog.emplace(server, *interval);
     rc = server.run();
   }
-  sd::notify("STOPPING=1\nSTATUS=stopped");
+  sd::notify("STATUS=stopped (exit status " + std::to_string(rc) + ")");
   return rc;
 }

@@ -23,6 +23,7 @@
 #include <boost/asio.hpp>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <deque>
 #include <iostream>
 #include <list>
@@ -35,11 +36,13 @@
 #include "fogbench/daemon/instance.hpp"
 #include "fogbench/daemon/metrics.hpp"
 #include "fogbench/daemon/station.hpp"
+#include "fogbench/daemon/systemd.hpp"
 #include "fogbench/drivers/chamber.hpp"
 #include "fogbench/drivers/gyro_bus.hpp"
 #include "fogbench/drivers/thermistor_module.hpp"
 #include "fogbench/daemon/run_identity.hpp"
 #include "analysis_worker.hpp"
+#include "notify_status.hpp"
 #include "plant_link.hpp"
 #include "session.hpp"
 #include "sim_clock.hpp"
@@ -104,6 +107,7 @@ struct Server::Impl {
   std::unique_ptr<Station> station;
   std::unique_ptr<Handler> handler;
   std::unique_ptr<PlanRunner> plans;  // qualification plans (plan_runner.hpp), told after each tick
+  std::unique_ptr<StatusNotifier> notifier;  // systemd's STATUS= line, under systemd (notify_status.hpp)
   Turns turns{io};
   // Fits, verifications and large reads (offload.hpp); declared after the station so that it
   // stops (joins) before the station goes.
@@ -207,10 +211,14 @@ struct Server::Impl {
     return sessions.size();
   }
 
+  // Connections open now, every transport: the sockets' and the WebSockets' sessions, and the
+  // web side's HTTP connections. What socket.max_clients limits.
+  std::size_t open_clients() { return open_sessions() + (web ? web->open_http() : 0); }
+
   // A new connection: a session, or a refusal past socket.max_clients.
   template <class Socket>
   void admit(Socket socket, std::string peer, bool may_control) {
-    const std::size_t open = open_sessions();
+    const std::size_t open = open_clients();
     if (open >= static_cast<std::size_t>(config.socket.max_clients)) {
       spdlog::warn("client {}: {} clients connected (socket.max_clients); refused", peer, open);
       refuse(std::move(socket), "too many clients (" + std::to_string(open) +
@@ -678,9 +686,10 @@ struct Server::Impl {
       }
       in.store_bytes = bytes;
     }
-    in.web_clients = web ? web->open_websockets() : 0;
+    in.web_clients = web ? web->open_websockets() + web->open_http() : 0;
     const std::size_t all = open_sessions();
-    in.socket_clients = all >= in.web_clients ? all - in.web_clients : 0;
+    const std::size_t ws = web ? web->open_websockets() : 0;
+    in.socket_clients = all >= ws ? all - ws : 0;
     in.http_requests = web ? web->requests() : 0;
     in.ticks = ticks_done;
     in.ticks_skipped = ticks_skipped;
@@ -695,6 +704,9 @@ struct Server::Impl {
   void begin_stop(const std::string& why) {
     if (stopping) return;
     stopping = true;
+    // systemd hears it before the shutdown work (the run's end, the safe setpoint) begins.
+    systemd::notify("STOPPING=1\nSTATUS=stopping: " + why);
+    if (notifier) notifier->stop();
     spdlog::info("stopping: {}", why);
     station->shutdown("fogbenchd stopping: " + why);
     boost::system::error_code ec;
@@ -814,10 +826,11 @@ std::expected<void, Server::StartError> Server::start() {
   m.handler = std::make_unique<Handler>(*m.station);
   if (m.config.web) {
     web::WebServer::Hooks hooks;
-    hooks.full = [&m] { return m.open_sessions() >= static_cast<std::size_t>(m.config.socket.max_clients); };
+    hooks.full = [&m] { return m.open_clients() >= static_cast<std::size_t>(m.config.socket.max_clients); };
     hooks.admit = [&m](const std::shared_ptr<SessionBase>& s) { m.sessions.push_back(s); };
     hooks.metrics = [&m] { return m.metrics(); };
-    m.web = std::make_unique<web::WebServer>(m.io, *m.handler, *m.config.web, m.config.socket.tcp_token, std::move(hooks));
+    const std::string& token = m.config.web->token.empty() ? m.config.socket.tcp_token : m.config.web->token;
+    m.web = std::make_unique<web::WebServer>(m.io, *m.handler, *m.config.web, token, std::move(hooks));
     if (auto ok = m.web->bind(); !ok) return fail(ok.error());
   }
   m.plans = std::make_unique<PlanRunner>(*m.station);
@@ -868,6 +881,11 @@ int Server::run() {
   m.accept_unix();
   if (m.tcp_acceptor) m.accept_tcp();
   if (m.web) m.web->start();
+  if (const char* ns = std::getenv("NOTIFY_SOCKET"); ns && *ns) {
+    m.notifier = std::make_unique<StatusNotifier>(m.io, *m.station, m.plans.get(),
+                                                  [](std::string_view st) { return systemd::notify(st); });
+    m.notifier->start();
+  }
 
   // Start-up: the chamber goes to its safe setpoint and runs, before anything else is asked.
   const double safe = m.config.safe_setpoint_c;

@@ -68,7 +68,8 @@ json Station::status() const {
                 {"units", r.serials}, {"elapsed_s", r.elapsed_s},
                 {"remaining_s", r.executor ? json(r.last.remaining_s) : json(nullptr)},
                 {"phase", r.phase ? json(std::string(profiles::to_string(*r.phase))) : json(nullptr)},
-                {"step", r.step}, {"profile_held_s", r.held_s}, {"quality", quality_json(r)},
+                {"step", r.step},
+                {"steps", r.executor ? json(r.executor->profile().steps.size()) : json(nullptr)}, {"profile_held_s", r.held_s}, {"quality", quality_json(r)},
                 {"link_gap_s", r.link_down_since_s ? json(r.elapsed_s - *r.link_down_since_s) : json(nullptr)}};
     if (r.state == RunState::pending) s["run"]["remaining_s"] = r.executor->profile().nominal_duration_s();
   } else {

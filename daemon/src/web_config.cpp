@@ -4,17 +4,41 @@
 #include "fogbench/daemon/config.hpp"
 
 #include <boost/asio/ip/address.hpp>
+#include <fstream>
 
 namespace fogbench::daemon {
 
 using nlohmann::json;
 
-std::expected<WebConfig, std::string> parse_web_config(const json& j) {
+std::expected<WebConfig, std::string> parse_web_config(const json& j, const std::filesystem::path& base_dir) {
   using Err = std::unexpected<std::string>;
-  if (!j.is_object()) return Err("web: expected an object {\"listen\": \"127.0.0.1:8080\", \"allow_remote\"?}");
+  if (!j.is_object())
+    return Err("web: expected an object {\"listen\": \"127.0.0.1:8080\", \"allow_remote\"?, \"enabled\"?, \"token_file\"?}");
   for (const auto& [key, value] : j.items())
-    if (key != "listen" && key != "allow_remote") return Err("web." + key + ": unknown field");
+    if (key != "listen" && key != "allow_remote" && key != "enabled" && key != "token_file")
+      return Err("web." + key + ": unknown field");
   WebConfig w;
+  if (j.contains("enabled")) {
+    if (!j["enabled"].is_boolean()) return Err("web.enabled: expected true or false");
+    w.enabled = j["enabled"].get<bool>();
+  }
+  if (j.contains("token_file")) {
+    if (!j["token_file"].is_string() || j["token_file"].get<std::string>().empty())
+      return Err("web.token_file: expected a file name");
+    // Read only when the panel is on: a sample with it off passes --check-config before the
+    // file is made.
+    if (w.enabled) {
+      const std::string f = j["token_file"].get<std::string>();
+      const std::filesystem::path path = std::filesystem::path(f).is_absolute() ? std::filesystem::path(f) : base_dir / f;
+      std::ifstream in(path);
+      std::string line;
+      if (!in || !std::getline(in, line)) return Err("web.token_file: cannot be read: " + path.string());
+      while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+      if (line.empty()) return Err("web.token_file: the first line is empty: " + path.string());
+      if (line.size() < 16) return Err("web.token_file: the token is shorter than 16 characters: " + path.string());
+      w.token = line;
+    }
+  }
   if (j.contains("allow_remote")) {
     if (!j["allow_remote"].is_boolean()) return Err("web.allow_remote: expected true or false");
     w.allow_remote = j["allow_remote"].get<bool>();

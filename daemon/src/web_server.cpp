@@ -34,6 +34,9 @@ struct WebServer::Impl : std::enable_shared_from_this<WebServer::Impl> {
   std::optional<tcp::acceptor> acceptor;
   std::list<std::weak_ptr<net::SessionBase>> websockets;
   std::uint64_t requests = 0;
+  // HTTP connections open (a WebSocket's until its upgrade; then it is a session), counted
+  // against socket.max_clients with the sockets' sessions. Refused ones are not counted.
+  std::size_t http_open = 0;
   bool stopped = false;
 
   Impl(asio::io_context& i, Handler& h, WebConfig c, std::string t, Hooks k)
@@ -175,8 +178,16 @@ http::status status_of(const std::string& reply) {
 
 class HttpSession : public std::enable_shared_from_this<HttpSession> {
  public:
-  HttpSession(tcp::socket socket, std::shared_ptr<WebServer::Impl> server, std::string peer)
-      : stream_(std::move(socket)), server_(std::move(server)), peer_(std::move(peer)) {}
+  // `refused`: a connection past socket.max_clients; its request is read and answered 503.
+  HttpSession(tcp::socket socket, std::shared_ptr<WebServer::Impl> server, std::string peer, bool refused)
+      : stream_(std::move(socket)), server_(std::move(server)), peer_(std::move(peer)), refused_(refused) {
+    if (!refused_) ++server_->http_open;
+  }
+  ~HttpSession() {
+    if (!refused_) --server_->http_open;
+  }
+  HttpSession(const HttpSession&) = delete;
+  HttpSession& operator=(const HttpSession&) = delete;
 
   void start() { read(); }
   void close() {
@@ -190,7 +201,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     parser_.emplace();
     parser_->header_limit(static_cast<std::uint32_t>(kMaxHeaderBytes));
     parser_->body_limit(kMaxBodyBytes);
-    stream_.expires_after(kRequestDeadline);
+    stream_.expires_after(refused_ ? kRefusedDeadline : kRequestDeadline);
     http::async_read(stream_, buf_, *parser_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
       self->on_read(ec);
     });
@@ -212,6 +223,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       return close();
     }
     ++server_->requests;
+    if (refused_)
+      return error(http::status::service_unavailable, "too many clients (socket.max_clients); retry later", 11, true);
     route(parser_->release());
   }
 
@@ -235,11 +248,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
           return error(http::status::forbidden, "WebSocket from another origin (" + o + ") refused", req.version(), true);
         }
       }
-      if (server_->hooks.full && server_->hooks.full()) {
-        spdlog::warn("web client {}: too many clients (socket.max_clients); refused", peer_);
-        return error(http::status::service_unavailable, "too many clients (socket.max_clients); retry later",
-                     req.version(), true);
-      }
+      // This connection was counted against socket.max_clients when it was accepted: as a
+      // WebSocket it is counted as a session instead.
       auto ws = std::make_shared<WsSession>(stream_.release_socket(), server_->handler, peer_, server_->control_token);
       if (server_->hooks.admit) server_->hooks.admit(ws);
       server_->websockets.remove_if([](const auto& w) { return w.expired(); });
@@ -325,6 +335,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   std::optional<http::request_parser<http::string_body>> parser_;
   std::shared_ptr<WebServer::Impl> server_;
   std::string peer_;
+  bool refused_ = false;
 };
 
 }  // namespace
@@ -343,8 +354,12 @@ void WebServer::Impl::accept() {
     }
     boost::system::error_code e2;
     const auto ep = s.remote_endpoint(e2);
-    auto h = std::make_shared<HttpSession>(std::move(s), self,
-                                           e2 ? std::string("web") : ep.address().to_string() + ":" + std::to_string(ep.port()));
+    std::string peer = e2 ? std::string("web") : ep.address().to_string() + ":" + std::to_string(ep.port());
+    // Past socket.max_clients (the sockets' sessions, the WebSockets and the HTTP connections
+    // together): the request is answered 503 and the connection closed.
+    const bool refused = self->hooks.full && self->hooks.full();
+    if (refused) spdlog::warn("web client {}: too many clients (socket.max_clients); refused with 503", peer);
+    auto h = std::make_shared<HttpSession>(std::move(s), self, std::move(peer), refused);
     self->closers.remove_if([](const auto& p) { return p.first.expired(); });
     self->closers.emplace_back(h, [w = std::weak_ptr<HttpSession>(h)] {
       if (auto x = w.lock()) x->close();
@@ -408,5 +423,7 @@ std::size_t WebServer::open_websockets() {
 }
 
 std::uint64_t WebServer::requests() const { return impl_->requests; }
+
+std::size_t WebServer::open_http() const { return impl_->http_open; }
 
 }  // namespace fogbench::daemon::web

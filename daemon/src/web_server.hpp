@@ -25,11 +25,14 @@ constexpr std::size_t kMaxHeaderBytes = 8 * 1024;
 constexpr std::size_t kMaxBodyBytes = 64 * 1024;
 // A request must arrive whole within this (slow clients do not hold a connection).
 constexpr auto kRequestDeadline = std::chrono::seconds(30);
+// A connection past socket.max_clients gets this long to send the request its 503 answers.
+constexpr auto kRefusedDeadline = std::chrono::seconds(5);
 
 class WebServer {
  public:
   struct Hooks {
-    // Whether socket.max_clients connections are open already (a WebSocket is then refused, 503).
+    // Whether socket.max_clients connections are open already, all transports together (a new
+    // HTTP connection, WebSocket or not, is then answered 503 and closed).
     std::function<bool()> full;
     // A WebSocket session to register for pushed messages and the connection count.
     std::function<void(const std::shared_ptr<net::SessionBase>&)> admit;
@@ -49,6 +52,8 @@ class WebServer {
   // WebSocket connections open now, and HTTP requests answered since start.
   std::size_t open_websockets();
   std::uint64_t requests() const;
+  // HTTP connections open now (not yet a WebSocket; refused ones not counted).
+  std::size_t open_http() const;
 
   struct Impl;
 

@@ -227,6 +227,7 @@
     if (e.kind === "state" && e.detail && ["completed", "aborted", "failed"].includes(e.detail.to)) {
       refreshVerdicts();
       refreshStatus();
+      if (window.fogPanel.refreshPlan) window.fogPanel.refreshPlan();  // plan.js: the plan's next step or its end
     }
   }
 
@@ -304,6 +305,7 @@
         await refreshStatus();
         await refreshProfiles();
         await refreshVerdicts();
+        if (window.fogPanel.refreshPlan) await window.fogPanel.refreshPlan();
       } catch (e) { /* dropped meanwhile: onclose reconnects */ }
     };
     ws.onclose = () => {

@@ -106,6 +106,7 @@ class Process {
     return status_;
   }
   bool running() const { return pid_ > 0; }
+  pid_t pid() const { return pid_; }  // to signal it (SIGSTOP/SIGCONT); -1 once reaped
 
  private:
   pid_t pid_ = -1;

@@ -112,12 +112,15 @@ TEST_CASE("systemd: fogbenchd says READY=1 once serving, pings the watchdog, log
   CHECK(ping == "WATCHDOG=1");
   bench.daemon.reset();  // SIGTERM
   std::string last;
+  bool stopping = false;
   for (int i = 0; i < 200; ++i) {
     auto m = notify.receive(1s);
     if (m.empty()) break;
+    if (m.starts_with("STOPPING=1")) stopping = true;
     last = m;
   }
-  CHECK_THAT(last, Catch::StartsWith("STOPPING=1"));
+  CHECK(stopping);
+  CHECK_THAT(last, Catch::StartsWith("STATUS=stopped"));
   // Every line "<N>text": a syslog priority, no timestamp of spdlog's, no blank line.
   const std::string text = slurp(log);
   REQUIRE_FALSE(text.empty());
@@ -155,4 +158,75 @@ TEST_CASE("fogbenchd --check-config: 0 for a valid file, 2 naming the key of an 
   }
   CHECK(run("--version") == 0);
   std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("systemd: fogbenchd's STATUS= follows the run and idles, and STOPPING=1 comes at SIGTERM, before the shutdown") {
+  require_sim();
+  LiveBench bench(50.0);
+  bench.daemon.reset();
+  NotifySocket notify(bench.dir / "notify");
+  ::setenv("NOTIFY_SOCKET", notify.path.c_str(), 1);
+  bench.start_daemon();
+  ::unsetenv("NOTIFY_SOCKET");
+  CHECK_THAT(notify.receive(30s), Catch::StartsWith("READY=1\nSTATUS=serving on "));
+  // Idle first, with no run stored yet.
+  std::string m;
+  for (int i = 0; i < 20 && !m.starts_with("STATUS=idle"); ++i) m = notify.receive(5s);
+  CHECK(m == "STATUS=idle, no run stored");
+
+  LineClient c(bench.socket());
+  REQUIRE(c.ok());
+  const auto run = bench.start_run(c, "short", {"SIM-0001", "SIM-0002"});
+  const std::string prefix = "STATUS=run " + std::to_string(run) + " short ";
+  // Lines during the run: its state, step of 6 (short.profile's), phase, elapsed/total time, units.
+  std::vector<std::pair<std::string, std::chrono::steady_clock::time_point>> during;
+  bool running_step = false;
+  const auto deadline = std::chrono::steady_clock::now() + 120s;
+  while (std::chrono::steady_clock::now() < deadline && during.size() < 40) {
+    m = notify.receive(5s);
+    if (!m.starts_with(prefix)) continue;
+    during.emplace_back(m, std::chrono::steady_clock::now());
+    INFO(m);
+    CHECK_THAT(m, Catch::EndsWith(" s, SIM-0001 SIM-0002"));
+    if (m.find(" running step ") != std::string::npos && m.find("/6 (") != std::string::npos) running_step = true;
+    if (running_step && during.size() >= 6) break;
+  }
+  CHECK(running_step);
+  REQUIRE(during.size() >= 3);
+  // Lines of the same step and phase (the elapsed time moves): at most one every 5 s. (A
+  // per-tick line at time scale 50 would be 50 a second.)
+  for (std::size_t i = 1; i < during.size(); ++i) {
+    const auto kind = [](const std::string& l) { return l.substr(0, l.find(", ")); };
+    if (kind(during[i].first) == kind(during[i - 1].first)) {
+      INFO(during[i - 1].first << " then " << during[i].first);
+      CHECK(during[i].second - during[i - 1].second >= 3s);
+    }
+  }
+  auto r = c.call({{"cmd", "run.abort"}, {"reason", "status test"}});
+  REQUIRE(code_of(r) == "ok");
+  for (int i = 0; i < 20 && !m.starts_with("STATUS=idle"); ++i) m = notify.receive(5s);
+  CHECK(m == "STATUS=idle, last run " + std::to_string(run) + " short aborted");
+
+  // The mock bench stopped: the daemon's shutdown waits its 5 s for the safe setpoint. STOPPING=1
+  // must come at once, while the daemon is still at that work, not after it.
+  REQUIRE(::kill(bench.sim->pid(), SIGSTOP) == 0);
+  const auto sent = std::chrono::steady_clock::now();
+  REQUIRE(::kill(bench.daemon->pid(), SIGTERM) == 0);
+  std::string stopping;
+  for (int i = 0; i < 20 && !stopping.starts_with("STOPPING=1"); ++i) stopping = notify.receive(2s);
+  const auto got = std::chrono::steady_clock::now();
+  int st = 0;
+  const bool alive = ::waitpid(bench.daemon->pid(), &st, WNOHANG) == 0;
+  ::kill(bench.sim->pid(), SIGCONT);
+  CHECK(stopping == "STOPPING=1\nSTATUS=stopping: SIGTERM");
+  CHECK(alive);
+  CHECK(got - sent < 4s);
+  std::string last;
+  for (int i = 0; i < 50; ++i) {
+    auto x = notify.receive(1s);
+    if (x.empty()) break;
+    last = x;
+  }
+  CHECK_THAT(last, Catch::StartsWith("STATUS=stopped (exit status "));
+  bench.daemon->wait(30s);
 }

@@ -37,9 +37,15 @@ struct WebConfig {
   std::string address = "127.0.0.1";
   std::uint16_t port = 8080;  // 0: the kernel picks (reported in the ready line's web_port)
   bool allow_remote = false;  // a non-loopback address is refused unless true
+  bool enabled = true;        // `enabled: false`: the section is checked, nothing is served
+  // The web side's control token: the first line of web.token_file (relative to the
+  // configuration's folder); empty: socket.tcp's token, if any.
+  std::string token;
 };
-// Parses the `web` section ({listen: "host:port", allow_remote?}); errors name the field.
-std::expected<WebConfig, std::string> parse_web_config(const nlohmann::json& j);
+// Parses the `web` section ({listen: "host:port", allow_remote?, enabled?, token_file?}); errors
+// name the field. A relative token_file is relative to base_dir; it is read only when enabled.
+std::expected<WebConfig, std::string> parse_web_config(const nlohmann::json& j,
+                                                       const std::filesystem::path& base_dir = {});
 
 struct AnalysisConfig {
   std::string terms = "paper";    // term list of automatic fits (model/terms.hpp)
