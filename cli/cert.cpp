@@ -36,7 +36,7 @@ std::string text_of(const json& v, int digits = 4) {
   return v.dump();
 }
 
-std::string str(const json& j, const char* key) { return j.contains(key) ? text_of(j[key]) : "-"; }
+std::string field_text(const json& j, const char* key) { return j.contains(key) ? text_of(j[key]) : "-"; }
 
 std::string hash_of(const json& cert) {
   json body = cert;
@@ -78,16 +78,16 @@ std::string estimate_text(const json& e) {
 
 int print_summary(const json& cert, std::ostream& out) {
   const json& m = cert["model"];
-  out << "certificate of " << str(cert, "serial") << ": " << str(cert, "verdict") << "\n  model " << str(m, "id") << " version "
-      << str(m, "version") << " (" << str(m, "method") << "): " << str(m, "terms") << "\n  issued " << str(cert, "issued_at")
-      << " by station " << str(cert, "station_id") << ", fogbench " << str(cert["software"], "version") << " ("
-      << str(cert["software"], "git_hash") << ")\n  sha256 " << str(cert, "sha256") << "\n";
+  out << "certificate of " << field_text(cert, "serial") << ": " << field_text(cert, "verdict") << "\n  model " << field_text(m, "id") << " version "
+      << field_text(m, "version") << " (" << field_text(m, "method") << "): " << field_text(m, "terms") << "\n  issued " << field_text(cert, "issued_at")
+      << " by station " << field_text(cert, "station_id") << ", fogbench " << field_text(cert["software"], "version") << " ("
+      << field_text(cert["software"], "git_hash") << ")\n  sha256 " << field_text(cert, "sha256") << "\n";
   Table c({"term", "value", "1 sigma", "unit"});
-  for (const auto& t : m["coefficients"]) c.add({str(t, "term"), text_of(t["value"], 6), text_of(t["sigma"], 3), str(t, "unit")});
+  for (const auto& t : m["coefficients"]) c.add({field_text(t, "term"), text_of(t["value"], 6), text_of(t["sigma"], 3), field_text(t, "unit")});
   out << c.str();
   Table v({"run", "check", "value", "limit", "pass", "verdict"});
   for (const auto& x : cert["verdicts"])
-    for (const auto& k : x["checks"]) v.add({str(x, "run_id"), str(k, "check"), text_of(k["value"]), text_of(k["limit"]), text_of(k["pass"]), str(x, "verdict")});
+    for (const auto& k : x["checks"]) v.add({field_text(x, "run_id"), field_text(k, "check"), text_of(k["value"]), text_of(k["limit"]), text_of(k["pass"]), field_text(x, "verdict")});
   out << v.str();
   return kExitOk;
 }
@@ -96,29 +96,29 @@ int print_summary(const json& cert, std::ostream& out) {
 
 std::string certificate_html(const json& cert) {
   const json& m = cert["model"];
-  const std::string verdict = str(cert, "verdict");
+  const std::string verdict = field_text(cert, "verdict");
   std::string b;
-  b += "<h1>Certificate of qualification: " + html_escape(str(cert, "serial")) + "</h1>";
-  b += "<div class=\"sub\">Thermal drift model, version " + html_escape(str(m, "version")) + ", issued " + html_escape(str(cert, "issued_at")) +
-       " by station " + html_escape(str(cert, "station_id")) + " with fogbench " + html_escape(str(cert["software"], "version")) + " (" +
-       html_escape(str(cert["software"], "git_hash")) + ")</div>";
+  b += "<h1>Certificate of qualification: " + html_escape(field_text(cert, "serial")) + "</h1>";
+  b += "<div class=\"sub\">Thermal drift model, version " + html_escape(field_text(m, "version")) + ", issued " + html_escape(field_text(cert, "issued_at")) +
+       " by station " + html_escape(field_text(cert, "station_id")) + " with fogbench " + html_escape(field_text(cert["software"], "version")) + " (" +
+       html_escape(field_text(cert["software"], "git_hash")) + ")</div>";
   b += "<p>Verdict: <span class=\"" + std::string(verdict == "pass" ? "pass" : "fail") + "\">" + html_escape(verdict) + "</span></p>";
-  b += "<h2>Model coefficients (1 sigma)</h2><p class=\"sub\">" + html_escape(str(m, "terms")) + " (" + html_escape(str(m, "method")) +
+  b += "<h2>Model coefficients (1 sigma)</h2><p class=\"sub\">" + html_escape(field_text(m, "terms")) + " (" + html_escape(field_text(m, "method")) +
        " method), noise std sigma_a " + html_escape(text_of(m["sigma_a_dph"])) + " deg/h</p>";
   std::vector<std::vector<std::string>> rows;
   for (const auto& t : m["coefficients"])
-    rows.push_back({str(t, "term"), text_of(t["value"], 6), text_of(t["sigma"], 3), str(t, "unit"), text_of(t["lag_s"])});
+    rows.push_back({field_text(t, "term"), text_of(t["value"], 6), text_of(t["sigma"], 3), field_text(t, "unit"), text_of(t["lag_s"])});
   b += table({"term", "value", "1 sigma", "unit", "lag, s"}, rows);
   b += "<h2>Verdicts</h2>";
   rows.clear();
   for (const auto& x : cert["verdicts"])
     for (const auto& k : x["checks"])
-      rows.push_back({str(x, "run_id"), str(k, "check"), text_of(k["value"]), text_of(k["limit"]), str(k, "rule"), text_of(k["pass"]), str(x, "verdict")});
+      rows.push_back({field_text(x, "run_id"), field_text(k, "check"), text_of(k["value"]), text_of(k["limit"]), field_text(k, "rule"), text_of(k["pass"]), field_text(x, "verdict")});
   b += rows.empty() ? "<p>No verification of this model.</p>" : table({"run", "check", "value", "limit", "rule", "pass", "verdict"}, rows);
   b += "<h2>Allan deviation of the compensated output (IEEE Std 952 Annex C)</h2>";
   rows.clear();
   for (const auto& a : cert["allan"])
-    rows.push_back({str(a, "run_id"), a.contains("error") ? str(a, "error") : estimate_text(a["arw_deg_per_sqrt_h"]),
+    rows.push_back({field_text(a, "run_id"), a.contains("error") ? field_text(a, "error") : estimate_text(a["arw_deg_per_sqrt_h"]),
                     a.contains("error") ? "" : estimate_text(a["bias_instability_dph"]),
                     a.contains("error") ? "" : estimate_text(a["rrw_dph_per_sqrt_h"])});
   b += rows.empty() ? "<p>None (no verification run).</p>" : table({"run", "ARW, deg/sqrt(h)", "bias instability, deg/h", "RRW, deg/h/sqrt(h)"}, rows);
@@ -126,17 +126,17 @@ std::string certificate_html(const json& cert) {
   rows.clear();
   for (const auto& r : cert["runs"]) {
     const json& id = r["identity"];
-    rows.push_back({str(r, "id"), str(r, "role"), str(r, "profile"), str(r, "ended_at"),
-                    id.is_object() ? str(id, "station_id") : "-", id.is_object() ? str(id, "operator") : "-",
-                    id.is_object() ? str(id, "software_version") + " " + str(id, "git_hash").substr(0, 12) : "-"});
+    rows.push_back({field_text(r, "id"), field_text(r, "role"), field_text(r, "profile"), field_text(r, "ended_at"),
+                    id.is_object() ? field_text(id, "station_id") : "-", id.is_object() ? field_text(id, "operator") : "-",
+                    id.is_object() ? field_text(id, "software_version") + " " + field_text(id, "git_hash").substr(0, 12) : "-"});
   }
   b += table({"run", "role", "profile", "ended", "station", "operator", "software"}, rows);
-  b += "<h2>Integrity</h2><p class=\"hash\">SHA-256 " + html_escape(str(cert, "sha256")) +
+  b += "<h2>Integrity</h2><p class=\"hash\">SHA-256 " + html_escape(field_text(cert, "sha256")) +
        "</p><p class=\"sub\">Check with <code>fogctl cert --check FILE</code>: the hash of the canonical JSON embedded in this page.</p>";
   // "</" inside a script would end it: JSON's "\/" keeps it out and parses back to "/".
   std::string j = cert.dump(), safe;
   for (std::size_t i = 0; i < j.size(); ++i) safe += (j[i] == '/' && i > 0 && j[i - 1] == '<') ? std::string("\\/") : std::string(1, j[i]);
-  return "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>Certificate " + html_escape(str(cert, "serial")) +
+  return "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>Certificate " + html_escape(field_text(cert, "serial")) +
          "</title><style>" + kStyle + "</style></head><body>" + b + kScriptOpen + safe + "</script></body></html>\n";
 }
 

@@ -42,11 +42,11 @@ std::expected<std::pair<std::string, std::string>, std::string> read_plan(const 
   return std::make_pair(ss.str(), path.filename().string());
 }
 
-std::string text_of(const json& v) { return v.is_string() ? v.get<std::string>() : v.is_null() ? "-" : v.dump(); }
+std::string cell_text(const json& v) { return v.is_string() ? v.get<std::string>() : v.is_null() ? "-" : v.dump(); }
 
 void print_status(const json& s, std::ostream& out) {
-  out << "plan " << s["plan_id"] << " " << text_of(s["name"]) << " (" << text_of(s["source"]) << "): " << text_of(s["state"]);
-  if (!s["reason"].get<std::string>().empty()) out << ": " << text_of(s["reason"]);
+  out << "plan " << s["plan_id"] << " " << cell_text(s["name"]) << " (" << cell_text(s["source"]) << "): " << cell_text(s["state"]);
+  if (!s["reason"].get<std::string>().empty()) out << ": " << cell_text(s["reason"]);
   out << "\n";
   const json& p = s["progress"];
   if (p.is_object() && p.contains("runs")) {
@@ -54,25 +54,25 @@ void print_status(const json& s, std::ostream& out) {
     for (const auto& r : p["runs"]) {
       std::string units;
       for (const auto& u : r["units"]) units += (units.empty() ? "" : " ") + u.get<std::string>();
-      runs.add({text_of(r["step"]), text_of(r["profile"]), text_of(r["purpose"]),
-                std::to_string(r["attempt"].get<int>() + 1), text_of(r["run_id"]), units});
+      runs.add({cell_text(r["step"]), cell_text(r["profile"]), cell_text(r["purpose"]),
+                std::to_string(r["attempt"].get<int>() + 1), cell_text(r["run_id"]), units});
     }
     out << "\n" << runs.str();
     Table units({"serial", "verdict", "measurement", "step", "value", "limit", "met", "on fail"});
     for (const auto& u : p["units"]) {
       bool first = true;
-      const std::string verdict = u["verdict"].is_null() ? (u["active"].get<bool>() ? "running" : "-") : text_of(u["verdict"]);
+      const std::string verdict = u["verdict"].is_null() ? (u["active"].get<bool>() ? "running" : "-") : cell_text(u["verdict"]);
       for (const auto& m : u["measurements"]) {
-        units.add({first ? text_of(u["serial"]) : "", first ? verdict : "", text_of(m["measurement"]), text_of(m["step"]),
-                   m["value"].is_number() ? num_text(m["value"], 4) : "-", text_of(m["limit"]),
-                   m["met"].get<bool>() ? "yes" : "NO", text_of(m["on_fail"])});
+        units.add({first ? cell_text(u["serial"]) : "", first ? verdict : "", cell_text(m["measurement"]), cell_text(m["step"]),
+                   m["value"].is_number() ? num_text(m["value"], 4) : "-", cell_text(m["limit"]),
+                   m["met"].get<bool>() ? "yes" : "NO", cell_text(m["on_fail"])});
         first = false;
       }
-      if (first) units.add({text_of(u["serial"]), verdict, "-", "-", "-", "-", "-", "-"});
+      if (first) units.add({cell_text(u["serial"]), verdict, "-", "-", "-", "-", "-", "-"});
     }
     out << "\n" << units.str();
     for (const auto& u : p["units"])
-      for (const auto& r : u["reasons"]) out << text_of(u["serial"]) << ": " << r.get<std::string>() << "\n";
+      for (const auto& r : u["reasons"]) out << cell_text(u["serial"]) << ": " << r.get<std::string>() << "\n";
   }
 }
 
@@ -102,10 +102,10 @@ std::expected<json, ClientError> follow(const Common& o, std::int64_t id, bool q
           line << "plan " << id << " step " << (p.value("step", 0) + 1) << "/" << p.value("steps", 0);
           if (p.value("attempt", 0) > 0) line << " (retest)";
           if (p["run_id"].is_number()) line << " run " << p["run_id"];
-          if (!s.contains("run") || !s["run"].is_object()) line << " waiting for the " << text_of(p["waiting"]);
+          if (!s.contains("run") || !s["run"].is_object()) line << " waiting for the " << cell_text(p["waiting"]);
           if (s.contains("run") && s["run"].is_object()) {
             const json& run = s["run"];
-            line << " " << text_of(run.value("state", json("?")));
+            line << " " << cell_text(run.value("state", json("?")));
             if (run.contains("elapsed_s")) line << " " << duration_text(run["elapsed_s"].get<double>());
             if (run.contains("remaining_s") && run["remaining_s"].is_number())
               line << ", " << duration_text(run["remaining_s"].get<double>()) << " left in the step";
@@ -137,19 +137,19 @@ std::string plan_report_html(const json& s) {
   std::ostringstream h;
   const json& p = s["progress"];
   h << "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>plan " << s["plan_id"] << " "
-    << html_escape(text_of(s["name"])) << "</title>\n<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse;"
+    << html_escape(cell_text(s["name"])) << "</title>\n<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse;"
     << "margin:1em 0}td,th{border:1px solid #bbb;padding:3px 8px;text-align:left}.pass{background:#dfd}"
     << ".marginal{background:#ffd}.fail,.no{background:#fdd}pre{background:#f6f6f6;padding:1em}</style></head><body>\n";
-  h << "<h1>Qualification plan " << s["plan_id"] << ": " << html_escape(text_of(s["name"])) << "</h1>\n";
-  h << "<p>Source " << html_escape(text_of(s["source"])) << ", state <b>" << html_escape(text_of(s["state"])) << "</b>"
+  h << "<h1>Qualification plan " << s["plan_id"] << ": " << html_escape(cell_text(s["name"])) << "</h1>\n";
+  h << "<p>Source " << html_escape(cell_text(s["source"])) << ", state <b>" << html_escape(cell_text(s["state"])) << "</b>"
     << (s["reason"].get<std::string>().empty() ? "" : ": " + html_escape(s["reason"].get<std::string>())) << ". Started "
-    << html_escape(text_of(s["started_at"])) << ", ended " << html_escape(text_of(s["ended_at"])) << ".</p>\n";
+    << html_escape(cell_text(s["started_at"])) << ", ended " << html_escape(cell_text(s["ended_at"])) << ".</p>\n";
   h << "<h2>Verdicts</h2>\n<table><tr><th>serial</th><th>verdict</th><th>why</th></tr>\n";
   for (const auto& u : p["units"]) {
-    const std::string v = text_of(u["verdict"]);
+    const std::string v = cell_text(u["verdict"]);
     std::string why;
     for (const auto& r : u["reasons"]) why += html_escape(r.get<std::string>()) + "<br>";
-    h << "<tr class=\"" << html_escape(v) << "\"><td>" << html_escape(text_of(u["serial"])) << "</td><td>" << html_escape(v) << "</td><td>"
+    h << "<tr class=\"" << html_escape(v) << "\"><td>" << html_escape(cell_text(u["serial"])) << "</td><td>" << html_escape(v) << "</td><td>"
       << why << "</td></tr>\n";
   }
   h << "</table>\n<h2>Steps and runs</h2>\n<table><tr><th>step</th><th>profile</th><th>purpose</th><th>attempt</th>"
@@ -157,7 +157,7 @@ std::string plan_report_html(const json& s) {
   for (const auto& r : p["runs"]) {
     std::string units;
     for (const auto& u : r["units"]) units += (units.empty() ? "" : ", ") + u.get<std::string>();
-    h << "<tr><td>" << r["step"] << "</td><td>" << html_escape(text_of(r["profile"])) << "</td><td>" << html_escape(text_of(r["purpose"]))
+    h << "<tr><td>" << r["step"] << "</td><td>" << html_escape(cell_text(r["profile"])) << "</td><td>" << html_escape(cell_text(r["purpose"]))
       << "</td><td>" << (r["attempt"].get<int>() + 1) << "</td><td>" << r["run_id"] << "</td><td>" << html_escape(units)
       << "</td></tr>\n";
   }
@@ -166,13 +166,13 @@ std::string plan_report_html(const json& s) {
   for (const auto& u : p["units"])
     for (const auto& m : u["measurements"]) {
       const bool met = m["met"].get<bool>();
-      h << "<tr class=\"" << (met ? "" : "no") << "\"><td>" << html_escape(text_of(u["serial"])) << "</td><td>" << m["step"]
-        << "</td><td>" << m["run_id"] << "</td><td>" << html_escape(text_of(m["measurement"])) << "</td><td>"
-        << (m["value"].is_number() ? num_text(m["value"], 4) + " " + html_escape(text_of(m["unit"])) : "not measured")
-        << "</td><td>" << html_escape(text_of(m["limit"])) << " (line " << m["line"] << ")</td><td>" << (met ? "yes" : "no")
-        << "</td><td>" << html_escape(text_of(m["on_fail"])) << "</td><td>" << html_escape(m.value("note", "")) << "</td></tr>\n";
+      h << "<tr class=\"" << (met ? "" : "no") << "\"><td>" << html_escape(cell_text(u["serial"])) << "</td><td>" << m["step"]
+        << "</td><td>" << m["run_id"] << "</td><td>" << html_escape(cell_text(m["measurement"])) << "</td><td>"
+        << (m["value"].is_number() ? num_text(m["value"], 4) + " " + html_escape(cell_text(m["unit"])) : "not measured")
+        << "</td><td>" << html_escape(cell_text(m["limit"])) << " (line " << m["line"] << ")</td><td>" << (met ? "yes" : "no")
+        << "</td><td>" << html_escape(cell_text(m["on_fail"])) << "</td><td>" << html_escape(m.value("note", "")) << "</td></tr>\n";
     }
-  h << "</table>\n<h2>The plan</h2>\n<pre>" << html_escape(text_of(s["plan_text"])) << "</pre>\n"
+  h << "</table>\n<h2>The plan</h2>\n<pre>" << html_escape(cell_text(s["plan_text"])) << "</pre>\n"
     << "<p>Each run's own report: <code>fogctl report RUN</code>.</p>\n</body></html>\n";
   return h.str();
 }
@@ -217,15 +217,15 @@ void add_plan_commands(CLI::App& app, int& code) {
     }
     if (common.json_out) std::cout << r->dump() << "\n";
     else {
-      std::cout << "plan " << text_of((*r)["name"]) << ": valid, " << (*r)["steps"].size() << " steps, nominally "
+      std::cout << "plan " << cell_text((*r)["name"]) << ": valid, " << (*r)["steps"].size() << " steps, nominally "
                 << duration_text((*r)["nominal_duration_s"].get<double>()) << "\n";
       Table t({"line", "profile", "purpose", "nominal"});
       for (const auto& s : (*r)["steps"])
-        t.add({text_of(s["line"]), text_of(s["profile"]), text_of(s["purpose"]),
+        t.add({cell_text(s["line"]), cell_text(s["profile"]), cell_text(s["purpose"]),
                duration_text(s["nominal_duration_s"].get<double>())});
       std::cout << t.str();
       Table l({"line", "limit", "on fail"});
-      for (const auto& s : (*r)["limits"]) l.add({text_of(s["line"]), text_of(s["limit"]), text_of(s["on_fail"])});
+      for (const auto& s : (*r)["limits"]) l.add({cell_text(s["line"]), cell_text(s["limit"]), cell_text(s["on_fail"])});
       if (!(*r)["limits"].empty()) std::cout << l.str();
     }
     code = kExitOk;
@@ -364,8 +364,8 @@ void add_plan_commands(CLI::App& app, int& code) {
       for (const auto& q : (*r)["queue"]) {
         std::string us;
         for (const auto& u : q["units"]) us += (us.empty() ? "" : " ") + u.get<std::string>();
-        t.add({text_of(q["position"]), text_of(q["plan_id"]), text_of(q["name"]), text_of(q["source"]), us,
-               text_of(q["created_at"])});
+        t.add({cell_text(q["position"]), cell_text(q["plan_id"]), cell_text(q["name"]), cell_text(q["source"]), us,
+               cell_text(q["created_at"])});
       }
       std::cout << t.str();
     }

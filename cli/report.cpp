@@ -40,17 +40,9 @@ std::string script_json(const json& j) {
   return o;
 }
 
-// Four significant digits: coefficients span 1e-4 (deg/h per degC^2) to 10 (deg/h per degC/min).
-std::string sig(double v) {
-  if (!std::isfinite(v)) return "-";
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.4g", v);
-  return buf;
-}
 
 const char* const kColours[] = {"#3d6fb6", "#d9822b", "#2e7d32", "#8e44ad", "#b3261e", "#16a085"};
 
-std::string pct(double v) { return std::isfinite(v) ? fixed(100.0 * v, 1) + "%" : "-"; }
 
 struct HtmlTable {
   std::string s = "<table>";

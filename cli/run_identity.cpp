@@ -11,7 +11,7 @@ namespace fogbench::cli {
 using nlohmann::json;
 
 namespace {
-std::string str(const json& j, const char* key) {
+std::string string_field(const json& j, const char* key) {
   return j.contains(key) && j[key].is_string() ? j[key].get<std::string>() : std::string();
 }
 }  // namespace
@@ -19,18 +19,18 @@ std::string str(const json& j, const char* key) {
 std::optional<storage::RunIdentity> identity_from_json(const json& j) {
   if (!j.is_object()) return std::nullopt;
   storage::RunIdentity id;
-  id.station_id = str(j, "station_id");
-  id.operator_name = str(j, "operator");
-  id.operator_source = str(j, "operator_source");
-  id.software_version = str(j, "software_version");
-  id.git_hash = str(j, "git_hash");
-  id.config_sha256 = str(j, "config_sha256");
-  id.profile_sha256 = str(j, "profile_sha256");
+  id.station_id = string_field(j, "station_id");
+  id.operator_name = string_field(j, "operator");
+  id.operator_source = string_field(j, "operator_source");
+  id.software_version = string_field(j, "software_version");
+  id.git_hash = string_field(j, "git_hash");
+  id.config_sha256 = string_field(j, "config_sha256");
+  id.profile_sha256 = string_field(j, "profile_sha256");
   if (j.contains("units") && j["units"].is_array())
     for (const auto& u : j["units"]) {
       storage::UnitIdentity x;
       x.unit_index = u.value("unit", 0);
-      x.serial = str(u, "serial");
+      x.serial = string_field(u, "serial");
       if (u.contains("powered_on_at") && u["powered_on_at"].is_string()) x.powered_on_at = u["powered_on_at"].get<std::string>();
       if (u.contains("since_power_on_s") && u["since_power_on_s"].is_number())
         x.since_power_on_s = u["since_power_on_s"].get<double>();

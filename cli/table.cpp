@@ -44,4 +44,13 @@ std::string fixed(double v, int digits) {
   return buf;
 }
 
+std::string sig(double v) {
+  if (!std::isfinite(v)) return "-";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.4g", v);
+  return buf;
+}
+
+std::string pct(double ratio) { return std::isfinite(ratio) ? fixed(100.0 * ratio, 1) + "%" : "-"; }
+
 }  // namespace fogbench::cli

@@ -20,4 +20,11 @@ class Table {
 // Fixed-point with `digits` decimals; "-" for NaN.
 std::string fixed(double v, int digits = 2);
 
+// Four significant digits, "-" for NaN or infinity: coefficients span 1e-4 (deg/h per degC^2)
+// to 10 (deg/h per degC/min).
+std::string sig(double v);
+
+// A ratio as a percentage with one decimal (0.183 -> "18.3%"), "-" for NaN or infinity.
+std::string pct(double ratio);
+
 }  // namespace fogbench::cli

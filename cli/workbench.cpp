@@ -17,15 +17,7 @@ namespace wb = model::workbench;
 
 namespace {
 
-// Four significant digits: coefficients span 1e-4 (deg/h per degC^2) to 10 (deg/h per degC/min).
-std::string sig(double v) {
-  if (!std::isfinite(v)) return "-";
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.4g", v);
-  return buf;
-}
 
-std::string pct(double v) { return std::isfinite(v) ? fixed(100.0 * v, 1) + "%" : "-"; }
 
 // Loads every run, naming the file in the error.
 std::expected<std::vector<model::RunData>, std::string> load_runs(const std::vector<std::string>& paths, const RunInput& in) {

@@ -9,11 +9,11 @@
 #include <map>
 
 #include "common.hpp"
+#include "workbench_internal.hpp"
 
 namespace fogbench::model::workbench {
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 using detail::fail;
 

@@ -9,7 +9,6 @@
 namespace fogbench::model::workbench::wbi {
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // The candidate at its lag, and the model refitted with it.
 struct Refit {

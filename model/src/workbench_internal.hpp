@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <span>
 #include <string>
 #include <vector>
@@ -12,6 +13,9 @@
 #include "fogbench/model/workbench.hpp"
 
 namespace fogbench::model::workbench {
+
+// "Not measured" in a figure (deg/h or a ratio): printed as "-", null in JSON.
+inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // Why a term cannot be evaluated on a run (Ta or ton not recorded), empty when it can.
 std::string missing_signal_of(const Expr& e, const RunData& run);

@@ -19,7 +19,6 @@ using wbi::fmt;
 using wbi::weighted_corr;
 
 using nlohmann::json;
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 
 using detail::fail;

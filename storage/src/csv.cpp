@@ -7,6 +7,8 @@
 // around. The writer at the end is short and shares the number format with it.
 #include "fogbench/storage/csv.hpp"
 
+#include "format_number.hpp"
+
 #include <fcntl.h>
 #include <sched.h>
 #include <sys/mman.h>
@@ -102,11 +104,7 @@ std::string_view trim(std::string_view s) {
   return s;
 }
 
-std::string format_number(double v) {
-  char buf[32];
-  auto res = std::to_chars(buf, buf + sizeof buf, v);
-  return std::string(buf, res.ptr);
-}
+using detail::format_number;
 
 // Physical lines of a text, without the '\n' and a trailing '\r'; numbered from 1.
 class Lines {

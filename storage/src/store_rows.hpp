@@ -14,6 +14,7 @@
 
 #include "fogbench/storage/store.hpp"
 #include "schema.hpp"
+#include "format_number.hpp"
 #include "sqlite.hpp"
 
 namespace fogbench::storage {
@@ -62,11 +63,7 @@ inline bool is_json(std::string_view text) { return nlohmann::json::accept(text.
 
 inline std::string_view json_or_empty_object(std::string_view text) { return text.empty() ? "{}" : text; }
 
-inline std::string format_number(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
+using detail::format_number;
 
 // Steps a statement that returns no rows.
 inline StoreResult<void> run(Database& db, Query& q, std::string_view what) {
