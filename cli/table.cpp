@@ -51,6 +51,8 @@ std::string sig(double v) {
   return buf;
 }
 
-std::string pct(double ratio) { return std::isfinite(ratio) ? fixed(100.0 * ratio, 1) + "%" : "-"; }
+std::string pct(double ratio, int decimals) {
+  return std::isfinite(ratio) ? fixed(100.0 * ratio, decimals) + "%" : "-";
+}
 
 }  // namespace fogbench::cli

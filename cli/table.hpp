@@ -24,7 +24,7 @@ std::string fixed(double v, int digits = 2);
 // to 10 (deg/h per degC/min).
 std::string sig(double v);
 
-// A ratio as a percentage with one decimal (0.183 -> "18.3%"), "-" for NaN or infinity.
-std::string pct(double ratio);
+// A ratio as a percentage (0.183 -> "18.3%" with one decimal), "-" for NaN or infinity.
+std::string pct(double ratio, int decimals = 1);
 
 }  // namespace fogbench::cli
