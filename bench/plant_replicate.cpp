@@ -2,7 +2,9 @@
 // 200,000 sample rows per second by COPY). A bench store with one completed run of 2 units x
 // N s is made in a temporary file, then replicated (plant::replicate_run: one transaction,
 // COPY) several times as different benches; the rate counts sample rows over the whole call.
-//   bench_plant_replicate --db CONNSTR [--seconds 250000] [--repeat 3]
+// --prefill ROWS first sends the run as filler benches until the plant's samples table holds at
+// least ROWS rows (the target is for a plant holding millions, whose primary key's index is large).
+//   bench_plant_replicate --db CONNSTR [--seconds 250000] [--repeat 3] [--prefill 0]
 #include <unistd.h>
 
 #include <algorithm>
@@ -21,12 +23,17 @@ using Clock = std::chrono::steady_clock;
 int main(int argc, char** argv) {
   std::string db;
   int seconds = 250000, repeat = 3;
+  long long prefill = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--db" && i + 1 < argc) db = argv[++i];
     else if (a == "--seconds" && i + 1 < argc) seconds = std::stoi(argv[++i]);
     else if (a == "--repeat" && i + 1 < argc) repeat = std::stoi(argv[++i]);
-    else return std::fprintf(stderr, "usage: bench_plant_replicate --db CONNSTR [--seconds N] [--repeat N]\n"), 2;
+    else if (a == "--prefill" && i + 1 < argc) prefill = std::stoll(argv[++i]);
+    else
+      return std::fprintf(stderr,
+                          "usage: bench_plant_replicate --db CONNSTR [--seconds N] [--repeat N] [--prefill ROWS]\n"),
+             2;
   }
   if (db.empty()) return std::fprintf(stderr, "bench_plant_replicate: --db is required\n"), 2;
   const auto path = std::filesystem::temp_directory_path() / ("fogbench-bench-replicate-" + std::to_string(::getpid()) + ".db");
@@ -67,8 +74,19 @@ int main(int argc, char** argv) {
   (void)store->set_run_state(*id, storage::RunState::completed, "bench");
   auto c = plant::Connection::open(db, true);
   if (!c) return std::fprintf(stderr, "%s\n", c.error().message.c_str()), 1;
+  auto held = [&]() -> long long {
+    auto r = c->query("SELECT count(*) FROM fogbench.samples", {}, "count the plant's samples");
+    return r && !r->rows.empty() ? std::stoll(r->rows[0][0].value_or("0")) : -1;
+  };
+  for (int k = 0; held() < prefill; ++k) {
+    const std::string filler = "bench-prefill-" + std::to_string(::getpid()) + "-" + std::to_string(k);
+    if (auto r = plant::replicate_run(*c, *store, filler, *id); !r)
+      return std::fprintf(stderr, "%s\n", r.error().message.c_str()), 1;
+  }
+  const long long before = held();
   double best = 1e9;
   std::int64_t n = 0;
+  plant::ReplicateStats last;
   for (int k = 0; k < repeat; ++k) {
     const auto t0 = Clock::now();
     // A new bench id each time: a first sending, the normal case (a re-send also deletes).
@@ -77,9 +95,18 @@ int main(int argc, char** argv) {
     if (!r) return std::fprintf(stderr, "%s\n", r.error().message.c_str()), 1;
     best = std::min(best, std::chrono::duration<double>(Clock::now() - t0).count());
     n = r->samples;
+    last = *r;
   }
-  std::printf("replicated %lld sample rows in %.2f s (best of %d first sendings): %.0f rows/s\n",
-              static_cast<long long>(n), best, repeat, static_cast<double>(n) / best);
+  std::printf("replicated %lld sample rows in %.2f s (best of %d first sendings into a plant holding %lld "
+              "sample rows): %.0f rows/s\n",
+              static_cast<long long>(n), best, repeat, before, static_cast<double>(n) / best);
+  std::printf("each sending: %lld units, %lld samples, %lld events, %lld models, %lld verifications, %lld figures, "
+              "%lld identity rows, %lld certificates new, %lld already held\n",
+              static_cast<long long>(last.units), static_cast<long long>(last.samples),
+              static_cast<long long>(last.events), static_cast<long long>(last.models),
+              static_cast<long long>(last.verifications), static_cast<long long>(last.figures),
+              static_cast<long long>(last.identity_rows), static_cast<long long>(last.certificates),
+              static_cast<long long>(last.certificates_held));
   std::filesystem::remove(path);
   std::filesystem::remove(path.string() + "-wal");
   std::filesystem::remove(path.string() + "-shm");

@@ -111,8 +111,11 @@ void PlantLink::run() {
     }
     backoff = 1.0;
     last_logged.clear();
-    spdlog::info("plant: run {} replicated as bench '{}' ({} samples, {} models, {} verifications)", entry.run_id,
-                 config_.bench_id, r->samples, r->models, r->verifications);
+    spdlog::info(
+        "plant: run {} replicated as bench '{}' ({} samples, {} events, {} models, {} verifications, {} identity rows, "
+        "{} certificates new, {} already held)",
+        entry.run_id, config_.bench_id, r->samples, r->events, r->models, r->verifications, r->identity_rows,
+        r->certificates, r->certificates_held);
   }
 }
 

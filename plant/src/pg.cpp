@@ -81,12 +81,22 @@ PlantResult<Rows> Connection::query(const std::string& sql, const std::vector<st
 
 PlantResult<std::int64_t> Connection::copy_in(const std::string& copy_sql, std::string_view data,
                                               std::string_view what) {
+  if (auto ok = copy_begin(copy_sql, what); !ok) return std::unexpected(ok.error());
+  if (auto ok = copy_put(data, what); !ok) return std::unexpected(ok.error());
+  return copy_end(what);
+}
+
+PlantResult<void> Connection::copy_begin(const std::string& copy_sql, std::string_view what) {
+  PGresult* res = PQexec(conn_->pg, copy_sql.c_str());
+  std::unique_ptr<PGresult, decltype(&PQclear)> guard(res, &PQclear);
+  if (PQresultStatus(res) != PGRES_COPY_IN) return std::unexpected(pg_error(conn_->pg, res, what));
+  return {};
+}
+
+PlantResult<void> Connection::copy_put(std::string_view data, std::string_view what) {
   PGconn* pg = conn_->pg;
-  {
-    PGresult* res = PQexec(pg, copy_sql.c_str());
-    std::unique_ptr<PGresult, decltype(&PQclear)> guard(res, &PQclear);
-    if (PQresultStatus(res) != PGRES_COPY_IN) return std::unexpected(pg_error(pg, res, what));
-  }
+  // libpq copies each call into its output buffer and writes it out: chunks of 1 MB keep that
+  // buffer small and the socket busy.
   constexpr std::size_t kChunk = 1 << 20;
   for (std::size_t off = 0; off < data.size(); off += kChunk) {
     const std::size_t n = std::min(kChunk, data.size() - off);
@@ -97,6 +107,11 @@ PlantResult<std::int64_t> Connection::copy_in(const std::string& copy_sql, std::
       return std::unexpected(std::move(e));
     }
   }
+  return {};
+}
+
+PlantResult<std::int64_t> Connection::copy_end(std::string_view what) {
+  PGconn* pg = conn_->pg;
   if (PQputCopyEnd(pg, nullptr) != 1) {
     auto e = pg_error(pg, nullptr, what);
     while (PGresult* r = PQgetResult(pg)) PQclear(r);

@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "sample_stream.hpp"
 #include "fogbench/plant/plant.hpp"
 #include "fogbench/storage/store.hpp"
 
@@ -152,6 +153,7 @@ PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& ben
             "insert the run's identity");
         !ok)
       return fail(ok.error());
+    ++stats.identity_rows;
     for (const auto& ui : ri.units) {
       if (auto ok = plant.query("INSERT INTO fogbench.unit_identity (bench_id, run_id, unit_index, powered_on_at, "
                                 "since_power_on_s) VALUES ($1, $2, $3, $4, $5)",
@@ -160,18 +162,23 @@ PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& ben
                                 "insert the identity of unit " + std::to_string(ui.unit_index));
           !ok)
         return fail(ok.error());
+      ++stats.identity_rows;
     }
   }
   // Certificates are immutable and belong to a serial: one sent before stays as it is.
   for (const auto& cert : certificates) {
     if (auto ok = plant.query(
             "INSERT INTO fogbench.certificates (bench_id, certificate_id, serial, model_id, model_version, sha256, "
-            "json, created_at) VALUES ($1, $2, $3, $4, $5, $6, $7, $8) ON CONFLICT DO NOTHING",
+            "json, created_at) VALUES ($1, $2, $3, $4, $5, $6, $7, $8) ON CONFLICT DO NOTHING RETURNING 1",
             {b, std::to_string(cert.id), cert.serial, std::to_string(cert.model_id),
              std::to_string(cert.model_version), cert.sha256, cert.json, cert.created_at},
             "insert certificate " + std::to_string(cert.id));
         !ok)
       return fail(ok.error());
+    else if (ok->rows.empty())
+      ++stats.certificates_held;
+    else
+      ++stats.certificates;
   }
 
   // Events by COPY.
@@ -200,53 +207,31 @@ PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& ben
     stats.events = *n;
   }
 
-  // Samples by COPY, a page of each unit at a time (a few MB in memory, never the whole run).
-  constexpr std::int64_t kPage = 50000;
-  for (const auto& u : run.units) {
-    for (std::int64_t offset = 0;; offset += kPage) {
-      auto page = bench.get_samples(run_id, u.unit_index, offset, kPage);
-      if (!page) return fail(from_store(page.error()));
-      if (page->empty()) break;
-      std::string data;
-      data.reserve(page->size() * 120);
-      for (const auto& s : *page) {
-        copy_escape(data, b);
-        data += '\t';
-        put_int(data, run_id);
-        data += '\t';
-        put_int(data, u.unit_index);
-        for (double v : {s.t_s, s.wall_time, s.setpoint_c, s.chamber_c, s.gyro_dph}) {
-          data += '\t';
-          put_number(data, v);
-        }
-        data += '\t';
-        if (s.frames) put_int(data, *s.frames);
-        else data += "\\N";
-        for (double v : {s.t1_c, s.t2_c}) {
-          data += '\t';
-          put_number(data, v);
-        }
-        data += '\t';
-        put_int(data, static_cast<int>(s.phase));
-        data += '\t';
-        if (s.step) put_int(data, *s.step);
-        else data += "\\N";
-        data += '\t';
-        put_int(data, s.flags);
-        for (double v : {s.since_power_on_s, s.compensated_dph}) {
-          data += '\t';
-          put_number(data, v);
-        }
-        data += '\n';
+  // Samples by one COPY in binary format (copy_binary.hpp: no number is printed here nor parsed
+  // by the server), read and encoded a page of each unit at a time on a thread of their own
+  // (sample_stream.hpp: a few MB in memory, never the whole run) while the server takes the
+  // page before.
+  {
+    if (auto ok = plant.copy_begin(
+            "COPY fogbench.samples (bench_id, run_id, unit_index, t_s, wall_time, setpoint_c, chamber_c, gyro_dph, "
+            "frames, t1_c, t2_c, phase, step, flags, since_power_on_s, compensated_dph) FROM STDIN (FORMAT binary)",
+            "copy the samples");
+        !ok)
+      return fail(ok.error());
+    std::vector<int> units;
+    for (const auto& u : run.units) units.push_back(u.unit_index);
+    detail::SampleStream stream(bench, b, run_id, units);
+    while (auto chunk = stream.next()) {
+      if (!chunk->error.empty()) {
+        // Ends the COPY so the transaction can be rolled back: nothing of the run is committed.
+        (void)plant.copy_end("abandon the samples' COPY");
+        return fail(PlantError{PlantErrc::bench_store, "the bench's store: " + chunk->error});
       }
-      auto n = plant.copy_in(
-          "COPY fogbench.samples (bench_id, run_id, unit_index, t_s, wall_time, setpoint_c, chamber_c, gyro_dph, "
-          "frames, t1_c, t2_c, phase, step, flags, since_power_on_s, compensated_dph) FROM STDIN",
-          data, "copy the samples of unit " + std::to_string(u.unit_index));
-      if (!n) return fail(n.error());
-      stats.samples += *n;
-      if (static_cast<std::int64_t>(page->size()) < kPage) break;
+      if (auto ok = plant.copy_put(chunk->data, "copy the samples"); !ok) return fail(ok.error());
     }
+    auto n = plant.copy_end("copy the samples");
+    if (!n) return fail(n.error());
+    stats.samples = *n;
   }
 
   // Models fitted on the run, verifications of it, and the figures the fleet statistics read.

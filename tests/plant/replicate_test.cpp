@@ -224,12 +224,30 @@ TEST_CASE("a completed run of a real SQLite store replicates whole, and sending 
   CHECK(count(*c, "SELECT count(*) FROM fogbench.unit_identity") == 2);
   CHECK(count(*c, "SELECT count(*) FROM fogbench.certificates") == 1);
   CHECK(count(*c, "SELECT count(compensated_dph) FROM fogbench.samples") == n_compensated);
-  // Another bench's run 1 is another run.
-  REQUIRE(bench.enqueue_replication(id));
-  REQUIRE(*plant::send_outbox(*c, bench, "bench-2", 100) == 1);
+  // Another bench's run 1 is another run; the stats count what was written, identity rows and
+  // certificates included (the certificate is new under this bench id).
+  auto first = plant::replicate_run(*c, bench, "bench-2", id);
+  REQUIRE(first);
+  CHECK(first->units == 2);
+  CHECK(first->samples == n);
+  CHECK(first->events == static_cast<std::int64_t>(detail->events.size()));
+  CHECK(first->models == 2);
+  CHECK(first->verifications == 2);
+  CHECK(first->identity_rows == 3);  // the run's and its two units'
+  CHECK(first->certificates == 1);
+  CHECK(first->certificates_held == 0);
+  CHECK(first->figures == count(*c, "SELECT count(*) FROM fogbench.figures WHERE bench_id = 'bench-2'"));
   CHECK(count(*c, "SELECT count(*) FROM fogbench.samples") == 2 * n);
   CHECK(count(*c, "SELECT count(DISTINCT bench_id) FROM fogbench.runs") == 2);
   CHECK(count(*c, "SELECT count(*) FROM fogbench.run_identity") == 2);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.certificates") == 2);
+  // Sent again: the identity rewritten, the certificate already held and left as it is.
+  auto again = plant::replicate_run(*c, bench, "bench-2", id);
+  REQUIRE(again);
+  CHECK(again->samples == n);
+  CHECK(again->identity_rows == 3);
+  CHECK(again->certificates == 0);
+  CHECK(again->certificates_held == 1);
   CHECK(count(*c, "SELECT count(*) FROM fogbench.certificates") == 2);
   std::filesystem::remove(path);
 }
@@ -351,7 +369,12 @@ TEST_CASE("a plant at schema 1 migrates to 2 on a bench's connection, keeping wh
     // taken away again (exactly what migration 2 adds).
     auto c = plant::Connection::open(pg.conninfo(), true);
     REQUIRE(c);
-    REQUIRE(plant::replicate_run(*c, bench, "b1", old_run));
+    auto st = plant::replicate_run(*c, bench, "b1", old_run);
+    REQUIRE(st);
+    // A run recorded without an identity, of serials without certificates: none counted.
+    CHECK(st->identity_rows == 0);
+    CHECK(st->certificates == 0);
+    CHECK(st->certificates_held == 0);
     REQUIRE(c->exec("ALTER TABLE fogbench.samples DROP COLUMN compensated_dph; "
                     "DROP TABLE fogbench.run_identity, fogbench.unit_identity, fogbench.certificates; "
                     "DELETE FROM fogbench.schema_version WHERE version = 2",
@@ -375,7 +398,9 @@ TEST_CASE("a plant at schema 1 migrates to 2 on a bench's connection, keeping wh
   CHECK(count(*c, "SELECT count(*) FROM fogbench.samples WHERE run_id = " + old_rid) == *bench.count_samples(old_run));
   CHECK(count(*c, "SELECT count(compensated_dph) FROM fogbench.samples") == 0);
   const auto run = test::record_run(bench, {std::string("L2"), std::nullopt}, 1, 4, false, bench_identity());
-  REQUIRE(plant::replicate_run(*c, bench, "b1", run));
+  auto st = plant::replicate_run(*c, bench, "b1", run);
+  REQUIRE(st);
+  CHECK(st->identity_rows == 3);
   CHECK(count(*c, "SELECT count(*) FROM fogbench.run_identity WHERE run_id = " + std::to_string(run)) == 1);
   CHECK(count(*c, "SELECT count(*) FROM fogbench.unit_identity WHERE run_id = " + std::to_string(run)) == 2);
   CHECK(count(*c, "SELECT count(compensated_dph) FROM fogbench.samples WHERE run_id = " + std::to_string(run)) > 0);

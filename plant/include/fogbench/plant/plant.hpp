@@ -72,6 +72,12 @@ class Connection {
 
   // COPY FROM STDIN of text-format lines (copy_escape for text fields), sent in chunks.
   PlantResult<std::int64_t> copy_in(const std::string& copy_sql, std::string_view data, std::string_view what);
+  // The same streamed: copy_begin, copy_put any number of times (text lines or binary-format
+  // data, as the COPY statement says), copy_end (the rows the server took). A failure in
+  // copy_put leaves the transaction failed: the caller rolls back.
+  PlantResult<void> copy_begin(const std::string& copy_sql, std::string_view what);
+  PlantResult<void> copy_put(std::string_view data, std::string_view what);
+  PlantResult<std::int64_t> copy_end(std::string_view what);
 
   detail::Conn& raw() { return *conn_; }
 
@@ -86,6 +92,11 @@ void copy_escape(std::string& out, std::string_view field);
 
 struct ReplicateStats {
   std::int64_t units = 0, samples = 0, events = 0, models = 0, verifications = 0, figures = 0;
+  // Identity rows written: the run's (run_identity, 0 or 1) plus one per unit (unit_identity).
+  std::int64_t identity_rows = 0;
+  // The run's serials' certificates: newly stored in the plant, and sent but already held there
+  // (immutable: left as they are).
+  std::int64_t certificates = 0, certificates_held = 0;
 };
 
 // Replicates one run of the bench's store to the plant in ONE transaction: what the plant held
