@@ -13,7 +13,7 @@ namespace fogbench::cli {
 using nlohmann::json;
 
 namespace {
-std::string pct(double p) {
+std::string pchart_pct(double p) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.2f%%", 100 * p);
   return buf;
@@ -31,12 +31,12 @@ json proportion_json(const plant::ProportionChart& ch) {
 }
 
 std::string proportion_text(const plant::ProportionChart& ch) {
-  std::string s = ch.verdict + " verdicts per bench per " + ch.period + " (p-chart): p-bar " + pct(ch.p_bar) + " (" +
+  std::string s = ch.verdict + " verdicts per bench per " + ch.period + " (p-chart): p-bar " + pchart_pct(ch.p_bar) + " (" +
                   std::to_string(ch.baseline_count) + " of " + std::to_string(ch.baseline_n) + ", limits from " +
                   ch.baseline + "); limits p-bar +- 3 sqrt(p-bar (1 - p-bar) / n)\n";
   Table t({ch.period, "bench", "verdicts", ch.verdict, "p", "LCL", "UCL", "out"});
   for (const auto& g : ch.groups)
-    t.add({g.period, g.bench, std::to_string(g.n), std::to_string(g.count), pct(g.p), pct(g.lcl), pct(g.ucl),
+    t.add({g.period, g.bench, std::to_string(g.n), std::to_string(g.count), pchart_pct(g.p), pchart_pct(g.lcl), pchart_pct(g.ucl),
            g.side > 0 ? "ABOVE" : g.side < 0 ? "below" : ""});
   s += t.str();
   s += "  benches out of limits: ";
@@ -56,7 +56,7 @@ std::string proportion_html(const json& proportions) {
       cells[g["bench"].get<std::string>()][g["period"].get<std::string>()] = &g;
     }
     body += "<h2>" + html_escape(verdict) + " verdicts per bench per " + html_escape(ch["period"].get<std::string>()) +
-            " (p-chart)</h2><p class=note>p-bar " + pct(ch["p_bar"].get<double>()) + " (" +
+            " (p-chart)</h2><p class=note>p-bar " + pchart_pct(ch["p_bar"].get<double>()) + " (" +
             std::to_string(ch["baseline_count"].get<std::int64_t>()) + " of " +
             std::to_string(ch["baseline_n"].get<std::int64_t>()) + ", limits from " +
             html_escape(ch["baseline"].get<std::string>()) +
@@ -79,8 +79,8 @@ std::string proportion_html(const json& proportions) {
         const int side = g["side"].get<int>();
         body += std::string("<td") + (side != 0 ? " class=out" : "") + " title=\"" +
                 std::to_string(g["count"].get<std::int64_t>()) + " of " + std::to_string(g["n"].get<std::int64_t>()) +
-                "; limits " + pct(g["lcl"].get<double>()) + " .. " + pct(g["ucl"].get<double>()) + "\">" +
-                pct(g["p"].get<double>()) + "</td>";
+                "; limits " + pchart_pct(g["lcl"].get<double>()) + " .. " + pchart_pct(g["ucl"].get<double>()) + "\">" +
+                pchart_pct(g["p"].get<double>()) + "</td>";
       }
       body += "</tr>";
     }
