@@ -70,7 +70,8 @@ void Station::analyse_units(std::int64_t run_id, storage::Purpose purpose, const
         if (!r) detail["error"] = r.error().message;
         event(run_id, storage::EventKind::note, detail, std::nullopt);
       }
-      analysing_.erase(run_id);
+      // analysing_ keeps the run: notes the store refused wait in the journal (write_or_keep),
+      // and the plan runner must wait for them rather than ask for the analysis again.
       // The run, its models and verdicts are all stored: queue it for the plant (issue 14).
       if (config_.plant) queue_for_plant(run_id);
     };
