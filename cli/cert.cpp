@@ -38,6 +38,15 @@ std::string text_of(const json& v, int digits = 4) {
 
 std::string field_text(const json& j, const char* key) { return j.contains(key) ? text_of(j[key]) : "-"; }
 
+// A check's limit: the one stored with the verdict, or "limits not recorded" for a verdict
+// stored before fogbench kept them (never today's configuration).
+std::string cert_limit_text(const json& check) {
+  if (check.contains("limit") && check["limit"].is_null() &&
+      field_text(check, "rule").find("limits not recorded") != std::string::npos)
+    return "limits not recorded";
+  return check.contains("limit") ? text_of(check["limit"]) : "-";
+}
+
 std::string hash_of(const json& cert) {
   json body = cert;
   body.erase("sha256");
@@ -87,7 +96,7 @@ int print_summary(const json& cert, std::ostream& out) {
   out << c.str();
   Table v({"run", "check", "value", "limit", "pass", "verdict"});
   for (const auto& x : cert["verdicts"])
-    for (const auto& k : x["checks"]) v.add({field_text(x, "run_id"), field_text(k, "check"), text_of(k["value"]), text_of(k["limit"]), text_of(k["pass"]), field_text(x, "verdict")});
+    for (const auto& k : x["checks"]) v.add({field_text(x, "run_id"), field_text(k, "check"), text_of(k["value"]), cert_limit_text(k), text_of(k["pass"]), field_text(x, "verdict")});
   out << v.str();
   return kExitOk;
 }
@@ -113,7 +122,7 @@ std::string certificate_html(const json& cert) {
   rows.clear();
   for (const auto& x : cert["verdicts"])
     for (const auto& k : x["checks"])
-      rows.push_back({field_text(x, "run_id"), field_text(k, "check"), text_of(k["value"]), text_of(k["limit"]), field_text(k, "rule"), text_of(k["pass"]), field_text(x, "verdict")});
+      rows.push_back({field_text(x, "run_id"), field_text(k, "check"), text_of(k["value"]), cert_limit_text(k), field_text(k, "rule"), text_of(k["pass"]), field_text(x, "verdict")});
   b += rows.empty() ? "<p>No verification of this model.</p>" : table({"run", "check", "value", "limit", "rule", "pass", "verdict"}, rows);
   b += "<h2>Allan deviation of the compensated output (IEEE Std 952 Annex C)</h2>";
   rows.clear();

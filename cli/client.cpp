@@ -272,6 +272,7 @@ std::expected<model::RunData, ClientError> fetch_run(Client& c, std::int64_t run
   std::int64_t offset = 0;
   constexpr std::int64_t page = 10000;
   bool any_compensated = false;  // the daemon's live compensation: a column only if any
+  bool any_power_on = false;     // since_power_on_s (the term language's ton): a column only if any
   for (;;) {
     auto r = c.call("run.samples", {{"run_id", run_id}, {"unit", unit}, {"offset", offset}, {"limit", page}});
     if (!r) return std::unexpected(r.error());
@@ -293,6 +294,8 @@ std::expected<model::RunData, ClientError> fetch_run(Client& c, std::int64_t run
       d.flags.push_back(s->flags);
       d.compensated_dph.push_back(val(s->compensated_dph));
       any_compensated |= s->compensated_dph.has_value();
+      d.since_power_on_s.push_back(val(s->since_power_on_s));
+      any_power_on |= s->since_power_on_s.has_value();
     }
     offset += static_cast<std::int64_t>(rows.size());
     if (rows.size() < static_cast<std::size_t>(page) || offset >= (*r)["total"].get<std::int64_t>()) break;
@@ -301,6 +304,7 @@ std::expected<model::RunData, ClientError> fetch_run(Client& c, std::int64_t run
     return std::unexpected(reply_error(protocol::ErrorCode::not_found, "run " + std::to_string(run_id) + " unit " +
                                                                            std::to_string(unit) + " has no samples"));
   if (!any_compensated) d.compensated_dph.clear();
+  if (!any_power_on) d.since_power_on_s.clear();
   // The CSV has no empty cells: a value not read takes its neighbour's, and the sample keeps
   // (or gets) the missing flag so that no fit trusts it.
   storage::bridge_missing(d);

@@ -61,6 +61,22 @@ json allan_of(storage::Store& store, const model::Model& m, std::int64_t run_id,
           {"rrw_dph_per_sqrt_h", estimate_json(t.rrw_dph_per_sqrt_h, t.rrw_note)}};
 }
 
+// A check of the second test against the limit stored with the verdict (analysis.cpp). A
+// verdict stored before the limits were (fogbench before the certificate fix) says so: the
+// limit is null and the rule "limits not recorded", never today's configuration.
+json cert_limit_check(const json& res, const char* check, const char* value_key, const char* limit_key,
+                 const std::string& rule) {
+  const json value = res.value(value_key, json(nullptr));
+  if (!res.contains(limit_key) || !res[limit_key].is_number())
+    return {{"check", check}, {"value", value}, {"limit", nullptr}, {"rule", rule + " (limits not recorded)"},
+            {"pass", nullptr}};
+  const double limit = res[limit_key].get<double>();
+  json pass = nullptr;
+  if (value.is_number())
+    pass = rule == "value <= limit" ? value.get<double>() <= limit : value.get<double>() < limit;
+  return {{"check", check}, {"value", value}, {"limit", limit}, {"rule", rule}, {"pass", pass}};
+}
+
 ApiResult<json> run_json(storage::Store& store, std::int64_t run_id, const std::string& role) {
   auto d = store.get_run(run_id);
   if (!d) return std::unexpected(from_store(d.error()));
@@ -78,7 +94,8 @@ ApiResult<json> run_json(storage::Store& store, std::int64_t run_id, const std::
 
 }  // namespace
 
-ApiResult<json> build(storage::Store& store, const AnalysisConfig& limits, const std::string& station_id,
+// The verdicts' limits are their own, stored with them: the configuration of today is not read.
+ApiResult<json> build(storage::Store& store, const AnalysisConfig& /*config*/, const std::string& station_id,
                       const std::string& serial) {
   auto rec = store.current_model(serial);
   if (!rec) return std::unexpected(from_store(rec.error()));
@@ -133,16 +150,8 @@ ApiResult<json> build(storage::Store& store, const AnalysisConfig& limits, const
             {{{"check", "compensated std / raw std"}, {"value", res.value("ratio", json(nullptr))},
               {"limit", res.value("threshold", json(nullptr))}, {"rule", "value < limit"},
               {"pass", res.value("ratio_pass", json(nullptr))}},
-             {{"check", "compensated std / model noise std"}, {"value", res.value("noise_factor", json(nullptr))},
-              {"limit", limits.verify_max_noise_factor}, {"rule", "value <= limit (configured now)"},
-              {"pass", res.contains("noise_factor") && res["noise_factor"].is_number()
-                           ? json(res["noise_factor"].get<double>() <= limits.verify_max_noise_factor)
-                           : json(nullptr)}},
-             {{"check", "longest failing interval, s"}, {"value", res.value("longest_fail_s", json(nullptr))},
-              {"limit", limits.verify_max_fail_s}, {"rule", "value < limit (configured now)"},
-              {"pass", res.contains("longest_fail_s") && res["longest_fail_s"].is_number()
-                           ? json(res["longest_fail_s"].get<double>() < limits.verify_max_fail_s)
-                           : json(nullptr)}}}},
+             cert_limit_check(res, "compensated std / model noise std", "noise_factor", "max_noise_factor", "value <= limit"),
+             cert_limit_check(res, "longest failing interval, s", "longest_fail_s", "max_fail_s", "value < limit")}},
            {"table1",
             {{"raw_std_dph", res.value("meas_std", json(nullptr))},
              {"comp_std_dph", res.value("comp_std", json(nullptr))},

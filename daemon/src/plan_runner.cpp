@@ -359,6 +359,26 @@ bool PlanRunner::advance(std::int64_t plan_id, double wall_time) {
     if (d.is_object() && d.contains("analysis") && d.contains("unit")) notes.push_back(d);
   }
   if (notes.size() < detail->run.units.size()) {
+    if (!station_.analysing(run_id)) {
+      // Nobody computes it: the daemon was killed between the run's end and the storage of its
+      // analysis. Done again now from the stored samples, for the units without a note (the
+      // units with one keep theirs); a failure is noted and judged as any failed analysis.
+      std::vector<std::string> serials;
+      std::vector<int> missing;
+      for (const auto& ru : detail->run.units) {
+        serials.push_back(ru.serial);
+        const bool noted = std::any_of(notes.begin(), notes.end(), [&](const json& n) {
+          return n["unit"].is_number_integer() && n["unit"].get<int>() == ru.unit_index;
+        });
+        if (!noted) missing.push_back(ru.unit_index);
+      }
+      plan_event(plan_id, "plan.analysis",
+                 {{"step", step_index + 1}, {"run_id", run_id}, {"units", missing},
+                  {"reason", "the run completed but its analysis was never stored (the daemon stopped)"}});
+      spdlog::warn("plan {}: run {} of step {} completed without its analysis stored: analysing it again", plan_id,
+                   run_id, step_index + 1);
+      station_.analyse_units(run_id, detail->run.purpose, serials, missing);
+    }
     progress["waiting"] = "analysis";
     return false;
   }

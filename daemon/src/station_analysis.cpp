@@ -1,6 +1,8 @@
 // The automatic analysis when a run completes: each unit's fit or verification computed on the
 // offload (the analysis service of analysis.hpp, on fogbenchd's analysis worker), stored and
 // noted back on the loop.
+#include <csignal>
+#include <cstdlib>
 #include <memory>
 
 #include "fogbench/daemon/analysis.hpp"
@@ -13,15 +15,25 @@ using nlohmann::json;
 
 void Station::analyse(std::int64_t run_id, storage::Purpose purpose,
                       const std::vector<std::string>& serials) {
+  std::vector<int> units;
+  for (std::size_t i = 0; i < serials.size(); ++i) units.push_back(static_cast<int>(i));
+  analyse_units(run_id, purpose, serials, units);
+}
+
+void Station::analyse_units(std::int64_t run_id, storage::Purpose purpose, const std::vector<std::string>& serials,
+                            const std::vector<int>& units) {
+  // Test-only: the daemon dies (SIGKILL) between the run's end and its analysis, so that the
+  // e2e tests can restart it on exactly that store (tests/daemon_plans). Never set in service.
+  if (const char* k = std::getenv("FOGBENCH_TEST_KILL_BEFORE_ANALYSIS"); k && *k == '1') ::raise(SIGKILL);
+  analysing_.insert(run_id);
   // The fits or verifications are computed on the offload (fogbenchd's analysis worker, with its
   // own read connection): a long fit must not hold up the next run's seconds or the replies.
   // What they produced is stored here, on the loop, in unit order, each with its note.
   const AnalysisConfig config = config_.analysis;
   const std::string created_at = wall_clock_();
-  offload_->submit([this, run_id, purpose, serials, config, created_at](storage::Store& reader) -> Offload::Then {
+  offload_->submit([this, run_id, purpose, serials, units, config, created_at](storage::Store& reader) -> Offload::Then {
     auto computed = std::make_shared<std::vector<ApiResult<analysis::Commit>>>();
-    for (std::size_t i = 0; i < serials.size(); ++i) {
-      const int unit = static_cast<int>(i);
+    for (const int unit : units) {
       try {
         computed->push_back(purpose == storage::Purpose::fit
                                 ? analysis::fit(reader, config, run_id, unit, "", "", created_at)
@@ -30,11 +42,12 @@ void Station::analyse(std::int64_t run_id, storage::Purpose purpose,
         computed->push_back(api_error(ErrorCode::internal, e.what()));
       }
     }
-    return [this, run_id, purpose, serials, computed] {
-      for (std::size_t i = 0; i < serials.size(); ++i) {
-        json detail = {{"analysis", std::string(storage::to_string(purpose))}, {"unit", static_cast<int>(i)},
+    return [this, run_id, purpose, serials, units, computed] {
+      for (std::size_t k = 0; k < units.size(); ++k) {
+        const auto i = static_cast<std::size_t>(units[k]);
+        json detail = {{"analysis", std::string(storage::to_string(purpose))}, {"unit", units[k]},
                        {"serial", serials[i]}};
-        ApiResult<json> r = (*computed)[i] ? (*(*computed)[i])(store_) : std::unexpected((*computed)[i].error());
+        ApiResult<json> r = (*computed)[k] ? (*(*computed)[k])(store_) : std::unexpected((*computed)[k].error());
         if (r && purpose == storage::Purpose::fit) {
           detail["model_id"] = (*r)["model_id"];
           detail["n_flagged"] = (*r)["n_flagged"];
@@ -57,6 +70,8 @@ void Station::analyse(std::int64_t run_id, storage::Purpose purpose,
         if (!r) detail["error"] = r.error().message;
         event(run_id, storage::EventKind::note, detail, std::nullopt);
       }
+      // analysing_ keeps the run: notes the store refused wait in the journal (write_or_keep),
+      // and the plan runner must wait for them rather than ask for the analysis again.
       // The run, its models and verdicts are all stored: queue it for the plant (issue 14).
       if (config_.plant) queue_for_plant(run_id);
     };

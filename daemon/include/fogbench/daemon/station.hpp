@@ -147,6 +147,14 @@ class Station {
   // The run (active, or resumed at the next tick) ends without the automatic fit or
   // verification: a plan's soak and custom steps (docs/plans.md). Forgotten at a restart.
   void skip_analysis(std::int64_t run_id) { skip_analysis_.insert(run_id); }
+  // Whether this process has submitted the automatic analysis of the run (in hand or done; its
+  // notes may still wait in the journal). A completed run a plan waits on without it: the
+  // daemon was killed between the run's end and its analysis, and the plan runner asks for it
+  // again (analyse_units). One id per analysed run, kept for the process's life.
+  bool analysing(std::int64_t run_id) const { return analysing_.contains(run_id); }
+  // The automatic analysis of a completed run's `units` only (indices into `serials`).
+  void analyse_units(std::int64_t run_id, storage::Purpose purpose, const std::vector<std::string>& serials,
+                     const std::vector<int>& units);
 
  private:
   struct ActiveRun {
@@ -242,6 +250,7 @@ class Station {
   PowerWatch power_;
   PlanRunner* plans_ = nullptr;
   std::set<std::int64_t> skip_analysis_;
+  std::set<std::int64_t> analysing_;
 };
 
 // ISO 8601 UTC now, to the second.
