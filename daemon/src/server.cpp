@@ -2,9 +2,11 @@
 // thermistor I/O: libmodbus only has blocking calls, so those run on a worker thread (its own
 // io_context used as a job queue) that posts each result back to the loop; and the analysis
 // (fits, verifications, the workbench, large reads), which runs on a second worker with its own
-// read connection to the store and posts its replies back (docs/daemon.md, "Threads"). Every
-// write to the store stays on the loop thread: a Store is single-threaded. Sessions take turns
-// on the loop (Turns), so no number of clients can hold it.
+// read connection to the store and posts its replies back; and the commit of each second's
+// samples, on a writer thread with a write connection of its own (sample_writer.hpp), so no
+// fsync holds the loop (docs/daemon.md, "Threads"). The other writes to the store (states,
+// events, models, plans) stay on the loop thread: a Store is single-threaded. Sessions take
+// turns on the loop (Turns), so no number of clients can hold it.
 //
 // Its rooms: a session and the turns (session.hpp), the analysis worker (analysis_worker.hpp),
 // and here Server::Impl, the one object that owns the io_context, the signal set, the acceptors,
@@ -114,6 +116,9 @@ struct Server::Impl {
   std::unique_ptr<AnalysisWorker> analysis;
   // The plant store's replication (plant_link.hpp), when configured.
   std::unique_ptr<PlantLink> plant;
+  // Each second's samples, committed on a thread of their own (sample_writer.hpp); declared after
+  // the station, so it stops (commits what it holds, joins) before the station goes.
+  std::unique_ptr<ThreadedSampleWriter> samples;
 
   // The worker: a job queue on its own thread. The chamber and module are touched only there.
   asio::io_context wio;
@@ -753,6 +758,7 @@ Server::Server(DaemonConfig config, ServerOptions options)
 
 Server::~Server() {
   if (impl_ && impl_->analysis) impl_->analysis->stop();
+  if (impl_ && impl_->samples) impl_->samples->stop();
   if (impl_ && impl_->wthread.joinable()) {
     impl_->wguard.reset();
     impl_->wio.stop();
@@ -849,6 +855,14 @@ std::expected<void, Server::StartError> Server::start() {
                    reader ? "in-memory store" : reader.error().message);
     }
   }
+  // The samples' writer: a second write connection (WAL: the two take turns at the write lock).
+  // An in-memory store is one connection's alone: its samples are committed on the loop.
+  if (m.config.storage_path != ":memory:") {
+    auto writer = ThreadedSampleWriter::open(m.config.storage_path, so);
+    if (!writer) return fail("storage: the samples' writer connection: " + writer.error().message);
+    m.samples = std::move(*writer);
+    m.station->set_sample_writer(m.samples.get());
+  }
   if (m.config.plant) {
     if (m.config.storage_path == ":memory:") spdlog::warn("plant: an in-memory store is not replicated");
     else m.plant = std::make_unique<PlantLink>(*m.config.plant, m.config.storage_path);
@@ -938,6 +952,7 @@ int Server::run() {
   }
   if (m.analysis) m.analysis->stop();
   if (m.plant) m.plant->stop();
+  if (m.samples) m.samples->stop();  // the station drained it when the run ended; a last guard
   m.wguard.reset();
   m.wthread.join();
   m.tguard.reset();

@@ -315,9 +315,30 @@ std::string Station::behind_real_time(const ActiveRun& run, const std::string& w
   return o.str();
 }
 
-void Station::finish(RunState to, const std::string& reason) {
+std::string Station::storage_reason(const SampleWriteFailure& f) {
+  std::ostringstream o;
+  o << (f.error.code == storage::StoreErrc::disk_full ? "storage full" : "storage failed") << " ("
+    << storage::to_string(f.error.code) << "): samples could not be stored: " << f.error.message;
+  return o.str();
+}
+
+void Station::finish(RunState to, const std::string& reason_in, std::chrono::milliseconds drain_timeout) {
   assert(run_);
   ActiveRun& run = *run_;
+  std::string reason = reason_in;
+  // The run's samples first: its end is recorded after them, and a refusal among its last
+  // seconds (the writer's thread reports it after the second was handed over) ends it aborted.
+  const bool drained = samples_->drain(drain_timeout);
+  if (auto lost = samples_->take_failure(); lost && lost->run_id == run.id) {
+    if (WriteJournal::may_pass(lost->error.code)) journal_.set_refused(true);
+    const std::string why = storage_reason(*lost);
+    reason = to == RunState::aborted && reason != why ? why + "; the run was ending anyway: " + reason : why;
+    to = RunState::aborted;
+  } else if (!drained && drain_timeout.count() > 0) {  // 0: the caller already said it stalled
+    reason = "storage stalled: " + std::to_string(samples_->pending()) +
+             " seconds of samples not committed yet (the store's disk does not answer); " + reason;
+    to = RunState::aborted;
+  }
   event(run.id, storage::EventKind::note, {{"quality", quality_json(run)}}, run.elapsed_s);
   transition(run, to, reason, run.elapsed_s);
   if (to != RunState::completed) spdlog::warn("run {} {}: {}", run.id, storage::to_string(to), reason);
@@ -454,24 +475,34 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
     run.live_noted = true;
     event(run.id, storage::EventKind::note, run.live.describe(), t_s);
   }
-  auto stored = store_.append_samples(run.id, rows);
-  // The run's end that follows must not wait out the lock again (write_or_keep).
-  if (!stored && WriteJournal::may_pass(stored.error().code)) journal_.set_refused(true);
-
   for (const auto& r : rows)
     emit(protocol::to_json(sample_message(r, run.id, run.serials[static_cast<std::size_t>(r.unit_index)], run.state, st,
                                           in.chamber_c)));
+  // Committed off the loop by fogbenchd's writer thread (sample_writer.hpp): a refusal is known
+  // here at once with the inline writer, a second or a few later with the thread.
+  samples_->append(run.id, std::move(rows), clock_s);
+  auto lost = samples_->take_failure();
+  if (lost && lost->run_id != run.id) lost.reset();  // an ended run's: logged by the writer
+  const auto oldest = samples_->oldest_pending_clock_s();
+  const bool stalled = oldest && (clock_s - *oldest) / time_scale_ > kSampleStallWall_s;
 
-  if (stored && abort_reason) {
-    finish(RunState::aborted, behind_real_time(run, *abort_reason));
-  } else if (!stored) {
+  if (lost) {
     // Samples that cannot be stored make the run worthless: stop it rather than run on blind,
     // and make the chamber safe. A fault of the station, as a chamber's is: `aborted`
-    // (`failed` is a profile that could not be run, e.g. a settle that timed out).
-    const auto& e = stored.error();
-    finish(RunState::aborted, std::string(e.code == storage::StoreErrc::disk_full ? "storage full" : "storage failed") +
-                                  " (" + std::string(storage::to_string(e.code)) +
-                                  "): samples could not be stored: " + e.message);
+    // (`failed` is a profile that could not be run, e.g. a settle that timed out). The run's
+    // end that follows must not wait out the lock again (write_or_keep).
+    if (WriteJournal::may_pass(lost->error.code)) journal_.set_refused(true);
+    finish(RunState::aborted, storage_reason(*lost));
+  } else if (stalled) {
+    // Not a wait on the loop: the run ends at once, its queued seconds committed if the disk
+    // comes back. Its end is written through the journal like any refused write.
+    journal_.set_refused(true);
+    std::ostringstream o;
+    o << "storage stalled: the sample of t_s " << (*oldest - run.start_clock_s) << " s is not committed after "
+      << (clock_s - *oldest) / time_scale_ << " s of wall time (the store's disk does not answer)";
+    finish(RunState::aborted, o.str(), std::chrono::milliseconds(0));
+  } else if (abort_reason) {
+    finish(RunState::aborted, behind_real_time(run, *abort_reason));
   } else if (st.failed) {
     finish(RunState::failed, behind_real_time(run, st.failure_reason));
   } else if (st.finished) {

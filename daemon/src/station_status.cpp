@@ -70,7 +70,8 @@ json Station::status() const {
                 {"phase", r.phase ? json(std::string(profiles::to_string(*r.phase))) : json(nullptr)},
                 {"step", r.step},
                 {"steps", r.executor ? json(r.executor->profile().steps.size()) : json(nullptr)}, {"profile_held_s", r.held_s}, {"quality", quality_json(r)},
-                {"link_gap_s", r.link_down_since_s ? json(r.elapsed_s - *r.link_down_since_s) : json(nullptr)}};
+                {"link_gap_s", r.link_down_since_s ? json(r.elapsed_s - *r.link_down_since_s) : json(nullptr)},
+                {"samples_pending", samples_->pending()}};
     if (r.state == RunState::pending) s["run"]["remaining_s"] = r.executor->profile().nominal_duration_s();
   } else {
     s["run"] = nullptr;

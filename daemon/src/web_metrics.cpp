@@ -117,6 +117,9 @@ std::string render_metrics(const MetricsInput& in) {
     w.sample("fogbench_run_remaining_seconds", {}, at(run, "remaining_s"));
     w.family("fogbench_run_step", "gauge", "The active run's profile step (0-based).");
     w.sample("fogbench_run_step", {}, at(run, "step"));
+    w.family("fogbench_run_samples_pending", "gauge",
+             "Seconds of the active run's samples handed to the writer thread and not yet committed (0 or 1 normally).");
+    w.sample("fogbench_run_samples_pending", {}, at(run, "samples_pending"));
   }
 
   const json& units = at(s, "units");

@@ -10,6 +10,7 @@
 // (write_journal.hpp) and the pure building of a second's rows and messages (sample_rows.hpp).
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <deque>
 #include <expected>
@@ -28,6 +29,7 @@
 #include "fogbench/daemon/offload.hpp"
 #include "fogbench/daemon/power_on.hpp"
 #include "fogbench/daemon/run_identity.hpp"
+#include "fogbench/daemon/sample_writer.hpp"
 #include "fogbench/daemon/write_journal.hpp"
 #include "fogbench/profiles/executor.hpp"
 #include "fogbench/profiles/profile.hpp"
@@ -132,6 +134,16 @@ class Station {
   // it its worker (offload.hpp). Not owned; it must outlive the station's use of it.
   void set_offload(Offload* offload) { offload_ = offload ? offload : &inline_offload_; }
   Offload& offload() { return *offload_; }
+  // Where each second's samples are committed (sample_writer.hpp): inline on this station's
+  // store until the server gives it its writer thread. Not owned; it must outlive the station's
+  // use of it. Set before the first run starts.
+  void set_sample_writer(SampleWriter* writer) { samples_ = writer ? writer : &inline_samples_; }
+  // How long a run's end waits for its samples to be committed: the writer's own busy timeout
+  // (5 s by default) and a slow fsync fit in it.
+  static constexpr std::chrono::milliseconds kSampleDrainTimeout{15000};
+  // A second the writer has not committed after this much wall time is a stalled store (a disk
+  // that does not answer): the run ends aborted rather than acquire on blind.
+  static constexpr double kSampleStallWall_s = 30.0;
   // The models' created_at: the injected wall clock's now.
   std::string wall_now() const { return wall_clock_(); }
 
@@ -211,7 +223,14 @@ class Station {
   void write_or_keep(WriteJournal::Write w);
   void event(std::int64_t run_id, storage::EventKind kind, const nlohmann::json& detail,
              std::optional<double> t_s);
-  void finish(storage::RunState to, const std::string& reason);
+  // Ends the active run. Its samples are committed first (the sample writer drained, at most
+  // `drain_timeout`), so its end is recorded after them and its analysis reads every one; rows
+  // the store refused meanwhile end it aborted for the storage, whatever `reason` was.
+  void finish(storage::RunState to, const std::string& reason,
+              std::chrono::milliseconds drain_timeout = kSampleDrainTimeout);
+  // Why the store lost some of the run's seconds, as the run's end reason.
+  static std::string storage_reason(const SampleWriteFailure& f);
+
   // The automatic fit or verification of a completed run: computed on the offload, stored and
   // noted (a `note` event per unit) back on the loop.
   void analyse(std::int64_t run_id, storage::Purpose purpose, const std::vector<std::string>& serials);
@@ -230,6 +249,8 @@ class Station {
   storage::Store& store_;
   InlineOffload inline_offload_{store_};
   Offload* offload_ = &inline_offload_;
+  InlineSampleWriter inline_samples_{store_};
+  SampleWriter* samples_ = &inline_samples_;
   double time_scale_ = 1.0;
   WallClock wall_clock_;
   Publish publish_;

@@ -1,0 +1,125 @@
+// Where the station's once-a-second samples are committed. fogbenchd's writer is a thread with
+// its own write connection to the store (ThreadedSampleWriter): the loop hands it a second's rows
+// and goes on, so the commit's fsync (synchronous=FULL), a checkpoint, or another connection's
+// write lock (the plant link's outbox, fogctl) never holds the loop that acquires (issue 14: the
+// acquisition unaffected while the bench replicates; docs/daemon.md "Threads"). Tests of the
+// station, the golden transcripts and an in-memory store use InlineSampleWriter: the rows are
+// committed at once on the station's store, as if there were no thread.
+//
+// What the station relies on, both ways: rows are committed in the order handed over, each
+// hand-over all or nothing (the writer may join several of one run into one transaction: then
+// all or nothing together); a refused commit is reported by take_failure(), never lost silently;
+// drain() returns once everything handed over is committed or reported (the run's end is
+// recorded after its samples, and its analysis reads them all).
+#pragma once
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <expected>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <thread>
+#include <vector>
+
+#include "fogbench/storage/store.hpp"
+
+namespace fogbench::daemon {
+
+// Rows the store refused: the run, the seconds lost and why (the first refusal's error).
+struct SampleWriteFailure {
+  std::int64_t run_id = 0;
+  double first_t_s = 0.0;     // the earliest second lost, s since the run's start
+  double last_t_s = 0.0;      // the latest second lost, s
+  std::int64_t rows = 0;      // sample rows lost (all units)
+  storage::StoreError error;  // the first refusal
+};
+
+class SampleWriter {
+ public:
+  virtual ~SampleWriter() = default;
+  // Hands over one second's rows of a run (every unit), tagged with the daemon's clock at the
+  // hand-over (s), which oldest_pending_clock_s() gives back. Inline: committed before it returns.
+  virtual void append(std::int64_t run_id, std::vector<storage::SampleRow> rows, double clock_s) = 0;
+  // The refusals not yet taken, folded into one per run (the first run's when several).
+  virtual std::optional<SampleWriteFailure> take_failure() = 0;
+  // Waits until every row handed over is committed or refused, `timeout` at most. False: rows
+  // are still waiting (a stalled disk), and they stay queued.
+  virtual bool drain(std::chrono::milliseconds timeout) = 0;
+  // The tag of the oldest hand-over not yet committed or refused; empty when none waits.
+  virtual std::optional<double> oldest_pending_clock_s() const = 0;
+  // Hand-overs (seconds) not yet committed or refused.
+  virtual std::size_t pending() const = 0;
+};
+
+// Commits on the caller's store, at once.
+class InlineSampleWriter final : public SampleWriter {
+ public:
+  explicit InlineSampleWriter(storage::Store& store) : store_(store) {}
+  void append(std::int64_t run_id, std::vector<storage::SampleRow> rows, double clock_s) override;
+  std::optional<SampleWriteFailure> take_failure() override;
+  bool drain(std::chrono::milliseconds) override { return true; }
+  std::optional<double> oldest_pending_clock_s() const override { return std::nullopt; }
+  std::size_t pending() const override { return 0; }
+
+ private:
+  storage::Store& store_;
+  std::optional<SampleWriteFailure> failure_;
+};
+
+// A thread of its own with a write connection of its own (SQLite's WAL lets two connections of
+// one process take turns at the write lock; each waits OpenOptions::busy_timeout_ms for the
+// other). Runs at the loop's priority, not niced: it is part of the acquisition. Seconds that
+// queued up behind a slow commit go into the next transaction together (one fsync for them all),
+// so a slow disk is caught up with rather than fallen behind.
+class ThreadedSampleWriter final : public SampleWriter {
+ public:
+  // Opens the connection (the store must exist: the loop's connection made and migrated it) and
+  // starts the thread.
+  static storage::StoreResult<std::unique_ptr<ThreadedSampleWriter>> open(const std::filesystem::path& path,
+                                                                           const storage::OpenOptions& options);
+  ~ThreadedSampleWriter() override;
+  ThreadedSampleWriter(const ThreadedSampleWriter&) = delete;
+  ThreadedSampleWriter& operator=(const ThreadedSampleWriter&) = delete;
+
+  void append(std::int64_t run_id, std::vector<storage::SampleRow> rows, double clock_s) override;
+  std::optional<SampleWriteFailure> take_failure() override;
+  bool drain(std::chrono::milliseconds timeout) override;
+  std::optional<double> oldest_pending_clock_s() const override;
+  std::size_t pending() const override;
+
+  // Commits what was handed over (`timeout` at most), then ends the thread. Rows still queued
+  // after the timeout are lost and logged. Idempotent; the destructor calls it.
+  void stop(std::chrono::milliseconds timeout = std::chrono::seconds(10));
+
+  // Tests: while held, the thread takes no new batch (as a disk that does not answer would
+  // keep it), so the queue, pending() and the station's stall rule can be seen deterministically.
+  void hold_for_test(bool held);
+
+ private:
+  explicit ThreadedSampleWriter(storage::Store store);
+  struct Batch {
+    std::int64_t run_id = 0;
+    double clock_s = 0.0;
+    std::vector<storage::SampleRow> rows;
+  };
+  void run();
+  void record_failure(std::int64_t run_id, const std::vector<storage::SampleRow>& rows, const storage::StoreError& e);
+
+  storage::Store store_;
+  mutable std::mutex mutex_;
+  std::condition_variable work_;      // a batch queued, stop asked, hold released
+  std::condition_variable progress_;  // a batch committed or refused
+  std::deque<Batch> queue_;
+  std::optional<double> in_flight_clock_s_;  // the oldest tag of the transaction being written
+  std::size_t in_flight_ = 0;                // its hand-overs
+  std::deque<SampleWriteFailure> failures_;
+  bool stopping_ = false;
+  bool held_ = false;
+  std::thread thread_;
+};
+
+}  // namespace fogbench::daemon

@@ -1,0 +1,176 @@
+// The station's sample writers (sample_writer.hpp): inline on the loop's store, or a thread with
+// a write connection of its own.
+#include "fogbench/daemon/sample_writer.hpp"
+
+#include <algorithm>
+
+#include <spdlog/spdlog.h>
+
+namespace fogbench::daemon {
+
+namespace {
+
+// Seconds joined into one transaction at most when they queued up behind a slow commit: enough
+// to catch up with a disk that took minutes, small enough that one refusal loses little.
+constexpr std::size_t kMaxBatchesPerCommit = 600;
+
+// Folds a refusal into the one already kept for the same run, or starts a new one.
+void fold(std::deque<SampleWriteFailure>& failures, std::int64_t run_id, double first_t_s, double last_t_s,
+          std::int64_t rows, const storage::StoreError& e) {
+  for (auto& f : failures) {
+    if (f.run_id != run_id) continue;
+    f.first_t_s = std::min(f.first_t_s, first_t_s);
+    f.last_t_s = std::max(f.last_t_s, last_t_s);
+    f.rows += rows;
+    return;
+  }
+  failures.push_back({run_id, first_t_s, last_t_s, rows, e});
+}
+
+std::pair<double, double> t_span(const std::vector<storage::SampleRow>& rows) {
+  double lo = rows.front().t_s, hi = rows.front().t_s;
+  for (const auto& r : rows) {
+    lo = std::min(lo, r.t_s);
+    hi = std::max(hi, r.t_s);
+  }
+  return {lo, hi};
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- inline
+
+void InlineSampleWriter::append(std::int64_t run_id, std::vector<storage::SampleRow> rows, double /*clock_s*/) {
+  if (rows.empty()) return;
+  if (auto ok = store_.append_samples(run_id, rows); !ok) {
+    std::deque<SampleWriteFailure> one;
+    if (failure_) one.push_back(*failure_);
+    const auto [lo, hi] = t_span(rows);
+    fold(one, run_id, lo, hi, static_cast<std::int64_t>(rows.size()), ok.error());
+    failure_ = one.front();
+  }
+}
+
+std::optional<SampleWriteFailure> InlineSampleWriter::take_failure() {
+  auto f = std::move(failure_);
+  failure_.reset();
+  return f;
+}
+
+// ---------------------------------------------------------------- threaded
+
+storage::StoreResult<std::unique_ptr<ThreadedSampleWriter>> ThreadedSampleWriter::open(
+    const std::filesystem::path& path, const storage::OpenOptions& options) {
+  storage::OpenOptions o = options;
+  o.read_only = false;
+  o.create = false;
+  auto store = storage::Store::open(path, o);
+  if (!store) return std::unexpected(store.error());
+  return std::unique_ptr<ThreadedSampleWriter>(new ThreadedSampleWriter(std::move(*store)));
+}
+
+ThreadedSampleWriter::ThreadedSampleWriter(storage::Store store) : store_(std::move(store)) {
+  thread_ = std::thread([this] { run(); });
+}
+
+ThreadedSampleWriter::~ThreadedSampleWriter() { stop(); }
+
+void ThreadedSampleWriter::append(std::int64_t run_id, std::vector<storage::SampleRow> rows, double clock_s) {
+  if (rows.empty()) return;
+  {
+    std::lock_guard lock(mutex_);
+    queue_.push_back({run_id, clock_s, std::move(rows)});
+  }
+  work_.notify_one();
+}
+
+std::optional<SampleWriteFailure> ThreadedSampleWriter::take_failure() {
+  std::lock_guard lock(mutex_);
+  if (failures_.empty()) return std::nullopt;
+  SampleWriteFailure f = std::move(failures_.front());
+  failures_.pop_front();
+  return f;
+}
+
+bool ThreadedSampleWriter::drain(std::chrono::milliseconds timeout) {
+  std::unique_lock lock(mutex_);
+  return progress_.wait_for(lock, timeout, [this] { return queue_.empty() && in_flight_ == 0; });
+}
+
+std::optional<double> ThreadedSampleWriter::oldest_pending_clock_s() const {
+  std::lock_guard lock(mutex_);
+  if (in_flight_clock_s_) return in_flight_clock_s_;
+  if (!queue_.empty()) return queue_.front().clock_s;
+  return std::nullopt;
+}
+
+std::size_t ThreadedSampleWriter::pending() const {
+  std::lock_guard lock(mutex_);
+  return queue_.size() + in_flight_;
+}
+
+void ThreadedSampleWriter::hold_for_test(bool held) {
+  {
+    std::lock_guard lock(mutex_);
+    held_ = held;
+  }
+  work_.notify_one();
+}
+
+void ThreadedSampleWriter::stop(std::chrono::milliseconds timeout) {
+  if (!thread_.joinable()) return;
+  const bool drained = drain(timeout);
+  std::size_t lost = 0;
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+    held_ = false;
+    if (!drained) {
+      for (const auto& b : queue_) lost += b.rows.size();
+      queue_.clear();
+    }
+  }
+  work_.notify_one();
+  if (!drained)
+    spdlog::error("sample writer: the store did not take the last samples within {} ms; {} queued rows given up",
+                  timeout.count(), lost);
+  // A commit in progress finishes first (SQLite's own busy timeout bounds it).
+  thread_.join();
+}
+
+void ThreadedSampleWriter::record_failure(std::int64_t run_id, const std::vector<storage::SampleRow>& rows,
+                                          const storage::StoreError& e) {
+  const auto [lo, hi] = t_span(rows);
+  spdlog::error("sample writer: {} rows of run {} (t_s {} to {} s) not stored ({}): {}", rows.size(), run_id, lo, hi,
+                storage::to_string(e.code), e.message);
+  fold(failures_, run_id, lo, hi, static_cast<std::int64_t>(rows.size()), e);
+}
+
+void ThreadedSampleWriter::run() {
+  std::unique_lock lock(mutex_);
+  for (;;) {
+    work_.wait(lock, [this] { return stopping_ || (!held_ && !queue_.empty()); });
+    if (queue_.empty()) return;  // stopping, nothing left
+    // The seconds of one run that queued up go into one transaction (one fsync).
+    const std::int64_t run_id = queue_.front().run_id;
+    in_flight_clock_s_ = queue_.front().clock_s;
+    std::vector<storage::SampleRow> rows = std::move(queue_.front().rows);
+    queue_.pop_front();
+    in_flight_ = 1;
+    while (!queue_.empty() && queue_.front().run_id == run_id && in_flight_ < kMaxBatchesPerCommit) {
+      auto& next = queue_.front().rows;
+      rows.insert(rows.end(), std::make_move_iterator(next.begin()), std::make_move_iterator(next.end()));
+      queue_.pop_front();
+      ++in_flight_;
+    }
+    lock.unlock();
+    auto ok = store_.append_samples(run_id, rows);
+    lock.lock();
+    if (!ok) record_failure(run_id, rows, ok.error());
+    in_flight_ = 0;
+    in_flight_clock_s_.reset();
+    progress_.notify_all();
+  }
+}
+
+}  // namespace fogbench::daemon

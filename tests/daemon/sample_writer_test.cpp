@@ -1,0 +1,328 @@
+// The samples' writer thread (sample_writer.hpp, issue 14: the commit's fsync off the loop): rows
+// committed in the order handed over, seconds that queued behind a slow commit caught up
+// together, a refusal reported with the seconds it lost, drain and stop; and a station on it
+// through whole runs: every second stored before the run's end is recorded and analysed, a full
+// disk or a stalled one ending the run aborted. On a real SQLite file with the real thread; the
+// stalled disk is the writer held by the test (hold_for_test), not a timing: nothing here
+// measures time.
+#include "fixture.hpp"
+
+#include <sqlite3.h>
+
+#include "fogbench/daemon/sample_writer.hpp"
+
+using namespace fogbench;
+using namespace fogbench::daemon;
+using namespace fogbench::daemon::test;
+using nlohmann::json;
+
+namespace {
+
+struct TempDir {
+  std::filesystem::path path;
+  TempDir() {
+    char tmpl[] = "/tmp/fogbench-writer-XXXXXX";
+    path = ::mkdtemp(tmpl);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path, ec);
+  }
+};
+
+// One second of `units` units at t_s.
+std::vector<storage::SampleRow> second(double t_s, int units = 2) {
+  std::vector<storage::SampleRow> rows;
+  for (int u = 0; u < units; ++u) {
+    storage::SampleRow r;
+    r.unit_index = u;
+    r.t_s = t_s;
+    r.gyro_dph = 0.5 + u + 1e-3 * t_s;
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+std::int64_t new_run(storage::Store& store) {
+  storage::NewRun nr;
+  nr.profile_name = "writer";
+  nr.unit_serials = {"FOG-1", "FOG-2"};
+  auto id = store.create_run(nr);
+  REQUIRE(id.has_value());
+  return *id;
+}
+
+std::unique_ptr<ThreadedSampleWriter> open_writer(const std::filesystem::path& db, int busy_timeout_ms = 5000) {
+  storage::OpenOptions o;
+  o.busy_timeout_ms = busy_timeout_ms;
+  auto w = ThreadedSampleWriter::open(db, o);
+  REQUIRE(w.has_value());
+  return std::move(*w);
+}
+
+constexpr auto kDrain = std::chrono::seconds(30);  // a bound on a hang, not a measurement
+
+}  // namespace
+
+TEST_CASE("sample writer: held-back seconds are committed in order once the writer goes on") {
+  TempDir dir;
+  const auto db = dir.path / "fogbench.db";
+  auto store = storage::Store::open(db);
+  REQUIRE(store.has_value());
+  const auto run = new_run(*store);
+  auto w = open_writer(db);
+
+  w->hold_for_test(true);  // a commit that does not return: the seconds queue up
+  for (int t = 0; t < 50; ++t) w->append(run, second(t), 100.0 + t);
+  CHECK(w->pending() == 50);
+  REQUIRE(w->oldest_pending_clock_s().has_value());
+  CHECK(*w->oldest_pending_clock_s() == 100.0);  // the tag of the first hand-over
+  CHECK(*store->count_samples(run) == 0);
+  CHECK_FALSE(w->drain(std::chrono::milliseconds(0)));
+
+  w->hold_for_test(false);
+  REQUIRE(w->drain(kDrain));
+  CHECK(w->pending() == 0);
+  CHECK_FALSE(w->oldest_pending_clock_s().has_value());
+  CHECK_FALSE(w->take_failure().has_value());
+  for (int u = 0; u < 2; ++u) {
+    auto rows = store->get_samples(run, u, 0, 100);
+    REQUIRE(rows->size() == 50);
+    for (int t = 0; t < 50; ++t) {
+      CHECK(rows->at(static_cast<std::size_t>(t)).t_s == t);
+      CHECK(rows->at(static_cast<std::size_t>(t)).gyro_dph == Approx(0.5 + u + 1e-3 * t));
+    }
+  }
+  CHECK(store->integrity_check()->empty());
+}
+
+TEST_CASE("sample writer: a refusal names the run, the seconds and the rows lost, later seconds are stored") {
+  TempDir dir;
+  const auto db = dir.path / "fogbench.db";
+  auto store = storage::Store::open(db);
+  REQUIRE(store.has_value());
+  const auto run = new_run(*store);
+  auto w = open_writer(db, 0);  // a lock held elsewhere refuses at once (busy)
+
+  for (int t = 0; t < 10; ++t) w->append(run, second(t), t);
+  REQUIRE(w->drain(kDrain));
+  CHECK_FALSE(w->take_failure().has_value());
+
+  // Another connection (an operator's sqlite3 shell) holds the write lock for seconds 10..12.
+  sqlite3* other = nullptr;
+  REQUIRE(sqlite3_open(db.c_str(), &other) == SQLITE_OK);
+  REQUIRE(sqlite3_exec(other, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr) == SQLITE_OK);
+  for (int t = 10; t < 13; ++t) {
+    w->append(run, second(t), t);
+    REQUIRE(w->drain(kDrain));  // one at a time: each is its own refused transaction
+  }
+  REQUIRE(sqlite3_exec(other, "ROLLBACK", nullptr, nullptr, nullptr) == SQLITE_OK);
+  sqlite3_close(other);
+
+  auto f = w->take_failure();
+  REQUIRE(f.has_value());
+  CHECK(f->run_id == run);
+  CHECK(f->first_t_s == 10.0);
+  CHECK(f->last_t_s == 12.0);
+  CHECK(f->rows == 6);  // 3 seconds x 2 units, folded into one report
+  CHECK(f->error.code == storage::StoreErrc::busy);
+  CHECK_FALSE(w->take_failure().has_value());  // taken once
+
+  w->append(run, second(13), 13);
+  REQUIRE(w->drain(kDrain));
+  CHECK_FALSE(w->take_failure().has_value());
+  CHECK(*store->count_samples(run, 0) == 11);  // 0..9 and 13
+  CHECK(store->get_samples(run, 0, 10, 1)->at(0).t_s == 13.0);
+}
+
+TEST_CASE("sample writer: seconds joined into one transaction are kept or lost together") {
+  TempDir dir;
+  const auto db = dir.path / "fogbench.db";
+  auto store = storage::Store::open(db);
+  REQUIRE(store.has_value());
+  const auto run = new_run(*store);
+  auto w = open_writer(db);
+  w->append(run, second(0), 0);
+  REQUIRE(w->drain(kDrain));
+  // Queued behind a held commit: 1, 2 and a second 0 (a constraint violation) go together.
+  w->hold_for_test(true);
+  w->append(run, second(1), 1);
+  w->append(run, second(2), 2);
+  w->append(run, second(0), 3);
+  w->hold_for_test(false);
+  REQUIRE(w->drain(kDrain));
+  auto f = w->take_failure();
+  REQUIRE(f.has_value());
+  CHECK(f->error.code == storage::StoreErrc::constraint);
+  CHECK(f->first_t_s == 0.0);
+  CHECK(f->last_t_s == 2.0);
+  CHECK(f->rows == 6);
+  CHECK(*store->count_samples(run) == 2);  // second 0 of both units only: nothing half-written
+}
+
+TEST_CASE("sample writer: stop commits what was handed over, then ends the thread") {
+  TempDir dir;
+  const auto db = dir.path / "fogbench.db";
+  auto store = storage::Store::open(db);
+  REQUIRE(store.has_value());
+  const auto run = new_run(*store);
+  auto w = open_writer(db);
+  w->hold_for_test(true);
+  for (int t = 0; t < 20; ++t) w->append(run, second(t), t);
+  w->hold_for_test(false);
+  w->stop(kDrain);
+  CHECK(*store->count_samples(run) == 40);
+  w->stop(kDrain);  // idempotent
+}
+
+TEST_CASE("sample writer: a store that is missing or not fogbench's is refused with its reason") {
+  TempDir dir;
+  auto missing = ThreadedSampleWriter::open(dir.path / "none.db", {});
+  REQUIRE_FALSE(missing.has_value());
+  CHECK(missing.error().code == storage::StoreErrc::open_failed);
+}
+
+// --- a station on the writer thread
+
+namespace {
+
+struct ThreadedRig {
+  TempDir dir;
+  std::optional<storage::Store> store;
+  std::unique_ptr<ThreadedSampleWriter> writer;
+  std::unique_ptr<Station> st;
+  SyntheticBench bench{1};
+  double clock_s = 0.0;
+
+  explicit ThreadedRig(storage::OpenOptions o = {}, std::optional<std::int64_t> extra_bytes = std::nullopt) {
+    const auto db = dir.path / "fogbench.db";
+    {
+      auto s = storage::Store::open(db);  // the schema first, so a size limit counts from it
+      REQUIRE(s.has_value());
+    }
+    if (extra_bytes) o.size_limit_bytes = static_cast<std::int64_t>(std::filesystem::file_size(db)) + *extra_bytes;
+    auto s = storage::Store::open(db, o);
+    REQUIRE(s.has_value());
+    store.emplace(std::move(*s));
+    auto w = ThreadedSampleWriter::open(db, o);
+    REQUIRE(w.has_value());
+    writer = std::move(*w);
+    auto c = golden_config();
+    c.safe_setpoint_c = 15;
+    st = std::make_unique<Station>(std::move(c), *store, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
+    st->set_sample_writer(writer.get());
+  }
+  ~ThreadedRig() {
+    st.reset();
+    writer.reset();
+  }
+  // One second of a run as fogbenchd makes it: the tick hands the samples over, and the writer
+  // commits them within the second (a commit takes milliseconds; the tests' ticks take none).
+  double tick(double sp_c) {
+    sp_c = st->tick(clock_s, bench.step(sp_c)).setpoint_c;
+    clock_s += 1.0;
+    REQUIRE(writer->drain(kDrain));
+    return sp_c;
+  }
+  // Ticks until the run ends or max_ticks pass; returns the ticks made.
+  int run_to_end(int max_ticks) {
+    double sp_c = st->status()["setpoint_c"].get<double>();
+    int n = 0;
+    while (n < max_ticks) {
+      sp_c = tick(sp_c);
+      ++n;
+      if (!st->active_run_id()) break;
+    }
+    return n;
+  }
+};
+
+}  // namespace
+
+TEST_CASE("station on the writer thread: a whole run is stored before its end, and its fit reads every second") {
+  ThreadedRig r;
+  auto id = r.st->start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
+  REQUIRE(id.has_value());
+  const int ticks = r.run_to_end(5000);
+  CHECK_FALSE(r.st->active_run_id().has_value());
+  auto d = r.store->get_run(*id);
+  REQUIRE(d.has_value());
+  REQUIRE(d->run.state == storage::RunState::completed);
+  // Drained at the run's end: nothing waits, every tick of the run is a stored second.
+  CHECK(r.writer->pending() == 0);
+  CHECK(*r.store->count_samples(*id, 0) == ticks);
+  // The automatic fit (inline offload: at once, on the loop's connection) saw them all: its
+  // note names the samples it was fitted on.
+  auto model = r.store->current_model("FOG-0001");
+  REQUIRE(model.has_value());
+  REQUIRE(model->has_value());
+  CHECK((*model)->run_id == *id);
+  bool noted = false;
+  for (const auto& e : d->events) {
+    if (e.kind != storage::EventKind::note) continue;
+    const json n = json::parse(e.detail_json);
+    if (n.contains("analysis")) noted = n.value("ok", false);
+  }
+  CHECK(noted);
+}
+
+TEST_CASE("station on the writer thread: a full disk aborts the run, every stored second a gapless prefix") {
+  // 64 KiB over the empty store: some hundreds of one-unit seconds, under short.profile's 1801.
+  ThreadedRig r({}, 64 * 1024);
+  auto id = r.st->start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
+  REQUIRE(id.has_value());
+  const int ticks = r.run_to_end(5000);
+  CHECK(ticks < 1801);
+  CHECK_FALSE(r.st->active_run_id().has_value());
+  const json s = r.st->status();
+  CHECK(s["setpoint_c"] == 15.0);
+  CHECK(s["last_run"]["state"] == "aborted");
+  CHECK_THAT(s["last_run"]["reason"].get<std::string>(), Catch::Contains("storage full (disk_full)"));
+  CHECK(s["last_run"]["recorded"] == true);
+  auto d = r.store->get_run(*id);
+  REQUIRE(d.has_value());
+  CHECK(d->run.state == storage::RunState::aborted);
+  CHECK_THAT(d->run.state_reason, Catch::Contains("storage full"));
+  // The writer may have joined seconds that queued up: some are lost together, but what is
+  // stored is every second from the first, in order, none twice.
+  const auto n = *r.store->count_samples(*id, 0);
+  CHECK(n > 0);
+  CHECK(n < ticks);
+  auto rows = r.store->get_samples(*id, 0, 0, n);
+  REQUIRE(static_cast<std::int64_t>(rows->size()) == n);
+  for (std::int64_t i = 0; i < n; ++i) CHECK(rows->at(static_cast<std::size_t>(i)).t_s == static_cast<double>(i));
+  CHECK(r.store->integrity_check()->empty());
+}
+
+TEST_CASE("station on the writer thread: a store that stops answering ends the run without holding the loop") {
+  ThreadedRig r;
+  auto id = r.st->start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
+  REQUIRE(id.has_value());
+  double sp = 20;
+  for (int i = 0; i < 100; ++i) sp = r.tick(sp);
+  CHECK(*r.store->count_samples(*id, 0) == 100);
+
+  // The disk stops answering: the seconds queue up; the run goes on until the oldest has waited
+  // Station::kSampleStallWall_s of wall time (time scale 1: as many ticks).
+  r.writer->hold_for_test(true);
+  int n = 0;
+  for (; n < 100 && r.st->active_run_id(); ++n, r.clock_s += 1) sp = r.st->tick(r.clock_s, r.bench.step(sp)).setpoint_c;
+  CHECK(n == static_cast<int>(Station::kSampleStallWall_s) + 2);  // stalled once the wait exceeds the limit
+  CHECK(sp == 15.0);
+  json s = r.st->status();
+  CHECK(s["last_run"]["state"] == "aborted");
+  CHECK_THAT(s["last_run"]["reason"].get<std::string>(), Catch::Contains("storage stalled"));
+  CHECK_THAT(s["last_run"]["reason"].get<std::string>(), Catch::Contains("t_s 100 s"));
+  CHECK(r.writer->pending() == static_cast<std::size_t>(n));
+
+  // The disk answers again: the queued seconds are stored, and the run's end with them.
+  r.writer->hold_for_test(false);
+  REQUIRE(r.writer->drain(kDrain));
+  CHECK(*r.store->count_samples(*id, 0) == 100 + n);
+  for (int i = 0; i < 12; ++i) r.tick(15);
+  auto d = r.store->get_run(*id);
+  REQUIRE(d.has_value());
+  CHECK(d->run.state == storage::RunState::aborted);
+  CHECK_THAT(d->run.state_reason, Catch::Contains("storage stalled"));
+  CHECK(r.st->status()["last_run"]["recorded"] == true);
+}
