@@ -11,6 +11,7 @@
 #include <spdlog/spdlog.h>
 
 #include "fogbench/plant/plant.hpp"
+#include "fogbench/daemon/scheduling.hpp"
 #include "fogbench/storage/store.hpp"
 
 namespace fogbench::daemon {
@@ -38,8 +39,9 @@ bool PlantLink::wait(double seconds) {
 }
 
 void PlantLink::run() {
-  // Niced like the analysis worker: on a busy host the loop that acquires wins the CPU.
-  ::setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), 10);
+  // Background work (scheduling.hpp): the loop that acquires preempts it at once, and so does
+  // anything else; the samples' reader that replicate_run starts inherits it.
+  spdlog::info("plant: the link runs {}", enter_background());
   storage::OpenOptions so;
   so.create = false;
   std::optional<storage::Store> store;

@@ -43,6 +43,7 @@
 #include "fogbench/drivers/gyro_bus.hpp"
 #include "fogbench/drivers/thermistor_module.hpp"
 #include "fogbench/daemon/run_identity.hpp"
+#include "fogbench/daemon/scheduling.hpp"
 #include "analysis_worker.hpp"
 #include "notify_status.hpp"
 #include "plant_link.hpp"
@@ -889,6 +890,11 @@ std::expected<void, Server::StartError> Server::start() {
 
 int Server::run() {
   Impl& m = *impl_;
+  // This thread runs the loop: a short scheduler slice, so its timer's wake-up is not left
+  // waiting behind a busy task's slice (scheduling.hpp; the worker threads keep the default).
+  const SliceRequest slice = request_scheduler_slice(std::chrono::microseconds(100));
+  if (slice.applied) spdlog::info("acquisition loop: {}", slice.message);
+  else spdlog::warn("acquisition loop: {}", slice.message);
   m.signals.async_wait([&m](boost::system::error_code ec, int sig) {
     if (!ec) m.begin_stop(sig == SIGTERM ? "SIGTERM" : "SIGINT");
   });
