@@ -27,6 +27,7 @@ namespace {
 struct Sitting {
   double p50_ms = 0, p99_ms = 0, max_ms = 0;
   std::size_t ticks = 0;
+  std::size_t over_0_5_ms = 0, over_1_ms = 0;  // ticks whose jitter exceeds 0.5 ms, 1 ms
   std::int64_t replications = 0, rows_replicated = 0;
 };
 
@@ -122,6 +123,10 @@ Sitting sit(const char* argv0, const std::string& db, int seconds, int rows, boo
   out.p50_ms = percentile(jitter, 50);
   out.p99_ms = percentile(jitter, 99);
   out.max_ms = percentile(jitter, 100);
+  for (double j : jitter) {
+    out.over_0_5_ms += j > 0.5;
+    out.over_1_ms += j > 1.0;
+  }
   out.replications = sent_after - sent_before;
   out.rows_replicated = out.replications * rows;
   return out;
@@ -153,8 +158,8 @@ int main(int argc, char** argv) {
   for (int k = 0; k < rounds; ++k) {
     for (bool replicate : {false, true}) {
       const Sitting s = sit(argv[0], db, seconds, rows, replicate, k, synchronous);
-      std::printf("  %-7s %zu ticks: p50 %.3f ms  p99 %.3f ms  max %.3f ms", replicate ? "with" : "without", s.ticks,
-                  s.p50_ms, s.p99_ms, s.max_ms);
+      std::printf("  %-7s %zu ticks: p50 %.3f ms  p99 %.3f ms  max %.3f ms  (%zu over 0.5 ms, %zu over 1 ms)",
+                  replicate ? "with" : "without", s.ticks, s.p50_ms, s.p99_ms, s.max_ms, s.over_0_5_ms, s.over_1_ms);
       if (replicate)
         std::printf("; %lld replications, %.0f rows/s replicated", static_cast<long long>(s.replications),
                     static_cast<double>(s.rows_replicated) / seconds);

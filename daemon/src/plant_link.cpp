@@ -11,7 +11,6 @@
 #include <spdlog/spdlog.h>
 
 #include "fogbench/plant/plant.hpp"
-#include "fogbench/daemon/scheduling.hpp"
 #include "fogbench/storage/store.hpp"
 
 namespace fogbench::daemon {
@@ -39,9 +38,10 @@ bool PlantLink::wait(double seconds) {
 }
 
 void PlantLink::run() {
-  // Background work (scheduling.hpp): the loop that acquires preempts it at once, and so does
-  // anything else; the samples' reader that replicate_run starts inherits it.
-  spdlog::info("plant: the link runs {}", enter_background());
+  // Niced like the analysis worker: on a busy host the loop that acquires wins the CPU. The
+  // samples' reader that replicate_run starts inherits it. (SCHED_IDLE was tried: measured with
+  // perf, the loop's wake-ups waited no less often behind the reader; docs/performance.md.)
+  ::setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), 10);
   storage::OpenOptions so;
   so.create = false;
   std::optional<storage::Store> store;

@@ -3,7 +3,6 @@
 #include "fogbench/daemon/scheduling.hpp"
 
 #include <sched.h>
-#include <sys/resource.h>
 #include <sys/syscall.h>
 #include <unistd.h>
 
@@ -84,15 +83,5 @@ SliceRequest request_scheduler_slice(std::chrono::nanoseconds slice) {
                 "behind a busy task's slice, a few ms";
   return r;
 }
-
-std::string enter_background() {
-  ::sched_param none{};
-  if (::sched_setscheduler(0, SCHED_IDLE, &none) == 0) return "SCHED_IDLE (the loop preempts it at once)";
-  const std::string why = std::strerror(errno);
-  ::setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), 10);
-  return "nice +10 (SCHED_IDLE refused: " + why + ")";
-}
-
-bool is_background() { return ::sched_getscheduler(0) == SCHED_IDLE; }
 
 }  // namespace fogbench::daemon

@@ -63,18 +63,3 @@ TEST_CASE("scheduling: a thread's slice is its own, the other threads keep their
   if (eevdf) CHECK(mine != 300'000);
 }
 
-TEST_CASE("scheduling: background work runs SCHED_IDLE, and the threads it starts inherit it") {
-  bool self = false, child = false;
-  std::string said;
-  on_thread([&] {
-    said = enter_background();
-    self = is_background();
-    std::thread t([&] { child = is_background(); });
-    t.join();
-  });
-  // No privilege is needed to lower a thread to SCHED_IDLE: on any Linux the test runs on.
-  CHECK_THAT(said, Catch::Contains("SCHED_IDLE"));
-  CHECK(self);
-  CHECK(child);
-  CHECK_FALSE(is_background());  // the test runner's own thread is left as it was
-}

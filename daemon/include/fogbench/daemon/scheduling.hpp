@@ -27,13 +27,5 @@ SliceRequest request_scheduler_slice(std::chrono::nanoseconds slice);
 // The calling thread's slice as the kernel reports it (ns); 0 on a kernel without custom slices.
 std::uint64_t current_scheduler_slice_ns();
 
-// Makes the calling thread background work (the plant link and its reader: replication waits in
-// an outbox, nothing is late for it): SCHED_IDLE, which any other thread preempts at once on
-// wake-up, on the CPU it runs on, and which the kernel counts as an idle CPU when it places a
-// waking thread. Threads it creates inherit it. Where the policy is refused (a seccomp filter),
-// nice +10 instead. Returns a line for the log saying which.
-std::string enter_background();
-// Whether the calling thread runs SCHED_IDLE.
-bool is_background();
 
 }  // namespace fogbench::daemon
