@@ -331,8 +331,10 @@ void Station::finish(RunState to, const std::string& reason_in, std::chrono::mil
   const bool drained = samples_->drain(drain_timeout);
   if (auto lost = samples_->take_failure(); lost && lost->run_id == run.id) {
     if (WriteJournal::may_pass(lost->error.code)) journal_.set_refused(true);
-    const std::string why = storage_reason(*lost);
-    reason = to == RunState::aborted && reason != why ? why + "; the run was ending anyway: " + reason : why;
+    // A reason that is already the storage's (the tick took an earlier refusal) stays as it is.
+    if (reason.rfind("storage ", 0) != 0)
+      reason = to == RunState::aborted ? storage_reason(*lost) + "; the run was ending anyway: " + reason
+                                       : storage_reason(*lost);
     to = RunState::aborted;
   } else if (!drained && drain_timeout.count() > 0) {  // 0: the caller already said it stalled
     reason = "storage stalled: " + std::to_string(samples_->pending()) +

@@ -326,3 +326,67 @@ TEST_CASE("station on the writer thread: a store that stops answering ends the r
   CHECK_THAT(d->run.state_reason, Catch::Contains("storage stalled"));
   CHECK(r.st->status()["last_run"]["recorded"] == true);
 }
+
+TEST_CASE("station on the writer thread: refusals among a run's last seconds end it aborted, said once") {
+  storage::OpenOptions o;
+  o.busy_timeout_ms = 0;  // a write lock held elsewhere refuses at once (busy)
+  ThreadedRig r(o);
+  auto id = r.st->start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
+  REQUIRE(id.has_value());
+  double sp = 20;
+  for (int i = 0; i < 50; ++i) sp = r.tick(sp);
+
+  // Two seconds queue up behind a held commit and go together into one refused transaction
+  // ("append 2 samples"); the second after them is refused alone ("append 1 samples").
+  sqlite3* other = nullptr;
+  REQUIRE(sqlite3_open((r.dir.path / "fogbench.db").c_str(), &other) == SQLITE_OK);
+  r.writer->hold_for_test(true);
+  for (int i = 0; i < 2; ++i, r.clock_s += 1) sp = r.st->tick(r.clock_s, r.bench.step(sp)).setpoint_c;
+  REQUIRE(r.st->active_run_id());  // nothing refused yet: the writer has not tried
+  REQUIRE(sqlite3_exec(other, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr) == SQLITE_OK);
+  r.writer->hold_for_test(false);
+  REQUIRE(r.writer->drain(kDrain));
+  sp = r.st->tick(r.clock_s, r.bench.step(sp)).setpoint_c;  // takes the refusal, ends the run
+  r.clock_s += 1;
+  CHECK_FALSE(r.st->active_run_id().has_value());
+  CHECK(sp == 15.0);
+  const std::string reason = r.st->status()["last_run"]["reason"].get<std::string>();
+  CHECK_THAT(reason, Catch::StartsWith("storage failed (busy)"));
+  CHECK(reason.find("storage failed", 1) == std::string::npos);  // the later refusal not said again
+
+  REQUIRE(sqlite3_exec(other, "ROLLBACK", nullptr, nullptr, nullptr) == SQLITE_OK);
+  sqlite3_close(other);
+  for (int i = 0; i < 12; ++i) r.tick(15);
+  auto d = r.store->get_run(*id);
+  REQUIRE(d.has_value());
+  CHECK(d->run.state == storage::RunState::aborted);
+  CHECK(d->run.state_reason == reason);
+  CHECK(*r.store->count_samples(*id, 0) == 50);  // the three refused seconds are not stored
+}
+
+TEST_CASE("station on the writer thread: an operator's abort with a refused second says both") {
+  storage::OpenOptions o;
+  o.busy_timeout_ms = 0;
+  ThreadedRig r(o);
+  auto id = r.st->start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
+  REQUIRE(id.has_value());
+  double sp = 20;
+  for (int i = 0; i < 20; ++i) sp = r.tick(sp);
+  sqlite3* other = nullptr;
+  REQUIRE(sqlite3_open((r.dir.path / "fogbench.db").c_str(), &other) == SQLITE_OK);
+  r.writer->hold_for_test(true);
+  r.st->tick(r.clock_s, r.bench.step(sp));  // a second handed over, not yet tried
+  r.clock_s += 1;
+  REQUIRE(sqlite3_exec(other, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr) == SQLITE_OK);
+  r.writer->hold_for_test(false);
+  // The abort drains the writer first: the second is refused there, and the run's end says so.
+  auto aborted = r.st->abort_run("operator: coil loose", {{"cmd", "run.abort"}});
+  REQUIRE(aborted.has_value());
+  const std::string reason = r.st->status()["last_run"]["reason"].get<std::string>();
+  CHECK_THAT(reason, Catch::StartsWith("storage failed (busy)"));
+  CHECK_THAT(reason, Catch::EndsWith("the run was ending anyway: operator: coil loose"));
+  REQUIRE(sqlite3_exec(other, "ROLLBACK", nullptr, nullptr, nullptr) == SQLITE_OK);
+  sqlite3_close(other);
+  for (int i = 0; i < 12; ++i) r.tick(15);
+  CHECK(r.store->get_run(*id)->run.state_reason == reason);
+}
