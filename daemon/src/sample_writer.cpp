@@ -3,6 +3,8 @@
 #include "fogbench/daemon/sample_writer.hpp"
 
 #include <algorithm>
+#include <iterator>
+#include <utility>
 
 #include <spdlog/spdlog.h>
 
