@@ -30,6 +30,16 @@ struct TempDir {
   }
 };
 
+// Another connection (an operator's sqlite3 shell, say) that takes the store's write lock and
+// gives it back.
+struct OtherConnection {
+  sqlite3* db = nullptr;
+  explicit OtherConnection(const std::filesystem::path& path) { REQUIRE(sqlite3_open(path.c_str(), &db) == SQLITE_OK); }
+  ~OtherConnection() { sqlite3_close(db); }
+  void lock() { REQUIRE(sqlite3_exec(db, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr) == SQLITE_OK); }
+  void unlock() { REQUIRE(sqlite3_exec(db, "ROLLBACK", nullptr, nullptr, nullptr) == SQLITE_OK); }
+};
+
 // One second of `units` units at t_s.
 std::vector<storage::SampleRow> second(double t_s, int units = 2) {
   std::vector<storage::SampleRow> rows;
@@ -61,6 +71,13 @@ std::unique_ptr<ThreadedSampleWriter> open_writer(const std::filesystem::path& d
 }
 
 constexpr auto kDrain = std::chrono::seconds(30);  // a bound on a hang, not a measurement
+
+// A store whose writes fail at once (busy) while another connection holds the write lock.
+storage::OpenOptions refusing_at_once() {
+  storage::OpenOptions o;
+  o.busy_timeout_ms = 0;
+  return o;
+}
 
 }  // namespace
 
@@ -108,16 +125,14 @@ TEST_CASE("sample writer: a refusal names the run, the seconds and the rows lost
   REQUIRE(w->drain(kDrain));
   CHECK_FALSE(w->take_failure().has_value());
 
-  // Another connection (an operator's sqlite3 shell) holds the write lock for seconds 10..12.
-  sqlite3* other = nullptr;
-  REQUIRE(sqlite3_open(db.c_str(), &other) == SQLITE_OK);
-  REQUIRE(sqlite3_exec(other, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr) == SQLITE_OK);
+  // Another connection holds the write lock for seconds 10..12.
+  OtherConnection other(db);
+  other.lock();
   for (int t = 10; t < 13; ++t) {
     w->append(run, second(t), t);
     REQUIRE(w->drain(kDrain));  // one at a time: each is its own refused transaction
   }
-  REQUIRE(sqlite3_exec(other, "ROLLBACK", nullptr, nullptr, nullptr) == SQLITE_OK);
-  sqlite3_close(other);
+  other.unlock();
 
   auto f = w->take_failure();
   REQUIRE(f.has_value());
@@ -216,6 +231,16 @@ struct ThreadedRig {
     st.reset();
     writer.reset();
   }
+  // A fit run of short.profile on FOG-0001 with `seconds` of it made; returns its id. The
+  // setpoint commanded after them is in setpoint_c.
+  std::int64_t start(int seconds = 0) {
+    auto id = st->start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
+    REQUIRE(id.has_value());
+    setpoint_c = st->status()["setpoint_c"].get<double>();
+    for (int i = 0; i < seconds; ++i) setpoint_c = tick(setpoint_c);
+    return *id;
+  }
+  double setpoint_c = 20.0;
   // One second of a run as fogbenchd makes it: the tick hands the samples over, and the writer
   // commits them within the second (a commit takes milliseconds; the tests' ticks take none).
   double tick(double sp_c) {
@@ -223,6 +248,17 @@ struct ThreadedRig {
     clock_s += 1.0;
     REQUIRE(writer->drain(kDrain));
     return sp_c;
+  }
+  // One second whose samples are handed over and not waited for (the writer held, say).
+  double tick_undrained(double sp_c) {
+    sp_c = st->tick(clock_s, bench.step(sp_c)).setpoint_c;
+    clock_s += 1.0;
+    return sp_c;
+  }
+  // The writer goes on while `other` holds the write lock: what it holds is refused.
+  void release_into_lock(OtherConnection& other) {
+    other.lock();
+    writer->hold_for_test(false);
   }
   // Ticks until the run ends or max_ticks pass; returns the ticks made.
   int run_to_end(int max_ticks) {
@@ -241,22 +277,21 @@ struct ThreadedRig {
 
 TEST_CASE("station on the writer thread: a whole run is stored before its end, and its fit reads every second") {
   ThreadedRig r;
-  auto id = r.st->start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
-  REQUIRE(id.has_value());
+  const auto id = r.start();
   const int ticks = r.run_to_end(5000);
   CHECK_FALSE(r.st->active_run_id().has_value());
-  auto d = r.store->get_run(*id);
+  auto d = r.store->get_run(id);
   REQUIRE(d.has_value());
   REQUIRE(d->run.state == storage::RunState::completed);
   // Drained at the run's end: nothing waits, every tick of the run is a stored second.
   CHECK(r.writer->pending() == 0);
-  CHECK(*r.store->count_samples(*id, 0) == ticks);
+  CHECK(*r.store->count_samples(id, 0) == ticks);
   // The automatic fit (inline offload: at once, on the loop's connection) saw them all: its
   // note names the samples it was fitted on.
   auto model = r.store->current_model("FOG-0001");
   REQUIRE(model.has_value());
   REQUIRE(model->has_value());
-  CHECK((*model)->run_id == *id);
+  CHECK((*model)->run_id == id);
   bool noted = false;
   for (const auto& e : d->events) {
     if (e.kind != storage::EventKind::note) continue;
@@ -269,8 +304,7 @@ TEST_CASE("station on the writer thread: a whole run is stored before its end, a
 TEST_CASE("station on the writer thread: a full disk aborts the run, every stored second a gapless prefix") {
   // 64 KiB over the empty store: some hundreds of one-unit seconds, under short.profile's 1801.
   ThreadedRig r({}, 64 * 1024);
-  auto id = r.st->start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
-  REQUIRE(id.has_value());
+  const auto id = r.start();
   const int ticks = r.run_to_end(5000);
   CHECK(ticks < 1801);
   CHECK_FALSE(r.st->active_run_id().has_value());
@@ -279,16 +313,16 @@ TEST_CASE("station on the writer thread: a full disk aborts the run, every store
   CHECK(s["last_run"]["state"] == "aborted");
   CHECK_THAT(s["last_run"]["reason"].get<std::string>(), Catch::Contains("storage full (disk_full)"));
   CHECK(s["last_run"]["recorded"] == true);
-  auto d = r.store->get_run(*id);
+  auto d = r.store->get_run(id);
   REQUIRE(d.has_value());
   CHECK(d->run.state == storage::RunState::aborted);
   CHECK_THAT(d->run.state_reason, Catch::Contains("storage full"));
   // The writer may have joined seconds that queued up: some are lost together, but what is
   // stored is every second from the first, in order, none twice.
-  const auto n = *r.store->count_samples(*id, 0);
+  const auto n = *r.store->count_samples(id, 0);
   CHECK(n > 0);
   CHECK(n < ticks);
-  auto rows = r.store->get_samples(*id, 0, 0, n);
+  auto rows = r.store->get_samples(id, 0, 0, n);
   REQUIRE(static_cast<std::int64_t>(rows->size()) == n);
   for (std::int64_t i = 0; i < n; ++i) CHECK(rows->at(static_cast<std::size_t>(i)).t_s == static_cast<double>(i));
   CHECK(r.store->integrity_check()->empty());
@@ -296,17 +330,15 @@ TEST_CASE("station on the writer thread: a full disk aborts the run, every store
 
 TEST_CASE("station on the writer thread: a store that stops answering ends the run without holding the loop") {
   ThreadedRig r;
-  auto id = r.st->start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
-  REQUIRE(id.has_value());
-  double sp = 20;
-  for (int i = 0; i < 100; ++i) sp = r.tick(sp);
-  CHECK(*r.store->count_samples(*id, 0) == 100);
+  const auto id = r.start(100);
+  double sp = r.setpoint_c;
+  CHECK(*r.store->count_samples(id, 0) == 100);
 
   // The disk stops answering: the seconds queue up; the run goes on until the oldest has waited
   // Station::kSampleStallWall_s of wall time (time scale 1: as many ticks).
   r.writer->hold_for_test(true);
   int n = 0;
-  for (; n < 100 && r.st->active_run_id(); ++n, r.clock_s += 1) sp = r.st->tick(r.clock_s, r.bench.step(sp)).setpoint_c;
+  for (; n < 100 && r.st->active_run_id(); ++n) sp = r.tick_undrained(sp);
   CHECK(n == static_cast<int>(Station::kSampleStallWall_s) + 2);  // stalled once the wait exceeds the limit
   CHECK(sp == 15.0);
   json s = r.st->status();
@@ -318,9 +350,9 @@ TEST_CASE("station on the writer thread: a store that stops answering ends the r
   // The disk answers again: the queued seconds are stored, and the run's end with them.
   r.writer->hold_for_test(false);
   REQUIRE(r.writer->drain(kDrain));
-  CHECK(*r.store->count_samples(*id, 0) == 100 + n);
+  CHECK(*r.store->count_samples(id, 0) == 100 + n);
   for (int i = 0; i < 12; ++i) r.tick(15);
-  auto d = r.store->get_run(*id);
+  auto d = r.store->get_run(id);
   REQUIRE(d.has_value());
   CHECK(d->run.state == storage::RunState::aborted);
   CHECK_THAT(d->run.state_reason, Catch::Contains("storage stalled"));
@@ -328,65 +360,49 @@ TEST_CASE("station on the writer thread: a store that stops answering ends the r
 }
 
 TEST_CASE("station on the writer thread: refusals among a run's last seconds end it aborted, said once") {
-  storage::OpenOptions o;
-  o.busy_timeout_ms = 0;  // a write lock held elsewhere refuses at once (busy)
-  ThreadedRig r(o);
-  auto id = r.st->start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
-  REQUIRE(id.has_value());
-  double sp = 20;
-  for (int i = 0; i < 50; ++i) sp = r.tick(sp);
+  ThreadedRig r(refusing_at_once());
+  const auto id = r.start(50);
+  double sp = r.setpoint_c;
 
   // Two seconds queue up behind a held commit and go together into one refused transaction
   // ("append 2 samples"); the second after them is refused alone ("append 1 samples").
-  sqlite3* other = nullptr;
-  REQUIRE(sqlite3_open((r.dir.path / "fogbench.db").c_str(), &other) == SQLITE_OK);
+  OtherConnection other(r.dir.path / "fogbench.db");
   r.writer->hold_for_test(true);
-  for (int i = 0; i < 2; ++i, r.clock_s += 1) sp = r.st->tick(r.clock_s, r.bench.step(sp)).setpoint_c;
+  for (int i = 0; i < 2; ++i) sp = r.tick_undrained(sp);
   REQUIRE(r.st->active_run_id());  // nothing refused yet: the writer has not tried
-  REQUIRE(sqlite3_exec(other, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr) == SQLITE_OK);
-  r.writer->hold_for_test(false);
+  r.release_into_lock(other);
   REQUIRE(r.writer->drain(kDrain));
-  sp = r.st->tick(r.clock_s, r.bench.step(sp)).setpoint_c;  // takes the refusal, ends the run
-  r.clock_s += 1;
+  sp = r.tick_undrained(sp);  // takes the refusal, ends the run
   CHECK_FALSE(r.st->active_run_id().has_value());
   CHECK(sp == 15.0);
   const std::string reason = r.st->status()["last_run"]["reason"].get<std::string>();
   CHECK_THAT(reason, Catch::StartsWith("storage failed (busy)"));
   CHECK(reason.find("storage failed", 1) == std::string::npos);  // the later refusal not said again
 
-  REQUIRE(sqlite3_exec(other, "ROLLBACK", nullptr, nullptr, nullptr) == SQLITE_OK);
-  sqlite3_close(other);
+  other.unlock();
   for (int i = 0; i < 12; ++i) r.tick(15);
-  auto d = r.store->get_run(*id);
+  auto d = r.store->get_run(id);
   REQUIRE(d.has_value());
   CHECK(d->run.state == storage::RunState::aborted);
   CHECK(d->run.state_reason == reason);
-  CHECK(*r.store->count_samples(*id, 0) == 50);  // the three refused seconds are not stored
+  CHECK(*r.store->count_samples(id, 0) == 50);  // the three refused seconds are not stored
 }
 
 TEST_CASE("station on the writer thread: an operator's abort with a refused second says both") {
-  storage::OpenOptions o;
-  o.busy_timeout_ms = 0;
-  ThreadedRig r(o);
-  auto id = r.st->start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
-  REQUIRE(id.has_value());
-  double sp = 20;
-  for (int i = 0; i < 20; ++i) sp = r.tick(sp);
-  sqlite3* other = nullptr;
-  REQUIRE(sqlite3_open((r.dir.path / "fogbench.db").c_str(), &other) == SQLITE_OK);
+  ThreadedRig r(refusing_at_once());
+  const auto id = r.start(20);
+  double sp = r.setpoint_c;
+  OtherConnection other(r.dir.path / "fogbench.db");
   r.writer->hold_for_test(true);
-  r.st->tick(r.clock_s, r.bench.step(sp));  // a second handed over, not yet tried
-  r.clock_s += 1;
-  REQUIRE(sqlite3_exec(other, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr) == SQLITE_OK);
-  r.writer->hold_for_test(false);
+  r.tick_undrained(sp);  // a second handed over, not yet tried
+  r.release_into_lock(other);
   // The abort drains the writer first: the second is refused there, and the run's end says so.
   auto aborted = r.st->abort_run("operator: coil loose", {{"cmd", "run.abort"}});
   REQUIRE(aborted.has_value());
   const std::string reason = r.st->status()["last_run"]["reason"].get<std::string>();
   CHECK_THAT(reason, Catch::StartsWith("storage failed (busy)"));
   CHECK_THAT(reason, Catch::EndsWith("the run was ending anyway: operator: coil loose"));
-  REQUIRE(sqlite3_exec(other, "ROLLBACK", nullptr, nullptr, nullptr) == SQLITE_OK);
-  sqlite3_close(other);
+  other.unlock();
   for (int i = 0; i < 12; ++i) r.tick(15);
-  CHECK(r.store->get_run(*id)->run.state_reason == reason);
+  CHECK(r.store->get_run(id)->run.state_reason == reason);
 }
