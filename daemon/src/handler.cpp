@@ -3,6 +3,7 @@
 #include "fogbench/daemon/handler.hpp"
 #include "fogbench/daemon/plan_runner.hpp"
 
+#include <algorithm>
 #include <cassert>
 #include <chrono>
 #include <cmath>
@@ -48,6 +49,8 @@ ApiResult<std::int64_t> req_int(const json& req, const char* key, std::int64_t m
 }
 
 constexpr std::int64_t kMaxId = std::numeric_limits<std::int64_t>::max();
+// model.diagnose's held_out runs (docs/protocol.md): the paper's method holds out two.
+constexpr std::size_t kMaxHeldOutRuns = 32;
 
 json run_json(const storage::RunRecord& r) {
   json units = json::array();
@@ -395,8 +398,20 @@ void Handler::offload(const std::string& cmd, const json& req, const json& id, D
         const json& v = (*it)[i];
         if (!v.is_number_integer() || v.get<std::int64_t>() < 1)
           return fail({ErrorCode::bad_request, "held_out[" + std::to_string(i) + "]: expected a run id"});
-        held.push_back(v.get<std::int64_t>());
+        const std::int64_t other = v.get<std::int64_t>();
+        const std::string at = "held_out[" + std::to_string(i) + "]: run " + std::to_string(other);
+        // Held out means not fitted on: the model's own run would score as its own witness,
+        // and a run twice would count twice in the held-out figures.
+        if (other == rid) return fail({ErrorCode::bad_request, at + " is the run diagnosed, not a held-out one"});
+        if (std::find(held.begin(), held.end(), other) != held.end())
+          return fail({ErrorCode::bad_request, at + " is listed twice"});
+        if (station_.active_run_id() == other) return fail({ErrorCode::busy, at + " is still active"});
+        held.push_back(other);
       }
+      // Each held-out run is read and scored for every candidate on the one analysis worker.
+      if (held.size() > kMaxHeldOutRuns)
+        return fail({ErrorCode::bad_request, "held_out: at most " + std::to_string(kMaxHeldOutRuns) + " runs, got " +
+                                                 std::to_string(held.size())});
     }
     return analyse(rid, false, [rid, req, mid, held](storage::Store& s) -> ApiResult<analysis::Commit> {
       auto unit = resolve_unit(s, rid, req);

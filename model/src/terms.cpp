@@ -239,18 +239,19 @@ class Parser {
       pos_ = at;
       return std::unexpected(error("exponent must be 1 to " + std::to_string(kMaxPower) + ", got " + std::to_string(*n)));
     }
+    const int power = static_cast<int>(*n);
     if ((*p)->kind == K::number) {
-      const double v = std::pow((*p)->value, *n);
+      const double v = std::pow((*p)->value, power);
       if (!std::isfinite(v)) {
         pos_ = at;
-        return std::unexpected(error("the number to the power " + std::to_string(*n) + " is out of the range of a double"));
+        return std::unexpected(error("the number to the power " + std::to_string(power) + " is out of the range of a double"));
       }
       auto e = make(K::number);
       std::const_pointer_cast<Expr>(e)->value = v;
       return e;
     }
     auto e = make(K::pow, *p);
-    std::const_pointer_cast<Expr>(e)->power = *n;
+    std::const_pointer_cast<Expr>(e)->power = power;
     return e;
   }
 
@@ -367,21 +368,32 @@ class Parser {
     return tau;
   }
 
-  // A lag after '@': whole seconds, an optional unit 's'.
+  // A lag after '@': whole seconds 0..kMaxLag_s, an optional unit 's'.
   std::expected<int, ParseError> lag_seconds(const std::string& what) {
+    skip();
+    const std::size_t at = pos_;
     auto n = integer(what);
-    if (n && peek() == 's') ++pos_;
-    return n;
+    if (!n) return std::unexpected(n.error());
+    if (*n < 0 || *n > kMaxLag_s) {
+      pos_ = at;
+      return std::unexpected(error(*n < 0 ? std::string("a lag cannot be negative")
+                                          : "lag of " + std::to_string(*n) + " s is longer than a day (" +
+                                                std::to_string(kMaxLag_s) + " s)"));
+    }
+    if (peek() == 's') ++pos_;
+    return static_cast<int>(*n);
   }
 
-  std::expected<int, ParseError> integer(const std::string& what) {
+  // An integer, its range checked by the caller (a lag, an exponent) so that the error names
+  // what is wrong with it; one beyond 64 bits is refused here.
+  std::expected<long long, ParseError> integer(const std::string& what) {
     skip();
     const char* b = s_.data() + pos_;
-    int v = 0;
+    long long v = 0;
     auto [p, ec] = std::from_chars(b, s_.data() + s_.size(), v);
+    if (ec == std::errc::result_out_of_range)
+      return std::unexpected(error(std::string(b, p) + " is too large for " + what));
     if (ec != std::errc() || p == b) return fail("expected " + what);
-    if (v < 0) return std::unexpected(error("a lag cannot be negative"));
-    if (v > kMaxLag_s) return std::unexpected(error("lag of " + std::to_string(v) + " s is longer than a day (" + std::to_string(kMaxLag_s) + " s)"));
     pos_ += static_cast<std::size_t>(p - b);
     return v;
   }

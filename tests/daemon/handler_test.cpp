@@ -239,12 +239,30 @@ TEST_CASE("handler: the workbench on stored runs: model.compare, model.diagnose,
   CHECK(r.code(R"({"id":7,"cmd":"model.add_term","run_id":1,"unit":0})") == "bad_request");
   CHECK(r.code(R"({"id":8,"cmd":"model.diagnose","run_id":1,"held_out":"2"})") == "bad_request");
   CHECK(r.code(R"({"id":9,"cmd":"model.diagnose","run_id":1,"held_out":[7]})") == "not_found");
+  // Held out means not fitted on, and each run once: the diagnosed run itself or a run twice
+  // would make the held-out figures lie; a list without bound would hold the analysis worker.
+  json self = r.send(R"({"id":9,"cmd":"model.diagnose","run_id":1,"held_out":[2,1]})");
+  CHECK(self["error"]["code"] == "bad_request");
+  CHECK(self["error"]["message"] == "held_out[1]: run 1 is the run diagnosed, not a held-out one");
+  json twice = r.send(R"({"id":9,"cmd":"model.diagnose","run_id":1,"held_out":[2,2]})");
+  CHECK(twice["error"]["message"] == "held_out[1]: run 2 is listed twice");
+  json many = json::parse(R"({"id":9,"cmd":"model.diagnose","run_id":1})");
+  for (int i = 2; i <= 34; ++i) many["held_out"].push_back(i);
+  json too_many = r.send(many.dump());
+  CHECK(too_many["error"]["code"] == "bad_request");
+  CHECK(too_many["error"]["message"] == "held_out: at most 32 runs, got 33");
   CHECK(r.code(R"({"id":10,"cmd":"model.compare","run_id":1,"model_id":99})") == "not_found");
   CHECK(r.store.list_models("FOG-0001")->size() == 2);
   // add_term stores a model: a control command; compare and diagnose only read.
   r.session.may_control = false;
   CHECK(r.code(R"({"id":11,"cmd":"model.add_term","run_id":1,"term":"T1"})") == "forbidden");
   CHECK(r.code(R"({"id":12,"cmd":"model.compare","run_id":2})") == "ok");
+  // A run being recorded is no held-out run yet.
+  r.session.may_control = true;
+  REQUIRE(r.code(R"({"id":13,"cmd":"run.start","profile":"short","units":["FOG-0001"],"purpose":"verify"})") == "ok");
+  json active = r.send(R"({"id":14,"cmd":"model.diagnose","run_id":1,"held_out":[2,3]})");
+  CHECK(active["error"]["code"] == "busy");
+  CHECK(active["error"]["message"] == "held_out[1]: run 3 is still active");
 }
 
 TEST_CASE("handler: run.start's purpose is fit or verify, anything else is bad_request naming the field") {

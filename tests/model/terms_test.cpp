@@ -68,6 +68,12 @@ TEST_CASE("parse errors give the position and what was expected") {
       {"2*3", 3, "found only a number"},
       {"d(T1@auto)", 5, "'@auto' is allowed only at the end"},
       {"T1^9", 3, "exponent must be 1 to 4"},
+      // The exponent's own message, not a lag's: '^' and '@' share the integer reader.
+      {"T1^-1", 3, "exponent must be 1 to 4, got -1"},
+      {"T1^ 99999999999999999999", 4, "99999999999999999999 is too large for an integer exponent"},
+      {"T1@-1", 3, "a lag cannot be negative"},
+      {"T1@99999999999", 3, "lag of 99999999999 s is longer than a day (86400 s)"},
+      {"d(T1@90000)", 5, "lag of 90000 s is longer than a day"},
       {"", 0, "empty"},
   };
   for (const auto& c : cases) {
