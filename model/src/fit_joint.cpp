@@ -17,8 +17,12 @@ class JointSolver {
  public:
   // lags: the fixed terms' lags (the @auto ones start anywhere: the first search sets them).
   JointSolver(const std::vector<Term>& terms, const std::vector<std::string>& names, int max_lag_s, std::vector<int> lags)
-      : terms_(terms), names_(names), max_lag_s_(max_lag_s), lag_(std::move(lags)), theta_(terms.size() + 1, 0.0) {
+      : terms_(terms), names_(names), max_lag_s_(max_lag_s), lag_(std::move(lags)), theta_(terms.size() + 1, 0.0),
+        twins_(terms.size()) {
     for (const auto& t : terms_) n_auto_ += t.lag.automatic;
+    for (std::size_t a = 0; a < terms_.size(); ++a)
+      for (std::size_t b = 0; b < terms_.size(); ++b)
+        if (a != b && term_key(terms_[a]) == term_key(terms_[b])) twins_[a].push_back(b);
   }
 
   // One solve of yf on [c, xf_j(t - lag_j)], yf and xf the (prewhitened) series, c the
@@ -35,16 +39,52 @@ class JointSolver {
       for (std::size_t t = 0; t < n; ++t) wy[t] = sc.weights()[t] * yf[t];
       wy_spec = sc.spectrum_of_target(wy);
       if (first_pass_) {
+        // One lag shared by the @auto terms; a term's second copy (a second thermal path)
+        // would be the same column at that lag, so it waits for the shared scan and then
+        // takes the best lag away from its twins'.
         std::vector<Column> fixed{{nullptr, c}};
         std::vector<const Lagged*> var;
+        std::vector<std::size_t> later;
         for (std::size_t l = 0; l < nt; ++l) {
-          if (terms_[l].lag.automatic) var.push_back(&xf[l]);
-          else fixed.push_back(lagged_view(xf[l], L, lag_[l]));
+          if (!terms_[l].lag.automatic) fixed.push_back(lagged_view(xf[l], L, lag_[l]));
+          else if (first_auto_of_key(l)) var.push_back(&xf[l]);
+          else later.push_back(l);
         }
         const ScanResult r = scan(sc, yf, &wy_spec, fixed, var, 0, L);
         if (r.ok)
           for (std::size_t l = 0; l < nt; ++l)
-            if (terms_[l].lag.automatic) lag_[l] = r.lag;
+            if (terms_[l].lag.automatic && first_auto_of_key(l)) lag_[l] = r.lag;
+        // The shared lag of two paths is often a blend of both, from where coordinate descent
+        // does not find them (38 s and 300 s started at 102 s and 520 s): the first copy's lag
+        // is searched too, on a grid of kTwinGrid_s, the copy's best lag found for each.
+        std::vector<bool> placed(nt, true);
+        for (std::size_t l : later) placed[l] = false;
+        for (std::size_t j : later) {
+          std::size_t first = j;
+          for (std::size_t t : twins_[j])
+            if (t < first) first = t;
+          ScanResult best;
+          int best_first = lag_[first];
+          for (int g = 0; g <= L; g += kTwinGrid_s) {
+            std::vector<int> lags = lag_;
+            lags[first] = g;
+            std::vector<Column> others{{nullptr, c}};
+            for (std::size_t l = 0; l < nt; ++l)
+              if (l != j && placed[l]) others.push_back(lagged_view(xf[l], L, lags[l]));
+            std::swap(lag_, lags);
+            ScanResult rj = scan_apart(sc, yf, &wy_spec, others, xf[j], j, placed);
+            std::swap(lag_, lags);
+            if (rj.ok && (!best.ok || rj.sse < best.sse)) {
+              best = std::move(rj);
+              best_first = g;
+            }
+          }
+          if (best.ok) {
+            lag_[first] = best_first;
+            lag_[j] = best.lag;
+          }
+          placed[j] = true;
+        }
         first_pass_ = false;
       }
     }
@@ -56,7 +96,7 @@ class JointSolver {
         std::vector<Column> fixed{{nullptr, c}};
         for (std::size_t l = 0; l < nt; ++l)
           if (l != j) fixed.push_back(lagged_view(xf[l], L, lag_[l]));
-        const ScanResult r = scan(sc, yf, &wy_spec, fixed, {&xf[j]}, 0, L);
+        const ScanResult r = scan_apart(sc, yf, &wy_spec, fixed, xf[j], j, std::vector<bool>(nt, true));
         if (!r.ok) return fail(FitError::Code::degenerate, "term '" + names_[j] + "': no lag gives a solvable regression");
         if (r.lag != lag_[j]) moved_now = moved = true;
         lag_[j] = r.lag;
@@ -87,18 +127,57 @@ class JointSolver {
 
   const std::vector<double>& theta() const { return theta_; }  // [mu0 (the intercept), beta_1..m]
   const std::vector<int>& lags() const { return lag_; }         // s, per term
+
+  // Two copies of one term within the derivative window of each other (30 s) are nearly the
+  // same column: a second path must be further away to mean anything (the workbench's rule).
+  static constexpr int kTwinApart_s = kDerivativeHalfWidth;
+  // s, the grid of the first copy's lag in the start of a second path's search.
+  static constexpr int kTwinGrid_s = 10;
   double rss() const { return rss_; }                          // of the last solve, (deg/h)^2
   int n_auto() const { return n_auto_; }
 
  private:
   const std::vector<Term>& terms_;
   const std::vector<std::string>& names_;
+  // The first @auto copy of its term (or the only one).
+  bool first_auto_of_key(std::size_t l) const {
+    for (std::size_t t : twins_[l])
+      if (t < l && terms_[t].lag.automatic) return false;
+    return true;
+  }
+
+  // scan() of term j over 0..max_lag, away from the lags of its twins that are placed: the
+  // allowed stretches scanned one by one, the least SSE kept.
+  ScanResult scan_apart(const LagScanner& sc, std::span<const double> yf, const Spectrum* wy_spec,
+                        const std::vector<Column>& fixed, const Lagged& x, std::size_t j,
+                        const std::vector<bool>& placed) const {
+    const int L = max_lag_s_;
+    std::vector<std::pair<int, int>> banned;
+    for (std::size_t t : twins_[j])
+      if (placed[t]) banned.emplace_back(lag_[t] - kTwinApart_s, lag_[t] + kTwinApart_s);
+    std::sort(banned.begin(), banned.end());
+    ScanResult best;
+    int lo = 0;
+    auto try_range = [&](int a, int b) {
+      if (a > b) return;
+      ScanResult r = scan(sc, yf, wy_spec, fixed, {&x}, a, b);
+      if (r.ok && (!best.ok || r.sse < best.sse)) best = std::move(r);
+    };
+    for (const auto& [a, b] : banned) {
+      try_range(lo, std::min(a - 1, L));
+      lo = std::max(lo, b + 1);
+    }
+    try_range(lo, L);
+    return best;
+  }
+
   int max_lag_s_;
   int n_auto_ = 0;
   std::vector<int> lag_;
   std::vector<double> theta_;
   double rss_ = 0.0;
   bool first_pass_ = true;
+  std::vector<std::vector<std::size_t>> twins_;  // per term, the other terms of the same key
 };
 
 }  // namespace

@@ -76,6 +76,40 @@ TEST_CASE("joint fit separates two terms with their own lags") {
   CHECK(m->terms[1].term.lag.seconds <= 30);  // the truth is 0; T1 is smooth so a few s is as good
 }
 
+TEST_CASE("the same term at two lags, two thermal paths, fits both (TERMS.md's 'a model term again at a second lag')") {
+  // A second, slower path: the drift has d(T1) at 38 s and again at 300 s.
+  RunData r = synthetic(20000, -3.0, 38, 0.0, 0.15, 12);
+  std::vector<double> t1(r.size());
+  for (std::size_t i = 0; i < r.size(); ++i) t1[i] = r.t1_c[i] - 20.0;
+  const auto d = derivative_per_min(t1, 1.0);
+  for (std::size_t i = 300; i < r.size(); ++i) r.gyro_dph[i] += -1.5 * d[i - 300];
+  FitOptions o;
+  o.method = Method::joint;
+  SECTION("at fixed lags") {
+    auto m = fit(r, *parse_terms("d(T1)@38 + d(T1)@300"), o);
+    REQUIRE(m);
+    CHECK(m->terms[0].coef == Approx(-3.0).margin(0.05));
+    CHECK(m->terms[1].coef == Approx(-1.5).margin(0.05));
+  }
+  SECTION("both lags estimated") {
+    auto m = fit(r, *parse_terms("d(T1)@auto + d(T1)@auto"), o);
+    INFO((m ? std::string() : m.error().message));
+    REQUIRE(m);
+    const int a = m->terms[0].term.lag.seconds, b = m->terms[1].term.lag.seconds;
+    const bool first_fast = a < b;
+    INFO("lags " << a << " " << b << " coefs " << m->terms[0].coef << " " << m->terms[1].coef);
+    CHECK(std::abs((first_fast ? a : b) - 38) <= 3);
+    CHECK(std::abs((first_fast ? b : a) - 300) <= 3);
+    CHECK(m->terms[first_fast ? 0 : 1].coef == Approx(-3.0).margin(0.1));
+    CHECK(m->terms[first_fast ? 1 : 0].coef == Approx(-1.5).margin(0.1));
+  }
+  SECTION("at the same fixed lag it is one term twice") {
+    auto m = fit(r, *parse_terms("d(T1)@38 + d(T1)@38"), o);
+    REQUIRE_FALSE(m);
+    CHECK_THAT(m.error().message, Catch::Contains("appears twice at the same lag"));
+  }
+}
+
 TEST_CASE("paper fit takes mu0 and the AR noise from the opening hold and one shared lag") {
   const RunData r = synthetic(12000, -3.0, 38, 0.0, 0.15, 3);
   auto m = fit(r, *parse_terms("d(T1)@auto"), FitOptions{});
