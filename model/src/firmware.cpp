@@ -112,13 +112,17 @@ struct Compiler {
       case Expr::Kind::delay: {
         auto x = compile(*e.a);
         if (!x) return x;
+        // The value at sample i is the operand's at i - n; the operand's stream already shows
+        // it x->delay samples late, so only the rest of n is a delay of its own: a slope's
+        // look-ahead is absorbed by a delay around it ((d(T1)@300) is causal, 0 samples late).
         const int n = static_cast<int>(std::lround(e.delay_s / p.dt_s));
         if (n <= 0) return x;
+        if (n <= x->delay) return Node{x->op, x->delay - n};
         Op o;
         o.kind = K::delay;
         o.a = x->op;
-        o.n = n;
-        return Node{emit(o), x->delay};  // the stream is the delayed value, shifted as before
+        o.n = n - x->delay;
+        return Node{emit(o), 0};
       }
       case Expr::Kind::add: case Expr::Kind::sub: case Expr::Kind::mul: {
         auto a = compile(*e.a);

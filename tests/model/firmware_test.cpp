@@ -79,6 +79,27 @@ TEST_CASE("firmware: slopes, second slopes and products of slopes match predict 
   CHECK(worst_from(model_of({"d(T1)*T2@45", "d(T2)^2@31", "up(d(T1))@40"}), r, 120) < 1e-9);
 }
 
+TEST_CASE("firmware: a delay around a slope absorbs its look-ahead (a second path, (d(T1)@300))", "[firmware]") {
+  const auto r = synthetic_run();
+  // (d(T1)@300) at lag 0 is d(T1)@300, the spelling diagnose gives a second path: causal, the
+  // slope's 30 samples inside the 300 (it was refused as 30 s ahead). (d(T1)@20)@10: 20 of the
+  // 30 inside the delay, the lag the other 10. Exact once the windows hold real samples.
+  for (const char* text : {"(d(T1)@300)", "(d(T1)@20)@10", "(dd(T1)@100)", "(T1@40)*d(T2)@30"}) {
+    INFO(text);
+    auto p = firmware::compile(model_of({text}));
+    INFO((p ? std::string() : p.error()));
+    REQUIRE(p);
+    CHECK(p->terms[0].late_s == 0);
+  }
+  CHECK(worst_from(model_of({"(d(T1)@300)"}), r, 360) < 1e-9);
+  CHECK(worst_from(model_of({"(d(T1)@20)@10", "(dd(T1)@100)"}), r, 200) < 1e-9);
+  CHECK(worst_from(model_of({"(T1@40)*d(T2)@30"}), r, 100) < 1e-9);
+  // Short of the slope's half-window the rest is still ahead: (d(T1)@10) reads 20 s ahead.
+  auto early = firmware::compile(model_of({"(d(T1)@10)"}));
+  REQUIRE_FALSE(early);
+  CHECK(early.error().find("20 s ahead") != std::string::npos);
+}
+
 TEST_CASE("firmware: the history each operation needs is counted", "[firmware]") {
   // d(T1)@30: one 61-sample window. dd(T1)@70: two windows and a 10-sample delay.
   auto p = firmware::compile(model_of({"d(T1)@30", "dd(T1)@70"}));
