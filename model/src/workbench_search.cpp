@@ -557,8 +557,12 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   // the jumps stand only where the model the search found still sees them; when some fall,
   // the search is done again with only those removed.
   if (!ps.jumps.empty() && !ps.d->steps.empty()) {
-    Pass again = search_pass(&ps.cur);
-    if (again.d && again.jumps.size() < ps.jumps.size()) ps = std::move(again);
+    std::size_t seen = find_jumps(ps.cur, fit_run, o, nullptr).size();
+    for (const auto& h : held_out) seen += find_jumps(ps.cur, h, o, nullptr).size();
+    if (seen < ps.jumps.size()) {
+      Pass again = search_pass(&ps.cur);
+      if (again.d && again.jumps.size() < ps.jumps.size()) ps = std::move(again);
+    }
   }
   std::vector<BiasJump>& jumps = ps.jumps;
   RunData& fit_copy = ps.fit_copy;
