@@ -20,14 +20,20 @@ struct Refit {
   bool inner_delay = false;                // a second path written (x@L) in the model (second_path)
 };
 
+// The model's terms plus the candidate at lag_s, refitted on the fit run (a copy of a model
+// term beside the model's lags frozen: extended_terms).
+Refit refit_at(const StepContext& ctx, const Cand& cd, int lag_s) {
+  Term t = cd.term;
+  t.lag = Lag{false, lag_s};
+  auto [tl, extra_params] = extended_terms(ctx.base, t, true);
+  return Refit{t, fit(ctx.fit_run, tl, ctx.fo), extra_params};
+}
+
 // The lag of x (the candidate evaluated on the fit run) starting at the scan's best, then
 // coordinate descent with the refit (as the joint fit does), then lag 0 if BIC prefers it.
 Refit refit_at_best_lag(const StepContext& ctx, const Cand& cd, std::span<const double> x, int first_lag) {
   const Model& base = ctx.base;
-  Term t = cd.term;
-  t.lag = Lag{false, first_lag};
-  auto [tl, extra_params] = extended_terms(base, t, true);
-  Refit r{t, fit(ctx.fit_run, tl, ctx.fo), extra_params};
+  Refit r = refit_at(ctx, cd, first_lag);
   // The candidate's lag was scanned with the model's terms at the lags they had without
   // it; the refit moves those lags, so scan again with the refitted model's columns until
   // the lag settles.
@@ -103,10 +109,7 @@ std::optional<int> own_lag(const Model& m, const std::string& key) {
 // turn, while BIC falls (as the joint fit's coordinate descent does for its own lags).
 Refit refit_second_path(const StepContext& ctx, const Cand& cd, std::span<const double> x, int first_lag) {
   const Model& base = ctx.base;
-  Term t = cd.term;
-  t.lag = Lag{false, first_lag};
-  auto [tl, extra_params] = extended_terms(base, t, true);
-  Refit r{t, fit(ctx.fit_run, tl, ctx.fo), extra_params};
+  Refit r = refit_at(ctx, cd, first_lag);
   if (auto_lag_params(base) == 0) return r;  // nothing to free
   int lag = first_lag;
   for (int it = 0; it < ctx.o.lag_iterations; ++it) {
