@@ -322,21 +322,22 @@ std::string Station::storage_reason(const SampleWriteFailure& f) {
   return o.str();
 }
 
-void Station::finish(RunState to, const std::string& reason_in, std::chrono::milliseconds drain_timeout) {
+void Station::finish(RunState to, const std::string& reason_in, EndCause cause) {
   assert(run_);
   ActiveRun& run = *run_;
   std::string reason = reason_in;
   // The run's samples first: its end is recorded after them, and a refusal among its last
   // seconds (the writer's thread reports it after the second was handed over) ends it aborted.
-  const bool drained = samples_->drain(drain_timeout);
+  const bool stalled = cause == EndCause::storage_stalled;
+  const bool drained = samples_->drain(stalled ? std::chrono::milliseconds(0) : kSampleDrainTimeout);
   if (auto lost = samples_->take_failure(); lost && lost->run_id == run.id) {
     if (WriteJournal::may_pass(lost->error.code)) journal_.set_refused(true);
     // A reason that is already the storage's (the tick took an earlier refusal) stays as it is.
-    if (reason.rfind("storage ", 0) != 0)
+    if (cause == EndCause::other)
       reason = to == RunState::aborted ? storage_reason(*lost) + "; the run was ending anyway: " + reason
                                        : storage_reason(*lost);
     to = RunState::aborted;
-  } else if (!drained && drain_timeout.count() > 0) {  // 0: the caller already said it stalled
+  } else if (!drained && !stalled) {  // a stall: the caller's reason already says it
     reason = "storage stalled: " + std::to_string(samples_->pending()) +
              " seconds of samples not committed yet (the store's disk does not answer); " + reason;
     to = RunState::aborted;
@@ -494,7 +495,7 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
     // (`failed` is a profile that could not be run, e.g. a settle that timed out). The run's
     // end that follows must not wait out the lock again (write_or_keep).
     if (WriteJournal::may_pass(lost->error.code)) journal_.set_refused(true);
-    finish(RunState::aborted, storage_reason(*lost));
+    finish(RunState::aborted, storage_reason(*lost), EndCause::storage_refused);
   } else if (stalled) {
     // Not a wait on the loop: the run ends at once, its queued seconds committed if the disk
     // comes back. Its end is written through the journal like any refused write.
@@ -502,7 +503,7 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
     std::ostringstream o;
     o << "storage stalled: the sample of t_s " << (*oldest - run.start_clock_s) << " s is not committed after "
       << (clock_s - *oldest) / time_scale_ << " s of wall time (the store's disk does not answer)";
-    finish(RunState::aborted, o.str(), std::chrono::milliseconds(0));
+    finish(RunState::aborted, o.str(), EndCause::storage_stalled);
   } else if (abort_reason) {
     finish(RunState::aborted, behind_real_time(run, *abort_reason));
   } else if (st.failed) {

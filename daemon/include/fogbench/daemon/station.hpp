@@ -223,11 +223,14 @@ class Station {
   void write_or_keep(WriteJournal::Write w);
   void event(std::int64_t run_id, storage::EventKind kind, const nlohmann::json& detail,
              std::optional<double> t_s);
+  // What ends a run, as finish() needs to know it: the storage's own reasons are not prefixed
+  // again by a further refusal, and a stalled writer is not waited for.
+  enum class EndCause { other, storage_refused, storage_stalled };
   // Ends the active run. Its samples are committed first (the sample writer drained, at most
-  // `drain_timeout`), so its end is recorded after them and its analysis reads every one; rows
-  // the store refused meanwhile end it aborted for the storage, whatever `reason` was.
-  void finish(storage::RunState to, const std::string& reason,
-              std::chrono::milliseconds drain_timeout = kSampleDrainTimeout);
+  // kSampleDrainTimeout, not at all when it stalled), so its end is recorded after them and its
+  // analysis reads every one; rows the store refused meanwhile end it aborted for the storage,
+  // whatever `reason` was.
+  void finish(storage::RunState to, const std::string& reason, EndCause cause = EndCause::other);
   // Why the store lost some of the run's seconds, as the run's end reason.
   static std::string storage_reason(const SampleWriteFailure& f);
 
