@@ -260,6 +260,20 @@ struct ThreadedRig {
     other.lock();
     writer->hold_for_test(false);
   }
+  // `seconds` seconds handed to a held writer, then released into `other`'s lock: refused
+  // together once the writer tries them. Returns the setpoint, degC.
+  double queue_refused(OtherConnection& other, double sp_c, int seconds) {
+    writer->hold_for_test(true);
+    for (int i = 0; i < seconds; ++i) sp_c = tick_undrained(sp_c);
+    REQUIRE(st->active_run_id());  // nothing refused yet: the writer has not tried
+    release_into_lock(other);
+    return sp_c;
+  }
+  // The lock given back and the run's end recorded (the journal retries it on the ticks).
+  void unlock_and_settle(OtherConnection& other) {
+    other.unlock();
+    for (int i = 0; i < 12; ++i) tick(15);
+  }
   // Ticks until the run ends or max_ticks pass; returns the ticks made.
   int run_to_end(int max_ticks) {
     double sp_c = st->status()["setpoint_c"].get<double>();
@@ -367,10 +381,7 @@ TEST_CASE("station on the writer thread: refusals among a run's last seconds end
   // Two seconds queue up behind a held commit and go together into one refused transaction
   // ("append 2 samples"); the second after them is refused alone ("append 1 samples").
   OtherConnection other(r.dir.path / "fogbench.db");
-  r.writer->hold_for_test(true);
-  for (int i = 0; i < 2; ++i) sp = r.tick_undrained(sp);
-  REQUIRE(r.st->active_run_id());  // nothing refused yet: the writer has not tried
-  r.release_into_lock(other);
+  sp = r.queue_refused(other, sp, 2);
   REQUIRE(r.writer->drain(kDrain));
   sp = r.tick_undrained(sp);  // takes the refusal, ends the run
   CHECK_FALSE(r.st->active_run_id().has_value());
@@ -379,8 +390,7 @@ TEST_CASE("station on the writer thread: refusals among a run's last seconds end
   CHECK_THAT(reason, Catch::StartsWith("storage failed (busy)"));
   CHECK(reason.find("storage failed", 1) == std::string::npos);  // the later refusal not said again
 
-  other.unlock();
-  for (int i = 0; i < 12; ++i) r.tick(15);
+  r.unlock_and_settle(other);
   auto d = r.store->get_run(id);
   REQUIRE(d.has_value());
   CHECK(d->run.state == storage::RunState::aborted);
@@ -391,18 +401,14 @@ TEST_CASE("station on the writer thread: refusals among a run's last seconds end
 TEST_CASE("station on the writer thread: an operator's abort with a refused second says both") {
   ThreadedRig r(refusing_at_once());
   const auto id = r.start(20);
-  double sp = r.setpoint_c;
   OtherConnection other(r.dir.path / "fogbench.db");
-  r.writer->hold_for_test(true);
-  r.tick_undrained(sp);  // a second handed over, not yet tried
-  r.release_into_lock(other);
+  r.queue_refused(other, r.setpoint_c, 1);  // a second handed over, not yet tried
   // The abort drains the writer first: the second is refused there, and the run's end says so.
   auto aborted = r.st->abort_run("operator: coil loose", {{"cmd", "run.abort"}});
   REQUIRE(aborted.has_value());
   const std::string reason = r.st->status()["last_run"]["reason"].get<std::string>();
   CHECK_THAT(reason, Catch::StartsWith("storage failed (busy)"));
   CHECK_THAT(reason, Catch::EndsWith("the run was ending anyway: operator: coil loose"));
-  other.unlock();
-  for (int i = 0; i < 12; ++i) r.tick(15);
+  r.unlock_and_settle(other);
   CHECK(r.store->get_run(id)->run.state_reason == reason);
 }
