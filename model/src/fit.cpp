@@ -243,23 +243,25 @@ std::expected<Model, FitError> fit_run(const RunData& run, const TermList& tl, c
   // Before the fit, the columns at the lags that are known: a fixed lag as written, an @auto
   // term at 0. The same term again (a second thermal path, check_terms let it through: two
   // fixed lags that differ, or two @auto in a joint fit) is the same column until it is
-  // delayed: a fixed copy is checked at its lag, an @auto copy only at its fitted lag below.
+  // delayed: a fixed copy is checked at its lag (and named with it), an @auto copy only at its
+  // fitted lag below. The columns are copied only when a copy is left out.
   {
-    std::vector<std::vector<double>> cols;
-    std::vector<std::string> names;
-    std::vector<std::size_t> lags;
+    std::vector<std::string> keys, names;
+    for (const auto& t : terms) keys.push_back(term_key(t));
+    std::vector<std::size_t> keep, lags;
     for (std::size_t j = 0; j < terms.size(); ++j) {
-      const std::string key = term_key(terms[j]);
-      const bool repeated = std::any_of(terms.begin(), terms.begin() + static_cast<std::ptrdiff_t>(j),
-                                        [&](const Term& t) { return term_key(t) == key; });
-      if (repeated && terms[j].lag.automatic) continue;
-      cols.push_back(ev->x[j]);
-      const bool any_repeat = repeated || std::any_of(terms.begin() + static_cast<std::ptrdiff_t>(j) + 1, terms.end(),
-                                                      [&](const Term& t) { return term_key(t) == key; });
+      const auto copies = std::count(keys.begin(), keys.end(), keys[j]);
+      const bool later_copy = std::find(keys.begin(), keys.end(), keys[j]) != keys.begin() + static_cast<std::ptrdiff_t>(j);
+      if (later_copy && terms[j].lag.automatic) continue;
       const int lag_s = terms[j].lag.automatic ? 0 : terms[j].lag.seconds;
-      names.push_back(any_repeat && !terms[j].lag.automatic ? ev->names[j] + "@" + std::to_string(lag_s) : ev->names[j]);
+      keep.push_back(j);
       lags.push_back(static_cast<std::size_t>(lag_s));
+      names.push_back(copies > 1 && !terms[j].lag.automatic ? ev->names[j] + "@" + std::to_string(lag_s) : ev->names[j]);
     }
+    std::vector<std::vector<double>> subset;
+    if (keep.size() < terms.size())
+      for (std::size_t j : keep) subset.push_back(ev->x[j]);
+    const auto& cols = keep.size() < terms.size() ? subset : ev->x;
     if (auto c = detail::check_collinear(cols, names, w, lags); !c) return std::unexpected(c.error());
   }
   // A reading not taken (NaN) has weight 0, but 0 * NaN is NaN: give it a finite value that

@@ -65,15 +65,13 @@ class JointSolver {
             if (t < first) first = t;
           ScanResult best;
           int best_first = lag_[first];
+          std::vector<int> lags = lag_;
           for (int g = 0; g <= L; g += kTwinGrid_s) {
-            std::vector<int> lags = lag_;
             lags[first] = g;
             std::vector<Column> others{{nullptr, c}};
             for (std::size_t l = 0; l < nt; ++l)
               if (l != j && placed[l]) others.push_back(lagged_view(xf[l], L, lags[l]));
-            std::swap(lag_, lags);
-            ScanResult rj = scan_apart(sc, yf, &wy_spec, others, xf[j], j, placed);
-            std::swap(lag_, lags);
+            ScanResult rj = scan_apart(sc, yf, &wy_spec, others, xf[j], j, lags, placed);
             if (rj.ok && (!best.ok || rj.sse < best.sse)) {
               best = std::move(rj);
               best_first = g;
@@ -96,7 +94,7 @@ class JointSolver {
         std::vector<Column> fixed{{nullptr, c}};
         for (std::size_t l = 0; l < nt; ++l)
           if (l != j) fixed.push_back(lagged_view(xf[l], L, lag_[l]));
-        const ScanResult r = scan_apart(sc, yf, &wy_spec, fixed, xf[j], j, std::vector<bool>(nt, true));
+        const ScanResult r = scan_apart(sc, yf, &wy_spec, fixed, xf[j], j, lag_, std::vector<bool>(nt, true));
         if (!r.ok) return fail(FitError::Code::degenerate, "term '" + names_[j] + "': no lag gives a solvable regression");
         if (r.lag != lag_[j]) moved_now = moved = true;
         lag_[j] = r.lag;
@@ -146,15 +144,15 @@ class JointSolver {
     return true;
   }
 
-  // scan() of term j over 0..max_lag, away from the lags of its twins that are placed: the
-  // allowed stretches scanned one by one, the least SSE kept.
+  // scan() of term j over 0..max_lag, away from the lags (s, per term) of its twins that are
+  // placed: the allowed stretches scanned one by one, the least SSE kept.
   ScanResult scan_apart(const LagScanner& sc, std::span<const double> yf, const Spectrum* wy_spec,
                         const std::vector<Column>& fixed, const Lagged& x, std::size_t j,
-                        const std::vector<bool>& placed) const {
+                        const std::vector<int>& lags, const std::vector<bool>& placed) const {
     const int L = max_lag_s_;
     std::vector<std::pair<int, int>> banned;
     for (std::size_t t : twins_[j])
-      if (placed[t]) banned.emplace_back(lag_[t] - kTwinApart_s, lag_[t] + kTwinApart_s);
+      if (placed[t]) banned.emplace_back(lags[t] - kTwinApart_s, lags[t] + kTwinApart_s);
     std::sort(banned.begin(), banned.end());
     ScanResult best;
     int lo = 0;
