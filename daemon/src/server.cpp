@@ -9,11 +9,12 @@
 // turns on the loop (Turns), so no number of clients can hold it.
 //
 // Its rooms: a session and the turns (session.hpp), the analysis worker (analysis_worker.hpp),
-// and here Server::Impl, the one object that owns the io_context, the signal set, the acceptors,
-// the set of sessions, the acquisition schedule and the device workers, as in Asio's example
-// servers. Why this file is longer than 600 lines: Impl's handlers (accept, tick, poll, stop)
-// share that state and its order of shutdown; split further they would pass Impl's internals
-// between files instead of keeping one owner.
+// the sample writer (sample_writer.hpp), the loop's scheduler slice (scheduling.hpp), and here
+// Server::Impl, the one object that owns the io_context, the signal set, the acceptors, the set
+// of sessions, the acquisition schedule and the device workers, as in Asio's example servers.
+// Why this file is longer than 800 lines: its one job is that owner. Impl's handlers (accept,
+// tick, poll, stop) share its state and its order of shutdown; split further they would pass
+// Impl's internals between files instead of keeping one owner.
 #include "fogbench/daemon/server.hpp"
 #include "fogbench/daemon/plan_runner.hpp"
 

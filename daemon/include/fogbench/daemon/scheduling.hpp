@@ -27,5 +27,4 @@ SliceRequest request_scheduler_slice(std::chrono::nanoseconds slice);
 // The calling thread's slice as the kernel reports it (ns); 0 on a kernel without custom slices.
 std::uint64_t current_scheduler_slice_ns();
 
-
 }  // namespace fogbench::daemon
