@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 namespace fogbench::sim {
 namespace {
@@ -95,10 +96,31 @@ double World::gyro_noise(UnitState& u, const UnitParams& p) {
   const double n = k1 * u.n1 + k2 * u.n2 + a(rng_);
   u.n2 = u.n1;
   u.n1 = n;
+  double extra = 0.0;
+  std::normal_distribution<double> unit(0.0, 1.0);
+  if (p.gyro.bias_instability_dph > 0.0) {
+    // Flicker: Markov processes with time constants tau_j = 2 s * 3^j up to 10^6 s, each of
+    // variance h ln(3), h = B^2 / pi: their sum has the one-sided PSD h / f between the
+    // corners (each process's PSD integrated over log-spaced tau, h / (f ln r) per unit
+    // variance), whose Allan variance is 2 ln2 h = (2 ln2 / pi) B^2, the IEEE 952 floor.
+    const double var_j = p.gyro.bias_instability_dph * p.gyro.bias_instability_dph * std::log(3.0) / std::numbers::pi;
+    std::size_t j = 0;
+    for (double tau = 2.0; tau <= 1e6; tau *= 3.0, ++j) {
+      if (u.flicker.size() <= j) u.flicker.push_back(std::sqrt(var_j) * unit(rng_));  // started stationary
+      const double a = std::exp(-1.0 / tau);
+      u.flicker[j] = a * u.flicker[j] + std::sqrt(var_j * (1.0 - a * a)) * unit(rng_);
+      extra += u.flicker[j];
+    }
+  }
+  if (p.gyro.rrw_dph_per_sqrt_h > 0.0) {
+    // K deg/h/sqrt(h): after t s the walk's variance is K^2 t / 3600, a step of K / 60 a second.
+    u.walk += p.gyro.rrw_dph_per_sqrt_h / 60.0 * unit(rng_);
+    extra += u.walk;
+  }
   double spike = 0.0;
   if (std::uniform_real_distribution<double>(0.0, 1.0)(rng_) < p.gyro.outlier_rate_per_s)
     spike = (std::uniform_real_distribution<double>(0.0, 1.0)(rng_) < 0.5 ? -1.0 : 1.0) * p.gyro.outlier_dph;
-  return n + spike;
+  return n + extra + spike;
 }
 
 double World::chamber_reading_c() {

@@ -51,6 +51,13 @@ struct GyroTruth {
   double sigma_a_dph = 0.146;                              // innovation std, deg/h
   double outlier_rate_per_s = 2e-4;                        // rare spikes
   double outlier_dph = 2.5;                                // spike size, deg/h (about 17 sigma_a)
+  // The noise real FOGs have beyond the AR(2) innovation (IEEE Std 952 terms; 0 = none, and then
+  // no random number is drawn for it, so runs without them are unchanged):
+  // bias instability B, deg/h: flicker (1/f) noise whose Allan deviation is flat at 0.664 B,
+  // made as a sum of first-order Markov processes with time constants 2 s .. 10^6 s;
+  // rate random walk K, deg/h/sqrt(h): Allan deviation K sqrt(tau/3), tau in h.
+  double bias_instability_dph = 0.0;
+  double rrw_dph_per_sqrt_h = 0.0;
   double tref_c = 20.0;                                    // temperatures enter the terms as T - tref
 };
 
@@ -127,6 +134,8 @@ class World {
     double field_drift = 0.0;         // deg/h, the field's drift of the last second
     std::vector<double> h1, h2, ha;   // true temperature history (trailing window), degC
     double n1 = 0.0, n2 = 0.0;        // AR noise state, deg/h
+    std::vector<double> flicker;      // the flicker's Markov processes, deg/h (empty: none)
+    double walk = 0.0;                // the rate random walk, deg/h
     UnitSample last{};
   };
   World() = default;
