@@ -151,7 +151,7 @@ int cmd_run_list(const Common& o, const std::string& state, int limit, std::ostr
 }
 
 void print_table1(const json& verifications, const json& run, std::ostream& out) {
-  Table t({"unit", "serial", "model", "est_mean", "meas_mean", "est_std", "meas_std", "comp_std", "ratio", "pass"});
+  Table t({"unit", "serial", "model", "est_mean", "meas_mean", "est_std", "meas_std", "comp_std", "comp/raw", "pass"});
   for (const auto& v : verifications) {
     // model::to_json(Verification) puts the whole run's Table 1 at the top level.
     const json& res = v["result"];
@@ -159,7 +159,8 @@ void print_table1(const json& verifications, const json& run, std::ostream& out)
     const int unit = v["unit"].get<int>();
     t.add({std::to_string(unit), run["units"][static_cast<std::size_t>(unit)].get<std::string>(),
            std::to_string(v["model_id"].get<std::int64_t>()), num_text(r["est_mean"]), num_text(r["meas_mean"]),
-           num_text(r["est_std"]), num_text(r["meas_std"]), num_text(r["comp_std"]), num_text(r["ratio"], 3),
+           num_text(r["est_std"]), num_text(r["meas_std"]), num_text(r["comp_std"]),
+           r["ratio"].is_number() ? pct(r["ratio"].get<double>()) : "-",
            v["pass"].get<bool>() ? "yes" : res.value("verdict", "") == "marginal" ? "MARGINAL" : "NO"});
   }
   out << t.str();

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "common.hpp"
+#include "fogbench/model/noise.hpp"
 
 namespace CLI {
 class App;
@@ -23,6 +24,10 @@ struct SimulateOptions {
   std::string serial = "SIM-0001";
   std::string coil = "distributed";    // distributed|lumped (docs/simulation.md)
   std::string t1_at = "inner", t2_at = "outer";  // the thermistors on a distributed coil
+  // The gyro's noise beyond the default AR(2) (unset: the defaults of sim::GyroTruth).
+  std::optional<double> arw_deg_per_sqrt_h;      // white innovation: sigma_a = 60 x ARW deg/h
+  std::optional<double> bias_instability_dph;    // flicker: Allan floor 0.664 x B
+  std::optional<double> rrw_dph_per_sqrt_h;      // rate random walk K
   bool json = false;
   bool quiet = false;
 };
@@ -45,7 +50,7 @@ struct VerifyOptions {
   std::string model;
   std::vector<std::string> runs;
   double threshold = 0.2;
-  double noise_factor = 1.5;   // the second test (model::VerifyOptions)
+  double noise_factor = model::NoiseRule{}.max_noise_factor;   // the second test (model::VerifyOptions)
   double max_fail_s = 60.0;
   bool no_noise_test = false;
   bool json = false;

@@ -46,11 +46,12 @@ int run_compare(const CompareCommandOptions& o, std::ostream& out, std::ostream&
     return kExitError;
   }
   wb::CompareOptions co;
-  co.k_sigma = o.k_sigma;
-  co.smooth_s = o.smooth_s;
-  co.min_duration_s = o.min_duration_s;
+  co.noise.k_sigma = o.k_sigma;
+  co.noise.smooth_s = o.smooth_s;
+  co.noise.max_fail_s = o.min_duration_s;
   if (auto v = co.validate(); !v) {
-    err << "fogctl compare: " << as_typed(v.error(), {{"k_sigma", "--k-sigma"}, {"smooth_s", "--smooth"}, {"min_duration_s", "--min-duration"}}) << "\n";
+    err << "fogctl compare: "
+        << as_typed(v.error(), {{"k_sigma", "--k-sigma"}, {"smooth_s", "--smooth"}, {"the longest failing interval", "--min-duration"}}) << "\n";
     return kExitError;
   }
   nlohmann::json results = nlohmann::json::array();
@@ -82,13 +83,14 @@ int run_compare(const CompareCommandOptions& o, std::ostream& out, std::ostream&
     for (const auto& s : c->steps)
       row("step " + std::to_string(s.step) + " (" + std::string(to_string(s.phase)) + ", " + fixed(s.start_s, 0) + " s)", s.stats);
     text += t.str();
+    text += "\nnoise: compensated std " + fixed(v.noise_factor, 2) + " x the gyro's noise std " + fixed(v.noise_std, 3) + " deg/h (at most " +
+            fixed(v.noise_limit_factor, 2) + " x" + (v.noise_factor <= v.noise_limit_factor ? ", ok" : ", TOO LARGE") + "); floor " + v.floor.note + "\n";
     if (c->failures.empty()) {
-      text += "\nno interval where the model fails (smoothed residual beyond " + fixed(co.k_sigma, 1) + " sigma_a = " +
-              fixed(c->threshold_dph, 3) + " deg/h for " + fixed(co.min_duration_s, 0) + " s or more)\n\n";
+      text += "no interval where the model fails (smoothed residual beyond " + fixed(c->threshold_dph, 3) + " deg/h for " +
+              fixed(co.noise.max_fail_s, 0) + " s or more)\n\n";
     } else {
-      text += "\nthe model FAILS in " + std::to_string(c->failures.size()) + " interval(s): smoothed residual beyond " +
-              fixed(co.k_sigma, 1) + " sigma_a = " + fixed(c->threshold_dph, 3) + " deg/h for " + fixed(co.min_duration_s, 0) +
-              " s or more\n";
+      text += "the model FAILS in " + std::to_string(c->failures.size()) + " interval(s): smoothed residual beyond " +
+              fixed(c->threshold_dph, 3) + " deg/h for " + fixed(co.noise.max_fail_s, 0) + " s or more\n";
       Table f({"phase", "step", "start s", "dur s", "mean err", "peak err", "T1 degC", "T2 degC", "Ta degC", "dT1/dt C/min", "grad degC"});
       for (const auto& x : c->failures)
         f.add({std::string(to_string(x.phase)), step_name(x.step), fixed(x.start_s, 0), fixed(x.duration_s, 0),
@@ -165,13 +167,17 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
   out << "\n\n" << (d->adequate ? "ADEQUATE: " : "NOT ADEQUATE: ") << d->summary << "\n\n";
   for (const auto& e : model::lags_at_edge(*m)) out << "warning: in the model as given, " << e << "\n\n";
   out << "adequacy of " << d->model_terms << " (Ljung-Box p >= " << fixed(dopt.adequacy_alpha, 3) << ", comp std <= "
-      << fixed(dopt.max_noise_factor, 2) << " x noise std, no failing interval):\n";
+      << fixed(dopt.failing.noise.max_noise_factor, 2) << " x the gyro's noise std, no failing interval):\n";
   {
-    Table at({"run", "role", "comp std", "noise std", "factor", "Ljung-Box p", "failing intervals", "result"});
+    Table at({"run", "role", "comp std", "noise std", "factor", "allowed", "Ljung-Box p", "failing intervals", "result"});
     for (const auto& c : d->checks)
       at.add({c.run, c.held_out ? "held out" : "fit", fixed(c.comp_std_dph, 3), fixed(c.noise_std_dph, 3), fixed(c.noise_factor, 2),
-              c.ljung_box_p < 1e-4 ? "<1e-4" : fixed(c.ljung_box_p, 4), std::to_string(c.failures.size()), c.reasons.empty() ? "ok" : "FAILS"});
+              fixed(c.noise_limit_factor, 2), c.ljung_box_p < 1e-4 ? "<1e-4" : fixed(c.ljung_box_p, 4), std::to_string(c.failures.size()),
+              c.reasons.empty() ? "ok" : "FAILS"});
     out << at.str();
+    // The yardstick: where the gyro's own noise was read and what it holds beyond AR(2).
+    for (const auto& c : d->checks)
+      if (!c.floor_note.empty()) out << "  noise floor of " << c.run << ": " << c.floor_note << "\n";
   }
   for (const auto& r : d->reasons) out << "  - " << r << "\n";
   if (!d->steps.empty()) {
@@ -228,10 +234,15 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
       for (const auto& x : c.collinear_with) out << " " << x;
       out << " on these runs: " << c.separate_by << "\n";
     }
-  if (!d->candidates.empty() && d->candidates.front().detected) {
-    const auto& b = d->candidates.front();
-    out << "\nwhy " << b.expr << ": " << b.explanation << "\n";
-    out << "add it: fogctl fit --model " << o.model << " --add \"" << b.term << "\" " << o.runs.front() << " -o model2.json\n";
+  // The headline's term: the first the search adds (the same in summary, reasons and here).
+  if (!d->steps.empty()) {
+    const auto& st = d->steps.front();
+    for (const auto& b : d->candidates)
+      if (b.expr == st.expr) {
+        out << "\nwhy " << b.expr << ": " << b.explanation << "\n";
+        break;
+      }
+    out << "add it: fogctl fit --model " << o.model << " --add \"" << st.added << "\" " << o.runs.front() << " -o model2.json\n";
   }
   out << "\ncross-correlation of the prewhitened residual with each regressor (lags 0.." << (d->ccf.empty() || d->ccf[0].r.empty() ? 0 : d->ccf[0].r.size() - 1)
       << " s, band +-" << (d->ccf.empty() ? "-" : fixed(d->ccf[0].band, 3)) << "):\n";
@@ -346,7 +357,7 @@ void add_workbench_commands(CLI::App& app, int& code) {
   auto* c = app.add_subcommand("compare", "Where a model fails on runs: Table 1 per phase and step, failing intervals");
   c->add_option("--model", cmp.model, "The model's JSON file")->required();
   c->add_option("runs", cmp.runs, "The runs' CSV files")->required();
-  c->add_option("--k-sigma", cmp.k_sigma, "Failing where the smoothed residual is beyond k sigma_a (default 3)");
+  c->add_option("--k-sigma", cmp.k_sigma, "Failing where the smoothed residual is beyond k sigma_a and the floor's slow noise (default 3)");
   c->add_option("--smooth", cmp.smooth_s, "Residual smoother width, s, odd (default 61)");
   c->add_option("--min-duration", cmp.min_duration_s, "Shortest failing interval reported, s (default 60)");
   c->add_flag("--json", cmp.json, "Print one JSON object");

@@ -158,15 +158,15 @@ ApiResult<Commit> verify(storage::Store& reader, const AnalysisConfig& config, s
   if (!um) return std::unexpected(um.error());
   model::VerifyOptions vo;
   vo.threshold = config.verify_threshold;
-  vo.max_noise_factor = config.verify_max_noise_factor;
-  vo.max_fail_s = config.verify_max_fail_s;
+  vo.noise.max_noise_factor = config.verify_max_noise_factor;
+  vo.noise.max_fail_s = config.verify_max_fail_s;
   auto v = model::verify(um->model, um->unit.data, vo);
   if (!v) return std::unexpected(from_fit("verification failed", v.error()));
   json stored = model::to_json(*v);
   // The second test's limits in effect for this verdict, stored with it: a certificate states
   // these, not the configuration of the day it is printed (docs/cli.md, fogctl cert).
-  stored["max_noise_factor"] = vo.max_noise_factor;
-  stored["max_fail_s"] = vo.max_fail_s;
+  stored["max_noise_factor"] = vo.noise.max_noise_factor;
+  stored["max_fail_s"] = vo.noise.max_fail_s;
   auto vj = std::make_shared<const json>(std::move(stored));
   const bool pass = v->pass;
   const std::int64_t mid = um->record.id;

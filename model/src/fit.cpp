@@ -310,6 +310,12 @@ std::expected<Model, FitError> fit(const RunData& run, const TermList& tl, const
     e.summary.why = e.message;
     return std::unexpected(std::move(e));
   }
+  // The one whiteness statistic, over the whole run (the paper method's AR noise was fitted on
+  // the opening hold alone; diagnose reads the same number).
+  if (auto rw = run_whiteness(*m, run, 20)) {
+    m->fit.ljung_box_q = rw->wh.lb.q;
+    m->fit.ljung_box_p = rw->wh.lb.p_value;
+  }
   progress.stage = "done";
   m->fit.summary = progress;
   m->fit.iterations = progress.iterations;

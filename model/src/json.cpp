@@ -261,6 +261,16 @@ json to_json(const Table1& t) {
           {"meas_std", t.meas_std}, {"comp_std", t.comp_std}, {"ratio", t.ratio}};
 }
 
+json to_json(const NoiseFloor& f) {
+  return {{"measured", f.measured()},
+          {"white_scale", f.white_scale},
+          {"bias_instability_dph", f.bias_instability_dph},
+          {"rrw_dph_per_sqrt_h", f.rrw_dph_per_sqrt_h},
+          {"hold_samples", f.hold_samples},
+          {"longest_tau_s", f.longest_tau_s},
+          {"note", f.note}};
+}
+
 json to_json(const Verification& v) {
   json j = to_json(v.run);
   json phases = json::array();
@@ -279,6 +289,9 @@ json to_json(const Verification& v) {
   j["noise_test"] = v.noise_test;
   j["noise_std"] = v.noise_std;
   j["noise_factor"] = std::isfinite(v.noise_factor) ? json(v.noise_factor) : json(nullptr);
+  j["noise_limit_factor"] = v.noise_limit_factor;
+  j["threshold_dph"] = v.threshold_dph;
+  j["noise_floor"] = to_json(v.floor);
   j["longest_fail_s"] = v.longest_fail_s;
   j["reasons"] = v.reasons;
   return j;

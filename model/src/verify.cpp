@@ -56,12 +56,57 @@ std::string_view to_string(Verdict v) {
 
 std::expected<void, std::string> VerifyOptions::validate() const {
   if (!(threshold > 0.0 && threshold <= 1.0)) return std::unexpected("threshold must be in (0, 1], got " + std::to_string(threshold));
-  if (!(max_noise_factor >= 1.0 && max_noise_factor <= 100.0))
-    return std::unexpected("the noise factor must be 1 to 100, got " + std::to_string(max_noise_factor));
-  if (!(max_fail_s >= 1.0 && max_fail_s <= 1e6)) return std::unexpected("the longest failing interval must be 1 s to 1e6 s, got " + std::to_string(max_fail_s));
-  if (!(k_sigma > 0.0)) return std::unexpected("k_sigma must be positive");
-  if (smooth_s < 1 || smooth_s % 2 == 0) return std::unexpected("smooth_s must be a positive odd number of seconds");
-  return {};
+  return noise.validate();
+}
+
+namespace {
+
+// verify's residual and weights: flagged and non-finite samples 0, and spikes about the
+// residual's 61 s moving average (3 sigma of the deviations from it), not samples of a
+// sustained error: a model that fails for five minutes must show it in Table 1, not lose those
+// samples. The residual is 0 where the weight is.
+struct VerifyResidual {
+  std::vector<double> r, w;
+};
+VerifyResidual verify_residual(const RunData& run, std::span<const double> mu, std::size_t* n_flagged, std::size_t* n_outliers) {
+  const std::size_t n = run.size();
+  VerifyResidual out;
+  out.w = detail::good_weights(run, n_flagged);
+  std::vector<double>& w = out.w;
+  out.r.assign(n, 0.0);
+  for (std::size_t t = 0; t < n; ++t)
+    if (w[t] != 0.0) out.r[t] = run.gyro_dph[t] - mu[t];
+  const std::vector<double> local = moving_average(out.r, w, 61);
+  std::vector<double> r;
+  for (std::size_t t = 0; t < n; ++t)
+    if (w[t] != 0.0) r.push_back(out.r[t] - local[t]);
+  const OutlierResult ro = outliers_3sigma(r, 3.0);
+  if (n_outliers) *n_outliers = ro.removed;
+  std::size_t j = 0;
+  for (std::size_t t = 0; t < n; ++t)
+    if (w[t] != 0.0 && !ro.keep[j++]) {
+      w[t] = 0.0;
+      out.r[t] = 0.0;
+    }
+  return out;
+}
+
+}  // namespace
+
+std::expected<NoiseFloor, FitError> unit_noise_floor(const Model& m, std::span<const RunData> runs, const NoiseFloorOptions& o) {
+  std::vector<VerifyResidual> res;
+  res.reserve(runs.size());
+  std::vector<FloorRun> frs;
+  for (const auto& run : runs) {
+    auto mu = predict(m, run);
+    if (!mu) return std::unexpected(FitError{mu.error().code, run.name + ": " + mu.error().message});
+    res.push_back(verify_residual(run, *mu, nullptr, nullptr));
+    const std::vector<Phase> ph = derive_phases(run);
+    for (std::size_t t = 0; t < run.size(); ++t)
+      if (ph[t] == Phase::settle) res.back().w[t] = 0.0;
+  }
+  for (std::size_t i = 0; i < runs.size(); ++i) frs.push_back({&runs[i], res[i].r, res[i].w});
+  return estimate_noise_floor(frs, m.ar, m.sigma_a_dph, o);
 }
 
 std::expected<Verification, FitError> verify(const Model& m, const RunData& run, double threshold) {
@@ -78,21 +123,9 @@ std::expected<Verification, FitError> verify(const Model& m, const RunData& run,
   Verification v;
   v.threshold = threshold;
   const std::size_t n = run.size();
-  std::vector<double> w = detail::good_weights(run, &v.n_flagged);
-  // Outliers are spikes about the residual's 61 s moving average, not samples of a sustained
-  // error: a model that fails for five minutes must show it in Table 1, not lose those samples.
-  std::vector<double> res(n, 0.0);
-  for (std::size_t t = 0; t < n; ++t)
-    if (w[t] != 0.0) res[t] = run.gyro_dph[t] - (*mu)[t];
-  const std::vector<double> local = moving_average(res, w, 61);
-  std::vector<double> r;
-  for (std::size_t t = 0; t < n; ++t)
-    if (w[t] != 0.0) r.push_back(res[t] - local[t]);
-  const OutlierResult ro = outliers_3sigma(r, 3.0);
-  v.n_outliers = ro.removed;
-  std::size_t j = 0;
-  for (std::size_t t = 0; t < n; ++t)
-    if (w[t] != 0.0 && !ro.keep[j++]) w[t] = 0.0;
+  VerifyResidual vr = verify_residual(run, *mu, &v.n_flagged, &v.n_outliers);
+  std::vector<double>& w = vr.w;
+  const std::vector<double>& res = vr.r;
   const std::vector<Phase> ph = derive_phases(run);
   auto collect = [&](std::optional<Phase> only) {
     std::vector<double> y, p;
@@ -113,19 +146,29 @@ std::expected<Verification, FitError> verify(const Model& m, const RunData& run,
   v.ratio_pass = v.run.ratio < threshold;
   // The second test: what is left should look like the model's own noise.
   v.noise_test = o.noise_test;
-  v.noise_std = ar_process_std(m.ar, m.sigma_a_dph);
+  // The yardstick: the gyro's noise floor read off this run's settled holds (noise.hpp).
+  {
+    std::vector<double> wf(w);
+    for (std::size_t t = 0; t < n; ++t)
+      if (ph[t] == Phase::settle) wf[t] = 0.0;
+    const Yardstick ys = yardstick(run, res, wf, m.ar, m.sigma_a_dph, v.run.n, o.noise);
+    v.floor = ys.floor;
+    v.noise_std = ys.noise_std_dph;
+    v.noise_limit_factor = ys.limit_factor;
+    v.threshold_dph = ys.threshold_dph;
+  }
   v.noise_factor = v.noise_std > 0.0 ? v.run.comp_std / v.noise_std : std::numeric_limits<double>::infinity();
   {
     // Failing intervals exactly as compare finds them: the residual without its spikes,
-    // averaged over smooth_s, beyond k_sigma * sigma_a (settle samples do not count).
+    // averaged over smooth_s, beyond the yardstick's threshold (settle samples do not count).
     std::vector<double> wf(w);
     std::vector<double> rz(n, 0.0);
     for (std::size_t t = 0; t < n; ++t) {
       if (ph[t] == Phase::settle) wf[t] = 0.0;
       if (wf[t] != 0.0) rz[t] = res[t];
     }
-    const std::vector<double> s = moving_average(rz, wf, o.smooth_s);
-    const double thr = o.k_sigma * m.sigma_a_dph;
+    const std::vector<double> s = moving_average(rz, wf, o.noise.smooth_s);
+    const double thr = v.threshold_dph;
     std::size_t t = 0;
     while (t < n) {
       if (wf[t] == 0.0 || std::abs(s[t]) <= thr) {
@@ -152,20 +195,58 @@ std::expected<Verification, FitError> verify(const Model& m, const RunData& run,
   if (!v.ratio_pass) v.reasons.push_back("comp/raw " + pct(v.run.ratio) + " is not under " + pct(threshold) + " (the paper's rule)");
   bool second_ok = true;
   if (o.noise_test) {
-    if (!(v.noise_factor <= o.max_noise_factor)) {
+    if (!(v.noise_factor <= v.noise_limit_factor)) {
       second_ok = false;
-      v.reasons.push_back("compensated std " + num(v.run.comp_std, 3) + " deg/h is " + num(v.noise_factor, 2) + " x the model's noise std " +
-                          num(v.noise_std, 3) + " deg/h (at most " + num(o.max_noise_factor, 2) + " x)");
+      v.reasons.push_back("compensated std " + num(v.run.comp_std, 3) + " deg/h is " + num(v.noise_factor, 2) + " x the gyro's noise std " +
+                          num(v.noise_std, 3) + " deg/h (at most " + num(v.noise_limit_factor, 2) + " x)");
     }
-    if (v.longest_fail_s >= o.max_fail_s) {
+    if (v.longest_fail_s >= o.noise.max_fail_s) {
       second_ok = false;
-      v.reasons.push_back("a failing interval of " + num(v.longest_fail_s, 0) + " s (the residual's " + std::to_string(o.smooth_s) +
-                          " s average beyond " + num(o.k_sigma, 1) + " sigma_a; " + num(o.max_fail_s, 0) + " s or more is not passed)");
+      v.reasons.push_back("a failing interval of " + num(v.longest_fail_s, 0) + " s (the residual's " + std::to_string(o.noise.smooth_s) +
+                          " s average beyond " + num(v.threshold_dph, 3) + " deg/h; " + num(o.noise.max_fail_s, 0) + " s or more is not passed)");
     }
   }
   v.verdict = !v.ratio_pass ? Verdict::fail : second_ok ? Verdict::pass : Verdict::marginal;
   v.pass = v.verdict == Verdict::pass;
   return v;
+}
+
+std::expected<RunWhiteness, FitError> run_whiteness(const Model& m, const RunData& run, int lags) {
+  auto mu = predict(m, run);
+  if (!mu) return std::unexpected(FitError{mu.error().code, run.name + ": " + mu.error().message});
+  const std::size_t n = run.size();
+  const std::vector<Phase> ph = derive_phases(run);
+  std::vector<double> r(n, 0.0), w(n, 1.0);
+  for (std::size_t t = 0; t < n; ++t) {
+    const double e = run.gyro_dph[t] - (*mu)[t];
+    if (run.flagged(t) || !std::isfinite(e) || ph[t] == Phase::settle) w[t] = 0.0;
+    else r[t] = e;
+  }
+  // Spikes about the residual's 61 s average (3 sigma of the deviations) do not count.
+  const std::vector<double> s0 = moving_average(r, w, 61);
+  std::vector<double> dev;
+  for (std::size_t t = 0; t < n; ++t)
+    if (w[t] != 0.0) dev.push_back(r[t] - s0[t]);
+  const OutlierResult ro = outliers_3sigma(dev, 3.0);
+  std::size_t j = 0;
+  for (std::size_t t = 0; t < n; ++t)
+    if (w[t] != 0.0 && !ro.keep[j++]) {
+      w[t] = 0.0;
+      r[t] = 0.0;
+    }
+  const std::vector<double> a = ar_filter(r, m.ar);
+  std::vector<double> used;
+  const std::size_t p = m.ar.size();
+  for (std::size_t t = p; t < a.size(); ++t) {
+    bool whole = true;
+    for (std::size_t i = 0; i <= p && whole; ++i) whole = w[t - i] != 0.0;
+    if (whole) used.push_back(a[t]);
+  }
+  RunWhiteness out;
+  out.wh = whiteness(used, lags, static_cast<int>(p));
+  out.n = used.size();
+  out.acf_rms = used.empty() ? 0.0 : std::sqrt(out.wh.lb.q / (static_cast<double>(used.size()) * std::max(1, lags)));
+  return out;
 }
 
 }  // namespace fogbench::model

@@ -118,18 +118,15 @@ std::vector<std::size_t> decimate_indices(std::span<const double> y, std::size_t
   return idx;
 }
 
-std::expected<void, std::string> CompareOptions::validate() const {
-  if (!(k_sigma > 0.0)) return std::unexpected("k_sigma must be positive, got " + std::to_string(k_sigma));
-  if (smooth_s < 1 || smooth_s % 2 == 0) return std::unexpected("smooth_s must be a positive odd number of seconds, got " + std::to_string(smooth_s));
-  if (!(min_duration_s >= 0.0)) return std::unexpected("min_duration_s must be at least 0 s, got " + std::to_string(min_duration_s));
-  return {};
-}
+std::expected<void, std::string> CompareOptions::validate() const { return noise.validate(); }
 
 std::expected<RunComparison, FitError> compare(const Model& m, const RunData& run, const CompareOptions& o) {
   if (auto v = o.validate(); !v) return fail(FitError::Code::bad_options, "compare: " + v.error());
   auto mu = predict(m, run);
   if (!mu) return std::unexpected(FitError{mu.error().code, run.name + ": " + mu.error().message});
-  auto ver = verify(m, run);
+  VerifyOptions vo;
+  vo.noise = o.noise;
+  auto ver = verify(m, run, vo);
   if (!ver) return std::unexpected(FitError{ver.error().code, run.name + ": " + ver.error().message});
   RunComparison c;
   const std::size_t n = run.size();
@@ -156,7 +153,7 @@ std::expected<RunComparison, FitError> compare(const Model& m, const RunData& ru
   for (std::size_t t = 0; t < n; ++t)
     if (w[t] == 0.0) rz[t] = 0.0;
   {
-    const std::vector<double> s0 = model::moving_average(rz, w, o.smooth_s);
+    const std::vector<double> s0 = model::moving_average(rz, w, o.noise.smooth_s);
     std::vector<double> dev;
     for (std::size_t t = 0; t < n; ++t)
       if (w[t] != 0.0) dev.push_back(rz[t] - s0[t]);
@@ -168,7 +165,7 @@ std::expected<RunComparison, FitError> compare(const Model& m, const RunData& ru
         rz[t] = 0.0;
       }
   }
-  c.residual_smooth_dph = model::moving_average(rz, w, o.smooth_s);
+  c.residual_smooth_dph = model::moving_average(rz, w, o.noise.smooth_s);
 
   // Table 1 per profile step: contiguous stretches of one step value.
   if (run.has_step()) {
@@ -195,8 +192,9 @@ std::expected<RunComparison, FitError> compare(const Model& m, const RunData& ru
     }
   }
 
-  // Failing intervals: the smoothed residual beyond k sigma_a for at least min_duration_s.
-  c.threshold_dph = o.k_sigma * m.sigma_a_dph;
+  // Failing intervals: the smoothed residual beyond the yardstick's threshold (verify's, on
+  // the gyro's own noise floor) for at least noise.max_fail_s.
+  c.threshold_dph = c.verification.threshold_dph;
   const std::vector<double> rate = derivative_per_min(run.t1_c, 1.0);
   std::size_t t = 0;
   while (t < n) {
@@ -208,7 +206,7 @@ std::expected<RunComparison, FitError> compare(const Model& m, const RunData& ru
     std::size_t e = t;
     while (e < n && sign * c.residual_smooth_dph[e] > c.threshold_dph) ++e;
     const double dur = run.time_s[e - 1] - run.time_s[t] + 1.0;
-    if (dur >= o.min_duration_s) {
+    if (dur >= o.noise.max_fail_s) {
       FailInterval f;
       f.phase = majority_phase(c.phase, t, e);
       f.step = run.has_step() ? run.step[t] : -1;

@@ -169,12 +169,26 @@ void score(const StepContext& ctx, const Cand& cd, const Model& m2, int extra_pa
     c.held_out.push_back(hs);
   }
   c.held_out_fall = scored ? min_fall : 0.0;
+  // Beyond the gyro's slow noise: the variance the term removes exceeds the slow noise's on
+  // the fit run and on every scored held-out run.
+  std::string within_slow;
+  auto removed = [](double before, double after) { return before * before - after * after; };
+  auto within = [&](const std::string& run, double rem, double slow) {
+    if (slow > 0.0 && !(rem > slow) && within_slow.empty())
+      within_slow = run + " (" + fmt(rem, 4) + " (deg/h)^2 removed, the slow noise " + fmt(slow, 4) + ")";
+  };
+  within(ctx.fit_run.name, removed(c.rms_before_dph, c.rms_after_dph), ctx.slow_fit_var);
+  for (std::size_t h = 0; h < c.held_out.size(); ++h)
+    if (c.held_out[h].scored && ctx.slow_held_var && h < ctx.slow_held_var->size())
+      within(c.held_out[h].run, removed(c.held_out[h].rms_before_dph, c.held_out[h].rms_after_dph), (*ctx.slow_held_var)[h]);
   const bool significant = c.p_value < o.max_p_value;
   if (scored > 0) {
     c.detected = c.delta_bic < o.max_delta_bic && significant && c.fall >= o.min_fit_fall && c.held_out_fall >= o.min_held_out_fall;
   } else {
     c.detected = c.delta_bic < o.max_delta_bic_alone && significant && c.fall >= o.min_fit_fall_alone;
   }
+  const bool explained_by_noise = c.detected && !within_slow.empty();
+  if (explained_by_noise) c.detected = false;
   if (c.detected) {
     c.verdict = "missing: compensated std falls " + fmt(100.0 * c.fall, 1) + "% on the fit run" +
                 (scored ? " and at least " + fmt(100.0 * c.held_out_fall, 1) + "% on every held-out run" : "") +
@@ -184,6 +198,8 @@ void score(const StepContext& ctx, const Cand& cd, const Model& m2, int extra_pa
     if (!(c.delta_bic < (scored ? o.max_delta_bic : o.max_delta_bic_alone))) why = "BIC does not fall enough (" + fmt(c.delta_bic, 1) + ")";
     else if (!significant) why = "its coefficient is not significant (p " + fmt(c.p_value, 4) + ")";
     else if (c.fall < (scored ? o.min_fit_fall : o.min_fit_fall_alone)) why = "the fit run's compensated std falls only " + fmt(100.0 * c.fall, 1) + "%";
+    else if (explained_by_noise)
+      why = "on " + within_slow + " it removes less variance than the gyro's own slow noise (flicker, random walk) gives";
     else why = "it does not hold up on held-out data (the smallest fall there is " + fmt(100.0 * c.held_out_fall, 1) + "%)";
     c.verdict = "not needed: " + why;
   }

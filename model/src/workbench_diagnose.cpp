@@ -434,7 +434,21 @@ std::expected<Diagnosis, FitError> diagnose_once(const Model& m, const RunData& 
   screen_generated(cands, list->n_fixed, scan, fit_run, *fr, o, stats);
   if (stats) stats->refitted += cands.size();
   const double ln_n = std::log(static_cast<double>(std::max<std::size_t>(base->fit.n_used, 2)));
-  const StepContext ctx{*base, fit_run, held_out, o, fo, *fr, scan, d.rms_fit_dph, held_before, ln_n};
+  // The gyro's slow noise on each run, read off its settled holds under the base model.
+  // The unit's floor (diagnose reads it over every run at once; a step's own base reads it
+  // again, as its terms move the holds' residual), the slow part's mean over each run.
+  std::optional<NoiseFloor> unit_floor = o.failing.noise.given;
+  if (o.failing.noise.read_floor) {
+    std::vector<RunData> all{fit_run};
+    all.insert(all.end(), held_out.begin(), held_out.end());
+    if (auto f = unit_noise_floor(*base, all, o.failing.noise.floor)) unit_floor = std::move(*f);
+  }
+  auto slow_of = [&](const RunData& r) {
+    return unit_floor && unit_floor->slow() ? floor_variance(*unit_floor, r.size(), 1).slow : 0.0;
+  };
+  std::vector<double> slow_held;
+  for (const auto& h : held_out) slow_held.push_back(slow_of(h));
+  const StepContext ctx{*base, fit_run, held_out, o, fo, *fr, scan, d.rms_fit_dph, held_before, ln_n, slow_of(fit_run), &slow_held};
   std::vector<std::vector<double>> partial_cols;
   for (auto& r : evaluate_all(ctx, cands, fit_scorer, held_scorers)) {
     d.candidates.push_back(std::move(r.c));

@@ -159,37 +159,40 @@ RunCheck check_run(const Model& m, const RunData& run, bool held_out, const Diag
   c.run = run.name;
   c.held_out = held_out;
   auto cmp = compare(m, run, o.failing);
-  auto res = residual_of(m, run);
-  if (!cmp || !res) {
-    c.error = !cmp ? cmp.error().message : res.error().message;
+  auto rw = run_whiteness(m, run, o.whiteness_lags);
+  if (!cmp || !rw) {
+    c.error = !cmp ? cmp.error().message : rw.error().message;
     c.reasons.push_back("the model does not run on it: " + c.error);
     return c;
   }
   c.checked = true;
   c.comp_std_dph = cmp->verification.run.comp_std;
-  c.noise_std_dph = ar_process_std(m.ar, m.sigma_a_dph);
+  // The yardstick is the gyro's own noise floor on this run (verify's, noise.hpp).
+  const Verification& ver = cmp->verification;
+  c.noise_std_dph = ver.noise_std;
+  c.noise_limit_factor = ver.noise_limit_factor;
+  c.floor_note = ver.floor.note;
   c.noise_factor = c.noise_std_dph > 0.0 ? c.comp_std_dph / c.noise_std_dph : kNaN;
   c.failures = cmp->failures;
-  // Prewhitened residual: only samples whose AR window is whole.
-  const std::vector<double> a = ar_filter(res->r, m.ar);
-  std::vector<double> used;
-  const std::size_t p = m.ar.size();
-  for (std::size_t t = p; t < a.size(); ++t) {
-    bool whole = true;
-    for (std::size_t i = 0; i <= p && whole; ++i) whole = res->w[t - i] != 0.0;
-    if (whole) used.push_back(a[t]);
+  // The one whiteness statistic (model.hpp's run_whiteness, as fit's summary).
+  c.ljung_box_q = rw->wh.lb.q;
+  c.ljung_box_p = rw->wh.lb.p_value;
+  c.acf_rms = rw->acf_rms;
+  // The floor's slow noise (flicker, random walk) is nearly constant over the test's lags: it
+  // lifts every autocorrelation by its share of the variance, up to its 99th percentile.
+  c.acf_allowed = o.min_acf_rms;
+  if (ver.floor.slow()) {
+    const FloorVariance fv = floor_variance(ver.floor, rw->n, 1);
+    const double rest = fv.total - fv.slow;
+    c.acf_allowed += fv.slow_q99 / (rest + fv.slow_q99);
   }
-  const Whiteness wh = whiteness(used, o.whiteness_lags, static_cast<int>(p));
-  c.ljung_box_q = wh.lb.q;
-  c.ljung_box_p = wh.lb.p_value;
-  c.acf_rms = used.empty() ? 0.0 : std::sqrt(wh.lb.q / (static_cast<double>(used.size()) * std::max(1, o.whiteness_lags)));
-  if (!(c.ljung_box_p >= o.adequacy_alpha) && c.acf_rms >= o.min_acf_rms)
+  if (!(c.ljung_box_p >= o.adequacy_alpha) && c.acf_rms >= c.acf_allowed)
     c.reasons.push_back("the prewhitened residual is not white (Ljung-Box over " + std::to_string(o.whiteness_lags) + " lags: Q " +
                         fmt(c.ljung_box_q, 1) + ", p " + (c.ljung_box_p < 1e-4 ? std::string("< 0.0001") : fmt(c.ljung_box_p, 4)) +
-                        " < " + fmt(o.adequacy_alpha, 3) + ", RMS of the ACF " + fmt(c.acf_rms, 3) + " >= " + fmt(o.min_acf_rms, 2) + ")");
-  if (!(c.noise_factor <= o.max_noise_factor))
-    c.reasons.push_back("compensated std " + fmt(c.comp_std_dph, 3) + " deg/h is " + fmt(c.noise_factor, 2) + " x the " +
-                        fmt(c.noise_std_dph, 3) + " deg/h the model's AR noise implies (at most " + fmt(o.max_noise_factor, 2) + " x)");
+                        " < " + fmt(o.adequacy_alpha, 3) + ", RMS of the ACF " + fmt(c.acf_rms, 3) + " >= " + fmt(c.acf_allowed, 2) + ")");
+  if (!(c.noise_factor <= c.noise_limit_factor))
+    c.reasons.push_back("compensated std " + fmt(c.comp_std_dph, 3) + " deg/h is " + fmt(c.noise_factor, 2) + " x the gyro's noise std " +
+                        fmt(c.noise_std_dph, 3) + " deg/h (at most " + fmt(c.noise_limit_factor, 2) + " x)");
   if (!c.failures.empty()) {
     std::string where;
     for (std::size_t i = 0; i < c.failures.size() && i < 4; ++i)
@@ -242,7 +245,15 @@ std::vector<BiasJump> find_jumps(const Model& m, const RunData& run, const Diagn
     sigma_rob = 1.4826 * dif[dif.size() / 2] / std::sqrt(2.0);
   }
   const double sigma = std::max(sigma_long, sigma_rob);
-  const double se = sigma * std::sqrt(c2);
+  // The gyro's slow noise (the floor's flicker and random walk, when seen) moves a step
+  // estimated over +-W s too: its variance through the estimator's weights adds.
+  double slow_var = 0.0;
+  if (o.failing.noise.given && o.failing.noise.given->slow()) {
+    std::vector<double> cw(static_cast<std::size_t>(nw));
+    for (Eigen::Index i = 0; i < nw; ++i) cw[static_cast<std::size_t>(i)] = coef_row.dot(X.row(i).transpose());
+    slow_var = floor_slow_variance(*o.failing.noise.given, cw);
+  }
+  const double se = std::sqrt(sigma * sigma * c2 + slow_var);
   const std::vector<double> rate = derivative_per_min(run.t1_c, 1.0);
   // Where any temperature (setpoint, air, wall, centre) starts or ends a ramp within
   // kThermal_s, a step of the residual is what a missing rate term gives: no jump is called.
@@ -459,7 +470,6 @@ std::expected<void, std::string> DiagnoseOptions::validate() const {
   if (tau_points < 2 || tau_points > 24) return std::unexpected("tau_points must be 2 to 24, got " + std::to_string(tau_points));
   if (max_candidates < 1 || max_candidates > 2000) return std::unexpected("the candidate limit must be 1 to 2000");
   if (!(adequacy_alpha > 0.0 && adequacy_alpha < 0.5)) return std::unexpected("adequacy_alpha must be in (0, 0.5)");
-  if (!(max_noise_factor >= 1.0)) return std::unexpected("max_noise_factor must be at least 1");
   if (jump_window_s < 60 || jump_window_s > 3600) return std::unexpected("jump_window_s must be 60 to 3600 s");
   if (!(jump_t > 0.0)) return std::unexpected("jump_t must be positive");
   if (max_jumps < 0 || max_jumps > 10) return std::unexpected("max_jumps must be 0 to 10");
@@ -490,6 +500,18 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   if (o.max_lag_s) fo.max_lag_s = *o.max_lag_s;
   auto base = fit(fit_run, terms_of(m), fo);
   if (!base) return std::unexpected(FitError{base.error().code, "fit run " + fit_run.name + ": " + base.error().message});
+  // The unit's noise floor under a model, read over the holds of every run given at once (one
+  // gyro: a steadier reading of its slow noise than one run's holds), for every check.
+  auto with_floor = [&](const Model& mm, const RunData& first, std::span<const RunData> rest) {
+    DiagnoseOptions oo = o;
+    if (oo.failing.noise.given || !oo.failing.noise.read_floor) return oo;
+    std::vector<RunData> all;
+    all.push_back(first);
+    all.insert(all.end(), rest.begin(), rest.end());
+    if (auto f = unit_noise_floor(mm, all, oo.failing.noise.floor)) oo.failing.noise.given = std::move(*f);
+    return oo;
+  };
+  const DiagnoseOptions ob = with_floor(*base, fit_run, held_out);
 
   // Bias jumps: found on each run's residual, removed from that run's copy for the search.
   // A pass: the jumps (by jumps_by, or the base model), the search on the copies without them.
@@ -510,7 +532,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     if (o.jumps) {
       auto scan_run = [&](RunData& copy) {
         std::vector<double> removed(copy.size(), 0.0);
-        auto js = find_jumps(jumps_by ? *jumps_by : *base, copy, o, &removed);
+        auto js = find_jumps(jumps_by ? *jumps_by : *base, copy, ob, &removed);
         for (std::size_t t = 0; t < copy.size(); ++t) copy.gyro_dph[t] -= removed[t];
         ps.jumps.insert(ps.jumps.end(), js.begin(), js.end());
         return !js.empty();
@@ -521,7 +543,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       }
       for (auto& h : ps.held_copy) scan_run(h);
     }
-    ps.d = wbi::diagnose_once(m, ps.fit_copy, ps.held_copy, o, space.gen, &stats);
+    ps.d = wbi::diagnose_once(m, ps.fit_copy, ps.held_copy, ob, space.gen, &stats);
     if (!ps.d) return ps;
     // Greedy forward selection: add the first detected candidate, search again from there.
     ps.cur = ps.base;
@@ -544,7 +566,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       ps.d->steps.push_back(ss);
       ps.cur = added->model;
       if (k + 1 == o.max_terms) break;
-      auto next = wbi::diagnose_once(ps.cur, ps.fit_copy, ps.held_copy, o, space.gen, &stats);
+      auto next = wbi::diagnose_once(ps.cur, ps.fit_copy, ps.held_copy, ob, space.gen, &stats);
       if (!next) break;
       step = std::move(*next);
     }
@@ -557,8 +579,8 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   // the jumps stand only where the model the search found still sees them; when some fall,
   // the search is done again with only those removed.
   if (!ps.jumps.empty() && !ps.d->steps.empty()) {
-    std::size_t seen = find_jumps(ps.cur, fit_run, o, nullptr).size();
-    for (const auto& h : held_out) seen += find_jumps(ps.cur, h, o, nullptr).size();
+    std::size_t seen = find_jumps(ps.cur, fit_run, ob, nullptr).size();
+    for (const auto& h : held_out) seen += find_jumps(ps.cur, h, ob, nullptr).size();
     if (seen < ps.jumps.size()) {
       Pass again = search_pass(&ps.cur);
       if (again.d && again.jumps.size() < ps.jumps.size()) ps = std::move(again);
@@ -574,12 +596,14 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   d->search = language ? "language" : "library";
 
   // Adequacy of the model as given (refitted on the fit run), on the runs as given.
-  d->checks.push_back(check_run(ps.base, fit_run, false, o));
-  for (const auto& h : held_out) d->checks.push_back(check_run(ps.base, h, true, o));
+  const DiagnoseOptions obase = with_floor(ps.base, fit_run, held_out);
+  d->checks.push_back(check_run(ps.base, fit_run, false, obase));
+  for (const auto& h : held_out) d->checks.push_back(check_run(ps.base, h, true, obase));
 
   d->final_terms = cur.terms_string();
-  d->final_checks.push_back(check_run(cur, fit_copy, false, o));
-  for (const auto& h : held_copy) d->final_checks.push_back(check_run(cur, h, true, o));
+  const DiagnoseOptions ocur = with_floor(cur, fit_copy, held_copy);
+  d->final_checks.push_back(check_run(cur, fit_copy, false, ocur));
+  for (const auto& h : held_copy) d->final_checks.push_back(check_run(cur, h, true, ocur));
   space.j["scanned"] = stats.scanned;
   space.j["refitted"] = stats.refitted;
   d->search_space = space.j;
@@ -587,8 +611,14 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   // The verdict: adequate only when nothing is detected, no jump is found and every run's
   // residual is the model's own noise.
   const bool detected = !d->candidates.empty() && d->candidates.front().detected;
+  // One answer: the headline is the first term the search adds (its pick weighs every run),
+  // not the first of the ranked candidates (the fit run's BIC alone), which may differ.
+  const SearchStep* first = d->steps.empty() ? nullptr : &d->steps.front();
   d->reasons.clear();
-  if (detected) d->reasons.push_back("missing effect: " + d->candidates.front().effect + " (" + d->candidates.front().term + ")");
+  if (first)
+    d->reasons.push_back("missing effect: " + first->effect + " (" + first->added + ")");
+  else if (detected)
+    d->reasons.push_back("missing effect: " + d->candidates.front().effect + " (" + d->candidates.front().term + ")");
   for (const auto& j : jumps) d->reasons.push_back(j.message);
   for (const auto& c : d->checks)
     for (const auto& r : c.reasons) d->reasons.push_back(c.run + ": " + r);
@@ -603,11 +633,14 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   std::string s;
   if (d->adequate) {
     s = "The model " + d->model_terms + " is adequate on these runs: its prewhitened residual passes Ljung-Box on every run, the "
-        "compensated std is within " + fmt(o.max_noise_factor, 2) + " x its noise std and no interval fails (compensated std " +
+        "compensated std is within " + fmt(o.failing.noise.max_noise_factor, 2) + " x the gyro's noise std and no interval fails (compensated std " +
         fmt(d->rms_fit_dph, 3) + " deg/h on " + d->fit_run + ").";
   } else {
-    // With a detected candidate the first step's summary (diagnose_once's) opens it.
-    s = detected ? d->summary : "Not adequate.";
+    if (first) {
+      s = "Missing effect: " + first->effect + ", term " + first->added + ".";
+    } else {
+      s = detected ? d->summary : "Not adequate.";
+    }
     for (const auto& j : jumps) s += " " + j.message;
     if (!d->steps.empty()) {
       s += " The search adds, in order: ";

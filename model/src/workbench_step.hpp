@@ -271,6 +271,12 @@ struct StepContext {
   double rms_fit_dph = 0.0;          // the base's compensated std on the fit run
   const std::vector<std::expected<double, std::string>>& held_before;  // the base's on each held-out run
   double ln_n = 0.0;                 // ln of the samples the base used (BIC's price of a parameter)
+  // The gyro's slow noise (flicker, random walk) on the fit run and each held-out run, the mean
+  // variance its floor gives over the run, (deg/h)^2 (0: none seen): a candidate must explain
+  // more than that on every run, or a slow regressor that happens to follow one realisation of
+  // the wander would be called an effect.
+  double slow_fit_var = 0.0;
+  const std::vector<double>* slow_held_var = nullptr;
 };
 
 struct EvaluatedCandidate {

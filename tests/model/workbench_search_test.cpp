@@ -149,7 +149,7 @@ TEST_CASE("verify: a run that passes the paper's ratio but keeps a visible error
   CHECK(x->verdict == Verdict::pass);
   // Bad options name the option.
   VerifyOptions bad;
-  bad.max_noise_factor = 0.5;
+  bad.noise.max_noise_factor = 0.5;
   auto y = verify(*m, stepped, bad);
   REQUIRE_FALSE(y);
   CHECK(y.error().message.find("noise factor") != std::string::npos);

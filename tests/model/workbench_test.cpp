@@ -112,11 +112,11 @@ TEST_CASE("workbench: compare finds an injected error, its place, phase and step
   CHECK(ok->adequate());
   // A shorter minimum duration is still a minimum: 400 s is longer than the interval.
   wb::CompareOptions o;
-  o.min_duration_s = 400.0;
+  o.noise.max_fail_s = 400.0;
   auto none = wb::compare(m, bad, o);
   REQUIRE(none);
   CHECK(none->failures.empty());
-  o.smooth_s = 60;
+  o.noise.smooth_s = 60;
   auto badopt = wb::compare(m, bad, o);
   REQUIRE_FALSE(badopt);
   CHECK(badopt.error().message.find("odd") != std::string::npos);

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "fogbench/drivers/config.hpp"
+#include "fogbench/model/noise.hpp"
 #include "fogbench/profiles/profile.hpp"
 
 namespace fogbench::daemon {
@@ -51,9 +52,10 @@ struct AnalysisConfig {
   std::string terms = "paper";    // term list of automatic fits (model/terms.hpp)
   std::string method = "paper";   // paper | joint
   double verify_threshold = 0.2;  // compensated/raw std ratio a verification must stay under
-  // The verdict's second test (model::VerifyOptions): a run whose ratio passes is `marginal`
-  // when its compensated std exceeds this many times the model's noise std ...
-  double verify_max_noise_factor = 1.5;
+  // The verdict's second test (model::NoiseRule, the one rule verify, compare and diagnose
+  // share): a run whose ratio passes is `marginal` when its compensated std exceeds this many
+  // times the gyro's noise floor ...
+  double verify_max_noise_factor = model::NoiseRule{}.max_noise_factor;
   // ... or when it has a failing interval (61 s average of the residual beyond 3 sigma_a) this
   // long or longer, s.
   double verify_max_fail_s = 60.0;

@@ -22,6 +22,7 @@ std::expected<Model, std::string> model_from_text(std::string_view text);
 // log line about a fit that failed or did not converge.
 nlohmann::json to_json(const FitSummary& s);
 nlohmann::json to_json(const Table1& t);
+nlohmann::json to_json(const NoiseFloor& f);
 nlohmann::json to_json(const Verification& v);
 
 }  // namespace fogbench::model

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "fogbench/model/noise.hpp"
 #include "fogbench/model/run.hpp"
 #include "fogbench/model/stats.hpp"
 #include "fogbench/model/terms.hpp"
@@ -178,16 +179,10 @@ std::string_view to_string(Verdict v);
 struct VerifyOptions {
   double threshold = 0.2;          // the paper's rule: comp std / raw std below this
   bool noise_test = true;          // the second test; false gives the paper's rule alone
-  // comp std at most this times the std the model's AR noise implies (ar_process_std of its
-  // k and sigma_a): 1.5 lets a model carry a third of its noise again as misfit, while an
-  // effect left at the size of the noise (comp std sqrt(2) = 1.41 x) is close to the limit and
-  // one at 1.3 to 2 x the noise floor in std fails it or leaves failing intervals.
-  double max_noise_factor = 1.5;
-  // A failing interval (the residual's 61 s average beyond 3 sigma_a, as compare finds them)
-  // of this many seconds or more makes the run marginal: compare reports those of 60 s or more.
-  double max_fail_s = 60.0;
-  double k_sigma = 3.0;
-  int smooth_s = 61;
+  // The second test (noise.hpp, the one rule verify, compare and diagnose share): the
+  // compensated std within the gyro's own noise floor times its factor, and no failing interval
+  // of noise.max_fail_s or more.
+  NoiseRule noise;
   std::expected<void, std::string> validate() const;
 };
 
@@ -198,14 +193,21 @@ struct Verification {
   std::size_t n_flagged = 0;        // samples skipped for their quality flags
   double threshold = 0.2;
   bool ratio_pass = false;          // run.ratio < threshold (the paper's rule)
-  double noise_std = 0.0;           // the std the model's AR noise implies, deg/h
+  double noise_std = 0.0;           // the gyro's noise floor over the run (the AR noise alone when no slow noise is seen), deg/h
   double noise_factor = 0.0;        // run.comp_std / noise_std
+  double noise_limit_factor = 0.0;  // the factor allowed: the rule's, or more where the floor's slow noise may stray further
+  double threshold_dph = 0.0;       // a failing interval's threshold on the smoothed residual, deg/h
+  NoiseFloor floor;                 // the floor as read off the run's settled holds
   double longest_fail_s = 0.0;      // the longest failing interval, s (0: none)
   bool noise_test = true;           // whether the second test was applied
   Verdict verdict = Verdict::fail;
   std::vector<std::string> reasons; // why not pass, one line each
   bool pass = false;                // verdict == pass
 };
+
+// The unit's noise floor under a model, read over the settled holds of all its runs at once
+// (noise.hpp); put it in VerifyOptions::noise.given to judge each run against it.
+std::expected<NoiseFloor, FitError> unit_noise_floor(const Model& m, std::span<const RunData> runs, const NoiseFloorOptions& o = {});
 
 // Compensates a run with the model and computes Table 1, whole and per phase, and the verdict.
 std::expected<Verification, FitError> verify(const Model& m, const RunData& run, double threshold = 0.2);
@@ -224,6 +226,17 @@ struct RunSignals {
   Signals view() const { return Signals{t1, t2, ta, 1.0, ton}; }
 };
 std::expected<RunSignals, FitError> run_signals(const RunData& run, double tref_c);
+
+// The one whiteness statistic (fit's summary, diagnose's checks): Ljung-Box over `lags` of the
+// model's residual over the whole run, prewhitened by its AR filter, on the samples whose AR
+// window is whole (flagged, settle and spike samples, those beyond 3 sigma about the residual's
+// 61 s average, left out).
+struct RunWhiteness {
+  Whiteness wh;
+  std::size_t n = 0;                // samples tested
+  double acf_rms = 0.0;             // sqrt(Q / (n lags)): the size of the structure
+};
+std::expected<RunWhiteness, FitError> run_whiteness(const Model& m, const RunData& run, int lags = 20);
 
 // Canonical key of a term for comparisons (expression without lag).
 std::string term_key(const Term& t);

@@ -32,9 +32,9 @@ const Effect* find_effect(std::string_view canonical_term);
 // ---------------------------------------------------------------------------------------
 // compare: a model against a run.
 struct CompareOptions {
-  double k_sigma = 3.0;          // an interval fails where |smoothed residual| > k_sigma * sigma_a
-  int smooth_s = 61;             // centred moving average of the residual before the test, s (odd)
-  double min_duration_s = 60.0;  // shorter excursions are not reported, s
+  // The one noise rule (noise.hpp): an interval fails where the residual's centred
+  // noise.smooth_s average stays beyond the yardstick's threshold for noise.max_fail_s or more.
+  NoiseRule noise;
   std::expected<void, std::string> validate() const;
 };
 
@@ -67,9 +67,11 @@ struct RunComparison {
   std::vector<Phase> phase;        // of every sample (derive_phases)
   Verification verification;       // Table 1 of the run and per phase (the core's verify)
   std::vector<StepTable> steps;    // Table 1 per profile step (empty without a step column)
-  double threshold_dph = 0.0;      // k_sigma * sigma_a, deg/h
+  double threshold_dph = 0.0;      // the yardstick's threshold on the smoothed residual (verification.threshold_dph), deg/h
   std::vector<FailInterval> failures;
-  bool adequate() const { return failures.empty(); }
+  // The noise rule's answer, the same as verify's second test: no failing interval and the
+  // compensated std within the gyro's noise floor times its factor.
+  bool adequate() const { return failures.empty() && verification.noise_factor <= verification.noise_limit_factor; }
 };
 
 std::expected<RunComparison, FitError> compare(const Model& m, const RunData& run, const CompareOptions& o = {});
@@ -114,8 +116,9 @@ struct DiagnoseOptions {
   // variance). On long held-out runs a misfit of 0.03 deg/h is significant (p < 1e-6 on
   // 9300 s) yet harmless; a missing effect at 1.3 x the noise floor gives 0.3 and more.
   double min_acf_rms = 0.05;
-  double max_noise_factor = 1.25;      // compensated std at most this times the std the AR noise implies
-  CompareOptions failing;              // no failing interval (compare's rule)
+  // The noise rule (failing.noise, noise.hpp, the one verify and compare apply): compensated
+  // std within the gyro's noise floor times its factor, and no failing interval.
+  CompareOptions failing;
   // Bias jumps (a change-point scan of the residual): a step of t >= jump_t and at least
   // jump_min_sigma * sigma_a, estimated with a line and a kink each side over +-jump_window_s.
   bool jumps = true;
@@ -184,8 +187,11 @@ struct RunCheck {
   bool checked = false;             // false when the model cannot run on it (error says why)
   std::string error;
   double comp_std_dph = 0.0;        // Table 1's compensated std
-  double noise_std_dph = 0.0;       // the std the model's AR noise implies
+  double noise_std_dph = 0.0;       // the gyro's noise floor over the run (verify's yardstick), deg/h
   double noise_factor = 0.0;        // comp / noise
+  double noise_limit_factor = 0.0;  // the factor allowed (the rule's, or more for slow noise)
+  std::string floor_note;           // how the floor was read
+  double acf_allowed = 0.0;         // the whiteness test's RMS of the ACF allowed (min_acf_rms + slow noise share)
   double ljung_box_q = 0.0, ljung_box_p = 1.0;  // of the prewhitened residual
   double acf_rms = 0.0;             // sqrt(Q / (N h)): the size of its structure
   std::vector<FailInterval> failures;

@@ -1,0 +1,131 @@
+// The gyro's own noise as the yardstick of a model's error. A real FOG's noise is more than
+// the AR(2) innovation the paper fits on its opening hold: flicker (bias instability) and rate
+// random walk wander slowly, so over a run of hours they add error that no thermal term
+// explains and AR(2) whiteness calls a missing effect. The noise floor is read where the
+// temperature holds still (the model's residual over the settled holds), as an Allan curve
+// fitted with three noise laws, and gives what a run's residual may be when the model is
+// right: its std over the run, the std of its smoothed values, and how far a realisation
+// may stray from them. Pure; docs/workbench.md "The noise floor".
+#pragma once
+
+#include <cstddef>
+#include <expected>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "fogbench/model/allan.hpp"
+#include "fogbench/model/run.hpp"
+
+namespace fogbench::model {
+
+struct NoiseFloorOptions {
+  // A hold counts from this long after the last ramp, s: the coil still settles after a ramp,
+  // and a thermal term the model misses (a second path delayed up to the lags searched, 600 s)
+  // still moves the residual there, which would read as slow noise and excuse itself. The
+  // run's first hold counts whole (the chamber was stable before the run).
+  double settle_s = 600.0;
+  std::size_t min_stretch_s = 120;  // shorter settled stretches are not used, s
+  // A slow law (flicker, random walk) is kept only when it lowers the curve's weighted misfit
+  // (chi-square with each point's degrees of freedom) by this much: 4 sigma for one parameter.
+  // The long taus rest on a few clusters whose scatter is skewed: at 9 a flicker's scatter at
+  // 128..256 s read as a rate random walk of 0.28 deg/h/sqrt(h) (twice the noise std over a
+  // run), at 16 not, while a walk of 0.1 deg/h/sqrt(h) in 20 min holds is still seen.
+  double min_chi2_gain = 16.0;
+};
+
+// One-sided power spectral density of the floor at 1 s samples, (deg/h)^2/Hz:
+//   S(f) = S_fast(f) + flicker_h / f + walk_h / f^2,
+// S_fast the model's AR(p) with its sigma_a (2 sigma_a^2 / |1 - sum k_i e^{-2 pi i f i}|^2)
+// when no slow noise is seen, else the white level read off the holds (2 white_var_dph2).
+struct NoiseFloor {
+  std::vector<double> ar;               // the model's AR coefficients k_1..k_p
+  double sigma_a_dph = 0.0;             // the model's innovation std, deg/h
+  double white_scale = 1.0;             // the model's AR noise is scaled by this (1: as fitted)
+  // With slow noise: the white (angle random walk) variance read off the curve at 1 s,
+  // (deg/h)^2, which then stands for the short-term part (0: the model's AR noise does).
+  double white_var_dph2 = 0.0;
+  double flicker_h = 0.0;               // (deg/h)^2: Allan variance 2 ln2 h
+  double walk_h = 0.0;                  // (deg/h)^2/s: Allan variance (2 pi^2 / 3) h tau
+  double bias_instability_dph = 0.0;    // B = sqrt(pi h_-1), deg/h (Allan floor 0.664 B)
+  double rrw_dph_per_sqrt_h = 0.0;      // K = 60 sqrt(3 AVAR/tau), deg/h/sqrt(h)
+  std::size_t hold_samples = 0;         // settled hold samples the curve was read on
+  std::size_t stretches = 0;
+  double longest_tau_s = 0.0;           // the longest cluster time of the curve, s
+  std::vector<allan::AdevPoint> curve;  // the holds' pooled Allan deviation of the residual
+  std::string note;                     // how it was read, or why the AR noise alone is used
+  bool measured() const { return hold_samples > 0; }
+  bool slow() const { return flicker_h > 0.0 || walk_h > 0.0; }
+};
+
+// The floor of a run's residual (measured - predicted, deg/h; weights 0 for unusable samples),
+// read over the run's settled holds. Too few hold samples: the model's AR noise alone, said in
+// the note. ar and sigma_a_dph are the model's.
+NoiseFloor estimate_noise_floor(const RunData& run, std::span<const double> residual_dph, std::span<const double> weight,
+                                std::span<const double> ar, double sigma_a_dph, const NoiseFloorOptions& o = {});
+// The floor of one unit read over several runs' settled holds at once (the same gyro: more
+// hold time, longer taus, a steadier reading of its slow noise).
+struct FloorRun {
+  const RunData* run = nullptr;
+  std::span<const double> residual_dph, weight;
+};
+NoiseFloor estimate_noise_floor(std::span<const FloorRun> runs, std::span<const double> ar, double sigma_a_dph,
+                                const NoiseFloorOptions& o = {});
+
+// What the floor lets a run's residual be, over `samples` 1 s samples with the run's mean
+// removed, after a centred moving average of smooth_s samples (1: none). Variances in (deg/h)^2:
+// `total` the expected variance, `slow` the part of it that flicker and random walk make,
+// `slow_q99` the 99th percentile of that part over realisations (a weighted sum of exponential
+// periodogram ordinates, matched by a gamma law in mean and variance: a random walk's variance
+// over one run is dominated by a few ordinates and strays far from its mean).
+struct FloorVariance {
+  double total = 0.0, slow = 0.0, slow_q99 = 0.0;
+};
+FloorVariance floor_variance(const NoiseFloor& f, std::size_t samples, int smooth_s = 1);
+
+// The variance the floor's slow part (flicker, random walk) gives a linear statistic
+// sum_i c_i x_i of consecutive 1 s samples, (deg/h)^2: int S_slow(f) |C(f)|^2 df. Finite when
+// the weights are blind to a constant and a line (sum c_i = sum i c_i = 0), as a step
+// estimated beside a line is.
+double floor_slow_variance(const NoiseFloor& f, std::span<const double> c);
+
+// The Allan variance the floor gives at cluster time tau_s, (deg/h)^2.
+double floor_avar(const NoiseFloor& f, double tau_s);
+
+// The one rule that asks whether what a model leaves on a run is the gyro's own noise, shared
+// by verify's second test, compare's failing intervals and diagnose's adequacy checks.
+struct NoiseRule {
+  // Compensated std at most this times the floor's std over the run: a misfit of about 0.75 x
+  // the noise std is let through (sqrt(1.25^2 - 1)); an effect left at the size of the noise
+  // (sqrt(2) = 1.41 x) is not. Where the floor's slow noise can stray further over one run
+  // (its 99th percentile), that is the limit instead.
+  double max_noise_factor = 1.25;
+  // A failing interval: the residual's centred smooth_s average beyond the threshold
+  //   sqrt((k_sigma sigma_a)^2 + k_slow^2 var_slow(smoothed))
+  // for max_fail_s or more. k_sigma sigma_a is the paper's short-term band. k_slow 7 is the 99th
+  // percentile of a random walk's largest excursion from where the run's model put its level
+  // (a held-out run's mu0 is the fit run's; the walk does not return to it): P(max |W| > a) <=
+  // 4 (1 - Phi(a / sqrt(T))) gives a = 2.81 sqrt(T), against its demeaned std sqrt(T / 6).
+  double k_sigma = 3.0;
+  double k_slow = 7.0;
+  int smooth_s = 61;
+  double max_fail_s = 60.0;
+  bool read_floor = true;            // false: the model's AR noise alone (the rule before the floor)
+  NoiseFloorOptions floor;
+  // The floor already read for this model, e.g. over all the unit's runs (model.hpp's
+  // unit_noise_floor): used instead of reading one off the run being judged.
+  std::optional<NoiseFloor> given;
+  std::expected<void, std::string> validate() const;
+};
+
+struct Yardstick {
+  NoiseFloor floor;
+  double noise_std_dph = 0.0;        // the floor's std over the run, deg/h
+  double limit_factor = 0.0;         // the compensated std allowed, over noise_std
+  double threshold_dph = 0.0;        // a failing interval's threshold on the smoothed residual, deg/h
+};
+Yardstick yardstick(const RunData& run, std::span<const double> residual_dph, std::span<const double> weight,
+                    std::span<const double> ar, double sigma_a_dph, std::size_t samples, const NoiseRule& rule = {});
+
+}  // namespace fogbench::model

@@ -1,0 +1,391 @@
+// The gyro's noise floor read off the settled holds of a model's residual; see noise.hpp.
+#include "fogbench/model/noise.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <cstdio>
+#include <limits>
+#include <numbers>
+
+#include "fogbench/model/model.hpp"
+#include "fogbench/model/stats.hpp"
+
+namespace fogbench::model {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+// One-sided PSD of the AR(p) noise at 1 s samples, (deg/h)^2/Hz.
+double ar_psd(std::span<const double> ar, double sigma_a, double f_hz) {
+  std::complex<double> den{1.0, 0.0};
+  for (std::size_t j = 0; j < ar.size(); ++j)
+    den -= ar[j] * std::polar(1.0, -2.0 * kPi * f_hz * static_cast<double>(j + 1));
+  return 2.0 * sigma_a * sigma_a / std::norm(den);
+}
+
+// |H|^2 of a centred moving average of w samples at f (Hz, 1 s samples).
+double ma_gain2(int w, double f_hz) {
+  if (w <= 1) return 1.0;
+  const double s = std::sin(kPi * f_hz);
+  if (std::abs(s) < 1e-300) return 1.0;
+  const double r = std::sin(kPi * f_hz * w) / (w * s);
+  return r * r;
+}
+
+// Overlapping Allan variance of the AR noise at cluster size m (samples):
+// int_0^0.5 S(f) 2 sin^4(pi f m) / (m sin(pi f))^2 df, a midpoint sum fine enough to resolve
+// the kernel's lobes (period 1/m in f).
+double ar_avar(std::span<const double> ar, double sigma_a, std::int64_t m) {
+  const auto md = static_cast<double>(m);
+  const std::size_t steps = static_cast<std::size_t>(std::max<double>(4000.0, 40.0 * md));
+  const double df = 0.5 / static_cast<double>(steps);
+  double s = 0.0;
+  for (std::size_t i = 0; i < steps; ++i) {
+    const double f = (static_cast<double>(i) + 0.5) * df;
+    const double sm = std::sin(kPi * f * md), s1 = std::sin(kPi * f);
+    s += ar_psd(ar, sigma_a, f) * 2.0 * sm * sm * sm * sm / (md * md * s1 * s1);
+  }
+  return s * df;
+}
+
+// The q-quantile of a gamma law of shape a and scale 1 (bisection on gamma_q).
+double gamma_quantile(double a, double q) {
+  double lo = 0.0, hi = std::max(1.0, a);
+  while (gamma_q(a, hi) > 1.0 - q) hi *= 2.0;
+  for (int i = 0; i < 80; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (gamma_q(a, mid) > 1.0 - q ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+std::string fmt(double x, int d) {
+  char b[48];
+  std::snprintf(b, sizeof b, "%.*f", d, x);
+  return b;
+}
+
+}  // namespace
+
+double floor_avar(const NoiseFloor& f, double tau_s) {
+  const auto m = std::max<std::int64_t>(1, std::llround(tau_s));
+  const double fast = f.white_var_dph2 > 0.0 ? f.white_var_dph2 / static_cast<double>(m)
+                                            : f.white_scale * f.white_scale * ar_avar(f.ar, f.sigma_a_dph, m);
+  return fast + 2.0 * std::numbers::ln2 * f.flicker_h +
+         2.0 * kPi * kPi / 3.0 * f.walk_h * tau_s;
+}
+
+namespace {
+
+// The settled hold stretches of one run's residual, each a copy with short gaps bridged.
+// A settled stretch, and whether it lies before the run's first ramp (the opening hold).
+struct Stretch {
+  std::vector<double> x;
+  bool opening = false;
+};
+void settled_stretches(const FloorRun& fr, const NoiseFloorOptions& o, std::vector<Stretch>& out) {
+  const RunData& run = *fr.run;
+  const std::span<const double> residual_dph = fr.residual_dph, weight = fr.weight;
+  const std::size_t n = std::min({run.size(), residual_dph.size(), weight.size()});
+  const std::vector<Phase> ph = derive_phases(run);
+  // Hold, evenly spaced at 1 s, past the settling time. A spike or a flagged sample (weight 0)
+  // is bridged by the line between its neighbours when the gap is at most max_gap samples (a
+  // spike must not cut a hold into pieces too short for its slow noise); a longer gap ends
+  // the stretch.
+  constexpr std::size_t max_gap = 10;
+  double last_ramp_s = -std::numeric_limits<double>::infinity();
+  std::vector<double> x(residual_dph.begin(), residual_dph.begin() + static_cast<std::ptrdiff_t>(n));
+  auto good = [&](std::size_t k) { return weight[k] != 0.0 && std::isfinite(residual_dph[k]); };
+  auto even = [&](std::size_t k) { return std::abs(run.time_s[k] - run.time_s[k - 1] - 1.0) < 0.01; };
+  std::size_t i = 0;
+  while (i < n) {
+    if (ph[i] == Phase::heating || ph[i] == Phase::cooling) last_ramp_s = run.time_s[i];
+    if (ph[i] != Phase::hold || !good(i)) {
+      ++i;
+      continue;
+    }
+    std::size_t j = i + 1, last_good = i;
+    while (j < n && ph[j] == Phase::hold && even(j)) {
+      if (good(j)) {
+        for (std::size_t k = last_good + 1; k < j; ++k) {  // bridge the gap
+          const double u = static_cast<double>(k - last_good) / static_cast<double>(j - last_good);
+          x[k] = (1.0 - u) * residual_dph[last_good] + u * residual_dph[j];
+        }
+        last_good = j;
+      } else if (j - last_good > max_gap) {
+        break;
+      }
+      ++j;
+    }
+    j = last_good + 1;
+    std::size_t b = i;
+    while (b < j && run.time_s[b] - last_ramp_s < o.settle_s) ++b;
+    if (j > b && j - b >= o.min_stretch_s)
+      out.push_back({std::vector<double>(x.begin() + static_cast<std::ptrdiff_t>(b), x.begin() + static_cast<std::ptrdiff_t>(j)),
+                     last_ramp_s == -std::numeric_limits<double>::infinity()});
+    i = j;
+  }
+}
+
+}  // namespace
+
+double floor_slow_variance(const NoiseFloor& f, std::span<const double> c) {
+  if (!f.slow() || c.empty()) return 0.0;
+  // A log grid from 1e-7 Hz to 0.5 Hz, the integral in ln f (dF = f dln f).
+  constexpr int points = 3000;
+  const double lo = std::log(1e-7), hi = std::log(0.5), step = (hi - lo) / (points - 1);
+  double sum = 0.0, prev = 0.0;
+  for (int k = 0; k < points; ++k) {
+    const double fk = std::exp(lo + step * k);
+    std::complex<double> cf{0.0, 0.0};
+    for (std::size_t i = 0; i < c.size(); ++i) cf += c[i] * std::polar(1.0, -2.0 * kPi * fk * static_cast<double>(i));
+    const double g = (f.flicker_h / fk + f.walk_h / (fk * fk)) * std::norm(cf) * fk;
+    if (k > 0) sum += 0.5 * (g + prev) * step;
+    prev = g;
+  }
+  return sum;
+}
+
+NoiseFloor estimate_noise_floor(const RunData& run, std::span<const double> residual_dph, std::span<const double> weight,
+                                std::span<const double> ar, double sigma_a_dph, const NoiseFloorOptions& o) {
+  const FloorRun one{&run, residual_dph, weight};
+  return estimate_noise_floor(std::span<const FloorRun>(&one, 1), ar, sigma_a_dph, o);
+}
+
+NoiseFloor estimate_noise_floor(std::span<const FloorRun> runs, std::span<const double> ar, double sigma_a_dph, const NoiseFloorOptions& o) {
+  NoiseFloor fl;
+  fl.ar.assign(ar.begin(), ar.end());
+  fl.sigma_a_dph = sigma_a_dph;
+  std::vector<Stretch> spans;
+  for (const auto& fr : runs) settled_stretches(fr, o, spans);
+  std::size_t total = 0;
+  for (const auto& sp : spans) total += sp.x.size();
+  if (spans.empty()) {
+    fl.note = "no settled hold of " + std::to_string(o.min_stretch_s) + " s or more: the model's AR noise alone";
+    return fl;
+  }
+  // The pooled curve: each stretch's overlapping Allan variance at half-octave cluster sizes up
+  // to a third of it, weighted by its number of terms; degrees of freedom N/m - 1 summed (IEEE
+  // 952's conservative count).
+  std::size_t longest = 0;
+  for (const auto& sp : spans) longest = std::max(longest, sp.x.size());
+  std::vector<std::int64_t> sizes;
+  for (double md = 1.0; static_cast<std::size_t>(3.0 * std::round(md)) <= longest; md *= std::numbers::sqrt2) {
+    const auto m = static_cast<std::int64_t>(std::llround(md));
+    if (sizes.empty() || m != sizes.back()) sizes.push_back(m);
+  }
+  // Pooled in two groups, the opening holds (before any ramp) and the later holds; at each tau
+  // their weighted mean, or the smaller group's where the two differ beyond their scatter: the gyro's slow noise shows in
+  // both alike, while what a model misses shows in one only: a warm-up after power-on decays
+  // through the opening holds, a thermal term's tail (a second path, a slow mount) runs through
+  // the holds after ramps. Either would otherwise pass for slow noise and excuse itself.
+  struct Acc {
+    double avar = 0.0, terms = 0.0, dof = 0.0;
+  };
+  std::vector<Acc> open_acc(sizes.size()), late_acc(sizes.size());
+  for (const auto& sp : spans) {
+    const std::size_t len = sp.x.size();
+    std::vector<std::int64_t> ms;
+    for (auto m : sizes)
+      if (static_cast<std::size_t>(3 * m) <= len) ms.push_back(m);
+    auto c = allan::overlapping_adev(sp.x, 1.0, ms);
+    if (!c) continue;
+    auto& acc = sp.opening ? open_acc : late_acc;
+    for (std::size_t k = 0; k < c->size(); ++k) {
+      const double t = static_cast<double>((*c)[k].terms);
+      acc[k].avar += t * (*c)[k].adev_dph * (*c)[k].adev_dph;
+      acc[k].terms += t;
+      acc[k].dof += std::max(1.0, static_cast<double>(len) / static_cast<double>(sizes[k]) - 1.0);
+    }
+  }
+  std::vector<double> avar(sizes.size(), 0.0), terms(sizes.size(), 0.0), edf(sizes.size(), 0.0);
+  std::vector<std::size_t> pts;
+  for (std::size_t k = 0; k < sizes.size(); ++k) {
+    const Acc& a = open_acc[k];
+    const Acc& b = late_acc[k];
+    if (a.terms <= 0.0 && b.terms <= 0.0) continue;
+    Acc use{a.avar + b.avar, a.terms + b.terms, a.dof + b.dof};
+    if (a.terms > 0.0 && b.terms > 0.0 && a.avar > 0.0 && b.avar > 0.0) {
+      // The groups differ beyond their scatter (log of a ratio of chi-square estimates: variance
+      // 2/dof each; 2.58 sigma): the smaller stands for the gyro.
+      const double lr = std::log((a.avar / a.terms) / (b.avar / b.terms));
+      if (std::abs(lr) > 2.58 * std::sqrt(2.0 / a.dof + 2.0 / b.dof)) use = lr < 0.0 ? a : b;
+    }
+    avar[k] = use.avar / use.terms;
+    terms[k] = use.terms;
+    edf[k] = use.dof;
+    if (avar[k] > 0.0) pts.push_back(k);
+  }
+  fl.hold_samples = total;
+  fl.stretches = spans.size();
+  if (pts.size() < 3) {
+    fl.note = "settled holds too short for an Allan curve: the model's AR noise alone";
+    return fl;
+  }
+  for (std::size_t k : pts) {
+    allan::AdevPoint p;
+    p.m = sizes[k];
+    p.tau_s = static_cast<double>(sizes[k]);
+    p.adev_dph = std::sqrt(avar[k]);
+    const double rel = 1.0 / std::sqrt(2.0 * edf[k]);
+    p.ci_low_dph = std::max(0.0, p.adev_dph * (1.0 - rel));
+    p.ci_high_dph = p.adev_dph * (1.0 + rel);
+    p.terms = static_cast<std::int64_t>(terms[k]);
+    fl.curve.push_back(p);
+    fl.longest_tau_s = p.tau_s;
+  }
+  // Fit AVAR(tau) = a AVAR_AR(tau) + c_f + c_w tau (a, c_f, c_w >= 0) by least squares on the
+  // relative misfit, each point weighted by its degrees of freedom / 2 (var of a chi-square
+  // estimate over its mean^2 is 2 / edf). The slow laws enter only when they earn their place.
+  const std::size_t np = pts.size();
+  // The short-term part as white noise (AVAR = c0 / tau): the paper's AR(2), fitted on the
+  // opening hold alone, absorbs some of a FOG's flicker into its coefficients, and its Allan
+  // shape is then no law of the gyro's (a bump at 3 to 30 s); a FOG's own short-term noise is
+  // angle random walk, white in rate.
+  std::vector<double> base(np);
+  for (std::size_t q = 0; q < np; ++q) base[q] = 1.0 / static_cast<double>(sizes[pts[q]]);
+  struct Sol {
+    double a = 0, cf = 0, cw = 0, chi2 = std::numeric_limits<double>::infinity();
+    bool ok = false;
+  };
+  // Weighted by the model's own variance at each point (iterated from the observed curve):
+  // weights from the observed values would favour the points that came out low, and a random
+  // walk read off a few long clusters would be biased low.
+  auto solve_once = [&](bool use_f, bool use_w, const std::vector<double>& ref) {
+    Sol s;
+    const int k = 1 + use_f + use_w;
+    Eigen::MatrixXd X(static_cast<Eigen::Index>(np), k);
+    Eigen::VectorXd y(static_cast<Eigen::Index>(np));
+    for (std::size_t q = 0; q < np; ++q) {
+      const std::size_t p = pts[q];
+      // Half-octave points overlap their neighbours' clusters: each counts half its dof.
+      const double w = std::sqrt(edf[p] / 4.0) / ref[q];
+      const auto r = static_cast<Eigen::Index>(q);
+      int c = 0;
+      X(r, c++) = w * base[q];
+      if (use_f) X(r, c++) = w;
+      if (use_w) X(r, c++) = w * static_cast<double>(sizes[p]);
+      y(r) = w * avar[p];
+    }
+    const Eigen::VectorXd b = X.colPivHouseholderQr().solve(y);
+    for (Eigen::Index c = 0; c < b.size(); ++c)
+      if (!(b(c) >= 0.0)) return s;
+    int c = 0;
+    s.a = b(c++);
+    if (use_f) s.cf = b(c++);
+    if (use_w) s.cw = b(c++);
+    s.chi2 = (X * b - y).squaredNorm();
+    s.ok = true;
+    return s;
+  };
+  auto solve = [&](bool use_f, bool use_w) {
+    std::vector<double> ref(np);
+    for (std::size_t q = 0; q < np; ++q) ref[q] = avar[pts[q]];
+    Sol s = solve_once(use_f, use_w, ref);
+    for (int it = 0; it < 4 && s.ok; ++it) {
+      for (std::size_t q = 0; q < np; ++q)
+        ref[q] = std::max(1e-300, s.a * base[q] + s.cf + s.cw * static_cast<double>(sizes[pts[q]]));
+      Sol next = solve_once(use_f, use_w, ref);
+      if (!next.ok) break;
+      s = next;
+    }
+    return s;
+  };
+  Sol best = solve(false, false);
+  double best_score = best.chi2;
+  for (auto [uf, uw] : {std::pair{true, false}, std::pair{false, true}, std::pair{true, true}}) {
+    Sol s = solve(uf, uw);
+    const double score = s.chi2 + o.min_chi2_gain * (uf + uw);
+    if (s.ok && score < best_score) {
+      best = s;
+      best_score = score;
+    }
+  }
+  if (!best.ok) {
+    fl.note = "the holds' Allan curve fits no noise law: the model's AR noise alone";
+    return fl;
+  }
+  // With no slow law the floor is the model's AR noise, as before; with one, the white level
+  // read off the curve stands for the short-term part.
+  const double ar_std = ar_process_std(ar, sigma_a_dph);
+  if (best.cf > 0.0 || best.cw > 0.0) fl.white_var_dph2 = best.a;
+  fl.flicker_h = best.cf / (2.0 * std::numbers::ln2);
+  fl.walk_h = best.cw * 3.0 / (2.0 * kPi * kPi);
+  fl.bias_instability_dph = std::sqrt(kPi * fl.flicker_h);
+  fl.rrw_dph_per_sqrt_h = 60.0 * std::sqrt(3.0 * best.cw);
+  fl.note = "read on " + std::to_string(total) + " s of settled holds (" + std::to_string(spans.size()) + " stretches, tau up to " +
+            fmt(fl.longest_tau_s, 0) + " s): white noise " + fmt(std::sqrt(best.a), 3) + " deg/h in 1 s (the model's AR noise " + fmt(ar_std, 3) + ")" +
+            (fl.flicker_h > 0.0 ? ", bias instability " + fmt(fl.bias_instability_dph, 4) + " deg/h" : std::string()) +
+            (fl.walk_h > 0.0 ? ", rate random walk " + fmt(fl.rrw_dph_per_sqrt_h, 4) + " deg/h/sqrt(h)" : std::string()) +
+            (fl.slow() ? "" : ", no flicker or random walk seen");
+  return fl;
+}
+
+FloorVariance floor_variance(const NoiseFloor& f, std::size_t samples, int smooth_s) {
+  // The run's residual about its mean in the cosine basis of a run of n samples (the
+  // eigenfunctions of a demeaned random walk): ordinate k at f_k = k / (2n) Hz carries
+  // S(f_k) |H(f_k)|^2 / (2n) of variance, one degree of freedom each.
+  FloorVariance v;
+  const std::size_t n = std::max<std::size_t>(2, samples);
+  const double dn = 2.0 * static_cast<double>(n);
+  double slow_var = 0.0;
+  const double ws2 = f.white_scale * f.white_scale;
+  for (std::size_t k = 1; k < n; ++k) {
+    const double fk = static_cast<double>(k) / dn;
+    const double g = ma_gain2(smooth_s, fk) / dn;
+    const double slow = (f.flicker_h / fk + f.walk_h / (fk * fk)) * g;
+    const double fast = f.white_var_dph2 > 0.0 ? 2.0 * f.white_var_dph2 : ws2 * ar_psd(f.ar, f.sigma_a_dph, fk);
+    v.total += fast * g + slow;
+    v.slow += slow;
+    slow_var += 2.0 * slow * slow;
+  }
+  if (v.slow > 0.0 && slow_var > 0.0) {
+    const double shape = v.slow * v.slow / slow_var, scale = slow_var / v.slow;
+    v.slow_q99 = scale * gamma_quantile(shape, 0.99);
+  }
+  return v;
+}
+
+std::expected<void, std::string> NoiseRule::validate() const {
+  if (!(max_noise_factor >= 1.0 && max_noise_factor <= 100.0))
+    return std::unexpected("the noise factor must be 1 to 100, got " + fmt(max_noise_factor, 3));
+  if (!(k_sigma > 0.0)) return std::unexpected("k_sigma must be positive, got " + fmt(k_sigma, 3));
+  if (!(k_slow >= 0.0)) return std::unexpected("k_slow must be 0 or more, got " + fmt(k_slow, 3));
+  if (smooth_s < 1 || smooth_s % 2 == 0) return std::unexpected("smooth_s must be odd and positive, got " + std::to_string(smooth_s));
+  if (!(max_fail_s >= 1.0 && max_fail_s <= 1e6)) return std::unexpected("the longest failing interval must be 1 s to 1e6 s, got " + fmt(max_fail_s, 1));
+  if (!(floor.settle_s >= 0.0)) return std::unexpected("the floor's settle time must be 0 s or more");
+  return {};
+}
+
+Yardstick yardstick(const RunData& run, std::span<const double> residual_dph, std::span<const double> weight, std::span<const double> ar,
+                    double sigma_a_dph, std::size_t samples, const NoiseRule& rule) {
+  Yardstick y;
+  if (rule.given) {
+    y.floor = *rule.given;
+  } else if (rule.read_floor) {
+    y.floor = estimate_noise_floor(run, residual_dph, weight, ar, sigma_a_dph, rule.floor);
+  } else {
+    y.floor.ar.assign(ar.begin(), ar.end());
+    y.floor.sigma_a_dph = sigma_a_dph;
+    y.floor.note = "the model's AR noise alone (no floor read)";
+  }
+  if (!y.floor.slow()) {
+    // Exactly the AR rule: the AR process's std, k_sigma sigma_a (times the holds' short-term scale).
+    y.noise_std_dph = y.floor.white_scale * ar_process_std(ar, sigma_a_dph);
+    y.limit_factor = rule.max_noise_factor;
+    y.threshold_dph = rule.k_sigma * sigma_a_dph * y.floor.white_scale;
+    return y;
+  }
+  const FloorVariance whole = floor_variance(y.floor, samples, 1);
+  const FloorVariance smooth = floor_variance(y.floor, samples, rule.smooth_s);
+  y.noise_std_dph = std::sqrt(whole.total);
+  const double q = (whole.total - whole.slow + whole.slow_q99) / whole.total;
+  y.limit_factor = std::max(rule.max_noise_factor, std::sqrt(q));
+  const double a = rule.k_sigma * std::max(sigma_a_dph, std::sqrt(y.floor.white_var_dph2));
+  y.threshold_dph = std::sqrt(a * a + rule.k_slow * rule.k_slow * smooth.slow);
+  return y;
+}
+
+}  // namespace fogbench::model

@@ -1,0 +1,180 @@
+// The noise floor (noise.hpp): its variances against closed forms, the floor read back off
+// generated noise of known white, flicker and random-walk strengths, and the rule falling back
+// to the AR noise exactly where no slow noise is seen.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <numbers>
+#include <random>
+
+#include "fogbench/model/model.hpp"
+#include "fogbench/model/noise.hpp"
+#include "fogbench/model/stats.hpp"
+
+using namespace fogbench::model;
+
+namespace {
+
+// A run at rest (every sample a hold: T1 constant, no setpoint), gyro = the given noise.
+RunData rest_run(const std::vector<double>& gyro_dph) {
+  RunData r;
+  r.name = "rest";
+  for (std::size_t i = 0; i < gyro_dph.size(); ++i) {
+    r.time_s.push_back(static_cast<double>(i));
+    r.gyro_dph.push_back(gyro_dph[i]);
+    r.t1_c.push_back(20.0);
+    r.t2_c.push_back(20.0);
+  }
+  return r;
+}
+
+// White noise of std sigma (deg/h), flicker of bias instability b_dph (the simulator's sum of
+// Markov processes, sim.cpp) and a rate random walk of k deg/h/sqrt(h).
+std::vector<double> noise(std::size_t n, double sigma, double b_dph, double k, std::uint64_t seed) {
+  std::mt19937_64 g(seed);
+  std::normal_distribution<double> z(0.0, 1.0);
+  std::vector<double> taus;
+  for (double tau = 2.0; tau <= 1e6; tau *= 3.0) taus.push_back(tau);
+  const double var_j = b_dph * b_dph * std::log(3.0) / std::numbers::pi;
+  std::vector<double> fl(taus.size());
+  for (auto& x : fl) x = std::sqrt(var_j) * z(g);
+  double walk = 0.0;
+  std::vector<double> y(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    double v = sigma * z(g);
+    for (std::size_t j = 0; j < taus.size(); ++j) {
+      const double a = std::exp(-1.0 / taus[j]);
+      fl[j] = a * fl[j] + std::sqrt(var_j * (1.0 - a * a)) * z(g);
+      v += b_dph > 0.0 ? fl[j] : 0.0;
+    }
+    walk += k / 60.0 * z(g);
+    y[i] = v + walk;
+  }
+  return y;
+}
+
+NoiseFloor read_floor(const std::vector<double>& y, double sigma) {
+  const RunData r = rest_run(y);
+  double m = 0.0;
+  for (double v : y) m += v;
+  m /= static_cast<double>(y.size());
+  std::vector<double> res(y.size()), w(y.size(), 1.0);
+  for (std::size_t i = 0; i < y.size(); ++i) res[i] = y[i] - m;
+  const std::vector<double> ar;  // white: AR(0)
+  return estimate_noise_floor(r, res, w, ar, sigma);
+}
+
+}  // namespace
+
+TEST_CASE("noise floor: variances of white noise and a random walk against their closed forms", "[noise]") {
+  NoiseFloor f;
+  f.sigma_a_dph = 0.5;
+  // White, no smoothing: the demeaned variance is sigma^2 (1 - 1/n); the cosine sum over
+  // k = 1..n-1 of 2 sigma^2 / (2n) gives sigma^2 (n-1)/n exactly.
+  FloorVariance v = floor_variance(f, 10000, 1);
+  CHECK(v.total == Approx(0.25 * 9999.0 / 10000.0).epsilon(1e-9));
+  CHECK(v.slow == 0.0);
+  // A 61 s centred average of white noise: sigma^2 / 61 (within 2 %: the mean's removal and the
+  // midpoint sum).
+  v = floor_variance(f, 10000, 61);
+  CHECK(v.total == Approx(0.25 / 61.0).epsilon(0.02));
+  // A random walk of K deg/h/sqrt(h) demeaned over T s: K^2 T / (6 * 3600) (the variance of a
+  // demeaned Brownian motion, sum of its eigenvalues T^2 / (k pi)^2). walk_h = 3 c_w / (2 pi^2)
+  // with AVAR = c_w tau, c_w = K^2 / (3 * 3600).
+  NoiseFloor rw;
+  const double K = 0.1, T = 10800.0;
+  const double cw = K * K / (3.0 * 3600.0);
+  rw.walk_h = 3.0 * cw / (2.0 * std::numbers::pi * std::numbers::pi);
+  v = floor_variance(rw, static_cast<std::size_t>(T), 1);
+  CHECK(v.slow == Approx(K * K * T / (6.0 * 3600.0)).epsilon(0.01));
+  // Its 99th percentile over realisations: the first eigenvalue carries 6/pi^2 of the mean, so
+  // one run's variance strays far: q99 over twice the mean (a gamma law of shape about 2.5).
+  CHECK(v.slow_q99 > 2.0 * v.slow);
+  CHECK(v.slow_q99 < 5.0 * v.slow);
+  // The Allan variance the floor gives is the random walk's K^2 tau / 3 (tau in h).
+  CHECK(floor_avar(rw, 900.0) == Approx(K * K * (900.0 / 3600.0) / 3.0).epsilon(1e-9));
+}
+
+TEST_CASE("noise floor: white noise alone shows no slow noise, and the rule is the AR rule exactly", "[noise]") {
+  // 20 seeds of 3 h of white noise at 0.146 deg/h: a slow law enters only on a chi-square gain
+  // of 9 (3 sigma), so at most 2 of 20 may see one (a 0.3 % tail per law, and a few points).
+  int slow = 0;
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    const NoiseFloor f = read_floor(noise(10800, 0.146, 0.0, 0.0, seed), 0.146);
+    REQUIRE(f.measured());
+    slow += f.slow();
+  }
+  CHECK(slow <= 2);
+  // With no slow law the yardstick is the old rule: the AR process's std and k sigma_a.
+  const std::vector<double> y = noise(3600, 0.146, 0.0, 0.0, 99);
+  RunData r = rest_run(y);
+  std::vector<double> w(y.size(), 1.0);
+  NoiseRule rule;
+  rule.read_floor = false;
+  const std::vector<double> ar = {-0.005, -0.04};
+  const Yardstick ys = yardstick(r, y, w, ar, 0.146, y.size(), rule);
+  CHECK(ys.noise_std_dph == Approx(ar_process_std(ar, 0.146)).epsilon(1e-12));
+  CHECK(ys.threshold_dph == Approx(3.0 * 0.146).epsilon(1e-12));
+  CHECK(ys.limit_factor == 1.25);
+}
+
+TEST_CASE("noise floor: flicker and rate random walk are read off the holds with their strengths", "[noise]") {
+  // ARW 0.001 deg/sqrt(h) (0.06 deg/h a second) with a rate random walk of 0.1 deg/h/sqrt(h):
+  // over 3 h the walk dominates every tau above 30 s, so it must be seen; K within a factor 1.6
+  // (one 3 h record: about 24 independent 450 s clusters at the longest tau).
+  int seen = 0;
+  for (std::uint64_t seed = 1; seed <= 10; ++seed) {
+    const NoiseFloor f = read_floor(noise(10800, 0.06, 0.0, 0.1, seed), 0.06);
+    INFO(f.note);
+    if (f.walk_h > 0.0) {
+      ++seen;
+      CHECK(f.rrw_dph_per_sqrt_h > 0.1 / 1.6);
+      CHECK(f.rrw_dph_per_sqrt_h < 0.1 * 1.6);
+    }
+  }
+  CHECK(seen >= 9);
+  // Flicker of B = 0.05 deg/h: the Allan floor 0.664 B = 0.033 deg/h against white 0.06/sqrt(tau).
+  seen = 0;
+  for (std::uint64_t seed = 11; seed <= 20; ++seed) {
+    const NoiseFloor f = read_floor(noise(10800, 0.06, 0.05, 0.0, seed), 0.06);
+    INFO(f.note);
+    if (f.slow()) ++seen;
+    if (f.flicker_h > 0.0) {
+      CHECK(f.bias_instability_dph > 0.05 / 1.6);
+      CHECK(f.bias_instability_dph < 0.05 * 1.6);
+    }
+  }
+  CHECK(seen >= 9);
+}
+
+TEST_CASE("noise rule: slow noise widens the limits it may stray over, and the options name what is wrong", "[noise]") {
+  const std::vector<double> y = noise(10800, 0.06, 0.0, 0.1, 5);
+  RunData r = rest_run(y);
+  double m = 0.0;
+  for (double v : y) m += v;
+  m /= static_cast<double>(y.size());
+  std::vector<double> res(y.size()), w(y.size(), 1.0);
+  for (std::size_t i = 0; i < y.size(); ++i) res[i] = y[i] - m;
+  const std::vector<double> ar;
+  const Yardstick ys = yardstick(r, res, w, ar, 0.06, y.size());
+  REQUIRE(ys.floor.slow());
+  // The noise std over the run includes the walk: sqrt(0.06^2 + K^2 T / 21600) = 0.087 deg/h
+  // with K = 0.1, T = 3 h (K read within a factor 1.6: 0.07 .. 0.12 deg/h).
+  CHECK(ys.noise_std_dph > 0.07);
+  CHECK(ys.noise_std_dph < 0.12);
+  // The walk's variance over one run strays: the allowed factor is beyond the rule's 1.25.
+  CHECK(ys.limit_factor > 1.25);
+  // The threshold on the 61 s average: beyond 3 sigma_a = 0.18 deg/h by the walk's 7 demeaned sigmas.
+  CHECK(ys.threshold_dph > 3.0 * 0.06);
+  // This realisation's compensated std (the residual itself) is within what the floor allows.
+  double ss = 0.0;
+  for (double v : res) ss += v * v;
+  CHECK(std::sqrt(ss / static_cast<double>(res.size())) <= ys.limit_factor * ys.noise_std_dph);
+
+  NoiseRule bad;
+  bad.max_noise_factor = 0.5;
+  REQUIRE_FALSE(bad.validate());
+  CHECK(bad.validate().error().find("noise factor") != std::string::npos);
+  bad = {};
+  bad.smooth_s = 60;
+  CHECK(bad.validate().error().find("smooth_s") != std::string::npos);
+}

@@ -1,0 +1,105 @@
+// The workbench on gyros with the noise real FOGs have (flicker, rate random walk) and no
+// thermal effect beyond the paper's model: the paper's model must be called adequate and
+// verify must pass, since the yardstick is the gyro's own noise read off its holds, not AR(2)
+// whiteness; and a hidden effect well above that noise must still be found.
+#include <catch2/catch.hpp>
+#include <cmath>
+
+#include "fogbench/model/model.hpp"
+#include "fogbench/model/workbench.hpp"
+#include "fogbench/sim/sim.hpp"
+#include "programs.hpp"
+
+using namespace fogbench;
+namespace wb = model::workbench;
+
+namespace {
+
+using fogbench::test::program;
+
+struct Noise {
+  double arw_deg_per_sqrt_h, bias_instability_dph, rrw_dph_per_sqrt_h;
+};
+
+model::RunData run(const std::string& profile, std::uint64_t seed, const Noise& nz, const std::string& effect) {
+  sim::SimConfig cfg;
+  cfg.seed = seed;
+  auto& u = cfg.units[0];
+  u.coil.model = sim::CoilModel::lumped;  // the paper's model is the exact truth
+  u.effects = effect;
+  u.gyro.sigma_a_dph = 60.0 * nz.arw_deg_per_sqrt_h;  // ARW N deg/sqrt(h): 60 N deg/h a second
+  u.gyro.bias_instability_dph = nz.bias_instability_dph;
+  u.gyro.rrw_dph_per_sqrt_h = nz.rrw_dph_per_sqrt_h;
+  auto r = sim::simulate(cfg, program(profile));
+  REQUIRE(r);
+  model::RunData d = r->front();
+  d.name = profile;
+  return d;
+}
+
+}  // namespace
+
+TEST_CASE("workbench: real FOG noise with no thermal effect raises no alarm", "[noise]") {
+  // The corners of the range: ARW 0.001 to 0.01 deg/sqrt(h), bias instability up to
+  // 0.05 deg/h, rate random walk up to 0.1 deg/h/sqrt(h). Under AR(2) whiteness alone 2 to 9 of
+  // 10 seeds were NOT ADEQUATE; the goal is at most 5 %: here at most 1 alarm in 15 diagnoses
+  // (and as many verifies of 3 runs each).
+  const Noise cases[] = {{0.001, 0.0, 0.1}, {0.001, 0.05, 0.0}, {0.01, 0.05, 0.1}};
+  int alarms = 0, verdicts = 0, diagnoses = 0;
+  std::string why;  // each alarm's case and reasons, shown when the count fails
+  std::uint64_t seed = 500;
+  for (const auto& nz : cases) {
+    for (int k = 0; k < 5; ++k, seed += 10) {
+      const std::vector<model::RunData> r = {run("exp1", seed, nz, ""), run("exp2", seed + 1, nz, ""), run("exp3", seed + 2, nz, "")};
+      auto m = model::fit(r[0], *model::parse_terms("paper"));
+      REQUIRE(m);
+      auto d = wb::diagnose(*m, r[0], std::span<const model::RunData>(r).subspan(1));
+      REQUIRE(d);
+      ++diagnoses;
+      INFO("ARW " << nz.arw_deg_per_sqrt_h << " B " << nz.bias_instability_dph << " RRW " << nz.rrw_dph_per_sqrt_h << " seed " << seed);
+      INFO(d->summary);
+      for (const auto& c : d->checks) INFO(c.run << ": " << c.floor_note);
+      if (!d->adequate) {
+        ++alarms;
+        why += "ARW " + std::to_string(nz.arw_deg_per_sqrt_h) + " B " + std::to_string(nz.bias_instability_dph) + " RRW " +
+               std::to_string(nz.rrw_dph_per_sqrt_h) + " seed " + std::to_string(seed) + ":";
+        for (const auto& x : d->reasons) why += " [" + x + "]";
+        for (const auto& c : d->checks) why += " {" + c.run + ": " + c.floor_note + "}";
+        why += "\n";
+      }
+      // verify's second test (the same rule): the paper's ratio rule is not asked here, since at
+      // ARW 0.01 deg/sqrt(h) (0.6 deg/h a second) the noise alone is 33-46 % of the raw std,
+      // a true fail of the paper's rule, not an alarm.
+      for (const auto& x : r) {
+        auto v = model::verify(*m, x);
+        REQUIRE(v);
+        if (v->noise_factor > v->noise_limit_factor || v->longest_fail_s >= 60.0) ++verdicts;
+      }
+    }
+  }
+  CHECK(diagnoses == 15);
+  INFO(why);
+  CHECK(alarms <= 1);
+  CHECK(verdicts <= 2);
+}
+
+TEST_CASE("workbench: a hidden effect above the gyro's slow noise is still found", "[noise]") {
+  // 0.05 deg/h per degC of absolute-temperature sensitivity (tests/sim/workbench_hidden_effect_test:
+  // 2.1 x the no-effect level with AR noise) on a gyro with a rate random walk of 0.05
+  // deg/h/sqrt(h): the walk's variance over a 3 h run, K^2 T / 21600 = 0.0013 (deg/h)^2, is far
+  // below what the term removes (0.31^2 - 0.15^2 = 0.07), so the term is named.
+  const Noise nz{0.0024, 0.0, 0.05};
+  const std::vector<model::RunData> r = {run("exp1", 900, nz, "0.05*T1"), run("exp2", 901, nz, "0.05*T1"), run("exp3", 902, nz, "0.05*T1")};
+  auto m = model::fit(r[0], *model::parse_terms("paper"));
+  REQUIRE(m);
+  auto d = wb::diagnose(*m, r[0], std::span<const model::RunData>(r).subspan(1));
+  REQUIRE(d);
+  INFO(d->summary);
+  CHECK_FALSE(d->adequate);
+  REQUIRE_FALSE(d->steps.empty());
+  // T1 or one of its look-alikes on these profiles (T2, Ta, lp(T1,300): r > 0.99 once the
+  // paper's terms are regressed out), named as the headline.
+  const std::string first = d->steps.front().expr;
+  CHECK((first == "T1" || first == "T2" || first == "Ta" || first.rfind("lp(T1", 0) == 0));
+  CHECK(d->summary.find("Missing effect: " + d->steps.front().effect) == 0);
+}
