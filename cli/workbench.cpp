@@ -20,10 +20,11 @@ namespace {
 
 
 // Loads every run, naming the file in the error.
-std::expected<std::vector<model::RunData>, std::string> load_runs(const std::vector<std::string>& paths, const RunInput& in) {
+std::expected<std::vector<model::RunData>, std::string> load_runs(const std::vector<std::string>& paths, const RunInput& in,
+                                                                  QualityLog* log = nullptr) {
   std::vector<model::RunData> runs;
   for (const auto& p : paths) {
-    auto r = load_run(p, in);
+    auto r = load_run(p, in, log);
     if (!r) return std::unexpected(r.error());
     runs.push_back(std::move(*r));
   }
@@ -121,7 +122,8 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
     err << "fogctl diagnose: " << m.error() << "\n";
     return kExitError;
   }
-  auto runs = load_runs(o.runs, o.input);
+  QualityLog quality;
+  auto runs = load_runs(o.runs, o.input, &quality);
   if (!runs) {
     err << "fogctl diagnose: " << runs.error() << "\n";
     return kExitError;
@@ -156,13 +158,29 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
         << "\n";
     return kExitError;
   }
+  // A sensor problem left in the data (--quality warn) is the answer, before any physical
+  // term: what the search finds on such data is the fault's echo.
+  const bool adequate = d->adequate && !quality.sensor_problem;
   if (o.json) {
-    out << wb::to_json(*d).dump() << "\n";
-    return d->adequate ? kExitOk : kExitFailed;
+    auto j = wb::to_json(*d);
+    j["data_quality"] = quality.flags;
+    j["sensor_problem"] = quality.sensor_problem;
+    if (quality.sensor_problem) {
+      j["adequate"] = false;
+      j["headline"] = quality.headline;
+    }
+    out << j.dump() << "\n";
+    return adequate ? kExitOk : kExitFailed;
   }
   out << "diagnose: model " << o.model << " (" << d->model_terms << ", " << d->method << " method) refitted on " << d->fit_run;
   if (d->base_refitted_on_other_run) out << " (the model was fitted on other data: " << m->fitted_on.name << ")";
-  out << "\n\n" << (d->adequate ? "ADEQUATE: " : "NOT ADEQUATE: ") << d->summary << "\n\n";
+  out << "\n\n";
+  if (quality.sensor_problem)
+    out << "NOT ADEQUATE: " << quality.headline << ", not a physical effect: the search below ran on faulty data "
+        << "(--quality warn) and what it names may be the fault's echo\n\n";
+  for (const auto& l : quality.lines) out << "warning: " << l << "\n";
+  if (!quality.lines.empty()) out << "\n";
+  out << (d->adequate ? "ADEQUATE: " : "NOT ADEQUATE: ") << d->summary << "\n\n";
   for (const auto& e : model::lags_at_edge(*m)) out << "warning: in the model as given, " << e << "\n\n";
   out << "adequacy of " << d->model_terms << " (Ljung-Box p >= " << fixed(dopt.adequacy_alpha, 3) << ", comp std <= "
       << fixed(dopt.max_noise_factor, 2) << " x noise std, no failing interval):\n";
@@ -239,7 +257,7 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
   for (const auto& c : d->ccf)
     x.add({c.term, fixed(c.peak_r, 3), std::to_string(c.peak_lag_s), std::to_string(c.outside) + " of " + std::to_string(c.r.size())});
   out << x.str() << "\nrule: " << d->rule << "\n";
-  return d->adequate ? kExitOk : kExitFailed;
+  return adequate ? kExitOk : kExitFailed;
 }
 
 int run_fit_add(const FitAddOptions& o, std::ostream& out, std::ostream& err) {
