@@ -86,7 +86,7 @@ struct QualityOptions {
   // lumped coil: T1 behind T2 38 s, T2 behind Ta 105..116 s; distributed: 86..93 s and
   // 125..187 s (exp1..3, qualification).
   double min_wall_lag_s = -20.0;   // T2 behind Ta, s: the wall cannot lead the air
-  double max_wall_lag_s = 420.0;   // T2 behind Ta, s
+  double max_wall_lag_s = 360.0;   // T2 behind Ta, s
   double min_core_lag_s = -25.0;   // T1 behind T2, s: the centre cannot lead the wall
   double max_core_lag_s = 130.0;   // T1 behind T2, s
   // With Ta recorded: the centre's lag behind the wall as a share of the wall's behind the
