@@ -59,7 +59,7 @@ std::expected<model::RunData, std::string> check_run_quality(model::RunData run,
   }
   if (!refusal.empty()) {
     std::string msg = path + (any_sensor ? ": a sensor problem, not physics: refused before any model is fitted or applied:"
-                                         : ": time_s is not in seconds at 1 sample per s: refused:") +
+                                         : ": time_s is not one sample per second: refused:") +
                       refusal;
     if (!lines.empty()) {
       msg += "\n  (would also clean:";
