@@ -211,11 +211,19 @@ class Assessor {
     const auto& x = *s.x;
     std::vector<char> nan(n_, 0), out(n_, 0);
     for (std::size_t i = 0; i < n_; ++i) {
-      if (known_bad(i)) continue;
-      if (!std::isfinite(x[i])) nan[i] = 1;
-      else if (x[i] < o_.min_temp_c || x[i] > o_.max_temp_c) out[i] = 1;
+      if (!std::isfinite(x[i])) nan[i] = 1;  // flagged missing or not: the fits bridge it either way
+      else if (!known_bad(i) && (x[i] < o_.min_temp_c || x[i] > o_.max_temp_c)) out[i] = 1;
     }
-    const auto dropouts = runs_of(nan), outs = runs_of(out);
+    // A gap the recording flagged missing is the recording's own business up to max_bridge_s;
+    // beyond it the fits would bridge a long stretch by a straight line, silently.
+    std::vector<Interval> dropouts;
+    for (const auto& iv : runs_of(nan)) {
+      bool all_known = true;
+      for (std::size_t i = iv.first; i <= iv.last && all_known; ++i) all_known = known_bad(i);
+      if (all_known && static_cast<double>(iv.size()) <= o_.max_bridge_s) continue;
+      dropouts.push_back(iv);
+    }
+    const auto outs = runs_of(out);
     std::size_t n_nan = 0, n_out = 0;
     for (const auto& iv : dropouts) n_nan += iv.size();
     for (const auto& iv : outs) n_out += iv.size();

@@ -170,6 +170,20 @@ TEST_CASE("quality: a stuck, dropped-out or noisy thermistor is named with its i
         CHECK(f[0].end_s == run.time_s.back());
         CHECK_FALSE(f[0].cleanable);
       }
+      {
+        // A gap the recording flagged missing: 30 s is its own business, 600 s is named (the
+        // fits would bridge 10 minutes by a straight line).
+        for (std::size_t len : {30ul, 600ul}) {
+          auto run = simulated("exp1", 9, coil);
+          run.flags.assign(run.size(), 0);
+          for (std::size_t i = 3000; i < 3000 + len; ++i) column(run, sensor)[i] = std::nan(""), run.flags[i] = model::flag::missing;
+          const auto q = model::assess_quality(run);
+          INFO(describe(q));
+          const auto f = flags_of(q, sensor, model::QualityKind::dropout);
+          CHECK(f.size() == (len > 60 ? 1u : 0u));
+          CHECK(q.flags.size() == f.size());
+        }
+      }
       for (std::size_t len : {30ul, 300ul}) {
         // NaN not flagged missing: a dropout; up to 60 s bridged by default.
         auto run = simulated("exp1", 9, coil);
@@ -221,9 +235,10 @@ TEST_CASE("quality: an offset between the twins on settled holds names the one o
   // Settled holds read T1 = T2 = Ta within 0.005 degC (the probe: median T1 - T2 under 0.005);
   // 0.8 degC on one thermistor is over the 0.5 bound, 0.3 is under it.
   for (auto coil : kCoils)
+    for (const std::string p : {"exp1", "exp2", "exp3"})
     for (const std::string sensor : {"T1", "T2"})
       for (double off : {0.8, -1.5, 0.3}) {
-        auto run = simulated("exp3", 14, coil);
+        auto run = simulated(p, 14, coil);
         for (auto& v : column(run, sensor)) v += off;
         const auto q = model::assess_quality(run);
         INFO(sim::to_string(coil) << " " << sensor << " + " << off << describe(q));
