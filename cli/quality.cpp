@@ -4,6 +4,7 @@
 #include <iostream>
 
 #include "fogbench/model/model.hpp"
+#include "run_identity.hpp"
 #include "table.hpp"
 
 namespace fogbench::cli {
@@ -77,6 +78,27 @@ std::expected<model::RunData, std::string> check_run_quality(model::RunData run,
     else std::cerr << "warning: " << s << "\n";
   }
   return std::move(cleaned.run);
+}
+
+std::expected<void, std::string> check_one_gyro(const std::vector<std::string>& paths, const std::string& mode,
+                                                std::vector<std::string>& warnings) {
+  if (mode == "off") return {};
+  std::vector<std::pair<std::string, std::string>> serials;  // path, serial
+  for (const auto& p : paths)
+    for (const auto& [k, v] : csv_file_identity(p))
+      if (k == "serial" && !v.empty()) serials.emplace_back(p, v);
+  for (std::size_t i = 1; i < serials.size(); ++i) {
+    if (serials[i].second == serials[0].second) continue;
+    std::string msg = "runs of different gyros given as one gyro's: ";
+    for (std::size_t j = 0; j < serials.size(); ++j) msg += (j ? ", " : "") + serials[j].first + " is " + serials[j].second;
+    msg += " (their '# serial:' lines); a drift model describes one gyro: give the runs of one serial";
+    if (mode == "warn") {
+      warnings.push_back(msg + " (--quality warn: used as given)");
+      return {};
+    }
+    return std::unexpected(msg + ", or --quality warn to use them anyway");
+  }
+  return {};
 }
 
 std::vector<std::string> identification_lines(const model::Model& m, const model::RunData& run) {

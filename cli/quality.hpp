@@ -4,6 +4,7 @@
 
 #include <expected>
 #include <string>
+#include <vector>
 
 #include "common.hpp"
 #include "fogbench/model/quality.hpp"
@@ -16,6 +17,13 @@ namespace fogbench::cli {
 // refusal then names the whole command that reads the file.
 std::expected<model::RunData, std::string> check_run_quality(model::RunData run, const std::string& path, const std::string& mode,
                                                              QualityLog* log, const std::string& retry = {});
+
+// Runs a command treats as one gyro's (diagnose's fit and held-out runs, a lineage's runs): an
+// error when their `# serial:` comment lines (docs/csv.md, the run's identity) name different
+// gyros, naming each file and serial; with --quality warn or off, a warning line instead (in
+// `warnings`). Runs without a serial line are not judged.
+std::expected<void, std::string> check_one_gyro(const std::vector<std::string>& paths, const std::string& mode,
+                                                std::vector<std::string>& warnings);
 
 // One flag as JSON, with the run and what was done ("refused", "cleaned", "warned").
 nlohmann::json to_json(const model::QualityFlag& f, const std::string& run, const std::string& action);

@@ -10,6 +10,7 @@
 
 #include "fogbench/model/json.hpp"
 #include "fogbench/model/workbench.hpp"
+#include "quality.hpp"
 #include "table.hpp"
 
 namespace fogbench::cli {
@@ -123,6 +124,10 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
     return kExitError;
   }
   QualityLog quality;
+  if (auto one = check_one_gyro(o.runs, o.input.quality, quality.lines); !one) {
+    err << "fogctl diagnose: " << one.error() << "\n";
+    return kExitError;
+  }
   auto runs = load_runs(o.runs, o.input, &quality);
   if (!runs) {
     err << "fogctl diagnose: " << runs.error() << "\n";
@@ -330,6 +335,12 @@ int run_lineage(const LineageOptions& o, std::ostream& out, std::ostream& err) {
     err << "fogctl lineage: " << m.error() << "\n";
     return kExitError;
   }
+  std::vector<std::string> warnings;
+  if (auto one = check_one_gyro(o.runs, o.input.quality, warnings); !one) {
+    err << "fogctl lineage: " << one.error() << "\n";
+    return kExitError;
+  }
+  for (const auto& w : warnings) err << "warning: " << w << "\n";
   auto runs = load_runs(o.runs, o.input);
   if (!runs) {
     err << "fogctl lineage: " << runs.error() << "\n";

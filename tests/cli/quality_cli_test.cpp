@@ -229,3 +229,36 @@ TEST_CASE("fogctl fit: a hold-only run says its coefficients are not identified"
   CHECK_THAT(all, Contains("no temperature excitation"));
   CHECK_THAT(fit(save(d, "hold2.csv", run)).out, Contains("warning: not identified:"));
 }
+
+TEST_CASE("fogctl diagnose and lineage: runs of two gyros given as one are refused, naming each serial", "[quality]") {
+  TempDir d;
+  const auto a = simulated(d, "exp1", 28, "distributed"), b = simulated(d, "exp2", 29, "distributed");
+  const std::string model = d.file("m.json");
+  const std::string pa = save(d, "a.csv", a);
+  REQUIRE(fit(pa, "check", false, model).code == 0);
+  // The run's identity as fogctl run export writes it (docs/csv.md): `# serial: ...` above the header.
+  auto with_serial = [&](const std::string& name, const model::RunData& r, const std::string& serial) {
+    const std::string p = d.file(name);
+    std::ofstream(p) << "# software_version: 0.1.0\n# serial: " << serial << "\n" << storage::to_csv(r);
+    return p;
+  };
+  const std::string one = with_serial("one.csv", a, "FOG-0001"), other = with_serial("other.csv", b, "FOG-0002");
+  DiagnoseCommandOptions o;
+  o.model = model;
+  o.runs = {one, other};
+  o.search = "library";
+  o.max_terms = 1;
+  std::ostringstream out, err;
+  CHECK(run_diagnose(o, out, err) == 2);
+  CHECK_THAT(err.str(), Contains(one + " is FOG-0001") && Contains(other + " is FOG-0002"));
+  LineageOptions l;
+  l.model = model;
+  l.runs = {one, other};
+  std::ostringstream out2, err2;
+  CHECK(run_lineage(l, out2, err2) == 2);
+  CHECK_THAT(err2.str(), Contains("different gyros"));
+  // One serial: no complaint.
+  l.runs = {one, with_serial("again.csv", b, "FOG-0001")};
+  std::ostringstream out3, err3;
+  CHECK(run_lineage(l, out3, err3) == 0);
+}
