@@ -506,7 +506,7 @@ class Assessor {
     if (core_long && !wall_long)
       says("T1", *core, figures + ": T1 lags the coil it sits in");
     else if (wall_long || core_short)
-      says("T2", wall_long ? *wall : *core, figures + ": T2 lags the coil it sits on");
+      says("T2", wall_long ? *wall : *core, figures + ": T2 lags the coil's outer wall it should read (or T1 is not at the coil's centre)");
     else if (wall_lead && !air_bad)
       says("Ta", *wall, figures + ": the wall leads the air that heats it, so the air's reading lags");
   }
