@@ -58,8 +58,9 @@ int run_compare(const CompareCommandOptions& o, std::ostream& out, std::ostream&
   nlohmann::json results = nlohmann::json::array();
   std::string text;
   bool adequate = true;
+  QualityLog quality;
   for (const auto& path : o.runs) {
-    auto run = load_run(path, o.input);
+    auto run = load_run(path, o.input, &quality);
     if (!run) {
       err << "fogctl compare: " << run.error() << "\n";
       return kExitError;
@@ -100,9 +101,13 @@ int run_compare(const CompareCommandOptions& o, std::ostream& out, std::ostream&
     }
   }
   if (o.json) {
-    out << nlohmann::json{{"model", o.model}, {"terms", m->terms_string()}, {"runs", results}, {"adequate", adequate}}.dump() << "\n";
+    out << nlohmann::json{{"model", o.model}, {"terms", m->terms_string()}, {"runs", results}, {"adequate", adequate},
+                          {"data_quality", quality.flags}}.dump() << "\n";
   } else {
-    out << "compare: model " << o.model << " (" << m->terms_string() << ")\n\n" << text;
+    out << "compare: model " << o.model << " (" << m->terms_string() << ")\n\n";
+    for (const auto& l : quality.lines) out << "warning: " << l << "\n";
+    if (!quality.lines.empty()) out << "\n";
+    out << text;
     if (!adequate) {
       out << "next: find the missing effect with\n  fogctl diagnose --model " << o.model;
       for (const auto& r : o.runs) out << " " << r;
