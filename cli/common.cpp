@@ -12,12 +12,13 @@
 #include <sstream>
 
 #include "fogbench/model/json.hpp"
+#include "quality.hpp"
 #include "fogbench/storage/run_data.hpp"
 #include "fogbench/storage/csv.hpp"
 
 namespace fogbench::cli {
 
-std::expected<model::RunData, std::string> load_run(const std::string& path, const RunInput& in) {
+std::expected<model::RunData, std::string> load_run(const std::string& path, const RunInput& in, QualityLog* log) {
   storage::CsvOptions o;
   o.resample_s = in.resample_s;
   o.skip = in.skip;
@@ -33,9 +34,11 @@ std::expected<model::RunData, std::string> load_run(const std::string& path, con
     if (!cm) return std::unexpected("--map " + m + ": " + cm.error().message);
     o.column_map.push_back(*cm);
   }
+  if (in.time_unit == "ms") o.time_scale = 1e-3;
+  else if (in.time_unit != "s") return std::unexpected("--time-unit " + in.time_unit + ": expected s or ms");
   auto r = storage::read_csv_file(path, o);
   if (!r) return std::unexpected(r.error().message);
-  return std::move(*r);
+  return check_run_quality(std::move(*r), path, in.quality, log, in.retry);
 }
 
 void add_run_input(CLI::App* c, RunInput& in) {
@@ -44,6 +47,12 @@ void add_run_input(CLI::App* c, RunInput& in) {
   c->add_option("--delimiter", in.delimiter,
                 "Field separator: ',', ';' or tab (\"\\t\"); default: ';' or tab when the header row has no ',' (docs/csv.md)");
   c->add_flag("--decimal-comma", in.decimal_comma, "Numbers written with a decimal comma (1,5), with ';' or tab between the fields");
+  c->add_option("--time-unit", in.time_unit, "Unit of the file's time_s column: s (default) or ms (converted to s as it is read)")
+      ->check(CLI::IsMember({"s", "ms"}));
+  c->add_option("--quality", in.quality,
+                "Data-quality check before physics: check (default: cleans short dropouts and isolated gyro spikes, refuses other "
+                "sensor problems), clean (cleans every cleanable one), warn (refuses nothing, warns), off; docs/data-quality.md")
+      ->check(CLI::IsMember({"check", "clean", "warn", "off"}));
 }
 
 namespace {

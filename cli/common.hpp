@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "fogbench/model/model.hpp"
 #include "fogbench/profiles/profile.hpp"
 
@@ -33,10 +35,33 @@ struct RunInput {
   std::vector<std::string> skip;  // optional columns the command does not use
   std::string delimiter;          // --delimiter: ',', ';', tab or "\t"; empty: detected
   bool decimal_comma = false;     // --decimal-comma
+  std::string time_unit = "s";    // --time-unit: s or ms (the file's time_s column is read in this unit)
+  // --quality: the data-quality check before physics (docs/data-quality.md): `check` cleans a
+  // short dropout and an isolated gyro spike and refuses every other sensor problem, `clean`
+  // cleans every cleanable one and refuses the rest, `warn` refuses nothing and warns, `off`
+  // skips the check.
+  std::string quality = "check";
+  // The command as the user gave it, for hints that name a whole working command (e.g. "fogctl
+  // fit run.csv"); empty: hints name the option only.
+  std::string retry;
 };
 
-std::expected<model::RunData, std::string> load_run(const std::string& path, const RunInput& in);
-// Adds --map and --resample to a command that reads runs.
+// What the data-quality check found and did on the runs a command loaded: one line per
+// cleaned or warned problem (printed as `warning:` lines) and the flags as JSON.
+struct QualityLog {
+  std::vector<std::string> lines;
+  nlohmann::json flags = nlohmann::json::array();  // [{run, sensor, kind, start_s, end_s, value, unit, evidence, action, remedy}]
+  bool sensor_problem = false;                     // a problem was left in the data (--quality warn)
+  std::string headline;                            // "a sensor problem: T1 lag at 0..5400 s" when sensor_problem
+};
+
+// Reads a run's CSV and runs the data-quality check of `in.quality` on it: the run (cleaned
+// where the mode cleans) or an error naming the file, the sensor, the interval and what to do.
+// What was cleaned or warned is added to `log`, or printed to stderr as `warning:` lines when
+// log is null (never silent).
+std::expected<model::RunData, std::string> load_run(const std::string& path, const RunInput& in, QualityLog* log = nullptr);
+// Adds --map, --resample, --delimiter, --decimal-comma, --time-unit and --quality to a command
+// that reads runs.
 void add_run_input(CLI::App* command, RunInput& in);
 std::expected<model::Model, std::string> load_model(const std::string& path);
 std::expected<void, std::string> write_text(const std::string& path, const std::string& text);

@@ -9,6 +9,7 @@
 #include "fogbench/storage/csv.hpp"
 #include "options.hpp"
 #include "progress.hpp"
+#include "quality.hpp"
 #include "simulate_profile.hpp"
 #include "table.hpp"
 #include "workbench.hpp"
@@ -155,12 +156,18 @@ int run_fit(const FitCommandOptions& o, std::ostream& out, std::ostream& err) {
   input.skip.push_back("step");
   bool uses_ta = false;
   for (const auto& t : terms->terms) uses_ta = uses_ta || model::uses_signal(*t.expr, model::Signal::Ta);
-  if (!uses_ta) input.skip.push_back("chamber_c");
-  auto run = load_run(o.run, input);
+  // The quality check reads the air (a thermistor's lag is judged against it) unless it is off.
+  if (!uses_ta && input.quality == "off") input.skip.push_back("chamber_c");
+  input.retry = "fogctl fit " + o.run + (o.terms == "paper" ? "" : " --terms \"" + o.terms + "\"") +
+                (o.method.empty() ? "" : " --method " + o.method);
+  QualityLog quality;
+  auto run = load_run(o.run, input, &quality);
   if (!run) {
     err << "fogctl fit: " << run.error() << "\n";
     return kExitError;
   }
+  // Read for the quality check only: the fit sees the run as it did without it.
+  if (!uses_ta) run->chamber_c.clear();
   auto model = model::fit(*run, *terms, fo);
   if (!model) {
     err << "fogctl fit: " << o.run << ": " << model.error().message << "\n";
@@ -174,11 +181,18 @@ int run_fit(const FitCommandOptions& o, std::ostream& out, std::ostream& err) {
       return kExitError;
     }
   }
+  // Coefficients this run does not determine are said, never left silent.
+  const auto unidentified = identification_lines(*model, *run);
   if (o.json) {
-    out << j.dump() << "\n";
+    nlohmann::json shown = j;
+    shown["data_quality"] = quality.flags;
+    shown["identification"] = unidentified;
+    out << shown.dump() << "\n";
   } else {
     out << describe_model(*model);
     for (const auto& e : model::lags_at_edge(*model)) out << "\nwarning: " << e << "\n";
+    for (const auto& l : quality.lines) out << "\nwarning: " << l << "\n";
+    for (const auto& w : unidentified) out << "\nwarning: not identified: " << w << "\n";
     if (!o.output.empty()) out << "\nmodel written to " << o.output << "\n";
   }
   return kExitOk;
@@ -213,8 +227,9 @@ int run_verify(const VerifyOptions& o, std::ostream& out, std::ostream& err) {
     err << "fogctl verify: " << as_typed(ok.error(), {{"the noise factor", "--noise-factor"}, {"the longest failing interval", "--max-fail"}, {"threshold", "--threshold"}}) << "\n";
     return kExitError;
   }
+  QualityLog quality;
   for (const auto& path : o.runs) {
-    auto run = load_run(path, o.input);
+    auto run = load_run(path, o.input, &quality);
     if (!run) {
       err << "fogctl verify: " << run.error() << "\n";
       return kExitError;
@@ -239,10 +254,12 @@ int run_verify(const VerifyOptions& o, std::ostream& out, std::ostream& err) {
   }
   if (o.json) {
     if (results.size() == 1) {
-      out << results[0].dump() << "\n";
+      auto one = results[0];
+      one["data_quality"] = quality.flags;
+      out << one.dump() << "\n";
     } else {
       out << nlohmann::json{{"runs", results}, {"pass", all_pass}, {"verdict", all_pass ? "pass" : any_fail ? "fail" : "marginal"},
-                            {"threshold", o.threshold}}.dump() << "\n";
+                            {"threshold", o.threshold}, {"data_quality", quality.flags}}.dump() << "\n";
     }
   } else {
     out << "Table 1 (deg/h): model " << o.model << " (" << m->terms_string() << "), pass when comp/raw < "
@@ -252,6 +269,7 @@ int run_verify(const VerifyOptions& o, std::ostream& out, std::ostream& err) {
           << fixed(vo.noise.max_fail_s, 0) << " s or more (else MARGINAL)";
     out << "\n\n" << t.str() << "\nper phase:\n" << ph.str();
     for (const auto& why : reasons) out << "not passed: " << why << "\n";
+    for (const auto& l : quality.lines) out << "warning: " << l << "\n";
   }
   return all_pass ? kExitOk : any_fail ? kExitFailed : kExitMarginal;
 }

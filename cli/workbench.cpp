@@ -10,6 +10,7 @@
 
 #include "fogbench/model/json.hpp"
 #include "fogbench/model/workbench.hpp"
+#include "quality.hpp"
 #include "table.hpp"
 
 namespace fogbench::cli {
@@ -20,10 +21,11 @@ namespace {
 
 
 // Loads every run, naming the file in the error.
-std::expected<std::vector<model::RunData>, std::string> load_runs(const std::vector<std::string>& paths, const RunInput& in) {
+std::expected<std::vector<model::RunData>, std::string> load_runs(const std::vector<std::string>& paths, const RunInput& in,
+                                                                  QualityLog* log = nullptr) {
   std::vector<model::RunData> runs;
   for (const auto& p : paths) {
-    auto r = load_run(p, in);
+    auto r = load_run(p, in, log);
     if (!r) return std::unexpected(r.error());
     runs.push_back(std::move(*r));
   }
@@ -57,8 +59,9 @@ int run_compare(const CompareCommandOptions& o, std::ostream& out, std::ostream&
   nlohmann::json results = nlohmann::json::array();
   std::string text;
   bool adequate = true;
+  QualityLog quality;
   for (const auto& path : o.runs) {
-    auto run = load_run(path, o.input);
+    auto run = load_run(path, o.input, &quality);
     if (!run) {
       err << "fogctl compare: " << run.error() << "\n";
       return kExitError;
@@ -100,9 +103,13 @@ int run_compare(const CompareCommandOptions& o, std::ostream& out, std::ostream&
     }
   }
   if (o.json) {
-    out << nlohmann::json{{"model", o.model}, {"terms", m->terms_string()}, {"runs", results}, {"adequate", adequate}}.dump() << "\n";
+    out << nlohmann::json{{"model", o.model}, {"terms", m->terms_string()}, {"runs", results}, {"adequate", adequate},
+                          {"data_quality", quality.flags}}.dump() << "\n";
   } else {
-    out << "compare: model " << o.model << " (" << m->terms_string() << ")\n\n" << text;
+    out << "compare: model " << o.model << " (" << m->terms_string() << ")\n\n";
+    for (const auto& l : quality.lines) out << "warning: " << l << "\n";
+    if (!quality.lines.empty()) out << "\n";
+    out << text;
     if (!adequate) {
       out << "next: find the missing effect with\n  fogctl diagnose --model " << o.model;
       for (const auto& r : o.runs) out << " " << r;
@@ -123,7 +130,12 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
     err << "fogctl diagnose: " << m.error() << "\n";
     return kExitError;
   }
-  auto runs = load_runs(o.runs, o.input);
+  QualityLog quality;
+  if (auto one = check_one_gyro(o.runs, o.input.quality, quality.lines); !one) {
+    err << "fogctl diagnose: " << one.error() << "\n";
+    return kExitError;
+  }
+  auto runs = load_runs(o.runs, o.input, &quality);
   if (!runs) {
     err << "fogctl diagnose: " << runs.error() << "\n";
     return kExitError;
@@ -158,13 +170,29 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
         << "\n";
     return kExitError;
   }
+  // A sensor problem left in the data (--quality warn) is the answer, before any physical
+  // term: what the search finds on such data is the fault's echo.
+  const bool adequate = d->adequate && !quality.sensor_problem;
   if (o.json) {
-    out << wb::to_json(*d).dump() << "\n";
-    return d->adequate ? kExitOk : kExitFailed;
+    auto j = wb::to_json(*d);
+    j["data_quality"] = quality.flags;
+    j["sensor_problem"] = quality.sensor_problem;
+    if (quality.sensor_problem) {
+      j["adequate"] = false;
+      j["headline"] = quality.headline;
+    }
+    out << j.dump() << "\n";
+    return adequate ? kExitOk : kExitFailed;
   }
   out << "diagnose: model " << o.model << " (" << d->model_terms << ", " << d->method << " method) refitted on " << d->fit_run;
   if (d->base_refitted_on_other_run) out << " (the model was fitted on other data: " << m->fitted_on.name << ")";
-  out << "\n\n" << (d->adequate ? "ADEQUATE: " : "NOT ADEQUATE: ") << d->summary << "\n\n";
+  out << "\n\n";
+  if (quality.sensor_problem)
+    out << "NOT ADEQUATE: " << quality.headline << ", not a physical effect: the search below ran on faulty data "
+        << "(--quality warn) and what it names may be the fault's echo\n\n";
+  for (const auto& l : quality.lines) out << "warning: " << l << "\n";
+  if (!quality.lines.empty()) out << "\n";
+  out << (d->adequate ? "ADEQUATE: " : "NOT ADEQUATE: ") << d->summary << "\n\n";
   for (const auto& e : model::lags_at_edge(*m)) out << "warning: in the model as given, " << e << "\n\n";
   out << "adequacy of " << d->model_terms << " (Ljung-Box p >= " << fixed(dopt.adequacy_alpha, 3) << ", comp std <= "
       << fixed(dopt.failing.noise.max_noise_factor, 2) << " x the gyro's noise std, no failing interval):\n";
@@ -250,7 +278,7 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
   for (const auto& c : d->ccf)
     x.add({c.term, fixed(c.peak_r, 3), std::to_string(c.peak_lag_s), std::to_string(c.outside) + " of " + std::to_string(c.r.size())});
   out << x.str() << "\nrule: " << d->rule << "\n";
-  return d->adequate ? kExitOk : kExitFailed;
+  return adequate ? kExitOk : kExitFailed;
 }
 
 int run_fit_add(const FitAddOptions& o, std::ostream& out, std::ostream& err) {
@@ -323,6 +351,12 @@ int run_lineage(const LineageOptions& o, std::ostream& out, std::ostream& err) {
     err << "fogctl lineage: " << m.error() << "\n";
     return kExitError;
   }
+  std::vector<std::string> warnings;
+  if (auto one = check_one_gyro(o.runs, o.input.quality, warnings); !one) {
+    err << "fogctl lineage: " << one.error() << "\n";
+    return kExitError;
+  }
+  for (const auto& w : warnings) err << "warning: " << w << "\n";
   auto runs = load_runs(o.runs, o.input);
   if (!runs) {
     err << "fogctl lineage: " << runs.error() << "\n";

@@ -14,11 +14,15 @@ std::expected<void, FitError> check_time(const RunData& run) {
   const std::size_t n = run.size();
   for (std::size_t t = 1; t < n; ++t) {
     const double dt = run.time_s[t] - run.time_s[t - 1];
+    // A step of 1000 is time in milliseconds: resampling it "every 1 s" would invent 999 of
+    // every 1000 samples, so the hint says to convert the unit instead.
     if (std::abs(dt - 1.0) > 0.01)
       return fail(FitError::Code::uneven_time,
                   "samples " + std::to_string(t) + " and " + std::to_string(t + 1) + " are " + std::to_string(dt) +
-                      " s apart (at time_s " + std::to_string(run.time_s[t - 1]) +
-                      "); the model works on 1 s samples: resample the run (fogctl --resample 1)");
+                      " s apart (at time_s " + std::to_string(run.time_s[t - 1]) + "); the model works on 1 s samples: " +
+                      (std::abs(dt - 1000.0) <= 10.0
+                           ? "time_s looks like milliseconds, convert it to seconds (fogctl: add --time-unit ms to the command)"
+                           : "resample the run onto 1 s (fogctl: add --resample 1 to the command)"));
   }
   return {};
 }

@@ -280,6 +280,8 @@ class Parser {
     if (data_.size() == 0)
       return fail(CsvErrc::no_data, 0, 0, "no data rows after the header on line " +
                                                   std::to_string(header_line_));
+    if (options_.time_scale != 1.0)
+      for (auto& t : data_.time_s) t *= options_.time_scale;
     if (options_.resample_s) return resample(*options_.resample_s);
     if (auto ok = check_spacing(); !ok) return std::unexpected(ok.error());
     return std::move(data_);
@@ -309,6 +311,9 @@ class Parser {
   }
 
   std::expected<void, CsvError> check_options() {
+    if (!(std::isfinite(options_.time_scale) && options_.time_scale > 0))
+      return fail(CsvErrc::bad_option, 0, 0,
+                  "the time scale must be a positive number, got " + format_number(options_.time_scale));
     if (const auto& dt = options_.resample_s; dt && !(std::isfinite(*dt) && *dt > 0))
       return fail(CsvErrc::bad_option, 0, 0,
                   "--resample: the interval must be a positive number of seconds, got " +
@@ -732,6 +737,17 @@ class Parser {
                       " s would make " + format_number(points) + " rows; is the interval in s?");
     const auto m = static_cast<std::size_t>(points);
     const double gap = kGapSteps * median_step();
+    // Resampling far finer than the recording invents nearly every row: a time column in
+    // milliseconds read as seconds (1000 per sample, resampled every 1 s) is the usual cause.
+    if (n >= 3 && median_step() >= 100.0 * dt)
+      return fail(CsvErrc::bad_option, 0, 0,
+                  "resampling every " + format_number(dt) + " s a run whose time_s advances by " +
+                      format_number(median_step()) + " per sample would invent " +
+                      format_number(std::round(median_step() / dt) - 1) +
+                      " of every " + format_number(std::round(median_step() / dt)) + " rows" +
+                      (std::abs(median_step() - 1000.0) <= 10.0
+                           ? "; time_s looks like milliseconds: read it with --time-unit ms (and no --resample)"
+                           : "; is time_s in s?"));
 
     model::RunData out;
     out.name = in.name;

@@ -245,8 +245,10 @@ TEST_CASE("fogctl fit: a CSV of a million rows imports and fits") {
     char buf[128];
     for (int i = 0; i < 1000000; ++i) {
       const double t1 = 20.0 + 10.0 * std::sin(i / 3000.0);
+      // The wall leads the centre (T2 = T1 + 0.2 cos: about 60 s ahead), as heat flows in
+      // from outside; the centre leading the wall is a sensor problem the fit refuses.
       std::snprintf(buf, sizeof buf, "%d,%.4f,%.4f,%.4f\n", i, -8.0 + 0.3 * std::cos(i / 3000.0) + 0.1 * std::sin(i * 1.3), t1,
-                    t1 - 0.2 * std::cos(i / 3000.0));
+                    t1 + 0.2 * std::cos(i / 3000.0));
       o << buf;
     }
   }

@@ -71,6 +71,9 @@ struct CsvOptions {
   std::optional<char> delimiter;
   // Numbers written with a decimal comma (1,5): only with a ';' or tab separator.
   bool decimal_comma = false;
+  // time_s is multiplied by this as it is read, before the spacing check and resampling:
+  // 1e-3 reads a time column written in milliseconds (fogctl --time-unit ms).
+  double time_scale = 1.0;
 };
 
 // The canonical column names, required first: time_s, gyro_dph, t1_c, t2_c, then the optional
