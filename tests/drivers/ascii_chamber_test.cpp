@@ -6,6 +6,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include <fstream>
+
 #include "fogbench/drivers/chamber_dialects.hpp"
 #include "fogbench/drivers/chamber_registry.hpp"
 #include "fogbench/drivers/config.hpp"
@@ -386,5 +388,18 @@ TEST_CASE("simserv: a controller answering in another dialect, and a half line a
     auto p = chamber.poll();
     REQUIRE_FALSE(p);
     CHECK_THAT(p.error().message, Catch::Contains("'11004<B6>1<B6>1' answered '1<B6>warm', not a number"));
+  }
+}
+
+TEST_CASE("the example configurations of the ASCII chambers parse") {
+  for (const char* name : {"espec-tcp.json", "espec-serial.json", "simserv.json"}) {
+    INFO(name);
+    std::ifstream in(std::string(FOGBENCH_SOURCE_DIR "/drivers/examples/") + name);
+    REQUIRE(in);
+    auto cfg = parse_drivers_config(json::parse(in), map_dir);
+    INFO((cfg ? std::string() : cfg.error().to_string()));
+    REQUIRE(cfg);
+    CHECK(cfg->chamber.kind == std::string(name).substr(0, std::string(name).find_first_of("-.")));
+    CHECK(cfg->chamber.line.response_timeout_ms == 1000);
   }
 }
