@@ -128,7 +128,7 @@ struct Server::Impl {
   std::optional<asio::executor_work_guard<asio::io_context::executor_type>> wguard;
   std::thread wthread;
   std::unique_ptr<drivers::Chamber> chamber;
-  std::unique_ptr<drivers::ThermistorModule> thermistors;
+  std::unique_ptr<drivers::ThermistorSource> thermistors;
   // The thermistor module's own worker (polls only; with the shared simulated clock the
   // module is read on the worker above, in the job of each second, and this one stays idle).
   asio::io_context tio;

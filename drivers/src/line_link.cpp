@@ -183,7 +183,10 @@ Result<std::string> LineLink::exchange(std::string_view command, std::string_vie
   out += line_end_;
   std::size_t sent = 0;
   while (sent < out.size()) {
-    ssize_t n = ::write(fd_, out.data() + sent, out.size() - sent);
+    // MSG_NOSIGNAL: a peer that closed is an error value here, not a SIGPIPE for the process.
+    ssize_t n = endpoint_.transport == LineEndpoint::Transport::tcp
+                    ? ::send(fd_, out.data() + sent, out.size() - sent, MSG_NOSIGNAL)
+                    : ::write(fd_, out.data() + sent, out.size() - sent);
     if (n > 0) {
       sent += static_cast<std::size_t>(n);
       continue;
