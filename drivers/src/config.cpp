@@ -30,6 +30,26 @@ std::string ModbusEndpoint::describe() const {
   return out + " unit " + std::to_string(unit_id);
 }
 
+namespace {
+
+// {"initial_ms", "max_ms", "multiplier"}, each optional over `fallback`: one shape for every link.
+Result<BackoffConfig> parse_backoff(const json& value, const std::string& bp, BackoffConfig fallback) {
+  if (auto ok = detail::expect_object(value, bp); !ok) return std::unexpected(ok.error());
+  if (auto ok = detail::expect_known_keys(value, bp, {"initial_ms", "max_ms", "multiplier"}); !ok) {
+    return std::unexpected(ok.error());
+  }
+  FOGBENCH_TRY(initial, detail::get_int_or(value, bp, "initial_ms", 1, 3600000, fallback.initial_ms));
+  FOGBENCH_TRY(max, detail::get_int_or(value, bp, "max_ms", 1, 3600000, fallback.max_ms));
+  FOGBENCH_TRY(mult, detail::get_number_or(value, bp, "multiplier", fallback.multiplier));
+  if (*max < *initial) {
+    return config_error(join_path(bp, "max_ms"), "must be at least initial_ms (" + std::to_string(*initial) + ")");
+  }
+  if (*mult < 1.0 || *mult > 10.0) return config_error(join_path(bp, "multiplier"), "expected a number 1..10");
+  return BackoffConfig{*initial, *max, *mult};
+}
+
+}  // namespace
+
 Result<ModbusEndpoint> parse_modbus_endpoint(const json& value, const std::string& path) {
   if (auto ok = detail::expect_object(value, path); !ok) return std::unexpected(ok.error());
   if (auto ok = detail::expect_known_keys(
@@ -87,22 +107,8 @@ Result<ModbusEndpoint> parse_modbus_endpoint(const json& value, const std::strin
   ep.response_timeout_ms = static_cast<int>(*timeout);
 
   if (auto it = value.find("backoff"); it != value.end()) {
-    const auto bp = join_path(path, "backoff");
-    if (auto ok = detail::expect_object(*it, bp); !ok) return std::unexpected(ok.error());
-    if (auto ok = detail::expect_known_keys(*it, bp, {"initial_ms", "max_ms", "multiplier"}); !ok) {
-      return std::unexpected(ok.error());
-    }
-    FOGBENCH_TRY(initial, detail::get_int_or(*it, bp, "initial_ms", 1, 3600000, ep.backoff.initial_ms));
-    FOGBENCH_TRY(max, detail::get_int_or(*it, bp, "max_ms", 1, 3600000, ep.backoff.max_ms));
-    FOGBENCH_TRY(mult, detail::get_number_or(*it, bp, "multiplier", ep.backoff.multiplier));
-    if (*max < *initial) {
-      return config_error(join_path(bp, "max_ms"), "must be at least initial_ms (" +
-                                                       std::to_string(*initial) + ")");
-    }
-    if (*mult < 1.0 || *mult > 10.0) {
-      return config_error(join_path(bp, "multiplier"), "expected a number 1..10");
-    }
-    ep.backoff = {*initial, *max, *mult};
+    FOGBENCH_TRY(backoff, parse_backoff(*it, join_path(path, "backoff"), ep.backoff));
+    ep.backoff = *backoff;
   }
   return ep;
 }
@@ -202,12 +208,9 @@ Result<LineEndpoint> parse_line_endpoint(const json& value, const std::string& p
   }
   FOGBENCH_TRY(timeout, detail::get_int_or(value, path, "response_timeout_ms", 1, 60000, 1000));
   ep.response_timeout_ms = static_cast<int>(*timeout);
-  // The backoff object is read as for a Modbus endpoint (one shape, one set of checks).
   if (auto it = value.find("backoff"); it != value.end()) {
-    json modbus_like = {{"transport", "tcp"}, {"host", "x"}, {"backoff", *it}};
-    auto parsed = parse_modbus_endpoint(modbus_like, path);
-    if (!parsed) return std::unexpected(parsed.error());
-    ep.backoff = parsed->backoff;
+    FOGBENCH_TRY(backoff, parse_backoff(*it, join_path(path, "backoff"), ep.backoff));
+    ep.backoff = *backoff;
   }
   return ep;
 }

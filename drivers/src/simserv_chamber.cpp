@@ -10,7 +10,6 @@ namespace fogbench::drivers {
 
 namespace {
 
-
 std::optional<double> simserv_number(const std::string& s) {
   double v = 0;
   auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), v);

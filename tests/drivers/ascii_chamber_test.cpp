@@ -403,3 +403,19 @@ TEST_CASE("the example configurations of the ASCII chambers parse") {
     CHECK(cfg->chamber.line.response_timeout_ms == 1000);
   }
 }
+
+TEST_CASE("chamber kind: a link's backoff is read and refused as a Modbus endpoint's") {
+  auto ok = parse_chamber_config(
+      {{"kind", "espec"},
+       {"link", {{"transport", "tcp"}, {"host", "h"}, {"backoff", {{"initial_ms", 5}, {"max_ms", 50}}}}}},
+      "chamber", map_dir);
+  REQUIRE(ok);
+  CHECK(ok->line.backoff.initial_ms == 5);
+  CHECK(ok->line.backoff.max_ms == 50);
+  CHECK(ok->line.backoff.multiplier == 2.0);
+  auto bad = parse_chamber_config(
+      {{"kind", "simserv"}, {"link", {{"transport", "tcp"}, {"host", "h"}, {"backoff", {{"multiplier", 20}}}}}},
+      "chamber", map_dir);
+  REQUIRE_FALSE(bad);
+  CHECK(bad.error().message == "chamber.link.backoff.multiplier: expected a number 1..10");
+}
