@@ -41,7 +41,8 @@ TEST_CASE("e2e chamber kinds: an Espec or SIMSERV chamber runs a profile, its al
   REQUIRE(bench.sim_command({{"cmd", "fault"}, {"name", "alarm"}, {"on", true}})["ok"] == true);
   json done = bench.wait_state(c, run, {"completed", "aborted", "failed"}, 60s);
   CHECK(done["result"]["run"]["state"] == "aborted");
-  CHECK(done["result"]["run"]["reason"] == "chamber alarm");
+  // A loaded host may add "the acquisition fell behind real time (...)" ahead of the cause.
+  CHECK_THAT(done["result"]["run"]["reason"].get<std::string>(), Catch::EndsWith("chamber alarm"));
   auto safe = bench.wait_status(c, [](const json& r) { return r["chamber"]["setpoint_c"] == 20.0; }, 60s);
   CHECK(safe["result"]["chamber"]["setpoint_c"] == 20.0);
 }
