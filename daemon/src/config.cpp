@@ -365,7 +365,7 @@ std::chrono::milliseconds gyro_retry_delay(double time_scale) {
 
 void scale_backoff_to_clock(drivers::DriversConfig& d, double time_scale) {
   if (!(time_scale > 1.0)) return;
-  for (drivers::BackoffConfig* b : {&d.chamber.modbus.backoff, &d.thermistors.modbus.backoff}) {
+  for (drivers::BackoffConfig* b : {&d.chamber.modbus.backoff, &d.chamber.line.backoff, &d.thermistors.modbus.backoff}) {
     auto scale = [&](std::int64_t ms) {
       return std::max<std::int64_t>(1, std::llround(static_cast<double>(ms) / time_scale));
     };

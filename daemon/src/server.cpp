@@ -41,6 +41,7 @@
 #include "fogbench/daemon/station.hpp"
 #include "fogbench/daemon/systemd.hpp"
 #include "fogbench/drivers/chamber.hpp"
+#include "fogbench/drivers/chamber_registry.hpp"
 #include "fogbench/drivers/gyro_bus.hpp"
 #include "fogbench/drivers/thermistor_module.hpp"
 #include "fogbench/daemon/run_identity.hpp"
@@ -127,7 +128,7 @@ struct Server::Impl {
   std::optional<asio::executor_work_guard<asio::io_context::executor_type>> wguard;
   std::thread wthread;
   std::unique_ptr<drivers::Chamber> chamber;
-  std::unique_ptr<drivers::ThermistorModule> thermistors;
+  std::unique_ptr<drivers::ThermistorSource> thermistors;
   // The thermistor module's own worker (polls only; with the shared simulated clock the
   // module is read on the worker above, in the job of each second, and this one stays idle).
   asio::io_context tio;
@@ -880,7 +881,9 @@ std::expected<void, Server::StartError> Server::start() {
   // Reconnection delays in run time, not wall time (config.hpp).
   scale_backoff_to_clock(m.config.drivers, m.options.time_scale);
   if (m.config.sim_clock) m.sim_clock = std::make_unique<SimClock>(*m.config.sim_clock, std::chrono::seconds(15));
-  m.chamber = std::make_unique<drivers::ModbusChamber>(m.config.drivers.chamber);
+  auto chamber = drivers::open_chamber(m.config.drivers.chamber);
+  if (!chamber) return fail(chamber.error().message);
+  m.chamber = std::move(*chamber);
   m.thermistors = std::make_unique<drivers::ThermistorModule>(m.config.drivers.thermistors, m.config.drivers.units);
   m.wguard.emplace(m.wio.get_executor());
   m.wthread = std::thread([&m] { m.wio.run(); });

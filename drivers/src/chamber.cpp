@@ -101,14 +101,6 @@ Result<ChamberReading> ModbusChamber::poll() {
   return r;
 }
 
-namespace {
-
-bool link_level(const DriverError& e) {
-  return e.code == ErrorCode::timeout || e.code == ErrorCode::connection;
-}
-
-}  // namespace
-
 Result<BringUpReport> ModbusChamber::bring_up() {
   if (auto ok = link_.connect(); !ok) return std::unexpected(ok.error());
   BringUpReport report;
@@ -119,7 +111,7 @@ Result<BringUpReport> ModbusChamber::bring_up() {
   auto checked = [&](const char* name, const CheckedSpec& spec) -> Result<void> {
     auto raw = link_.read_raw(spec.reg);
     if (!raw) {
-      if (link_level(raw.error())) return std::unexpected(raw.error());
+      if (is_link_failure(raw.error())) return std::unexpected(raw.error());
       report.checks.push_back({name, false, raw.error().to_string()});
       return {};
     }
@@ -144,7 +136,7 @@ Result<BringUpReport> ModbusChamber::bring_up() {
     report.checks.push_back({"process_value", plausible,
                              format_number(*pv) + " degC (plausible " + format_number(lim.min_c) +
                                  ".." + format_number(lim.max_c) + " degC)"});
-  } else if (link_level(pv.error())) {
+  } else if (is_link_failure(pv.error())) {
     return std::unexpected(pv.error());
   } else {
     report.checks.push_back({"process_value", false, pv.error().to_string()});
@@ -152,7 +144,7 @@ Result<BringUpReport> ModbusChamber::bring_up() {
 
   if (auto sp = read_setpoint_c(); sp) {
     report.checks.push_back({"setpoint", true, format_number(*sp) + " degC"});
-  } else if (link_level(sp.error())) {
+  } else if (is_link_failure(sp.error())) {
     return std::unexpected(sp.error());
   } else {
     report.checks.push_back({"setpoint", false, sp.error().to_string()});
@@ -160,7 +152,7 @@ Result<BringUpReport> ModbusChamber::bring_up() {
 
   if (auto running = read_running(); running) {
     report.checks.push_back({"run", true, *running ? "running" : "stopped"});
-  } else if (link_level(running.error())) {
+  } else if (is_link_failure(running.error())) {
     return std::unexpected(running.error());
   } else {
     report.checks.push_back({"run", false, running.error().to_string()});
@@ -169,7 +161,7 @@ Result<BringUpReport> ModbusChamber::bring_up() {
   // An active alarm at bring-up fails the check: a run must not start on an alarmed chamber.
   if (auto alarm = read_alarm(); alarm) {
     report.checks.push_back({"alarm", !*alarm, *alarm ? "active" : "inactive"});
-  } else if (link_level(alarm.error())) {
+  } else if (is_link_failure(alarm.error())) {
     return std::unexpected(alarm.error());
   } else {
     report.checks.push_back({"alarm", false, alarm.error().to_string()});
@@ -180,7 +172,7 @@ Result<BringUpReport> ModbusChamber::bring_up() {
       std::string detail = "raw " + std::to_string(status->raw);
       for (const auto& [name, on] : status->bits) detail += std::string(" ") + name + "=" + (on ? "1" : "0");
       report.checks.push_back({"status", true, detail});
-    } else if (link_level(status.error())) {
+    } else if (is_link_failure(status.error())) {
       return std::unexpected(status.error());
     } else {
       report.checks.push_back({"status", false, status.error().to_string()});

@@ -5,6 +5,7 @@
 
 #include <map>
 
+#include "fogbench/drivers/chamber_registry.hpp"
 #include "json_fields.hpp"
 
 namespace fogbench::drivers {
@@ -28,6 +29,26 @@ std::string ModbusEndpoint::describe() const {
   }
   return out + " unit " + std::to_string(unit_id);
 }
+
+namespace {
+
+// {"initial_ms", "max_ms", "multiplier"}, each optional over `fallback`: one shape for every link.
+Result<BackoffConfig> parse_backoff(const json& value, const std::string& bp, BackoffConfig fallback) {
+  if (auto ok = detail::expect_object(value, bp); !ok) return std::unexpected(ok.error());
+  if (auto ok = detail::expect_known_keys(value, bp, {"initial_ms", "max_ms", "multiplier"}); !ok) {
+    return std::unexpected(ok.error());
+  }
+  FOGBENCH_TRY(initial, detail::get_int_or(value, bp, "initial_ms", 1, 3600000, fallback.initial_ms));
+  FOGBENCH_TRY(max, detail::get_int_or(value, bp, "max_ms", 1, 3600000, fallback.max_ms));
+  FOGBENCH_TRY(mult, detail::get_number_or(value, bp, "multiplier", fallback.multiplier));
+  if (*max < *initial) {
+    return config_error(join_path(bp, "max_ms"), "must be at least initial_ms (" + std::to_string(*initial) + ")");
+  }
+  if (*mult < 1.0 || *mult > 10.0) return config_error(join_path(bp, "multiplier"), "expected a number 1..10");
+  return BackoffConfig{*initial, *max, *mult};
+}
+
+}  // namespace
 
 Result<ModbusEndpoint> parse_modbus_endpoint(const json& value, const std::string& path) {
   if (auto ok = detail::expect_object(value, path); !ok) return std::unexpected(ok.error());
@@ -86,22 +107,8 @@ Result<ModbusEndpoint> parse_modbus_endpoint(const json& value, const std::strin
   ep.response_timeout_ms = static_cast<int>(*timeout);
 
   if (auto it = value.find("backoff"); it != value.end()) {
-    const auto bp = join_path(path, "backoff");
-    if (auto ok = detail::expect_object(*it, bp); !ok) return std::unexpected(ok.error());
-    if (auto ok = detail::expect_known_keys(*it, bp, {"initial_ms", "max_ms", "multiplier"}); !ok) {
-      return std::unexpected(ok.error());
-    }
-    FOGBENCH_TRY(initial, detail::get_int_or(*it, bp, "initial_ms", 1, 3600000, ep.backoff.initial_ms));
-    FOGBENCH_TRY(max, detail::get_int_or(*it, bp, "max_ms", 1, 3600000, ep.backoff.max_ms));
-    FOGBENCH_TRY(mult, detail::get_number_or(*it, bp, "multiplier", ep.backoff.multiplier));
-    if (*max < *initial) {
-      return config_error(join_path(bp, "max_ms"), "must be at least initial_ms (" +
-                                                       std::to_string(*initial) + ")");
-    }
-    if (*mult < 1.0 || *mult > 10.0) {
-      return config_error(join_path(bp, "multiplier"), "expected a number 1..10");
-    }
-    ep.backoff = {*initial, *max, *mult};
+    FOGBENCH_TRY(backoff, parse_backoff(*it, join_path(path, "backoff"), ep.backoff));
+    ep.backoff = *backoff;
   }
   return ep;
 }
@@ -116,15 +123,8 @@ Result<LimitsC> parse_limits(const json& value, const std::string& path, std::st
 
 }  // namespace
 
-Result<ChamberConfig> parse_chamber_config(const json& value, const std::string& path,
-                                           const std::filesystem::path& map_dir) {
-  if (auto ok = detail::expect_object(value, path); !ok) return std::unexpected(ok.error());
-  if (auto ok = detail::expect_known_keys(value, path,
-                                          {"modbus", "map", "pv_limits_c", "setpoint_limits_c"});
-      !ok) {
-    return std::unexpected(ok.error());
-  }
-  ChamberConfig cfg;
+Result<void> parse_modbus_chamber_fields(const json& value, const std::string& path,
+                                         const std::filesystem::path& map_dir, ChamberConfig& cfg) {
   const auto mp = join_path(path, "modbus");
   if (!value.contains("modbus")) return config_error(mp, "missing (expected an object)");
   FOGBENCH_TRY(modbus, parse_modbus_endpoint(value["modbus"], mp));
@@ -146,6 +146,91 @@ Result<ChamberConfig> parse_chamber_config(const json& value, const std::string&
     FOGBENCH_TRY(map, parse_register_map(*map_it, map_path));
     cfg.map = *map;
   }
+  return {};
+}
+
+Result<LineEndpoint> parse_line_endpoint(const json& value, const std::string& path,
+                                         std::uint16_t default_port, bool serial_allowed) {
+  if (auto ok = detail::expect_object(value, path); !ok) return std::unexpected(ok.error());
+  if (auto ok = detail::expect_known_keys(
+          value, path,
+          {"transport", "host", "port", "device", "baud", "parity", "data_bits", "stop_bits",
+           "response_timeout_ms", "backoff"});
+      !ok) {
+    return std::unexpected(ok.error());
+  }
+  LineEndpoint ep;
+  FOGBENCH_TRY(transport, detail::get_string(value, path, "transport"));
+  if (*transport == "tcp") {
+    ep.transport = LineEndpoint::Transport::tcp;
+    FOGBENCH_TRY(host, detail::get_string(value, path, "host"));
+    if (host->empty()) return config_error(join_path(path, "host"), "must not be empty");
+    ep.host = *host;
+    FOGBENCH_TRY(port, detail::get_int_or(value, path, "port", 1, 65535, default_port));
+    ep.port = static_cast<std::uint16_t>(*port);
+    for (auto k : {"device", "baud", "parity", "data_bits", "stop_bits"}) {
+      if (value.contains(k)) return config_error(join_path(path, k), "only for transport 'serial'");
+    }
+  } else if (*transport == "serial" && serial_allowed) {
+    ep.transport = LineEndpoint::Transport::serial;
+    FOGBENCH_TRY(device, detail::get_string(value, path, "device"));
+    if (device->empty()) return config_error(join_path(path, "device"), "must not be empty");
+    ep.device = *device;
+    FOGBENCH_TRY(baud, detail::get_int_or(value, path, "baud", 1200, 115200, 9600));
+    if (*baud != 1200 && *baud != 2400 && *baud != 4800 && *baud != 9600 && *baud != 19200 &&
+        *baud != 38400 && *baud != 57600 && *baud != 115200) {
+      return config_error(join_path(path, "baud"),
+                          "expected 1200, 2400, 4800, 9600, 19200, 38400, 57600 or 115200");
+    }
+    ep.baud = static_cast<int>(*baud);
+    FOGBENCH_TRY(parity, detail::get_string_or(value, path, "parity", "none"));
+    if (*parity == "none") {
+      ep.parity = 'N';
+    } else if (*parity == "even") {
+      ep.parity = 'E';
+    } else if (*parity == "odd") {
+      ep.parity = 'O';
+    } else {
+      return config_error(join_path(path, "parity"),
+                          "unknown parity '" + *parity + "' (expected none, even, odd)");
+    }
+    FOGBENCH_TRY(data_bits, detail::get_int_or(value, path, "data_bits", 7, 8, 8));
+    ep.data_bits = static_cast<int>(*data_bits);
+    FOGBENCH_TRY(stop_bits, detail::get_int_or(value, path, "stop_bits", 1, 2, 1));
+    ep.stop_bits = static_cast<int>(*stop_bits);
+    for (auto k : {"host", "port"}) {
+      if (value.contains(k)) return config_error(join_path(path, k), "only for transport 'tcp'");
+    }
+  } else {
+    return config_error(join_path(path, "transport"),
+                        "unknown transport '" + *transport + "' (expected " +
+                            (serial_allowed ? "tcp, serial)" : "tcp)"));
+  }
+  FOGBENCH_TRY(timeout, detail::get_int_or(value, path, "response_timeout_ms", 1, 60000, 1000));
+  ep.response_timeout_ms = static_cast<int>(*timeout);
+  if (auto it = value.find("backoff"); it != value.end()) {
+    FOGBENCH_TRY(backoff, parse_backoff(*it, join_path(path, "backoff"), ep.backoff));
+    ep.backoff = *backoff;
+  }
+  return ep;
+}
+
+Result<ChamberConfig> parse_chamber_config(const json& value, const std::string& path,
+                                           const std::filesystem::path& map_dir) {
+  if (auto ok = detail::expect_object(value, path); !ok) return std::unexpected(ok.error());
+  ChamberConfig cfg;
+  // No "kind": the Modbus controller, as every configuration before kinds existed.
+  FOGBENCH_TRY(kind_name, detail::get_string_or(value, path, "kind", "modbus"));
+  const ChamberKind* kind = find_chamber_kind(*kind_name);
+  if (kind == nullptr) {
+    return config_error(join_path(path, "kind"), "unknown chamber kind '" + *kind_name +
+                                                     "' (known: " + known_chamber_kinds() + ")");
+  }
+  cfg.kind = std::string(kind->name);
+  std::vector<std::string_view> keys{"kind", "pv_limits_c", "setpoint_limits_c"};
+  keys.insert(keys.end(), kind->fields.begin(), kind->fields.end());
+  if (auto ok = detail::expect_known_keys(value, path, keys); !ok) return std::unexpected(ok.error());
+  if (auto ok = kind->parse(value, path, map_dir, cfg); !ok) return std::unexpected(ok.error());
   FOGBENCH_TRY(pv, parse_limits(value, path, "pv_limits_c", cfg.pv_limits_c));
   cfg.pv_limits_c = *pv;
   FOGBENCH_TRY(sp, parse_limits(value, path, "setpoint_limits_c", cfg.setpoint_limits_c));

@@ -28,6 +28,10 @@ std::string DriverError::to_string() const {
   return out;
 }
 
+bool is_link_failure(const DriverError& e) noexcept {
+  return e.code == ErrorCode::timeout || e.code == ErrorCode::connection;
+}
+
 std::string format_number(double value) {
   if (std::isnan(value)) return "nan";
   if (std::isinf(value)) return value > 0 ? "inf" : "-inf";

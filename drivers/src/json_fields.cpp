@@ -73,6 +73,11 @@ Result<void> expect_object(const json& value, const std::string& path) {
 
 Result<void> expect_known_keys(const json& object, const std::string& path,
                                std::initializer_list<std::string_view> known) {
+  return expect_known_keys(object, path, std::span<const std::string_view>(known.begin(), known.size()));
+}
+
+Result<void> expect_known_keys(const json& object, const std::string& path,
+                               std::span<const std::string_view> known) {
   for (auto it = object.begin(); it != object.end(); ++it) {
     bool ok = false;
     for (auto k : known) ok = ok || it.key() == k;

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <initializer_list>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 
@@ -25,6 +26,8 @@ Result<void> expect_object(const json& value, const std::string& path);
 // Refuses a key that is not in `known`, so a typo ("scael") is an error and not a silent default.
 Result<void> expect_known_keys(const json& object, const std::string& path,
                                std::initializer_list<std::string_view> known);
+Result<void> expect_known_keys(const json& object, const std::string& path,
+                               std::span<const std::string_view> known);
 
 // Required fields: missing or wrongly typed is an error naming `path.key`.
 Result<std::int64_t> get_int(const json& object, const std::string& path, std::string_view key,

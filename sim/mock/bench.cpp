@@ -36,6 +36,7 @@ struct Bench::Impl final : ControlHandler {
   SharedState shared;
   CanBus can;
   std::optional<ModbusServer> modbus;
+  std::optional<AsciiChamberServer> ascii;  // the chamber, when its dialect is not Modbus
   std::optional<BenchClock> clock;
 
   // ---- the control socket and the loop's own descriptors (server loop only) ----
@@ -91,8 +92,16 @@ struct Bench::Impl final : ControlHandler {
     if (signal_fd < 0 || wake_fd < 0) return std::unexpected("signalfd/eventfd: " + errno_text(errno));
 
     modbus.emplace(shared, cfg.where);
-    if (auto ok = modbus->open(cfg.gateway); !ok) return ok;
-    cfg.where.chamber_port = modbus->chamber_port();
+    if (cfg.dialect == ChamberDialect::modbus) {
+      if (auto ok = modbus->open(cfg.gateway); !ok) return ok;
+      cfg.where.chamber_port = modbus->chamber_port();
+    } else {
+      if (cfg.gateway) return std::unexpected(std::string("--gateway needs the modbus chamber dialect"));
+      ascii.emplace(shared, cfg.dialect, cfg.where.host, cfg.where.chamber_port);
+      if (auto ok = ascii->open(); !ok) return ok;
+      cfg.where.chamber_port = ascii->port();
+      if (auto ok = modbus->open(false, false); !ok) return ok;
+    }
     cfg.where.thermistor_port = modbus->thermistor_port();
 
     if (auto ok = can.listen(cfg.where.can_socket); !ok) return std::unexpected("CAN socket " + ok.error());
@@ -109,6 +118,7 @@ struct Bench::Impl final : ControlHandler {
 
   void close_all() {
     if (modbus) modbus->close();
+    if (ascii) ascii->close();
     for (auto& c : control_clients) {
       if (c.fd >= 0) ::close(c.fd);
     }
@@ -143,6 +153,10 @@ struct Bench::Impl final : ControlHandler {
     }
     if (cmd->kind == FaultKind::refuse_modbus) modbus->update_listeners();
     if (cmd->kind == FaultKind::drop_modbus && cmd->on) modbus->drop_clients(cmd->device);
+    if (ascii && cmd->kind == FaultKind::refuse_modbus) ascii->update_listener();
+    if (ascii && cmd->kind == FaultKind::drop_modbus && cmd->on && cmd->device != Device::thermistors) {
+      ascii->drop_clients();
+    }
     spdlog::info("fault {} {}: {}", to_string(cmd->kind), cmd->on ? "on" : "off", command.dump());
     return {};
   }
@@ -167,6 +181,7 @@ struct Bench::Impl final : ControlHandler {
       out["faults"] = active_faults(shared.faults, serials, snap.time_s);
     }
     out["modbus_clients"] = modbus->open_clients();
+    if (ascii) out["chamber_clients"] = ascii->open_clients();
     out["can_clients"] = can.readers();
     out["can_frames_dropped"] = can.dropped();
     return out;
@@ -260,7 +275,8 @@ struct Bench::Impl final : ControlHandler {
     while (!stop_requested) {
       set.clear();
       watch_own(set);
-      const auto due = modbus->watch(set);
+      auto due = modbus->watch(set);
+      if (ascii) due = std::min(due, ascii->watch(set));
       int timeout_ms = 1000;
       if (due != SteadyClock::time_point::max()) {
         const auto left = std::chrono::ceil<std::chrono::milliseconds>(due - SteadyClock::now()).count();
@@ -272,6 +288,7 @@ struct Bench::Impl final : ControlHandler {
       }
       set.dispatch([this] { return !stop_requested.load(); });
       modbus->after_round(SteadyClock::now());
+      if (ascii) ascii->after_round(SteadyClock::now());
       std::erase_if(control_clients, [](const ControlClient& c) { return c.fd < 0; });
     }
     // Let the last replies (the "stop" command's own) go out before the sockets close.
@@ -298,6 +315,24 @@ std::expected<std::unique_ptr<Bench>, std::string> Bench::create(BenchConfig con
   return std::unique_ptr<Bench>(new Bench(std::move(impl)));
 }
 
+namespace {
+
+// The drivers configuration that reads what is served: the Modbus one, with the chamber's
+// section for its dialect when that is not Modbus.
+json served_drivers_config(const BenchConfig& c) {
+  json out = drivers_config(c.where, c.map, c.units);
+  if (c.dialect == ChamberDialect::modbus) return out;
+  json chamber = {{"kind", to_string(c.dialect)},
+                  {"link", {{"transport", "tcp"}, {"host", c.where.host}, {"port", c.where.chamber_port}}}};
+  for (const char* k : {"pv_limits_c", "setpoint_limits_c"}) {
+    if (out["chamber"].contains(k)) chamber[k] = out["chamber"][k];
+  }
+  out["chamber"] = std::move(chamber);
+  return out;
+}
+
+}  // namespace
+
 json Bench::ready_line() const {
   const auto& c = impl_->cfg;
   json units = json::array();
@@ -313,12 +348,12 @@ json Bench::ready_line() const {
           {"time_scale", c.time_scale},
           {"seed", c.sim.seed},
           {"chamber", {{"host", c.where.host}, {"port", c.where.chamber_port}, {"unit_id", c.where.chamber_unit},
-                       {"map", c.map.map.name}}},
+                       {"map", c.map.map.name}, {"dialect", to_string(c.dialect)}}},
           {"thermistors", {{"host", c.where.host}, {"port", c.where.thermistor_port}, {"unit_id", c.where.thermistor_unit}}},
           {"can_socket", c.where.can_socket},
           {"control", c.control_path.empty() ? json(nullptr) : json(c.control_path)},
           {"units", units},
-          {"drivers_config", drivers_config(c.where, c.map, c.units)}};
+          {"drivers_config", served_drivers_config(c)}};
 }
 
 int Bench::run() { return impl_->run(); }

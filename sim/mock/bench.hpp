@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "fogbench/sim/sim.hpp"
+#include "ascii_chamber.hpp"
 #include "layout.hpp"
 
 namespace fogbench::mock {
@@ -31,6 +32,9 @@ struct Warmup {
 struct BenchConfig {
   Endpoints where;                 // ports 0: ephemeral, resolved by create()
   bool gateway = false;            // the thermistor module answers on the chamber's port
+  // The chamber controller's protocol on its port: Modbus (the map), or an ASCII dialect
+  // answered from the same registers (ascii_chamber.hpp).
+  ChamberDialect dialect = ChamberDialect::modbus;
   std::string control_path;        // empty: no control socket
   double time_scale = 1.0;         // simulated seconds per wall second
   double duration_s = 0;           // stop after this many simulated seconds; 0: when told

@@ -36,7 +36,8 @@ std::set<std::string_view> fields_of(FaultKind kind) {
     case FaultKind::drop_modbus: f.insert("device"); break;
     case FaultKind::stall_modbus: f.insert({"device", "ms"}); break;
     case FaultKind::freeze_pv:
-    case FaultKind::alarm: break;
+    case FaultKind::alarm:
+    case FaultKind::refuse_setpoint: break;
     case FaultKind::lose_frames:
     case FaultKind::corrupt_frames: f.insert({"unit", "fraction"}); break;
     case FaultKind::lose_burst: f.insert({"unit", "count"}); break;
@@ -75,6 +76,7 @@ std::string_view to_string(FaultKind kind) noexcept {
     case FaultKind::gyro_spike: return "gyro_spike";
     case FaultKind::power_off: return "power_off";
     case FaultKind::power_cycle: return "power_cycle";
+    case FaultKind::refuse_setpoint: return "refuse_setpoint";
   }
   return "?";
 }
@@ -243,6 +245,7 @@ void apply_fault(FaultState& state, const FaultCommand& c, double next_second_s)
       break;
     case FaultKind::freeze_pv: state.freeze_pv = c.on; break;
     case FaultKind::alarm: state.alarm = c.on; break;
+    case FaultKind::refuse_setpoint: state.refuse_setpoint = c.on; break;
     case FaultKind::lose_frames: each_unit([&](UnitFaults& u) { u.lose_fraction = c.on ? c.value : 0.0; }); break;
     case FaultKind::lose_burst:
       each_unit([&](UnitFaults& u) { u.lose_burst = c.on ? u.lose_burst + static_cast<std::uint32_t>(c.value) : 0; });
@@ -291,6 +294,7 @@ json active_faults(const FaultState& s, const std::vector<std::string>& serials,
   }
   if (s.freeze_pv) out.push_back({{"name", "freeze_pv"}});
   if (s.alarm) out.push_back({{"name", "alarm"}});
+  if (s.refuse_setpoint) out.push_back({{"name", "refuse_setpoint"}});
   for (std::size_t i = 0; i < s.units.size(); ++i) {
     const auto& u = s.units[i];
     const json unit = {{"unit", i}, {"serial", i < serials.size() ? serials[i] : ""}};

@@ -30,13 +30,15 @@ enum class FaultKind {
   gyro_spike,       // add `dph` to a unit's gyro for `duration_s` simulated seconds
   power_off,        // a unit has no power (no frames); for `duration_s` if given, else until off
   power_cycle,      // action: a unit loses power for `off_s` simulated seconds, then restarts
+  refuse_setpoint,  // the chamber controller refuses every setpoint written (exception, NA:, -6)
 };
 
-inline constexpr std::array<FaultKind, 12> all_fault_kinds = {
+inline constexpr std::array<FaultKind, 13> all_fault_kinds = {
     FaultKind::refuse_modbus, FaultKind::drop_modbus, FaultKind::stall_modbus,
     FaultKind::freeze_pv,     FaultKind::alarm,       FaultKind::lose_frames,
     FaultKind::lose_burst,    FaultKind::corrupt_frames, FaultKind::open_thermistor,
-    FaultKind::gyro_spike,    FaultKind::power_off,   FaultKind::power_cycle};
+    FaultKind::gyro_spike,    FaultKind::power_off,   FaultKind::power_cycle,
+    FaultKind::refuse_setpoint};
 
 // A power cycle without `off_s` keeps the unit off this long, simulated s.
 inline constexpr double default_power_cycle_off_s = 3.0;
@@ -88,6 +90,7 @@ struct FaultState {
   std::array<int, 2> stall_ms{};   // by Device
   bool freeze_pv = false;
   bool alarm = false;
+  bool refuse_setpoint = false;
   std::vector<UnitFaults> units;
 };
 

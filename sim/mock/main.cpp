@@ -59,6 +59,10 @@ int main(int argc, char** argv) {
   app.add_flag("--paced", o.paced,
                "the clock moves only when told ({\"cmd\":\"advance\"} on the control socket, which it needs): "
                "fogbenchd paces the world");
+  app.add_option("--chamber-dialect", o.chamber_dialect,
+                 "the chamber controller's protocol on --modbus-port: modbus (the map), espec (Espec P300/SCP-220 "
+                 "ASCII) or simserv (Weiss/Voetsch SIMSERV); the thermistor module stays on Modbus")
+      ->capture_default_str();
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")->capture_default_str();
   app.set_version_flag("--version", std::string(FOGBENCH_SIM_VERSION));
   try {

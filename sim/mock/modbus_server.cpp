@@ -19,7 +19,7 @@ ModbusServer::~ModbusServer() {
   if (ctx_ != nullptr) modbus_free(ctx_);
 }
 
-std::expected<void, std::string> ModbusServer::open(bool gateway) {
+std::expected<void, std::string> ModbusServer::open(bool gateway, bool chamber) {
   ctx_ = modbus_new_tcp("127.0.0.1", 0);
   if (ctx_ == nullptr) return std::unexpected("libmodbus: " + std::string(modbus_strerror(errno)));
   // A request split across packets may wait this long for its rest; the response timeout is
@@ -27,8 +27,9 @@ std::expected<void, std::string> ModbusServer::open(bool gateway) {
   modbus_set_byte_timeout(ctx_, 0, 100000);
   modbus_set_response_timeout(ctx_, 0, 10000);
 
-  listeners_.push_back({where_.chamber_port, -1, {Device::chamber}});
-  if (gateway) {
+  if (!chamber) {
+    listeners_.push_back({where_.thermistor_port, -1, {Device::thermistors}});
+  } else if (listeners_.push_back({where_.chamber_port, -1, {Device::chamber}}); gateway) {
     listeners_[0].devices.push_back(Device::thermistors);
   } else {
     listeners_.push_back({where_.thermistor_port, -1, {Device::thermistors}});
@@ -202,7 +203,17 @@ void ModbusServer::reply(Client& c, const std::uint8_t* query, int length, Devic
   {
     std::lock_guard lock(shared_.mutex);
     modbus_mapping_t* m = device == Device::chamber ? shared_.chamber->mapping() : shared_.thermistors->mapping();
-    rc = modbus_reply(ctx_, query, length, m);
+    const int h = modbus_get_header_length(ctx_);
+    const int function = query[h];
+    const int address = (query[h + 1] << 8) | query[h + 2];
+    const int count = function == 16 ? ((query[h + 3] << 8) | query[h + 4]) : 1;
+    if (device == Device::chamber && shared_.faults.refuse_setpoint &&
+        shared_.chamber->writes_setpoint(function, address, count)) {
+      // The refuse_setpoint fault: the controller refuses the value as out of its range.
+      rc = modbus_reply_exception(ctx_, query, MODBUS_EXCEPTION_ILLEGAL_DATA_VALUE);
+    } else {
+      rc = modbus_reply(ctx_, query, length, m);
+    }
   }
   if (rc < 0) close_client(c, modbus_strerror(errno));
 }

@@ -32,7 +32,9 @@ class ModbusServer {
 
   // Opens the listeners (the thermistor module on the chamber's port when `gateway`); ports 0
   // become ephemeral ones, read back with chamber_port() and thermistor_port().
-  std::expected<void, std::string> open(bool gateway);
+  // `chamber` false: the chamber is served in another dialect (ascii_chamber.hpp) and only the
+  // thermistor module listens here (thermistor_port()).
+  std::expected<void, std::string> open(bool gateway, bool chamber = true);
   int chamber_port() const { return listeners_.front().port; }
   int thermistor_port() const { return listeners_.back().port; }
 

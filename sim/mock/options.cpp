@@ -173,6 +173,13 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
   }
   if (!(o.time_scale > 0) || o.time_scale > 100000) return std::unexpected(std::string("--time-scale: expected a number in (0, 100000]"));
   if (!(o.duration_s >= 0)) return std::unexpected(std::string("--duration-s: expected a number >= 0"));
+  const auto dialect = parse_chamber_dialect(o.chamber_dialect);
+  if (!dialect) {
+    return std::unexpected("--chamber-dialect: unknown dialect '" + o.chamber_dialect + "' (expected modbus, espec, simserv)");
+  }
+  if (o.gateway && *dialect != ChamberDialect::modbus) {
+    return std::unexpected(std::string("--gateway needs --chamber-dialect modbus: an ASCII controller is no Modbus gateway"));
+  }
   if (o.paced && o.control.empty()) return std::unexpected(std::string("--paced needs --control: the clock is advanced through it"));
   if (!(o.frame_noise_dph >= 0)) return std::unexpected(std::string("--frame-noise-dph: expected a number >= 0"));
   if (!std::isfinite(o.warmup_dph)) return std::unexpected(std::string("--warmup-dph: expected a number"));
@@ -190,6 +197,7 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
   cfg.where.thermistor_unit = o.thermistor_unit;
   cfg.where.can_socket = o.can_socket;
   cfg.gateway = o.gateway;
+  cfg.dialect = *dialect;
   cfg.control_path = o.control;
   cfg.time_scale = o.time_scale;
   cfg.duration_s = o.duration_s;

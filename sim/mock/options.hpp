@@ -40,6 +40,7 @@ struct Options {
   std::string map_file;              // empty: the built-in drivers/maps/mock.json
   double duration_s = 0;
   bool paced = false;                // the clock moves only on {"cmd":"advance"} (docs/mock-bench.md)
+  std::string chamber_dialect = "modbus";  // modbus, espec or simserv (ascii_chamber.hpp)
 };
 
 // Joins effects in the term language with '+' (or '-' when one starts with a minus).

@@ -115,6 +115,38 @@ bool ChamberRegisters::running() const {
          map_.run.on_value;
 }
 
+double ChamberRegisters::process_value_c() const {
+  const auto w = regs_.read(map_.process_value);
+  auto v = drivers::decode_value(map_.process_value,
+                                 std::span<const std::uint16_t>(w.data(), map_.process_value.width()));
+  return v ? *v : std::numeric_limits<double>::quiet_NaN();
+}
+
+bool ChamberRegisters::alarm() const {
+  const auto& reg = map_.alarm.reg;
+  const auto w = regs_.read(reg);
+  if (drivers::is_bit_table(reg.function)) return w[0] != 0;
+  return (drivers::raw_unsigned(reg, std::span<const std::uint16_t>(w.data(), reg.width())) & map_.alarm.mask) != 0;
+}
+
+void ChamberRegisters::write_setpoint_c(double temp_c) {
+  if (auto words = drivers::encode_value(map_.setpoint, temp_c)) regs_.write(map_.setpoint, *words);
+}
+
+void ChamberRegisters::write_running(bool run) {
+  if (map_.run.reg.function == RegisterFunction::coil) {
+    regs_.write(map_.run.reg, {static_cast<std::uint16_t>(run ? 1 : 0), 0});
+  } else {
+    regs_.write(map_.run.reg, raw_words(map_.run.reg, run ? map_.run.on_value : map_.run.off_value));
+  }
+}
+
+bool ChamberRegisters::writes_setpoint(int function, int address, int count) const {
+  if (map_.setpoint.function != RegisterFunction::holding || (function != 6 && function != 16)) return false;
+  const int a = map_.setpoint.address;
+  return address < a + static_cast<int>(map_.setpoint.width()) && a < address + count;
+}
+
 void ChamberRegisters::show(const ChamberShown& s) {
   if (!s.freeze_pv) {
     // A value the register cannot hold (an int16 map far off scale) is clamped: a real

@@ -55,6 +55,15 @@ class ChamberRegisters {
   // number (a client wrote NaN).
   double setpoint_c(double fallback) const;
   bool running() const;
+  // What the ASCII controllers answer from (ascii_chamber.hpp): the process value as shown, the
+  // alarm as shown, and a setpoint or run state written as a Modbus client would write them.
+  double process_value_c() const;
+  bool alarm() const;
+  void write_setpoint_c(double temp_c);
+  void write_running(bool run);
+  // Whether a write request (function 6 or 16, `count` registers from `address`) touches the
+  // setpoint: the refuse_setpoint fault answers it with an exception.
+  bool writes_setpoint(int function, int address, int count) const;
   void show(const ChamberShown& shown);
   // Raises or clears the alarm alone (a fault switched between two steps).
   void show_alarm(bool alarm);

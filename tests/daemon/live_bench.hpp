@@ -34,9 +34,13 @@ struct LiveBench {
   bool paced = false;
   // The mock bench's per-unit physics (fogbench-sim --config, docs/mock-bench.md); null: none.
   json sim_config;
+  // More fogbench-sim options, after the harness's own (e.g. {"--chamber-dialect", "espec"}).
+  std::vector<std::string> sim_args;
 
-  explicit LiveBench(double k, json patch = json::object(), bool paced_clock = false, json sim_cfg = nullptr)
-      : time_scale(k), config_patch(std::move(patch)), paced(paced_clock), sim_config(std::move(sim_cfg)) {
+  explicit LiveBench(double k, json patch = json::object(), bool paced_clock = false, json sim_cfg = nullptr,
+                     std::vector<std::string> extra_sim_args = {})
+      : time_scale(k), config_patch(std::move(patch)), paced(paced_clock), sim_config(std::move(sim_cfg)),
+        sim_args(std::move(extra_sim_args)) {
     char tmpl[] = "/tmp/fogbench-e2e-XXXXXX";
     dir = ::mkdtemp(tmpl);
     std::filesystem::create_directories(dir / "profiles");
@@ -65,6 +69,7 @@ struct LiveBench {
                                   "--time-scale", std::to_string(time_scale), "--log-level", "warn",
                                   "--control", control().string()};
     if (paced) argv.push_back("--paced");
+    argv.insert(argv.end(), sim_args.begin(), sim_args.end());
     if (!sim_config.is_null()) {
       std::ofstream(dir / "sim.json") << sim_config.dump(2);
       argv.push_back("--config");

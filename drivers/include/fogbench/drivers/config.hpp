@@ -37,13 +37,36 @@ struct ModbusEndpoint {
   std::string describe() const;
 };
 
+// Where a line-oriented (ASCII) controller is: TCP, or a serial port (termios).
+struct LineEndpoint {
+  enum class Transport { tcp, serial };
+  Transport transport = Transport::tcp;
+  std::string host = "127.0.0.1";  // tcp
+  std::uint16_t port = 0;          // tcp; 0 until parsed (each kind has its default)
+  std::string device;              // serial, e.g. /dev/ttyUSB0
+  int baud = 9600;                 // serial
+  char parity = 'N';               // serial: 'N', 'E' or 'O'
+  int data_bits = 8;               // serial
+  int stop_bits = 1;               // serial
+  int response_timeout_ms = 1000;  // per command; also bounds a TCP connect
+  BackoffConfig backoff;           // between reconnection attempts
+
+  // "tcp 127.0.0.1:57732" or "serial /dev/ttyUSB0 9600 8N1", for messages.
+  std::string describe() const;
+};
+
 struct LimitsC {
   double min_c = 0;
   double max_c = 0;
 };
 
+// The chamber: `kind` names its driver in the registry (chamber_registry.hpp); the fields each
+// kind reads are documented in docs/drivers.md. A configuration without "kind" is "modbus".
 struct ChamberConfig {
-  ModbusEndpoint modbus;
+  std::string kind = "modbus";
+  ModbusEndpoint modbus;                 // modbus
+  LineEndpoint line;                     // espec, simserv
+  int simserv_chamber_index = 1;         // simserv: the chamber's index on its server (1..)
   RegisterMap map;
   std::string map_file;                  // where the map came from ("" when inline)
   LimitsC pv_limits_c{-90.0, 200.0};     // a process value outside is implausible (bring-up)
@@ -77,7 +100,18 @@ Result<ModbusEndpoint> parse_modbus_endpoint(const nlohmann::json& value, const 
 Result<GyroChannelConfig> parse_gyro_channel(const nlohmann::json& value, const std::string& path);
 Result<UnitConfig> parse_unit_config(const nlohmann::json& value, const std::string& path);
 
-// "map" is an inline map object or a file name, resolved against `map_dir` when relative.
+// A line-oriented controller's endpoint ({"transport": "tcp", "host", "port"} or
+// {"transport": "serial", "device", "baud", ...}); `default_port` when "port" is absent.
+Result<LineEndpoint> parse_line_endpoint(const nlohmann::json& value, const std::string& path,
+                                         std::uint16_t default_port, bool serial_allowed);
+
+// The Modbus chamber's own fields ("modbus", "map") into `out`: the registry's parser for kind
+// "modbus".
+Result<void> parse_modbus_chamber_fields(const nlohmann::json& value, const std::string& path,
+                                         const std::filesystem::path& map_dir, ChamberConfig& out);
+
+// "kind" (default "modbus") picks the chamber's driver in the registry, which reads its fields;
+// "map" (kind modbus) is an inline map object or a file name, resolved against `map_dir` when relative.
 Result<ChamberConfig> parse_chamber_config(const nlohmann::json& value, const std::string& path,
                                            const std::filesystem::path& map_dir);
 

@@ -31,6 +31,10 @@ struct DriverError {
   std::string to_string() const;
 };
 
+// A failure of the link itself (timeout, connection) rather than a reply the device refused: it
+// ends a bring-up, where a refused read only fails its check.
+bool is_link_failure(const DriverError& e) noexcept;
+
 template <class T>
 using Result = std::expected<T, DriverError>;
 

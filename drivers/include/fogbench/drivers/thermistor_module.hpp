@@ -1,5 +1,6 @@
-// The Modbus input module that reads the coil thermistors (T1 centre, T2 outer wall) of every
-// unit under test. Blocking, like the chamber: the daemon runs it on a worker thread.
+// The coil thermistors (T1 centre, T2 outer wall) of every unit under test: what the daemon
+// asks of them (`ThermistorSource`) and the Modbus input module that reads them. Blocking, like
+// the chamber: the daemon runs it on a worker thread.
 #pragma once
 
 #include <string>
@@ -19,7 +20,18 @@ struct CoilTemperatures {
   Result<double> t2_c;  // coil outer wall
 };
 
-class ThermistorModule {
+// What the daemon needs of the coil thermistors: every unit's two sensors, in unit order. An
+// interface like Chamber, so the daemon depends on no one kind of input module and a test can
+// hand it a fake.
+class ThermistorSource {
+ public:
+  virtual ~ThermistorSource() = default;
+  // A link failure fails the whole call; a sensor that cannot be read fails only itself.
+  virtual Result<std::vector<CoilTemperatures>> read_all() = 0;
+};
+
+// The Modbus input module.
+class ThermistorModule final : public ThermistorSource {
  public:
   ThermistorModule(ThermistorModuleConfig config, std::vector<UnitConfig> units,
                    ModbusLink::Clock clock = {});
@@ -27,7 +39,7 @@ class ThermistorModule {
   // Reads every unit's two sensors, in unit order. Contiguous registers go in one request. A
   // link failure (timeout, connection) fails the whole call; a request the module refuses fails
   // only the sensors it covers.
-  Result<std::vector<CoilTemperatures>> read_all();
+  Result<std::vector<CoilTemperatures>> read_all() override;
 
   // Requests one read_all() makes (for the operator: fewer is better on a slow RTU line).
   std::size_t request_count() const noexcept { return blocks_.size(); }
