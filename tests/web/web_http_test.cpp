@@ -5,6 +5,7 @@
 #include <catch2/catch.hpp>
 
 #include "../daemon/live_bench.hpp"
+#include "fogbench/daemon/handler.hpp"
 #include "exposition.hpp"
 #include "web_client.hpp"
 
@@ -117,6 +118,47 @@ TEST_CASE("the panel's files, metrics and the protocol over HTTP and WebSocket, 
   CHECK(code_of(aborted) == "ok");
   auto got = bench.wait_state(c, run, {"aborted"}, 60s);
   CHECK(got["result"]["run"]["reason"] == "aborted by operator: web test");
+}
+
+TEST_CASE("every control command of the table is refused on the read-only TCP port, POST /api and the WebSocket, live") {
+  require_sim();
+  const auto tcp_port = free_port();
+  LiveBench bench(20.0, web_patch(tcp_port), true);
+  const auto port = web_port(bench);
+  LineClient tcp(tcp_port);
+  REQUIRE(tcp.ok());
+  WsClient ws("127.0.0.1", port, "/ws");
+  REQUIRE(ws.ok());
+  std::size_t control = 0;
+  for (const auto& c : fogbench::daemon::commands()) {
+    const std::string name(c.name);
+    INFO(name);
+    if (c.access == fogbench::daemon::Access::read) {
+      // Served (whatever it answers without arguments), not refused.
+      CHECK(code_of(tcp.call({{"cmd", name}})) != "forbidden");
+      continue;
+    }
+    ++control;
+    const json by_tcp = tcp.call({{"cmd", name}});
+    CHECK(code_of(by_tcp) == "forbidden");
+    CHECK(by_tcp["error"]["message"] == name + ": needs a valid token on this connection");
+    CHECK(code_of(tcp.call({{"cmd", name}, {"token", "wrong-token-0123456789"}})) == "forbidden");
+    const auto api = http_post(port, "/api", json{{"id", 1}, {"cmd", name}}.dump());
+    CHECK(api.status == 403);
+    CHECK(code_of(json::parse(api.body, nullptr, false)) == "forbidden");
+    CHECK(code_of(ws.call({{"cmd", name}})) == "forbidden");
+  }
+  CHECK(control >= 11u);
+  // Nothing was started or queued.
+  LineClient c(bench.socket());
+  REQUIRE(c.ok());
+  const json runs = c.call({{"cmd", "run.list"}});
+  REQUIRE(runs.contains("result"));
+  CHECK(runs["result"]["runs"].empty());
+  const json queue = c.call({{"cmd", "queue.list"}});
+  INFO(queue.dump());
+  CHECK(code_of(queue) != "forbidden");
+  still_serving(bench, port);
 }
 
 TEST_CASE("bad input on the HTTP side gets a clear error and the daemon goes on") {
