@@ -13,6 +13,7 @@
 
 #include "fogbench/model/model.hpp"
 #include "fogbench/model/terms.hpp"
+#include "config_fields.hpp"
 
 namespace fogbench::daemon {
 namespace {
@@ -20,18 +21,8 @@ namespace {
 using nlohmann::json;
 using Err = std::unexpected<std::string>;
 
-std::string join(const std::string& path, const std::string& key) {
-  return path.empty() ? key : path + "." + key;
-}
-
-// Unknown keys are refused so that a typo is an error, not a silently ignored setting.
-std::expected<void, std::string> only_keys(const json& obj, const std::string& path,
-                                           std::set<std::string> allowed) {
-  for (const auto& [key, value] : obj.items()) {
-    if (!allowed.contains(key)) return Err(join(path, key) + ": unknown field");
-  }
-  return {};
-}
+using config_fields::join;
+using config_fields::only_keys;
 
 std::expected<double, std::string> number(const json& obj, const std::string& path,
                                           const std::string& key) {

@@ -2,6 +2,7 @@
 // metrics listen. Loopback unless the configuration says allow_remote, since the panel's reads
 // need no token.
 #include "fogbench/daemon/config.hpp"
+#include "config_fields.hpp"
 
 #include <boost/asio/ip/address.hpp>
 #include <fstream>
@@ -14,9 +15,8 @@ std::expected<WebConfig, std::string> parse_web_config(const json& j, const std:
   using Err = std::unexpected<std::string>;
   if (!j.is_object())
     return Err("web: expected an object {\"listen\": \"127.0.0.1:8080\", \"allow_remote\"?, \"enabled\"?, \"token_file\"?}");
-  for (const auto& [key, value] : j.items())
-    if (key != "listen" && key != "allow_remote" && key != "enabled" && key != "token_file")
-      return Err("web." + key + ": unknown field");
+  if (auto ok = config_fields::only_keys(j, "web", {"listen", "allow_remote", "enabled", "token_file"}); !ok)
+    return Err(ok.error());
   WebConfig w;
   if (j.contains("enabled")) {
     if (!j["enabled"].is_boolean()) return Err("web.enabled: expected true or false");
