@@ -210,6 +210,32 @@ TEST_CASE("bad input on the HTTP side gets a clear error and the daemon goes on"
   CHECK(evil.status == 403);
   CHECK(evil.body.find("WebSocket from another origin (http://evil.example) refused") != std::string::npos);
   CHECK(upgrade("http://127.0.0.1:" + std::to_string(port)).status == 101);
+  // DNS rebinding: a page of evil.example whose name now resolves to this address sends Host
+  // and Origin that agree, both evil.example:PORT. Refused on /ws (it was upgraded before, and
+  // its reads worked), /api and /metrics; the panel's own files stay public.
+  const std::string evil_host = "evil.example:" + std::to_string(port);
+  auto rebound_ws = http_raw(port, "GET /ws HTTP/1.1\r\nHost: " + evil_host +
+                                       "\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                                       "Sec-WebSocket-Version: 13\r\nOrigin: http://" + evil_host + "\r\n\r\n", 10s);
+  CHECK(rebound_ws.status == 403);
+  CHECK(rebound_ws.body.find("Host " + evil_host + " is not a name of this panel") != std::string::npos);
+  const std::string status_req = json{{"id", 1}, {"cmd", "status"}}.dump();
+  auto post = [&](const std::string& host, const std::string& origin) {
+    return http_raw(port, "POST /api HTTP/1.1\r\nHost: " + host + "\r\n" + (origin.empty() ? "" : "Origin: " + origin + "\r\n") +
+                              "Connection: close\r\nContent-Type: text/plain\r\nContent-Length: " +
+                              std::to_string(status_req.size()) + "\r\n\r\n" + status_req);
+  };
+  CHECK(post(evil_host, "http://" + evil_host).status == 403);
+  CHECK(post(evil_host, "").status == 403);
+  // A cross-site form posted to /api from the operator's browser: its Origin is not the Host.
+  const std::string own = "127.0.0.1:" + std::to_string(port);
+  auto csrf = post(own, "http://evil.example");
+  CHECK(csrf.status == 403);
+  CHECK(csrf.body.find("request from another origin (http://evil.example) refused") != std::string::npos);
+  CHECK(post(own, "http://" + own).status == 200);
+  CHECK(post("localhost:" + std::to_string(port), "").status == 200);
+  CHECK(http_raw(port, "GET /metrics HTTP/1.1\r\nHost: " + evil_host + "\r\nConnection: close\r\n\r\n").status == 403);
+  CHECK(http_raw(port, "GET / HTTP/1.1\r\nHost: " + evil_host + "\r\nConnection: close\r\n\r\n").status == 200);
 
   // WebSocket garbage: a bad line is an error reply and the connection stays; a binary message
   // is refused the same way; a message over 1 MiB closes the connection.
