@@ -13,6 +13,7 @@
 
 #include "fogbench/model/model.hpp"
 #include "fogbench/model/terms.hpp"
+#include "config_fields.hpp"
 
 namespace fogbench::daemon {
 namespace {
@@ -20,18 +21,8 @@ namespace {
 using nlohmann::json;
 using Err = std::unexpected<std::string>;
 
-std::string join(const std::string& path, const std::string& key) {
-  return path.empty() ? key : path + "." + key;
-}
-
-// Unknown keys are refused so that a typo is an error, not a silently ignored setting.
-std::expected<void, std::string> only_keys(const json& obj, const std::string& path,
-                                           std::set<std::string> allowed) {
-  for (const auto& [key, value] : obj.items()) {
-    if (!allowed.contains(key)) return Err(join(path, key) + ": unknown field");
-  }
-  return {};
-}
+using config_fields::join;
+using config_fields::only_keys;
 
 std::expected<double, std::string> number(const json& obj, const std::string& path,
                                           const std::string& key) {
@@ -164,7 +155,8 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
     if (s.contains("tcp")) {
       const json& t = s["tcp"];
       if (!t.is_object()) return Err("socket.tcp: expected an object {\"port\", \"address\", \"token\" | \"token_file\"}");
-      if (auto ok = only_keys(t, "socket.tcp", {"port", "address", "token", "token_file"}); !ok) return Err(ok.error());
+      if (auto ok = only_keys(t, "socket.tcp", {"port", "address", "token", "token_file", "allow_remote"}); !ok)
+        return Err(ok.error());
       const json& v = t.contains("port") ? t["port"] : json(nullptr);
       if (!v.is_number_integer() || v.get<long long>() < 1 || v.get<long long>() > 65535)
         return Err("socket.tcp.port: expected an integer 1..65535");
@@ -197,6 +189,23 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
       // A guessable token is no protection on a port others can reach.
       if (!c.socket.tcp_token.empty() && c.socket.tcp_token.size() < 16)
         return Err("socket.tcp.token: expected at least 16 characters");
+      bool allow_remote = false;
+      if (t.contains("allow_remote")) {
+        if (!t["allow_remote"].is_boolean()) return Err("socket.tcp.allow_remote: expected true or false");
+        allow_remote = t["allow_remote"].get<bool>();
+      }
+      // Reads need no token: a port other hosts can reach (0.0.0.0, ::, an interface's address)
+      // shows the bench to all of them, so it is asked for in so many words, and not without a
+      // token that keeps control local.
+      if (!boost::asio::ip::make_address(c.socket.tcp_address).is_loopback()) {
+        if (!allow_remote)
+          return Err("socket.tcp.address: " + c.socket.tcp_address +
+                     " is not a loopback address; reads need no token, so serving other hosts needs "
+                     "\"allow_remote\": true (and a token)");
+        if (c.socket.tcp_token.empty())
+          return Err("socket.tcp.allow_remote: a non-loopback address (" + c.socket.tcp_address +
+                     ") needs a token (socket.tcp.token or token_file) for control");
+      }
     }
     if (s.contains("path")) {
       auto path = string(s, "socket", "path");

@@ -2,6 +2,7 @@
 #include <cmath>
 
 #include "fogbench/daemon/config.hpp"
+#include "config_fields.hpp"
 #include "fogbench/plant/plant.hpp"
 
 namespace fogbench::daemon {
@@ -9,10 +10,8 @@ namespace fogbench::daemon {
 std::expected<PlantConfig, std::string> parse_plant_config(const nlohmann::json& j) {
   using Err = std::unexpected<std::string>;
   if (!j.is_object()) return Err("plant: expected an object {\"conninfo\", \"bench_id\"}");
-  for (const auto& [key, v] : j.items()) {
-    if (key != "conninfo" && key != "bench_id" && key != "poll_s" && key != "retry_max_s")
-      return Err("plant." + key + ": unknown field");
-  }
+  if (auto ok = config_fields::only_keys(j, "plant", {"conninfo", "bench_id", "poll_s", "retry_max_s"}); !ok)
+    return Err(ok.error());
   PlantConfig p;
   if (!j.contains("conninfo") || !j["conninfo"].is_string() || j["conninfo"].get<std::string>().empty())
     return Err("plant.conninfo: expected a libpq connection string, e.g. \"service=plant\"");

@@ -9,16 +9,6 @@ namespace fogbench::daemon {
 
 using nlohmann::json;
 
-bool is_plan_command(std::string_view cmd) {
-  return cmd == "plan.validate" || cmd == "plan.start" || cmd == "plan.status" || cmd == "plan.abort" ||
-         cmd == "queue.list" || cmd == "queue.add" || cmd == "queue.remove" || cmd == "queue.move";
-}
-
-bool is_plan_control_command(std::string_view cmd) {
-  return cmd == "plan.start" || cmd == "plan.abort" || cmd == "queue.add" || cmd == "queue.remove" ||
-         cmd == "queue.move";
-}
-
 namespace {
 
 ApiResult<std::string> string_field(const json& req, const char* key, bool required) {
@@ -63,50 +53,71 @@ ApiResult<PlanArgs> plan_args(const json& req, bool units_required) {
   return a;
 }
 
+std::unexpected<ApiError> no_plans(const std::string& cmd) {
+  return api_error(ErrorCode::unavailable, cmd + ": this station runs no plans");
+}
+
 }  // namespace
 
-ApiResult<json> plan_command(PlanRunner* runner, const std::string& cmd, const json& req) {
-  if (!runner) return api_error(ErrorCode::unavailable, cmd + ": this station runs no plans");
-  if (cmd == "plan.validate") {
-    auto a = plan_args(req, false);
-    if (!a) return std::unexpected(a.error());
-    // Without units: the text and the profiles only (no unit, no model on file checked).
-    return runner->validate(a->text, a->source, a->units);
-  }
-  if (cmd == "plan.start" || cmd == "queue.add") {
-    auto a = plan_args(req, true);
-    if (!a) return std::unexpected(a.error());
-    return cmd == "plan.start" ? runner->start(a->text, a->source, a->units, req)
-                               : runner->queue_add(a->text, a->source, a->units, req);
-  }
-  if (cmd == "plan.status") {
-    std::optional<std::int64_t> id;
-    if (req.contains("plan_id")) {
-      auto i = id_field(req, "plan_id");
-      if (!i) return std::unexpected(i.error());
-      id = *i;
-    }
-    return runner->status(id);
-  }
-  if (cmd == "plan.abort") {
-    auto reason = string_field(req, "reason", false);
-    if (!reason) return std::unexpected(reason.error());
-    return runner->abort(*reason, req);
-  }
-  if (cmd == "queue.list") return runner->queue_list();
-  if (cmd == "queue.remove") {
+ApiResult<json> plan_validate(PlanRunner* runner, const std::string& cmd, const json& req) {
+  if (!runner) return no_plans(cmd);
+  auto a = plan_args(req, false);
+  if (!a) return std::unexpected(a.error());
+  // Without units: the text and the profiles only (no unit, no model on file checked).
+  return runner->validate(a->text, a->source, a->units);
+}
+
+ApiResult<json> plan_start(PlanRunner* runner, const std::string& cmd, const json& req) {
+  if (!runner) return no_plans(cmd);
+  auto a = plan_args(req, true);
+  if (!a) return std::unexpected(a.error());
+  return runner->start(a->text, a->source, a->units, req);
+}
+
+ApiResult<json> queue_add(PlanRunner* runner, const std::string& cmd, const json& req) {
+  if (!runner) return no_plans(cmd);
+  auto a = plan_args(req, true);
+  if (!a) return std::unexpected(a.error());
+  return runner->queue_add(a->text, a->source, a->units, req);
+}
+
+ApiResult<json> plan_status(PlanRunner* runner, const std::string& cmd, const json& req) {
+  if (!runner) return no_plans(cmd);
+  std::optional<std::int64_t> id;
+  if (req.contains("plan_id")) {
     auto i = id_field(req, "plan_id");
     if (!i) return std::unexpected(i.error());
-    return runner->queue_remove(*i, req);
+    id = *i;
   }
-  if (cmd == "queue.move") {
-    auto i = id_field(req, "plan_id");
-    if (!i) return std::unexpected(i.error());
-    auto pos = id_field(req, "position");
-    if (!pos) return std::unexpected(pos.error());
-    return runner->queue_move(*i, *pos, req);
-  }
-  return api_error(ErrorCode::unknown_command, "unknown command '" + cmd + "'");
+  return runner->status(id);
+}
+
+ApiResult<json> plan_abort(PlanRunner* runner, const std::string& cmd, const json& req) {
+  if (!runner) return no_plans(cmd);
+  auto reason = string_field(req, "reason", false);
+  if (!reason) return std::unexpected(reason.error());
+  return runner->abort(*reason, req);
+}
+
+ApiResult<json> queue_list(PlanRunner* runner, const std::string& cmd, const json&) {
+  if (!runner) return no_plans(cmd);
+  return runner->queue_list();
+}
+
+ApiResult<json> queue_remove(PlanRunner* runner, const std::string& cmd, const json& req) {
+  if (!runner) return no_plans(cmd);
+  auto i = id_field(req, "plan_id");
+  if (!i) return std::unexpected(i.error());
+  return runner->queue_remove(*i, req);
+}
+
+ApiResult<json> queue_move(PlanRunner* runner, const std::string& cmd, const json& req) {
+  if (!runner) return no_plans(cmd);
+  auto i = id_field(req, "plan_id");
+  if (!i) return std::unexpected(i.error());
+  auto pos = id_field(req, "position");
+  if (!pos) return std::unexpected(pos.error());
+  return runner->queue_move(*i, *pos, req);
 }
 
 }  // namespace fogbench::daemon

@@ -2,9 +2,13 @@
 // metrics listen. Loopback unless the configuration says allow_remote, since the panel's reads
 // need no token.
 #include "fogbench/daemon/config.hpp"
+#include "config_fields.hpp"
 
 #include <boost/asio/ip/address.hpp>
+#include <algorithm>
+#include <cctype>
 #include <fstream>
+#include <optional>
 
 namespace fogbench::daemon {
 
@@ -13,10 +17,9 @@ using nlohmann::json;
 std::expected<WebConfig, std::string> parse_web_config(const json& j, const std::filesystem::path& base_dir) {
   using Err = std::unexpected<std::string>;
   if (!j.is_object())
-    return Err("web: expected an object {\"listen\": \"127.0.0.1:8080\", \"allow_remote\"?, \"enabled\"?, \"token_file\"?}");
-  for (const auto& [key, value] : j.items())
-    if (key != "listen" && key != "allow_remote" && key != "enabled" && key != "token_file")
-      return Err("web." + key + ": unknown field");
+    return Err("web: expected an object {\"listen\": \"127.0.0.1:8080\", \"allow_remote\"?, \"enabled\"?, \"token_file\"?, \"hosts\"?}");
+  if (auto ok = config_fields::only_keys(j, "web", {"listen", "allow_remote", "enabled", "token_file", "hosts"}); !ok)
+    return Err(ok.error());
   WebConfig w;
   if (j.contains("enabled")) {
     if (!j["enabled"].is_boolean()) return Err("web.enabled: expected true or false");
@@ -37,6 +40,19 @@ std::expected<WebConfig, std::string> parse_web_config(const json& j, const std:
       if (line.empty()) return Err("web.token_file: the first line is empty: " + path.string());
       if (line.size() < 16) return Err("web.token_file: the token is shorter than 16 characters: " + path.string());
       w.token = line;
+    }
+  }
+  if (j.contains("hosts")) {
+    const auto bad = Err("web.hosts: expected an array of host names, e.g. [\"bench7.plant.example\"]");
+    if (!j["hosts"].is_array()) return bad;
+    for (const auto& h : j["hosts"]) {
+      if (!h.is_string()) return bad;
+      std::string name = h.get<std::string>();
+      // A name, without a scheme, a port or a path: the Host header's port is the listener's.
+      if (name.empty() || name.find_first_of(":/ []@") != std::string::npos)
+        return Err("web.hosts: \"" + name + "\" is not a host name (no scheme, port or path)");
+      std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return std::tolower(c); });
+      w.hosts.push_back(std::move(name));
     }
   }
   if (j.contains("allow_remote")) {
@@ -73,6 +89,55 @@ std::expected<WebConfig, std::string> parse_web_config(const json& j, const std:
   w.address = host;
   w.port = static_cast<std::uint16_t>(std::stoul(port));
   return w;
+}
+
+namespace {
+
+// The host of a Host header or of an Origin's authority, without its port and brackets, in
+// lower case; nullopt when it is not of the form name[:port] or [v6][:port].
+std::optional<std::string> host_part(std::string_view authority) {
+  std::string host;
+  if (!authority.empty() && authority.front() == '[') {
+    const auto close = authority.find(']');
+    if (close == std::string_view::npos) return std::nullopt;
+    if (close + 1 < authority.size() && authority[close + 1] != ':') return std::nullopt;
+    host = authority.substr(1, close - 1);
+  } else {
+    const auto colon = authority.find(':');
+    if (colon != std::string_view::npos && authority.find(':', colon + 1) != std::string_view::npos) return std::nullopt;
+    host = authority.substr(0, colon);
+  }
+  std::transform(host.begin(), host.end(), host.begin(), [](unsigned char c) { return std::tolower(c); });
+  return host;
+}
+
+bool host_allowed(const WebConfig& w, const std::string& host) {
+  if (host.empty()) return false;
+  // An address: the browser's origin is the address itself, which no other site can claim.
+  boost::system::error_code ec;
+  boost::asio::ip::make_address(host, ec);
+  if (!ec || host == "localhost") return true;
+  return std::find(w.hosts.begin(), w.hosts.end(), host) != w.hosts.end();
+}
+
+}  // namespace
+
+bool web_host_allowed(const WebConfig& w, std::string_view host_header) {
+  // No Host at all is no browser (HTTP/1.1 browsers always send it): nothing to rebind.
+  if (host_header.empty()) return true;
+  const auto host = host_part(host_header);
+  return host && host_allowed(w, *host);
+}
+
+bool web_origin_allowed(const WebConfig& w, std::string_view origin, std::string_view host_header) {
+  if (origin.empty()) return true;
+  const auto scheme = origin.find("://");
+  if (scheme == std::string_view::npos) return false;
+  const std::string_view authority = origin.substr(scheme + 3);
+  // The page's own origin, and a name of this panel.
+  if (authority != host_header) return false;
+  const auto host = host_part(authority);
+  return host && host_allowed(w, *host);
 }
 
 }  // namespace fogbench::daemon

@@ -237,17 +237,9 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
         return error(http::status::upgrade_required, "/ws is a WebSocket: connect with an Upgrade request",
                      req.version(), !req.keep_alive());
       // A page of another site may not open the panel's WebSocket in the operator's browser
-      // (cross-site WebSocket hijacking: reads need no token). Browsers send Origin; its host
-      // must be the Host the page was loaded from. Clients that send no Origin are not browsers.
-      if (const auto origin = req[http::field::origin]; !origin.empty()) {
-        const std::string o(origin);
-        const auto scheme = o.find("://");
-        const std::string host = scheme == std::string::npos ? o : o.substr(scheme + 3);
-        if (host != std::string(req[http::field::host])) {
-          spdlog::warn("web client {}: WebSocket from origin {} refused (host {})", peer_, o, std::string(req[http::field::host]));
-          return error(http::status::forbidden, "WebSocket from another origin (" + o + ") refused", req.version(), true);
-        }
-      }
+      // (cross-site WebSocket hijacking: reads need no token), nor one of a site that rebinds its
+      // own name to this address (DNS rebinding: Host and Origin then agree, on the wrong name).
+      if (!allowed(req)) return;
       // This connection was counted against socket.max_clients when it was accepted: as a
       // WebSocket it is counted as a session instead.
       auto ws = std::make_shared<WsSession>(stream_.release_socket(), server_->handler, peer_, server_->control_token);
@@ -259,11 +251,13 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     }
     if (path == "/metrics") {
       if (method != http::verb::get) return not_allowed(req, "GET");
+      if (!allowed(req)) return;
       return respond(req, http::status::ok, "text/plain; version=0.0.4; charset=utf-8",
                      server_->hooks.metrics ? server_->hooks.metrics() : std::string());
     }
     if (path == "/api") {
       if (method != http::verb::post) return not_allowed(req, "POST");
+      if (!allowed(req)) return;
       auto state = std::make_shared<SessionState>();
       state->may_control = false;
       state->control_token = server_->control_token;
@@ -280,6 +274,29 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     }
     error(http::status::not_found, "no such path: " + path + " (the panel is at /, metrics at /metrics)",
           req.version(), !req.keep_alive());
+  }
+
+  // Whether the request may reach the bench's data (/ws, /api, /metrics): its Host names this
+  // panel (an address, localhost or web.hosts) and its Origin, when a browser sent one, is that
+  // Host. Answers 403 itself when not.
+  bool allowed(const http::request<http::string_body>& req) {
+    const std::string host(req[http::field::host]), origin(req[http::field::origin]);
+    if (!web_host_allowed(server_->config, host)) {
+      spdlog::warn("web client {}: request for host {} refused (not an address, localhost or web.hosts)", peer_, host);
+      error(http::status::forbidden,
+            "Host " + host + " is not a name of this panel (an IP address, localhost or one of web.hosts)",
+            req.version(), true);
+      return false;
+    }
+    if (!web_origin_allowed(server_->config, origin, host)) {
+      spdlog::warn("web client {}: request from origin {} refused (host {})", peer_, origin, host);
+      error(http::status::forbidden,
+            std::string(req.target().starts_with("/ws") ? "WebSocket" : "request") + " from another origin (" + origin +
+                ") refused",
+            req.version(), true);
+      return false;
+    }
+    return true;
   }
 
   void not_allowed(const http::request<http::string_body>& req, const char* allow) {

@@ -92,6 +92,40 @@ TEST_CASE("config: socket.group, socket.tcp and the token, with errors naming th
   CHECK_THAT(refusal({{"socket", {{"tcp_port", 7000}, {"tcp", {{"port", 7001}}}}}}), Catch::StartsWith("socket.tcp_port"));
 }
 
+TEST_CASE("config: a non-loopback socket.tcp.address needs allow_remote and a token") {
+  auto refusal = [](const nlohmann::json& tcp) {
+    nlohmann::json j = golden_config_json();
+    j["socket"]["tcp"] = tcp;
+    auto c = parse_daemon_config(j, golden_dir());
+    REQUIRE_FALSE(c.has_value());
+    return c.error();
+  };
+  auto accepted = [](const nlohmann::json& tcp) {
+    nlohmann::json j = golden_config_json();
+    j["socket"]["tcp"] = tcp;
+    auto c = parse_daemon_config(j, golden_dir());
+    INFO((c ? std::string() : c.error()));
+    return c.has_value();
+  };
+  const std::string token = "0123456789abcdef";
+  for (const char* any : {"0.0.0.0", "::", "192.0.2.7", "2001:db8::7"}) {
+    INFO(any);
+    // Bound silently before, token or not.
+    CHECK_THAT(refusal({{"port", 7000}, {"address", any}}),
+               Catch::StartsWith(std::string("socket.tcp.address: ") + any + " is not a loopback address"));
+    CHECK_THAT(refusal({{"port", 7000}, {"address", any}, {"token", token}}),
+               Catch::StartsWith("socket.tcp.address: "));
+    CHECK_THAT(refusal({{"port", 7000}, {"address", any}, {"allow_remote", true}}),
+               Catch::StartsWith("socket.tcp.allow_remote: a non-loopback address"));
+    CHECK(accepted({{"port", 7000}, {"address", any}, {"allow_remote", true}, {"token", token}}));
+  }
+  CHECK_THAT(refusal({{"port", 7000}, {"allow_remote", "yes"}}), Catch::StartsWith("socket.tcp.allow_remote: expected true or false"));
+  // Loopback needs neither.
+  CHECK(accepted({{"port", 7000}}));
+  CHECK(accepted({{"port", 7000}, {"address", "::1"}}));
+  CHECK(accepted({{"port", 7000}, {"address", "127.0.0.2"}}));
+}
+
 TEST_CASE("config: on the accelerated clock the reconnection backoff is divided by the time scale") {
   auto c = parse_daemon_config(golden_config_json(), golden_dir());
   REQUIRE(c.has_value());

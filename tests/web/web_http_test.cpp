@@ -5,6 +5,7 @@
 #include <catch2/catch.hpp>
 
 #include "../daemon/live_bench.hpp"
+#include "fogbench/daemon/handler.hpp"
 #include "exposition.hpp"
 #include "web_client.hpp"
 
@@ -119,6 +120,47 @@ TEST_CASE("the panel's files, metrics and the protocol over HTTP and WebSocket, 
   CHECK(got["result"]["run"]["reason"] == "aborted by operator: web test");
 }
 
+TEST_CASE("every control command of the table is refused on the read-only TCP port, POST /api and the WebSocket, live") {
+  require_sim();
+  const auto tcp_port = free_port();
+  LiveBench bench(20.0, web_patch(tcp_port), true);
+  const auto port = web_port(bench);
+  LineClient tcp(tcp_port);
+  REQUIRE(tcp.ok());
+  WsClient ws("127.0.0.1", port, "/ws");
+  REQUIRE(ws.ok());
+  std::size_t control = 0;
+  for (const auto& c : fogbench::daemon::commands()) {
+    const std::string name(c.name);
+    INFO(name);
+    if (c.access == fogbench::daemon::Access::read) {
+      // Served (whatever it answers without arguments), not refused.
+      CHECK(code_of(tcp.call({{"cmd", name}})) != "forbidden");
+      continue;
+    }
+    ++control;
+    const json by_tcp = tcp.call({{"cmd", name}});
+    CHECK(code_of(by_tcp) == "forbidden");
+    CHECK(by_tcp["error"]["message"] == name + ": needs a valid token on this connection");
+    CHECK(code_of(tcp.call({{"cmd", name}, {"token", "wrong-token-0123456789"}})) == "forbidden");
+    const auto api = http_post(port, "/api", json{{"id", 1}, {"cmd", name}}.dump());
+    CHECK(api.status == 403);
+    CHECK(code_of(json::parse(api.body, nullptr, false)) == "forbidden");
+    CHECK(code_of(ws.call({{"cmd", name}})) == "forbidden");
+  }
+  CHECK(control >= 11u);
+  // Nothing was started or queued.
+  LineClient c(bench.socket());
+  REQUIRE(c.ok());
+  const json runs = c.call({{"cmd", "run.list"}});
+  REQUIRE(runs.contains("result"));
+  CHECK(runs["result"]["runs"].empty());
+  const json queue = c.call({{"cmd", "queue.list"}});
+  INFO(queue.dump());
+  CHECK(code_of(queue) != "forbidden");
+  still_serving(bench, port);
+}
+
 TEST_CASE("bad input on the HTTP side gets a clear error and the daemon goes on") {
   require_sim();
   LiveBench bench(20.0, web_patch(free_port()), true);
@@ -168,6 +210,32 @@ TEST_CASE("bad input on the HTTP side gets a clear error and the daemon goes on"
   CHECK(evil.status == 403);
   CHECK(evil.body.find("WebSocket from another origin (http://evil.example) refused") != std::string::npos);
   CHECK(upgrade("http://127.0.0.1:" + std::to_string(port)).status == 101);
+  // DNS rebinding: a page of evil.example whose name now resolves to this address sends Host
+  // and Origin that agree, both evil.example:PORT. Refused on /ws (it was upgraded before, and
+  // its reads worked), /api and /metrics; the panel's own files stay public.
+  const std::string evil_host = "evil.example:" + std::to_string(port);
+  auto rebound_ws = http_raw(port, "GET /ws HTTP/1.1\r\nHost: " + evil_host +
+                                       "\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                                       "Sec-WebSocket-Version: 13\r\nOrigin: http://" + evil_host + "\r\n\r\n", 10s);
+  CHECK(rebound_ws.status == 403);
+  CHECK(rebound_ws.body.find("Host " + evil_host + " is not a name of this panel") != std::string::npos);
+  const std::string status_req = json{{"id", 1}, {"cmd", "status"}}.dump();
+  auto post = [&](const std::string& host, const std::string& origin) {
+    return http_raw(port, "POST /api HTTP/1.1\r\nHost: " + host + "\r\n" + (origin.empty() ? "" : "Origin: " + origin + "\r\n") +
+                              "Connection: close\r\nContent-Type: text/plain\r\nContent-Length: " +
+                              std::to_string(status_req.size()) + "\r\n\r\n" + status_req);
+  };
+  CHECK(post(evil_host, "http://" + evil_host).status == 403);
+  CHECK(post(evil_host, "").status == 403);
+  // A cross-site form posted to /api from the operator's browser: its Origin is not the Host.
+  const std::string own = "127.0.0.1:" + std::to_string(port);
+  auto csrf = post(own, "http://evil.example");
+  CHECK(csrf.status == 403);
+  CHECK(csrf.body.find("request from another origin (http://evil.example) refused") != std::string::npos);
+  CHECK(post(own, "http://" + own).status == 200);
+  CHECK(post("localhost:" + std::to_string(port), "").status == 200);
+  CHECK(http_raw(port, "GET /metrics HTTP/1.1\r\nHost: " + evil_host + "\r\nConnection: close\r\n\r\n").status == 403);
+  CHECK(http_raw(port, "GET / HTTP/1.1\r\nHost: " + evil_host + "\r\nConnection: close\r\n\r\n").status == 200);
 
   // WebSocket garbage: a bad line is an error reply and the connection stays; a binary message
   // is refused the same way; a message over 1 MiB closes the connection.

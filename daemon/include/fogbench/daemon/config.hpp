@@ -9,6 +9,8 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -42,7 +44,18 @@ struct WebConfig {
   // The web side's control token: the first line of web.token_file (relative to the
   // configuration's folder); empty: socket.tcp's token, if any.
   std::string token;
+  // The DNS names by which browsers reach the panel (web.hosts, lower case), beside an IP
+  // address and `localhost`, which are always accepted: a request for /ws, /api or /metrics whose
+  // Host (or Origin) names anything else is refused, so that a page that rebinds its own name to
+  // this address (DNS rebinding) cannot read the bench.
+  std::vector<std::string> hosts;
 };
+// Whether a request's Host header ("name", "name:port", "[v6]:port"; empty when absent) names
+// this panel: an IP address, `localhost`, or one of `hosts`, in any case.
+bool web_host_allowed(const WebConfig& w, std::string_view host_header);
+// Whether a request's Origin header may reach the panel: absent (not a browser), or
+// "scheme://host[:port]" whose host[:port] is the request's Host and whose host is allowed.
+bool web_origin_allowed(const WebConfig& w, std::string_view origin, std::string_view host_header);
 // Parses the `web` section ({listen: "host:port", allow_remote?, enabled?, token_file?}); errors
 // name the field. A relative token_file is relative to base_dir; it is read only when enabled.
 std::expected<WebConfig, std::string> parse_web_config(const nlohmann::json& j,

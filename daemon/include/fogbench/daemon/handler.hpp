@@ -5,6 +5,7 @@
 
 #include <functional>
 #include <memory>
+#include <span>
 #include <string>
 #include <string_view>
 
@@ -17,9 +18,9 @@ namespace fogbench::daemon {
 // What a connection carries between requests.
 struct SessionState {
   bool subscribed = false;  // receives "sample" and "event" messages
-  // Commands that change something (is_control_command: run.start, run.abort, run.resume,
-  // model.fit, model.verify, model.add_term) only on the local socket, whose file mode says who
-  // may use it; the TCP port is for reading (or with the token).
+  // Commands that change something (Access::control in the command table) only on the local
+  // socket, whose file mode says who may use it; the TCP port, the web panel's WebSocket and
+  // its /api are for reading (or with the token).
   bool may_control = true;
   // On a connection that may only read: the token (socket.tcp.token) that lets a request
   // control anyway when it carries it in its `token` field. Empty: none is accepted.
@@ -29,8 +30,28 @@ struct SessionState {
   std::string peer_user;
 };
 
-// The commands that change something; the others only read (docs/protocol.md).
+// What a socket command needs of its connection (docs/protocol.md, "Read-only and control
+// commands"): `read` commands are served everywhere, `control` ones (they change something) on
+// a connection that may control, or with the token on one that may only read. No default: a
+// command's entry in the table does not compile without one.
+enum class Access { read, control };
+
+// One socket command as the handler's table (handler.cpp) declares it. That table is the only
+// list of command names in the daemon: dispatch, the access check, the choice of the worker and
+// the tests all read it, so a command absent from it is `unknown_command` everywhere.
+struct CommandInfo {
+  std::string_view name;
+  Access access;
+  bool offloaded;  // run on the Offload (Handler::offloaded), not on the loop
+};
+// Every socket command, in the table's order.
+std::span<const CommandInfo> commands();
+// The command called `name`; nullptr when there is none.
+const CommandInfo* find_command(std::string_view name);
+// The commands that change something (Access::control); the others only read.
 bool is_control_command(std::string_view cmd);
+
+struct CommandHandlers;
 
 class Handler {
  public:
@@ -54,9 +75,9 @@ class Handler {
   nlohmann::json handle_line(std::string_view line, SessionState& session);
   nlohmann::json handle(const nlohmann::json& request, SessionState& session);
 
-  // The commands handed to the Offload: the analyses (model.fit, model.verify, model.compare,
-  // model.diagnose, model.add_term) and the reads that may be large (run.samples, run.get,
-  // cert.get).
+  // The commands handed to the Offload (CommandInfo::offloaded): the analyses (model.fit,
+  // model.verify, model.compare, model.diagnose, model.add_term) and the reads that may be
+  // large (run.samples, run.get, cert.get).
   static bool offloaded(std::string_view cmd);
 
   static nlohmann::json reply(const nlohmann::json& id, nlohmann::json result);
@@ -65,11 +86,8 @@ class Handler {
   static nlohmann::json too_long();
 
  private:
-  ApiResult<nlohmann::json> dispatch(const std::string& cmd, const nlohmann::json& req,
-                                     SessionState& session);
-  // An offloaded command: its arguments checked here, the rest submitted.
-  void offload(const std::string& cmd, const nlohmann::json& req, const nlohmann::json& id, Done done);
-  void offload_certificate(const nlohmann::json& req, const nlohmann::json& id, Done done);
+  // The table's handlers (handler.cpp), one per command.
+  friend struct CommandHandlers;
   Station& station_;
 };
 

@@ -71,9 +71,17 @@ class PlanRunner {
   double last_queue_look_s_ = -1e300;
 };
 
-// The socket commands plan.* and queue.* (docs/protocol.md), for the handler.
-bool is_plan_command(std::string_view cmd);
-bool is_plan_control_command(std::string_view cmd);
-ApiResult<nlohmann::json> plan_command(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
+// The socket commands plan.* and queue.* (docs/protocol.md), for the handler's command table
+// (handler.cpp), which names each one's access. `runner` is null on a station that runs no
+// plans; `cmd` is the command's name, for the messages.
+using PlanCommand = ApiResult<nlohmann::json> (*)(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
+ApiResult<nlohmann::json> plan_validate(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
+ApiResult<nlohmann::json> plan_start(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
+ApiResult<nlohmann::json> plan_status(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
+ApiResult<nlohmann::json> plan_abort(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
+ApiResult<nlohmann::json> queue_list(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
+ApiResult<nlohmann::json> queue_add(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
+ApiResult<nlohmann::json> queue_remove(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
+ApiResult<nlohmann::json> queue_move(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
 
 }  // namespace fogbench::daemon
