@@ -172,7 +172,7 @@ void score(const StepContext& ctx, const Cand& cd, const Model& m2, int extra_pa
   // Beyond the gyro's slow noise: the variance the term removes exceeds the slow noise's on
   // the fit run and on every scored held-out run.
   std::string within_slow;
-  auto removed = [](double before, double after) { return before * before - after * after; };
+  auto removed = [](double rms_before, double rms_after) { return rms_before * rms_before - rms_after * rms_after; };
   auto within = [&](const std::string& run, double rem, double slow) {
     if (slow > 0.0 && !(rem > slow) && within_slow.empty())
       within_slow = run + " (" + fmt(rem, 4) + " (deg/h)^2 removed, the slow noise " + fmt(slow, 4) + ")";

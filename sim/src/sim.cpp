@@ -107,8 +107,8 @@ double World::gyro_noise(UnitState& u, const UnitParams& p) {
     std::size_t j = 0;
     for (double tau = 2.0; tau <= 1e6; tau *= 3.0, ++j) {
       if (u.flicker.size() <= j) u.flicker.push_back(std::sqrt(var_j) * unit(rng_));  // started stationary
-      const double a = std::exp(-1.0 / tau);
-      u.flicker[j] = a * u.flicker[j] + std::sqrt(var_j * (1.0 - a * a)) * unit(rng_);
+      const double decay = std::exp(-1.0 / tau);
+      u.flicker[j] = decay * u.flicker[j] + std::sqrt(var_j * (1.0 - decay * decay)) * unit(rng_);
       extra += u.flicker[j];
     }
   }
