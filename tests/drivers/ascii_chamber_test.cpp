@@ -216,7 +216,7 @@ TEST_CASE("espec: over a serial line (pseudo-terminal)") {
   CHECK_THAT(chamber.link().prefix(), Catch::Contains("serial " + peer.device() + " 9600 8N1"));
 }
 
-TEST_CASE("espec: an NA: line is an error naming device, command and reply; the link stays up") {
+TEST_CASE("espec: an NA: line is an error naming device, command and reply, the link stays up") {
   LinePeer peer([](const std::string& l) -> std::string {
     if (l.starts_with("TEMP, S")) return "NA:DATA OUT OF RANGE\r\n";
     if (l == "TEMP?") return "NA:CONT NOT READY-3\r\n";

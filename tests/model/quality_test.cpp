@@ -61,7 +61,7 @@ TEST_CASE("quality: tiny and empty runs are judged without failing", "[quality]"
   }
 }
 
-TEST_CASE("quality: the synthetic run is clean; its lags are the ones built in", "[quality]") {
+TEST_CASE("quality: the synthetic run is clean, its lags are the ones built in", "[quality]") {
   const auto q = assess_quality(synthetic(6000, 2));
   INFO((q.flags.empty() ? std::string() : q.flags[0].message()));
   CHECK(q.ok());
