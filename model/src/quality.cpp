@@ -490,18 +490,20 @@ class Assessor {
                            num(o_.min_air_lag_s, 0) + ".." + num(o_.max_air_lag_s, 0) + " s");
     // The ratio of the two lags, when both are measured, the air's reading is sound and the
     // wall's lag is long enough to divide by.
-    const std::optional<double> ratio =
-        core && wall && !air_bad && *wall > 30.0 ? std::optional<double>(*core / *wall) : std::nullopt;
-    const bool core_long = core && (*core > o_.max_core_lag_s || (ratio && *ratio > o_.max_core_wall_ratio));
-    const bool core_short = core && (*core < o_.min_core_lag_s || (ratio && *ratio < o_.min_core_wall_ratio));
+    // (a flag and a value, not an optional: g++ 12 at -O1 calls an optional's value maybe
+    // uninitialized here, an error in the checking build)
+    const bool has_ratio = core && wall && !air_bad && *wall > 30.0;
+    const double ratio = has_ratio ? *core / *wall : 0.0;
+    const bool core_long = core && (*core > o_.max_core_lag_s || (has_ratio && ratio > o_.max_core_wall_ratio));
+    const bool core_short = core && (*core < o_.min_core_lag_s || (has_ratio && ratio < o_.min_core_wall_ratio));
     const bool wall_long = wall && !air_bad && *wall > o_.max_wall_lag_s;
     const bool wall_lead = wall && !air_bad && *wall < o_.min_wall_lag_s;
     const std::string figures = "T1 lags T2 by " + s0(core) + " s" + (wall ? ", T2 lags the air by " + s0(wall) + " s" : "") +
                                 " (cross-correlation of the rates); the coil allows " + num(o_.min_core_lag_s, 0) + ".." +
                                 num(o_.max_core_lag_s, 0) + " s for the first" +
                                 (wall ? ", " + num(o_.min_wall_lag_s, 0) + ".." + num(o_.max_wall_lag_s, 0) + " s for the second" : "") +
-                                (ratio ? " and a ratio of " + num(o_.min_core_wall_ratio, 1) + ".." + num(o_.max_core_wall_ratio, 1) +
-                                             " between them (here " + num(*ratio, 2) + ")"
+                                (has_ratio ? " and a ratio of " + num(o_.min_core_wall_ratio, 1) + ".." + num(o_.max_core_wall_ratio, 1) +
+                                                 " between them (here " + num(ratio, 2) + ")"
                                        : "");
     if (core_long && !wall_long)
       says("T1", *core, figures + ": T1 lags the coil it sits in");
