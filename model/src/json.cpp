@@ -263,7 +263,7 @@ json to_json(const Table1& t) {
 
 json to_json(const NoiseFloor& f) {
   return {{"measured", f.measured()},
-          {"white_scale", f.white_scale},
+          {"white_dph", std::sqrt(f.white_var_dph2)},
           {"bias_instability_dph", f.bias_instability_dph},
           {"rrw_dph_per_sqrt_h", f.rrw_dph_per_sqrt_h},
           {"hold_samples", f.hold_samples},

@@ -72,7 +72,7 @@ std::string fmt(double x, int d) {
 double floor_avar(const NoiseFloor& f, double tau_s) {
   const auto m = std::max<std::int64_t>(1, std::llround(tau_s));
   const double fast = f.white_var_dph2 > 0.0 ? f.white_var_dph2 / static_cast<double>(m)
-                                            : f.white_scale * f.white_scale * ar_avar(f.ar, f.sigma_a_dph, m);
+                                            : ar_avar(f.ar, f.sigma_a_dph, m);
   return fast + 2.0 * std::numbers::ln2 * f.flicker_h +
          2.0 * kPi * kPi / 3.0 * f.walk_h * tau_s;
 }
@@ -331,12 +331,11 @@ FloorVariance floor_variance(const NoiseFloor& f, std::size_t samples, int smoot
   const std::size_t n = std::max<std::size_t>(2, samples);
   const double dn = 2.0 * static_cast<double>(n);
   double slow_var = 0.0;
-  const double ws2 = f.white_scale * f.white_scale;
   for (std::size_t k = 1; k < n; ++k) {
     const double fk = static_cast<double>(k) / dn;
     const double g = ma_gain2(smooth_s, fk) / dn;
     const double slow = (f.flicker_h / fk + f.walk_h / (fk * fk)) * g;
-    const double fast = f.white_var_dph2 > 0.0 ? 2.0 * f.white_var_dph2 : ws2 * ar_psd(f.ar, f.sigma_a_dph, fk);
+    const double fast = f.white_var_dph2 > 0.0 ? 2.0 * f.white_var_dph2 : ar_psd(f.ar, f.sigma_a_dph, fk);
     v.total += fast * g + slow;
     v.slow += slow;
     slow_var += 2.0 * slow * slow;
@@ -372,10 +371,10 @@ Yardstick yardstick(const RunData& run, std::span<const double> residual_dph, st
     y.floor.note = "the model's AR noise alone (no floor read)";
   }
   if (!y.floor.slow()) {
-    // Exactly the AR rule: the AR process's std, k_sigma sigma_a (times the holds' short-term scale).
-    y.noise_std_dph = y.floor.white_scale * ar_process_std(ar, sigma_a_dph);
+    // Exactly the AR rule: the AR process's std and k_sigma sigma_a.
+    y.noise_std_dph = ar_process_std(ar, sigma_a_dph);
     y.limit_factor = rule.max_noise_factor;
-    y.threshold_dph = rule.k_sigma * sigma_a_dph * y.floor.white_scale;
+    y.threshold_dph = rule.k_sigma * sigma_a_dph;
     return y;
   }
   const FloorVariance whole = floor_variance(y.floor, samples, 1);

@@ -42,7 +42,6 @@ struct NoiseFloorOptions {
 struct NoiseFloor {
   std::vector<double> ar;               // the model's AR coefficients k_1..k_p
   double sigma_a_dph = 0.0;             // the model's innovation std, deg/h
-  double white_scale = 1.0;             // the model's AR noise is scaled by this (1: as fitted)
   // With slow noise: the white (angle random walk) variance read off the curve at 1 s,
   // (deg/h)^2, which then stands for the short-term part (0: the model's AR noise does).
   double white_var_dph2 = 0.0;
