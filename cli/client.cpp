@@ -266,7 +266,7 @@ std::expected<json, ClientError> Client::next_message(int timeout_ms) {
 }
 
 std::expected<model::RunData, ClientError> fetch_run(Client& c, std::int64_t run_id, int unit,
-                                                     bool include_settle) {
+                                                     bool include_settle, Gaps gaps) {
   model::RunData d;
   d.name = "run " + std::to_string(run_id) + " unit " + std::to_string(unit);
   std::int64_t offset = 0;
@@ -305,9 +305,17 @@ std::expected<model::RunData, ClientError> fetch_run(Client& c, std::int64_t run
                                                                            std::to_string(unit) + " has no samples"));
   if (!any_compensated) d.compensated_dph.clear();
   if (!any_power_on) d.since_power_on_s.clear();
-  // The CSV has no empty cells: a value not read takes its neighbour's, and the sample keeps
-  // (or gets) the missing flag so that no fit trusts it.
-  storage::bridge_missing(d);
+  if (gaps == Gaps::bridge) {
+    // A value not read takes its neighbour's, and the sample keeps (or gets) the missing flag
+    // so that no fit trusts it.
+    storage::bridge_missing(d);
+    return d;
+  }
+  // Kept as NaN: the sample must carry the missing flag, which is what lets the CSV hold an
+  // empty cell there (docs/csv.md); the store sets it, this makes sure of it.
+  for (std::size_t i = 0; i < d.size(); ++i)
+    for (const auto* col : {&d.gyro_dph, &d.t1_c, &d.t2_c, &d.setpoint_c, &d.chamber_c})
+      if (!std::isfinite((*col)[i])) d.flags[i] |= model::flag::missing;
   return d;
 }
 

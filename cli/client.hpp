@@ -92,11 +92,16 @@ class Client {
   nlohmann::json hello_;
 };
 
-// All samples of a run's unit as a RunData (settle samples left out unless asked). A value
-// not read is bridged from its neighbour and the sample keeps its `missing` flag, so the CSV is
-// valid and fits skip it.
+// What fetch_run does with a value the daemon could not take (NULL in the store).
+enum class Gaps {
+  keep,    // NaN, the sample flagged `missing`: an export writes an empty cell (docs/csv.md)
+  bridge,  // the neighbour's value, the sample flagged `missing`: the daemon's own analyses do
+           // this (daemon/src/analysis.cpp), so `fit --run N` fits what the station fitted
+};
+
+// All samples of a run's unit as a RunData (settle samples left out unless asked).
 std::expected<model::RunData, ClientError> fetch_run(Client& c, std::int64_t run_id, int unit,
-                                                     bool include_settle = false);
+                                                     bool include_settle = false, Gaps gaps = Gaps::bridge);
 
 // Registers status, run (start, watch, list, get, abort, resume, export) and extends fit and verify
 // with --run N; `code` receives the exit code.

@@ -218,7 +218,7 @@ int cmd_run_export(const Common& o, std::int64_t id, const std::string& unit_arg
   if (!c) return report(c.error(), err);
   auto unit = resolve_unit(*c, id, unit_arg);
   if (!unit) return report(unit.error(), err);
-  auto d = fetch_run(*c, id, *unit, settle);
+  auto d = fetch_run(*c, id, *unit, settle, Gaps::keep);  // a gap stays empty (docs/csv.md)
   if (!d) return report(d.error(), err);
   // The run's identity as `# key: value` lines above the header (docs/csv.md).
   auto g = c->call("run.get", {{"run_id", id}});

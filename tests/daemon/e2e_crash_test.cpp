@@ -6,6 +6,9 @@
 
 #include <sqlite3.h>
 
+#include <fstream>
+#include <sstream>
+
 #include "fogbench/storage/store.hpp"
 
 using namespace fogbench;
@@ -98,8 +101,47 @@ TEST_CASE("e2e crash: SIGKILL mid-run loses no stored second, the restart marks 
   CHECK(static_cast<std::int64_t>(rows.size()) > before);
   // Every second of the run clock, the time away included (flagged link_gap + missing).
   for (std::size_t i = 0; i < rows.size(); ++i) CHECK(rows[i]["t_s"].get<double>() == static_cast<double>(i));
-  for (std::size_t i = static_cast<std::size_t>(before); i < rows.size() && (rows[i]["flags"].get<int>() & 8); ++i)
+  std::size_t gap_rows = 0;
+  for (std::size_t i = static_cast<std::size_t>(before); i < rows.size() && (rows[i]["flags"].get<int>() & 8); ++i) {
     CHECK(rows[i]["chamber_c"].is_null());
+    ++gap_rows;
+  }
+  REQUIRE(gap_rows > 0);
+
+  // fogctl's export keeps the time away empty (docs/csv.md): no reading is repeated across it.
+  require_fogctl();
+  const auto csv_path = bench.dir / "resumed.csv";
+  const std::string cmd = "'" + (kBin / "fogctl").string() + "' run export " + std::to_string(run) + " --unit 0 -o '" +
+                          csv_path.string() + "' --socket '" + bench.socket().string() + "' 2>/dev/null";
+  REQUIRE(std::system(cmd.c_str()) == 0);
+  std::ifstream in(csv_path);
+  std::string line;
+  std::vector<std::string> header;
+  std::size_t empty_chamber = 0, t_col = 0, chamber_col = 0;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    for (std::string cell; std::getline(ss, cell, ',');) cells.push_back(cell);
+    if (!line.empty() && line.back() == ',') cells.emplace_back();
+    if (header.empty()) {
+      header = cells;
+      for (std::size_t k = 0; k < header.size(); ++k) {
+        if (header[k] == "time_s") t_col = k;
+        if (header[k] == "chamber_c") chamber_col = k;
+      }
+      REQUIRE(header.at(chamber_col) == "chamber_c");
+      continue;
+    }
+    REQUIRE(cells.size() == header.size());
+    const double t = std::stod(cells[t_col]);
+    if (t >= static_cast<double>(before) && t < static_cast<double>(before + static_cast<std::int64_t>(gap_rows))) {
+      INFO("t = " << t << ": " << line);
+      CHECK(cells[chamber_col].empty());
+      if (cells[chamber_col].empty()) ++empty_chamber;
+    }
+  }
+  CHECK(empty_chamber == gap_rows);
 }
 
 TEST_CASE("e2e crash: a store locked at restart does not keep fogbenchd from starting and going safe, the marks follow") {
