@@ -346,6 +346,7 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   if (c.limits.max_c > sp.max_c)
     return Err("chamber_limits.max_c: above drivers.chamber.setpoint_limits_c.max (" + std::to_string(sp.max_c) + ")");
   c.drivers = std::move(*drv);
+  cap_backoff_to_tolerance(c);
   // The source is stored with every run: the token is a credential, not a setting to audit.
   if (c.source.contains("socket") && c.source["socket"].contains("tcp") && c.source["socket"]["tcp"].is_object() &&
       c.source["socket"]["tcp"].contains("token"))
@@ -370,6 +371,14 @@ std::chrono::milliseconds gyro_retry_delay(double time_scale) {
   constexpr double wall_ms = 1000.0;  // a second at 1x
   if (!(time_scale > 1.0)) return std::chrono::milliseconds(1000);
   return std::chrono::milliseconds(std::max<std::int64_t>(1, std::llround(wall_ms / time_scale)));
+}
+
+void cap_backoff_to_tolerance(DaemonConfig& c) {
+  if (c.link_loss.policy != LinkLossConfig::Policy::hold) return;
+  const auto cap_ms = static_cast<std::int64_t>(std::llround(c.link_loss.tolerance_s * 1000.0 * kBackoffShareOfTolerance));
+  for (drivers::BackoffConfig* b : {&c.drivers.chamber.modbus.backoff, &c.drivers.chamber.line.backoff}) {
+    b->max_ms = std::max(b->initial_ms, std::min(b->max_ms, cap_ms));
+  }
 }
 
 void scale_backoff_to_clock(drivers::DriversConfig& d, double time_scale) {

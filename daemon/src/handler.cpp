@@ -12,6 +12,7 @@
 #include "fogbench/daemon/analysis.hpp"
 #include "fogbench/daemon/certificate.hpp"
 #include "fogbench/daemon/run_identity.hpp"
+#include "fogbench/storage/identity.hpp"
 #include "fogbench/protocol/framing.hpp"
 #include "fogbench/model/json.hpp"
 
@@ -258,11 +259,16 @@ struct CommandHandlers {
     const json& req = c.req;
     auto profile = req_string(req, "profile");
     if (!profile) return std::unexpected(profile.error());
+    if (auto why = storage::check_stored_text("profile", *profile, storage::kMaxNameBytes); !why.empty())
+      return api_error(ErrorCode::bad_request, why);
     if (!req.contains("units")) return api_error(ErrorCode::bad_request, "units: missing");
     if (!req["units"].is_array()) return api_error(ErrorCode::bad_request, "units: expected an array of serials");
     std::vector<std::string> serials;
     for (const auto& u : req["units"]) {
       if (!u.is_string()) return api_error(ErrorCode::bad_request, "units: expected an array of serials");
+      const std::string field = "units[" + std::to_string(serials.size()) + "]";
+      if (auto why = storage::check_stored_text(field, u.get<std::string>(), storage::kMaxNameBytes); !why.empty())
+        return api_error(ErrorCode::bad_request, why);
       serials.push_back(u.get<std::string>());
     }
     auto purpose_text = opt_string(req, "purpose");
@@ -279,6 +285,9 @@ struct CommandHandlers {
   static ApiResult<json> run_abort(const CommandCall& c) {
     auto reason = opt_string(c.req, "reason");
     if (!reason) return std::unexpected(reason.error());
+    if (*reason)
+      if (auto why = storage::check_stored_text("reason", **reason, storage::kMaxReasonBytes); !why.empty())
+        return api_error(ErrorCode::bad_request, why);
     auto run_id = opt_int(c.req, "run_id", 1, kMaxId);
     if (!run_id) return std::unexpected(run_id.error());
     auto active = station(c).active_run_id();

@@ -4,6 +4,7 @@
 #include <vector>
 
 #include "fogbench/daemon/plan_runner.hpp"
+#include "fogbench/storage/identity.hpp"
 
 namespace fogbench::daemon {
 
@@ -40,6 +41,8 @@ ApiResult<PlanArgs> plan_args(const json& req, bool units_required) {
   a.text = *text;
   auto source = string_field(req, "source", false);
   if (!source) return std::unexpected(source.error());
+  if (auto why = storage::check_stored_text("source", *source, storage::kMaxSourceBytes); !why.empty())
+    return api_error(ErrorCode::bad_request, why);
   a.source = source->empty() ? "plan" : *source;
   if (!req.contains("units")) {
     if (units_required) return api_error(ErrorCode::bad_request, "units: missing");
@@ -48,6 +51,9 @@ ApiResult<PlanArgs> plan_args(const json& req, bool units_required) {
   if (!req["units"].is_array()) return api_error(ErrorCode::bad_request, "units: expected an array of serials");
   for (const auto& u : req["units"]) {
     if (!u.is_string()) return api_error(ErrorCode::bad_request, "units: expected an array of serials");
+    const std::string field = "units[" + std::to_string(a.units.size()) + "]";
+    if (auto why = storage::check_stored_text(field, u.get<std::string>(), storage::kMaxNameBytes); !why.empty())
+      return api_error(ErrorCode::bad_request, why);
     a.units.push_back(u.get<std::string>());
   }
   return a;
@@ -96,6 +102,8 @@ ApiResult<json> plan_abort(PlanRunner* runner, const std::string& cmd, const jso
   if (!runner) return no_plans(cmd);
   auto reason = string_field(req, "reason", false);
   if (!reason) return std::unexpected(reason.error());
+  if (auto why = storage::check_stored_text("reason", *reason, storage::kMaxReasonBytes); !why.empty())
+    return api_error(ErrorCode::bad_request, why);
   return runner->abort(*reason, req);
 }
 

@@ -223,6 +223,11 @@ class Parser {
       std::string stem = plan_.source;
       if (auto slash = stem.find_last_of('/'); slash != std::string::npos) stem = stem.substr(slash + 1);
       if (auto dot = stem.rfind(".plan"); dot != std::string::npos && dot + 5 == stem.size()) stem.resize(dot);
+      // The name is stored and printed (fogctl queue list): a file name that is no plan name
+      // (a space, an escape sequence, 100,000 characters) is refused, not stored raw.
+      if (!valid_name(stem))
+        return fail(0, 0, "the plan has no 'plan <name>' line and its file name is no plan name (1 to 64 letters, "
+                          "digits, '_', '-' or '.'): add a line 'plan <name>'");
       plan_.name = stem;
     }
     return std::move(plan_);

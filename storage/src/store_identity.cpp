@@ -4,6 +4,7 @@
 // store_samples.cpp (samples, import), store_models.cpp (models, verifications).
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <nlohmann/json.hpp>
 
 #include "fogbench/storage/identity.hpp"
@@ -19,21 +20,54 @@ std::string_view operator_source_name(std::string_view s) {
   return {};
 }
 
-std::string check_operator_name(std::string_view name) {
-  if (name.size() > kMaxOperatorBytes)
-    return "operator: longer than " + std::to_string(kMaxOperatorBytes) + " bytes (" +
-           std::to_string(name.size()) + ")";
-  for (std::size_t i = 0; i < name.size(); ++i) {
-    const auto c = static_cast<unsigned char>(name[i]);
+namespace {
+// The offset of the first byte that does not start a well-formed UTF-8 sequence (RFC 3629: no
+// overlong forms, no surrogates, nothing above U+10FFFF), npos when all of `s` is well formed.
+std::size_t first_invalid_utf8(std::string_view s) {
+  std::size_t i = 0;
+  while (i < s.size()) {
+    const auto b = static_cast<unsigned char>(s[i]);
+    std::size_t len = 0;
+    unsigned lo = 0x80, hi = 0xBF;  // the allowed range of the second byte
+    if (b < 0x80) len = 1;
+    else if (b >= 0xC2 && b <= 0xDF) len = 2;
+    else if (b == 0xE0) len = 3, lo = 0xA0;
+    else if (b == 0xED) len = 3, hi = 0x9F;
+    else if (b >= 0xE1 && b <= 0xEF) len = 3;
+    else if (b == 0xF0) len = 4, lo = 0x90;
+    else if (b == 0xF4) len = 4, hi = 0x8F;
+    else if (b >= 0xF1 && b <= 0xF3) len = 4;
+    else return i;
+    if (i + len > s.size()) return i;
+    for (std::size_t k = 1; k < len; ++k) {
+      const auto c = static_cast<unsigned char>(s[i + k]);
+      if (c < (k == 1 ? lo : 0x80u) || c > (k == 1 ? hi : 0xBFu)) return i;
+    }
+    i += len;
+  }
+  return std::string_view::npos;
+}
+}  // namespace
+
+std::string check_stored_text(std::string_view field, std::string_view value, std::size_t max_bytes) {
+  const std::string f(field);
+  if (value.size() > max_bytes)
+    return f + ": longer than " + std::to_string(max_bytes) + " bytes (" + std::to_string(value.size()) + ")";
+  for (std::size_t i = 0; i < value.size(); ++i) {
+    const auto c = static_cast<unsigned char>(value[i]);
     if (c < 0x20 || c == 0x7f) {
       char code[8];
       std::snprintf(code, sizeof code, "0x%02X", c);
-      return "operator: control character " + std::string(code) + " at byte " + std::to_string(i + 1);
+      return f + ": control character " + std::string(code) + " at byte " + std::to_string(i + 1);
     }
   }
-  if (!nlohmann::json::accept("\"" + std::string(name) + "\""))
-    return "operator: not valid UTF-8";
+  if (const auto bad = first_invalid_utf8(value); bad != std::string_view::npos)
+    return f + ": not valid UTF-8 at byte " + std::to_string(bad + 1);
   return {};
+}
+
+std::string check_operator_name(std::string_view name) {
+  return check_stored_text("operator", name, kMaxOperatorBytes);
 }
 
 namespace {

@@ -71,6 +71,45 @@ TEST_CASE("config: link_loss and tracking, their defaults and errors naming the 
   CHECK_THAT(refusal({{"tracking", {{"frozen_s", -3}}}}), Catch::StartsWith("tracking.frozen_s"));
 }
 
+TEST_CASE("config: the chamber's reconnection back-off is capped so an outage shorter than the tolerance is survived") {
+  for (double tolerance_s : {10.0, 60.0, 300.0}) {
+    auto j = golden_config_json();
+    j.merge_patch({{"link_loss", {{"tolerance_s", tolerance_s}}}});
+    auto c = parse_daemon_config(j, golden_dir());
+    REQUIRE(c.has_value());
+    const auto& b = c->drivers.chamber.modbus.backoff;
+    INFO("tolerance " << tolerance_s << " s, max_ms " << b.max_ms);
+    CHECK(b.max_ms <= static_cast<std::int64_t>(tolerance_s * 100.0));
+    CHECK(b.max_ms >= b.initial_ms);
+    CHECK(c->drivers.chamber.line.backoff.max_ms == b.max_ms);
+    // An outage of up to 0.9 x the tolerance less one reply timeout: the link is tried again
+    // every back-off delay, each failure costing a timeout; the first attempt after the chamber
+    // is back succeeds before the tolerance runs out.
+    const double timeout_s = c->drivers.chamber.modbus.response_timeout_ms / 1000.0;
+    for (double outage_s = 1.0; outage_s < 0.9 * tolerance_s - timeout_s; outage_s += tolerance_s / 20.0) {
+      fogbench::drivers::Backoff backoff(b);
+      using std::chrono::milliseconds;
+      const auto t0 = fogbench::drivers::Backoff::TimePoint{};
+      auto at = [&](double s) { return t0 + milliseconds(static_cast<std::int64_t>(s * 1000.0)); };
+      double now_s = 0.0;
+      for (;;) {
+        while (!backoff.may_attempt(at(now_s))) now_s += 0.001;
+        if (now_s >= outage_s) break;     // the chamber answers again
+        now_s += timeout_s;               // the attempt waits out its reply timeout
+        backoff.record_failure(at(now_s));
+      }
+      INFO("outage " << outage_s << " s: back at " << now_s << " s");
+      CHECK(now_s < tolerance_s);
+    }
+  }
+  // The safe_abort policy aborts at once: nothing to cap. A configured max below the cap stays.
+  auto j = golden_config_json();
+  j.merge_patch({{"drivers", {{"chamber", {{"modbus", {{"backoff", {{"initial_ms", 100}, {"max_ms", 2000}}}}}}}}}});
+  auto c = parse_daemon_config(j, golden_dir());
+  REQUIRE(c.has_value());
+  CHECK(c->drivers.chamber.modbus.backoff.max_ms == 2000);
+}
+
 TEST_CASE("config: socket.group, socket.tcp and the token, with errors naming the field") {
   auto j = golden_config_json();
   j.merge_patch({{"socket", {{"group", "root"}, {"tcp", {{"port", 7000}, {"token", "0123456789abcdef"}}}}}});

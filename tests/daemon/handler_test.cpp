@@ -294,3 +294,24 @@ TEST_CASE("handler: a fit that fails on the run's data has one code, whichever c
   CHECK_THAT(fit["error"]["message"].get<std::string>(), Catch::Contains("fit failed ("));
   CHECK(r.store.list_models("FOG-0001")->size() == 1);  // nothing stored
 }
+
+TEST_CASE("handler: names and reasons with control characters or beyond their bound are refused, naming the field") {
+  Rig r;
+  auto message = [&](const std::string& line) {
+    json rep = r.send(line);
+    REQUIRE(rep.contains("error"));
+    CHECK(rep["error"]["code"] == "bad_request");
+    return rep["error"]["message"].get<std::string>();
+  };
+  CHECK(message(R"({"id":1,"cmd":"run.start","profile":"short","units":["FOG-0001","FOG\u001b[2J"]})") ==
+        "units[1]: control character 0x1B at byte 4");
+  CHECK(message(R"({"id":1,"cmd":"run.start","profile":"sh\u0007ort","units":["FOG-0001"]})") ==
+        "profile: control character 0x07 at byte 3");
+  CHECK(message(json{{"id", 1}, {"cmd", "run.start"}, {"profile", "short"}, {"units", {std::string(65, 'F')}}}.dump())
+            .starts_with("units[0]: longer than 64 bytes"));
+  CHECK(r.store.list_runs()->empty());
+
+  REQUIRE(r.code(R"({"id":2,"cmd":"run.start","profile":"short","units":["FOG-0001"]})") == "ok");
+  CHECK(message(R"({"id":3,"cmd":"run.abort","reason":"done\r\nroot# "})") == "reason: control character 0x0D at byte 5");
+  CHECK(r.store.get_run(1)->run.state != storage::RunState::aborted);  // the refusal touched nothing
+}

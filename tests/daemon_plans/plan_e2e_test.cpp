@@ -285,6 +285,20 @@ TEST_CASE("plan e2e: bad plans are refused naming the line or field, and nothing
   CHECK(code_of(no_units) == "bad_request");
   CHECK_THAT(no_units.dump(), Catch::Contains("units: missing"));
 
+  // Names are printed by `fogctl queue list`: an escape sequence or an endless name never gets stored.
+  auto escape = plan_call(c, "plan.start", "step pfit fit\n", both, "a\x1b]0;owned\x07.plan");
+  CHECK(code_of(escape) == "bad_request");
+  CHECK_THAT(escape.dump(), Catch::Contains("source: control character 0x1B at byte 2"));
+  auto endless = plan_call(c, "queue.add", "step pfit fit\n", both, std::string(1000, 'n') + ".plan");
+  CHECK(code_of(endless) == "bad_request");
+  CHECK_THAT(endless.dump(), Catch::Contains("source: longer than 256 bytes"));
+  auto stem = plan_call(c, "queue.add", "step pfit fit\n", both, "my night.plan");
+  CHECK(code_of(stem) == "bad_request");
+  CHECK_THAT(stem.dump(), Catch::Contains("add a line 'plan <name>'"));
+  auto bad_serial = plan_call(c, "plan.start", "step pfit fit\n", {"SIM-0001", "SIM\x1b[2J"}, "ok.plan");
+  CHECK(code_of(bad_serial) == "bad_request");
+  CHECK_THAT(bad_serial.dump(), Catch::Contains("units[1]: control character 0x1B at byte 4"));
+
   auto not_queued = c.call({{"cmd", "queue.move"}, {"plan_id", 42}, {"position", 1}});
   CHECK(code_of(not_queued) == "not_found");
 

@@ -60,6 +60,20 @@ TEST_CASE("the name defaults to the source's stem") {
   CHECK(p->name == "night");
 }
 
+TEST_CASE("a source's stem that is no plan name is refused, not stored as the name") {
+  for (const std::string source : {std::string("dir/\x1b]0;owned\x07.plan"), std::string("my night.plan"),
+                                   std::string(100000, 'n') + ".plan", std::string("dir/.plan")}) {
+    INFO(source.size());
+    auto p = parse_plan("step exp1 fit\n", source);
+    REQUIRE_FALSE(p.has_value());
+    CHECK(p.error().message.find("add a line 'plan <name>'") != std::string::npos);
+  }
+  // With a `plan` line the file's name does not matter.
+  auto named = parse_plan("plan night\nstep exp1 fit\n", "my night.plan");
+  REQUIRE(named.has_value());
+  CHECK(named->name == "night");
+}
+
 TEST_CASE("errors name the line and column of what is wrong") {
   auto e = error_of("step exp1 fit\nlimit drift_rate < 3\n");
   CHECK(e.line == 2);

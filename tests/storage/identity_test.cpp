@@ -104,6 +104,18 @@ TEST_CASE("identity: operator names: printable, at most 64 bytes, the field name
   CHECK(check_operator_name("a\xff").starts_with("operator: not valid UTF-8"));
 }
 
+TEST_CASE("identity: stored texts: quotes and backslashes are text, escapes and malformed UTF-8 are refused by byte") {
+  CHECK(check_stored_text("source", "plans/\"odd\" name\\x.plan", kMaxSourceBytes).empty());
+  CHECK(check_stored_text("source", "a\\q", kMaxSourceBytes).empty());  // not a JSON escape: just a backslash
+  CHECK(check_stored_text("reason", "Zoë: 3 °C", kMaxReasonBytes).empty());
+  CHECK(check_stored_text("source", "x\x1b]0;owned\x07", kMaxSourceBytes) == "source: control character 0x1B at byte 2");
+  CHECK(check_stored_text("units[1]", std::string(65, 'F'), kMaxNameBytes) == "units[1]: longer than 64 bytes (65)");
+  CHECK(check_stored_text("reason", "ab\xc0\xaf", kMaxReasonBytes) == "reason: not valid UTF-8 at byte 3");  // overlong '/'
+  CHECK(check_stored_text("reason", "\xed\xa0\x80", kMaxReasonBytes) == "reason: not valid UTF-8 at byte 1");  // a surrogate
+  CHECK(check_stored_text("reason", "\xe2\x82", kMaxReasonBytes) == "reason: not valid UTF-8 at byte 1");  // cut short
+  CHECK(check_stored_text("reason", "\xf0\x9f\x94\xa5", kMaxReasonBytes).empty());  // four bytes, fine
+}
+
 TEST_CASE("identity: the CSV comments read back to the same identity, and the run imports with it") {
   const RunIdentity id = sample_identity();
   const auto fields = identity_fields(id, 12, "exp1", 0);

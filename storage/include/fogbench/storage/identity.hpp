@@ -46,6 +46,17 @@ inline constexpr std::size_t kMaxOperatorBytes = 64;
 // Why `name` is no valid operator name ("" when it is one): the message names the field.
 std::string check_operator_name(std::string_view name);
 
+// The bounds of the other free texts a client hands in and the store keeps (issue 27): a serial,
+// a profile's or plan's name, where a plan came from (`source`), an abort's reason.
+inline constexpr std::size_t kMaxNameBytes = 64;     // serials, profile and plan names
+inline constexpr std::size_t kMaxSourceBytes = 256;  // a plan's `source` (a path as the client gave it)
+inline constexpr std::size_t kMaxReasonBytes = 500;  // an abort's reason as the operator typed it
+// Why `value` is no storable text for `field` ("" when it is one): at most `max_bytes` bytes,
+// valid UTF-8, no control characters (U+0000..U+001F, U+007F: a terminal escape sequence
+// printed by `fogctl queue list` would act on the reader's terminal). The message names the
+// field, the byte and the code.
+std::string check_stored_text(std::string_view field, std::string_view value, std::size_t max_bytes);
+
 // The identity as `key: value` pairs, in the order the CSV export writes them (docs/csv.md):
 // run, profile, profile_sha256, station_id, operator, operator_source, software_version,
 // git_hash, config_sha256, serial, powered_on_at, since_power_on_s (the unit's, of unit_index).
