@@ -843,7 +843,8 @@ std::expected<void, Server::StartError> Server::start() {
     if (auto ok = m.web->bind(); !ok) return fail(ok.error());
   }
   m.plans = std::make_unique<PlanRunner>(*m.station);
-  m.station->set_plan_runner(m.plans.get());
+  m.station->set_plan_runner(m.plans.get());  // where the handler finds it
+  m.station->add_tick_listener(m.plans.get());  // the runner listens to the ticks
   // The analysis worker reads through its own connection (WAL: beside the loop's writes). A
   // store it cannot open (":memory:") leaves the analysis on the loop, as before issue 11.
   {

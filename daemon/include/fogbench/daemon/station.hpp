@@ -126,8 +126,11 @@ class Station {
   double time_scale() const { return time_scale_; }
   // Records an operator command in the audit trail of a run.
   void audit(std::int64_t run_id, const nlohmann::json& command);
-  // The qualification plans' runner (plan_runner.hpp), told after every tick; not owned. None:
-  // the plan.* and queue.* commands answer unavailable.
+  // Told after every tick, in the order added; not owned (the plan runner: it listens to the
+  // ticks, the station never calls it).
+  void add_tick_listener(TickListener* l) { tick_listeners_.push_back(l); }
+  // The qualification plans' runner (plan_runner.hpp), where the handler finds it; not owned,
+  // and never called by the station. None: the plan.* and queue.* commands answer unavailable.
   void set_plan_runner(PlanRunner* r) { plans_ = r; }
   PlanRunner* plan_runner() const { return plans_; }
   // The run (active, or resumed at the next tick) ends without the automatic fit or
@@ -247,6 +250,7 @@ class Station {
   // Each configured unit's power-on as seen in its frames, whether a run is active or not.
   PowerWatch power_;
   PlanRunner* plans_ = nullptr;
+  std::vector<TickListener*> tick_listeners_;
   std::set<std::int64_t> skip_analysis_;
   std::set<std::int64_t> analysing_;
 };

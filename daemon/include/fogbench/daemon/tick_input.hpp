@@ -37,4 +37,13 @@ struct TickInput {
   bool gyro_read = true;
 };
 
+// Told after every second the station has ticked (the plan runner, plan_runner.hpp): the station
+// calls its listeners, never the runner itself.
+class TickListener {
+ public:
+  virtual ~TickListener() = default;
+  // After the station's tick of daemon time `clock_s` (s), read at `wall_time` (unix s).
+  virtual void after_tick(double clock_s, double wall_time) = 0;
+};
+
 }  // namespace fogbench::daemon
