@@ -3,7 +3,7 @@
 
 #include <cmath>
 
-#include "fogbench/daemon/station.hpp"
+#include "fogbench/daemon/tick_input.hpp"
 #include "fogbench/storage/run_data.hpp"
 
 namespace fogbench::daemon {

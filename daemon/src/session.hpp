@@ -275,4 +275,46 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
   Clock::time_point last_request_ = Clock::now();
 };
 
+// The live connections of every transport (the unix and TCP sockets' sessions, the web side's
+// WebSockets), as Asio's connection manager: the server adds each new session, publishes to all,
+// counts the open ones and closes them all on the way out. It holds them weakly: a session lives
+// as long as its own reads and writes.
+class SessionSet {
+ public:
+  void add(const std::shared_ptr<SessionBase>& s) {
+    drop_expired();
+    sessions_.push_back(s);
+  }
+  // Connections open now.
+  std::size_t open() {
+    sessions_.remove_if([](const auto& w) {
+      auto s = w.lock();
+      return !s || s->is_closed();
+    });
+    return sessions_.size();
+  }
+  // One line to every session (each decides by its subscription whether to send it).
+  void publish(const std::shared_ptr<const std::string>& line) {
+    for (auto it = sessions_.begin(); it != sessions_.end();) {
+      if (auto s = it->lock()) {
+        s->push(line);
+        ++it;
+      } else {
+        it = sessions_.erase(it);
+      }
+    }
+  }
+  void close_all() {
+    for (auto& w : sessions_)
+      if (auto s = w.lock()) s->close();
+    sessions_.clear();
+  }
+
+ private:
+  void drop_expired() {
+    sessions_.remove_if([](const auto& w) { return w.expired(); });
+  }
+  std::list<std::weak_ptr<SessionBase>> sessions_;
+};
+
 }  // namespace fogbench::daemon::net

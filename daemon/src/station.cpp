@@ -1,7 +1,6 @@
 // The run state machine: start, resume, abort, the tick (profile, chamber faults, the second's
 // samples) and the end of a run. The station's other rooms are listed in station.hpp.
 #include "fogbench/daemon/station.hpp"
-#include "fogbench/daemon/plan_runner.hpp"
 
 #include "fogbench/daemon/sample_rows.hpp"
 #include "fogbench/storage/run_data.hpp"
@@ -357,7 +356,7 @@ void Station::finish(RunState to, const std::string& reason_in, EndCause cause) 
 
 TickOutput Station::tick(double clock_s, const TickInput& in) {
   const TickOutput out = tick_station(clock_s, in);
-  if (plans_) plans_->after_tick(clock_s, in.wall_time);  // a plan's next step (plan_runner.hpp)
+  for (TickListener* l : tick_listeners_) l->after_tick(clock_s, in.wall_time);  // a plan's next step
   return out;
 }
 

@@ -16,13 +16,14 @@
 #include <nlohmann/json.hpp>
 
 #include "fogbench/daemon/api.hpp"
+#include "fogbench/daemon/tick_input.hpp"
 #include "fogbench/plans/plan.hpp"
 
 namespace fogbench::daemon {
 
 class Station;
 
-class PlanRunner {
+class PlanRunner final : public TickListener {
  public:
   explicit PlanRunner(Station& station) : station_(station) {}
 
@@ -50,8 +51,9 @@ class PlanRunner {
   // Moves a queued plan to `position` (1 = next).
   ApiResult<nlohmann::json> queue_move(std::int64_t plan_id, std::int64_t position, const nlohmann::json& command);
 
-  // Called after every station tick (the daemon time and the tick's wall time, unix s).
-  void after_tick(double clock_s, double wall_time);
+  // After every station tick (the daemon time and the tick's wall time, unix s): it listens to
+  // the station's ticks (Station::add_tick_listener).
+  void after_tick(double clock_s, double wall_time) override;
 
   std::optional<std::int64_t> running_plan_id() const;
 

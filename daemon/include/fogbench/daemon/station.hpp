@@ -30,6 +30,7 @@
 #include "fogbench/daemon/power_on.hpp"
 #include "fogbench/daemon/run_identity.hpp"
 #include "fogbench/daemon/sample_writer.hpp"
+#include "fogbench/daemon/tick_input.hpp"
 #include "fogbench/daemon/write_journal.hpp"
 #include "fogbench/profiles/executor.hpp"
 #include "fogbench/profiles/profile.hpp"
@@ -39,33 +40,6 @@
 namespace fogbench::daemon {
 
 class PlanRunner;
-
-// One configured unit's readings at one tick; an empty optional was not read.
-struct UnitReading {
-  std::optional<double> gyro_dph;
-  std::uint32_t frames = 0;
-  std::uint32_t frames_lost = 0;
-  std::uint32_t frames_corrupt = 0;  // bad CRC or length: discarded, so lost to the average too
-  std::optional<double> t1_c;
-  std::optional<double> t2_c;
-  bool out_of_range = false;  // a sensor or the gyro reported a value outside its range
-};
-
-// Everything read in one acquisition period.
-struct TickInput {
-  double wall_time = 0.0;                    // unix time, s
-  std::optional<double> chamber_c;           // process value (air)
-  std::optional<double> chamber_setpoint_c;  // as read back from the controller
-  bool chamber_alarm = false;
-  bool chamber_link_down = false;            // the chamber could not be polled this period
-  std::vector<UnitReading> units;            // one per configured unit, in config order
-  // The loop was too late for this second (a busy host at a high time scale): what is missing
-  // is missing for that, not for a fault. A run that fails after such seconds says so.
-  bool late = false;
-  // The gyro bus was read for this period (false: its link down, the loop late, a paced bench
-  // that did not step): no frames then is no silence of the gyros (PowerWatch, power_on.hpp).
-  bool gyro_read = true;
-};
 
 struct TickOutput {
   double setpoint_c = 0.0;  // the setpoint the chamber should hold now
@@ -152,8 +126,11 @@ class Station {
   double time_scale() const { return time_scale_; }
   // Records an operator command in the audit trail of a run.
   void audit(std::int64_t run_id, const nlohmann::json& command);
-  // The qualification plans' runner (plan_runner.hpp), told after every tick; not owned. None:
-  // the plan.* and queue.* commands answer unavailable.
+  // Told after every tick, in the order added; not owned (the plan runner: it listens to the
+  // ticks, the station never calls it).
+  void add_tick_listener(TickListener* l) { tick_listeners_.push_back(l); }
+  // The qualification plans' runner (plan_runner.hpp), where the handler finds it; not owned,
+  // and never called by the station. None: the plan.* and queue.* commands answer unavailable.
   void set_plan_runner(PlanRunner* r) { plans_ = r; }
   PlanRunner* plan_runner() const { return plans_; }
   // The run (active, or resumed at the next tick) ends without the automatic fit or
@@ -273,6 +250,7 @@ class Station {
   // Each configured unit's power-on as seen in its frames, whether a run is active or not.
   PowerWatch power_;
   PlanRunner* plans_ = nullptr;
+  std::vector<TickListener*> tick_listeners_;
   std::set<std::int64_t> skip_analysis_;
   std::set<std::int64_t> analysing_;
 };

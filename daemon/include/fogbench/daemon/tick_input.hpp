@@ -1,0 +1,49 @@
+// What the acquisition hands the station each second (acquisition.hpp in daemon/src): the gyro
+// bus's sample of every unit, the chamber's and the thermistor module's latest readings, and
+// what was missing or late. Its own header, so that what builds or reads a second (the
+// acquisition, sample_rows, the tests' fake benches) does not include the station.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+namespace fogbench::daemon {
+
+// One configured unit's readings at one tick; an empty optional was not read.
+struct UnitReading {
+  std::optional<double> gyro_dph;
+  std::uint32_t frames = 0;
+  std::uint32_t frames_lost = 0;
+  std::uint32_t frames_corrupt = 0;  // bad CRC or length: discarded, so lost to the average too
+  std::optional<double> t1_c;
+  std::optional<double> t2_c;
+  bool out_of_range = false;  // a sensor or the gyro reported a value outside its range
+};
+
+// Everything read in one acquisition period.
+struct TickInput {
+  double wall_time = 0.0;                    // unix time, s
+  std::optional<double> chamber_c;           // process value (air)
+  std::optional<double> chamber_setpoint_c;  // as read back from the controller
+  bool chamber_alarm = false;
+  bool chamber_link_down = false;            // the chamber could not be polled this period
+  std::vector<UnitReading> units;            // one per configured unit, in config order
+  // The loop was too late for this second (a busy host at a high time scale): what is missing
+  // is missing for that, not for a fault. A run that fails after such seconds says so.
+  bool late = false;
+  // The gyro bus was read for this period (false: its link down, the loop late, a paced bench
+  // that did not step): no frames then is no silence of the gyros (PowerWatch, power_on.hpp).
+  bool gyro_read = true;
+};
+
+// Told after every second the station has ticked (the plan runner, plan_runner.hpp): the station
+// calls its listeners, never the runner itself.
+class TickListener {
+ public:
+  virtual ~TickListener() = default;
+  // After the station's tick of daemon time `clock_s` (s), read at `wall_time` (unix s).
+  virtual void after_tick(double clock_s, double wall_time) = 0;
+};
+
+}  // namespace fogbench::daemon

@@ -1,0 +1,572 @@
+// The acquisition: the device threads, the gyro bus on the loop, and the one schedule of seconds
+// (acquisition.hpp). Moved out of server.cpp (issue 26) with its behaviour unchanged.
+#include "acquisition.hpp"
+
+#include <boost/asio.hpp>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <thread>
+
+#include <spdlog/spdlog.h>
+
+#include "fogbench/daemon/config.hpp"
+
+namespace fogbench::daemon {
+
+namespace asio = boost::asio;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+// What the workers read from the chamber and the thermistor module at one poll.
+struct DeviceReading {
+  std::optional<double> chamber_c;
+  std::optional<double> chamber_setpoint_c;
+  bool alarm = false;
+  bool chamber_ok = false;
+  std::string chamber_error;
+  bool thermistors_ok = false;
+  std::string thermistor_error;
+  std::vector<UnitReading> coils;  // t1_c, t2_c and out_of_range only
+};
+
+// The job of one paced second, once done.
+struct PacedResult {
+  DeviceReading reading;
+  bool asked = false;     // the job asked the world to step (a run was active)
+  bool advanced = false;  // and it did: the world stepped one second for this tick
+};
+
+// A worker thread: an io_context used as a job queue.
+struct Worker {
+  asio::io_context io;
+  std::optional<asio::executor_work_guard<asio::io_context::executor_type>> guard;
+  std::thread thread;
+
+  void start() {
+    guard.emplace(io.get_executor());
+    thread = std::thread([this] { io.run(); });
+  }
+  // Lets the queued jobs run (`drain`) or drops them, then joins.
+  void join(bool drain) {
+    if (!thread.joinable()) return;
+    guard.reset();
+    if (!drain) io.stop();
+    thread.join();
+  }
+};
+
+}  // namespace
+
+struct Acquisition::Impl {
+  asio::io_context& io;
+  AcquisitionOptions options;
+  TickSink sink;
+  AcquisitionStats stats;
+
+  // The device worker: the chamber, and with the paced clock the world and the module too.
+  Worker dev;
+  std::unique_ptr<drivers::Chamber> chamber;
+  std::unique_ptr<drivers::ThermistorSource> thermistors;
+  // The thermistor module's own worker (polls only; with the paced clock the module is read on
+  // the device worker, in the job of each second, and this one stays idle).
+  Worker therm;
+  std::unique_ptr<PacedWorld> paced;  // none: the real clock
+
+  // The gyro bus: read on the loop through its fd.
+  GyroOpener open_bus;
+  std::optional<drivers::GyroBus> bus;
+  asio::posix::stream_descriptor gyro_sd{io};
+  asio::steady_timer gyro_retry{io};
+  std::vector<::can_frame> frames;
+  bool gyro_logged_down = false;
+
+  // The schedule: second k is closed at t0 + k * period. The real clock polls in the odd
+  // half-period slots between (slot 2k-1 polls for second k), so the temperatures are read mid-way
+  // through the gyro's averaging window and are fresh at the tick.
+  asio::steady_timer timer{io};
+  Clock::time_point t0;
+  std::chrono::nanoseconds half_period{}, period{};
+  std::int64_t slot = 0;  // the real clock: the next half-period slot
+  bool stopped = false;
+
+  // The real clock's latest reading: its chamber part and its thermistor part arrive separately
+  // (a stalled module does not hold up the chamber's value), each with its own freshness.
+  bool chamber_in_flight = false, coils_in_flight = false;  // a poll of the device is under way
+  std::optional<DeviceReading> reading;
+  bool have_chamber = false, have_coils = false;  // each part arrived at least once
+  bool new_chamber = false, new_coils = false;    // arrived since the last tick
+  int stale_chamber = 0, stale_coils = 0;         // ticks since a new part was used
+
+  std::optional<double> written_setpoint_c;
+  bool write_in_flight = false;
+
+  // The paced clock. Second k is acquired once a worker job has written the setpoint of tick
+  // k-1, asked the world to step one second (so its frames are in the gyro socket) and polled the
+  // devices; tick k waits for that job rather than its wall time alone. The world moves only for
+  // seconds of a run.
+  std::optional<PacedResult> paced_result;  // the job of second paced_k, once done
+  std::int64_t paced_k = 0;                 // the second the next tick closes
+  bool paced_waiting = false;               // the tick was due before its job was done
+  Clock::time_point paced_logged{};
+  bool clock_logged_down = false;
+  double commanded_setpoint_c = 0.0;  // the sink's last answer
+
+  Impl(asio::io_context& i, AcquisitionOptions o, AcquisitionDevices d, TickSink s)
+      : io(i), options(o), sink(std::move(s)), chamber(std::move(d.chamber)),
+        thermistors(std::move(d.thermistors)), paced(std::move(d.paced)), open_bus(std::move(d.open_gyro)) {
+    half_period = std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(0.5e9 / options.time_scale)));
+    period = 2 * half_period;
+  }
+
+  void note_lateness(Clock::time_point due) {
+    ++stats.ticks;
+    stats.tick_late_s = std::max(0.0, std::chrono::duration<double>(Clock::now() - due).count());
+    stats.tick_late_max_s = std::max(stats.tick_late_max_s, stats.tick_late_s);
+  }
+
+  // --- start-up and the way out
+  void start() {
+    dev.start();
+    therm.start();
+    // The chamber goes to its safe setpoint and runs, before anything else is asked.
+    const double safe = options.safe_setpoint_c;
+    asio::post(dev.io, [this, safe] {
+      auto report = chamber->bring_up();
+      std::string msg = report ? report->to_string() : report.error().to_string();
+      auto w = chamber->write_setpoint_c(safe);
+      auto r = chamber->set_running(true);
+      std::string err = !w ? w.error().to_string() : (!r ? r.error().to_string() : "");
+      asio::post(io, [this, msg, err, safe] {
+        spdlog::info("chamber bring-up:\n{}", msg);
+        if (err.empty()) {
+          written_setpoint_c = safe;
+          spdlog::info("chamber at the safe setpoint {} C", safe);
+        } else {
+          spdlog::warn("chamber not yet at the safe setpoint: {} (retried every second)", err);
+        }
+      });
+    });
+    open_gyro();
+    if (paced) {
+      t0 = Clock::now() + period;
+      paced_k = 0;
+      commanded_setpoint_c = options.safe_setpoint_c;
+      paced_post_job(false, std::nullopt);
+    } else {
+      t0 = Clock::now() + period;
+      slot = -1;  // the first poll comes half a period before the first tick
+    }
+    arm();
+  }
+
+  void stop(std::function<void(const std::string&)> done) {
+    stopped = true;
+    timer.cancel();
+    gyro_retry.cancel();
+    if (gyro_sd.is_open()) (void)gyro_sd.release();  // the bus owns and closes the fd
+    const double safe = options.safe_setpoint_c;
+    asio::post(dev.io, [this, safe, done = std::move(done)] {
+      auto r = chamber->write_setpoint_c(safe);
+      std::string err = r ? "" : r.error().to_string();
+      asio::post(io, [done, err] { done(err); });
+    });
+  }
+
+  // --- the chamber's setpoint
+  void post_write_setpoint(double sp_c) {
+    if (write_in_flight) return;  // the next tick retries with the then-current setpoint
+    write_in_flight = true;
+    asio::post(dev.io, [this, sp_c] {
+      auto r = chamber->write_setpoint_c(sp_c);
+      std::string err = r ? "" : r.error().to_string();
+      asio::post(io, [this, sp_c, err] {
+        write_in_flight = false;
+        if (err.empty()) {
+          written_setpoint_c = sp_c;
+        } else {
+          spdlog::warn("setpoint {} C not written: {}", sp_c, err);
+        }
+      });
+    });
+  }
+  bool setpoint_unwritten(double sp_c) const { return !written_setpoint_c || *written_setpoint_c != sp_c; }
+
+  // --- the devices' polls
+  // The chamber on the device worker, the module on its own thread: a stalled module (or
+  // chamber) must not make the other's readings late. A device whose last poll is still blocked
+  // in its call is not asked again.
+  void post_poll() {
+    if (!chamber_in_flight) {
+      chamber_in_flight = true;
+      asio::post(dev.io, [this] {
+        DeviceReading c;
+        read_chamber(c);
+        asio::post(io, [this, c = std::move(c)] {
+          chamber_in_flight = false;
+          take_chamber(c);
+        });
+      });
+    }
+    if (!coils_in_flight) {
+      coils_in_flight = true;
+      asio::post(therm.io, [this] {
+        DeviceReading t;
+        read_thermistors(t);
+        asio::post(io, [this, t = std::move(t)] {
+          coils_in_flight = false;
+          take_thermistors(t);
+        });
+      });
+    }
+  }
+
+  // On a worker: one poll of the chamber and the thermistor module.
+  DeviceReading read_devices() {
+    DeviceReading d;
+    read_chamber(d);
+    read_thermistors(d);
+    return d;
+  }
+  void read_chamber(DeviceReading& d) {
+    if (auto r = chamber->poll()) {
+      d.chamber_ok = true;
+      d.chamber_c = r->process_value_c;
+      d.chamber_setpoint_c = r->setpoint_c;
+      d.alarm = r->alarm;
+    } else {
+      d.chamber_error = r.error().to_string();
+    }
+  }
+  void read_thermistors(DeviceReading& d) {
+    d.coils.resize(options.units);
+    if (auto t = thermistors->read_all()) {
+      d.thermistors_ok = true;
+      for (std::size_t i = 0; i < t->size() && i < d.coils.size(); ++i) {
+        const auto& c = (*t)[i];
+        auto take = [&](const drivers::Result<double>& v, std::optional<double>& out) {
+          if (v) out = *v;
+          else if (v.error().code == drivers::ErrorCode::out_of_range) d.coils[i].out_of_range = true;
+        };
+        take(c.t1_c, d.coils[i].t1_c);
+        take(c.t2_c, d.coils[i].t2_c);
+      }
+    } else {
+      d.thermistor_error = t.error().to_string();
+    }
+  }
+
+  // On the loop: a poll's results become the current reading, each device's part on its own.
+  void take_chamber(const DeviceReading& d) {
+    if (have_chamber && reading->chamber_ok != d.chamber_ok) {
+      if (d.chamber_ok) spdlog::info("chamber link up");
+      else spdlog::warn("chamber: {}", d.chamber_error);
+    }
+    // A controller that was away may have restarted with another setpoint: once the link
+    // is back the setpoint is written again, not assumed.
+    if (!d.chamber_ok) written_setpoint_c.reset();
+    if (!reading) reading.emplace();
+    reading->chamber_ok = d.chamber_ok;
+    reading->chamber_error = d.chamber_error;
+    reading->chamber_c = d.chamber_c;
+    reading->chamber_setpoint_c = d.chamber_setpoint_c;
+    reading->alarm = d.alarm;
+    have_chamber = new_chamber = true;
+  }
+  void take_thermistors(const DeviceReading& d) {
+    if (have_coils && reading->thermistors_ok != d.thermistors_ok) {
+      if (d.thermistors_ok) spdlog::info("thermistor module link up");
+      else spdlog::warn("thermistor module: {}", d.thermistor_error);
+    }
+    if (!reading) reading.emplace();
+    reading->thermistors_ok = d.thermistors_ok;
+    reading->thermistor_error = d.thermistor_error;
+    reading->coils = d.coils;
+    have_coils = new_coils = true;
+  }
+
+  // --- the gyro bus
+  void open_gyro() {
+    if (stopped) return;
+    drivers::Result<void> ok = open_bus(bus);
+    if (!ok || !bus) {
+      if (!gyro_logged_down)
+        spdlog::warn("gyro bus: {}; retrying every second of run time",
+                     ok ? std::string("not opened") : ok.error().to_string());
+      gyro_logged_down = true;
+      retry_gyro();
+      return;
+    }
+    gyro_logged_down = false;
+    spdlog::info("gyro bus: {}", bus->transport().describe());
+    boost::system::error_code ec;
+    gyro_sd.assign(bus->fd(), ec);
+    if (ec) spdlog::error("gyro bus fd: {}", ec.message());
+    wait_gyro();
+  }
+
+  void retry_gyro() {
+    gyro_retry.expires_after(gyro_retry_delay(options.time_scale));
+    gyro_retry.async_wait([this](boost::system::error_code ec) {
+      if (!ec) open_gyro();
+    });
+  }
+
+  void wait_gyro() {
+    gyro_sd.async_wait(asio::posix::stream_descriptor::wait_read, [this](boost::system::error_code ec) {
+      if (ec || stopped) return;
+      // Bounded per turn so a flood of frames cannot starve the sockets and the schedule.
+      for (int i = 0; i < 16; ++i) {
+        auto n = bus->read_frames(frames);
+        if (!n) {
+          spdlog::warn("gyro bus: {}", n.error().to_string());
+          (void)gyro_sd.release();  // the bus owns and closes the fd
+          retry_gyro();
+          return;
+        }
+        if (*n == 0) break;
+      }
+      wait_gyro();
+    });
+  }
+
+  // --- the schedule
+  // The next due point: the real clock's next half-period slot, the paced clock's next second.
+  // Absolute deadlines from t0: a late wake-up never shifts the next one.
+  Clock::time_point next_due() const { return paced ? t0 + paced_k * period : t0 + slot * half_period; }
+
+  void arm() {
+    timer.expires_at(next_due());
+    timer.async_wait([this](boost::system::error_code ec) {
+      if (ec || stopped) return;
+      if (paced) on_paced_due();
+      else on_slot();
+    });
+  }
+
+  // The real clock's slot: a poll (odd) or a tick (even).
+  void on_slot() {
+    const auto now = Clock::now();
+    // Far behind (the loop was blocked, e.g. by a long fit): skip ahead rather than replay a
+    // burst of empty seconds.
+    const auto behind = (now - (t0 + slot * half_period)) / half_period;
+    if (behind > 20) {
+      spdlog::warn("acquisition {} half-periods late; skipping ahead", behind);
+      // The seconds skipped are still seconds of the run: they are stored as not read
+      // (flagged missing), so a run has every second of its clock and the count of its samples
+      // says how long it ran. Measured by scripts/soak: holes appeared here at 500x.
+      const std::int64_t to = slot + (behind & ~std::int64_t{1});
+      for (std::int64_t s = slot; s < to; ++s)
+        if (s % 2 == 0) tick_unread(s / 2);
+      slot = to;
+    }
+    if (slot % 2 != 0) {  // odd, including the first slot, -1
+      post_poll();
+    } else {
+      note_lateness(t0 + slot * half_period);
+      tick_real(slot / 2);
+    }
+    ++slot;
+    arm();
+  }
+
+  // The paced clock's second is due: it ticks once its job is done.
+  void on_paced_due() {
+    if (paced_result) paced_tick();
+    else paced_waiting = true;  // the job's completion ticks
+  }
+
+  TickInput new_input() const {
+    TickInput in;
+    in.wall_time = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+    in.units.resize(options.units);
+    return in;
+  }
+  // The gyro's averages since the last tick.
+  void fill_gyro(TickInput& in) {
+    in.gyro_read = bus && gyro_sd.is_open();
+    if (!bus) return;
+    auto s = bus->close_samples();
+    for (std::size_t i = 0; i < s.units.size() && i < in.units.size(); ++i) {
+      in.units[i].gyro_dph = s.units[i].rate_dph;
+      in.units[i].frames = s.units[i].frames;
+      in.units[i].frames_lost = s.units[i].frames_lost;
+      in.units[i].frames_corrupt = s.units[i].frames_corrupt;
+    }
+  }
+  static void fill_chamber(TickInput& in, const DeviceReading& d) {
+    in.chamber_c = d.chamber_c;
+    in.chamber_setpoint_c = d.chamber_setpoint_c;
+    in.chamber_alarm = d.alarm;
+    in.chamber_link_down = !d.chamber_ok;
+  }
+  static void fill_coils(TickInput& in, const DeviceReading& d) {
+    for (std::size_t i = 0; i < in.units.size() && i < d.coils.size(); ++i) {
+      in.units[i].t1_c = d.coils[i].t1_c;
+      in.units[i].t2_c = d.coils[i].t2_c;
+      in.units[i].out_of_range = d.coils[i].out_of_range;
+    }
+  }
+
+  // Second k to the sink; the setpoint it answers is written when it is not the chamber's yet
+  // (the real clock; the paced clock writes it in the next second's job).
+  double emit(std::int64_t k, const TickInput& in) {
+    commanded_setpoint_c = sink.on_tick(k, in);
+    return commanded_setpoint_c;
+  }
+
+  // A second the loop was too late to acquire: nothing read, the profile steps on.
+  void tick_unread(std::int64_t k) {
+    ++stats.ticks_skipped;
+    TickInput in = new_input();
+    in.late = true;
+    in.gyro_read = false;  // its frames go into the next period's sample
+    const double sp = emit(k, in);
+    if (setpoint_unwritten(sp)) post_write_setpoint(sp);
+  }
+
+  void tick_real(std::int64_t k) {
+    TickInput in = new_input();
+    fill_gyro(in);
+    // The poll of this period normally arrived half a period ago. When a part of it is late (a
+    // loaded machine at a high time scale, a stalled device), the previous one, one period old,
+    // stands in once: a settle judged on "every reading in band" would otherwise restart at
+    // each late poll. Older than that, its values are missing, and the sink is told the loop
+    // was late for them (a run that fails says so).
+    auto usable = [&](bool have, bool& fresh, int& stale) {
+      if (!have) return false;
+      if (fresh) {
+        fresh = false;
+        stale = 0;
+        return true;
+      }
+      if (stale++ < 1) {
+        ++stats.polls_late;
+        return true;
+      }
+      return false;
+    };
+    if (usable(have_chamber, new_chamber, stale_chamber)) {
+      fill_chamber(in, *reading);
+    } else if (have_chamber) {
+      in.chamber_link_down = !reading->chamber_ok;
+      in.late = true;
+    }
+    if (usable(have_coils, new_coils, stale_coils)) fill_coils(in, *reading);
+    else if (have_coils) in.late = true;
+    const double sp = emit(k, in);
+    if (setpoint_unwritten(sp)) post_write_setpoint(sp);
+  }
+
+  // The paced clock's job of second paced_k: the setpoint of the last tick, one simulated second
+  // (in a run), then the poll. In this order on the worker, so the world steps under the setpoint
+  // the sink commanded and the poll reads the end of that second.
+  void paced_post_job(bool advance, std::optional<double> setpoint_c) {
+    asio::post(dev.io, [this, advance, setpoint_c] {
+      PacedResult r;
+      r.asked = advance;
+      std::string write_error, clock_error;
+      if (setpoint_c)
+        if (auto w = chamber->write_setpoint_c(*setpoint_c); !w) write_error = w.error().to_string();
+      if (advance) {
+        if (auto t = paced->step_second()) r.advanced = true;
+        else clock_error = t.error();
+      }
+      r.reading = read_devices();
+      if (!clock_error.empty()) {
+        // The world did not move: nothing of this second was read. As a bench that does not
+        // answer, the chamber counts as unreachable (link_loss decides).
+        r.reading = DeviceReading{};
+        r.reading.coils.resize(options.units);
+        r.reading.chamber_error = r.reading.thermistor_error = "simulated clock: " + clock_error;
+      }
+      asio::post(io, [this, setpoint_c, write_error, clock_error, r = std::move(r)]() mutable {
+        if (setpoint_c) {
+          if (write_error.empty()) written_setpoint_c = *setpoint_c;
+          else spdlog::warn("setpoint {} C not written: {}", *setpoint_c, write_error);
+        }
+        if (!clock_error.empty()) {
+          if (!clock_logged_down) spdlog::error("simulated clock: {}", clock_error);
+          clock_logged_down = true;
+        } else if (r.advanced && clock_logged_down) {
+          spdlog::info("simulated clock: stepping again");
+          clock_logged_down = false;
+        }
+        paced_result = std::move(r);
+        if (paced_waiting && !stopped) {
+          paced_waiting = false;
+          paced_tick();
+        }
+      });
+    });
+  }
+
+  void paced_tick() {
+    PacedResult r = std::move(*paced_result);
+    paced_result.reset();
+    note_lateness(t0 + paced_k * period);
+    const std::int64_t k = paced_k++;
+    // Every frame of the second the world stepped is in the socket: read them all now.
+    if (bus && gyro_sd.is_open())
+      for (int i = 0; i < 1000; ++i) {
+        auto n = bus->read_frames(frames);
+        if (!n || *n == 0) break;
+      }
+    TickInput in = new_input();
+    fill_gyro(in);
+    in.gyro_read = in.gyro_read && r.advanced;  // a world that did not step sent nothing
+    if (!r.asked && sink.run_active()) {
+      // A run was asked for after this second's job was sent, so the world did not move for
+      // it: its first second is the next, one the world steps through. A run's samples then
+      // depend on the seed and the runs before it, not on when it was started.
+    } else {
+      take_chamber(r.reading);
+      take_thermistors(r.reading);
+      new_chamber = new_coils = false;
+      fill_chamber(in, r.reading);
+      fill_coils(in, r.reading);
+      emit(k, in);
+    }
+    std::optional<double> sp;
+    if (setpoint_unwritten(commanded_setpoint_c)) sp = commanded_setpoint_c;
+    paced_post_job(sink.run_active(), sp);
+    // Behind the schedule by more than two periods (the host is busy): the schedule moves back
+    // rather than catching up in a burst. The run goes on slower than the time scale, and every
+    // second is acquired as it would be on an idle host.
+    const auto now = Clock::now();
+    const auto due = t0 + paced_k * period;
+    if (now - due > 2 * period) {
+      t0 += now - due;
+      ++stats.paced_slowed;
+      if (now - paced_logged > std::chrono::seconds(10)) {
+        paced_logged = now;
+        spdlog::info("simulated clock: slower than time scale {} (a busy host); {} tick(s) waited so far",
+                     options.time_scale, stats.paced_slowed);
+      }
+    }
+    arm();
+  }
+};
+
+Acquisition::Acquisition(asio::io_context& io, AcquisitionOptions options, AcquisitionDevices devices, TickSink sink)
+    : impl_(std::make_unique<Impl>(io, options, std::move(devices), std::move(sink))) {}
+
+Acquisition::~Acquisition() {
+  impl_->dev.join(false);
+  impl_->therm.join(false);
+  if (impl_->gyro_sd.is_open()) (void)impl_->gyro_sd.release();  // the bus closes its fd
+}
+
+void Acquisition::start() { impl_->start(); }
+
+void Acquisition::stop(std::function<void(const std::string&)> done) { impl_->stop(std::move(done)); }
+
+void Acquisition::join() {
+  impl_->dev.join(true);
+  impl_->therm.join(false);
+}
+
+AcquisitionStats Acquisition::stats() const { return impl_->stats; }
+
+}  // namespace fogbench::daemon

@@ -1,0 +1,364 @@
+// The acquisition (daemon/src/acquisition.hpp) with fake devices in-process: a chamber, a
+// thermistor module and a gyro bus transport whose values are numbered by their poll, on the
+// real clock (at a time scale of 4) and on the paced clock (a fake world). No process, no
+// socket to a mock bench; nothing here asserts a duration: the watchdog only ends a stuck loop.
+#include <sys/eventfd.h>
+#include <unistd.h>
+
+#include <mutex>
+#include <set>
+#include <utility>
+#include <vector>
+
+#include <boost/asio.hpp>
+#include <catch2/catch.hpp>
+
+#include "../../daemon/src/acquisition.hpp"
+#include "fogbench/drivers/can_frame.hpp"
+
+using namespace fogbench;
+using namespace fogbench::daemon;
+namespace asio = boost::asio;
+
+namespace {
+
+constexpr std::size_t kUnits = 2;
+constexpr int kFramesPerSecond = 10;
+
+// A gyro bus transport fed by the test: frames pushed are readable through an eventfd.
+class FakeTransport final : public drivers::CanTransport {
+ public:
+  FakeTransport() : fd_(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC)) {}
+  ~FakeTransport() override { ::close(fd_); }
+  void push(const std::vector<::can_frame>& frames) {
+    std::lock_guard lock(m_);
+    queue_.insert(queue_.end(), frames.begin(), frames.end());
+    const std::uint64_t one = 1;
+    (void)!::write(fd_, &one, sizeof one);
+  }
+  int fd() const noexcept override { return fd_; }
+  drivers::Result<std::size_t> read(std::vector<::can_frame>& out) override {
+    std::lock_guard lock(m_);
+    std::uint64_t n = 0;
+    (void)!::read(fd_, &n, sizeof n);
+    const std::size_t got = queue_.size();
+    out.insert(out.end(), queue_.begin(), queue_.end());
+    queue_.clear();
+    return got;
+  }
+  std::uint64_t malformed() const noexcept override { return 0; }
+  std::string describe() const override { return "fake transport"; }
+
+ private:
+  int fd_;
+  std::mutex m_;
+  std::vector<::can_frame> queue_;
+};
+
+// The fake bench: every device numbers its polls from 1 and answers with values of that number.
+// Chamber poll n: air 20 + 0.5 n degC; with it (even when the chamber fails) the gyros send the
+// frames of second n, unit u at n + 0.1 u deg/h. Thermistor read n: T1 30 + n, T2 40 + n degC
+// (+ 0.5 for unit 1). Touched on the device workers, read by the test once they are joined.
+struct Bench {
+  std::mutex m;
+  int chamber_polls = 0, coil_reads = 0, steps = 0;
+  std::set<int> chamber_down;      // chamber polls that fail as a lost link (its writes fail meanwhile)
+  std::set<int> module_down;       // thermistor reads that fail as a lost link
+  std::set<int> unit1_t2_open;     // thermistor reads where unit 1's T2 reads open
+  std::set<int> unit1_gyro_silent; // chamber polls after which unit 1 sends no frame
+  std::set<int> step_fails;        // paced world steps (numbered from 1) that fail
+  bool link_down = false;
+  double setpoint_c = 0.0;
+  std::vector<double> written;     // setpoints written, in order
+  FakeTransport* transport = nullptr;
+  std::uint8_t sequence[kUnits] = {0, 0};
+
+  std::vector<::can_frame> frames_of(int n, bool unit1) {
+    std::vector<::can_frame> f;
+    for (int i = 0; i < kFramesPerSecond; ++i)
+      for (std::size_t u = 0; u < kUnits; ++u) {
+        if (u == 1 && !unit1) continue;
+        drivers::can::GyroFrame g;
+        g.node_id = static_cast<std::uint16_t>(u + 1);
+        g.counts = n * 1000 + static_cast<int>(u) * 100;  // 0.001 deg/h per count
+        g.sequence = sequence[u]++;
+        g.status = drivers::can::status::valid;
+        f.push_back(drivers::can::encode(g));
+      }
+    return f;
+  }
+};
+
+class FakeChamber final : public drivers::Chamber {
+ public:
+  explicit FakeChamber(Bench& b) : b_(b) {}
+  drivers::Result<drivers::BringUpReport> bring_up() override { return drivers::BringUpReport{}; }
+  drivers::Result<void> write_setpoint_c(double c) override {
+    std::lock_guard lock(b_.m);
+    if (b_.link_down) return drivers::fail(drivers::ErrorCode::connection, "fake chamber: link down");
+    b_.setpoint_c = c;
+    b_.written.push_back(c);
+    return {};
+  }
+  drivers::Result<void> set_running(bool) override { return {}; }
+  drivers::Result<drivers::ChamberReading> poll() override {
+    std::lock_guard lock(b_.m);
+    const int n = ++b_.chamber_polls;
+    b_.transport->push(b_.frames_of(n, !b_.unit1_gyro_silent.contains(n)));  // the gyros' own bus
+    b_.link_down = b_.chamber_down.contains(n);
+    if (b_.link_down) return drivers::fail(drivers::ErrorCode::timeout, "fake chamber: no answer");
+    drivers::ChamberReading r;
+    r.process_value_c = 20.0 + 0.5 * n;
+    r.setpoint_c = b_.setpoint_c;
+    r.running = true;
+    return r;
+  }
+
+ private:
+  Bench& b_;
+};
+
+class FakeModule final : public drivers::ThermistorSource {
+ public:
+  explicit FakeModule(Bench& b) : b_(b) {}
+  drivers::Result<std::vector<drivers::CoilTemperatures>> read_all() override {
+    std::lock_guard lock(b_.m);
+    const int n = ++b_.coil_reads;
+    if (b_.module_down.contains(n)) return drivers::fail(drivers::ErrorCode::timeout, "fake module: no answer");
+    std::vector<drivers::CoilTemperatures> t(kUnits);
+    for (std::size_t u = 0; u < kUnits; ++u) {
+      t[u].t1_c = 30.0 + n + 0.5 * static_cast<double>(u);
+      t[u].t2_c = 40.0 + n + 0.5 * static_cast<double>(u);
+    }
+    if (b_.unit1_t2_open.contains(n)) t[1].t2_c = drivers::fail(drivers::ErrorCode::open_circuit, "T2 open");
+    return t;
+  }
+
+ private:
+  Bench& b_;
+};
+
+class FakeWorld final : public PacedWorld {
+ public:
+  explicit FakeWorld(Bench& b) : b_(b) {}
+  std::expected<void, std::string> step_second() override {
+    std::lock_guard lock(b_.m);
+    if (b_.step_fails.contains(++b_.steps)) return std::unexpected("fake world: no reply");
+    return {};
+  }
+
+ private:
+  Bench& b_;
+};
+
+struct Tick {
+  std::int64_t k;
+  TickInput in;
+};
+
+// Runs an acquisition on the fake bench until `count` seconds have been ticked; the sink answers
+// every second with a setpoint of 25 degC, and a run is on from the second tick.
+std::vector<Tick> acquire(Bench& bench, bool paced, std::size_t count) {
+  asio::io_context io;
+  auto transport = std::make_unique<FakeTransport>();
+  bench.transport = transport.get();
+  AcquisitionDevices d;
+  d.chamber = std::make_unique<FakeChamber>(bench);
+  d.thermistors = std::make_unique<FakeModule>(bench);
+  if (paced) d.paced = std::make_unique<FakeWorld>(bench);
+  d.open_gyro = [&transport](std::optional<drivers::GyroBus>& bus) -> drivers::Result<void> {
+    if (bus) return {};
+    std::vector<drivers::GyroChannelConfig> ch(kUnits);
+    for (std::size_t u = 0; u < kUnits; ++u) {
+      ch[u].node_id = static_cast<std::uint16_t>(u + 1);
+      ch[u].scale_dph_per_count = 0.001;
+    }
+    bus.emplace(std::move(transport), std::move(ch));
+    return {};
+  };
+  AcquisitionOptions o;
+  // The real clock's tick does not wait for a poll (a late one is stood in for, then missing):
+  // 4x leaves the device workers 125 ms to answer. The paced clock's tick waits for its job.
+  o.time_scale = paced ? 50.0 : 4.0;
+  o.units = kUnits;
+  o.safe_setpoint_c = 20.0;
+  std::vector<Tick> ticks;
+  std::unique_ptr<Acquisition> acq;
+  TickSink sink;
+  sink.on_tick = [&](std::int64_t k, const TickInput& in) {
+    if (ticks.size() < count) {
+      ticks.push_back({k, in});
+      if (ticks.size() == count) asio::post(io, [&] { acq->stop([&](const std::string&) { io.stop(); }); });
+    }
+    return 25.0;
+  };
+  sink.run_active = [&] { return !ticks.empty(); };
+  acq = std::make_unique<Acquisition>(io, o, std::move(d), std::move(sink));
+  // A watchdog, not a measurement: a loop that stopped ticking ends here and the counts fail.
+  asio::steady_timer watchdog(io, std::chrono::seconds(60));
+  watchdog.async_wait([&](boost::system::error_code ec) {
+    if (!ec) io.stop();
+  });
+  acq->start();
+  io.run();
+  acq->join();
+  acq.reset();
+  return ticks;
+}
+
+void check_consecutive(const std::vector<Tick>& ticks) {
+  for (std::size_t i = 0; i < ticks.size(); ++i) CHECK(ticks[i].k == static_cast<std::int64_t>(i));
+}
+
+// Tick k read chamber poll k + 1 and thermistor read k + 1, all present.
+void check_values(const Tick& t) {
+  const double n = static_cast<double>(t.k + 1);
+  INFO("tick " << t.k);
+  REQUIRE(t.in.units.size() == kUnits);
+  REQUIRE(t.in.chamber_c);
+  CHECK(*t.in.chamber_c == Approx(20.0 + 0.5 * n));
+  CHECK_FALSE(t.in.chamber_link_down);
+  CHECK_FALSE(t.in.late);
+  for (std::size_t u = 0; u < kUnits; ++u) {
+    const auto& r = t.in.units[u];
+    REQUIRE(r.gyro_dph);
+    CHECK(*r.gyro_dph == Approx(n + 0.1 * static_cast<double>(u)));
+    CHECK(r.frames == static_cast<std::uint32_t>(kFramesPerSecond));
+    REQUIRE(r.t1_c);
+    REQUIRE(r.t2_c);
+    CHECK(*r.t1_c == Approx(30.0 + n + 0.5 * static_cast<double>(u)));
+    CHECK(*r.t2_c == Approx(40.0 + n + 0.5 * static_cast<double>(u)));
+  }
+}
+
+bool same(const std::optional<double>& a, const std::optional<double>& b) {
+  return a.has_value() == b.has_value() && (!a || *a == Approx(*b));
+}
+
+}  // namespace
+
+TEST_CASE("acquisition: one TickInput per second with the fake devices' values, real clock") {
+  Bench bench;
+  const auto ticks = acquire(bench, false, 5);
+  REQUIRE(ticks.size() == 5);
+  check_consecutive(ticks);
+  for (const auto& t : ticks) {
+    check_values(t);
+    CHECK(t.in.gyro_read);
+  }
+  // The safe setpoint at the bring-up, the sink's 25 degC once, the safe setpoint on the way out.
+  REQUIRE(bench.written.size() == 3);
+  CHECK(bench.written[0] == 20.0);
+  CHECK(bench.written[1] == 25.0);
+  CHECK(bench.written[2] == 20.0);
+  CHECK(bench.steps == 0);  // the real clock steps no world
+}
+
+TEST_CASE("acquisition: a device's missing second is marked missing, never filled in") {
+  Bench bench;
+  bench.chamber_down = {3};
+  bench.module_down = {3};
+  bench.unit1_gyro_silent = {3};
+  bench.unit1_t2_open = {4};
+  const auto ticks = acquire(bench, false, 5);
+  REQUIRE(ticks.size() == 5);
+  check_consecutive(ticks);
+  // Tick 2 (poll 3): no chamber, no module, unit 1's gyro silent; unit 0's gyro still read.
+  const TickInput& gap = ticks[2].in;
+  CHECK(gap.chamber_link_down);
+  CHECK_FALSE(gap.chamber_c);
+  CHECK_FALSE(gap.chamber_setpoint_c);
+  CHECK_FALSE(gap.late);  // a device that failed, not a late loop
+  for (const auto& u : gap.units) {
+    CHECK_FALSE(u.t1_c);
+    CHECK_FALSE(u.t2_c);
+  }
+  REQUIRE(gap.units[0].gyro_dph);
+  CHECK(*gap.units[0].gyro_dph == Approx(3.0));
+  CHECK_FALSE(gap.units[1].gyro_dph);
+  CHECK(gap.units[1].frames == 0);
+  // Tick 3 (read 4): only unit 1's T2 open, the rest read.
+  const TickInput& open = ticks[3].in;
+  REQUIRE(open.chamber_c);
+  CHECK(*open.chamber_c == Approx(22.0));
+  REQUIRE(open.units[1].t1_c);
+  CHECK_FALSE(open.units[1].t2_c);
+  CHECK_FALSE(open.units[1].out_of_range);
+  REQUIRE(open.units[0].t2_c);
+  CHECK(*open.units[0].t2_c == Approx(44.0));
+  check_values(ticks[1]);
+  check_values(ticks[4]);
+}
+
+TEST_CASE("acquisition: a chamber link lost and back, its setpoint written again once it answers") {
+  Bench bench;
+  bench.chamber_down = {3, 4};
+  const auto ticks = acquire(bench, false, 6);
+  REQUIRE(ticks.size() == 6);
+  check_consecutive(ticks);
+  for (std::size_t i : {2u, 3u}) {
+    INFO("tick " << i);
+    CHECK(ticks[i].in.chamber_link_down);
+    CHECK_FALSE(ticks[i].in.chamber_c);
+  }
+  check_values(ticks[4]);
+  check_values(ticks[5]);
+  // The controller may have restarted while away: 25 degC is written again after the link is
+  // back (the writes while it was down failed), not assumed. Then the safe setpoint at the end.
+  REQUIRE(bench.written.size() == 4);
+  CHECK(bench.written[0] == 20.0);
+  CHECK(bench.written[1] == 25.0);
+  CHECK(bench.written[2] == 25.0);
+  CHECK(bench.written[3] == 20.0);
+}
+
+TEST_CASE("acquisition: the paced clock gives the real clock's ticks, one world step per second of a run") {
+  Bench real_bench, paced_bench;
+  const auto real = acquire(real_bench, false, 6);
+  const auto paced = acquire(paced_bench, true, 6);
+  REQUIRE(real.size() == 6);
+  REQUIRE(paced.size() == 6);
+  check_consecutive(paced);
+  for (std::size_t i = 0; i < real.size(); ++i) {
+    INFO("tick " << i);
+    const TickInput& a = real[i].in;
+    const TickInput& b = paced[i].in;
+    check_values(paced[i]);
+    CHECK(same(a.chamber_c, b.chamber_c));
+    CHECK(same(a.chamber_setpoint_c, b.chamber_setpoint_c));
+    CHECK(a.chamber_alarm == b.chamber_alarm);
+    CHECK(a.chamber_link_down == b.chamber_link_down);
+    CHECK(a.late == b.late);
+    for (std::size_t u = 0; u < kUnits; ++u) {
+      CHECK(same(a.units[u].gyro_dph, b.units[u].gyro_dph));
+      CHECK(a.units[u].frames == b.units[u].frames);
+      CHECK(same(a.units[u].t1_c, b.units[u].t1_c));
+      CHECK(same(a.units[u].t2_c, b.units[u].t2_c));
+    }
+    // The first second comes before the run: the paced world did not step for it.
+    CHECK(b.gyro_read == (i > 0));
+  }
+  // One step per second of the run: the jobs of ticks 1..5 (and the one after the last, which
+  // may or may not have run when the loop stopped).
+  CHECK(paced_bench.steps >= 5);
+  CHECK(paced_bench.steps <= 6);
+  CHECK(paced_bench.written == real_bench.written);
+}
+
+TEST_CASE("acquisition: a paced world that does not step leaves its second missing") {
+  Bench bench;
+  bench.step_fails = {2};  // the job of tick 2
+  const auto ticks = acquire(bench, true, 5);
+  REQUIRE(ticks.size() == 5);
+  check_consecutive(ticks);
+  const TickInput& gap = ticks[2].in;
+  CHECK(gap.chamber_link_down);
+  CHECK_FALSE(gap.chamber_c);
+  CHECK_FALSE(gap.gyro_read);
+  for (const auto& u : gap.units) {
+    CHECK_FALSE(u.t1_c);
+    CHECK_FALSE(u.t2_c);
+  }
+  check_values(ticks[1]);
+  check_values(ticks[3]);
+}
