@@ -7,6 +7,7 @@
 #include <cmath>
 #include <memory>
 #include <numeric>
+#include <optional>
 #include <thread>
 
 #include "workbench_step.hpp"
@@ -213,15 +214,31 @@ void screen_generated(std::vector<Cand>& cands, std::size_t n_fixed, const Candi
       double gain;
       int lag;
     };
-    std::vector<Screened> sc;
-    for (std::size_t i = n_fixed; i < cands.size(); ++i) {
-      if (!missing_signal_of(*cands[i].term.expr, fit_run).empty()) continue;
-      auto x = evaluate(*cands[i].term.expr, fr.sig.view());
-      if (!x) continue;
-      auto g = scan.scan(*x);
-      if (!g) continue;
-      sc.push_back({i, g->best, g->lag});
+    // The scans are independent: on o.threads threads (as evaluate_all), each into its own
+    // slot, then gathered in the list's order (the same list as one thread makes).
+    std::vector<std::optional<Screened>> slot(cands.size() - n_fixed);
+    {
+      std::atomic<std::size_t> next{n_fixed};
+      auto worker = [&] {
+        for (std::size_t i = next++; i < cands.size(); i = next++) {
+          if (!missing_signal_of(*cands[i].term.expr, fit_run).empty()) continue;
+          auto x = evaluate(*cands[i].term.expr, fr.sig.view());
+          if (!x) continue;
+          auto g = scan.scan(*x);
+          if (!g) continue;
+          slot[i - n_fixed] = Screened{i, g->best, g->lag};
+        }
+      };
+      unsigned threads = o.threads > 0 ? static_cast<unsigned>(o.threads) : std::max(1u, std::min(4u, std::thread::hardware_concurrency()));
+      threads = std::min<unsigned>(threads, static_cast<unsigned>(slot.size()));
+      std::vector<std::thread> pool;
+      for (unsigned k = 1; k < threads; ++k) pool.emplace_back(worker);
+      worker();
+      for (auto& th : pool) th.join();
     }
+    std::vector<Screened> sc;
+    for (const auto& x : slot)
+      if (x) sc.push_back(*x);
     if (stats) stats->scanned += sc.size();
     std::sort(sc.begin(), sc.end(), [](const Screened& x1, const Screened& x2) { return x1.gain > x2.gain; });
     std::vector<std::size_t> keep;
