@@ -1,7 +1,8 @@
 // Benchmark of workbench::diagnose on an exp1-length fit run (5400 s, a hidden 0.05 deg/h per
 // degC of T1) with two held-out runs (exp2, exp3; 18,900 samples in all): the full search over
 // the term language (the default; target under 1 s on one core, issue 10), the library alone
-// (target under 100 ms, issue 5), and its parts (one fit, compare).
+// (target under 100 ms, issue 5), and its parts (one fit, compare); then a 3-day run alone
+// (262,200 samples; target under 5 s on both cores, issue 25 point 6) and its ratio to the 3-run case.
 #include <algorithm>
 #include <chrono>
 #include <ctime>
@@ -20,11 +21,26 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
+// Three days (262,200 s at 1 Hz): 48 cycles of exp1's steps after a 10 min hold, 40 min hold at
+// the end (the issue-25 case; the same text as docs/performance.md's long3d.profile).
+std::string long_profile() {
+  std::string t = "setpoint 20 C\nhold 10 min\n";
+  for (int i = 0; i < 48; ++i)
+    t += "ramp to 10 C at 1 C/min\nhold 20 min\nramp to 30 C at 1 C/min\nhold 20 min\nramp to 20 C at 1 C/min\nhold 10 min\n";
+  return t + "hold 40 min\n";
+}
+
 model::RunData simulate(const std::string& name, std::uint64_t seed, const std::string& effect) {
-  std::ifstream f(std::string(FOGBENCH_SOURCE_DIR) + "/profiles/" + name + ".profile");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  auto p = profiles::parse_profile(ss.str(), name);
+  std::string text;
+  if (name == "long3d") {
+    text = long_profile();
+  } else {
+    std::ifstream f(std::string(FOGBENCH_SOURCE_DIR) + "/profiles/" + name + ".profile");
+    std::stringstream ss;
+    ss << f.rdbuf();
+    text = ss.str();
+  }
+  auto p = profiles::parse_profile(text, name);
   if (!p) {
     std::fprintf(stderr, "profile %s: cannot parse\n", name.c_str());
     std::exit(2);
@@ -118,6 +134,33 @@ int main() {
   std::printf("  library: %zu candidates refitted, top: %s\n", evaluated, top.c_str());
   std::printf("  diagnose, library    median %7.1f ms  min %7.1f ms  cpu %7.1f ms per call (target < 100 ms)\n", diag_med, diag_min, diag_cpu);
   std::printf("  diagnose, 2 threads  median %7.1f ms  min %7.1f ms  cpu %7.1f ms per call (not the default: see DiagnoseOptions::threads)\n", d2_med, d2_min, d2_cpu);
+  // Issue 25/30: a 3-day run (262,200 samples) alone, the language search, as fogctl runs it
+  // (threads 0: both cores) and on one thread; CPU per call and the ratio to the 3-run case.
+  const model::RunData long_run = simulate("long3d", 11, effect);
+  auto ml = model::fit(long_run, *model::parse_terms("paper"));
+  if (!ml) {
+    std::fprintf(stderr, "fit long3d: %s\n", ml.error().message.c_str());
+    return 2;
+  }
+  model::workbench::DiagnoseOptions both;
+  both.threads = 0;
+  std::size_t long_refitted = 0;
+  const auto [long_med, long_min] = time_ms(3, [&] {
+    auto d = model::workbench::diagnose(*ml, long_run, {}, both);
+    if (!d) std::exit(2);
+    long_refitted = d->search_space.value("refitted", 0u);
+  });
+  const double long_cpu = g_cpu_ms;
+  model::workbench::DiagnoseOptions one;
+  const auto [long1_med, long1_min] = time_ms(1, [&] { (void)model::workbench::diagnose(*ml, long_run, {}, one); });
+  const double long1_cpu = g_cpu_ms;
+  const auto [lang2_med, lang2_min] = time_ms(5, [&] { (void)model::workbench::diagnose(*m, runs[0], held, both); });
+  std::printf("  3-day run (%zu samples), language search, %zu refitted:\n", long_run.size(), long_refitted);
+  std::printf("    both cores (as fogctl) median %8.1f ms  min %8.1f ms  cpu %8.1f ms per call (target < 5000 ms wall)\n", long_med, long_min, long_cpu);
+  std::printf("    one thread             median %8.1f ms  min %8.1f ms  cpu %8.1f ms per call\n", long1_med, long1_min, long1_cpu);
+  std::printf("    ratio to the 3-run case (both cores, wall median %.1f ms): %.1f; samples ratio %.1f\n", lang2_med,
+              lang2_med > 0 ? long_med / lang2_med : 0.0,
+              static_cast<double>(long_run.size()) / static_cast<double>(runs[0].size() + runs[1].size() + runs[2].size()));
   std::printf("  fit paper (2 terms)  median %7.2f ms  min %7.2f ms\n", fit_med, fit_min);
   std::printf("  fit paper + T1       median %7.2f ms  min %7.2f ms\n", fit3_med, fit3_min);
   std::printf("  compare (exp1)       median %7.2f ms  min %7.2f ms\n", cmp_med, cmp_min);

@@ -4,12 +4,15 @@
 #include "options.hpp"
 
 #include <CLI/CLI.hpp>
+#include <chrono>
 #include <cmath>
 #include <iostream>
+#include <optional>
 #include <nlohmann/json.hpp>
 
 #include "fogbench/model/json.hpp"
 #include "fogbench/model/workbench.hpp"
+#include "progress.hpp"
 #include "quality.hpp"
 #include "table.hpp"
 
@@ -163,7 +166,28 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
         return kExitError;
       }
     }
+  // The candidates on both cores (up to 4 threads): the same answer as one thread, sooner.
+  dopt.threads = 0;
+  // Progress on stderr for long work (a 3-day run takes seconds): on a terminal or with
+  // --progress, never on stdout (--json stays one object). On a terminal nothing is drawn in
+  // the first half second, so that a short diagnose prints none.
+  std::optional<Progress> bar;
+  const auto t0 = std::chrono::steady_clock::now();
+  const bool redraw = progress_redraws();
+  if (o.progress || redraw) {
+    bar.emplace(err, redraw, 5.0);
+    dopt.progress = [&](const wb::DiagnoseProgress& p) {
+      const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      if (!o.progress && s < 0.5) return;
+      std::string text = "diagnose: step " + std::to_string(p.step) + ", " + p.stage;
+      if (p.stage == "screening") text += " " + std::to_string(p.total) + " generated candidates";
+      else if (p.total > 0) text += " candidate " + std::to_string(p.done) + " of " + std::to_string(p.total);
+      text += " (" + fixed(s, 1) + " s)";
+      bar->update(std::to_string(p.step) + " " + p.stage, text);
+    };
+  }
   auto d = wb::diagnose(*m, runs->front(), std::span<const model::RunData>(*runs).subspan(1), dopt);
+  if (bar) bar->finish();
   if (!d) {
     err << "fogctl diagnose: "
         << as_typed(d.error().message, {{"max_terms", "--max-terms"}, {"tau_points", "--tau-points"}, {"max_lag_s", "--max-lag"}})
@@ -409,6 +433,7 @@ void add_workbench_commands(CLI::App& app, int& code) {
   d->add_option("--max-terms", dia.max_terms, "Greedy forward selection: terms added at most, 1 to 3 (default 3)");
   d->add_option("--tau-points", dia.tau_points, "Time constants of lp and warm on a log grid 30 s to 4 h (default 12)");
   d->add_flag("--json", dia.json, "Print one JSON object");
+  d->add_flag("--progress", dia.progress, "Progress lines on stderr even when it is not a terminal (on a terminal they are drawn anyway)");
   add_run_input(d, dia.input);
   d->callback([&] { code = run_diagnose(dia, std::cout, std::cerr); });
 

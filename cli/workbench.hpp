@@ -37,6 +37,7 @@ struct DiagnoseCommandOptions {
   int max_terms = 3;                    // greedy forward selection: terms added at most
   int tau_points = 12;                  // time constants of lp and warm on the log grid 30 s .. 4 h
   bool json = false;
+  bool progress = false;                // progress lines on stderr even when it is not a terminal
   RunInput input;
 };
 int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostream& err);

@@ -124,6 +124,18 @@ std::expected<RunSignals, FitError> run_signals(const RunData& run, double tref_
 
 namespace detail {
 
+// The columns from cache (the signals are not copied: the methods read only the columns).
+std::expected<Evaluated, FitError> evaluate_terms_with(FitCache& cache, const std::vector<Term>& terms) {
+  Evaluated ev;
+  for (const auto& t : terms) {
+    auto v = cache.column(t);
+    if (!v) return std::unexpected(v.error());
+    ev.x.push_back(**v);
+    ev.names.push_back(to_string(t, false));
+  }
+  return ev;
+}
+
 std::expected<Evaluated, FitError> evaluate_terms(const RunData& run, const std::vector<Term>& terms, double tref_c) {
   Evaluated ev;
   auto s = run_signals(run, tref_c);
@@ -138,9 +150,71 @@ std::expected<Evaluated, FitError> evaluate_terms(const RunData& run, const std:
   return ev;
 }
 
+FitCache::FitCache(const RunData& run, double tref_c, std::size_t keep_columns) : run_(run), tref_c_(tref_c), keep_(keep_columns) {}
+
+std::expected<const RunSignals*, FitError> FitCache::signals() {
+  if (!sig_) sig_ = std::make_unique<std::expected<RunSignals, FitError>>(run_signals(run_, tref_c_));
+  if (!*sig_) return std::unexpected(sig_->error());
+  return &**sig_;
+}
+
+std::expected<const std::vector<double>*, FitError> FitCache::column(const Term& t) {
+  const std::string key = term_key(t);
+  auto it = cols_.find(key);
+  if (it == cols_.end()) {
+    auto s = signals();
+    if (!s) return std::unexpected(s.error());
+    auto v = evaluate(*t.expr, (*s)->view());
+    if (!v) return fail(FitError::Code::missing_signal, "term '" + to_string(t, false) + "': " + v.error());
+    it = cols_.emplace(key, Entry{std::move(*v), {}, 0}).first;
+  }
+  it->second.used = ++clock_;
+  return &it->second.x;
+}
+
+const Lagged& FitCache::lagged(const Term& t, const std::vector<double>& x, int max_lag) {
+  // x is the term's column (column() gave it this fit, or a copy of it): the entry exists
+  // unless the caller evaluated it elsewhere, then x is kept.
+  auto it = cols_.find(term_key(t));
+  if (it == cols_.end()) it = cols_.emplace(term_key(t), Entry{x, {}, 0}).first;
+  it->second.used = ++clock_;
+  auto l = it->second.lagged.find(max_lag);
+  if (l == it->second.lagged.end()) l = it->second.lagged.emplace(max_lag, make_lagged(it->second.x, max_lag)).first;
+  return l->second;
+}
+
+const std::expected<PaperPrep, FitError>& FitCache::paper_prep(const FitOptions& o, const std::vector<double>& w) {
+  const auto key = std::make_tuple(o.hold_s, o.ar_order, o.outlier_sigma, o.smooth_s, o.max_lag_s);
+  auto it = paper_.find(key);
+  if (it == paper_.end()) it = paper_.emplace(key, detail::paper_prep(run_, o, w)).first;
+  return it->second;
+}
+
+void add_standard_errors(Model& m, FitCache& cache) {
+  if (m.method != Method::paper || !m.fit.coef_corr.empty() || cache.tref_c() != m.tref_c) return;
+  std::vector<Term> terms;
+  bool any_auto = false;
+  for (const auto& ft : m.terms) {
+    terms.push_back(ft.term);
+    any_auto = any_auto || ft.term.lag.automatic;
+  }
+  auto ev = evaluate_terms_with(cache, terms);
+  if (!ev) return;
+  finish_stats(m, *ev, cache.run().gyro_dph, good_weights(cache.run()), any_auto ? 1 : 0, true);
+}
+
+void FitCache::trim() {
+  while (cols_.size() > keep_) {
+    auto oldest = cols_.begin();
+    for (auto it = cols_.begin(); it != cols_.end(); ++it)
+      if (it->second.used < oldest->second.used) oldest = it;
+    cols_.erase(oldest);
+  }
+}
+
 // Standard errors and coefficient correlations from the prewhitened design, and the BIC of
 // the innovations: common to both methods so that models compare on one footing.
-void finish_stats(Model& m, const Evaluated& ev, std::span<const double> y, std::span<const double> w0, int n_auto_lags) {
+void finish_stats(Model& m, const Evaluated& ev, std::span<const double> y, std::span<const double> w0, int n_auto_lags, bool se) {
   const std::size_t n = y.size();
   const std::size_t nt = m.terms.size();
   const std::size_t p = m.ar.size();
@@ -186,14 +260,16 @@ void finish_stats(Model& m, const Evaluated& ev, std::span<const double> y, std:
     }
     double a = e_recent[0];
     for (std::size_t i = 0; i < p; ++i) a -= m.ar[i] * e_recent[i + 1];
-    ls.add(row, 0.0);
+    if (se) ls.add(row, 0.0);
     rss += a * a;
     nw += 1.0;
   }
   const double nparams = static_cast<double>(k + p + static_cast<std::size_t>(n_auto_lags));
   const double s2 = nw > nparams ? rss / (nw - nparams) : 0.0;
   m.fit.coef_corr.assign(k, std::vector<double>(k, 0.0));
-  if (const Eigen::MatrixXd cov = ls.covariance(s2); cov.size() != 0) {
+  if (!se) {
+    m.fit.coef_corr.clear();  // not computed (add_standard_errors computes them)
+  } else if (const Eigen::MatrixXd cov = ls.covariance(s2); cov.size() != 0) {
     m.mu0_se_dph = std::sqrt(std::max(0.0, cov(0, 0)));
     for (std::size_t j = 0; j < nt; ++j) m.terms[j].se_dph_per_unit = std::sqrt(std::max(0.0, cov(j + 1, j + 1)));
     for (std::size_t r = 0; r < k; ++r)
@@ -226,7 +302,8 @@ void fill_fitted_on(Model& m, const RunData& run) {
 namespace {
 
 // fit() without its summary on failure: `progress` follows it (stage, iterations).
-std::expected<Model, FitError> fit_run(const RunData& run, const TermList& tl, const FitOptions& o, FitSummary& progress) {
+std::expected<Model, FitError> fit_run(const RunData& run, const TermList& tl, const FitOptions& o, FitSummary& progress,
+                                       detail::FitCache* cache) {
   progress.stage = "options";
   if (auto v = o.validate(); !v) return fail(FitError::Code::bad_options, v.error());
   const std::size_t n = run.size();
@@ -236,7 +313,10 @@ std::expected<Model, FitError> fit_run(const RunData& run, const TermList& tl, c
   progress.stage = "checks";
   if (auto c = detail::check_terms(n, terms, o); !c) return std::unexpected(c.error());
   if (auto t = detail::check_time(run); !t) return std::unexpected(t.error());
-  auto ev = detail::evaluate_terms(run, terms, o.tref_c);
+  // A cache of another run or reference temperature is not used.
+  if (cache && (&cache->run() != &run || cache->tref_c() != o.tref_c)) cache = nullptr;
+  if (cache) cache->trim();
+  auto ev = cache ? detail::evaluate_terms_with(*cache, terms) : detail::evaluate_terms(run, terms, o.tref_c);
   if (!ev) return std::unexpected(ev.error());
   std::size_t n_flagged = 0;
   std::vector<double> w = detail::good_weights(run, &n_flagged);
@@ -274,7 +354,8 @@ std::expected<Model, FitError> fit_run(const RunData& run, const TermList& tl, c
       if (!std::isfinite(v)) v = 0.0;
     src = &clean;
   }
-  auto m = o.method == Method::paper ? detail::fit_paper(*src, terms, o, *ev, w, progress)
+  // The cache's paper step holds the run as given: a cleaned copy is fitted without it.
+  auto m = o.method == Method::paper ? detail::fit_paper(*src, terms, o, *ev, w, progress, src == &run ? cache : nullptr)
                                      : detail::fit_joint(*src, terms, o, *ev, w, progress);
   if (!m) return m;
   progress.stage = "collinearity at the fitted lags";
@@ -297,12 +378,10 @@ std::expected<Model, FitError> fit_run(const RunData& run, const TermList& tl, c
   return m;
 }
 
-}  // namespace
-
-std::expected<Model, FitError> fit(const RunData& run, const TermList& tl, const FitOptions& o) {
+std::expected<Model, FitError> fit_impl(const RunData& run, const TermList& tl, const FitOptions& o, detail::FitCache* cache) {
   FitSummary progress;
   progress.method = o.method;
-  auto m = fit_run(run, tl, o, progress);
+  auto m = fit_run(run, tl, o, progress, cache);
   if (!m) {
     FitError e = std::move(m.error());
     e.summary = progress;
@@ -312,9 +391,11 @@ std::expected<Model, FitError> fit(const RunData& run, const TermList& tl, const
   }
   // The one whiteness statistic, over the whole run (the paper method's AR noise was fitted on
   // the opening hold alone; diagnose reads the same number).
-  if (auto rw = run_whiteness(*m, run, 20)) {
-    m->fit.ljung_box_q = rw->wh.lb.q;
-    m->fit.ljung_box_p = rw->wh.lb.p_value;
+  if (!cache || cache->whole_run_whiteness) {
+    if (auto rw = run_whiteness(*m, run, 20)) {
+      m->fit.ljung_box_q = rw->wh.lb.q;
+      m->fit.ljung_box_p = rw->wh.lb.p_value;
+    }
   }
   progress.stage = "done";
   m->fit.summary = progress;
@@ -322,6 +403,16 @@ std::expected<Model, FitError> fit(const RunData& run, const TermList& tl, const
   m->fit.converged = progress.converged();
   return m;
 }
+
+}  // namespace
+
+std::expected<Model, FitError> fit(const RunData& run, const TermList& tl, const FitOptions& o) { return fit_impl(run, tl, o, nullptr); }
+
+namespace detail {
+std::expected<Model, FitError> fit_with(const RunData& run, const TermList& tl, const FitOptions& o, FitCache& cache) {
+  return fit_impl(run, tl, o, &cache);
+}
+}  // namespace detail
 
 std::string_view to_string(FitTermination t) {
   switch (t) {
@@ -359,6 +450,23 @@ std::expected<std::vector<std::vector<double>>, FitError> regressors(const Model
   }
   return cols;
 }
+
+namespace detail {
+std::expected<std::vector<std::vector<double>>, FitError> regressors_with(const Model& m, FitCache& cache) {
+  if (cache.tref_c() != m.tref_c) return regressors(m, cache.run());
+  const std::size_t n = cache.run().size();
+  std::vector<std::vector<double>> cols;
+  for (const auto& ft : m.terms) {
+    auto x = cache.column(ft.term);
+    if (!x) return std::unexpected(x.error());
+    const auto lag = static_cast<std::size_t>(ft.term.lag.seconds);
+    std::vector<double> c(n);
+    for (std::size_t t = 0; t < n; ++t) c[t] = (**x)[t >= lag ? t - lag : 0];
+    cols.push_back(std::move(c));
+  }
+  return cols;
+}
+}  // namespace detail
 
 std::expected<std::vector<double>, FitError> predict(const Model& m, const RunData& run) {
   auto cols = regressors(m, run);

@@ -4,10 +4,14 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <expected>
+#include <map>
+#include <memory>
 #include <limits>
 #include <span>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "fogbench/model/model.hpp"
@@ -71,15 +75,87 @@ std::expected<Evaluated, FitError> evaluate_terms(const RunData& run, const std:
 
 // Standard errors and coefficient correlations from the prewhitened design, and the BIC of
 // the innovations: common to both methods so that models compare on one footing.
-void finish_stats(Model& m, const Evaluated& ev, std::span<const double> y, std::span<const double> w0, int n_auto_lags);
+// se false: the BIC only (the same number), no standard errors or correlations (coef_corr left
+// empty): a refit compared by BIC alone; add_standard_errors completes it.
+void finish_stats(Model& m, const Evaluated& ev, std::span<const double> y, std::span<const double> w0, int n_auto_lags, bool se = true);
+
+// ---- what the refits of one run share (fit.cpp; diagnose's candidates) ----
+
+// The paper method's first step and the target of its second, which depend on the run and the
+// options only: mu0 and the AR noise of the opening hold, the smoothed output less mu0 (z),
+// the lag scanner of the run's weights and the spectrum of w*z.
+struct PaperPrep {
+  double mu0_dph = 0.0, sigma_a_dph = 0.0;
+  std::vector<double> ar;
+  std::size_t n_hold = 0, n_outliers = 0;
+  bool stationary = false;
+  double hold_lb_q = 0.0, hold_lb_p = 0.0;
+  std::vector<double> z;
+  std::unique_ptr<LagScanner> sc;
+  Spectrum wz_spec;
+};
+
+// One run's refits with many term lists (diagnose refits the model with each candidate): the
+// run's signals, each term's column (with its lag extension and spectrum) and the paper
+// method's PaperPrep are computed once and reused, so that a refit costs only what differs.
+// The numbers are the same as fit() computes. Not for sharing between threads (one per thread).
+// Columns are kept for the most recent terms only (keep_columns), so memory stays a few columns.
+class FitCache {
+ public:
+  FitCache(const RunData& run, double tref_c, std::size_t keep_columns = 8);
+  const RunData& run() const { return run_; }
+  double tref_c() const { return tref_c_; }
+  // fit()'s Ljung-Box over the whole run (Model::fit.ljung_box_q/p); off for refits that are
+  // only scored (BIC, coefficients, standard errors).
+  bool whole_run_whiteness = true;
+  // The paper method's standard errors and coefficient correlations; off for refits compared by
+  // BIC alone (the model's fit.coef_corr is then empty), add_standard_errors completes the one kept.
+  bool standard_errors = true;
+
+  std::expected<const RunSignals*, FitError> signals();
+  // The term's column, unlagged (evaluate on the run's signals); the error names the term.
+  std::expected<const std::vector<double>*, FitError> column(const Term& t);
+  // The column extended for lags up to max_lag (make_lagged), its spectrum kept with it.
+  const Lagged& lagged(const Term& t, const std::vector<double>& x, int max_lag);
+  // The paper method's first step for these options (w: good_weights of the run).
+  const std::expected<PaperPrep, FitError>& paper_prep(const FitOptions& o, const std::vector<double>& w);
+  // Drops the columns used least recently beyond keep_columns (called between fits only: the
+  // references handed out stay valid within one fit).
+  void trim();
+
+ private:
+  struct Entry {
+    std::vector<double> x;
+    std::map<int, Lagged> lagged;  // by max lag
+    std::uint64_t used = 0;
+  };
+  const RunData& run_;
+  double tref_c_;
+  std::size_t keep_;
+  std::uint64_t clock_ = 0;
+  std::unique_ptr<std::expected<RunSignals, FitError>> sig_;
+  std::map<std::string, Entry> cols_;
+  std::map<std::tuple<int, int, double, int, int>, std::expected<PaperPrep, FitError>> paper_;
+};
+
+// fit() with the run's shared parts from cache (cache.run() must be run).
+std::expected<Model, FitError> fit_with(const RunData& run, const TermList& tl, const FitOptions& o, FitCache& cache);
+// The standard errors and coefficient correlations of a paper model fitted by fit_with with
+// standard_errors off, exactly as the fit computes them (nothing when it has them).
+void add_standard_errors(Model& m, FitCache& cache);
+// regressors() with the columns from cache.
+std::expected<std::vector<std::vector<double>>, FitError> regressors_with(const Model& m, FitCache& cache);
 
 // ---- the methods (fit_paper.cpp, fit_joint.cpp) ----
 
 // w: the samples' weights (good_weights); run.gyro_dph finite everywhere. progress: where
 // the method is (stage, iterations), read by fit() when it fails; on success its termination
 // (and for joint last_change and why) says how the method ended.
+// cache: the run's shared parts (null: computed here).
 std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<Term>& terms, const FitOptions& o,
-                                         const Evaluated& ev, std::vector<double> w, FitSummary& progress);
+                                         const Evaluated& ev, std::vector<double> w, FitSummary& progress, FitCache* cache = nullptr);
+// The paper method's first step and target (PaperPrep), as fit_paper computes them.
+std::expected<PaperPrep, FitError> paper_prep(const RunData& run, const FitOptions& o, const std::vector<double>& w);
 std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<Term>& terms, const FitOptions& o,
                                          const Evaluated& ev, std::vector<double> w, FitSummary& progress);
 

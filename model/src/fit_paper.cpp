@@ -30,15 +30,11 @@ std::pair<std::size_t, std::size_t> opening_hold(const RunData& run, int hold_s)
 
 }  // namespace
 
-std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<Term>& terms, const FitOptions& o,
-                                         const Evaluated& ev, std::vector<double> w, FitSummary& progress) {
-  Model m;
-  m.method = Method::paper;
-  m.shared_lag = true;
+std::expected<PaperPrep, FitError> paper_prep(const RunData& run, const FitOptions& o, const std::vector<double>& w) {
+  PaperPrep pp;
   const std::size_t n = run.size();
   const int L = o.max_lag_s;
   // Step 1: the opening hold gives mu0 and the AR noise.
-  progress.stage = "opening hold (step 1)";
   auto [hb, he] = opening_hold(run, o.hold_s);
   std::vector<double> hold;
   for (std::size_t t = hb; t < he; ++t)
@@ -51,19 +47,18 @@ std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<T
   std::vector<double> kept;
   for (std::size_t i = 0; i < hold.size(); ++i)
     if (out.keep[i]) kept.push_back(hold[i]);
-  m.mu0_dph = mean(kept);
-  for (double& v : kept) v -= m.mu0_dph;
+  pp.mu0_dph = mean(kept);
+  for (double& v : kept) v -= pp.mu0_dph;
   const StationarityResult st = stationarity_check(kept);
   auto ar = fit_ar(kept, o.ar_order);
   if (!ar) return fail(FitError::Code::too_short, "opening hold: " + ar.error());
-  m.ar = ar->k;
-  m.sigma_a_dph = std::sqrt(ar->sigma_a2);
+  pp.ar = ar->k;
+  pp.sigma_a_dph = std::sqrt(ar->sigma_a2);
   const Whiteness wh = whiteness(ar->residuals, 20, o.ar_order);
-  m.fit.n_hold = hold.size();
-  m.fit.stationary = st.stationary;
-  m.fit.ljung_box_q = wh.lb.q;
-  m.fit.ljung_box_p = wh.lb.p_value;
-  progress.stage = "trend (step 2)";
+  pp.n_hold = hold.size();
+  pp.stationary = st.stationary;
+  pp.hold_lb_q = wh.lb.q;
+  pp.hold_lb_p = wh.lb.p_value;
   // Step 2: the trend of the smoothed output. Outliers (3 sigma about the smooth) are
   // removed from the smoothing, then the smoothed series is regressed on the terms.
   std::vector<double> s = moving_average(run.gyro_dph, w, o.smooth_s);
@@ -76,30 +71,73 @@ std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<T
     std::size_t j = 0;
     for (std::size_t t = 0; t < n; ++t)
       if (w[t] != 0.0 && !ro.keep[j++]) ws[t] = 0.0;
-    m.fit.n_outliers = ro.removed + out.removed;
+    pp.n_outliers = ro.removed + out.removed;
     if (ro.removed) s = moving_average(run.gyro_dph, ws, o.smooth_s);
   }
-  std::vector<double> z(n);
-  for (std::size_t t = 0; t < n; ++t) z[t] = s[t] - m.mu0_dph;
-  std::vector<Lagged> lagged;
-  for (const auto& x : ev.x) lagged.push_back(detail::make_lagged(x, L));
+  pp.z.resize(n);
+  for (std::size_t t = 0; t < n; ++t) pp.z[t] = s[t] - pp.mu0_dph;
+  pp.sc = std::make_unique<LagScanner>(n, L, w);
+  // The spectrum of w*z, formed as scan() forms it.
+  std::vector<double> wz(n);
+  for (std::size_t t = 0; t < n; ++t) wz[t] = w[t] * pp.z[t];
+  pp.wz_spec = pp.sc->spectrum_of_target(wz);
+  return pp;
+}
+
+std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<Term>& terms, const FitOptions& o,
+                                         const Evaluated& ev, std::vector<double> w, FitSummary& progress, FitCache* cache) {
+  Model m;
+  m.method = Method::paper;
+  m.shared_lag = true;
+  const std::size_t n = run.size();
+  const int L = o.max_lag_s;
+  progress.stage = "opening hold (step 1)";
+  std::expected<PaperPrep, FitError> own;
+  const std::expected<PaperPrep, FitError>* prep = nullptr;
+  if (cache) {
+    prep = &cache->paper_prep(o, w);
+  } else {
+    own = paper_prep(run, o, w);
+    prep = &own;
+  }
+  if (!*prep) return std::unexpected(prep->error());
+  const PaperPrep& pp = **prep;
+  m.mu0_dph = pp.mu0_dph;
+  m.ar = pp.ar;
+  m.sigma_a_dph = pp.sigma_a_dph;
+  m.fit.n_hold = pp.n_hold;
+  m.fit.stationary = pp.stationary;
+  m.fit.ljung_box_q = pp.hold_lb_q;
+  m.fit.ljung_box_p = pp.hold_lb_p;
+  progress.stage = "trend (step 2)";
+  m.fit.n_outliers = pp.n_outliers;
+  const std::vector<double>& z = pp.z;
+  // Each term extended for its lags (from the cache: with its spectrum, made once per run).
+  std::vector<Lagged> own_lagged;
+  std::vector<const Lagged*> lagged;
+  if (cache) {
+    for (std::size_t j = 0; j < terms.size(); ++j) lagged.push_back(&cache->lagged(terms[j], ev.x[j], L));
+  } else {
+    own_lagged.reserve(ev.x.size());
+    for (const auto& x : ev.x) own_lagged.push_back(detail::make_lagged(x, L));
+    for (const auto& l : own_lagged) lagged.push_back(&l);
+  }
   std::vector<Column> fixed;
   std::vector<const Lagged*> varying;
   std::vector<std::size_t> fixed_idx, var_idx;
   for (std::size_t j = 0; j < terms.size(); ++j) {
     if (terms[j].lag.automatic) {
-      varying.push_back(&lagged[j]);
+      varying.push_back(lagged[j]);
       var_idx.push_back(j);
     } else {
       if (terms[j].lag.seconds > L)
         return fail(FitError::Code::bad_options, "term '" + ev.names[j] + "' has lag " + std::to_string(terms[j].lag.seconds) +
                                                      " s, beyond the maximum lag of " + std::to_string(L) + " s");
-      fixed.push_back(lagged_view(lagged[j], L, terms[j].lag.seconds));
+      fixed.push_back(lagged_view(*lagged[j], L, terms[j].lag.seconds));
       fixed_idx.push_back(j);
     }
   }
-  LagScanner sc(n, L, w);
-  const ScanResult best = scan(sc, z, nullptr, fixed, varying, 0, L);
+  const ScanResult best = scan(*pp.sc, z, &pp.wz_spec, fixed, varying, 0, L);
   if (!best.ok) return fail(FitError::Code::degenerate, "no lag in 0.." + std::to_string(L) + " s gives a solvable regression");
   // The coefficients at the lag chosen, by the kernel (fixed columns first, as the scan orders them).
   std::vector<Column> all = fixed;
@@ -127,7 +165,7 @@ std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<T
   m.fit.rss = r.sse;
   m.fit.trend_r2 = zz > 0.0 ? 1.0 - r.sse / zz : 0.0;
   m.fit.n_used = static_cast<std::size_t>(sw);
-  finish_stats(m, ev, run.gyro_dph, w, varying.empty() ? 0 : 1);
+  finish_stats(m, ev, run.gyro_dph, w, varying.empty() ? 0 : 1, !cache || cache->standard_errors);
   progress.termination = FitTermination::converged;
   progress.why = "two steps, no iteration";
   return m;

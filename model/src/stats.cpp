@@ -107,26 +107,32 @@ std::vector<double> ar_filter(std::span<const double> x, std::span<const double>
   return out;
 }
 
-std::vector<double> acf(std::span<const double> x, int max_lag) {
+namespace {
+
+// acf's sums with the deviations from the mean formed once (the same values, in the same
+// order, as forming them in each product: whiteness reads the ACF of long runs many times).
+std::vector<double> acf_of(std::span<const double> x, int max_lag) {
   std::vector<double> r;
   const std::size_t n = x.size();
   if (n < 2 || max_lag < 1) return r;
   const double m = mean(x);
+  std::vector<double> d(n);
+  for (std::size_t t = 0; t < n; ++t) d[t] = x[t] - m;
   double c0 = 0.0;
-  for (double v : x) c0 += (v - m) * (v - m);
+  for (double v : d) c0 += v * v;
   const int h = std::min<int>(max_lag, static_cast<int>(n) - 1);
   r.reserve(static_cast<std::size_t>(h));
   for (int k = 1; k <= h; ++k) {
     double c = 0.0;
-    for (std::size_t t = 0; t + static_cast<std::size_t>(k) < n; ++t)
-      c += (x[t] - m) * (x[t + static_cast<std::size_t>(k)] - m);
+    const std::size_t ku = static_cast<std::size_t>(k);
+    for (std::size_t t = 0; t + ku < n; ++t) c += d[t] * d[t + ku];
     r.push_back(c0 > 0.0 ? c / c0 : 0.0);
   }
   return r;
 }
 
-std::vector<double> pacf(std::span<const double> x, int max_lag) {
-  const std::vector<double> r = acf(x, max_lag);
+// Durbin-Levinson on an ACF r[0..h-1] (lags 1..h).
+std::vector<double> pacf_of_acf(const std::vector<double>& r) {
   const std::size_t h = r.size();
   std::vector<double> out(h), phi(h + 1, 0.0), prev(h + 1, 0.0);
   double v = 1.0;
@@ -143,10 +149,9 @@ std::vector<double> pacf(std::span<const double> x, int max_lag) {
   return out;
 }
 
-LjungBox ljung_box(std::span<const double> e, int lags, int fitted_params) {
+LjungBox ljung_box_of_acf(const std::vector<double>& r, std::size_t n_samples, int fitted_params) {
   LjungBox lb;
-  const auto n = static_cast<double>(e.size());
-  const std::vector<double> r = acf(e, lags);
+  const auto n = static_cast<double>(n_samples);
   lb.lags = static_cast<int>(r.size());
   lb.dof = std::max(1, lb.lags - fitted_params);
   for (std::size_t k = 1; k <= r.size(); ++k) lb.q += r[k - 1] * r[k - 1] / (n - static_cast<double>(k));
@@ -155,14 +160,25 @@ LjungBox ljung_box(std::span<const double> e, int lags, int fitted_params) {
   return lb;
 }
 
+}  // namespace
+
+std::vector<double> acf(std::span<const double> x, int max_lag) { return acf_of(x, max_lag); }
+
+std::vector<double> pacf(std::span<const double> x, int max_lag) { return pacf_of_acf(acf_of(x, max_lag)); }
+
+LjungBox ljung_box(std::span<const double> e, int lags, int fitted_params) {
+  return ljung_box_of_acf(acf_of(e, lags), e.size(), fitted_params);
+}
+
 Whiteness whiteness(std::span<const double> e, int max_lag, int fitted_params) {
   Whiteness w;
-  w.acf = acf(e, max_lag);
-  w.pacf = pacf(e, max_lag);
+  // One ACF for the three (pacf and ljung_box would each compute it again).
+  w.acf = acf_of(e, max_lag);
+  w.pacf = pacf_of_acf(w.acf);
   w.band = white_band(e.size());
   for (double v : w.acf) w.acf_outside += std::abs(v) > w.band;
   for (double v : w.pacf) w.pacf_outside += std::abs(v) > w.band;
-  w.lb = ljung_box(e, max_lag, fitted_params);
+  w.lb = ljung_box_of_acf(w.acf, e.size(), fitted_params);
   return w;
 }
 

@@ -22,18 +22,19 @@ struct Refit {
 
 // The model's terms plus the candidate at lag_s, refitted on the fit run (a copy of a model
 // term beside the model's lags frozen: extended_terms).
-Refit refit_at(const StepContext& ctx, const Cand& cd, int lag_s) {
+Refit refit_at(const StepContext& ctx, const Cand& cd, int lag_s, detail::FitCache& fc) {
   Term t = cd.term;
   t.lag = Lag{false, lag_s};
   auto [tl, extra_params] = extended_terms(ctx.base, t, true);
-  return Refit{t, fit(ctx.fit_run, tl, ctx.fo), extra_params};
+  return Refit{t, detail::fit_with(ctx.fit_run, tl, ctx.fo, fc), extra_params};
 }
 
 // The lag of x (the candidate evaluated on the fit run) starting at the scan's best, then
 // coordinate descent with the refit (as the joint fit does), then lag 0 if BIC prefers it.
-Refit refit_at_best_lag(const StepContext& ctx, const Cand& cd, std::span<const double> x, int first_lag) {
+// fc: this thread's cache of the fit run's refits.
+Refit refit_at_best_lag(const StepContext& ctx, const Cand& cd, std::span<const double> x, int first_lag, detail::FitCache& fc) {
   const Model& base = ctx.base;
-  Refit r = refit_at(ctx, cd, first_lag);
+  Refit r = refit_at(ctx, cd, first_lag, fc);
   // The candidate's lag was scanned with the model's terms at the lags they had without
   // it; the refit moves those lags, so scan again with the refitted model's columns until
   // the lag settles.
@@ -45,14 +46,14 @@ Refit refit_at_best_lag(const StepContext& ctx, const Cand& cd, std::span<const 
     for (std::size_t j = 0; j + 1 < r.model->terms.size(); ++j) lags_now.push_back(r.model->terms[j].term.lag.seconds);
     if (lags_now == lags_before) break;
     lags_before = lags_now;
-    auto rescan = scan_beside(*r.model, ctx.fit_run, ctx.fo.max_lag_s, /*without_last_term=*/true);
+    auto rescan = scan_beside(*r.model, fc, ctx.fo.max_lag_s, /*without_last_term=*/true);
     if (!rescan) break;
     const auto g2 = rescan->scan(x);
     if (!g2 || g2->lag == r.term.lag.seconds) break;
     Term t2 = r.term;
     t2.lag.seconds = g2->lag;
     auto [tl2, ep2] = extended_terms(base, t2, true);
-    auto m3 = fit(ctx.fit_run, tl2, ctx.fo);
+    auto m3 = detail::fit_with(ctx.fit_run, tl2, ctx.fo, fc);
     if (!m3 || m3->fit.bic >= r.model->fit.bic) break;
     r.term = t2;
     r.model = std::move(m3);
@@ -66,7 +67,7 @@ Refit refit_at_best_lag(const StepContext& ctx, const Cand& cd, std::span<const 
     Term t0 = r.term;
     t0.lag.seconds = 0;
     auto [tl0, ep0] = extended_terms(base, t0, false);
-    auto m0 = fit(ctx.fit_run, tl0, ctx.fo);
+    auto m0 = detail::fit_with(ctx.fit_run, tl0, ctx.fo, fc);
     if (m0 && m0->fit.bic + ep0 * ctx.ln_n <= r.model->fit.bic + r.extra_params * ctx.ln_n) {
       r.term = t0;
       r.model = std::move(m0);
@@ -107,16 +108,16 @@ std::optional<int> own_lag(const Model& m, const std::string& key) {
 // that froze lag took 12% off the residual where the two paths take 60%). So the model's
 // @auto lags are refitted with the copy, and the copy's lag scanned again beside them, in
 // turn, while BIC falls (as the joint fit's coordinate descent does for its own lags).
-Refit refit_second_path(const StepContext& ctx, const Cand& cd, std::span<const double> x, int first_lag) {
+Refit refit_second_path(const StepContext& ctx, const Cand& cd, std::span<const double> x, int first_lag, detail::FitCache& fc) {
   const Model& base = ctx.base;
-  Refit r = refit_at(ctx, cd, first_lag);
+  Refit r = refit_at(ctx, cd, first_lag, fc);
   if (auto_lag_params(base) == 0) return r;  // nothing to free
   int lag = first_lag;
   for (int it = 0; it < ctx.o.lag_iterations; ++it) {
     TermList free = terms_of(base);
     free.paper = false;
     free.terms.push_back(second_path(cd.term, lag));
-    auto m2 = fit(ctx.fit_run, free, ctx.fo);
+    auto m2 = detail::fit_with(ctx.fit_run, free, ctx.fo, fc);
     if (!m2) break;
     const int ep = 1;  // the copy's scanned lag; the model's own lags are the fit's
     if (r.model && m2->fit.bic + ep * ctx.ln_n >= r.model->fit.bic + r.extra_params * ctx.ln_n) break;
@@ -124,7 +125,7 @@ Refit refit_second_path(const StepContext& ctx, const Cand& cd, std::span<const 
     r.term.lag.seconds = lag;
     r.extra_params = ep;
     r.inner_delay = true;
-    auto rescan = scan_beside(*r.model, ctx.fit_run, ctx.fo.max_lag_s, /*without_last_term=*/true);
+    auto rescan = scan_beside(*r.model, fc, ctx.fo.max_lag_s, /*without_last_term=*/true);
     if (!rescan) break;
     const auto g = rescan->scan(x, own_lag(*r.model, cd.expr), kDerivativeHalfWidth);
     if (!g || g->lag == lag) break;
@@ -237,7 +238,11 @@ EvaluatedCandidate evaluate_candidate(const StepContext& ctx, const Cand& cd, Sc
     c.skipped = "no lag in 0.." + std::to_string(ctx.fo.max_lag_s) + " s adds anything the model's terms do not already hold";
     return out;
   }
-  Refit r = cd.repeat ? refit_second_path(ctx, cd, *x, gain->lag) : refit_at_best_lag(ctx, cd, *x, gain->lag);
+  // The refits are compared by BIC; the standard errors only for the one kept (score's p).
+  detail::FitCache& fc = fs.fit_cache();
+  fc.standard_errors = false;
+  Refit r = cd.repeat ? refit_second_path(ctx, cd, *x, gain->lag, fc) : refit_at_best_lag(ctx, cd, *x, gain->lag, fc);
+  if (r.model) detail::add_standard_errors(*r.model, fc);
   c.lag_s = r.term.lag.seconds;
   // What add_term is given to build the same model: a second path with the model's lags
   // refitted is the delayed copy as its own term.
@@ -257,6 +262,13 @@ std::expected<CandidateScan, FitError> scan_beside(const Model& m, const RunData
   if (!cols) return std::unexpected(cols.error());
   if (without_last_term && !cols->empty()) cols->pop_back();
   return CandidateScan(run.gyro_dph, *cols, detail::good_weights(run), max_lag_s);
+}
+
+std::expected<CandidateScan, FitError> scan_beside(const Model& m, detail::FitCache& cache, int max_lag_s, bool without_last_term) {
+  auto cols = detail::regressors_with(m, cache);
+  if (!cols) return std::unexpected(cols.error());
+  if (without_last_term && !cols->empty()) cols->pop_back();
+  return CandidateScan(cache.run().gyro_dph, *cols, detail::good_weights(cache.run()), max_lag_s);
 }
 
 std::vector<Term> frozen_terms(const Model& m) {

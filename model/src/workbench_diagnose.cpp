@@ -7,6 +7,7 @@
 #include <cmath>
 #include <memory>
 #include <numeric>
+#include <optional>
 #include <thread>
 
 #include "workbench_step.hpp"
@@ -205,33 +206,53 @@ void screen_generated(std::vector<Cand>& cands, std::size_t n_fixed, const Candi
   // look-alikes (columns correlating beyond 0.99 with the model's terms regressed out), are
   // refitted and scored like the library's.
   if (cands.size() > n_fixed) {
+    // Only the gain and lag of each are kept while scanning; the partial column (x with the
+    // model's terms regressed out, as long as the run) is made for those the choice visits,
+    // from the best down, and kept for the chosen only (at most o.refit_top).
     struct Screened {
       std::size_t i;
       double gain;
-      std::vector<double> partial;
+      int lag;
     };
-    std::vector<Screened> sc;
-    for (std::size_t i = n_fixed; i < cands.size(); ++i) {
-      if (!missing_signal_of(*cands[i].term.expr, fit_run).empty()) continue;
-      auto x = evaluate(*cands[i].term.expr, fr.sig.view());
-      if (!x) continue;
-      auto g = scan.scan(*x);
-      if (!g) continue;
-      sc.push_back({i, g->best, {}});
-      auto col = lagged(*x, g->lag);
-      sc.back().partial = scan.partial(col);
+    // The scans are independent: on o.threads threads (as evaluate_all), each into its own
+    // slot, then gathered in the list's order (the same list as one thread makes).
+    std::vector<std::optional<Screened>> slot(cands.size() - n_fixed);
+    {
+      std::atomic<std::size_t> next{n_fixed};
+      auto worker = [&] {
+        for (std::size_t i = next++; i < cands.size(); i = next++) {
+          if (!missing_signal_of(*cands[i].term.expr, fit_run).empty()) continue;
+          auto x = evaluate(*cands[i].term.expr, fr.sig.view());
+          if (!x) continue;
+          auto g = scan.scan(*x);
+          if (!g) continue;
+          slot[i - n_fixed] = Screened{i, g->best, g->lag};
+        }
+      };
+      unsigned threads = o.threads > 0 ? static_cast<unsigned>(o.threads) : std::max(1u, std::min(4u, std::thread::hardware_concurrency()));
+      threads = std::min<unsigned>(threads, static_cast<unsigned>(slot.size()));
+      std::vector<std::thread> pool;
+      for (unsigned k = 1; k < threads; ++k) pool.emplace_back(worker);
+      worker();
+      for (auto& th : pool) th.join();
     }
+    std::vector<Screened> sc;
+    for (const auto& x : slot)
+      if (x) sc.push_back(*x);
     if (stats) stats->scanned += sc.size();
     std::sort(sc.begin(), sc.end(), [](const Screened& x1, const Screened& x2) { return x1.gain > x2.gain; });
     std::vector<std::size_t> keep;
-    std::vector<const std::vector<double>*> kept_cols;
+    std::vector<std::vector<double>> kept_cols;
     for (const auto& x : sc) {
       if (keep.size() >= static_cast<std::size_t>(o.refit_top)) break;
+      auto v = evaluate(*cands[x.i].term.expr, fr.sig.view());
+      if (!v) continue;  // evaluated above: not reached
+      std::vector<double> partial = scan.partial(lagged(*v, x.lag));
       bool alike = false;
-      for (const auto* kc : kept_cols) alike = alike || std::abs(weighted_corr(x.partial, *kc, fr.w)) > 0.99;
+      for (const auto& kc : kept_cols) alike = alike || std::abs(weighted_corr(partial, kc, fr.w)) > 0.99;
       if (alike) continue;
       keep.push_back(x.i);
-      kept_cols.push_back(&x.partial);
+      kept_cols.push_back(std::move(partial));
     }
     std::sort(keep.begin(), keep.end());
     std::vector<Cand> kept(cands.begin(), cands.begin() + static_cast<std::ptrdiff_t>(n_fixed));
@@ -247,9 +268,18 @@ std::vector<EvaluatedCandidate> evaluate_all(const StepContext& ctx, const std::
   std::vector<EvaluatedCandidate> results(cands.size());
   unsigned threads = ctx.o.threads > 0 ? static_cast<unsigned>(ctx.o.threads) : std::max(1u, std::min(4u, std::thread::hardware_concurrency()));
   threads = std::min<unsigned>(threads, static_cast<unsigned>(std::max<std::size_t>(1, cands.size())));
-  std::atomic<std::size_t> next{0};
-  auto worker = [&](Scorer& fs, std::vector<Scorer>& hs) {
-    for (std::size_t ci = next++; ci < cands.size(); ci = next++) results[ci] = evaluate_candidate(ctx, cands[ci], fs, hs);
+  std::atomic<std::size_t> next{0}, done{0};
+  // Progress is reported by the calling thread only (after each candidate it finishes).
+  auto report = [&](std::size_t n) {
+    if (ctx.o.progress) ctx.o.progress(DiagnoseProgress{"refitting", 0, n, cands.size()});
+  };
+  report(0);
+  auto worker = [&](Scorer& fs, std::vector<Scorer>& hs, bool caller) {
+    for (std::size_t ci = next++; ci < cands.size(); ci = next++) {
+      results[ci] = evaluate_candidate(ctx, cands[ci], fs, hs);
+      const std::size_t n = ++done;
+      if (caller) report(n);
+    }
   };
   std::vector<std::thread> pool;
   std::vector<std::unique_ptr<Scorer>> fit_scorers;
@@ -259,9 +289,10 @@ std::vector<EvaluatedCandidate> evaluate_all(const StepContext& ctx, const std::
     held_sets[k].reserve(ctx.held_out.size());
     for (const auto& h : ctx.held_out) held_sets[k].emplace_back(h, ctx.base.tref_c);
   }
-  for (unsigned k = 1; k < threads; ++k) pool.emplace_back(worker, std::ref(*fit_scorers[k - 1]), std::ref(held_sets[k]));
-  worker(fit_scorer, held_scorers);
+  for (unsigned k = 1; k < threads; ++k) pool.emplace_back(worker, std::ref(*fit_scorers[k - 1]), std::ref(held_sets[k]), false);
+  worker(fit_scorer, held_scorers, true);
   for (auto& th : pool) th.join();
+  if (done.load() > 0) report(done.load());
   return results;
 }
 
@@ -431,6 +462,7 @@ std::expected<Diagnosis, FitError> diagnose_once(const Model& m, const RunData& 
   if (!list) return std::unexpected(list.error());
   std::vector<Cand>& cands = list->cands;
   CandidateScan scan(fit_run.gyro_dph, fr->base_cols, fr->w, fo.max_lag_s);
+  if (o.progress && cands.size() > list->n_fixed) o.progress(DiagnoseProgress{"screening", 0, 0, cands.size() - list->n_fixed});
   screen_generated(cands, list->n_fixed, scan, fit_run, *fr, o, stats);
   if (stats) stats->refitted += cands.size();
   const double ln_n = std::log(static_cast<double>(std::max<std::size_t>(base->fit.n_used, 2)));

@@ -498,6 +498,10 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   }
   FitOptions fo = options_of(m);
   if (o.max_lag_s) fo.max_lag_s = *o.max_lag_s;
+  auto tell = [&](const char* stage, int step = 0) {
+    if (o.progress) o.progress(DiagnoseProgress{stage, step, 0, 0});
+  };
+  tell("base fit");
   auto base = fit(fit_run, terms_of(m), fo);
   if (!base) return std::unexpected(FitError{base.error().code, "fit run " + fit_run.name + ": " + base.error().message});
   // The unit's noise floor under a model, read over the holds of every run given at once (one
@@ -529,7 +533,19 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     ps.fit_copy = fit_run;
     ps.held_copy.assign(held_out.begin(), held_out.end());
     ps.base = *base;
+    // The options of step k: the progress it reports carries k.
+    auto at_step = [&](int k) {
+      DiagnoseOptions os = ob;
+      if (o.progress)
+        os.progress = [&o, k](const DiagnoseProgress& p) {
+          DiagnoseProgress q = p;
+          q.step = k;
+          o.progress(q);
+        };
+      return os;
+    };
     if (o.jumps) {
+      tell("bias jumps");
       auto scan_run = [&](RunData& copy) {
         std::vector<double> removed(copy.size(), 0.0);
         auto js = find_jumps(jumps_by ? *jumps_by : *base, copy, ob, &removed);
@@ -543,7 +559,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       }
       for (auto& h : ps.held_copy) scan_run(h);
     }
-    ps.d = wbi::diagnose_once(m, ps.fit_copy, ps.held_copy, ob, space.gen, &stats);
+    ps.d = wbi::diagnose_once(m, ps.fit_copy, ps.held_copy, at_step(0), space.gen, &stats);
     if (!ps.d) return ps;
     // Greedy forward selection: add the first detected candidate, search again from there.
     ps.cur = ps.base;
@@ -566,7 +582,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       ps.d->steps.push_back(ss);
       ps.cur = added->model;
       if (k + 1 == o.max_terms) break;
-      auto next = wbi::diagnose_once(ps.cur, ps.fit_copy, ps.held_copy, ob, space.gen, &stats);
+      auto next = wbi::diagnose_once(ps.cur, ps.fit_copy, ps.held_copy, at_step(k + 1), space.gen, &stats);
       if (!next) break;
       step = std::move(*next);
     }
@@ -596,6 +612,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   d->search = language ? "language" : "library";
 
   // Adequacy of the model as given (refitted on the fit run), on the runs as given.
+  tell("adequacy checks", static_cast<int>(ps.d->steps.size()));
   const DiagnoseOptions obase = with_floor(ps.base, fit_run, held_out);
   d->checks.push_back(check_run(ps.base, fit_run, false, obase));
   for (const auto& h : held_out) d->checks.push_back(check_run(ps.base, h, true, obase));

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <expected>
 #include <map>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
@@ -15,6 +16,7 @@
 #include <vector>
 
 #include "common.hpp"
+#include "fit_internal.hpp"
 #include "fogbench/model/workbench.hpp"
 #include "lagscan.hpp"
 #include "workbench_internal.hpp"
@@ -159,6 +161,8 @@ class CandidateScan {
 // all but the last term: the candidate just added) held in the regression, the run's good
 // samples weighted. The one place diagnose's rescan and add_term build it.
 std::expected<CandidateScan, FitError> scan_beside(const Model& m, const RunData& run, int max_lag_s, bool without_last_term = false);
+// The same with the model's columns from the run's fit cache (cache.run() is run).
+std::expected<CandidateScan, FitError> scan_beside(const Model& m, detail::FitCache& cache, int max_lag_s, bool without_last_term);
 
 // The candidate's column on a run: the expression evaluated and delayed.
 inline std::expected<std::vector<double>, std::string> column(const Term& t, const RunSignals& s, int lag) {
@@ -210,6 +214,16 @@ class Scorer {
     return stddev(kept);
   }
 
+  // What the refits on this run share (the candidates' refits on the fit run: detail::fit_with),
+  // made on first use; the refits' whole-run Ljung-Box is not computed (they are only scored).
+  detail::FitCache& fit_cache() {
+    if (!fit_cache_) {
+      fit_cache_ = std::make_unique<detail::FitCache>(run_, tref_c_);
+      fit_cache_->whole_run_whiteness = false;
+    }
+    return *fit_cache_;
+  }
+
  private:
   std::expected<const std::vector<double>*, std::string> column(const Term& t) {
     const std::string key = to_string(*t.expr);
@@ -226,6 +240,7 @@ class Scorer {
   RunSignals sig_;
   std::string error_;
   std::map<std::string, std::vector<double>> cols_;
+  std::unique_ptr<detail::FitCache> fit_cache_;
 };
 
 // The model's terms with @auto terms frozen at their fitted lags.

@@ -266,3 +266,35 @@ TEST_CASE("workbench: flagged and missing gyro samples do not spoil diagnose and
   REQUIRE(a);
   CHECK(a->model.terms.back().coef == Approx(0.05).margin(0.005));
 }
+
+TEST_CASE("workbench: diagnose reports its progress and neither the callback nor the threads change the answer") {
+  auto hidden = [](std::size_t, double t1) { return 0.05 * (t1 - 20.0); };
+  const RunData r = make_run(5000, 8, hidden);
+  const Model m = fit_d(r);
+  const std::vector<RunData> held{make_run(5000, 9, hidden)};
+  auto plain = wb::diagnose(m, r, held);
+  REQUIRE(plain);
+  wb::DiagnoseOptions o;
+  o.threads = 2;
+  std::vector<wb::DiagnoseProgress> seen;
+  o.progress = [&](const wb::DiagnoseProgress& p) { seen.push_back(p); };
+  auto told = wb::diagnose(m, r, held, o);
+  REQUIRE(told);
+  // Bit for bit the same answer (the JSON prints every number to its last digit).
+  CHECK(wb::to_json(*told).dump() == wb::to_json(*plain).dump());
+  REQUIRE(!seen.empty());
+  CHECK(seen.front().stage == "base fit");
+  CHECK(seen.back().stage == "adequacy checks");
+  CHECK(seen.back().step == static_cast<int>(told->steps.size()));
+  bool screened = false, refitted_all = false;
+  for (std::size_t i = 0; i < seen.size(); ++i) {
+    const auto& p = seen[i];
+    screened = screened || (p.stage == "screening" && p.total > 0);
+    if (p.stage != "refitting") continue;
+    CHECK(p.done <= p.total);
+    refitted_all = refitted_all || (p.total > 0 && p.done == p.total);
+    if (i > 0 && seen[i - 1].stage == "refitting" && seen[i - 1].step == p.step) CHECK(p.done >= seen[i - 1].done);
+  }
+  CHECK(screened);
+  CHECK(refitted_all);
+}

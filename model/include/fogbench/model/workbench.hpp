@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <limits>
 #include <expected>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <span>
@@ -78,7 +79,17 @@ std::expected<RunComparison, FitError> compare(const Model& m, const RunData& ru
 
 // ---------------------------------------------------------------------------------------
 // diagnose: why a model fails, and which effect of the library is missing.
+// Where diagnose is, for a progress line on long runs (DiagnoseOptions::progress).
+struct DiagnoseProgress {
+  std::string stage;                // "base fit", "bias jumps", "screening", "refitting", "adequacy checks"
+  int step = 0;                     // the search's step: 0 the model as given, k after k terms added
+  std::size_t done = 0, total = 0;  // candidates done of total in the stage (0 of 0: no count)
+};
+
 struct DiagnoseOptions {
+  // Called, on the calling thread, as diagnose moves through its stages and candidates (a
+  // 3-day run takes seconds): the model does no I/O, fogctl prints it on stderr. Empty: none.
+  std::function<void(const DiagnoseProgress&)> progress;
   // A candidate is detected when, refitted with the model, all of these hold:
   double max_delta_bic = -10.0;        // BIC falls by more than 10 ("very strong" on Kass-Raftery's scale)
   double max_p_value = 1e-3;           // its coefficient is significant (two-sided, t from its se)
