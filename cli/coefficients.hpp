@@ -23,6 +23,7 @@ struct CoefficientsOptions {
   std::string run;           // the reference vector's inputs: a run's CSV (default: exp1 simulated)
   std::string reference;     // --reference FILE: the reference vector as CSV
   double dt_s = 1.0;         // the firmware's sample interval, s
+  bool single = false;       // --float: the reference vector in single precision (a FOGCOMP_FLOAT build)
   bool late = false;         // --late: compute terms that would read the future as late as needed
   RunInput input;
 };

@@ -112,6 +112,7 @@ std::string describe_model(const model::Model& m) {
        (m.fit.ljung_box_p < 0.01 ? "  (not white: a missing effect, or the gyro's slow noise; fogctl diagnose judges it against the gyro's own noise)"
                                  : "") +
        "\n";
+  if (!m.fit.lag_note.empty()) s += "lags:  " + m.fit.lag_note + "\n";
   // The paper's two betas are close to collinear on steady ramps: say so when it shows.
   for (std::size_t a = 1; a < m.fit.coef_corr.size(); ++a)
     for (std::size_t b = a + 1; b < m.fit.coef_corr.size(); ++b)
@@ -143,6 +144,7 @@ int run_fit(const FitCommandOptions& o, std::ostream& out, std::ostream& err) {
   }
   fo.method = *m;
   fo.max_lag_s = o.max_lag_s;
+  fo.causal_lags = !o.any_lag;
   fo.tref_c = o.tref_c;
   fo.ar_order = o.ar_order;
   // Checked before the run is read, in the options' names as typed.
@@ -303,6 +305,9 @@ void add_offline_commands(CLI::App& app, int& code) {
   f->add_option("--terms", fit.terms, "Terms, e.g. \"d(T1)@auto + grad@auto\", or paper (default)");
   f->add_option("--method", fit.method, "paper (two-step, shared lag) or joint (regression with AR errors); default: paper for `paper`, joint otherwise");
   f->add_option("--max-lag", fit.max_lag_s, "Longest lag searched for @auto terms, s");
+  f->add_flag("--any-lag", fit.any_lag,
+              "Search @auto lags from 0 s even for rates (default: a rate term's lag is at least 30 s, the latency of its "
+              "61 s slope, so that firmware computes the model causally: fogctl coefficients)");
   f->add_option("--tref", fit.tref_c, "Reference temperature, degC");
   f->add_option("--ar-order", fit.ar_order, "Order p of the AR noise");
   f->add_option("-o,--output", fit.output, "Write the model's JSON here");

@@ -38,6 +38,7 @@ struct FitCommandOptions {
   std::string terms = "paper";         // term list or `paper`
   std::string method;                  // paper|joint (default: paper for `paper`, else joint)
   int max_lag_s = 600;
+  bool any_lag = false;  // --any-lag: @auto lags from 0 s, even where firmware cannot compute the term
   double tref_c = 20.0;
   int ar_order = 2;
   std::string output;                  // -o model.json

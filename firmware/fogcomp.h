@@ -1,6 +1,10 @@
 /* fogcomp.h: reference implementation of fogbench's drift compensation for a gyro's firmware.
  *
- * C99, one header, no allocation, fixed-size state, no libm beyond exp(). The model comes from
+ * C99, one header of `static inline` functions (a file that uses some of them compiles clean
+ * under -Wall -Wextra -Werror), no allocation, fixed-size state, no libm beyond exp(). Numbers
+ * are `fogcomp_real`: double, or float when FOGCOMP_FLOAT is defined before the include (a
+ * microcontroller with a single-precision FPU, e.g. a Cortex-M4F: no software doubles, expf();
+ * it matches the reference vector to the tolerance docs/firmware.md gives). The model comes from
  * `fogctl coefficients SERIAL --format c` as a `fogcomp_model` initializer; each sample:
  *
  *     fogcomp_state st;                         (one per gyro; about 66 KB with the defaults)
@@ -29,6 +33,16 @@
 #define FOGCOMP_MAX_RING 8192
 #endif
 
+#ifdef FOGCOMP_FLOAT
+typedef float fogcomp_real;
+#define FOGCOMP_EXP expf
+#else
+typedef double fogcomp_real;
+#define FOGCOMP_EXP exp
+#endif
+/* A constant as fogcomp_real (the generated models write their numbers through it). */
+#define FOGCOMP_R(x) ((fogcomp_real)(x))
+
 enum fogcomp_kind {
   FOGCOMP_SIGNAL, /* n: 0 T1, 1 T2, 2 Ta (degC, minus tref_c), 3 time since power-on (s) */
   FOGCOMP_NUMBER, /* p */
@@ -42,81 +56,93 @@ enum fogcomp_kind {
   FOGCOMP_ADD,    /* a + b */
   FOGCOMP_SUB,    /* a - b */
   FOGCOMP_MUL,    /* a * b */
-  FOGCOMP_WARM    /* exp(-max(a, 0) / p) */
+  FOGCOMP_WARM,   /* exp(-max(a, 0) / p) */
+  FOGCOMP_N_KINDS /* not an operation: the number of kinds */
 };
 
 typedef struct {
   int kind; /* enum fogcomp_kind */
   int a, b; /* inputs: indices of earlier operations, -1 when unused */
   int n;    /* signal index, window or delay length (samples), power */
-  double p; /* number, lp's alpha, warm's tau (s) */
+  fogcomp_real p; /* number, lp's alpha, warm's tau (s) */
   int ring; /* slope, delay: offset of its history in fogcomp_state.ring */
 } fogcomp_op;
 
 typedef struct {
-  double dt_s;    /* sample interval the model was compiled for, s */
-  double tref_c;  /* temperatures enter as T - tref_c, degC */
-  double mu0_dph; /* constant bias, deg/h */
+  fogcomp_real dt_s;    /* sample interval the model was compiled for, s */
+  fogcomp_real tref_c;  /* temperatures enter as T - tref_c, degC */
+  fogcomp_real mu0_dph; /* constant bias, deg/h */
   int n_ops;
   fogcomp_op ops[FOGCOMP_MAX_OPS];
   int n_terms;
   int term_op[FOGCOMP_MAX_TERMS]; /* the operation whose value is term j */
-  double beta[FOGCOMP_MAX_TERMS]; /* deg/h per unit of term j */
-  int ring_size;                  /* doubles of history used */
+  fogcomp_real beta[FOGCOMP_MAX_TERMS]; /* deg/h per unit of term j */
+  int ring_size;                        /* numbers of history used */
 } fogcomp_model;
 
 typedef struct {
-  double t1_c, t2_c, ta_c; /* coil centre, coil outer wall, chamber air: degC */
-  double ton_s;            /* time since the gyro's power-on, s */
+  fogcomp_real t1_c, t2_c, ta_c; /* coil centre, coil outer wall, chamber air: degC */
+  fogcomp_real ton_s;            /* time since the gyro's power-on, s */
 } fogcomp_input;
 
 typedef struct {
-  double value[FOGCOMP_MAX_OPS];
-  double state[FOGCOMP_MAX_OPS];
+  fogcomp_real value[FOGCOMP_MAX_OPS];
+  fogcomp_real state[FOGCOMP_MAX_OPS];
   int pos[FOGCOMP_MAX_OPS];
-  double ring[FOGCOMP_MAX_RING];
+  fogcomp_real ring[FOGCOMP_MAX_RING];
   int started;
 } fogcomp_state;
 
-static void fogcomp_init(fogcomp_state* s) {
+static inline void fogcomp_init(fogcomp_state* s) {
   int k;
   for (k = 0; k < FOGCOMP_MAX_OPS; ++k) {
-    s->value[k] = 0.0;
-    s->state[k] = 0.0;
+    s->value[k] = FOGCOMP_R(0);
+    s->state[k] = FOGCOMP_R(0);
     s->pos[k] = 0;
   }
   s->started = 0;
 }
 
-/* Returns 0 when the model fits this build's sizes and its operations are well formed. */
-static int fogcomp_check(const fogcomp_model* m) {
+/* Returns 0 when the model fits this build's sizes and its operations are well formed: a known
+ * kind, inputs that are earlier operations (and present where the kind reads them), a signal
+ * index 0..3, a power 1..4, a window or delay inside the history pool, an lp alpha in (0, 1],
+ * a warm time constant > 0 s (a zero one would divide by zero), a sample interval > 0 s. */
+static inline int fogcomp_check(const fogcomp_model* m) {
   int k;
   if (m->n_ops < 0 || m->n_ops > FOGCOMP_MAX_OPS || m->n_terms < 0 || m->n_terms > FOGCOMP_MAX_TERMS ||
-      m->ring_size < 0 || m->ring_size > FOGCOMP_MAX_RING || !(m->dt_s > 0.0))
+      m->ring_size < 0 || m->ring_size > FOGCOMP_MAX_RING || !(m->dt_s > FOGCOMP_R(0)))
     return -1;
   for (k = 0; k < m->n_ops; ++k) {
     const fogcomp_op* o = &m->ops[k];
-    if (o->a >= k || o->b >= k) return -1;
+    const int reads_a = o->kind != FOGCOMP_SIGNAL && o->kind != FOGCOMP_NUMBER;
+    const int reads_b = o->kind == FOGCOMP_ADD || o->kind == FOGCOMP_SUB || o->kind == FOGCOMP_MUL;
+    if (o->kind < 0 || o->kind >= FOGCOMP_N_KINDS) return -1;
+    if (o->a >= k || o->b >= k || (reads_a && o->a < 0) || (reads_b && o->b < 0)) return -1;
+    if (o->kind == FOGCOMP_SIGNAL && (o->n < 0 || o->n > 3)) return -1;
+    if (o->kind == FOGCOMP_POW && (o->n < 1 || o->n > 4)) return -1;
     if ((o->kind == FOGCOMP_SLOPE || o->kind == FOGCOMP_DELAY) &&
         (o->n < 1 || o->ring < 0 || o->ring + o->n > m->ring_size))
       return -1;
+    if (o->kind == FOGCOMP_SLOPE && o->n < 2) return -1;
+    if (o->kind == FOGCOMP_LP && !(o->p > FOGCOMP_R(0) && o->p <= FOGCOMP_R(1))) return -1;
+    if (o->kind == FOGCOMP_WARM && !(o->p > FOGCOMP_R(0))) return -1;
   }
   for (k = 0; k < m->n_terms; ++k)
     if (m->term_op[k] < 0 || m->term_op[k] >= m->n_ops) return -1;
   return 0;
 }
 
-/* The drift mu(t) of this sample, deg/h. */
-static double fogcomp_step(fogcomp_state* s, const fogcomp_model* m, const fogcomp_input* in) {
+/* The drift mu(t) of this sample, deg/h. The model must have passed fogcomp_check(). */
+static inline fogcomp_real fogcomp_step(fogcomp_state* s, const fogcomp_model* m, const fogcomp_input* in) {
   const int first = !s->started;
-  double mu;
+  fogcomp_real mu;
   int k, j;
   s->started = 1;
   for (k = 0; k < m->n_ops; ++k) {
     const fogcomp_op* o = &m->ops[k];
-    const double a = o->a >= 0 ? s->value[o->a] : 0.0;
-    const double b = o->b >= 0 ? s->value[o->b] : 0.0;
-    double v = 0.0;
+    const fogcomp_real a = o->a >= 0 ? s->value[o->a] : FOGCOMP_R(0);
+    const fogcomp_real b = o->b >= 0 ? s->value[o->b] : FOGCOMP_R(0);
+    fogcomp_real v = FOGCOMP_R(0);
     switch (o->kind) {
       case FOGCOMP_SIGNAL:
         v = o->n == 0 ? in->t1_c - m->tref_c
@@ -127,7 +153,7 @@ static double fogcomp_step(fogcomp_state* s, const fogcomp_model* m, const fogco
       case FOGCOMP_NUMBER: v = o->p; break;
       case FOGCOMP_SLOPE:
       case FOGCOMP_DELAY: {
-        double* h = s->ring + o->ring;
+        fogcomp_real* h = s->ring + o->ring;
         if (first)
           for (j = 0; j < o->n; ++j) h[j] = a;
         if (o->kind == FOGCOMP_DELAY) {
@@ -135,15 +161,17 @@ static double fogcomp_step(fogcomp_state* s, const fogcomp_model* m, const fogco
           h[s->pos[k]] = a;
           s->pos[k] = (s->pos[k] + 1) % o->n;
         } else {
-          const double c = 0.5 * (o->n - 1);
-          double num = 0.0, den = 0.0;
+          /* sum (j - c) x_j / sum (j - c)^2 with c = (n - 1) / 2, in half-steps (2j - n + 1) so
+           * that the weights are whole numbers: exact in float as in double */
+          fogcomp_real num = FOGCOMP_R(0), den = FOGCOMP_R(0);
           h[s->pos[k]] = a;
           s->pos[k] = (s->pos[k] + 1) % o->n;
           for (j = 0; j < o->n; ++j) {
-            num += (j - c) * h[(s->pos[k] + j) % o->n];
-            den += (j - c) * (j - c);
+            const fogcomp_real w = (fogcomp_real)(2 * j - o->n + 1);
+            num += w * h[(s->pos[k] + j) % o->n];
+            den += w * w;
           }
-          v = num / den * 60.0 / m->dt_s;
+          v = FOGCOMP_R(2) * num / den * (FOGCOMP_R(60) / m->dt_s);
         }
         break;
       }
@@ -151,8 +179,8 @@ static double fogcomp_step(fogcomp_state* s, const fogcomp_model* m, const fogco
         if (first) s->state[k] = a;
         v = s->state[k] = s->state[k] + o->p * (a - s->state[k]);
         break;
-      case FOGCOMP_UP: v = a > 0.0 ? a : 0.0; break;
-      case FOGCOMP_DOWN: v = a < 0.0 ? a : 0.0; break;
+      case FOGCOMP_UP: v = a > FOGCOMP_R(0) ? a : FOGCOMP_R(0); break;
+      case FOGCOMP_DOWN: v = a < FOGCOMP_R(0) ? a : FOGCOMP_R(0); break;
       case FOGCOMP_POW:
         v = a;
         for (j = 1; j < o->n; ++j) v *= a;
@@ -161,8 +189,8 @@ static double fogcomp_step(fogcomp_state* s, const fogcomp_model* m, const fogco
       case FOGCOMP_ADD: v = a + b; break;
       case FOGCOMP_SUB: v = a - b; break;
       case FOGCOMP_MUL: v = a * b; break;
-      case FOGCOMP_WARM: v = exp(-(a > 0.0 ? a : 0.0) / o->p); break;
-      default: v = 0.0; break;
+      case FOGCOMP_WARM: v = FOGCOMP_EXP(-(a > FOGCOMP_R(0) ? a : FOGCOMP_R(0)) / o->p); break;
+      default: v = FOGCOMP_R(0); break;
     }
     s->value[k] = v;
   }

@@ -11,7 +11,8 @@ namespace {
 
 using K = Op::Kind;
 
-constexpr int kSlopeWindow = 2 * kDerivativeHalfWidth + 1;  // samples, as the fit's d()
+// A slope's half-window in samples at this sample interval: 30 s whatever dt is (at least 1).
+int half_window(double dt_s) { return std::max(1, static_cast<int>(std::lround(kSlopeHalfWindow_s / dt_s))); }
 
 // An operation's output stream at sample i is the fit's value at sample i - delay.
 struct Node {
@@ -73,12 +74,13 @@ struct Compiler {
       case Expr::Kind::d: case Expr::Kind::dd: {
         auto x = compile(*e.a);
         if (!x) return x;
+        const int hw = half_window(p.dt_s);
         for (int k = 0; k < (e.kind == Expr::Kind::dd ? 2 : 1); ++k) {
           Op o;
           o.kind = K::slope;
           o.a = x->op;
-          o.n = kSlopeWindow;
-          x = Node{emit(o), x->delay + kDerivativeHalfWidth};
+          o.n = 2 * hw + 1;
+          x = Node{emit(o), x->delay + hw};
         }
         return x;
       }
@@ -87,6 +89,10 @@ struct Compiler {
         if (!x) return x;
         Op o;
         o.a = x->op;
+        if (e.kind == Expr::Kind::lp && !(e.value > 0.0 && std::isfinite(e.value))) {
+          error = "lp's time constant must be a positive number of seconds";
+          return std::nullopt;
+        }
         if (e.kind == Expr::Kind::lp) {
           o.kind = K::lp;
           o.p = 1.0 - std::exp(-p.dt_s / e.value);
@@ -99,6 +105,10 @@ struct Compiler {
         return Node{emit(o), x->delay};
       }
       case Expr::Kind::warm: {
+        if (!(e.value > 0.0 && std::isfinite(e.value))) {
+          error = "warm's time constant must be a positive number of seconds";
+          return std::nullopt;
+        }
         Op s;
         s.kind = K::signal;
         s.n = 3;
@@ -167,12 +177,28 @@ std::string_view to_string(Op::Kind k) {
   return "?";
 }
 
+int causal_lag_s(const Expr& e) {
+  Program scratch;  // at 1 s per sample a delay in samples is in seconds
+  Compiler c{scratch, {}, {}};
+  const auto node = c.compile(e);
+  return node ? node->delay : 0;
+}
+
 std::expected<Program, std::string> compile(const Model& m, double dt_s, bool allow_late) {
   if (!(dt_s > 0.0) || !std::isfinite(dt_s)) return std::unexpected("the firmware's sample interval must be a positive number of seconds");
   Program p;
   p.dt_s = dt_s;
   p.tref_c = m.tref_c;
   p.mu0_dph = m.mu0_dph;
+  // Each term's expression first; its lag is applied once every term's latency is known.
+  struct Compiled {
+    std::string name;
+    Node node;
+    int lag = 0;  // samples
+    const FittedTerm* ft = nullptr;
+  };
+  std::vector<Compiled> compiled;
+  int late = 0;  // samples: how late the whole model is computed (allow_late)
   for (const auto& ft : m.terms) {
     Compiler c{p, ft.name(), {}};
     const std::string name = to_string(*ft.term.expr) + (ft.term.lag.seconds ? "@" + std::to_string(ft.term.lag.seconds) : "");
@@ -181,15 +207,20 @@ std::expected<Program, std::string> compile(const Model& m, double dt_s, bool al
     const int lag = static_cast<int>(std::lround(ft.term.lag.seconds / dt_s));
     if (lag < node->delay && !allow_late)
       return std::unexpected("term " + name + " cannot be computed by firmware: its rates are least-squares slopes over " +
-                             std::to_string(kSlopeWindow) + " samples centred on their instant, so the term reads its signals " +
+                             std::to_string(2 * kSlopeHalfWindow_s + 1) + " s centred on their instant, so the term reads its signals " +
                              std::to_string(static_cast<int>(std::lround((node->delay - lag) * dt_s))) +
                              " s ahead of now; a causal filter needs a lag of at least " +
                              std::to_string(static_cast<int>(std::lround(node->delay * dt_s))) + " s (refit with that lag, e.g. `" +
                              to_string(*ft.term.expr) + "@" + std::to_string(static_cast<int>(std::lround(node->delay * dt_s))) +
-                             "`, or accept it computed late)");
-    const Node out = c.later(*node, lag - node->delay);
-    const int late = std::max(0, node->delay - lag);
-    p.terms.push_back({name, out.op, ft.coef, coef_unit(*ft.term.expr), static_cast<int>(std::lround(late * dt_s))});
+                             "`, or with @auto, which the fit holds at lags the firmware can meet; or accept it computed late)");
+    late = std::max(late, node->delay - lag);
+    compiled.push_back({name, *node, lag, &ft});
+  }
+  // Every term late by the same amount: mu(t - late), not terms shifted against each other.
+  for (const auto& c : compiled) {
+    Compiler k{p, c.name, {}};
+    const Node out = k.later(c.node, c.lag + late - c.node.delay);
+    p.terms.push_back({c.name, out.op, c.ft->coef, coef_unit(*c.ft->term.expr), static_cast<int>(std::lround(late * dt_s))});
   }
   if (static_cast<int>(p.ops.size()) > kMaxOps)
     return std::unexpected("the model needs " + std::to_string(p.ops.size()) + " operations; the firmware holds at most " + std::to_string(kMaxOps));
@@ -227,24 +258,33 @@ InputsUsed inputs_used(const Program& p) {
   return u;
 }
 
-Compensator::Compensator(const Program& program)
-    : program_(&program), value_(program.ops.size(), 0.0), state_(program.ops.size(), 0.0),
+Compensator::Compensator(const Program& program, Precision precision)
+    : program_(&program), precision_(precision), value_(program.ops.size(), 0.0), state_(program.ops.size(), 0.0),
       ring_(static_cast<std::size_t>(program.ring_size), 0.0), pos_(program.ops.size(), 0) {}
 
 double Compensator::step(const Input& in) {
+  return precision_ == Precision::single_precision ? step_as<float>(in) : step_as<double>(in);
+}
+
+// Every number as Real, each operation as fogcomp.h writes it (the state keeps Real values, held
+// in doubles exactly).
+template <typename Real>
+double Compensator::step_as(const Input& in) {
   const Program& p = *program_;
   const bool first = !started_;
   started_ = true;
+  const Real zero = 0;
+  const auto R = [](double v) { return static_cast<Real>(v); };
   for (std::size_t k = 0; k < p.ops.size(); ++k) {
     const Op& o = p.ops[k];
-    const double a = o.a >= 0 ? value_[static_cast<std::size_t>(o.a)] : 0.0;
-    const double b = o.b >= 0 ? value_[static_cast<std::size_t>(o.b)] : 0.0;
-    double v = 0.0;
+    const Real a = o.a >= 0 ? R(value_[static_cast<std::size_t>(o.a)]) : zero;
+    const Real b = o.b >= 0 ? R(value_[static_cast<std::size_t>(o.b)]) : zero;
+    Real v = zero;
     switch (o.kind) {
       case K::signal:
-        v = o.n == 0 ? in.t1_c - p.tref_c : o.n == 1 ? in.t2_c - p.tref_c : o.n == 2 ? in.ta_c - p.tref_c : in.ton_s;
+        v = o.n == 0 ? R(in.t1_c) - R(p.tref_c) : o.n == 1 ? R(in.t2_c) - R(p.tref_c) : o.n == 2 ? R(in.ta_c) - R(p.tref_c) : R(in.ton_s);
         break;
-      case K::number: v = o.p; break;
+      case K::number: v = R(o.p); break;
       case K::slope: case K::delay: {
         // History of the input, oldest first from pos_; the first sample fills it (a steady hold).
         double* h = ring_.data() + o.ring;
@@ -252,28 +292,31 @@ double Compensator::step(const Input& in) {
           for (int j = 0; j < o.n; ++j) h[j] = a;
         int& pos = pos_[k];
         if (o.kind == K::delay) {
-          v = h[pos];
+          v = R(h[pos]);
           h[pos] = a;
           pos = (pos + 1) % o.n;
         } else {
           h[pos] = a;
           pos = (pos + 1) % o.n;
-          const double c = 0.5 * (o.n - 1);
-          double num = 0.0, den = 0.0;
+          // Weights in half-steps (2j - n + 1): whole numbers, exact in float as in double.
+          Real num = zero, den = zero;
           for (int j = 0; j < o.n; ++j) {
-            num += (j - c) * h[(pos + j) % o.n];
-            den += (j - c) * (j - c);
+            const Real w = static_cast<Real>(2 * j - o.n + 1);
+            num += w * R(h[(pos + j) % o.n]);
+            den += w * w;
           }
-          v = num / den * 60.0 / p.dt_s;
+          v = Real(2) * num / den * (Real(60) / R(p.dt_s));
         }
         break;
       }
-      case K::lp:
-        if (first) state_[k] = a;
-        v = state_[k] = state_[k] + o.p * (a - state_[k]);
+      case K::lp: {
+        const Real prev = first ? a : R(state_[k]);
+        v = prev + R(o.p) * (a - prev);
+        state_[k] = v;
         break;
-      case K::up: v = a > 0.0 ? a : 0.0; break;
-      case K::down: v = a < 0.0 ? a : 0.0; break;
+      }
+      case K::up: v = a > zero ? a : zero; break;
+      case K::down: v = a < zero ? a : zero; break;
       case K::pow: {
         v = a;
         for (int j = 1; j < o.n; ++j) v *= a;
@@ -283,14 +326,17 @@ double Compensator::step(const Input& in) {
       case K::add: v = a + b; break;
       case K::sub: v = a - b; break;
       case K::mul: v = a * b; break;
-      case K::warm: v = std::exp(-(a > 0.0 ? a : 0.0) / o.p); break;
+      case K::warm: v = std::exp(-(a > zero ? a : zero) / R(o.p)); break;
     }
     value_[k] = v;
   }
-  double mu = p.mu0_dph;
-  for (const auto& t : p.terms) mu += t.beta * value_[static_cast<std::size_t>(t.op)];
+  Real mu = R(p.mu0_dph);
+  for (const auto& t : p.terms) mu += R(t.beta) * R(value_[static_cast<std::size_t>(t.op)]);
   return mu;
 }
+
+template double Compensator::step_as<float>(const Input&);
+template double Compensator::step_as<double>(const Input&);
 
 std::string to_json_text(const Program& p) {
   nlohmann::json ops = nlohmann::json::array();
@@ -329,24 +375,27 @@ std::string to_csv(const Program& p) {
 }
 
 std::string to_c(const Program& p, std::string_view name) {
+  // Numbers through FOGCOMP_R(): the same initializer builds with doubles or, under
+  // FOGCOMP_FLOAT, with floats (an explicit conversion: clean under -Wconversion too).
+  auto r = [](double v) { return "FOGCOMP_R(" + num(v) + ")"; };
   std::string s = "/* fogbench firmware program: mu(t) = mu0 + sum beta_j term_j, deg/h. Include after fogcomp.h. */\n";
   s += "static const fogcomp_model " + std::string(name) + " = {\n";
-  s += "  " + num(p.dt_s) + ", /* dt_s */\n  " + num(p.tref_c) + ", /* tref_c */\n  " + num(p.mu0_dph) + ", /* mu0_dph */\n";
+  s += "  " + r(p.dt_s) + ", /* dt_s */\n  " + r(p.tref_c) + ", /* tref_c */\n  " + r(p.mu0_dph) + ", /* mu0_dph */\n";
   s += "  " + std::to_string(p.ops.size()) + ", /* n_ops */\n  {\n";
   for (std::size_t k = 0; k < p.ops.size(); ++k) {
     const auto& o = p.ops[k];
     std::string kind(to_string(o.kind));
     std::transform(kind.begin(), kind.end(), kind.begin(), [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
-    s += "    {FOGCOMP_" + kind + ", " + std::to_string(o.a) + ", " + std::to_string(o.b) + ", " + std::to_string(o.n) + ", " + num(o.p) + ", " +
+    s += "    {FOGCOMP_" + kind + ", " + std::to_string(o.a) + ", " + std::to_string(o.b) + ", " + std::to_string(o.n) + ", " + r(o.p) + ", " +
          std::to_string(o.ring) + "}, /* " + std::to_string(k) + " */\n";
   }
-  if (p.ops.empty()) s += "    {0, -1, -1, 0, 0, -1},\n";  /* C99 has no empty initializer */
+  if (p.ops.empty()) s += "    {0, -1, -1, 0, FOGCOMP_R(0), -1},\n";  /* C99 has no empty initializer */
   s += "  },\n  " + std::to_string(p.terms.size()) + ", /* n_terms */\n  {";
   for (const auto& t : p.terms) s += std::to_string(t.op) + ", ";
   if (p.terms.empty()) s += "0";
   s += "}, /* term_op */\n  {";
-  for (const auto& t : p.terms) s += num(t.beta) + ", ";
-  if (p.terms.empty()) s += "0";
+  for (const auto& t : p.terms) s += r(t.beta) + ", ";
+  if (p.terms.empty()) s += "FOGCOMP_R(0)";
   s += "}, /* beta:";
   for (const auto& t : p.terms) s += " " + t.name + " [" + t.unit + "]";
   s += " */\n  " + std::to_string(p.ring_size) + " /* ring_size */\n};\n";

@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "common.hpp"
+#include "fogbench/model/firmware.hpp"
 #include "fit_internal.hpp"
 
 namespace fogbench::model::detail {
@@ -16,9 +17,11 @@ namespace {
 class JointSolver {
  public:
   // lags: the fixed terms' lags (the @auto ones start anywhere: the first search sets them).
-  JointSolver(const std::vector<Term>& terms, const std::vector<std::string>& names, int max_lag_s, std::vector<int> lags)
-      : terms_(terms), names_(names), max_lag_s_(max_lag_s), lag_(std::move(lags)), theta_(terms.size() + 1, 0.0),
-        twins_(terms.size()) {
+  // least: per term, the least lag an @auto search may take (s; FitOptions::causal_lags).
+  JointSolver(const std::vector<Term>& terms, const std::vector<std::string>& names, int max_lag_s, std::vector<int> lags,
+              std::vector<int> least)
+      : terms_(terms), names_(names), max_lag_s_(max_lag_s), lag_(std::move(lags)), least_(std::move(least)),
+        theta_(terms.size() + 1, 0.0), twins_(terms.size()) {
     for (const auto& t : terms_) n_auto_ += t.lag.automatic;
     for (std::size_t a = 0; a < terms_.size(); ++a)
       for (std::size_t b = 0; b < terms_.size(); ++b)
@@ -53,7 +56,7 @@ class JointSolver {
         const ScanResult r = scan(sc, yf, &wy_spec, fixed, var, 0, L);
         if (r.ok)
           for (std::size_t l = 0; l < nt; ++l)
-            if (terms_[l].lag.automatic && first_auto_of_key(l)) lag_[l] = r.lag;
+            if (terms_[l].lag.automatic && first_auto_of_key(l)) lag_[l] = std::max(r.lag, least_[l]);
         // The shared lag of two paths is often a blend of both, from where coordinate descent
         // does not find them (38 s and 300 s started at 102 s and 520 s): the first copy's lag
         // is searched too, on a grid of kTwinGrid_s, the copy's best lag found for each.
@@ -66,7 +69,7 @@ class JointSolver {
           ScanResult best;
           int best_first = lag_[first];
           std::vector<int> lags = lag_;
-          for (int g = 0; g <= L; g += kTwinGrid_s) {
+          for (int g = least_[first]; g <= L; g += kTwinGrid_s) {
             lags[first] = g;
             std::vector<Column> others{{nullptr, c}};
             for (std::size_t l = 0; l < nt; ++l)
@@ -155,7 +158,7 @@ class JointSolver {
       if (placed[t]) banned.emplace_back(lags[t] - kTwinApart_s, lags[t] + kTwinApart_s);
     std::sort(banned.begin(), banned.end());
     ScanResult best;
-    int lo = 0;
+    int lo = least_[j];
     auto try_range = [&](int a, int b) {
       if (a > b) return;
       ScanResult r = scan(sc, yf, wy_spec, fixed, {&x}, a, b);
@@ -172,6 +175,7 @@ class JointSolver {
   int max_lag_s_;
   int n_auto_ = 0;
   std::vector<int> lag_;
+  std::vector<int> least_;
   std::vector<double> theta_;
   double rss_ = 0.0;
   bool first_pass_ = true;
@@ -199,7 +203,10 @@ std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<T
       return fail(FitError::Code::bad_options, "term '" + ev.names[j] + "' has lag " + std::to_string(fixed_lag[j]) +
                                                    " s, beyond the maximum lag of " + std::to_string(L) + " s");
   }
-  JointSolver solver(terms, ev.names, L, fixed_lag);
+  std::vector<int> least(nt, 0);
+  for (std::size_t j = 0; j < nt; ++j)
+    if (o.causal_lags && terms[j].lag.automatic) least[j] = std::min(L, firmware::causal_lag_s(*terms[j].expr));
+  JointSolver solver(terms, ev.names, L, fixed_lag, least);
   const int n_auto = solver.n_auto();
   std::vector<double> k(static_cast<std::size_t>(p), 0.0);
 
@@ -310,6 +317,13 @@ std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<T
     m.terms[j].term = terms[j];
     m.terms[j].term.lag.seconds = solver.lags()[j];
     m.terms[j].coef = solver.theta()[j + 1];
+  }
+  {
+    std::string held;
+    for (std::size_t j = 0; j < nt; ++j)
+      if (least[j] > 0 && solver.lags()[j] == least[j])
+        held += (held.empty() ? "" : ", ") + ev.names[j] + " at " + std::to_string(least[j]) + " s";
+    if (!held.empty()) m.fit.lag_note = "held at the least lag of a causal firmware form (its slopes' latency): " + held;
   }
   {
     std::vector<double> a = ar_filter(e, k), aw;

@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "common.hpp"
+#include "fogbench/model/firmware.hpp"
 #include "fit_internal.hpp"
 
 namespace fogbench::model::detail {
@@ -137,24 +138,45 @@ std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<T
       fixed_idx.push_back(j);
     }
   }
-  const ScanResult best = scan(*pp.sc, z, &pp.wz_spec, fixed, varying, 0, L);
+  // With causal_lags, a varying term's lag is max(shared, its causal least): the shared lag is
+  // scanned over [Lc, L] (Lc the largest least) with the kernel, and below Lc each shared lag is
+  // solved with every term at its own max (a few dozen solves).
+  std::vector<int> least(varying.size(), 0);
+  int Lc = 0;
+  for (std::size_t v = 0; v < var_idx.size(); ++v) {
+    if (o.causal_lags) least[v] = std::min(L, firmware::causal_lag_s(*terms[var_idx[v]].expr));
+    Lc = std::max(Lc, least[v]);
+  }
+  auto columns_at = [&](int shared) {
+    std::vector<Column> all = fixed;
+    for (std::size_t v = 0; v < varying.size(); ++v) all.push_back(lagged_view(*varying[v], L, std::max(shared, least[v])));
+    return all;
+  };
+  ScanResult best = scan(*pp.sc, z, &pp.wz_spec, fixed, varying, Lc, L);
+  for (int shared = 0; shared < Lc; ++shared) {
+    ScanResult r = solve_at(z, w, columns_at(shared), shared);
+    if (r.ok && (!best.ok || r.sse < best.sse)) best = std::move(r);
+  }
   if (!best.ok) return fail(FitError::Code::degenerate, "no lag in 0.." + std::to_string(L) + " s gives a solvable regression");
   // The coefficients at the lag chosen, by the kernel (fixed columns first, as the scan orders them).
-  std::vector<Column> all = fixed;
-  for (const Lagged* v : varying) all.push_back(lagged_view(*v, L, best.lag));
-  const ScanResult r = solve_at(z, w, all, best.lag);
+  const ScanResult r = solve_at(z, w, columns_at(best.lag), best.lag);
   if (!r.ok) return fail(FitError::Code::degenerate, "the regression is singular at lag " + std::to_string(best.lag) + " s");
   m.terms.resize(terms.size());
   for (std::size_t a = 0; a < fixed_idx.size(); ++a) {
     m.terms[fixed_idx[a]].term = terms[fixed_idx[a]];
     m.terms[fixed_idx[a]].coef = r.theta[a];
   }
+  std::string held;
   for (std::size_t v = 0; v < var_idx.size(); ++v) {
     auto& ft = m.terms[var_idx[v]];
     ft.term = terms[var_idx[v]];
-    ft.term.lag.seconds = r.lag;
+    ft.term.lag.seconds = std::max(r.lag, least[v]);
     ft.coef = r.theta[fixed_idx.size() + v];
+    if (least[v] > r.lag)
+      held += (held.empty() ? "" : ", ") + ev.names[var_idx[v]] + " at " + std::to_string(least[v]) + " s";
   }
+  if (!held.empty())
+    m.fit.lag_note = "shared lag " + std::to_string(r.lag) + " s; held for a causal firmware form (its slopes' latency): " + held;
   double zz = 0.0, zm = 0.0, sw = 0.0;
   for (std::size_t t = 0; t < n; ++t) {
     zm += w[t] * z[t];

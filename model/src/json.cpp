@@ -114,6 +114,7 @@ json to_json(const Model& m) {
       {"created_at", m.created_at},
       {"note", m.note},
   };
+  if (!m.fit.lag_note.empty()) j["fit"]["lag_note"] = m.fit.lag_note;
   j["parent"] = m.parent ? to_json(*m.parent) : json(nullptr);
   return j;
 }
@@ -189,6 +190,7 @@ std::expected<Model, std::string> model_from_json(const json& j) {
     m.fit.ljung_box_p = fr.number("ljung_box_p", 1.0, false);
     m.fit.iterations = static_cast<int>(fr.integer("iterations", 0, false));
     m.fit.converged = fr.boolean("converged", true, false);
+    m.fit.lag_note = fr.string("lag_note", "", false);
     if (!fr.err.empty()) return std::unexpected(fr.err);
     // The file keeps iterations and converged only (its format is unchanged): the summary is
     // rebuilt from them.

@@ -118,10 +118,75 @@ TEST_CASE("firmware: a term that reads the future is refused naming it, or compu
   CHECK(p.error().find("term dd(T1)@45") != std::string::npos);
   CHECK(p.error().find("15 s ahead") != std::string::npos);
   CHECK(p.error().find("at least 60 s") != std::string::npos);
+  // Late, the whole model is 15 s late, grad@5 too: terms shifted against each other would no
+  // longer cancel where the model's do (d(T1) and grad on a distributed coil, r = 1.00).
   auto late = firmware::compile(m, 1.0, true);
   REQUIRE(late);
-  CHECK(late->terms[0].late_s == 0);
+  CHECK(late->terms[0].late_s == 15);
   CHECK(late->terms[1].late_s == 15);
+  const auto r = synthetic_run();
+  auto mu = predict(m, r);
+  REQUIRE(mu);
+  firmware::Compensator c(*late);
+  double worst = 0.0;
+  for (std::size_t i = 0; i < r.size(); ++i) {
+    const double v = c.step({r.t1_c[i], r.t2_c[i], r.chamber_c[i], r.since_power_on_s[i]});
+    if (i >= 200) worst = std::max(worst, std::abs(v - (*mu)[i - 15]));  // mu(t - 15 s), exactly
+  }
+  CHECK(worst < 1e-9);
+}
+
+TEST_CASE("firmware: the least lag a causal form needs, per term", "[firmware]") {
+  auto lag = [](const char* text) { return firmware::causal_lag_s(*parse_term(text)->expr); };
+  CHECK(lag("grad") == 0);
+  CHECK(lag("lp(T1,300)") == 0);
+  CHECK(lag("d(T1)") == 30);
+  CHECK(lag("dd(T1)") == 60);
+  CHECK(lag("T1*d(T1)") == 30);
+  CHECK(lag("(d(T1)@300)") == 0);
+  CHECK(lag("(d(T1)@20)") == 10);
+}
+
+TEST_CASE("firmware: windows and delays are in seconds whatever the sample interval", "[firmware]") {
+  // At 0.1 s per sample: the slope spans 60 s (601 samples, 300 samples late), d(T1)@40 waits
+  // 100 more samples (10 s); grad@40 is 400 samples; lp's alpha is 1 - exp(-0.1 / 300).
+  auto p = firmware::compile(model_of({"d(T1)@40", "grad@40", "lp(T1,300)"}), 0.1);
+  REQUIRE(p);
+  std::vector<int> slopes, delays;
+  double alpha = 0.0;
+  for (const auto& o : p->ops) {
+    if (o.kind == firmware::Op::Kind::slope) slopes.push_back(o.n);
+    if (o.kind == firmware::Op::Kind::delay) delays.push_back(o.n);
+    if (o.kind == firmware::Op::Kind::lp) alpha = o.p;
+  }
+  CHECK(slopes == std::vector<int>{601});
+  CHECK(delays == std::vector<int>{100, 400});
+  CHECK(alpha == Approx(1.0 - std::exp(-0.1 / 300.0)).epsilon(1e-12));
+  // The same model at 1 s: 61 samples, 10 and 40.
+  auto q = firmware::compile(model_of({"d(T1)@40", "grad@40"}), 1.0);
+  REQUIRE(q);
+  CHECK(q->ring_size == 61 + 10 + 40);
+}
+
+TEST_CASE("firmware: a float build's arithmetic stays within its tolerance of the double one", "[firmware]") {
+  const auto m = model_of({"d(T1)@40", "grad@40", "lp(T1,600)", "T1*d(T1)@35"});
+  auto p = firmware::compile(m);
+  REQUIRE(p);
+  const auto r = synthetic_run();
+  firmware::Compensator d(*p), f(*p, firmware::Precision::single_precision);
+  double worst = 0.0, largest = 0.0;
+  for (std::size_t i = 0; i < r.size(); ++i) {
+    const firmware::Input in{r.t1_c[i], r.t2_c[i], r.chamber_c[i], r.since_power_on_s[i]};
+    const double vd = d.step(in), vf = f.step(in);
+    worst = std::max(worst, std::abs(vd - vf));
+    largest = std::max(largest, std::abs(vd));
+    CHECK(static_cast<double>(static_cast<float>(vf)) == vf);  // every value a float
+  }
+  // mu reaches ~|0.5 * 10| + ... deg/h: float's 6e-8 relative of terms of tens of deg/h, summed
+  // over a few operations: well under 1e-3 deg/h, and not exact (it is float arithmetic).
+  INFO("largest |mu| " << largest << " deg/h, largest float-double difference " << worst << " deg/h");
+  CHECK(worst < 1e-3);
+  CHECK(worst > 0.0);
 }
 
 TEST_CASE("firmware: the C reference implementation's limits are checked", "[firmware]") {

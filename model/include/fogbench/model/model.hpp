@@ -84,6 +84,10 @@ struct FitStats {
   int iterations = 0;           // joint: Cochrane-Orcutt iterations (summary.iterations too)
   bool converged = true;        // summary.termination == converged
   std::vector<std::vector<double>> coef_corr;  // correlation matrix of [mu0, beta_1..m]
+  // The @auto lags the fit held up so that a firmware computes the terms causally
+  // (FitOptions::causal_lags), e.g. "shared lag 0 s; held for a causal firmware form (its
+  // slopes' latency): d(T1) at 30 s"; empty when none was held.
+  std::string lag_note;
   FitSummary summary;           // how the fit ended (a model loaded from JSON: from iterations and converged)
 };
 
@@ -115,6 +119,12 @@ struct FitOptions {
   double tref_c = 20.0;
   int smooth_s = 61;            // paper: centred moving average width for the trend, s (odd)
   int hold_s = 600;             // paper: length of the opening hold used for step 1, s
+  // @auto lags at least firmware::causal_lag_s(term) (30 s per rate d()), so that every fitted
+  // model has a causal firmware form: a rate's centred 61 s slope is known 30 s after its
+  // instant. The paper method keeps one shared lag and holds a rate term at its least when the
+  // shared lag is below it; the joint method searches each term from its least. What was held
+  // is said in FitStats::lag_note. false: lags from 0 (a model firmware may not compute).
+  bool causal_lags = true;
   double outlier_sigma = 3.0;   // Pauta rule threshold
   int max_iterations = 30;      // joint: Cochrane-Orcutt iterations at most
   double tolerance = 1e-5;      // joint: relative change of the coefficients that ends iteration
