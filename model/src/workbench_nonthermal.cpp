@@ -244,10 +244,10 @@ TimeDrift time_drift(const Model& m, std::span<const RunData> runs, const Diagno
   {
     std::vector<double> tt, t1, w;
     for (const auto& p : per) {
-      const double mt = std::accumulate(p.th.begin(), p.th.end(), 0.0) / static_cast<double>(p.th.size());
+      const double mean_t = std::accumulate(p.th.begin(), p.th.end(), 0.0) / static_cast<double>(p.th.size());
       const double m1 = std::accumulate(p.run->t1_c.begin(), p.run->t1_c.end(), 0.0) / static_cast<double>(p.th.size());
       for (std::size_t i = 0; i < p.th.size(); ++i) {
-        tt.push_back(p.th[i] - mt);
+        tt.push_back(p.th[i] - mean_t);
         t1.push_back(std::isfinite(p.run->t1_c[i]) ? p.run->t1_c[i] - m1 : 0.0);
         w.push_back(std::isfinite(p.run->t1_c[i]) ? 1.0 : 0.0);
       }
@@ -406,7 +406,7 @@ std::optional<PeriodicDisturbance> find_periodic(const Model& m, const RunData& 
     pd.rms_after_dph = std::sqrt(std::max(0.0, q1 / w - (s1 / w) * (s1 / w)));
   }
   // The temperature program swinging at this period: T1's amplitude there beside its spread
-  // over the band (a missing thermal term then repeats with the profile's cycles).
+  // (a missing thermal term then repeats with the profile's cycles).
   {
     std::vector<double> t1b(xb.size(), 0.0);
     for (std::size_t i = 0, k = 0; i < n; i += b, ++k) {
@@ -420,17 +420,28 @@ std::optional<PeriodicDisturbance> find_periodic(const Model& m, const RunData& 
     }
     const Line lt = fit_line(tb, t1b, wb);
     for (std::size_t i = 0; i < t1b.size(); ++i) t1b[i] = wb[i] != 0.0 ? t1b[i] - lt.a - lt.b * tb[i] : 0.0;
-    double at_peak = 0.0, mean = 0.0;
+    // A line of T1's own periodogram at the peak: its power there over its level around
+    // (the median over an octave each side, the peak's bins left out, over ln 2) beyond 10.
+    // A profile of repeated cycles has lines at its period and harmonics; ramps and holds
+    // give a smooth spectrum.
+    double at_peak = 0.0;
+    std::vector<double> around;
     for (std::size_t i = 0; i < fk.size(); ++i) {
+      const double dk = std::abs(fk[i] - f_hat) * span_s;
+      if (dk > 2.5 && (fk[i] < 0.5 * f_hat || fk[i] > 2.0 * f_hat)) continue;
       std::complex<double> x{0.0, 0.0};
       for (std::size_t j = 0; j < t1b.size(); ++j)
         if (wb[j] != 0.0) x += t1b[j] * std::polar(1.0, -2.0 * kPi * fk[i] * tb[j]);
       const double p = std::norm(x);
-      mean += p;
-      if (std::abs(fk[i] - f_hat) * span_s <= 1.0) at_peak = std::max(at_peak, p);
+      if (dk <= 1.0) at_peak = std::max(at_peak, p);
+      else if (dk > 2.5) around.push_back(p);
     }
-    mean /= static_cast<double>(fk.size());
-    pd.thermal_period = mean > 0.0 && at_peak > 5.0 * mean;
+    double level = 0.0;
+    if (around.size() >= 4) {
+      std::nth_element(around.begin(), around.begin() + static_cast<std::ptrdiff_t>(around.size() / 2), around.end());
+      level = around[around.size() / 2] / std::log(2.0);
+    }
+    pd.thermal_period = level > 0.0 && at_peak > 10.0 * level;
   }
   // At a period the temperature program itself swings with, a line of the residual is what a
   // missing thermal term gives: the search's business, not a disturbance.

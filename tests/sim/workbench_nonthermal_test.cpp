@@ -3,7 +3,6 @@
 // and amplitude, and clean runs with realistic FOG noise raise neither.
 #include <catch2/catch.hpp>
 #include <cmath>
-#include <iostream>
 #include <string>
 
 #include "fogbench/model/model.hpp"
@@ -183,15 +182,3 @@ TEST_CASE("workbench: clean runs with realistic FOG noise show no drift in time 
   CHECK(alarms <= 1);
 }
 
-TEST_CASE("debug nonthermal", "[.debug]") {
-  Truth tr;
-  tr.bi = 0.02;
-  tr.rrw = 0.02;
-  tr.ageing_dph_per_h = 0.1;
-  auto r = runs(2180, tr);
-  auto m = model::fit(r[0], *model::parse_terms("paper"));
-  REQUIRE(m);
-  auto td = wb::time_drift(*m, r);
-  std::cout << "found " << td.found << " slope " << td.slope_dph_per_h << " se " << td.se_dph_per_h << " p " << td.consistency_p << " note " << td.floor.note << "\n";
-  for (const auto& x : td.runs) std::cout << x.run << " " << x.slope_dph_per_h << " " << x.se_dph_per_h << "\n";
-}
