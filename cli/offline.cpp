@@ -43,6 +43,15 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
   if (o.arw_deg_per_sqrt_h) gyro.sigma_a_dph = 60.0 * *o.arw_deg_per_sqrt_h;
   if (o.bias_instability_dph) gyro.bias_instability_dph = *o.bias_instability_dph;
   if (o.rrw_dph_per_sqrt_h) gyro.rrw_dph_per_sqrt_h = *o.rrw_dph_per_sqrt_h;
+  gyro.ageing_dph_per_h = o.ageing_dph_per_h;
+  if (o.periodic_period_s.has_value() != o.periodic_amplitude_dph.has_value()) {
+    err << "fogctl simulate: a periodic disturbance needs both --periodic-period (s) and --periodic-amplitude (deg/h)\n";
+    return kExitError;
+  }
+  if (o.periodic_period_s) {
+    gyro.periodic_period_s = *o.periodic_period_s;
+    gyro.periodic_amplitude_dph = *o.periodic_amplitude_dph;
+  }
   for (const auto& e : o.effects) cfg.units[0].effects += (cfg.units[0].effects.empty() ? "" : " + ") + e;
   if (!cfg.units[0].effects.empty()) {
     if (auto l = model::parse_terms(cfg.units[0].effects); !l) {
@@ -294,6 +303,13 @@ void add_offline_commands(CLI::App& app, int& code) {
   s->add_option("--bias-instability", sim.bias_instability_dph, "Flicker noise: the gyro's bias instability, deg/h (default 0)")
       ->check(CLI::Range(0.0, 10.0));
   s->add_option("--rrw", sim.rrw_dph_per_sqrt_h, "The gyro's rate random walk, deg/h/sqrt(h) (default 0)")->check(CLI::Range(0.0, 10.0));
+  s->add_option("--ageing", sim.ageing_dph_per_h,
+                 "Drift that is not thermal: an ageing (outgassing) ramp, deg/h per h of the run (default 0; no power-on column is written)")
+      ->check(CLI::Range(-100.0, 100.0));
+  s->add_option("--periodic-period", sim.periodic_period_s, "A periodic disturbance (not thermal): its period, s (with --periodic-amplitude)")
+      ->check(CLI::Range(2.0, 1e6));
+  s->add_option("--periodic-amplitude", sim.periodic_amplitude_dph, "The periodic disturbance's amplitude, deg/h (with --periodic-period)")
+      ->check(CLI::Range(0.0, 1000.0));
   s->add_option("-o,--output", sim.output, "Write the run's CSV here (default: standard output)");
   s->add_flag("--json", sim.json, "Print a JSON summary");
   s->add_flag("-q,--quiet", sim.quiet, "No progress line");

@@ -28,6 +28,10 @@ struct SimulateOptions {
   std::optional<double> arw_deg_per_sqrt_h;      // white innovation: sigma_a = 60 x ARW deg/h
   std::optional<double> bias_instability_dph;    // flicker: Allan floor 0.664 x B
   std::optional<double> rrw_dph_per_sqrt_h;      // rate random walk K
+  // Drift that is not thermal (default none): an ageing ramp, deg/h per h of the run, and a
+  // periodic disturbance (both of period_s and amplitude_dph, or neither).
+  double ageing_dph_per_h = 0.0;
+  std::optional<double> periodic_period_s, periodic_amplitude_dph;
   bool json = false;
   bool quiet = false;
 };

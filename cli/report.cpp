@@ -278,6 +278,66 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
     body += "<h3>Cross-correlation of the prewhitened residual with each regressor</h3>" + x.str();
   }
 
+  // Drift that is not thermal: the evidence of each finding (figure and plot).
+  if (d->time_drift.found || !d->periodic.empty()) {
+    body += "<h2>Drift that is not thermal</h2>";
+    const auto& td = d->time_drift;
+    if (td.found) {
+      body += "<p>" + html_escape(td.message) + ".</p>";
+      HtmlTable t({"run", "slope, deg/h per h", "1 sigma"});
+      for (const auto& r : td.runs) t.row({r.run, fixed(r.slope_dph_per_h, 4), fixed(r.se_dph_per_h, 4)});
+      body += t.str();
+      for (const auto& sr : td.series) {
+        plots::Plot p;
+        p.id = "trend_" + std::to_string(&sr - td.series.data());
+        p.title = "Residual of the model on " + sr.run + " (61 s average) and the line in time fitted to it";
+        p.xlabel = "time, s";
+        p.ylabel = "deg/h";
+        p.x = sr.time_s;
+        plots::Series r;
+        r.name = "residual, 61 s average";
+        r.y = sr.residual_dph;
+        r.stroke = "#8a949f";
+        r.keys = plots::keys_text(plots::keys(r.y), "deg/h");
+        p.series.push_back(std::move(r));
+        plots::Series l;
+        l.name = "line in time";
+        l.y = sr.fitted_dph;
+        l.stroke = kColours[0];
+        l.width = 2;
+        l.keys = plots::keys_text(plots::keys(l.y), "deg/h");
+        p.series.push_back(std::move(l));
+        body += plots::render(p, specs, o.max_points);
+      }
+    }
+    for (const auto& pd : d->periodic) {
+      body += "<p>" + html_escape(pd.message) + ".</p>";
+      plots::Plot p;
+      p.id = "periodic_" + std::to_string(&pd - d->periodic.data());
+      p.kind = "xy";
+      p.log = true;
+      p.robust = false;
+      p.title = "Amplitude spectrum of the residual on " + pd.run + " against the gyro's noise (peak at " + fixed(pd.period_s, 0) + " s)";
+      p.xlabel = "period, s";
+      p.ylabel = "deg/h";
+      plots::Series a;
+      a.name = "residual";
+      a.x = pd.spectrum_period_s;
+      a.y = pd.spectrum_amp_dph;
+      a.stroke = kColours[0];
+      a.keys = "peak " + fixed(pd.amplitude_dph, 3) + " deg/h at " + fixed(pd.period_s, 0) + " s";
+      p.series.push_back(std::move(a));
+      plots::Series nz;
+      nz.name = "the gyro's noise (floor)";
+      nz.x = pd.spectrum_period_s;
+      nz.y = pd.noise_amp_dph;
+      nz.stroke = "#8a949f";
+      nz.dash = {4, 4};
+      p.series.push_back(std::move(nz));
+      body += plots::render(p, specs, o.max_points);
+    }
+  }
+
   // The residual against the top candidates on the fit run.
   {
     auto c0 = wb::compare(*m, runs.front());

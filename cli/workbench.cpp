@@ -232,6 +232,25 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
       if (!c.floor_note.empty()) out << "  noise floor of " << c.run << ": " << c.floor_note << "\n";
   }
   for (const auto& r : d->reasons) out << "  - " << r << "\n";
+  // Drift that is not thermal: the figures behind the findings (the plots are in the report).
+  if (d->time_drift.found) {
+    const auto& td = d->time_drift;
+    out << "\ndrift in time (ageing/outgassing, not thermal): slope " << fixed(td.slope_dph_per_h, 4) << " deg/h per h, 1 sigma "
+        << fixed(td.se_dph_per_h, 4) << " (t " << fixed(td.t, 1) << " against the gyro's noise floor), runs agree: p "
+        << fixed(td.consistency_p, 3) << (td.named ? ", named by the search (trun)" : "")
+        << (td.collinear ? ", NOT separable from temperature on these runs" : "") << "\n";
+    Table tt({"run", "slope deg/h per h", "1 sigma"});
+    for (const auto& r : td.runs) tt.add({r.run, fixed(r.slope_dph_per_h, 4), fixed(r.se_dph_per_h, 4)});
+    out << tt.str();
+  }
+  if (!d->periodic.empty()) {
+    out << "\nperiodic disturbance (the residual's spectral peak against the gyro's noise):\n";
+    Table pt({"run", "period s", "amplitude deg/h", "peak / noise", "p", "std before", "std after", "thermal period"});
+    for (const auto& p : d->periodic)
+      pt.add({p.run, fixed(p.period_s, 0), fixed(p.amplitude_dph, 3), fixed(p.power_ratio, 1), p.p_value < 1e-6 ? "<1e-6" : sig(p.p_value),
+              fixed(p.rms_before_dph, 3), fixed(p.rms_after_dph, 3), p.thermal_period ? "yes" : "no"});
+    out << pt.str();
+  }
   if (!d->steps.empty()) {
     out << "\nsearch (" << d->search << ", " << d->search_space.value("total", 0) << " candidates, "
         << d->search_space.value("refitted", 0) << " refitted): terms found, each validated on the held-out runs:\n";

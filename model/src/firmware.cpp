@@ -61,6 +61,9 @@ struct Compiler {
           case Signal::T2: return Node{sig(1), 0};
           case Signal::Ta: p.uses_ta = true; return Node{sig(2), 0};
           case Signal::ton: p.uses_ton = true; return Node{sig(3), 0};
+          case Signal::trun:
+            error = "trun (time since the run's start) is a drift in time found on runs, not a compensation: the firmware has no run clock; refit without it";
+            return std::nullopt;
           case Signal::grad: {
             Op o;
             o.kind = K::sub;

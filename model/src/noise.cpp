@@ -131,6 +131,12 @@ void settled_stretches(const FloorRun& fr, const NoiseFloorOptions& o, std::vect
 
 }  // namespace
 
+double floor_psd(const NoiseFloor& f, double f_hz) {
+  const double fk = std::max(f_hz, 1e-9);
+  const double fast = f.white_var_dph2 > 0.0 ? 2.0 * f.white_var_dph2 : ar_psd(f.ar, f.sigma_a_dph, fk);
+  return fast + f.flicker_h / fk + f.walk_h / (fk * fk);
+}
+
 double floor_slow_variance(const NoiseFloor& f, std::span<const double> c) {
   if (!f.slow() || c.empty()) return 0.0;
   // A log grid from 1e-7 Hz to 0.5 Hz, the integral in ln f (dF = f dln f).

@@ -144,7 +144,7 @@ class Parser {
     if (!std::isfinite(t.coef))
       return std::unexpected(error("the term's numeric factors multiply to a number out of the range of a double"));
     if (!depends_on_signal(*term))
-      return std::unexpected(error("a term must contain a signal (T1, T2, Ta, grad or ton); '" + to_string(*term) + "' is a constant"));
+      return std::unexpected(error("a term must contain a signal (T1, T2, Ta, grad, ton or trun); '" + to_string(*term) + "' is a constant"));
     t.expr = term;
     skip();
     if (peek() == '@') {
@@ -286,14 +286,15 @@ class Parser {
       return e;
     }
     std::string_view w = peek_word();
-    if (w.empty()) return fail("expected a signal (T1, T2, Ta, grad, ton), a function (d, dd, up, down, lp, warm), a number or '('");
+    if (w.empty()) return fail("expected a signal (T1, T2, Ta, grad, ton, trun), a function (d, dd, up, down, lp, warm), a number or '('");
     pos_ += w.size();
-    if (w == "T1" || w == "T2" || w == "Ta" || w == "grad" || w == "ton") {
+    if (w == "T1" || w == "T2" || w == "Ta" || w == "grad" || w == "ton" || w == "trun") {
       auto e = make(K::signal);
       std::const_pointer_cast<Expr>(e)->signal = w == "T1"   ? Signal::T1
                                                  : w == "T2" ? Signal::T2
                                                  : w == "Ta" ? Signal::Ta
                                                  : w == "ton" ? Signal::ton
+                                                 : w == "trun" ? Signal::trun
                                                               : Signal::grad;
       return e;
     }
@@ -319,7 +320,7 @@ class Parser {
     else {
       pos_ = start;
       return std::unexpected(error("unknown name '" + std::string(w) +
-                                   "': expected a signal (T1, T2, Ta, grad, ton) or a function (d, dd, up, down, lp, warm)"));
+                                   "': expected a signal (T1, T2, Ta, grad, ton, trun) or a function (d, dd, up, down, lp, warm)"));
     }
     skip();
     if (peek() != '(') return fail("expected '(' after '" + std::string(w) + "'");
@@ -468,6 +469,7 @@ std::string to_string(const Expr& e) {
         case Signal::Ta: return "Ta";
         case Signal::grad: return "grad";
         case Signal::ton: return "ton";
+        case Signal::trun: return "trun";
       }
       return "?";
     case K::warm: return "warm(" + fmt_number(e.value) + ")";
@@ -512,16 +514,17 @@ struct Unit {
   int temp = 0;     // power of degC
   int per_min = 0;  // power of 1/min
   int sec = 0;      // power of s (ton)
+  int hour = 0;     // power of h (trun)
 };
 Unit unit_of(const Expr& e) {
   switch (e.kind) {
     case K::number: case K::warm: return {};
-    case K::signal: return e.signal == Signal::ton ? Unit{0, 0, 1} : Unit{1, 0, 0};
+    case K::signal: return e.signal == Signal::ton ? Unit{0, 0, 1, 0} : e.signal == Signal::trun ? Unit{0, 0, 0, 1} : Unit{1, 0, 0, 0};
     case K::d: { auto u = unit_of(*e.a); u.per_min += 1; return u; }
     case K::dd: { auto u = unit_of(*e.a); u.per_min += 2; return u; }
     case K::up: case K::down: case K::lp: case K::neg: case K::delay: return unit_of(*e.a);
-    case K::pow: { auto u = unit_of(*e.a); u.temp *= e.power; u.per_min *= e.power; u.sec *= e.power; return u; }
-    case K::mul: { auto a = unit_of(*e.a), b = unit_of(*e.b); return {a.temp + b.temp, a.per_min + b.per_min, a.sec + b.sec}; }
+    case K::pow: { auto u = unit_of(*e.a); u.temp *= e.power; u.per_min *= e.power; u.sec *= e.power; u.hour *= e.power; return u; }
+    case K::mul: { auto a = unit_of(*e.a), b = unit_of(*e.b); return {a.temp + b.temp, a.per_min + b.per_min, a.sec + b.sec, a.hour + b.hour}; }
     case K::add: case K::sub: return unit_of(*e.a);
   }
   return {};
@@ -535,6 +538,8 @@ std::string coef_unit(const Expr& e) {
   else if (u.temp > 1) s = "degC^" + std::to_string(u.temp);
   if (u.sec == 1) s += s.empty() ? "s" : " s";
   else if (u.sec > 1) s += (s.empty() ? "s^" : " s^") + std::to_string(u.sec);
+  if (u.hour == 1) s += s.empty() ? "h" : " h";
+  else if (u.hour > 1) s += (s.empty() ? "h^" : " h^") + std::to_string(u.hour);
   if (u.per_min == 1) s += "/min";
   else if (u.per_min > 1) s += "/min^" + std::to_string(u.per_min);
   if (s.empty()) return "deg/h";
@@ -590,6 +595,11 @@ std::expected<std::vector<double>, std::string> evaluate(const Expr& e, const Si
       if (e.signal == Signal::ton) {
         if (s.ton.size() != n) return std::unexpected(std::string(kNoPowerOn));
         return std::vector<double>(s.ton.begin(), s.ton.end());
+      }
+      if (e.signal == Signal::trun) {  // the run's own clock: time since its first sample, h
+        std::vector<double> v(n);
+        for (std::size_t i = 0; i < n; ++i) v[i] = static_cast<double>(i) * s.dt_s / 3600.0;
+        return v;
       }
       std::vector<double> g(n);
       for (std::size_t i = 0; i < n; ++i) g[i] = s.t1[i] - s.t2[i];

@@ -177,7 +177,8 @@ std::expected<CandidateList, FitError> collect_candidates(const Model& base, con
     const std::string k = to_string(*t->expr);
     if (has_key(base, k)) continue;
     const Effect* eff = find_effect(k);
-    push(x, eff ? eff->name : "user term " + k, eff ? eff->explanation : "", false);
+    if (k == "trun") push(x, kTimeDriftName, kTimeDriftExplanation, false);
+    else push(x, eff ? eff->name : "user term " + k, eff ? eff->explanation : "", false);
   }
 
   const std::size_t n_fixed = cands.size();

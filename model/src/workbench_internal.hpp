@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <expected>
 #include <limits>
 #include <span>
 #include <string>
@@ -48,6 +49,19 @@ inline double weighted_corr(std::span<const double> a, std::span<const double> b
   }
   return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 0.0;
 }
+
+// The residual of a model on a run, with the weights of compare (flagged, non-finite and
+// settle samples 0; spikes about the 61 s average 0), the residual 0 where the weight is.
+struct Residual {
+  std::vector<double> r, w;
+};
+std::expected<Residual, FitError> residual_of(const Model& m, const RunData& run);
+
+// The term of a drift in time (trun, h since the run's start) as diagnose names it.
+inline constexpr const char* kTimeDriftName = "a drift in time (ageing/outgassing), not thermal";
+inline constexpr const char* kTimeDriftExplanation =
+    "the residual follows the run's own clock, not temperature: the light source ageing, outgassing in the coil's potting or "
+    "the housing, a slow electronics drift";
 
 // A candidate of the language search: the term (canonical, no lag) and what it would mean.
 struct Generated {

@@ -196,6 +196,12 @@ json to_json(const Diagnosis& d) {
           {"reasons", d.reasons},
           {"checks", checks(d.checks)},
           {"jumps", jumps},
+          {"time_drift", to_json(d.time_drift)},
+          {"periodic", [&] {
+             json a = json::array();
+             for (const auto& p : d.periodic) a.push_back(to_json(p));
+             return a;
+           }()},
           {"search", d.search},
           {"search_space", d.search_space},
           {"steps", steps},
@@ -205,6 +211,42 @@ json to_json(const Diagnosis& d) {
           {"residual_follows", d.residual_follows},
           {"rule", d.rule},
           {"summary", d.summary}};
+}
+
+json to_json(const TimeDrift& t) {
+  json runs = json::array();
+  for (const auto& r : t.runs) runs.push_back({{"run", r.run}, {"slope_dph_per_h", num(r.slope_dph_per_h)}, {"se_dph_per_h", num(r.se_dph_per_h)}});
+  json ser = json::array();
+  for (const auto& x : t.series)
+    ser.push_back({{"run", x.run}, {"time_s", series(x.time_s)}, {"residual_dph", series(x.residual_dph)}, {"fitted_dph", series(x.fitted_dph)}});
+  return {{"tested", t.tested},
+          {"found", t.found},
+          {"named", t.named},
+          {"collinear", t.collinear},
+          {"slope_dph_per_h", num(t.slope_dph_per_h)},
+          {"se_dph_per_h", num(t.se_dph_per_h)},
+          {"t", num(t.t)},
+          {"consistency_p", num(t.consistency_p)},
+          {"r_time_t1", num(t.r_time_t1)},
+          {"thermal_term", t.thermal_term},
+          {"runs", runs},
+          {"series", ser},
+          {"message", t.message}};
+}
+
+json to_json(const PeriodicDisturbance& p) {
+  return {{"run", p.run},
+          {"period_s", num(p.period_s)},
+          {"amplitude_dph", num(p.amplitude_dph)},
+          {"phase_rad", num(p.phase_rad)},
+          {"power_ratio", num(p.power_ratio)},
+          {"p_value", num(p.p_value)},
+          {"frequencies", p.frequencies},
+          {"thermal_period", p.thermal_period},
+          {"rms_before_dph", num(p.rms_before_dph)},
+          {"rms_after_dph", num(p.rms_after_dph)},
+          {"spectrum", {{"period_s", series(p.spectrum_period_s)}, {"amplitude_dph", series(p.spectrum_amp_dph)}, {"noise_amplitude_dph", series(p.noise_amp_dph)}}},
+          {"message", p.message}};
 }
 
 json to_json(const Lineage& l) {

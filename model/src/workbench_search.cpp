@@ -4,6 +4,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cctype>
 #include <cstdio>
 #include <limits>
 #include <numeric>
@@ -40,6 +41,7 @@ std::string family_name(const std::string& expr) {
   auto starts = [&](const char* p) { return expr.rfind(p, 0) == 0; };
   if (starts("warm(")) return "warm-up after power-on (exp(-ton/tau), tau " + expr.substr(5, expr.size() - 6) + " s)";
   if (expr == "ton") return "drift with the time since power-on (aging of the source, slow warm-up)";
+  if (expr == "trun") return wbi::kTimeDriftName;
   if (starts("d(lp(")) return "rate through a slow thermal path (" + expr.substr(2, expr.size() - 3) + ")";
   if (starts("lp(")) return "a slow thermal path (" + expr + ")";
   if (expr.find('*') != std::string::npos) return "a product of two signals (" + expr + "), not in the library";
@@ -49,6 +51,7 @@ std::string family_name(const std::string& expr) {
 
 std::string family_explanation(const std::string& expr) {
   auto starts = [&](const char* p) { return expr.rfind(p, 0) == 0; };
+  if (expr == "trun") return wbi::kTimeDriftExplanation;
   if (starts("warm(") || expr == "ton")
     return "the source, the detector and the electronics warm up after power-on whatever the chamber does: a drift that follows the "
            "time since power-on, not temperature";
@@ -124,11 +127,11 @@ std::expected<Space, FitError> generate(const DiagnoseOptions& o, bool has_ta, b
   return sp;
 }
 
+}  // namespace
+
+namespace wbi {
 // The residual of a model on a run, with the weights of compare (flagged, non-finite and
 // settle samples 0; spikes about the 61 s average 0), the residual 0 where the weight is.
-struct Residual {
-  std::vector<double> r, w;
-};
 std::expected<Residual, FitError> residual_of(const Model& m, const RunData& run) {
   auto mu = predict(m, run);
   if (!mu) return std::unexpected(FitError{mu.error().code, run.name + ": " + mu.error().message});
@@ -153,6 +156,11 @@ std::expected<Residual, FitError> residual_of(const Model& m, const RunData& run
     }
   return res;
 }
+
+}  // namespace wbi
+
+namespace {
+using wbi::residual_of;
 
 RunCheck check_run(const Model& m, const RunData& run, bool held_out, const DiagnoseOptions& o) {
   RunCheck c;
@@ -380,7 +388,7 @@ std::vector<BiasJump> find_jumps(const Model& m, const RunData& run, const Diagn
 // What the remaining residual follows, pooled over the runs: its 61 s average correlated
 // with ton, T1 and d(T1); "none" when no |r| reaches 0.5.
 std::string follows(const Model& m, std::span<const RunData> runs) {
-  std::vector<double> rs, w, t1, rate, ton, wton;
+  std::vector<double> rs, w, t1, rate, ton, wton, trun;
   bool any_ton = false;
   for (const auto& run : runs) {
     auto res = residual_of(m, run);
@@ -393,6 +401,7 @@ std::string follows(const Model& m, std::span<const RunData> runs) {
       t1.push_back(run.t1_c[t]);
       rate.push_back(rt[t]);
       ton.push_back(run.has_power_on() ? run.since_power_on_s[t] : 0.0);
+      trun.push_back(static_cast<double>(t));
       wton.push_back(run.has_power_on() ? res->w[t] : 0.0);
     }
     any_ton = any_ton || run.has_power_on();
@@ -402,7 +411,8 @@ std::string follows(const Model& m, std::span<const RunData> runs) {
     const char* name;
     double r;
   };
-  std::vector<C> cs = {{"temperature (T1)", weighted_corr(rs, t1, w)}, {"temperature rate (d(T1))", weighted_corr(rs, rate, w)}};
+  std::vector<C> cs = {{"temperature (T1)", weighted_corr(rs, t1, w)}, {"temperature rate (d(T1))", weighted_corr(rs, rate, w)},
+                       {"time since the run's start (trun)", weighted_corr(rs, trun, w)}};
   if (any_ton) {
     // Warm-up decays: correlate with exp(-ton/900) as well as ton itself.
     std::vector<double> e(ton.size());
@@ -413,7 +423,7 @@ std::string follows(const Model& m, std::span<const RunData> runs) {
   const C* best = nullptr;
   for (const auto& c : cs)
     if (std::abs(c.r) >= 0.5 && (!best || std::abs(c.r) > std::abs(best->r))) best = &c;
-  if (!best) return "none (no |r| of its 61 s average with T1, d(T1)" + std::string(any_ton ? ", ton" : "") + " reaches 0.5)";
+  if (!best) return "none (no |r| of its 61 s average with T1, d(T1), trun" + std::string(any_ton ? ", ton" : "") + " reaches 0.5)";
   return std::string(best->name) + ", r = " + fmt(best->r, 2);
 }
 
@@ -456,6 +466,31 @@ const Candidate* pick_step(const Diagnosis& d) {
   return pick;
 }
 
+// A drift in time found against the gyro's noise floor (time_drift) is judged by that test,
+// not by the thermal candidates' falls (a ramp of 0.02 deg/h per h over 3 h lowers the
+// compensated std by about 1 %): trun is detected when it lowers the error over the runs (the
+// mean log of after/before over the fit run and the held-out runs, as the greedy step weighs
+// them) and its coefficient is significant.
+void promote_time(Diagnosis& d, const TimeDrift& td, const DiagnoseOptions& o) {
+  if (!td.found) return;
+  bool changed = false;
+  for (auto& c : d.candidates) {
+    if (c.expr != "trun" || !c.evaluated || c.detected) continue;
+    if (!(held_score(c) < 0.0) || !(c.p_value < o.max_p_value)) continue;
+    c.detected = true;
+    c.verdict = "missing: the residual follows the run's own clock beyond the gyro's noise floor (t " + fmt(td.t, 1) +
+                ", the runs' slopes agree) and the term lowers the error over the runs";
+    changed = true;
+  }
+  if (changed)
+    std::stable_sort(d.candidates.begin(), d.candidates.end(), [](const Candidate& x, const Candidate& y) {
+      auto rank = [](const Candidate& c) { return c.detected ? 0 : c.evaluated ? 1 : 2; };
+      if (rank(x) != rank(y)) return rank(x) < rank(y);
+      if (rank(x) < 2) return x.delta_bic < y.delta_bic;
+      return false;
+    });
+}
+
 bool passes(const std::vector<RunCheck>& v) {
   for (const auto& c : v)
     if (!c.reasons.empty()) return false;
@@ -473,6 +508,9 @@ std::expected<void, std::string> DiagnoseOptions::validate() const {
   if (jump_window_s < 60 || jump_window_s > 3600) return std::unexpected("jump_window_s must be 60 to 3600 s");
   if (!(jump_t > 0.0)) return std::unexpected("jump_t must be positive");
   if (max_jumps < 0 || max_jumps > 10) return std::unexpected("max_jumps must be 0 to 10");
+  if (!(time_t > 0.0)) return std::unexpected("time_t must be positive");
+  if (!(periodic_min_s >= 2.0)) return std::unexpected("periodic_min_s must be at least 2 s");
+  if (!(periodic_alpha > 0.0 && periodic_alpha < 0.5)) return std::unexpected("periodic_alpha must be in (0, 0.5)");
   if (auto v = failing.validate(); !v) return std::unexpected("failing: " + v.error());
   return {};
 }
@@ -527,6 +565,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     Model base;
     std::expected<Diagnosis, FitError> d = std::unexpected(FitError{});
     Model cur;
+    TimeDrift td;
   };
   auto search_pass = [&](const Model* jumps_by) {
     Pass ps;
@@ -534,8 +573,9 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     ps.held_copy.assign(held_out.begin(), held_out.end());
     ps.base = *base;
     // The options of step k: the progress it reports carries k.
+    DiagnoseOptions op = ob;  // ob, with trun offered when a trend in time is found (below)
     auto at_step = [&](int k) {
-      DiagnoseOptions os = ob;
+      DiagnoseOptions os = op;
       if (o.progress)
         os.progress = [&o, k](const DiagnoseProgress& p) {
           DiagnoseProgress q = p;
@@ -559,8 +599,24 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       }
       for (auto& h : ps.held_copy) scan_run(h);
     }
+    // A trend in time (with the jumps removed): when the base model's residual follows the
+    // run's own clock beyond the gyro's noise, trun is a candidate beside the thermal terms
+    // (and the floor is the one read with each run's line removed: a trend read as a random
+    // walk would excuse itself).
+    if (o.time_drift) {
+      std::vector<RunData> all{ps.fit_copy};
+      all.insert(all.end(), ps.held_copy.begin(), ps.held_copy.end());
+      ps.td = time_drift(ps.base, all, o);
+      bool has_trun = false;
+      for (const auto& ft : ps.base.terms) has_trun = has_trun || term_key(ft.term) == "trun";
+      if (ps.td.found && !has_trun) {
+        op.extra_terms.push_back("trun@0");
+        if (!o.failing.noise.given) op.failing.noise.given = ps.td.floor;
+      }
+    }
     ps.d = wbi::diagnose_once(m, ps.fit_copy, ps.held_copy, at_step(0), space.gen, &stats);
     if (!ps.d) return ps;
+    promote_time(*ps.d, ps.td, o);
     // Greedy forward selection: add the first detected candidate, search again from there.
     ps.cur = ps.base;
     Diagnosis step = *ps.d;
@@ -584,6 +640,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       if (k + 1 == o.max_terms) break;
       auto next = wbi::diagnose_once(ps.cur, ps.fit_copy, ps.held_copy, at_step(k + 1), space.gen, &stats);
       if (!next) break;
+      promote_time(*next, ps.td, o);
       step = std::move(*next);
     }
     return ps;
@@ -603,6 +660,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     }
   }
   std::vector<BiasJump>& jumps = ps.jumps;
+  bool periodic_explains = false;
   RunData& fit_copy = ps.fit_copy;
   std::vector<RunData>& held_copy = ps.held_copy;
   Model& cur = ps.cur;
@@ -621,6 +679,61 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   const DiagnoseOptions ocur = with_floor(cur, fit_copy, held_copy);
   d->final_checks.push_back(check_run(cur, fit_copy, false, ocur));
   for (const auto& h : held_copy) d->final_checks.push_back(check_run(cur, h, true, ocur));
+  // Drift that is not thermal: the trend in time as the search judged it, and a periodic
+  // disturbance of what the final model leaves on each run.
+  TimeDrift& td = d->time_drift;
+  td = ps.td;
+  if (td.found) {
+    for (const auto& st : d->steps) td.named = td.named || st.expr == "trun";
+    // Named: the slope as fitted jointly with the thermal terms (the base model's residual
+    // alone loses the part of the ramp its terms and mu0 took), its standard error the larger of
+    // the fit's and the floor's.
+    for (const auto& ft : cur.terms)
+      if (td.named && term_key(ft.term) == "trun") {
+        td.slope_dph_per_h = ft.coef;
+        td.se_dph_per_h = std::max(td.se_dph_per_h, ft.se_dph_per_unit);
+        td.t = td.slope_dph_per_h / td.se_dph_per_h;
+        td.message = std::string(wbi::kTimeDriftName) + ": " + (td.slope_dph_per_h > 0 ? "+" : "") + fmt(td.slope_dph_per_h, 4) +
+                     " deg/h per h (1 sigma " + fmt(td.se_dph_per_h, 4) + ", t " + fmt(td.t, 1) + " against the gyro's noise floor; fitted with the model's terms over " +
+                     d->fit_run + ")";
+      }
+    for (const auto& c : d->candidates)
+      if (c.expr == "trun" && !c.collinear_with.empty()) {
+        td.collinear = true;
+        for (const auto& x : c.collinear_with) td.thermal_term += (td.thermal_term.empty() ? "" : ", ") + x;
+      }
+    if (!td.named && !d->steps.empty() && td.thermal_term.empty()) td.thermal_term = d->steps.front().added;
+    if (td.collinear)
+      td.message += "; time and temperature cannot be told apart on these runs (time and T1 correlate at r = " + fmt(td.r_time_t1, 2) +
+                    (td.thermal_term.empty() ? std::string() : ", the search's look-alikes: " + td.thermal_term) +
+                    "): a long hold at constant temperature, or runs with other profiles, separates ageing from a temperature term";
+    else if (!td.named && !td.thermal_term.empty())
+      td.message += "; but the thermal term " + td.thermal_term + " explains it better across the runs: it is taken as thermal";
+  }
+  if (o.periodic) {
+    std::vector<RunData> cleaned;
+    auto scan = [&](const RunData& r) {
+      RunData c = r;
+      if (auto p = find_periodic(cur, r, o)) {
+        for (std::size_t i = 0; i < c.size(); ++i)
+          c.gyro_dph[i] -= p->amplitude_dph * std::sin(2.0 * 3.141592653589793 * static_cast<double>(i) / p->period_s + p->phase_rad);
+        d->periodic.push_back(std::move(*p));
+      }
+      cleaned.push_back(std::move(c));
+    };
+    scan(fit_copy);
+    for (const auto& h : held_copy) scan(h);
+    if (!d->periodic.empty() && !passes(d->final_checks)) {
+      // What remains without the disturbance: when every run then passes, nothing else is missing.
+      std::vector<RunCheck> again;
+      std::span<const RunData> rest(cleaned.begin() + 1, cleaned.end());
+      const DiagnoseOptions oc = with_floor(cur, cleaned.front(), rest);
+      again.push_back(check_run(cur, cleaned.front(), false, oc));
+      for (const auto& h : rest) again.push_back(check_run(cur, h, true, oc));
+      if (passes(again)) d->periodic.front().message += "; without it every run passes the checks: nothing else is missing";
+      periodic_explains = passes(again);
+    }
+  }
   space.j["scanned"] = stats.scanned;
   space.j["refitted"] = stats.refitted;
   d->search_space = space.j;
@@ -636,11 +749,13 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     d->reasons.push_back("missing effect: " + first->effect + " (" + first->added + ")");
   else if (detected)
     d->reasons.push_back("missing effect: " + d->candidates.front().effect + " (" + d->candidates.front().term + ")");
+  if (td.found && (td.named || td.thermal_term.empty())) d->reasons.push_back(td.message);
   for (const auto& j : jumps) d->reasons.push_back(j.message);
+  for (const auto& p : d->periodic) d->reasons.push_back(p.message);
   for (const auto& c : d->checks)
     for (const auto& r : c.reasons) d->reasons.push_back(c.run + ": " + r);
   d->adequate = d->reasons.empty();
-  d->outside_search = !passes(d->final_checks);
+  d->outside_search = !passes(d->final_checks) && !periodic_explains;
   std::vector<RunData> all;
   all.push_back(fit_copy);
   for (const auto& h : held_copy) all.push_back(h);
@@ -658,7 +773,9 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     } else {
       s = detected ? d->summary : "Not adequate.";
     }
+    if (td.found) s += " " + std::string(1, static_cast<char>(std::toupper(static_cast<unsigned char>(td.message[0])))) + td.message.substr(1) + ".";
     for (const auto& j : jumps) s += " " + j.message;
+    for (const auto& p : d->periodic) s += " " + std::string(1, static_cast<char>(std::toupper(static_cast<unsigned char>(p.message[0])))) + p.message.substr(1) + ".";
     if (!d->steps.empty()) {
       s += " The search adds, in order: ";
       for (std::size_t i = 0; i < d->steps.size(); ++i) {

@@ -65,6 +65,14 @@ std::expected<std::vector<double>, std::string> drift_series(const DriftLaw& law
   return d;
 }
 
+double nonthermal_drift(const GyroTruth& g, double t_run_s) {
+  double d = 0.0;
+  if (g.ageing_dph_per_h != 0.0) d += g.ageing_dph_per_h * t_run_s / 3600.0;
+  if (g.periodic_amplitude_dph != 0.0 && g.periodic_period_s > 0.0)
+    d += g.periodic_amplitude_dph * std::sin(2.0 * std::numbers::pi * t_run_s / g.periodic_period_s + g.periodic_phase_rad);
+  return d;
+}
+
 std::expected<World, std::string> World::create(const SimConfig& cfg) {
   if (cfg.units.empty()) return std::unexpected(std::string("the simulation needs at least one unit"));
   World w;
@@ -165,6 +173,7 @@ void World::step(double setpoint_c) {
       drift = d->back();
     }
     if (u.field) drift += u.field_drift;
+    drift += nonthermal_drift(p.gyro, time_s_ - 1.0);
     std::normal_distribution<double> tn(0.0, p.coil.t_noise_c);
     u.last.t1_c = u.t1 + tn(rng_);
     u.last.t2_c = u.t2 + tn(rng_);
@@ -215,7 +224,8 @@ std::expected<std::vector<model::RunData>, std::string> simulate(const SimConfig
     auto exact = drift_series(*law, t1[u], t2[u], air);
     if (!exact) return std::unexpected("unit " + cfg.units[u].serial + ": " + exact.error());
     runs[u].gyro_dph.resize(n);
-    for (std::size_t i = 0; i < n; ++i) runs[u].gyro_dph[i] = (*exact)[i] + noise[u][i];
+    for (std::size_t i = 0; i < n; ++i)
+      runs[u].gyro_dph[i] = (*exact)[i] + noise[u][i] + nonthermal_drift(cfg.units[u].gyro, static_cast<double>(i));
     // A distributed coil's drift comes from its field, stepped with the world.
     if (!field[u].empty())
       for (std::size_t i = 0; i < n; ++i) runs[u].gyro_dph[i] += field[u][i];

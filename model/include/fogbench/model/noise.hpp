@@ -89,6 +89,9 @@ FloorVariance floor_variance(const NoiseFloor& f, std::size_t samples, int smoot
 // estimated beside a line is.
 double floor_slow_variance(const NoiseFloor& f, std::span<const double> c);
 
+// The floor's one-sided power spectral density at f_hz (1 s samples), (deg/h)^2/Hz: S(f) above.
+double floor_psd(const NoiseFloor& f, double f_hz);
+
 // The Allan variance the floor gives at cluster time tau_s, (deg/h)^2.
 double floor_avar(const NoiseFloor& f, double tau_s);
 

@@ -16,7 +16,9 @@
 namespace fogbench::model {
 
 // ton: time since the gyro's last power-on, s (RunData::since_power_on_s, CSV since_power_on_s).
-enum class Signal { T1, T2, Ta, grad, ton };
+// trun: time since the run's start, h (sample index x dt_s / 3600): a drift in time (ageing,
+// outgassing) on a run that has no power-on column.
+enum class Signal { T1, T2, Ta, grad, ton, trun };
 
 // One node of an expression. Immutable once parsed; shared between copies of a model.
 struct Expr {

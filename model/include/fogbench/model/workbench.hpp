@@ -137,6 +137,20 @@ struct DiagnoseOptions {
   double jump_min_sigma = 1.0;
   int jump_window_s = 300;
   int max_jumps = 3;                   // per run
+  // Drift that is not thermal (docs/workbench.md "Drift that is not thermal"):
+  // a trend in time: the base model's residual regressed on the run's own time (trun, h) per
+  // run, its slope's standard error from the gyro's noise floor (white, flicker and random walk,
+  // read off the holds with each run's line removed); pooled over the runs, |t| >= time_t and
+  // the runs' slopes consistent (chi-square p >= 0.001): then trun is a candidate of the search.
+  bool time_drift = true;
+  double time_t = 5.0;
+  // A periodic disturbance: the final residual's periodogram over periods periodic_min_s ..
+  // a third of the run, its highest peak against the noise floor's spectrum (and the local
+  // level of the periodogram, whichever is higher); found when its chance under that noise,
+  // counting every frequency searched, is below periodic_alpha.
+  bool periodic = true;
+  double periodic_min_s = 60.0;
+  double periodic_alpha = 1e-4;
   std::expected<void, std::string> validate() const;
 };
 
@@ -218,6 +232,48 @@ struct BiasJump {
   std::string message;              // "a bias jump of X deg/h at t = Y s: not a thermal effect ..."
 };
 
+// A trend in time (ageing of the source, outgassing), not thermal: the residual's slope in the
+// run's own time (trun, h since the run's first sample).
+struct RunSlope {
+  std::string run;
+  double slope_dph_per_h = 0.0, se_dph_per_h = 0.0;  // of the base model's residual, deg/h per h
+};
+// The evidence a report draws: the residual's 61 s average and the line fitted to it.
+struct DriftSeries {
+  std::string run;
+  std::vector<double> time_s, residual_dph, fitted_dph;  // decimated, deg/h
+};
+struct TimeDrift {
+  bool tested = false;
+  bool found = false;               // significant against the gyro's noise floor, the runs agree
+  bool named = false;               // the search added trun: it beat every thermal term
+  bool collinear = false;           // time and temperature cannot be told apart on these runs
+  double slope_dph_per_h = 0.0, se_dph_per_h = 0.0, t = 0.0;  // pooled over the runs
+  double consistency_p = 1.0;       // chi-square of the runs' slopes about the pooled one
+  double r_time_t1 = 0.0;           // correlation of time and T1 (within runs, pooled)
+  std::string thermal_term;         // the thermal term the search took instead, if any
+  std::vector<RunSlope> runs;
+  std::vector<DriftSeries> series;
+  std::string message;              // one line for people (empty when not found)
+  NoiseFloor floor;                 // the floor the slope was judged against (each run's line removed)
+};
+
+// A periodic disturbance: a line in the residual's spectrum above the gyro's noise.
+struct PeriodicDisturbance {
+  std::string run;
+  double period_s = 0.0, amplitude_dph = 0.0;  // of the sinusoid fitted at the peak
+  double phase_rad = 0.0;           // amplitude * sin(2 pi t / period + phase), t in s from the run's first sample
+  double power_ratio = 0.0;         // the peak's periodogram over the noise expected there
+  double p_value = 1.0;             // its chance under the noise, every frequency searched counted
+  int frequencies = 0;              // searched
+  bool thermal_period = false;      // the temperature program itself swings at this period
+  double rms_before_dph = 0.0, rms_after_dph = 0.0;  // residual std, without the sinusoid after
+  // The evidence: the periodogram and the noise expected, as amplitude spectra (deg/h: the
+  // amplitude a sinusoid at that period would need to give the ordinate), by period.
+  std::vector<double> spectrum_period_s, spectrum_amp_dph, noise_amp_dph;
+  std::string message;
+};
+
 // One step of the greedy forward selection.
 struct SearchStep {
   std::string added;                // the term as fitted, with its lag: what `fit --add` takes
@@ -245,6 +301,8 @@ struct Diagnosis {
   std::vector<std::string> reasons; // why not adequate, one line per failed test
   std::vector<RunCheck> checks;     // the adequacy checks of the model, per run (fit run first)
   std::vector<BiasJump> jumps;      // found on any run (removed from that run only for the search)
+  TimeDrift time_drift;             // a trend in time (tested on the base model's residual)
+  std::vector<PeriodicDisturbance> periodic;  // found on the final residual, per run
   std::string search = "language";  // library | language
   nlohmann::json search_space;      // what the search tried: signals, transforms, taus, counts, limit
   std::vector<SearchStep> steps;    // the greedy selection: terms added, in order
@@ -260,6 +318,11 @@ struct Diagnosis {
 // library; held-out runs score each candidate's refitted model unchanged.
 std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_run, std::span<const RunData> held_out,
                                             const DiagnoseOptions& o = {});
+
+// The non-thermal tests alone (diagnose runs them): a trend in time of m's residual over the
+// runs, and a periodic disturbance of m's residual on one run (empty when none is found).
+TimeDrift time_drift(const Model& m, std::span<const RunData> runs, const DiagnoseOptions& o = {});
+std::optional<PeriodicDisturbance> find_periodic(const Model& m, const RunData& run, const DiagnoseOptions& o = {});
 
 // ---------------------------------------------------------------------------------------
 // add: the model's terms plus one, refitted with the same method and options on a run.
@@ -330,6 +393,8 @@ nlohmann::json to_json(const RunComparison& c, bool with_series = false);
 nlohmann::json to_json(const Candidate& c);
 nlohmann::json to_json(const Diagnosis& d);
 nlohmann::json to_json(const RunCheck& c);
+nlohmann::json to_json(const TimeDrift& t);
+nlohmann::json to_json(const PeriodicDisturbance& p);
 nlohmann::json to_json(const Lineage& l);
 nlohmann::json to_json(const Qualification& q);
 

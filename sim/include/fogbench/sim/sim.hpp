@@ -58,8 +58,19 @@ struct GyroTruth {
   // rate random walk K, deg/h/sqrt(h): Allan deviation K sqrt(tau/3), tau in h.
   double bias_instability_dph = 0.0;
   double rrw_dph_per_sqrt_h = 0.0;
+  // Drift that is not thermal (0 = none; deterministic, no random number drawn, so runs
+  // without them are unchanged): ageing of the source or outgassing, a ramp of
+  // ageing_dph_per_h deg/h per hour of the run (no power-on column is written); a periodic
+  // disturbance amplitude_dph * sin(2 pi t / period_s + phase_rad), t in s from the run's start.
+  double ageing_dph_per_h = 0.0;
+  double periodic_period_s = 0.0;
+  double periodic_amplitude_dph = 0.0;
+  double periodic_phase_rad = 0.0;
   double tref_c = 20.0;                                    // temperatures enter the terms as T - tref
 };
+
+// The ageing ramp and the periodic disturbance of a gyro at t_run_s s from the run's start, deg/h.
+double nonthermal_drift(const GyroTruth& g, double t_run_s);
 
 struct UnitParams {
   std::string serial = "SIM-0001";

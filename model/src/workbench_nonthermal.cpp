@@ -1,0 +1,466 @@
+// Drift that is not thermal (issue 25): a trend in the run's own time (ageing of the source,
+// outgassing) and a periodic disturbance (a line in the residual's spectrum), each tested
+// against the gyro's own noise floor (noise.hpp), not against white noise. Pure.
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <numbers>
+#include <numeric>
+
+#include "fogbench/model/workbench.hpp"
+#include "common.hpp"
+#include "workbench_internal.hpp"
+
+namespace fogbench::model::workbench {
+namespace {
+
+using wbi::fmt;
+constexpr double kPi = std::numbers::pi;
+
+// Upper tail of the chi-square law with k degrees of freedom (Wilson-Hilferty), enough for a
+// consistency check.
+double chi2_upper(double x, int k) {
+  if (k <= 0) return 1.0;
+  const double kk = static_cast<double>(k);
+  const double z = (std::cbrt(x / kk) - (1.0 - 2.0 / (9.0 * kk))) / std::sqrt(2.0 / (9.0 * kk));
+  return 0.5 * std::erfc(z / std::sqrt(2.0));
+}
+
+// The variance the floor gives a linear statistic sum c_i x_i of 1 s samples, (deg/h)^2:
+// the fast part (white, or the model's AR noise) plus the slow (flicker, random walk) as the
+// integral of S(f) |C(f)|^2, C computed on blocks (the slow part lives where a block is short).
+double statistic_variance(const NoiseFloor& f, std::span<const double> c) {
+  double c2 = 0.0, csum = 0.0;
+  for (double v : c) {
+    c2 += v * v;
+    csum += v;
+  }
+  double k_sum = 0.0;
+  for (double k : f.ar) k_sum += k;
+  const double fast_var = f.white_var_dph2 > 0.0 ? f.white_var_dph2
+                                                 : f.sigma_a_dph * f.sigma_a_dph / std::max(0.01, (1.0 - k_sum) * (1.0 - k_sum));
+  double var = fast_var * c2;
+  if (!f.slow()) return var;
+  const std::size_t n = c.size();
+  const std::size_t b = std::max<std::size_t>(1, n / 1000);
+  std::vector<double> cb, tb;
+  for (std::size_t i = 0; i < n; i += b) {
+    double s = 0.0;
+    const std::size_t e = std::min(n, i + b);
+    for (std::size_t j = i; j < e; ++j) s += c[j];
+    cb.push_back(s);
+    tb.push_back(0.5 * static_cast<double>(i + e - 1));
+  }
+  constexpr int points = 400;
+  const double lo = std::log(1e-7), hi = std::log(0.5 / static_cast<double>(b)), step = (hi - lo) / (points - 1);
+  double sum = 0.0, prev = 0.0;
+  for (int k = 0; k < points; ++k) {
+    const double fk = std::exp(lo + step * k);
+    std::complex<double> cf{0.0, 0.0};
+    for (std::size_t i = 0; i < cb.size(); ++i) cf += cb[i] * std::polar(1.0, -2.0 * kPi * fk * tb[i]);
+    const double g = (f.flicker_h / fk + f.walk_h / (fk * fk)) * std::norm(cf) * fk;
+    if (k > 0) sum += 0.5 * (g + prev) * step;
+    prev = g;
+  }
+  (void)csum;
+  return var + sum;
+}
+
+// A weighted line a + b t fitted to y: b, and the weights c with b = sum c_i y_i.
+struct Line {
+  double a = 0.0, b = 0.0;
+  std::vector<double> c;
+  bool ok = false;
+};
+Line fit_line(std::span<const double> t, std::span<const double> y, std::span<const double> w) {
+  Line l;
+  double sw = 0.0, st = 0.0;
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    sw += w[i];
+    st += w[i] * t[i];
+  }
+  if (!(sw > 2.0)) return l;
+  const double tm = st / sw;
+  double sxx = 0.0, sxy = 0.0, sy = 0.0;
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    sxx += w[i] * (t[i] - tm) * (t[i] - tm);
+    sxy += w[i] * (t[i] - tm) * y[i];
+    sy += w[i] * y[i];
+  }
+  if (!(sxx > 0.0)) return l;
+  l.b = sxy / sxx;
+  l.a = sy / sw - l.b * tm;
+  l.c.resize(t.size());
+  for (std::size_t i = 0; i < t.size(); ++i) l.c[i] = w[i] * (t[i] - tm) / sxx;
+  l.ok = true;
+  return l;
+}
+
+// The least-squares sinusoid at f (Hz) beside a constant and a line, on blocks x (weights w)
+// at times t (s): amplitude, phase (x ~ A sin(2 pi f t + phase)).
+struct Sine {
+  double amp = 0.0, phase = 0.0, s = 0.0, c = 0.0;
+};
+Sine fit_sine(std::span<const double> t, std::span<const double> x, std::span<const double> w, double f) {
+  // Normal equations of [1, t, sin, cos] (4x4), solved by Gaussian elimination.
+  double A[4][5] = {};
+  const double tm = t.empty() ? 0.0 : 0.5 * (t.front() + t.back()), ts = t.empty() ? 1.0 : std::max(1.0, t.back() - t.front());
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    if (w[i] == 0.0) continue;
+    const double ph = 2.0 * kPi * f * t[i];
+    const double v[4] = {1.0, (t[i] - tm) / ts, std::sin(ph), std::cos(ph)};
+    for (int r = 0; r < 4; ++r) {
+      for (int q = 0; q < 4; ++q) A[r][q] += w[i] * v[r] * v[q];
+      A[r][4] += w[i] * v[r] * x[i];
+    }
+  }
+  for (int col = 0; col < 4; ++col) {
+    int piv = col;
+    for (int r = col + 1; r < 4; ++r)
+      if (std::abs(A[r][col]) > std::abs(A[piv][col])) piv = r;
+    if (!(std::abs(A[piv][col]) > 1e-12)) return {};
+    if (piv != col)
+      for (int q = 0; q < 5; ++q) std::swap(A[col][q], A[piv][q]);
+    for (int r = 0; r < 4; ++r) {
+      if (r == col) continue;
+      const double m = A[r][col] / A[col][col];
+      for (int q = col; q < 5; ++q) A[r][q] -= m * A[col][q];
+    }
+  }
+  Sine s;
+  s.s = A[2][4] / A[2][2];
+  s.c = A[3][4] / A[3][3];
+  s.amp = std::hypot(s.s, s.c);
+  s.phase = std::atan2(s.c, s.s);
+  return s;
+}
+
+// A run of the same clock as `run` held throughout: the noise floor is then read over the whole
+// run's residual (taus up to a third of the run), not only over the settled holds, whose short
+// stretches leave the slow noise over hours poorly known. What a model misses there lifts the
+// floor: the tests below then ask for more, never less.
+RunData held_throughout(const RunData& run) {
+  RunData c;
+  c.name = run.name;
+  c.time_s = run.time_s;
+  c.gyro_dph = run.gyro_dph;
+  c.t1_c = run.t1_c;
+  c.t2_c = run.t2_c;
+  c.phase.assign(run.size(), Phase::hold);
+  return c;
+}
+
+std::vector<double> decimate(std::span<const double> x, std::size_t max_points, std::vector<std::size_t>& idx) {
+  idx.clear();
+  const std::size_t n = x.size();
+  const std::size_t step = std::max<std::size_t>(1, (n + max_points - 1) / std::max<std::size_t>(1, max_points));
+  std::vector<double> out;
+  for (std::size_t i = 0; i < n; i += step) {
+    idx.push_back(i);
+    out.push_back(x[i]);
+  }
+  return out;
+}
+
+}  // namespace
+
+TimeDrift time_drift(const Model& m, std::span<const RunData> runs, const DiagnoseOptions& o) {
+  TimeDrift td;
+  td.tested = true;
+  // Each run's residual and the line in its own time (h); the floor read off the holds of the
+  // residual with that line removed, so that a true trend is not read as a random walk.
+  struct Per {
+    const RunData* run;
+    wbi::Residual res;
+    std::vector<double> th, detrended;
+    Line line;
+  };
+  std::vector<Per> per;
+  if (runs.empty()) {
+    td.tested = false;
+    return td;
+  }
+  // The model's terms refitted with trun on the first run (the fit run): the thermal terms
+  // then take no part of a ramp (the base model alone bends its terms and its lag towards
+  // one). Each run's residual with the time term put back is what the slope is read on.
+  Model mt = m;
+  double bt = 0.0;
+  bool has_trun = false;
+  for (const auto& ft : m.terms) has_trun = has_trun || term_key(ft.term) == "trun";
+  if (!has_trun)
+    if (auto a = add_term(m, runs.front(), "trun@0")) {
+      mt = a->model;
+      for (const auto& ft : mt.terms)
+        if (term_key(ft.term) == "trun") bt = ft.coef;
+    }
+  for (const auto& run : runs) {
+    auto res = wbi::residual_of(mt, run);
+    if (!res) continue;
+    Per p{&run, std::move(*res), {}, {}, {}};
+    const std::size_t n = run.size();
+    p.th.resize(n);
+    for (std::size_t i = 0; i < n; ++i) p.th[i] = static_cast<double>(i) / 3600.0;
+    for (std::size_t i = 0; i < n; ++i)
+      if (p.res.w[i] != 0.0) p.res.r[i] += bt * p.th[i];
+    p.line = fit_line(p.th, p.res.r, p.res.w);
+    if (!p.line.ok) continue;
+    p.detrended.resize(n);
+    for (std::size_t i = 0; i < n; ++i) p.detrended[i] = p.res.w[i] != 0.0 ? p.res.r[i] - p.line.a - p.line.b * p.th[i] : 0.0;
+    per.push_back(std::move(p));
+  }
+  if (per.empty()) {
+    td.tested = false;
+    return td;
+  }
+  NoiseFloor floor;
+  if (o.failing.noise.given) {
+    floor = *o.failing.noise.given;
+  } else {
+    std::vector<RunData> held;
+    held.reserve(per.size());
+    for (const auto& p : per) held.push_back(held_throughout(*p.run));
+    std::vector<FloorRun> fr;
+    for (std::size_t i = 0; i < per.size(); ++i) fr.push_back({&held[i], per[i].detrended, per[i].res.w});
+    floor = estimate_noise_floor(fr, mt.ar, mt.sigma_a_dph, o.failing.noise.floor);
+  }
+  td.floor = floor;
+  double sw = 0.0, swb = 0.0;
+  for (auto& p : per) {
+    const double var = statistic_variance(floor, p.line.c);
+    const double se = std::sqrt(std::max(var, 1e-30));
+    td.runs.push_back({p.run->name, p.line.b, se});
+    sw += 1.0 / (se * se);
+    swb += p.line.b / (se * se);
+  }
+  td.slope_dph_per_h = swb / sw;
+  td.se_dph_per_h = 1.0 / std::sqrt(sw);
+  td.t = td.slope_dph_per_h / td.se_dph_per_h;
+  double chi2 = 0.0;
+  for (const auto& r : td.runs) chi2 += std::pow((r.slope_dph_per_h - td.slope_dph_per_h) / r.se_dph_per_h, 2);
+  td.consistency_p = td.runs.size() > 1 ? chi2_upper(chi2, static_cast<int>(td.runs.size()) - 1) : 1.0;
+  td.found = std::abs(td.t) >= o.time_t && td.consistency_p >= 1e-3;
+  // Time against temperature within each run, pooled: a run whose T1 only rises (or falls)
+  // cannot tell ageing from a temperature term.
+  {
+    std::vector<double> tt, t1, w;
+    for (const auto& p : per) {
+      const double mean_t = std::accumulate(p.th.begin(), p.th.end(), 0.0) / static_cast<double>(p.th.size());
+      const double m1 = std::accumulate(p.run->t1_c.begin(), p.run->t1_c.end(), 0.0) / static_cast<double>(p.th.size());
+      for (std::size_t i = 0; i < p.th.size(); ++i) {
+        tt.push_back(p.th[i] - mean_t);
+        t1.push_back(std::isfinite(p.run->t1_c[i]) ? p.run->t1_c[i] - m1 : 0.0);
+        w.push_back(std::isfinite(p.run->t1_c[i]) ? 1.0 : 0.0);
+      }
+    }
+    td.r_time_t1 = wbi::weighted_corr(tt, t1, w);
+    td.collinear = std::abs(td.r_time_t1) >= o.collinear_r;
+  }
+  // The evidence: each run's residual (61 s average) and its line, decimated.
+  for (const auto& p : per) {
+    DriftSeries s;
+    s.run = p.run->name;
+    const std::vector<double> sm = model::moving_average(p.res.r, p.res.w, 61);
+    std::vector<std::size_t> idx;
+    decimate(sm, 600, idx);
+    for (std::size_t i : idx) {
+      s.time_s.push_back(p.run->time_s.size() == sm.size() ? p.run->time_s[i] : static_cast<double>(i));
+      s.residual_dph.push_back(p.res.w[i] != 0.0 ? sm[i] : kNaN);
+      s.fitted_dph.push_back(p.line.a + p.line.b * p.th[i]);
+    }
+    td.series.push_back(std::move(s));
+  }
+  if (td.found)
+    td.message = "a drift in time (ageing/outgassing), not thermal: " + std::string(td.slope_dph_per_h > 0 ? "+" : "") +
+                 fmt(td.slope_dph_per_h, 4) + " deg/h per h (1 sigma " + fmt(td.se_dph_per_h, 4) + ", t " + fmt(td.t, 1) + " against the gyro's noise floor, over " +
+                 std::to_string(td.runs.size()) + " run" + (td.runs.size() > 1 ? "s" : "") + ")";
+  return td;
+}
+
+std::optional<PeriodicDisturbance> find_periodic(const Model& m, const RunData& run, const DiagnoseOptions& o) {
+  auto res = wbi::residual_of(m, run);
+  if (!res) return std::nullopt;
+  const std::size_t n = run.size();
+  const double p_max = static_cast<double>(n) / 3.0;  // at least three cycles in the run
+  if (p_max < 2.0 * o.periodic_min_s) return std::nullopt;
+  // Blocks of b s (at most 16384 of them): the periods searched are long beside a block.
+  const std::size_t b = std::max<std::size_t>(1, (n + 16383) / 16384);
+  std::vector<double> tb, xb, wb;
+  for (std::size_t i = 0; i < n; i += b) {
+    double s = 0.0, w = 0.0;
+    const std::size_t e = std::min(n, i + b);
+    for (std::size_t j = i; j < e; ++j) {
+      s += res->w[j] * res->r[j];
+      w += res->w[j];
+    }
+    tb.push_back(0.5 * static_cast<double>(i + e - 1));
+    xb.push_back(w > 0.0 ? s / w : 0.0);
+    wb.push_back(w > 0.0 ? 1.0 : 0.0);
+  }
+  const Line line = fit_line(tb, xb, wb);
+  if (!line.ok) return std::nullopt;
+  for (std::size_t i = 0; i < xb.size(); ++i) xb[i] = wb[i] != 0.0 ? xb[i] - line.a - line.b * tb[i] : 0.0;
+  const double m_used = std::accumulate(wb.begin(), wb.end(), 0.0);
+  const double bd = static_cast<double>(b);
+  const double span_s = static_cast<double>(xb.size()) * bd;
+  const double min_p = std::max(o.periodic_min_s, 4.0 * bd);
+  const int k_lo = std::max(3, static_cast<int>(std::ceil(span_s / p_max)));
+  const int k_hi = static_cast<int>(std::floor(span_s / min_p));
+  if (k_hi < k_lo + 4) return std::nullopt;
+  // The noise floor read on this run's residual (or the one given).
+  const RunData held = held_throughout(run);
+  auto read_floor = [&](std::span<const double> r) {
+    if (o.failing.noise.given) return *o.failing.noise.given;
+    // Over the whole run, its line removed (a trend read as a random walk would excuse a line).
+    std::vector<double> x(r.begin(), r.end());
+    std::vector<double> ti(n);
+    for (std::size_t i = 0; i < n; ++i) ti[i] = static_cast<double>(i);
+    const Line l = fit_line(ti, x, res->w);
+    if (l.ok)
+      for (std::size_t i = 0; i < n; ++i)
+        if (res->w[i] != 0.0) x[i] -= l.a + l.b * ti[i];
+    return estimate_noise_floor(held, x, res->w, m.ar, m.sigma_a_dph, o.failing.noise.floor);
+  };
+  // |X(f)|^2 of the blocks, and what the noise gives there: M S(f) / (2 b) for M blocks.
+  auto power = [&](double f) {
+    std::complex<double> x{0.0, 0.0};
+    for (std::size_t i = 0; i < xb.size(); ++i)
+      if (wb[i] != 0.0) x += xb[i] * std::polar(1.0, -2.0 * kPi * f * tb[i]);
+    return std::norm(x);
+  };
+  const NoiseFloor floor0 = read_floor(res->r);
+  auto expected = [&](const NoiseFloor& fl, double f) { return m_used * floor_psd(fl, f) / (2.0 * bd); };
+  std::vector<double> fk, pk;
+  for (int k = k_lo; k <= k_hi; ++k) {
+    const double f = static_cast<double>(k) / span_s;
+    fk.push_back(f);
+    pk.push_back(power(f));
+  }
+  std::size_t best = 0;
+  double best_z = 0.0;
+  for (std::size_t i = 0; i < fk.size(); ++i) {
+    const double z = pk[i] / expected(floor0, fk[i]);
+    if (z > best_z) {
+      best_z = z;
+      best = i;
+    }
+  }
+  // The peak refined between its neighbours (the grid's half-bin costs up to a third of the
+  // amplitude), by the least-squares sinusoid's amplitude.
+  double f_hat = fk[best];
+  Sine sine = fit_sine(tb, xb, wb, f_hat);
+  {
+    const double df = 1.0 / span_s;
+    for (int s = -20; s <= 20; ++s) {
+      const double f = fk[best] + df * s / 20.0;
+      if (f <= 0.0) continue;
+      const Sine x = fit_sine(tb, xb, wb, f);
+      if (x.amp > sine.amp) {
+        sine = x;
+        f_hat = f;
+      }
+    }
+  }
+  // The floor again with the sinusoid removed: a line read as flicker or random walk on the
+  // holds would otherwise excuse itself.
+  std::vector<double> clean(n, 0.0);
+  for (std::size_t i = 0; i < n; ++i)
+    if (res->w[i] != 0.0) clean[i] = res->r[i] - sine.amp * std::sin(2.0 * kPi * f_hat * static_cast<double>(i) + sine.phase);
+  const NoiseFloor floor1 = read_floor(clean);
+  // The noise at the peak: the floor's, or the periodogram's own level around it (its median
+  // over an octave each side, the peak's bins left out: an exponential ordinate's median is
+  // ln 2 of its mean) when that is higher (slow noise the holds did not show).
+  double noise = expected(floor1, f_hat);
+  {
+    std::vector<double> around;
+    for (std::size_t i = 0; i < fk.size(); ++i)
+      if (fk[i] >= 0.5 * f_hat && fk[i] <= 2.0 * f_hat && std::abs(fk[i] - f_hat) * span_s > 2.5) around.push_back(pk[i] / expected(floor1, fk[i]));
+    if (around.size() >= 6) {
+      std::nth_element(around.begin(), around.begin() + static_cast<std::ptrdiff_t>(around.size() / 2), around.end());
+      noise *= std::max(1.0, around[around.size() / 2] / std::log(2.0));
+    }
+  }
+  const double p_peak = power(f_hat);
+  PeriodicDisturbance pd;
+  pd.run = run.name;
+  pd.period_s = 1.0 / f_hat;
+  pd.amplitude_dph = sine.amp;
+  pd.phase_rad = sine.phase;
+  pd.power_ratio = p_peak / noise;
+  pd.frequencies = static_cast<int>(fk.size());
+  // Every grid frequency searched (and twice as many for the refinement between them).
+  const double p1 = std::exp(-pd.power_ratio);
+  pd.p_value = std::min(1.0, -std::expm1(2.0 * static_cast<double>(fk.size()) * std::log1p(-std::min(p1, 0.999999))));
+  if (!(pd.p_value < o.periodic_alpha)) return std::nullopt;
+  // Residual std with and without the sinusoid.
+  {
+    double s0 = 0.0, s1 = 0.0, q0 = 0.0, q1 = 0.0, w = 0.0;
+    for (std::size_t i = 0; i < n; ++i)
+      if (res->w[i] != 0.0) {
+        s0 += res->r[i];
+        q0 += res->r[i] * res->r[i];
+        s1 += clean[i];
+        q1 += clean[i] * clean[i];
+        w += 1.0;
+      }
+    pd.rms_before_dph = std::sqrt(std::max(0.0, q0 / w - (s0 / w) * (s0 / w)));
+    pd.rms_after_dph = std::sqrt(std::max(0.0, q1 / w - (s1 / w) * (s1 / w)));
+  }
+  // The temperature program swinging at this period: T1's amplitude there beside its spread
+  // (a missing thermal term then repeats with the profile's cycles).
+  {
+    std::vector<double> t1b(xb.size(), 0.0);
+    for (std::size_t i = 0, k = 0; i < n; i += b, ++k) {
+      double s = 0.0, w = 0.0;
+      for (std::size_t j = i; j < std::min(n, i + b); ++j)
+        if (std::isfinite(run.t1_c[j])) {
+          s += run.t1_c[j];
+          w += 1.0;
+        }
+      t1b[k] = w > 0.0 ? s / w : 0.0;
+    }
+    const Line lt = fit_line(tb, t1b, wb);
+    for (std::size_t i = 0; i < t1b.size(); ++i) t1b[i] = wb[i] != 0.0 ? t1b[i] - lt.a - lt.b * tb[i] : 0.0;
+    // A line of T1's own periodogram at the peak: its power there over its level around
+    // (the median over an octave each side, the peak's bins left out, over ln 2) beyond 10.
+    // A profile of repeated cycles has lines at its period and harmonics; ramps and holds
+    // give a smooth spectrum.
+    double at_peak = 0.0;
+    std::vector<double> around;
+    for (std::size_t i = 0; i < fk.size(); ++i) {
+      const double dk = std::abs(fk[i] - f_hat) * span_s;
+      if (dk > 2.5 && (fk[i] < 0.5 * f_hat || fk[i] > 2.0 * f_hat)) continue;
+      std::complex<double> x{0.0, 0.0};
+      for (std::size_t j = 0; j < t1b.size(); ++j)
+        if (wb[j] != 0.0) x += t1b[j] * std::polar(1.0, -2.0 * kPi * fk[i] * tb[j]);
+      const double p = std::norm(x);
+      if (dk <= 1.0) at_peak = std::max(at_peak, p);
+      else if (dk > 2.5) around.push_back(p);
+    }
+    double level = 0.0;
+    if (around.size() >= 4) {
+      std::nth_element(around.begin(), around.begin() + static_cast<std::ptrdiff_t>(around.size() / 2), around.end());
+      level = around[around.size() / 2] / std::log(2.0);
+    }
+    pd.thermal_period = level > 0.0 && at_peak > 10.0 * level;
+  }
+  // At a period the temperature program itself swings with, a line of the residual is what a
+  // missing thermal term gives: the search's business, not a disturbance.
+  if (pd.thermal_period) return std::nullopt;
+  // The evidence: amplitude spectra by period (a sinusoid of amplitude a gives |X| = a M / 2).
+  for (std::size_t i = 0; i < fk.size(); ++i) {
+    pd.spectrum_period_s.push_back(1.0 / fk[i]);
+    pd.spectrum_amp_dph.push_back(2.0 * std::sqrt(pk[i]) / m_used);
+    pd.noise_amp_dph.push_back(2.0 * std::sqrt(expected(floor1, fk[i])) / m_used);
+  }
+  pd.message = "a periodic disturbance on " + run.name + ": period " + fmt(pd.period_s, 0) + " s, amplitude " + fmt(pd.amplitude_dph, 3) +
+               " deg/h (its spectral peak " + fmt(pd.power_ratio, 0) + " x the gyro's noise there, p " +
+               (pd.p_value < 1e-6 ? std::string("< 1e-6") : fmt(pd.p_value, 6)) + " over " + std::to_string(pd.frequencies) +
+               " periods searched); removing it takes the residual std from " + fmt(pd.rms_before_dph, 3) + " to " + fmt(pd.rms_after_dph, 3) + " deg/h";
+  pd.message += pd.thermal_period
+                    ? ". The temperature program also swings at this period: it may be a thermal term the model lacks, not a disturbance"
+                    : ": not thermal (the temperature program does not swing at this period); look for a source with this period on the "
+                      "bench (the chamber's compressor or defrost cycle, the air conditioning, a pump, a neighbouring machine)";
+  return pd;
+}
+
+}  // namespace fogbench::model::workbench
