@@ -113,23 +113,24 @@ TEST_CASE("station key: loose permissions, another owner, not a key, a folder: r
 TEST_CASE("station key: the configuration puts it beside the store unless signing.key_path says where") {
   json j = daemon::test::golden_config_json();
   j["storage"]["path"] = "/var/lib/fogbench/runs.sqlite";
-  auto c = daemon::parse_daemon_config(j, "/etc/fogbench");
+  auto c = daemon::parse_daemon_config(j, daemon::test::golden_dir());
+  INFO((c ? std::string() : c.error()));
   REQUIRE(c.has_value());
   CHECK(c->signing_key_path == fs::path("/var/lib/fogbench/station.key"));
   j["signing"] = {{"key_path", "keys/line2.key"}};
-  auto c2 = daemon::parse_daemon_config(j, "/etc/fogbench");
+  auto c2 = daemon::parse_daemon_config(j, daemon::test::golden_dir());
   REQUIRE(c2.has_value());
-  CHECK(c2->signing_key_path == fs::path("/etc/fogbench/keys/line2.key"));
+  CHECK(c2->signing_key_path == daemon::test::golden_dir() / "keys/line2.key");
   j["signing"] = {{"key_path", "station.pub"}};
-  auto c3 = daemon::parse_daemon_config(j, "/etc/fogbench");
+  auto c3 = daemon::parse_daemon_config(j, daemon::test::golden_dir());
   REQUIRE_FALSE(c3.has_value());
   CHECK(mentions(c3.error(), "signing.key_path"));
   j["signing"] = {{"path", "x.key"}};
-  REQUIRE_FALSE(daemon::parse_daemon_config(j, "/etc/fogbench").has_value());
+  REQUIRE_FALSE(daemon::parse_daemon_config(j, daemon::test::golden_dir()).has_value());
   // A store in memory: no key file (a key for the process alone).
   j.erase("signing");
   j["storage"]["path"] = ":memory:";
-  auto c4 = daemon::parse_daemon_config(j, "/etc/fogbench");
+  auto c4 = daemon::parse_daemon_config(j, daemon::test::golden_dir());
   REQUIRE(c4.has_value());
   CHECK(c4->signing_key_path.empty());
 }
