@@ -1,16 +1,17 @@
-// fogctl cert: see cert.hpp. The canonical form and its hash are the daemon's
-// (daemon/include/fogbench/daemon/certificate.hpp): nlohmann's dump() of the object without
-// `sha256`, SHA-256 in hex.
+// fogctl cert: see cert.hpp. The canonical form, its hash and the signature are
+// fogbench::signing's (signing/include/fogbench/signing/certificate.hpp), shared with the daemon.
 #include "cert.hpp"
 
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <sstream>
 
 #include "common.hpp"
-#include "fogbench/model/sha256.hpp"
+#include "fogbench/signing/certificate.hpp"
+#include "fogbench/signing/signing.hpp"
 #include "table.hpp"
 #include "html.hpp"
 
@@ -21,6 +22,10 @@ using nlohmann::json;
 namespace {
 
 constexpr const char* kScriptOpen = "<script type=\"application/json\" id=\"fogbench-certificate\">";
+// The page's layout version: --check compares a page's visible part only with a rendering of
+// the same version (bumped whenever certificate_html changes what it draws).
+constexpr const char* kRenderer = "fogbench-certificate-page 2";
+constexpr const char* kRendererMeta = "<meta name=\"generator\" content=\"";
 
 std::string text_of(const json& v, int digits = 4) {
   if (v.is_null()) return "-";
@@ -45,12 +50,6 @@ std::string cert_limit_text(const json& check) {
       field_text(check, "rule").find("limits not recorded") != std::string::npos)
     return "limits not recorded";
   return check.contains("limit") ? text_of(check["limit"]) : "-";
-}
-
-std::string hash_of(const json& cert) {
-  json body = cert;
-  body.erase("sha256");
-  return model::sha256_hex(body.dump());
 }
 
 // A4 is 210 x 297 mm, Letter 216 x 279 mm: 20 mm side margins leave 170 mm on A4, 176 on
@@ -91,6 +90,11 @@ int print_summary(const json& cert, std::ostream& out) {
       << field_text(m, "version") << " (" << field_text(m, "method") << "): " << field_text(m, "terms") << "\n  issued " << field_text(cert, "issued_at")
       << " by station " << field_text(cert, "station_id") << ", fogbench " << field_text(cert["software"], "version") << " ("
       << field_text(cert["software"], "git_hash") << ")\n  sha256 " << field_text(cert, "sha256") << "\n";
+  if (cert.contains("signed_by") && cert["signed_by"].is_object())
+    out << "  signed (ed25519) by station " << field_text(cert["signed_by"], "station_id") << ", key "
+        << field_text(cert["signed_by"], "key_id") << "\n";
+  else
+    out << "  UNSIGNED (issued before fogbench signed certificates)\n";
   Table c({"term", "value", "1 sigma", "unit"});
   for (const auto& t : m["coefficients"]) c.add({field_text(t, "term"), text_of(t["value"], 6), text_of(t["sigma"], 3), field_text(t, "unit")});
   out << c.str();
@@ -140,12 +144,18 @@ std::string certificate_html(const json& cert) {
                     id.is_object() ? field_text(id, "software_version") + " " + field_text(id, "git_hash").substr(0, 12) : "-"});
   }
   b += table({"run", "role", "profile", "ended", "station", "operator", "software"}, rows);
-  b += "<h2>Integrity</h2><p class=\"hash\">SHA-256 " + html_escape(field_text(cert, "sha256")) +
-       "</p><p class=\"sub\">Check with <code>fogctl cert --check FILE</code>: the hash of the canonical JSON embedded in this page.</p>";
+  b += "<h2>Integrity</h2><p class=\"hash\">SHA-256 " + html_escape(field_text(cert, "sha256")) + "</p>";
+  if (cert.contains("signed_by") && cert["signed_by"].is_object())
+    b += "<p class=\"hash\">Signed (Ed25519) by station " + html_escape(field_text(cert["signed_by"], "station_id")) + " with key " +
+         html_escape(field_text(cert["signed_by"], "key_id")) + "</p><p class=\"sub\">Check with <code>fogctl cert --check FILE --key station.pub</code>" +
+         " (the station's public key): the signature of the certificate embedded in this page, and this page's tables against it.</p>";
+  else
+    b += "<p class=\"sub\">Not signed: issued before fogbench signed certificates; nothing in this page proves who issued it.</p>";
   // "</" inside a script would end it: JSON's "\/" keeps it out and parses back to "/".
   std::string j = cert.dump(), safe;
   for (std::size_t i = 0; i < j.size(); ++i) safe += (j[i] == '/' && i > 0 && j[i - 1] == '<') ? std::string("\\/") : std::string(1, j[i]);
-  return "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>Certificate " + html_escape(field_text(cert, "serial")) +
+  return "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">" + std::string(kRendererMeta) + kRenderer +
+         "\"><title>Certificate " + html_escape(field_text(cert, "serial")) +
          "</title><style>" + kStyle + "</style></head><body>" + b + kScriptOpen + safe + "</script></body></html>\n";
 }
 
@@ -166,40 +176,162 @@ std::expected<json, std::string> certificate_from_text(const std::string& text) 
   return j;
 }
 
+namespace {
+// The page without its embedded JSON: what a reader sees (and the markup that draws it).
+std::string visible_part(const std::string& html) {
+  const auto at = html.find(kScriptOpen);
+  if (at == std::string::npos) return html;
+  const auto end = html.find("</script>", at);
+  return html.substr(0, at) + (end == std::string::npos ? std::string() : html.substr(end));
+}
+std::string excerpt(const std::string& s, std::size_t at) {
+  const std::size_t from = at > 30 ? at - 30 : 0;
+  std::string e = s.substr(from, 70);
+  for (char& ch : e)
+    if (static_cast<unsigned char>(ch) < 0x20) ch = ' ';
+  return "'" + e + "'";
+}
+}  // namespace
+
+std::expected<std::string, std::string> visible_difference(const std::string& html, const json& cert) {
+  std::string version;
+  if (const auto at = html.find(kRendererMeta); at != std::string::npos) {
+    const auto from = at + std::string(kRendererMeta).size();
+    version = html.substr(from, html.find('"', from) - from);
+  }
+  if (version != kRenderer)
+    return std::unexpected("the page was drawn by " + (version.empty() ? std::string("an older fogctl") : "'" + version + "'") +
+                           ", this fogctl draws '" + kRenderer + "': its visible tables cannot be compared (the embedded JSON can)");
+  const std::string seen = visible_part(html), signed_page = visible_part(certificate_html(cert));
+  if (seen == signed_page) return std::string();
+  std::size_t i = 0;
+  while (i < seen.size() && i < signed_page.size() && seen[i] == signed_page[i]) ++i;
+  return "at byte " + std::to_string(i) + " the page shows " + excerpt(seen, i) + " where its signed content draws " +
+         excerpt(signed_page, i);
+}
+
+namespace {
+
+// --check FILE: the signature (offline, with --key; or with the daemon's key when one answers),
+// the HTML's visible part, and whether the daemon's store issued it when one answers.
+int check_file(const CertOptions& o, std::ostream& out, std::ostream& err) {
+  const std::string me = "fogctl cert: ";
+  std::ifstream f(o.check, std::ios::binary);
+  if (!f) {
+    err << me << o.check << ": cannot open\n";
+    return kExitError;
+  }
+  std::ostringstream ss;
+  ss << f.rdbuf();
+  const std::string text = ss.str();
+  auto cert = certificate_from_text(text);
+  if (!cert) {
+    err << me << o.check << ": " << cert.error() << "\n";
+    return kExitError;
+  }
+  std::vector<signing::PublicKey> keys;
+  std::string key_source;
+  for (const auto& k : o.keys) {
+    auto some = signing::load_public_keys(k);
+    if (!some) {
+      err << me << "--key " << some.error() << "\n";
+      return kExitError;
+    }
+    keys.insert(keys.end(), some->begin(), some->end());
+    key_source += (key_source.empty() ? "" : ", ") + k;
+  }
+  std::vector<signing::Revocation> revoked;
+  if (!o.revoked.empty()) {
+    auto r = signing::load_revocations(o.revoked);
+    if (!r) {
+      err << me << "--revoked " << r.error() << "\n";
+      return kExitError;
+    }
+    revoked = std::move(*r);
+  }
+  // No key given: the station's own, when its daemon answers (never needed: --key works offline).
+  std::optional<Client> daemon;
+  if (auto c = commands::open(o.daemon)) daemon.emplace(std::move(*c));
+  if (keys.empty() && daemon) {
+    if (auto r = daemon->call("cert.public_key", json::object()); r && (*r)["public_key_pem"].is_string()) {
+      if (auto k = signing::PublicKey::from_pem((*r)["public_key_pem"].get<std::string>())) {
+        keys.push_back(std::move(*k));
+        key_source = "the daemon's station key";
+      }
+    }
+  }
+  const auto sig = signing::check_certificate(*cert, keys, revoked);
+  const std::string claimed = cert->value("sha256", ""), actual = signing::content_sha256(*cert);
+  json result = {{"file", o.check}, {"status", sig.status}, {"message", sig.message}, {"key_id", sig.key_id.empty() ? json(nullptr) : json(sig.key_id)},
+                 {"keys_from", key_source.empty() ? json(nullptr) : json(key_source)},
+                 {"intact", claimed == actual}, {"sha256", claimed}, {"recomputed", actual},
+                 {"station_id", cert->value("station_id", "")}, {"visible", nullptr}, {"known_to_store", nullptr}};
+  int code = sig.exit_code;
+  std::string visible_note;
+  if (text.find(kScriptOpen) != std::string::npos) {
+    auto diff = visible_difference(text, *cert);
+    if (!diff) {
+      result["visible"] = "not compared";
+      visible_note = "the visible page was NOT checked: " + diff.error();
+      if (code == kExitOk) code = kExitError;
+    } else if (diff->empty()) {
+      result["visible"] = "matches";
+      visible_note = "the visible page matches its signed content";
+    } else {
+      result["visible"] = "differs";
+      visible_note = "the visible page was EDITED: " + *diff;
+      code = kExitFailed;
+    }
+  }
+  if (daemon && !claimed.empty())
+    if (auto r = daemon->call("cert.check", {{"sha256", claimed}})) result["known_to_store"] = (*r)["known"];
+  result["exit_code"] = code;
+  result["valid"] = code == kExitOk;
+  if (o.daemon.json_out) {
+    out << result.dump() << "\n";
+  } else {
+    out << o.check << ": " << (code == kExitOk ? "VALID" : code == kExitFailed ? "NOT VALID" : "CANNOT TELL") << ": " << sig.message << "\n";
+    if (!key_source.empty()) out << "  keys from " << key_source << "\n";
+    if (!visible_note.empty()) out << "  " << visible_note << "\n";
+    if (result["known_to_store"].is_null()) out << "  the station's store was not asked (no daemon reachable)\n";
+    else out << "  " << (result["known_to_store"].get<bool>() ? "issued by" : "NOT known to") << " the station's store\n";
+  }
+  return code;
+}
+
+// --public-key: the station's public key as PEM (to stdout, or -o FILE), its id on stderr.
+int public_key(const CertOptions& o, std::ostream& out, std::ostream& err) {
+  auto c = commands::open(o.daemon);
+  if (!c) return commands::report(c.error(), err);
+  auto r = c->call("cert.public_key", json::object());
+  if (!r) return commands::report(r.error(), err);
+  if (o.daemon.json_out) {
+    out << r->dump() << "\n";
+    return kExitOk;
+  }
+  const std::string pem = (*r).value("public_key_pem", "");
+  if (!o.output.empty()) {
+    if (auto w = write_text(o.output, pem); !w) {
+      err << "fogctl cert: " << w.error() << "\n";
+      return kExitError;
+    }
+  } else {
+    out << pem;
+  }
+  err << "station " << (*r).value("station_id", "") << ", key id " << (*r).value("key_id", "")
+      << ((*r)["public_key_path"].is_string() ? ", beside the key as " + (*r)["public_key_path"].get<std::string>() : std::string())
+      << (o.output.empty() ? "" : ", written to " + o.output) << "\n";
+  return kExitOk;
+}
+
+}  // namespace
+
 int run_cert(const CertOptions& o, std::ostream& out, std::ostream& err) {
   const std::string me = "fogctl cert: ";
-  if (!o.check.empty()) {
-    std::ifstream f(o.check, std::ios::binary);
-    if (!f) {
-      err << me << o.check << ": cannot open\n";
-      return kExitError;
-    }
-    std::ostringstream ss;
-    ss << f.rdbuf();
-    auto cert = certificate_from_text(ss.str());
-    if (!cert) {
-      err << me << o.check << ": " << cert.error() << "\n";
-      return kExitError;
-    }
-    const std::string claimed = (*cert)["sha256"].get<std::string>(), actual = hash_of(*cert);
-    const bool intact = claimed == actual;
-    json result = {{"file", o.check}, {"intact", intact}, {"sha256", claimed}, {"recomputed", actual}, {"known_to_store", nullptr}};
-    // The daemon, when it can be reached, says whether it issued this hash.
-    if (auto c = commands::open(o.daemon)) {
-      if (auto r = c->call("cert.check", {{"sha256", claimed}})) result["known_to_store"] = (*r)["known"];
-    }
-    if (o.daemon.json_out) {
-      out << result.dump() << "\n";
-    } else {
-      out << o.check << ": " << (intact ? "intact" : "ALTERED") << " (sha256 " << claimed
-          << (intact ? "" : ", its content hashes to " + actual) << ")\n";
-      if (result["known_to_store"].is_null()) out << "  the store was not asked (no daemon reachable)\n";
-      else out << "  " << (result["known_to_store"].get<bool>() ? "issued by" : "NOT known to") << " the station's store\n";
-    }
-    return intact ? kExitOk : kExitFailed;
-  }
+  if (!o.check.empty()) return check_file(o, out, err);
+  if (o.public_key) return public_key(o, out, err);
   if (o.serial.empty()) {
-    err << me << "give a SERIAL, or --check FILE\n";
+    err << me << "give a SERIAL, --check FILE or --public-key\n";
     return kExitError;
   }
   auto c = commands::open(o.daemon);
@@ -222,10 +354,13 @@ int run_cert(const CertOptions& o, std::ostream& out, std::ostream& err) {
 
 void add_cert_command(CLI::App& app, int& code) {
   static CertOptions o;
-  auto* c = app.add_subcommand("cert", "A serial's certificate from fogbenchd (model with 1 sigma, verdicts, runs, Allan figures, SHA-256); --check FILE says whether one was altered");
+  auto* c = app.add_subcommand("cert", "A serial's signed certificate from fogbenchd (model with 1 sigma, verdicts, runs, Allan figures); --check FILE --key station.pub verifies one offline; --public-key gives the station's key");
   c->add_option("serial", o.serial, "The unit's serial");
   c->add_option("-o,--output", o.output, "Write the certificate: FILE.json its canonical JSON, else printable HTML (A4 and Letter)");
-  c->add_option("--check", o.check, "Check a certificate file (JSON or the HTML): exit 0 intact, 1 altered, 2 unreadable");
+  c->add_option("--check", o.check, "Check a certificate file (JSON or the HTML, its visible tables too): exit 0 valid, 1 altered or a bad signature, 2 cannot tell (unsigned, unknown key, no key, unreadable)");
+  c->add_option("--key", o.keys, "With --check: the station's public key (station.pub), a keyring file of several, or a folder of *.pub/*.pem; repeatable. Without it, the daemon's key when one answers");
+  c->add_option("--revoked", o.revoked, "With --check: revoked keys, lines 'KEY_ID DATE [reason]': a certificate signed on or after DATE is not valid");
+  c->add_flag("--public-key", o.public_key, "The station's public key (PEM) from fogbenchd, to stdout or -o FILE; its key id on stderr");
   commands::add_common(c, o.daemon);
   c->callback([&] { code = run_cert(o, std::cout, std::cerr); });
 }

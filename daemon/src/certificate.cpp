@@ -9,8 +9,8 @@
 #include "fogbench/model/allan.hpp"
 #include "fogbench/model/json.hpp"
 #include "fogbench/model/model.hpp"
-#include "fogbench/model/sha256.hpp"
 #include "fogbench/protocol/build_info.hpp"
+#include "fogbench/signing/certificate.hpp"
 #include "fogbench/storage/run_data.hpp"
 
 namespace fogbench::daemon::certificate {
@@ -170,7 +170,7 @@ ApiResult<json> build(storage::Store& store, const AnalysisConfig& /*config*/, c
   }
   const auto& info = protocol::build_info();
   return json{{"format", "fogbench.certificate"},
-              {"format_version", 1},
+              {"format_version", signing::kCertificateFormatVersion},
               {"serial", serial},
               {"station_id", station_id},
               {"model",
@@ -185,28 +185,30 @@ ApiResult<json> build(storage::Store& store, const AnalysisConfig& /*config*/, c
                             {"git_describe", std::string(info.git_describe)}}}};
 }
 
-std::string hash_of(const json& cert) {
-  json body = cert;
-  if (body.is_object()) body.erase("sha256");
-  return model::sha256_hex(body.dump());
-}
+std::string hash_of(const json& cert) { return signing::content_sha256(cert); }
 
-ApiResult<std::pair<json, bool>> issue(storage::Store& writer, const json& body, const std::string& issued_at) {
+ApiResult<std::pair<json, bool>> issue(storage::Store& writer, const json& body, const std::string& issued_at,
+                                       const signing::SigningKey& key) {
   const std::string serial = body.value("serial", "");
   auto stored = writer.list_certificates(serial);
   if (!stored) return std::unexpected(from_store(stored.error()));
   if (!stored->empty()) {
     json last = json::parse(stored->back().json, nullptr, false);
-    if (last.is_object()) {
+    // The same facts signed by this key: handed out again. One unsigned (before issue 24) or
+    // signed by an older key (a rotation) is issued anew.
+    if (last.is_object() && last.contains("signature") && last.contains("signed_by") && last["signed_by"].is_object() &&
+        last["signed_by"].value("key_id", "") == key.key_id()) {
       json same = last;
-      same.erase("sha256");
-      same.erase("issued_at");
-      if (same == body) return std::pair{last, false};
+      for (const char* k : {"sha256", "issued_at", "signature", "signed_by", "format_version"}) same.erase(k);
+      json fresh = body;
+      fresh.erase("format_version");
+      if (same == fresh) return std::pair{last, false};
     }
   }
   json cert = body;
   cert["issued_at"] = issued_at;
-  cert["sha256"] = hash_of(cert);
+  if (auto ok = signing::sign_certificate(cert, key, body.value("station_id", "")); !ok)
+    return api_error(ErrorCode::internal, "serial " + serial + ": cannot sign the certificate: " + ok.error());
   storage::NewCertificate nc;
   nc.serial = serial;
   nc.model_id = body["model"]["id"].get<std::int64_t>();

@@ -55,7 +55,7 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   if (auto ok = only_keys(j, "", {"simulated", "storage", "socket", "chamber_limits",
                                   "safe_setpoint_c", "profile_dir", "map_dir", "analysis",
                                   "link_loss", "tracking", "drivers", "sim_clock", "web",
-                                  "station", "plant"});
+                                  "station", "plant", "signing"});
       !ok)
     return Err(ok.error());
   DaemonConfig c;
@@ -115,6 +115,22 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
       c.storage_size_limit_bytes = v.get<long long>();
     }
   }
+
+  // The station's signing key (docs/daemon.md "The station key"): beside the store unless
+  // signing.key_path says where; none on disk for a store in memory (a key for the process only).
+  if (j.contains("signing")) {
+    const json& sg = j["signing"];
+    if (!sg.is_object()) return Err("signing: expected an object {\"key_path\": ...}");
+    if (auto ok = only_keys(sg, "signing", {"key_path"}); !ok) return Err(ok.error());
+    if (sg.contains("key_path")) {
+      auto kp = string(sg, "signing", "key_path");
+      if (!kp) return Err(kp.error());
+      if (kp->empty() || kp->ends_with(".pub")) return Err("signing.key_path: expected the private key's file (its public key goes beside it, as .pub)");
+      c.signing_key_path = resolve(base_dir, *kp);
+    }
+  }
+  if (c.signing_key_path.empty() && c.storage_path != ":memory:")
+    c.signing_key_path = c.storage_path.parent_path() / "station.key";
 
   if (j.contains("web") && !j["web"].is_null()) {
     auto w = parse_web_config(j["web"], base_dir);

@@ -255,6 +255,20 @@ struct CommandHandlers {
     return json{{"known", !found->empty()}, {"certificates", certs}};
   }
 
+  // The station's public key (fogctl cert --public-key): what a customer checks certificates
+  // with, offline (docs/daemon.md "The station key").
+  static ApiResult<json> cert_public_key(const CommandCall& c) {
+    Station& st = station(c);
+    const auto& key = st.signing_key();
+    const auto& path = st.signing_key_path();
+    return json{{"algorithm", "ed25519"},
+                {"key_id", key.key_id()},
+                {"station_id", st.config().station_id},
+                {"public_key_pem", key.public_key().pem()},
+                {"key_path", path.empty() ? json(nullptr) : json(path.string())},
+                {"public_key_path", path.empty() ? json(nullptr) : json(signing::public_path_of(path).string())}};
+  }
+
   static ApiResult<json> run_start(const CommandCall& c) {
     const json& req = c.req;
     auto profile = req_string(req, "profile");
@@ -481,7 +495,7 @@ struct CommandHandlers {
       auto body = std::make_shared<ApiResult<json>>(guarded<json>([&] { return certificate::build(reader, limits, station_id, s); }));
       return [st, id, body, done] {
         ApiResult<json> r = !*body ? ApiResult<json>(std::unexpected(body->error())) : guarded<json>([&]() -> ApiResult<json> {
-          auto cert = certificate::issue(st->store(), **body, st->wall_now());
+          auto cert = certificate::issue(st->store(), **body, st->wall_now(), st->signing_key());
           if (!cert) return std::unexpected(cert.error());
           return json{{"certificate", cert->first}, {"issued_now", cert->second}};
         });
@@ -626,6 +640,7 @@ constexpr CommandEntry kCommands[] = {
     // Stores the certificate it issues, but changes no measurement.
     {"cert.get", Access::read, &CommandHandlers::cert_get},
     {"cert.check", Access::read, &CommandHandlers::cert_check},
+    {"cert.public_key", Access::read, &CommandHandlers::cert_public_key},
     {"plan.validate", Access::read, &CommandHandlers::plan<plan_validate>},
     {"plan.start", Access::control, &CommandHandlers::plan<plan_start>},
     {"plan.status", Access::read, &CommandHandlers::plan<plan_status>},

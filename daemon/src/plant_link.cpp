@@ -115,9 +115,9 @@ void PlantLink::run() {
     last_logged.clear();
     spdlog::info(
         "plant: run {} replicated as bench '{}' ({} samples, {} events, {} models, {} verifications, {} identity rows, "
-        "{} certificates new, {} already held)",
+        "{} certificates new, {} already held, {} station keys new)",
         entry.run_id, config_.bench_id, r->samples, r->events, r->models, r->verifications, r->identity_rows,
-        r->certificates, r->certificates_held);
+        r->certificates, r->certificates_held, r->station_keys);
   }
 }
 

@@ -17,6 +17,7 @@
 // ("command socket"), from the start-up's binding (bind_sockets) to the accept loops.
 #include "fogbench/daemon/server.hpp"
 #include "fogbench/daemon/plan_runner.hpp"
+#include "fogbench/signing/signing.hpp"
 
 #include <grp.h>
 #include <sys/resource.h>
@@ -401,6 +402,16 @@ std::expected<void, Server::StartError> Server::start() {
   if (!store) return fail("storage: " + store.error().message);
   m.store.emplace(std::move(*store));
   m.station = std::make_unique<Station>(m.config, *m.store, m.options.time_scale);
+  // The station's signing key, made at the first start (docs/daemon.md "The station key"); one
+  // unsafe or unreadable is refused: exit 2 naming its path.
+  if (!m.config.signing_key_path.empty()) {
+    auto key = signing::load_or_create(m.config.signing_key_path);
+    if (!key) return fail(key.error(), 2);
+    if (key->created)
+      spdlog::info("signing key created: {} (public key {}, key id {})", m.config.signing_key_path.string(),
+                   signing::public_path_of(m.config.signing_key_path).string(), key->key.key_id());
+    m.station->set_signing_key(std::move(key->key), m.config.signing_key_path);
+  }
   m.handler = std::make_unique<Handler>(*m.station);
   if (m.config.web) {
     web::WebServer::Hooks hooks;

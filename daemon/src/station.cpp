@@ -13,6 +13,7 @@
 #include <fstream>
 #include <regex>
 #include <sstream>
+#include <stdexcept>
 
 #include <spdlog/spdlog.h>
 
@@ -35,6 +36,15 @@ namespace {
 constexpr double kSetpointMovedC = 0.5;
 
 }  // namespace
+
+const signing::SigningKey& Station::signing_key() {
+  if (!signing_key_) {
+    auto k = signing::SigningKey::generate();
+    if (!k) throw std::runtime_error("signing key: " + k.error());
+    signing_key_ = std::move(*k);
+  }
+  return *signing_key_;
+}
 
 Station::Station(DaemonConfig config, storage::Store& store, double time_scale, WallClock wall_clock)
     : config_(std::move(config)),

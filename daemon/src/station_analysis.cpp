@@ -58,7 +58,7 @@ void Station::analyse_units(std::int64_t run_id, storage::Purpose purpose, const
           // The serial's certificate, issued now that its verification is stored (certificate.hpp).
           try {
             auto body = certificate::build(store_, config_.analysis, config_.station_id, serials[i]);
-            auto cert = body ? certificate::issue(store_, *body, wall_clock_())
+            auto cert = body ? certificate::issue(store_, *body, wall_clock_(), signing_key())
                              : ApiResult<std::pair<json, bool>>(std::unexpected(body.error()));
             if (cert) detail["certificate_sha256"] = cert->first["sha256"];
             else detail["certificate_error"] = cert.error().message;

@@ -1,7 +1,8 @@
 // Replication of one completed run from a bench's SQLite store to the plant, in one
 // transaction: delete what the plant held for (bench_id, run_id), then insert the run, its
 // identity, its units, events, models, verifications and figures, and COPY its samples; the
-// certificates of its units' serials are inserted when the plant does not hold them yet.
+// certificates of its units' serials are inserted when the plant does not hold them yet, and
+// the public key each was signed with goes into station_keys.
 #include <charconv>
 #include <cmath>
 
@@ -9,6 +10,7 @@
 
 #include "sample_stream.hpp"
 #include "fogbench/plant/plant.hpp"
+#include "fogbench/signing/signing.hpp"
 #include "fogbench/storage/store.hpp"
 
 namespace fogbench::plant {
@@ -179,6 +181,27 @@ PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& ben
       ++stats.certificates_held;
     else
       ++stats.certificates;
+  }
+  // The key each certificate was signed with, into the plant's keyring (issue 24): only a public
+  // key whose id is the one the certificate names (a certificate of before issue 24 has none).
+  for (const auto& cert : certificates) {
+    const auto j = nlohmann::json::parse(cert.json, nullptr, false);
+    if (!j.is_object() || !j.contains("signed_by") || !j["signed_by"].is_object()) continue;
+    const auto& sb = j["signed_by"];
+    const std::string pem = sb.value("public_key_pem", ""), key_id = sb.value("key_id", "");
+    auto key = signing::PublicKey::from_pem(pem);
+    if (!key || key->key_id() != key_id) {
+      ++stats.station_keys_refused;
+      continue;
+    }
+    auto ok = plant.query(
+        "INSERT INTO fogbench.station_keys (station_id, key_id, public_key_pem, first_seen) VALUES ($1, $2, $3, $4) "
+        "ON CONFLICT (station_id, key_id) DO UPDATE SET first_seen = least(fogbench.station_keys.first_seen, "
+        "EXCLUDED.first_seen) RETURNING (xmax = 0)",
+        {sb.value("station_id", ""), key_id, pem, cert.created_at}, "record the public key of certificate " + std::to_string(cert.id));
+    if (!ok) return fail(ok.error());
+    if (!ok->rows.empty() && !ok->rows.front().empty() && ok->rows.front().front() == std::optional<std::string>("t"))
+      ++stats.station_keys;
   }
 
   // Events by COPY.

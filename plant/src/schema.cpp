@@ -5,7 +5,7 @@
 // a bench's own ids are unique only on that bench. Later migrations add what other parts
 // bring: version 2 adds the run identity (keyed the same way, with ON DELETE CASCADE from
 // fogbench.runs, so that a re-sent run replaces it too), the certificates and each sample's
-// compensated rate.
+// compensated rate; version 3 the stations' public keys (station_keys).
 #include <libpq-fe.h>
 
 #include "fogbench/plant/plant.hpp"
@@ -179,12 +179,30 @@ CREATE INDEX certificates_serial ON fogbench.certificates (serial);
 CREATE INDEX certificates_sha256 ON fogbench.certificates (sha256);
 )sql";
 
+// Version 3 (issue 24): each station's public keys, the plant's keyring for checking the
+// certificates its benches signed. Filled as certificates replicate (the signing key's public
+// half travels in each certificate's signed_by, its id checked against it); first_seen is the
+// oldest such certificate's date. revoked_at is the plant's to set (docs/plant.md "Station
+// keys"): a key revoked from that time on.
+constexpr const char* kV3 = R"sql(
+CREATE TABLE fogbench.station_keys (
+  station_id      text NOT NULL,
+  key_id          text NOT NULL CHECK (key_id ~ '^[0-9a-f]{64}$'),
+  public_key_pem  text NOT NULL,
+  first_seen      timestamptz NOT NULL,
+  revoked_at      timestamptz,
+  PRIMARY KEY (station_id, key_id)
+);
+CREATE INDEX station_keys_key_id ON fogbench.station_keys (key_id);
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "runs, units, samples, events, models, verifications, figures", kV1},
     {2, "samples.compensated_dph, run_identity, unit_identity, certificates", kV2},
+    {3, "station_keys", kV3},
 };
 
-constexpr int kCurrent = 2;
+constexpr int kCurrent = 3;
 
 // The version recorded, 0 when the schema is absent.
 PlantResult<int> read_version(Connection& c) {

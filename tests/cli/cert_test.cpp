@@ -1,7 +1,9 @@
-// fogctl cert --check without a daemon: a certificate (JSON or the printable HTML that embeds
-// it) whose SHA-256 matches its canonical JSON is intact (exit 0); one digit changed is altered
-// (exit 1); a file without a certificate is unreadable (exit 2). The HTML's print stylesheet
-// fits A4 and Letter.
+// fogctl cert --check without a daemon (issue 24, point 2): a certificate (JSON or the printable
+// HTML that embeds it) signed by the station's key is valid with --key station.pub (exit 0); a
+// field changed (its SHA-256 recomputed or not), a signature changed or taken from another key,
+// the HTML's visible table edited: exit 1; no key, an unknown key, an unsigned certificate, a
+// file without a certificate: exit 2. Keyrings (a file of several keys, a folder, --key given
+// twice) and revocation lists. The HTML's print stylesheet fits A4 and Letter.
 #include <catch2/catch.hpp>
 
 #include <filesystem>
@@ -10,7 +12,8 @@
 #include <unistd.h>
 
 #include "cert.hpp"
-#include "fogbench/model/sha256.hpp"
+#include "fogbench/signing/certificate.hpp"
+#include "fogbench/signing/signing.hpp"
 
 using namespace fogbench;
 using namespace fogbench::cli;
@@ -29,15 +32,27 @@ struct Dir {
   }
 };
 
-// A certificate of the daemon's shape (certificate.hpp), hashed as the daemon hashes it.
-json sample_cert() {
-  json c = {{"format", "fogbench.certificate"}, {"format_version", 1}, {"serial", "FOG-1"}, {"station_id", "line </script> 2"},
-            {"issued_at", "2026-11-25T09:00:00Z"}, {"verdict", "pass"},
-            {"model", {{"id", 1}, {"version", 1}, {"method", "paper"}, {"terms", "d(T1)@40 + grad@40"}, {"sigma_a_dph", 0.05},
-                       {"coefficients", {{{"term", "mu0"}, {"value", -8.0123}, {"sigma", 0.01}, {"unit", "deg/h"}, {"lag_s", 0}}}}}},
-            {"verdicts", json::array()}, {"runs", json::array()}, {"allan", json::array()},
-            {"software", {{"version", "0.1.0"}, {"git_hash", "abc"}}}};
-  c["sha256"] = model::sha256_hex(c.dump());
+const signing::SigningKey& station_key() {
+  static const signing::SigningKey k = *signing::SigningKey::generate();
+  return k;
+}
+const signing::SigningKey& other_key() {
+  static const signing::SigningKey k = *signing::SigningKey::generate();
+  return k;
+}
+
+// A certificate of the daemon's shape (certificate.hpp), before its signature.
+json unsigned_cert() {
+  return {{"format", "fogbench.certificate"}, {"format_version", 1}, {"serial", "FOG-1"}, {"station_id", "line </script> 2"},
+          {"issued_at", "2026-11-25T09:00:00Z"}, {"verdict", "pass"},
+          {"model", {{"id", 1}, {"version", 1}, {"method", "paper"}, {"terms", "d(T1)@40 + grad@40"}, {"sigma_a_dph", 0.05},
+                     {"coefficients", {{{"term", "mu0"}, {"value", -8.0123}, {"sigma", 0.01}, {"unit", "deg/h"}, {"lag_s", 0}}}}}},
+          {"verdicts", json::array()}, {"runs", json::array()}, {"allan", json::array()},
+          {"software", {{"version", "0.1.0"}, {"git_hash", "abc"}}}};
+}
+json signed_cert(const signing::SigningKey& key = station_key()) {
+  json c = unsigned_cert();
+  REQUIRE(signing::sign_certificate(c, key, c["station_id"]).has_value());
   return c;
 }
 
@@ -45,62 +60,183 @@ struct Result {
   int code;
   std::string out, err;
 };
-Result check(const std::string& file) {
+Result check(const std::string& file, std::vector<std::string> keys = {}, const std::string& revoked = "", bool as_json = false) {
   CertOptions o;
   o.check = file;
-  o.daemon.socket = "/nonexistent/fogbench-test.sock";  // no daemon: the store is not asked
+  o.keys = std::move(keys);
+  o.revoked = revoked;
+  o.daemon.json_out = as_json;
+  o.daemon.socket = "/nonexistent/fogbench-test.sock";  // no daemon: offline
   std::ostringstream out, err;
   const int code = run_cert(o, out, err);
   return {code, out.str(), err.str()};
 }
+bool has(const std::string& text, const std::string& what) { return text.find(what) != std::string::npos; }
 
 }  // namespace
 
-TEST_CASE("fogctl cert --check: intact, altered by one digit, unreadable", "[cli][cert]") {
+TEST_CASE("fogctl cert --check --key: valid offline, every alteration exit 1, no key or an unknown one exit 2", "[cli][cert]") {
   Dir d;
-  const json c = sample_cert();
-  auto ok = check(d.write("c.json", c.dump()));
-  CHECK(ok.code == 0);
-  CHECK(ok.out.find("intact") != std::string::npos);
-  CHECK(ok.out.find("not asked") != std::string::npos);
+  const std::string pub = d.write("station.pub", station_key().public_key().pem());
+  const std::string other_pub = d.write("other.pub", other_key().public_key().pem());
+  const json c = signed_cert();
+  const std::string file = d.write("c.json", c.dump());
 
+  auto ok = check(file, {pub});
+  CHECK(ok.code == 0);
+  CHECK(has(ok.out, "VALID"));
+  CHECK(has(ok.out, station_key().key_id().substr(0, 16)));
+  CHECK(has(ok.out, "not asked"));
+  // Whitespace does not matter (the signature is over the canonical form), content does.
+  CHECK(check(d.write("pretty.json", c.dump(2)), {pub}).code == 0);
+  auto j = json::parse(check(file, {pub}, "", true).out);
+  CHECK(j["valid"] == true);
+  CHECK(j["status"] == "valid");
+  CHECK(j["key_id"] == station_key().key_id());
+
+  // A digit of a coefficient changed in the file: altered.
   std::string text = c.dump();
   const auto at = text.find("-8.0123");
   REQUIRE(at != std::string::npos);
   text[at + 6] = '4';  // -8.0124
-  auto bad = check(d.write("altered.json", text));
+  auto bad = check(d.write("altered.json", text), {pub});
   CHECK(bad.code == 1);
-  CHECK(bad.out.find("ALTERED") != std::string::npos);
+  CHECK(has(bad.out, "ALTERED"));
 
-  // Whitespace does not matter (the hash is over the canonical form), content does.
-  CHECK(check(d.write("pretty.json", c.dump(2))).code == 0);
+  // A forgery: the verdict changed and the SHA-256 recomputed (what passed before issue 24).
+  json forged = c;
+  forged["verdict"] = "fail";
+  forged["sha256"] = signing::content_sha256(forged);
+  auto f = check(d.write("forged.json", forged.dump()), {pub});
+  CHECK(f.code == 1);
+  CHECK(has(f.out, "BAD SIGNATURE"));
 
-  CHECK(check(d.write("empty.json", "")).code == 2);
-  CHECK(check(d.write("other.json", R"({"a":1})")).code == 2);
-  CHECK(check(d.write("nohash.json", R"({"format":"fogbench.certificate"})")).code == 2);
-  CHECK(check((d.path / "missing.json").string()).code == 2);
+  // Signature bytes changed.
+  json flipped = c;
+  std::string sig = flipped["signature"];
+  sig[20] = sig[20] == 'x' ? 'y' : 'x';
+  flipped["signature"] = sig;
+  CHECK(check(d.write("flipped.json", flipped.dump()), {pub}).code == 1);
+  json cut = c;
+  cut["signature"] = "AAAA";
+  CHECK(check(d.write("cut.json", cut.dump()), {pub}).code == 1);
+
+  // The signature of another key over the same content: bad signature with the key id left,
+  // an unknown key when the forger names his own.
+  json other = c;
+  other["signature"] = signed_cert(other_key())["signature"];
+  CHECK(check(d.write("other-sig.json", other.dump()), {pub}).code == 1);
+  auto theirs = check(d.write("theirs.json", signed_cert(other_key()).dump()), {pub});
+  CHECK(theirs.code == 2);
+  CHECK(has(theirs.out, "none of the keys given"));
+
+  // A wrong key: cannot tell; no key and no daemon: cannot tell, saying to give --key.
+  CHECK(check(file, {other_pub}).code == 2);
+  auto none = check(file);
+  CHECK(none.code == 2);
+  CHECK(has(none.out, "--key"));
+  // A missing key file, a private key for a public one: exit 2 naming the file.
+  auto missing = check(file, {(d.path / "nope.pub").string()});
+  CHECK(missing.code == 2);
+  CHECK(has(missing.err, "nope.pub"));
+  auto priv = check(file, {d.write("station.key", station_key().private_pem())});
+  CHECK(priv.code == 2);
+  CHECK(has(priv.err, "a private key"));
+
+  // An unsigned certificate of before issue 24 (only a SHA-256): cannot tell, never valid.
+  json old = unsigned_cert();
+  old["sha256"] = signing::content_sha256(old);
+  auto o = check(d.write("old.json", old.dump()), {pub});
+  CHECK(o.code == 2);
+  CHECK(has(o.out, "unsigned"));
+
+  CHECK(check(d.write("empty.json", ""), {pub}).code == 2);
+  CHECK(check(d.write("other.json", R"({"a":1})"), {pub}).code == 2);
+  CHECK(check(d.write("nohash.json", R"({"format":"fogbench.certificate"})"), {pub}).code == 2);
+  CHECK(check((d.path / "missing.json").string(), {pub}).code == 2);
 }
 
-TEST_CASE("fogctl cert: the HTML embeds the canonical JSON, survives </script> in a value, and prints on A4 and Letter", "[cli][cert]") {
+TEST_CASE("fogctl cert --check: keyrings (several --key, a file of keys, a folder) and revoked keys", "[cli][cert]") {
   Dir d;
-  const json c = sample_cert();
+  const json c = signed_cert();
+  const std::string file = d.write("c.json", c.dump());
+  const std::string pub = d.write("station.pub", station_key().public_key().pem());
+  const std::string other_pub = d.write("other.pub", other_key().public_key().pem());
+  CHECK(check(file, {other_pub, pub}).code == 0);
+  CHECK(check(file, {d.write("ring.pem", other_key().public_key().pem() + station_key().public_key().pem())}).code == 0);
+  fs::create_directories(d.path / "keys");
+  std::ofstream(d.path / "keys" / "2026-11.pub") << station_key().public_key().pem();
+  std::ofstream(d.path / "keys" / "2025-01.pub") << other_key().public_key().pem();
+  CHECK(check(file, {(d.path / "keys").string()}).code == 0);
+
+  // Revoked after the certificate's date: still valid, said; revoked before: not valid.
+  auto later = check(file, {pub}, d.write("later.txt", station_key().key_id() + " 2026-12-01 rotated\n"));
+  CHECK(later.code == 0);
+  CHECK(has(later.out, "revoked on 2026-12-01"));
+  auto before = check(file, {pub}, d.write("before.txt", "# stolen\n" + station_key().key_id() + " 2026-11-20T00:00:00Z stolen laptop\n"));
+  CHECK(before.code == 1);
+  CHECK(has(before.out, "stolen laptop"));
+  auto broken = check(file, {pub}, d.write("broken.txt", "deadbeef 2026-01-01\n"));
+  CHECK(broken.code == 2);
+  CHECK(has(broken.err, "broken.txt:1"));
+}
+
+TEST_CASE("fogctl cert: the HTML is drawn from the signed JSON, --check compares its visible tables, it survives </script> and prints on A4 and Letter", "[cli][cert]") {
+  Dir d;
+  const json c = signed_cert();
+  const std::string pub = d.write("station.pub", station_key().public_key().pem());
   const std::string html = certificate_html(c);
   CHECK(html.find("@page") != std::string::npos);
   CHECK(html.find("max-width:170mm") != std::string::npos);
   CHECK(html.find("@media print") != std::string::npos);
+  CHECK(has(html, station_key().key_id()));
+  CHECK(has(html, "--key station.pub"));
   // The value's "</script>" is kept out of the page's markup.
   CHECK(html.find("line </script> 2") == std::string::npos);
   auto back = certificate_from_text(html);
   REQUIRE(back.has_value());
   CHECK(*back == c);
-  CHECK(check(d.write("c.html", html)).code == 0);
+  auto ok = check(d.write("c.html", html), {pub});
+  CHECK(ok.code == 0);
+  CHECK(has(ok.out, "visible page matches"));
 
-  // The visible table shows the value too; the check is over the embedded JSON.
+  // The visible table edited, the embedded JSON left: what a reader sees is not what was signed.
+  std::string visible = html;
+  const auto shown = visible.find("<td>-8.0123</td>");
+  REQUIRE(shown != std::string::npos);
+  REQUIRE(shown < visible.find("application/json"));
+  visible.replace(shown, 16, "<td>-1.0123</td>");
+  auto v = check(d.write("visible.html", visible), {pub});
+  CHECK(v.code == 1);
+  CHECK(has(v.out, "EDITED"));
+  CHECK(has(v.out, "-1.0123"));
+  // A verdict changed in the visible text only.
+  std::string verdict = html;
+  const auto pass = verdict.find("class=\"pass\">pass<");
+  REQUIRE(pass != std::string::npos);
+  verdict.replace(pass, 18, "class=\"pass\">PASS<");
+  CHECK(check(d.write("verdict.html", verdict), {pub}).code == 1);
+  // Something added after the embedded JSON is visible too.
+  std::string tail = html;
+  tail.insert(tail.rfind("</body>"), "<p>Approved by QA</p>");
+  CHECK(check(d.write("tail.html", tail), {pub}).code == 1);
+
+  // The embedded JSON edited: a bad signature, whatever the page shows.
   std::string edited = html;
   const auto at = edited.find("-8.0123", edited.find("application/json"));
   REQUIRE(at != std::string::npos);
   edited[at + 3] = '9';
-  CHECK(check(d.write("edited.html", edited)).code == 1);
-  CHECK(check(d.write("plain.html", "<html><body>no certificate</body></html>")).code == 2);
-  CHECK(check(d.write("cut.html", html.substr(0, html.find("</script>")))).code == 2);
+  CHECK(check(d.write("edited.html", edited), {pub}).code == 1);
+
+  // A page of another renderer: its tables cannot be compared, so cannot tell (2), saying why.
+  std::string foreign = html;
+  const auto meta = foreign.find("fogbench-certificate-page 2");
+  REQUIRE(meta != std::string::npos);
+  foreign.replace(meta, 27, "fogbench-certificate-page 1");
+  auto fo = check(d.write("foreign.html", foreign), {pub});
+  CHECK(fo.code == 2);
+  CHECK(has(fo.out, "NOT checked"));
+
+  CHECK(check(d.write("plain.html", "<html><body>no certificate</body></html>"), {pub}).code == 2);
+  CHECK(check(d.write("cut.html", html.substr(0, html.find("</script>"))), {pub}).code == 2);
 }

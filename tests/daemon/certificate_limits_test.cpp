@@ -27,9 +27,13 @@ const json& check_named(const json& verdict, const std::string& name) {
 
 TEST_CASE("certificate limits: the verdict's own limits after the configuration changed, the same hash, old verdicts say not recorded") {
   storage::Store store = memory_store();
+  // The station's key, the same across the restart (in a daemon: its key file).
+  const auto key = signing::SigningKey::generate();
+  REQUIRE(key.has_value());
   json first;
   {
     Station station{golden_config(analysis_limits(2.5, 90.0)), store};
+    station.set_signing_key(*key, {});
     Handler handler{station};
     SessionState session;
     SyntheticBench bench(1);
@@ -51,6 +55,7 @@ TEST_CASE("certificate limits: the verdict's own limits after the configuration 
 
   // The station restarted with other limits: the certificate is the same, hash and limits.
   Station station{golden_config(analysis_limits(1.2, 30.0)), store};
+  station.set_signing_key(*key, {});
   Handler handler{station};
   SessionState session;
   json r = handler.handle({{"id", 4}, {"cmd", "cert.get"}, {"serial", "FOG-0001"}}, session);

@@ -7,6 +7,7 @@
 #include "fogbench/daemon/certificate.hpp"
 #include "fogbench/daemon/handler.hpp"
 #include "fogbench/model/sha256.hpp"
+#include "fogbench/signing/certificate.hpp"
 
 using namespace fogbench;
 using namespace fogbench::daemon;
@@ -55,9 +56,11 @@ TEST_CASE("certificate: issued when a verify run completes, the same from cert.g
   CHECK(cert["sha256"] == stored->front().sha256);
   CHECK(r.store.list_certificates("FOG-0001")->size() == 1);
 
-  // The hash is SHA-256 of the canonical JSON (sorted keys, no whitespace) without the field.
+  // The hash is SHA-256 of the canonical JSON (sorted keys, no whitespace) without the field
+  // and the signature.
   json body = cert;
   body.erase("sha256");
+  body.erase("signature");
   CHECK(cert["sha256"] == model::sha256_hex(body.dump()));
   CHECK(certificate::hash_of(cert) == cert["sha256"]);
   CHECK(stored->front().json == cert.dump());
@@ -103,6 +106,24 @@ TEST_CASE("certificate: issued when a verify run completes, the same from cert.g
   json unknown = r.send({{"id", 5}, {"cmd", "cert.check"}, {"sha256", certificate::hash_of(altered)}});
   CHECK(unknown["result"]["known"] == false);
 
+  // Signed by the station's key for its station: valid with that key; the altered one is not,
+  // even with its SHA-256 recomputed (a hash is not a signature).
+  CHECK(cert["format_version"] == 2);
+  CHECK(cert["signed_by"]["algorithm"] == "ed25519");
+  CHECK(cert["signed_by"]["key_id"] == r.station.signing_key().key_id());
+  CHECK(cert["signed_by"]["station_id"] == "bench-7");
+  const std::vector<signing::PublicKey> keys{r.station.signing_key().public_key()};
+  CHECK(signing::check_certificate(cert, keys).exit_code == 0);
+  altered["sha256"] = certificate::hash_of(altered);
+  const auto forged = signing::check_certificate(altered, keys);
+  CHECK(forged.exit_code == 1);
+  CHECK(forged.status == "bad signature");
+  json pk = r.send({{"id", 8}, {"cmd", "cert.public_key"}});
+  REQUIRE(pk.contains("result"));
+  CHECK(pk["result"]["key_id"] == r.station.signing_key().key_id());
+  CHECK(signing::PublicKey::from_pem(pk["result"]["public_key_pem"].get<std::string>())->key_id() == pk["result"]["key_id"]);
+  CHECK(pk["result"]["key_path"].is_null());  // a station in a test: a key for the process only
+
   // A new model version: cert.get issues a new certificate.
   REQUIRE(r.send({{"id", 6}, {"cmd", "model.add_term"}, {"run_id", 1}, {"term", "T1"}}).contains("result"));
   json again = r.send({{"id", 7}, {"cmd", "cert.get"}, {"serial", "FOG-0001"}});
@@ -111,6 +132,18 @@ TEST_CASE("certificate: issued when a verify run completes, the same from cert.g
   CHECK(again["result"]["certificate"]["model"]["version"] == 2);
   CHECK(again["result"]["certificate"]["verdicts"].empty());  // not verified yet
   CHECK(r.store.list_certificates("FOG-0001")->size() == 2);
+
+  // A new station key (a rotation): the same facts are signed anew with it.
+  auto rotated = signing::SigningKey::generate();
+  REQUIRE(rotated.has_value());
+  r.station.set_signing_key(*rotated, {});
+  json resigned = r.send({{"id", 9}, {"cmd", "cert.get"}, {"serial", "FOG-0001"}});
+  REQUIRE(resigned.contains("result"));
+  CHECK(resigned["result"]["issued_now"] == true);
+  CHECK(resigned["result"]["certificate"]["signed_by"]["key_id"] == rotated->key_id());
+  CHECK(signing::check_certificate(resigned["result"]["certificate"], {rotated->public_key()}).exit_code == 0);
+  // ... and checked with the old key alone: signed by a key it does not know (2, cannot tell).
+  CHECK(signing::check_certificate(resigned["result"]["certificate"], keys).exit_code == 2);
 }
 
 TEST_CASE("certificate: a serial without a model is not_found naming it, nothing stored, a missing serial field is bad_request") {

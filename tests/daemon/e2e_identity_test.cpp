@@ -8,6 +8,7 @@
 #include <sys/wait.h>
 
 #include "fogbench/model/sha256.hpp"
+#include "fogbench/signing/certificate.hpp"
 #include "fogbench/storage/csv.hpp"
 #include "fogbench/storage/identity.hpp"
 
@@ -124,7 +125,8 @@ TEST_CASE("e2e identity: run start --operator, run get, the CSV export's identit
   CHECK(none.err.find("SIM-0002") != std::string::npos);
 
   // The certificate: a verify run of SIM-0001 issues it; fogctl cert writes it as HTML and
-  // JSON, --check finds both intact and issued by the store; one digit altered: exit 1.
+  // JSON, --check finds both valid (signed with the station key, which the daemon gives) and
+  // issued by the store; one digit altered: exit 1.
   auto vstart = fogctl(bench, "run start " + sock(bench) + " --profile short --unit SIM-0001 --purpose verify --json");
   REQUIRE(vstart.code == 0);
   const auto vrun = json::parse(vstart.out)["run_id"].get<std::int64_t>();
@@ -144,7 +146,8 @@ TEST_CASE("e2e identity: run start --operator, run get, the CSV export's identit
   CHECK(cert["runs"].size() == 2);
   auto ok_html = fogctl(bench, "cert --check cert.html " + sock(bench));
   CHECK(ok_html.code == 0);
-  CHECK(ok_html.out.find("intact") != std::string::npos);
+  CHECK(ok_html.out.find("VALID") != std::string::npos);
+  CHECK(ok_html.out.find("visible page matches") != std::string::npos);
   CHECK(ok_html.out.find("issued by the station's store") != std::string::npos);
   auto ok_json = fogctl(bench, "cert --check cert.json --json " + sock(bench));
   REQUIRE(ok_json.code == 0);
@@ -163,4 +166,43 @@ TEST_CASE("e2e identity: run start --operator, run get, the CSV export's identit
   auto nomodel = fogctl(bench, "cert SIM-0002 " + sock(bench));
   CHECK(nomodel.code == 2);
   CHECK(nomodel.err.find("SIM-0002") != std::string::npos);
+
+  // The station key (issue 24): made at the first start beside the store, 0600, its public key
+  // beside it and from fogctl cert --public-key; with it a certificate checks offline.
+  const auto key_file = bench.dir / "station.key";
+  REQUIRE(std::filesystem::exists(key_file));
+  CHECK((std::filesystem::status(key_file).permissions() & std::filesystem::perms::all) == std::filesystem::perms(0600));
+  REQUIRE(std::filesystem::exists(bench.dir / "station.pub"));
+  auto pub = fogctl(bench, "cert --public-key -o exported.pub " + sock(bench));
+  INFO(pub.err);
+  REQUIRE(pub.code == 0);
+  CHECK(slurp(bench.dir / "exported.pub") == slurp(bench.dir / "station.pub"));
+  CHECK(pub.err.find(cert["signed_by"]["key_id"].get<std::string>()) != std::string::npos);
+  const std::string offline = " --key exported.pub --socket " + (bench.dir / "no-daemon.sock").string();
+  auto off_html = fogctl(bench, "cert --check cert.html" + offline);
+  CHECK(off_html.code == 0);
+  CHECK(off_html.out.find("not asked") != std::string::npos);
+  CHECK(fogctl(bench, "cert --check cert.json" + offline).code == 0);
+  // A forgery: the verdict changed, its SHA-256 recomputed: a bad signature (it was "intact").
+  json forged = cert;
+  forged["verdict"] = forged["verdict"] == "pass" ? "not passed" : "pass";
+  forged["sha256"] = signing::content_sha256(forged);
+  std::ofstream(bench.dir / "forged.json") << forged.dump();
+  auto bad_sig = fogctl(bench, "cert --check forged.json" + offline);
+  CHECK(bad_sig.code == 1);
+  CHECK(bad_sig.out.find("BAD SIGNATURE") != std::string::npos);
+  // No key and no daemon: cannot tell.
+  CHECK(fogctl(bench, "cert --check cert.json --socket " + (bench.dir / "no-daemon.sock").string()).code == 2);
+
+  // A key file others may read: fogbenchd refuses to start, exit 2 naming it.
+  CHECK(bench.daemon->stop(30s) == 0);
+  std::filesystem::permissions(key_file, std::filesystem::perms(0644));
+  Process again({(kBin / "fogbenchd").string(), "--config", (bench.dir / "fogbenchd.json").string(), "--time-scale",
+                 std::to_string(bench.time_scale)},
+                bench.dir / "fogbenchd-loose-key.log");
+  CHECK(again.wait(60s) == 2);
+  const std::string log = slurp(bench.dir / "fogbenchd-loose-key.log");
+  INFO(log);
+  CHECK(log.find(key_file.string()) != std::string::npos);
+  CHECK(log.find("0644") != std::string::npos);
 }

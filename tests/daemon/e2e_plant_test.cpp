@@ -115,4 +115,9 @@ TEST_CASE("e2e plant: fogbenchd replicates a run of the mock bench to a real Pos
   CHECK(ss.str().find("plant: run " + f + " replicated as bench 'e2e-bench' (" + std::to_string(n_fit) +
                       " samples") != std::string::npos);
   CHECK(ss.str().find("3 identity rows") != std::string::npos);
+  // The station's public key, carried by the signed certificate, is in the plant's keyring.
+  const json cert = json::parse(certs->front().json);
+  const std::string key_id = cert["signed_by"]["key_id"];
+  CHECK(pg.psql("SELECT count(*) FROM fogbench.station_keys WHERE key_id = '" + key_id + "' AND revoked_at IS NULL") == "1");
+  CHECK(ss.str().find("1 station keys new") != std::string::npos);
 }

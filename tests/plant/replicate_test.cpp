@@ -10,6 +10,7 @@
 #include "bench_run.hpp"
 #include "fogbench/plant/fleet.hpp"
 #include "fogbench/plant/plant.hpp"
+#include "fogbench/signing/certificate.hpp"
 #include "pg_server.hpp"
 
 using namespace fogbench;
@@ -334,7 +335,7 @@ TEST_CASE("a refused login, a newer schema and bad ids are clear errors and writ
       CHECK(c.error().code == plant::PlantErrc::schema_too_new);
       CHECK_THAT(c.error().message, Catch::Contains("schema version 99 is newer"));
     }
-    CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2,99");
+    CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2,3,99");
   }
   SECTION("a lot id with a control character, an empty bench id") {
     auto path = test::temp_store_path("badlot");
@@ -359,7 +360,7 @@ TEST_CASE("a refused login, a newer schema and bad ids are clear errors and writ
   }
 }
 
-TEST_CASE("a plant at schema 1 migrates to 2 on a bench's connection, keeping what it held") {
+TEST_CASE("a plant at schema 1 migrates to 3 on a bench's connection, keeping what it held") {
   PgServer pg;
   auto path = test::temp_store_path("migrate");
   auto bench = open_store(path);
@@ -376,8 +377,8 @@ TEST_CASE("a plant at schema 1 migrates to 2 on a bench's connection, keeping wh
     CHECK(st->certificates == 0);
     CHECK(st->certificates_held == 0);
     REQUIRE(c->exec("ALTER TABLE fogbench.samples DROP COLUMN compensated_dph; "
-                    "DROP TABLE fogbench.run_identity, fogbench.unit_identity, fogbench.certificates; "
-                    "DELETE FROM fogbench.schema_version WHERE version = 2",
+                    "DROP TABLE fogbench.run_identity, fogbench.unit_identity, fogbench.certificates, "
+                    "fogbench.station_keys; DELETE FROM fogbench.schema_version WHERE version >= 2",
                     "back to schema 1"));
   }
   CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1");
@@ -386,14 +387,14 @@ TEST_CASE("a plant at schema 1 migrates to 2 on a bench's connection, keeping wh
   auto reader = plant::Connection::open(pg.conninfo(), false);
   REQUIRE_FALSE(reader);
   CHECK(reader.error().code == plant::PlantErrc::schema_missing);
-  CHECK_THAT(reader.error().message, Catch::Contains("schema version 1 is older than 2"));
+  CHECK_THAT(reader.error().message, Catch::Contains("schema version 1 is older than 3"));
 
   // A bench migrates: version 2 recorded, the run held before kept (its samples' compensated
   // rate NULL), and a run with identity and compensated rates then replicates in full.
   auto c = plant::Connection::open(pg.conninfo(), true);
   REQUIRE(c);
-  CHECK(c->schema_version() == 2);
-  CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2");
+  CHECK(c->schema_version() == 3);
+  CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2,3");
   const std::string old_rid = std::to_string(old_run);
   CHECK(count(*c, "SELECT count(*) FROM fogbench.samples WHERE run_id = " + old_rid) == *bench.count_samples(old_run));
   CHECK(count(*c, "SELECT count(compensated_dph) FROM fogbench.samples") == 0);
@@ -404,5 +405,54 @@ TEST_CASE("a plant at schema 1 migrates to 2 on a bench's connection, keeping wh
   CHECK(count(*c, "SELECT count(*) FROM fogbench.run_identity WHERE run_id = " + std::to_string(run)) == 1);
   CHECK(count(*c, "SELECT count(*) FROM fogbench.unit_identity WHERE run_id = " + std::to_string(run)) == 2);
   CHECK(count(*c, "SELECT count(compensated_dph) FROM fogbench.samples WHERE run_id = " + std::to_string(run)) > 0);
+  std::filesystem::remove(path);
+}
+
+TEST_CASE("the public key that signed a run's certificates reaches station_keys once, its earliest date kept, a mismatched key refused") {
+  PgServer pg;
+  auto path = test::temp_store_path("keys");
+  auto bench = open_store(path);
+  const auto id = test::record_run(bench, {std::string("L1"), std::string("L1")}, 1, 3, true, bench_identity());
+  auto ms = bench.list_models("FOG-0002");
+  REQUIRE(ms);
+  REQUIRE(ms->size() == 1);
+  auto key = signing::SigningKey::generate();
+  auto other = signing::SigningKey::generate();
+  REQUIRE(key);
+  REQUIRE(other);
+  auto put = [&](const signing::SigningKey& k, const std::string& issued_at, bool swap_pem) {
+    nlohmann::json c = {{"format", "fogbench.certificate"}, {"serial", "FOG-0002"}, {"station_id", "line-2"},
+                        {"model", {{"id", ms->front().id}, {"version", ms->front().version}}}, {"issued_at", issued_at}};
+    REQUIRE(signing::sign_certificate(c, k, "line-2"));
+    // A certificate whose embedded public key is not the one its key id names.
+    if (swap_pem) c["signed_by"]["public_key_pem"] = key->public_key().pem();
+    REQUIRE(bench.put_certificate({"FOG-0002", ms->front().id, ms->front().version, c["sha256"].get<std::string>(), c.dump()}));
+  };
+  put(*key, "2026-11-27T09:00:00Z", false);
+  put(*key, "2026-11-27T10:00:00Z", false);
+  put(*other, "2026-11-27T11:00:00Z", true);
+  // An unsigned certificate of before issue 24: no key.
+  REQUIRE(bench.put_certificate({"FOG-0002", ms->front().id, ms->front().version, std::string(64, 'd'), R"({"serial":"FOG-0002"})"}));
+
+  auto c = plant::Connection::open(pg.conninfo(), true);
+  REQUIRE(c);
+  auto st = plant::replicate_run(*c, bench, "b1", id);
+  REQUIRE(st);
+  CHECK(st->certificates == 4);
+  CHECK(st->station_keys == 1);
+  CHECK(st->station_keys_refused == 1);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.station_keys") == 1);
+  CHECK(value(*c, "SELECT station_id || ' ' || (revoked_at IS NULL) FROM fogbench.station_keys WHERE key_id = $1", {key->key_id()}) ==
+        std::optional<std::string>("line-2 true"));
+  CHECK(value(*c, "SELECT public_key_pem FROM fogbench.station_keys WHERE key_id = $1", {key->key_id()}) ==
+        std::optional(key->public_key().pem()));
+  // Sent again (or by another bench of the same station): held once, none new.
+  auto again = plant::replicate_run(*c, bench, "b2", id);
+  REQUIRE(again);
+  CHECK(again->station_keys == 0);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.station_keys") == 1);
+  // The plant revokes a key by setting revoked_at (docs/plant.md "Station keys").
+  REQUIRE(c->exec("UPDATE fogbench.station_keys SET revoked_at = '2026-11-28T00:00:00Z'", "revoke"));
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.station_keys WHERE revoked_at IS NOT NULL") == 1);
   std::filesystem::remove(path);
 }

@@ -119,6 +119,10 @@ struct DaemonConfig {
   // host slows a run down instead of breaking it (docs/daemon.md, "Time scale").
   std::optional<std::filesystem::path> sim_clock;
   std::string station_id;                  // station.id: recorded in every run's identity ("" when unset)
+  // signing.key_path: the station's Ed25519 key, created at the first start (mode 0600), its
+  // public key beside it as .pub. Default: station.key beside the store; empty for a store in
+  // memory (a key made for the process alone).
+  std::filesystem::path signing_key_path;
   std::optional<PlantConfig> plant;        // replication to the plant store; none when absent
   nlohmann::json source;                   // the file as read, stored with every run (plant.conninfo left out)
 };

@@ -35,6 +35,7 @@
 #include "fogbench/profiles/executor.hpp"
 #include "fogbench/profiles/profile.hpp"
 #include "fogbench/protocol/protocol.hpp"
+#include "fogbench/signing/signing.hpp"
 #include "fogbench/storage/store.hpp"
 
 namespace fogbench::daemon {
@@ -123,6 +124,15 @@ class Station {
 
   storage::Store& store() { return store_; }
   const DaemonConfig& config() const { return config_; }
+  // The key certificates are signed with (docs/daemon.md "The station key"): the server sets
+  // the one of config().signing_key_path at start; until then (a station in a test) a key made
+  // for this process alone, with no file (`signing_key_path()` empty).
+  void set_signing_key(signing::SigningKey key, std::filesystem::path path) {
+    signing_key_ = std::move(key);
+    signing_key_path_ = std::move(path);
+  }
+  const signing::SigningKey& signing_key();
+  const std::filesystem::path& signing_key_path() const { return signing_key_path_; }
   double time_scale() const { return time_scale_; }
   // Records an operator command in the audit trail of a run.
   void audit(std::int64_t run_id, const nlohmann::json& command);
@@ -233,6 +243,8 @@ class Station {
   SampleWriter* samples_ = &inline_samples_;
   double time_scale_ = 1.0;
   WallClock wall_clock_;
+  std::optional<signing::SigningKey> signing_key_;
+  std::filesystem::path signing_key_path_;
   Publish publish_;
   std::optional<ActiveRun> run_;
   double setpoint_c_ = 0.0;      // the setpoint commanded now

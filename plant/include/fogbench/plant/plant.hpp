@@ -97,6 +97,9 @@ struct ReplicateStats {
   // The run's serials' certificates: newly stored in the plant, and sent but already held there
   // (immutable: left as they are).
   std::int64_t certificates = 0, certificates_held = 0;
+  // Station public keys new to the plant (station_keys), and ones refused: a certificate whose
+  // embedded public key is not the key its key_id names.
+  std::int64_t station_keys = 0, station_keys_refused = 0;
 };
 
 // Replicates one run of the bench's store to the plant in ONE transaction: what the plant held
