@@ -318,7 +318,9 @@ int public_key(const CertOptions& o, std::ostream& out, std::ostream& err) {
   } else {
     out << pem;
   }
-  err << "station " << (*r).value("station_id", "") << ", key id " << (*r).value("key_id", "")
+  const std::string station = (*r).value("station_id", "");
+  err << (station.empty() ? std::string("station (no station.id configured)") : "station " + station) << ", key id "
+      << (*r).value("key_id", "")
       << ((*r)["public_key_path"].is_string() ? ", beside the key as " + (*r)["public_key_path"].get<std::string>() : std::string())
       << (o.output.empty() ? "" : ", written to " + o.output) << "\n";
   return kExitOk;

@@ -112,6 +112,7 @@ ApiResult<Commit> fit(storage::Store& reader, const AnalysisConfig& config, std:
   if (!method) return api_error(ErrorCode::bad_request, "method: expected \"paper\" or \"joint\"");
   opt.method = *method;
   opt.max_iterations = config.max_iterations;
+  opt.causal_lags = config.causal_lags;
   auto m = model::fit(unit->data, *terms, opt);
   if (!m) return std::unexpected(from_fit("fit failed", m.error()));
   m->created_at = created_at;

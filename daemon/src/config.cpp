@@ -271,7 +271,7 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
     const json& a = j["analysis"];
     if (!a.is_object()) return Err("analysis: expected an object");
     if (auto ok = only_keys(a, "analysis", {"terms", "method", "verify_threshold", "verify_max_noise_factor",
-                                            "verify_max_fail_s", "max_iterations"});
+                                            "verify_max_fail_s", "max_iterations", "causal_lags"});
         !ok)
       return Err(ok.error());
     if (a.contains("terms")) {
@@ -309,6 +309,10 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
       if (!v.is_number_integer() || v.get<long long>() < 1 || v.get<long long>() > 1000)
         return Err("analysis.max_iterations: expected an integer 1..1000");
       c.analysis.max_iterations = v.get<int>();
+    }
+    if (a.contains("causal_lags")) {
+      if (!a["causal_lags"].is_boolean()) return Err("analysis.causal_lags: expected true or false");
+      c.analysis.causal_lags = a["causal_lags"].get<bool>();
     }
   }
 

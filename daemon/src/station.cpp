@@ -318,6 +318,17 @@ void Station::shutdown(const std::string& reason) {
 // full store are what they say.
 std::string Station::behind_real_time(const ActiveRun& run, const std::string& why) const {
   if (run.late_s == 0) return why;
+  // A chamber link lost before (or as) the loop fell behind is the first cause: the chamber's
+  // calls wait out their reply timeouts and make the ticks late, not a busy host (issue 27,
+  // point 4). A few seconds' grace: the call that times out makes its tick late before its
+  // failure is known.
+  constexpr double kLinkFailureKnownAfter_s = 3.0;
+  if (run.link_down_since_s && run.first_late_s && *run.link_down_since_s <= *run.first_late_s + kLinkFailureKnownAfter_s) {
+    std::ostringstream o;
+    o << why << "; meanwhile " << run.late_s << " of " << run.elapsed_s + 1
+      << " s were not read in time (the chamber's calls waited out their timeouts)";
+    return o.str();
+  }
   std::ostringstream o;
   o << "the acquisition fell behind real time (" << run.late_s << " of " << run.elapsed_s + 1
     << " s not read in time: the host is too busy for time scale " << time_scale_ << "); " << why;
@@ -419,7 +430,10 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
   }
   run.elapsed_s = clock_s - run.start_clock_s;
   const double t_s = run.elapsed_s;
-  if (in.late) ++run.late_s;
+  if (in.late) {
+    ++run.late_s;
+    if (!run.first_late_s) run.first_late_s = t_s;
+  }
   for (std::size_t i = 0; i < run.config_index.size(); ++i) {
     const std::size_t ci = run.config_index[i];
     if (ci < power_edges.size() && power_edges[ci] != PowerWatch::Edge::none) power_event(i, to_string(power_edges[ci]), t_s);

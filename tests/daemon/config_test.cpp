@@ -37,6 +37,7 @@ TEST_CASE("config: errors name the field") {
   CHECK_THAT(refusal({{"storage", {{"synchronous", "sometimes"}}}}), Catch::StartsWith("storage.synchronous"));
   CHECK_THAT(refusal({{"analysis", {{"method", "magic"}}}}), Catch::StartsWith("analysis.method"));
   CHECK_THAT(refusal({{"analysis", {{"terms", "T1 +"}}}}), Catch::StartsWith("analysis.terms"));
+  CHECK_THAT(refusal({{"analysis", {{"causal_lags", "yes"}}}}), Catch::StartsWith("analysis.causal_lags: expected true or false"));
   CHECK_THAT(refusal({{"colour", "blue"}}), Catch::StartsWith("colour: unknown field"));
   // The driver refuses setpoints above 180 degC by default: limits beyond it are an error.
   CHECK_THAT(refusal({{"chamber_limits", {{"max_c", 190}}}}), Catch::StartsWith("chamber_limits.max_c: above drivers"));

@@ -439,3 +439,37 @@ TEST_CASE("station faults: a run that fails after the loop fell behind real time
   CHECK_THAT(d->run.state_reason, Catch::Contains("time scale 200"));
   CHECK_THAT(d->run.state_reason, Catch::Contains("settle"));  // the original reason follows
 }
+
+TEST_CASE("station faults: a chamber link lost as the loop falls behind is named first in the abort reason") {
+  // The chamber gone: its calls wait out their timeouts, so the same seconds come late. The
+  // reason names the link (the cause), the late seconds after it, not "the host is too busy".
+  auto c = golden_config();
+  c.link_loss.tolerance_s = 20;
+  storage::Store store = memory_store();
+  Station st(c, store, 20.0, [] { return std::string("2026-01-01T00:00:00Z"); });
+  auto id = st.start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
+  REQUIRE(id.has_value());
+  double clock_s = 0;
+  auto tick = [&](bool link_down, bool late) {
+    TickInput in;
+    in.units.resize(1);
+    in.chamber_c = 20.0;
+    if (link_down) in.chamber_c.reset();
+    in.chamber_link_down = link_down;
+    in.late = late;
+    st.tick(clock_s, in);
+    clock_s += 1;
+  };
+  for (int i = 0; i < 30; ++i) tick(false, false);
+  // The first late second comes a second before the link is known down (the timed-out call).
+  tick(false, true);
+  for (int i = 0; i < 60 && st.active_run_id(); ++i) tick(true, i % 2 == 0);
+  REQUIRE_FALSE(st.active_run_id().has_value());
+  auto d = store.get_run(*id);
+  REQUIRE(d.has_value());
+  INFO(d->run.state_reason);
+  CHECK(d->run.state == storage::RunState::aborted);
+  CHECK(d->run.state_reason.starts_with("chamber link lost for "));
+  CHECK_THAT(d->run.state_reason, Catch::Contains("s were not read in time"));
+  CHECK_THAT(d->run.state_reason, !Catch::Contains("too busy"));
+}

@@ -2,6 +2,7 @@
 // trail, quality flags, and the automatic fit and verification.
 #include "fixture.hpp"
 
+#include "fogbench/model/firmware.hpp"
 #include "fogbench/model/json.hpp"
 
 using namespace fogbench;
@@ -239,4 +240,27 @@ TEST_CASE("station: a run with seconds not read is still fitted (the gaps are fl
   auto m = store.current_model("FOG-0001");
   REQUIRE(m.has_value());
   CHECK(m->has_value());
+}
+
+TEST_CASE("station: with analysis.causal_lags a fitted model's rate term is held at a lag the firmware meets") {
+  auto store = memory_store();
+  Station st(golden_config({{"analysis", {{"causal_lags", true}}}}), store, 1.0,
+             [] { return std::string("2026-01-01T00:00:00Z"); });
+  SyntheticBench bench(1);
+  double clock_s = 0.0;
+  REQUIRE(st.start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}}).has_value());
+  run_to_end(st, bench, clock_s);
+  auto m = store.current_model("FOG-0001");
+  REQUIRE(m.has_value());
+  REQUIRE(m->has_value());
+  auto model = model::model_from_text((*m)->model_json);
+  REQUIRE(model.has_value());
+  REQUIRE(model->terms.size() == 2);
+  CHECK(model::term_key(model->terms[0].term).starts_with("d(T1)"));
+  CHECK(model->terms[0].term.lag.seconds >= 30);  // the synthetic drift's own lag is 0
+  CHECK(model::firmware::compile(*model).has_value());
+  // The unconstrained fit of the same drift has no firmware form: that is what the hold is for.
+  model::Model at_zero = *model;
+  at_zero.terms[0].term.lag.seconds = 0;
+  CHECK_FALSE(model::firmware::compile(at_zero).has_value());
 }

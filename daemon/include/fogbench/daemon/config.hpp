@@ -73,6 +73,14 @@ struct AnalysisConfig {
   // long or longer, s.
   double verify_max_fail_s = 60.0;
   int max_iterations = 30;  // joint method: Cochrane-Orcutt iterations at most
+  // true: automatic lags held at what the firmware form can meet (model::FitOptions::causal_lags:
+  // 30 s per d(), 60 s per dd()), so every model the station fits gets a firmware form and live
+  // compensation. false (default, as before): the paper's unconstrained lags, whose coefficients
+  // are the physical ones a plan's `sensitivity` limit judges; a rate term at lag 0 then has no
+  // firmware form (docs/firmware.md). Held lags move the coefficients (on the mock bench's unit
+  // with a static T1 effect d(T1) went from within +-20 to 40): a serial's physical model and its
+  // firmware model are two fits, which issue 24's one verdict has to keep apart.
+  bool causal_lags = false;
 };
 
 // What a run does while the chamber cannot be polled (docs/daemon.md, "Faults").

@@ -170,6 +170,7 @@ class Station {
     };
     std::vector<Quality> quality;
     std::int64_t late_s = 0;  // seconds the loop was too late to read (TickInput::late)
+    std::optional<double> first_late_s;  // run time of the first of them
     double start_clock_s = 0.0;
     std::optional<double> resume_at_s;  // a resumed run: the run time of its first tick
     double elapsed_s = 0.0;
