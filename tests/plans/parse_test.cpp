@@ -61,7 +61,7 @@ TEST_CASE("the name defaults to the source's stem") {
 }
 
 TEST_CASE("a source's stem that is no plan name is refused, not stored as the name") {
-  for (const std::string source : {std::string("dir/\x1b]0;owned\x07.plan"), std::string("my night.plan"),
+  for (const std::string& source : {std::string("dir/\x1b]0;owned\x07.plan"), std::string("my night.plan"),
                                    std::string(100000, 'n') + ".plan", std::string("dir/.plan")}) {
     INFO(source.size());
     auto p = parse_plan("step exp1 fit\n", source);
