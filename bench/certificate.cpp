@@ -130,7 +130,7 @@ int main() {
     if (signing::check_certificate(*from_page, keys).exit_code != 0) fail("the page's certificate does not verify");
     html_ms.push_back(cpu_ms() - t0);
   }
-  for (auto* v : {&sign_ms, &json_ms, &html_ms}) std::sort(v->begin(), v->end());
+  for (auto* times : {&sign_ms, &json_ms, &html_ms}) std::sort(times->begin(), times->end());
   std::printf("sign (Ed25519, OpenSSL %s) a %zu-byte certificate: %.3f ms; verify its JSON: %.3f ms; verify its "
               "%zu-byte HTML page (visible tables redrawn and compared): %.3f ms (medians of %d; max %.3f, %.3f, %.3f; "
               "target 5 ms)\n",
