@@ -1,6 +1,8 @@
 // The daemon's one mapping of store and model failures to protocol codes (api.hpp).
 #include "fogbench/daemon/api.hpp"
 
+#include "fogbench/storage/identity.hpp"
+
 namespace fogbench::daemon {
 
 ApiError from_store(const storage::StoreError& e) {
@@ -24,6 +26,24 @@ ErrorCode code_of(model::FitError::Code c) {
 
 ApiError from_fit(const char* what, const model::FitError& e) {
   return {code_of(e.code), std::string(what) + " (" + std::string(model::to_string(e.code)) + "): " + e.message};
+}
+
+ApiResult<std::vector<std::string>> serials_field(const nlohmann::json& req, bool required) {
+  std::vector<std::string> serials;
+  if (!req.contains("units")) {
+    if (required) return api_error(ErrorCode::bad_request, "units: missing");
+    return serials;
+  }
+  const nlohmann::json& units = req["units"];
+  if (!units.is_array()) return api_error(ErrorCode::bad_request, "units: expected an array of serials");
+  for (const auto& u : units) {
+    if (!u.is_string()) return api_error(ErrorCode::bad_request, "units: expected an array of serials");
+    const std::string field = "units[" + std::to_string(serials.size()) + "]";
+    if (auto why = storage::check_stored_text(field, u.get<std::string>(), storage::kMaxNameBytes); !why.empty())
+      return api_error(ErrorCode::bad_request, why);
+    serials.push_back(u.get<std::string>());
+  }
+  return serials;
 }
 
 }  // namespace fogbench::daemon

@@ -44,18 +44,9 @@ ApiResult<PlanArgs> plan_args(const json& req, bool units_required) {
   if (auto why = storage::check_stored_text("source", *source, storage::kMaxSourceBytes); !why.empty())
     return api_error(ErrorCode::bad_request, why);
   a.source = source->empty() ? "plan" : *source;
-  if (!req.contains("units")) {
-    if (units_required) return api_error(ErrorCode::bad_request, "units: missing");
-    return a;
-  }
-  if (!req["units"].is_array()) return api_error(ErrorCode::bad_request, "units: expected an array of serials");
-  for (const auto& u : req["units"]) {
-    if (!u.is_string()) return api_error(ErrorCode::bad_request, "units: expected an array of serials");
-    const std::string field = "units[" + std::to_string(a.units.size()) + "]";
-    if (auto why = storage::check_stored_text(field, u.get<std::string>(), storage::kMaxNameBytes); !why.empty())
-      return api_error(ErrorCode::bad_request, why);
-    a.units.push_back(u.get<std::string>());
-  }
+  auto units = serials_field(req, units_required);
+  if (!units) return std::unexpected(units.error());
+  a.units = std::move(*units);
   return a;
 }
 

@@ -57,6 +57,11 @@ struct Residual {
 };
 std::expected<Residual, FitError> residual_of(const Model& m, const RunData& run);
 
+// Bias jumps in a model's residual on a run (workbench_nonthermal.cpp): steps of t >= o.jump_t
+// found by a change-point scan, at most o.max_jumps; `removed` (when given, sized as the run)
+// gets each jump's size (deg/h) added from its time on.
+std::vector<BiasJump> find_jumps(const Model& m, const RunData& run, const DiagnoseOptions& o, std::vector<double>* removed);
+
 // The term of a drift in time (trun, h since the run's start) as diagnose names it.
 inline constexpr const char* kTimeDriftName = "a drift in time (ageing/outgassing), not thermal";
 inline constexpr const char* kTimeDriftExplanation =

@@ -69,6 +69,19 @@ bool compile_c(const Dir& d, const std::string& source, const std::string& exe, 
   return built == 0;
 }
 
+// `fogctl coefficients model.json --format c --name unit_model -o model.inc --run run.csv
+// --reference reference.csv` in `d` (after make_run_and_model).
+CoefficientsOptions c_with_reference(const Dir& d) {
+  CoefficientsOptions o;
+  o.model = d.file("model.json");
+  o.format = "c";
+  o.name = "unit_model";
+  o.output = d.file("model.inc");
+  o.run = d.file("run.csv");
+  o.reference = d.file("reference.csv");
+  return o;
+}
+
 }  // namespace
 
 TEST_CASE("firmware: the causal program computes the model's prediction once its windows are full",
@@ -104,13 +117,7 @@ TEST_CASE("firmware: the C99 reference implementation reproduces fogctl's refere
           "[cli][firmware]") {
   Dir d;
   make_run_and_model(d);
-  CoefficientsOptions o;
-  o.model = d.file("model.json");
-  o.format = "c";
-  o.name = "unit_model";
-  o.output = d.file("model.inc");
-  o.run = d.file("run.csv");
-  o.reference = d.file("reference.csv");
+  CoefficientsOptions o = c_with_reference(d);
   const auto r = coefficients(o);
   REQUIRE(r.code == kExitOk);
   {
@@ -152,13 +159,7 @@ TEST_CASE("firmware: a float build of fogcomp.h reproduces its own reference vec
           "[cli][firmware]") {
   Dir d;
   make_run_and_model(d);
-  CoefficientsOptions o;
-  o.model = d.file("model.json");
-  o.format = "c";
-  o.name = "unit_model";
-  o.output = d.file("model.inc");
-  o.run = d.file("run.csv");
-  o.reference = d.file("reference.csv");
+  CoefficientsOptions o = c_with_reference(d);
   o.single = true;
   REQUIRE(coefficients(o).code == kExitOk);
   o.single = false;

@@ -5,6 +5,9 @@
 
 #include <expected>
 #include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "fogbench/model/model.hpp"
 #include "fogbench/protocol/protocol.hpp"
@@ -38,5 +41,11 @@ ApiError from_store(const storage::StoreError& e);
 //     cannot carry the analysis ("storage or analysis failed", docs/protocol.md).
 ErrorCode code_of(model::FitError::Code c);
 ApiError from_fit(const char* what, const model::FitError& e);
+
+// A request's `units`: an array of serials, each a storable name (storage::check_stored_text,
+// at most 64 bytes, no control characters), else a bad_request naming the field (`units`,
+// `units[1]`). Absent: an error when `required`, else no serials. run.start, plan.* and
+// queue.add read them through this one check.
+ApiResult<std::vector<std::string>> serials_field(const nlohmann::json& req, bool required);
 
 }  // namespace fogbench::daemon
