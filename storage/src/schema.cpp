@@ -219,6 +219,30 @@ CREATE INDEX plant_outbox_pending ON plant_outbox (id) WHERE sent_at IS NULL;
 CREATE INDEX plant_outbox_run ON plant_outbox (run_id);
 )sql";
 
+// Version 8 (issue 24, one verdict per serial): every verdict decided, by one rule (a plan's
+// limits or the analysis settings), with what it judged; the serial's verdict is its latest row.
+constexpr const char* kVerdicts = R"sql(
+CREATE TABLE verdicts (
+  id            INTEGER PRIMARY KEY,
+  serial        TEXT NOT NULL,
+  run_id        INTEGER NOT NULL REFERENCES runs (id) ON DELETE CASCADE,
+  unit_index    INTEGER NOT NULL,
+  model_id      INTEGER REFERENCES models (id),
+  verdict       TEXT NOT NULL CHECK (verdict IN ('pass', 'marginal', 'fail', 'incomplete')),
+  rule          TEXT NOT NULL CHECK (rule IN ('plan', 'analysis')),
+  plan_id       INTEGER REFERENCES plans (id),
+  plan_name     TEXT NOT NULL DEFAULT '',
+  plan_sha256   TEXT NOT NULL DEFAULT '',
+  limits_json   TEXT NOT NULL DEFAULT '[]' CHECK (json_valid(limits_json)),
+  reasons_json  TEXT NOT NULL DEFAULT '[]' CHECK (json_valid(reasons_json)),
+  decided_at    TEXT NOT NULL,
+  CHECK ((rule = 'plan') = (plan_id IS NOT NULL)),
+  FOREIGN KEY (run_id, unit_index) REFERENCES run_units (run_id, unit_index) ON DELETE CASCADE
+);
+CREATE INDEX verdicts_serial ON verdicts (serial, id);
+CREATE INDEX verdicts_run ON verdicts (run_id);
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "recording tables", kRecording},
     {2, "models and verifications", kModels},
@@ -227,6 +251,7 @@ constexpr Migration kMigrations[] = {
     {5, "live compensated rate", kLiveCompensation},
     {6, "qualification plans and their queue", kPlans},
     {7, "unit lots and the plant outbox", kPlant},
+    {8, "one verdict per serial", kVerdicts},
 };
 
 StoreResult<std::int64_t> query_int(Database& db, const std::string& sql, std::string_view what) {

@@ -185,15 +185,15 @@ TEST_CASE("store: newer, foreign and non-database files are refused untouched", 
     {
       Raw raw(path);
       raw.exec("CREATE TABLE runs (id INTEGER PRIMARY KEY, future_column TEXT);"
-               "PRAGMA user_version = 9; PRAGMA application_id = 1179600706;");
+               "PRAGMA user_version = 99; PRAGMA application_id = 1179600706;");
     }
     auto s = Store::open(path);
     REQUIRE_FALSE(s.has_value());
     CHECK(s.error().code == StoreErrc::schema_too_new);
-    CHECK_THAT(s.error().message, Contains("schema version 9 is newer"));
+    CHECK_THAT(s.error().message, Contains("schema version 99 is newer"));
     CHECK_THAT(s.error().message, Contains(path.string()));
     Raw raw(path);
-    CHECK(raw.integer("PRAGMA user_version") == 9);
+    CHECK(raw.integer("PRAGMA user_version") == 99);
     CHECK(raw.text("PRAGMA journal_mode") == "delete");  // not even switched to WAL
   }
   SECTION("another application's database") {

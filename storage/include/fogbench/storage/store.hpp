@@ -22,6 +22,7 @@
 
 #include "fogbench/model/run.hpp"
 #include "fogbench/storage/identity.hpp"
+#include "fogbench/storage/verdict.hpp"
 
 namespace fogbench::storage {
 
@@ -358,6 +359,14 @@ class Store {
   StoreResult<std::vector<CertificateRecord>> find_certificates(std::string_view sha256);
   // The serial's certificates, oldest first.
   StoreResult<std::vector<CertificateRecord>> list_certificates(std::string_view serial);
+  // --- verdicts (store_verdicts.cpp, verdict.hpp): one row per decision, the serial's verdict
+  // its latest. Checked: a known verdict and rule, a plan's id/name/hash with rule plan only,
+  // JSON arrays, the run's unit holding the serial, the model the serial's. Returns its id.
+  StoreResult<std::int64_t> put_verdict(const NewVerdict& v);
+  // The serial's latest verdict; empty when it has none.
+  StoreResult<std::optional<VerdictRecord>> latest_verdict(std::string_view serial);
+  // The verdicts a run decided, by unit then id.
+  StoreResult<std::vector<VerdictRecord>> run_verdicts(std::int64_t run_id);
   // --- qualification plans and their queue (store_plans.cpp)
   // A queued plan goes to the end of the queue. Adds a plan_events entry of `event_kind` with
   // `event_detail` in the same transaction.
