@@ -23,8 +23,14 @@ namespace {
 
 constexpr const char* kScriptOpen = "<script type=\"application/json\" id=\"fogbench-certificate\">";
 // The page's layout version: --check compares a page's visible part only with a rendering of
-// the same version (bumped whenever certificate_html changes what it draws).
-constexpr const char* kRenderer = "fogbench-certificate-page 2";
+// the same version (bumped whenever certificate_html changes what it draws). Page 3 (issue 24,
+// one verdict) draws the serial's verdict with the rule that decided it; a certificate issued
+// before it (per-verification verdicts, no `qualification`) is still drawn as page 2, the same
+// bytes as then, so its pages keep checking.
+constexpr const char* kRenderer = "fogbench-certificate-page 3";
+constexpr const char* kRendererV2 = "fogbench-certificate-page 2";
+bool one_verdict_layout(const json& cert) { return cert.contains("verifications") || cert.contains("qualification"); }
+const char* renderer_of(const json& cert) { return one_verdict_layout(cert) ? kRenderer : kRendererV2; }
 constexpr const char* kRendererMeta = "<meta name=\"generator\" content=\"";
 
 std::string text_of(const json& v, int digits = 4) {
@@ -84,6 +90,26 @@ std::string estimate_text(const json& e) {
          text_of(e["from_tau_s"]) + ".." + text_of(e["to_tau_s"]) + " s)";
 }
 
+// Who decided the verdict: "plan NAME (plan 7, line-numbered limits; sha256 ab12...)" or the
+// station's analysis settings.
+std::string decided_by_text(const json& q) {
+  if (q.value("rule", "") == "plan" && q.contains("plan") && q["plan"].is_object())
+    return "plan " + field_text(q["plan"], "name") + " (plan " + field_text(q["plan"], "id") + ", text sha256 " +
+           field_text(q["plan"], "sha256").substr(0, 16) + "...)";
+  return "the station's analysis settings";
+}
+
+// A judged limit as the verdict keeps it: a plan's "comp_raw < 0.05", an analysis check's
+// "compensated std / raw std < 0.2".
+std::string limit_text(const json& x) {
+  if (x.contains("bound")) {  // an analysis check: {measurement, limit (the rule), bound}
+    std::string rule = field_text(x, "limit");
+    const std::string op = rule.find("<=") != std::string::npos ? "<=" : "<";
+    return field_text(x, "measurement") + " " + op + " " + text_of(x["bound"]);
+  }
+  return field_text(x, "limit");
+}
+
 int print_summary(const json& cert, std::ostream& out) {
   const json& m = cert["model"];
   out << "certificate of " << field_text(cert, "serial") << ": " << field_text(cert, "verdict") << "\n  model " << field_text(m, "id") << " version "
@@ -98,10 +124,25 @@ int print_summary(const json& cert, std::ostream& out) {
   Table c({"term", "value", "1 sigma", "unit"});
   for (const auto& t : m["coefficients"]) c.add({field_text(t, "term"), text_of(t["value"], 6), text_of(t["sigma"], 3), field_text(t, "unit")});
   out << c.str();
-  Table v({"run", "check", "value", "limit", "pass", "verdict"});
-  for (const auto& x : cert["verdicts"])
-    for (const auto& k : x["checks"]) v.add({field_text(x, "run_id"), field_text(k, "check"), text_of(k["value"]), cert_limit_text(k), text_of(k["pass"]), field_text(x, "verdict")});
-  out << v.str();
+  if (!one_verdict_layout(cert)) {  // issued before issue 24: each verification's own verdict
+    Table v({"run", "check", "value", "limit", "pass", "verdict"});
+    for (const auto& x : cert.value("verdicts", json::array()))
+      for (const auto& k : x["checks"]) v.add({field_text(x, "run_id"), field_text(k, "check"), text_of(k["value"]), cert_limit_text(k), text_of(k["pass"]), field_text(x, "verdict")});
+    out << v.str();
+    return kExitOk;
+  }
+  const json& q = cert["qualification"];
+  if (q.is_object()) {
+    out << "  decided by " << decided_by_text(q) << " on " << field_text(q, "decided_at") << " (run " << field_text(q, "run_id") << ")\n";
+    if (q.contains("note")) out << "  " << field_text(q, "note") << "\n";
+    Table l({"limit", "line", "value", "met", "on fail", "run"});
+    for (const auto& x : q.value("limits", json::array()))
+      l.add({limit_text(x), field_text(x, "line"), text_of(x["value"]), text_of(x.value("met", json(nullptr))), field_text(x, "on_fail"), field_text(x, "run_id")});
+    out << l.str();
+    for (const auto& r : q.value("reasons", json::array())) out << "  " << text_of(r) << "\n";
+  } else {
+    out << "  no verdict decided on this model\n";
+  }
   return kExitOk;
 }
 
@@ -111,7 +152,11 @@ std::string certificate_html(const json& cert) {
   const json& m = cert["model"];
   const std::string verdict = field_text(cert, "verdict");
   std::string b;
-  b += "<h1>Certificate of qualification: " + html_escape(field_text(cert, "serial")) + "</h1>";
+  const bool v3 = one_verdict_layout(cert);
+  if (!v3 || verdict == "pass")
+    b += "<h1>Certificate of qualification: " + html_escape(field_text(cert, "serial")) + "</h1>";
+  else  // a unit that did not pass gets no certificate of qualification, only its record
+    b += "<h1>Qualification record: " + html_escape(field_text(cert, "serial")) + " (NOT QUALIFIED)</h1>";
   b += "<div class=\"sub\">Thermal drift model, version " + html_escape(field_text(m, "version")) + ", issued " + html_escape(field_text(cert, "issued_at")) +
        " by station " + html_escape(field_text(cert, "station_id")) + " with fogbench " + html_escape(field_text(cert["software"], "version")) + " (" +
        html_escape(field_text(cert["software"], "git_hash")) + ")</div>";
@@ -122,12 +167,39 @@ std::string certificate_html(const json& cert) {
   for (const auto& t : m["coefficients"])
     rows.push_back({field_text(t, "term"), text_of(t["value"], 6), text_of(t["sigma"], 3), field_text(t, "unit"), text_of(t["lag_s"])});
   b += table({"term", "value", "1 sigma", "unit", "lag, s"}, rows);
-  b += "<h2>Verdicts</h2>";
-  rows.clear();
-  for (const auto& x : cert["verdicts"])
-    for (const auto& k : x["checks"])
-      rows.push_back({field_text(x, "run_id"), field_text(k, "check"), text_of(k["value"]), cert_limit_text(k), field_text(k, "rule"), text_of(k["pass"]), field_text(x, "verdict")});
-  b += rows.empty() ? "<p>No verification of this model.</p>" : table({"run", "check", "value", "limit", "rule", "pass", "verdict"}, rows);
+  if (!v3) {
+    b += "<h2>Verdicts</h2>";
+    rows.clear();
+    for (const auto& x : cert.value("verdicts", json::array()))
+      for (const auto& k : x["checks"])
+        rows.push_back({field_text(x, "run_id"), field_text(k, "check"), text_of(k["value"]), cert_limit_text(k), field_text(k, "rule"), text_of(k["pass"]), field_text(x, "verdict")});
+    b += rows.empty() ? "<p>No verification of this model.</p>" : table({"run", "check", "value", "limit", "rule", "pass", "verdict"}, rows);
+  } else {
+    // The one verdict: who decided it, by which limits, on what; then the evidence.
+    const json& q = cert["qualification"];
+    b += "<h2>How the verdict was decided</h2>";
+    if (!q.is_object()) {
+      b += "<p>No verdict was decided on this model: it has not been verified.</p>";
+    } else {
+      b += "<p>Decided by " + html_escape(decided_by_text(q)) + " on " + html_escape(field_text(q, "decided_at")) + ", run " +
+           html_escape(field_text(q, "run_id")) + ".</p>";
+      if (q.contains("note")) b += "<p class=\"sub\">" + html_escape(field_text(q, "note")) + "</p>";
+      rows.clear();
+      for (const auto& x : q.value("limits", json::array()))
+        rows.push_back({limit_text(x), field_text(x, "line"), text_of(x["value"]), text_of(x.value("met", json(nullptr))),
+                        field_text(x, "on_fail"), field_text(x, "run_id")});
+      b += table({"limit", "plan line", "value", "met", "on fail", "run"}, rows);
+      std::string reasons;
+      for (const auto& r : q.value("reasons", json::array())) reasons += "<li>" + html_escape(text_of(r)) + "</li>";
+      if (!reasons.empty()) b += "<ul>" + reasons + "</ul>";
+    }
+    b += "<h2>Verifications of this model (evidence)</h2>";
+    rows.clear();
+    for (const auto& x : cert.value("verifications", json::array()))
+      for (const auto& k : x["checks"])
+        rows.push_back({field_text(x, "run_id"), field_text(k, "check"), text_of(k["value"]), cert_limit_text(k), field_text(k, "rule"), text_of(k["met"])});
+    b += rows.empty() ? "<p>No verification of this model.</p>" : table({"run", "check", "value", "limit", "rule", "met"}, rows);
+  }
   b += "<h2>Allan deviation of the compensated output (IEEE Std 952 Annex C)</h2>";
   rows.clear();
   for (const auto& a : cert["allan"])
@@ -154,7 +226,7 @@ std::string certificate_html(const json& cert) {
   // "</" inside a script would end it: JSON's "\/" keeps it out and parses back to "/".
   std::string j = cert.dump(), safe;
   for (std::size_t i = 0; i < j.size(); ++i) safe += (j[i] == '/' && i > 0 && j[i - 1] == '<') ? std::string("\\/") : std::string(1, j[i]);
-  return "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">" + std::string(kRendererMeta) + kRenderer +
+  return "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">" + std::string(kRendererMeta) + renderer_of(cert) +
          "\"><title>Certificate " + html_escape(field_text(cert, "serial")) +
          "</title><style>" + kStyle + "</style></head><body>" + b + kScriptOpen + safe + "</script></body></html>\n";
 }
@@ -199,9 +271,10 @@ std::expected<std::string, std::string> visible_difference(const std::string& ht
     const auto from = at + std::string(kRendererMeta).size();
     version = html.substr(from, html.find('"', from) - from);
   }
-  if (version != kRenderer)
+  if (version != renderer_of(cert))
     return std::unexpected("the page was drawn by " + (version.empty() ? std::string("an older fogctl") : "'" + version + "'") +
-                           ", this fogctl draws '" + kRenderer + "': its visible tables cannot be compared (the embedded JSON can)");
+                           ", this fogctl draws its certificate as '" + renderer_of(cert) +
+                           "': its visible tables cannot be compared (the embedded JSON can)");
   const std::string seen = visible_part(html), signed_page = visible_part(certificate_html(cert));
   if (seen == signed_page) return std::string();
   std::size_t i = 0;

@@ -1,6 +1,7 @@
 // fogctl's run commands over the daemon client: status; run start, list, get, abort, resume,
 // export; model get; and fit/verify --run N, which fetch a stored run into a CSV and hand it to
 // the offline command. The watch of a run is in watch.cpp.
+#include <cctype>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -150,8 +151,15 @@ int cmd_run_list(const Common& o, const std::string& state, int limit, std::ostr
   return kExitOk;
 }
 
+namespace {
+std::string upper(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return s;
+}
+}  // namespace
+
 void print_table1(const json& verifications, const json& run, std::ostream& out) {
-  Table t({"unit", "serial", "model", "est_mean", "meas_mean", "est_std", "meas_std", "comp_std", "comp/raw", "pass"});
+  Table t({"unit", "serial", "model", "est_mean", "meas_mean", "est_std", "meas_std", "comp_std", "comp/raw", "checks met"});
   for (const auto& v : verifications) {
     // model::to_json(Verification) puts the whole run's Table 1 at the top level.
     const json& res = v["result"];
@@ -196,6 +204,20 @@ int cmd_run_get(const Common& o, std::int64_t id, std::ostream& out, std::ostrea
     out << "verifications (Table 1, deg/h):\n";
     print_table1((*r)["verifications"], run, out);
   }
+  // Each unit's one verdict (issue 24): decided by this run, or by the plan the run is a step of.
+  bool any_verdict = false;
+  Table vt({"unit", "serial", "verdict", "decided by", "decided at"});
+  for (const auto& v : r->value("verdicts", json::array())) {
+    if (!v.is_object()) continue;
+    any_verdict = true;
+    std::string by = v.value("rule", "") == "plan" ? "plan" : "analysis settings";
+    if (v.contains("plan") && v["plan"].is_object())
+      by = "plan " + v["plan"].value("name", std::string()) + " (" + std::to_string(v["plan"].value("id", std::int64_t{0})) + ")";
+    const std::string verdict = v["verdict"].is_string() ? upper(v["verdict"].get<std::string>()) : v.value("pending", std::string("-"));
+    vt.add({std::to_string(v.value("unit", 0)), v.value("serial", std::string()), verdict, by,
+            v.value("decided_at", std::string("-"))});
+  }
+  if (any_verdict) out << "verdicts:\n" << vt.str();
   out << "events:\n" << events_table((*r)["events"]).str();
   return kExitOk;
 }

@@ -2,6 +2,8 @@
 // measured against predicted drift, the residual with failing intervals shaded, the residual
 // against the top candidates, the diagnosis, the lineage of the error and a qualification
 // summary in the terms of IEEE Std 952. Plots are drawn by the vendored uPlot, inline.
+#include <cctype>
+#include <map>
 #include <cmath>
 #include <memory>
 #include <ostream>
@@ -116,6 +118,28 @@ std::string identity_header(const std::vector<std::string>& paths) {
   return html;
 }
 
+// The serials' verdicts as the station decided them (the `verdict` comments of a run export):
+// the one verdict, shown before this report's own analysis so the two are never confused.
+std::string station_verdicts(const std::vector<std::string>& paths) {
+  std::string html;
+  for (const auto& p : paths) {
+    std::map<std::string, std::string> f;
+    for (const auto& [k, v] : csv_file_identity(p)) f[k] = v;
+    if (!f.contains("verdict")) continue;
+    const std::string v = f["verdict"];
+    std::string shown = v;
+    for (char& ch : shown) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+    html += "<p><b>The serial's verdict</b> (" + html_escape(f["serial"]) + ", run " + html_escape(f["run"]) +
+            ", recorded by the station): <span class=\"verdict " + std::string(v == "pass" ? "pass" : "failv") + "\">" +
+            html_escape(shown) + "</span> decided by " + html_escape(f["verdict_by"]) + " on " + html_escape(f["verdict_decided_at"]) +
+            " (<code>fogctl cert " + html_escape(f["serial"]) + "</code>)</p>";
+  }
+  if (!html.empty())
+    html += "<p class=\"note\">The qualification below is this report's analysis of these files (its threshold, the "
+            "runs given), not the serial's verdict: the verdict above is the one the certificate and the plant carry.</p>";
+  return html;
+}
+
 }  // namespace
 
 int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
@@ -171,6 +195,7 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
   // noise, with no effect left to add?). Both use the one noise rule (model::NoiseRule).
   const model::NoiseRule rule;
   body += "<h2>Qualification summary (IEEE Std 952 thermal sensitivities)</h2>";
+  body += station_verdicts(o.runs);
   body += std::string("<p><b>Qualification:</b> <span class=\"verdict ") + (q.pass ? "pass\">PASS" : q.marginal ? "failv\">MARGINAL" : "failv\">FAIL") +
           "</span> compensated std under " + fixed(100.0 * q.threshold, 0) + "% of the raw std on every run, within " +
           fixed(rule.max_noise_factor, 2) + " x the gyro's noise std (its floor read off the holds) and no failing interval of " +

@@ -43,8 +43,22 @@ std::string identity_csv_comments(const json& run_get, int unit) {
   auto id = identity_from_json(run_get.value("identity", json()));
   if (!id) return {};
   const json& run = run_get["run"];
-  return storage::identity_comment_lines(
-      storage::identity_fields(*id, run.value("id", std::int64_t{0}), run.value("profile", std::string()), unit));
+  auto fields = storage::identity_fields(*id, run.value("id", std::int64_t{0}), run.value("profile", std::string()), unit);
+  // The serial's one verdict as the station decided it (issue 24), so that a report or a reader
+  // of the file sees that verdict, never a second one (docs/csv.md).
+  const json verdicts = run_get.value("verdicts", json::array());
+  if (verdicts.is_array() && unit >= 0 && static_cast<std::size_t>(unit) < verdicts.size()) {
+    const json& v = verdicts[static_cast<std::size_t>(unit)];
+    if (v.is_object() && v.value("verdict", json()).is_string()) {
+      fields.emplace_back("verdict", v["verdict"].get<std::string>());
+      std::string by = "analysis settings";
+      if (v.value("rule", "") == "plan" && v.contains("plan") && v["plan"].is_object())
+        by = "plan " + v["plan"].value("name", std::string()) + " (plan " + std::to_string(v["plan"].value("id", std::int64_t{0})) + ")";
+      fields.emplace_back("verdict_by", by);
+      fields.emplace_back("verdict_decided_at", v.value("decided_at", std::string()));
+    }
+  }
+  return storage::identity_comment_lines(fields);
 }
 
 void print_identity(const json& identity, std::ostream& out) {

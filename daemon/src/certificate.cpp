@@ -12,6 +12,7 @@
 #include "fogbench/protocol/build_info.hpp"
 #include "fogbench/signing/certificate.hpp"
 #include "fogbench/storage/run_data.hpp"
+#include "verdict.hpp"
 
 namespace fogbench::daemon::certificate {
 
@@ -59,22 +60,6 @@ json allan_of(storage::Store& store, const model::Model& m, std::int64_t run_id,
           {"arw_deg_per_sqrt_h", estimate_json(t.arw_deg_per_sqrt_h, t.arw_note)},
           {"bias_instability_dph", estimate_json(t.bias_instability_dph, t.bias_instability_note)},
           {"rrw_dph_per_sqrt_h", estimate_json(t.rrw_dph_per_sqrt_h, t.rrw_note)}};
-}
-
-// A check of the second test against the limit stored with the verdict (analysis.cpp). A
-// verdict stored before the limits were (fogbench before the certificate fix) says so: the
-// limit is null and the rule "limits not recorded", never today's configuration.
-json cert_limit_check(const json& res, const char* check, const char* value_key, const char* limit_key,
-                 const std::string& rule) {
-  const json value = res.value(value_key, json(nullptr));
-  if (!res.contains(limit_key) || !res[limit_key].is_number())
-    return {{"check", check}, {"value", value}, {"limit", nullptr}, {"rule", rule + " (limits not recorded)"},
-            {"pass", nullptr}};
-  const double limit = res[limit_key].get<double>();
-  json pass = nullptr;
-  if (value.is_number())
-    pass = rule == "value <= limit" ? value.get<double>() <= limit : value.get<double>() < limit;
-  return {{"check", check}, {"value", value}, {"limit", limit}, {"rule", rule}, {"pass", pass}};
 }
 
 ApiResult<json> run_json(storage::Store& store, std::int64_t run_id, const std::string& role) {
@@ -127,9 +112,11 @@ ApiResult<json> build(storage::Store& store, const AnalysisConfig& /*config*/, c
   f.limit = 10000;
   auto all = store.list_runs(f);
   if (!all) return std::unexpected(from_store(all.error()));
-  json verdicts = json::array();
+  // The evidence: every verification of this model with its checks (what was measured against
+  // which limit). The verdict is not recomputed from them: it is the serial's one verdict,
+  // decided once by its rule (verdict.hpp), read back below.
+  json verifications = json::array();
   json allans = json::array();
-  bool all_pass = true;
   for (auto it = all->rbegin(); it != all->rend(); ++it) {
     auto vs = store.list_verifications(it->id);
     if (!vs) return std::unexpected(from_store(vs.error()));
@@ -140,23 +127,14 @@ ApiResult<json> build(storage::Store& store, const AnalysisConfig& /*config*/, c
         continue;
       const json res = json::parse(v.result_json, nullptr, false);
       if (!res.is_object()) continue;
-      const std::string verdict = res.value("verdict", v.pass ? "pass" : "fail");
-      all_pass = all_pass && verdict == "pass";
-      verdicts.push_back(
+      verifications.push_back(
           {{"run_id", it->id},
            {"verification_id", v.id},
-           {"verdict", verdict},
-           {"checks",
-            {{{"check", "compensated std / raw std"}, {"value", res.value("ratio", json(nullptr))},
-              {"limit", res.value("threshold", json(nullptr))}, {"rule", "value < limit"},
-              {"pass", res.value("ratio_pass", json(nullptr))}},
-             cert_limit_check(res, "compensated std / model noise std", "noise_factor", "max_noise_factor", "value <= limit"),
-             cert_limit_check(res, "longest failing interval, s", "longest_fail_s", "max_fail_s", "value < limit")}},
+           {"checks", verdict::analysis_checks(res)},
            {"table1",
             {{"raw_std_dph", res.value("meas_std", json(nullptr))},
              {"comp_std_dph", res.value("comp_std", json(nullptr))},
-             {"n", res.value("n", json(nullptr))}}},
-           {"reasons", res.value("reasons", json::array())}});
+             {"n", res.value("n", json(nullptr))}}}});
       json a = allan_of(store, *m, it->id, v.unit_index);
       a["run_id"] = it->id;
       allans.push_back(std::move(a));
@@ -168,6 +146,9 @@ ApiResult<json> build(storage::Store& store, const AnalysisConfig& /*config*/, c
       }
     }
   }
+  auto latest = store.latest_verdict(serial);
+  if (!latest) return std::unexpected(from_store(latest.error()));
+  const verdict::Certified decided = verdict::certified(*latest, mr.id);
   const auto& info = protocol::build_info();
   return json{{"format", "fogbench.certificate"},
               {"format_version", signing::kCertificateFormatVersion},
@@ -177,8 +158,9 @@ ApiResult<json> build(storage::Store& store, const AnalysisConfig& /*config*/, c
                {{"id", mr.id}, {"version", mr.version}, {"method", mr.method}, {"terms", mr.terms},
                 {"created_at", mr.created_at}, {"fitted_on_run", mr.run_id ? json(*mr.run_id) : json(nullptr)},
                 {"sigma_a_dph", num_or_null(m->sigma_a_dph)}, {"coefficients", coefficients}}},
-              {"verdicts", verdicts},
-              {"verdict", verdicts.empty() ? "not verified" : all_pass ? "pass" : "not passed"},
+              {"verdict", decided.verdict},
+              {"qualification", decided.qualification},
+              {"verifications", verifications},
               {"runs", runs},
               {"allan", allans},
               {"software", {{"version", std::string(info.version)}, {"git_hash", std::string(info.git_hash)},

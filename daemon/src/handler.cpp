@@ -12,6 +12,7 @@
 #include "fogbench/daemon/analysis.hpp"
 #include "fogbench/daemon/certificate.hpp"
 #include "fogbench/daemon/run_identity.hpp"
+#include "verdict.hpp"
 #include "fogbench/storage/identity.hpp"
 #include "fogbench/protocol/framing.hpp"
 #include "fogbench/model/json.hpp"
@@ -177,10 +178,30 @@ ApiResult<json> run_get(storage::Store& store, std::int64_t run_id, const json& 
     auto n = store.count_samples(run_id, u.unit_index);
     samples.push_back(n ? *n : 0);
   }
+  // Each unit's verdict (issue 24, verdict.hpp): the one this run decided, or, on a plan's run
+  // that did not decide it, the plan's when it has decided, else who will.
+  auto decided = store.run_verdicts(run_id);
+  if (!decided) return std::unexpected(from_store(decided.error()));
+  const auto plan_id = verdict::plan_of_run(*d);
+  json verdicts = json::array();
+  for (const auto& u : d->run.units) {
+    json v = nullptr;
+    for (const auto& rec : *decided)
+      if (rec.unit_index == u.unit_index) v = verdict::to_json(rec);  // the latest of this run
+    if (v.is_null() && plan_id) {
+      auto latest = store.latest_verdict(u.serial);
+      if (!latest) return std::unexpected(from_store(latest.error()));
+      if (*latest && (*latest)->plan_id == plan_id) v = verdict::to_json(**latest);
+      else v = {{"serial", u.serial}, {"verdict", nullptr}, {"rule", "plan"}, {"plan", {{"id", *plan_id}}},
+                {"pending", "plan " + std::to_string(*plan_id) + " decides it"}};
+    }
+    if (v.is_object()) v["unit"] = u.unit_index;
+    verdicts.push_back(std::move(v));
+  }
   auto identity = store.get_run_identity(run_id);
   if (!identity) return std::unexpected(from_store(identity.error()));
   return json{{"run", r}, {"samples", samples}, {"quality", quality}, {"events", events}, {"models", models},
-              {"verifications", vers}, {"config", parse_or_string(d->run.config_json)},
+              {"verifications", vers}, {"verdicts", verdicts}, {"config", parse_or_string(d->run.config_json)},
               {"profile_text", d->run.profile_text}, {"identity", identity_json(*identity)}};
 }
 

@@ -10,8 +10,10 @@
 
 #include "fogbench/daemon/station.hpp"
 #include "fogbench/model/allan.hpp"
+#include "fogbench/model/firmware.hpp"
 #include "fogbench/model/json.hpp"
 #include "fogbench/model/model.hpp"
+#include "verdict.hpp"
 
 namespace fogbench::daemon {
 
@@ -232,11 +234,34 @@ ApiResult<json> PlanRunner::abort(const std::string& reason, const json& command
   return json{{"plan_id", *id}, {"state", "aborted"}};
 }
 
+void PlanRunner::decide_unit(std::int64_t plan_id, json& progress, json& unit) {
+  if (unit.value("decided", false)) return;
+  unit["decided"] = true;
+  auto& store = station_.store();
+  auto rec = store.get_plan(plan_id);
+  if (!rec) {
+    spdlog::error("plan {}: cannot read it to store the verdict of {}: {}", plan_id, unit.value("serial", ""),
+                  rec.error().message);
+    return;
+  }
+  const std::string serial = unit.value("serial", "");
+  std::optional<std::int64_t> model_id;
+  if (auto m = store.current_model(serial); m && *m) model_id = (*m)->id;
+  auto v = verdict::from_plan(plan_id, rec->name, rec->plan_text, unit, progress["runs"], model_id);
+  if (!v) return;  // the unit never ran: the plan's status says incomplete, nothing to certify
+  auto cert = station_.decide(*v);
+  if (cert) unit["certificate_sha256"] = *cert;
+  else if (cert.error().code != ErrorCode::not_found)  // not_found: no model, so no certificate
+    spdlog::error("plan {}: the verdict of {} ({}): {}", plan_id, serial, v->verdict, cert.error().message);
+}
+
 void PlanRunner::finish_plan(std::int64_t plan_id, json& progress, const std::string& state, const std::string& reason) {
   for (auto& u : progress["units"]) {
-    if (!u["verdict"].is_null()) continue;
-    if (state == "completed") u["verdict"] = u["marginal"].get<bool>() ? "marginal" : "pass";
-    else u["verdict"] = "incomplete";
+    if (u["verdict"].is_null()) {
+      if (state == "completed") u["verdict"] = u["marginal"].get<bool>() ? "marginal" : "pass";
+      else u["verdict"] = "incomplete";
+    }
+    decide_unit(plan_id, progress, u);
   }
   progress["waiting"] = nullptr;
   save(plan_id, state, reason, progress);
@@ -422,6 +447,7 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
       (*u)["verdict"] = "fail";
       (*u)["reasons"].push_back(why);
       plan_event(plan_id, "plan.unit", {{"run_id", run_id}, {"serial", serial}, {"verdict", "fail"}, {"why", why}});
+      decide_unit(plan_id, progress, *u);  // its verdict is final: certified fail from now
     };
     const std::string where = "step " + std::to_string(step_index + 1) + " (" + step.profile + ", run " +
                               std::to_string(run_id) + ")";
@@ -498,6 +524,15 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
             if (!value) note_text = allan->note;
           }
           break;
+        case plans::Measurement::firmware:
+          // The fitted model compiles to the firmware form (lags the firmware can meet); why not
+          // is the note (the term and its lag).
+          if (fitted) {
+            auto program = model::firmware::compile(*fitted);
+            value = program ? 1.0 : 0.0;
+            if (!program) note_text = program.error();
+          }
+          break;
       }
       const bool met = value && l.met(*value);
       json m = {{"step", step_index + 1}, {"profile", step.profile}, {"run_id", run_id}, {"measurement", l.name()},
@@ -507,8 +542,10 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
       if (!note_text.empty()) m["note"] = note_text;
       (*u)["measurements"].push_back(m);
       if (met || !(*u)["active"].get<bool>()) continue;
-      const std::string why = where + ": " + l.name() + " = " + (value ? short_number(*value) : std::string("not measured")) +
-                              ", limit " + l.describe() + " (line " + std::to_string(l.line) + ")";
+      const std::string measured = l.measurement == plans::Measurement::firmware
+                                       ? (value ? "no firmware form (" + note_text + ")" : std::string("no model"))
+                                       : l.name() + " = " + (value ? short_number(*value) : std::string("not measured"));
+      const std::string why = where + ": " + measured + ", limit " + l.describe() + " (line " + std::to_string(l.line) + ")";
       if (l.on_fail == plans::OnFail::go_on) {
         (*u)["marginal"] = true;
         (*u)["reasons"].push_back(why + ": marginal, goes on");

@@ -8,6 +8,7 @@
 #include "fogbench/daemon/analysis.hpp"
 #include "fogbench/daemon/certificate.hpp"
 #include "fogbench/daemon/station.hpp"
+#include "verdict.hpp"
 
 namespace fogbench::daemon {
 
@@ -55,15 +56,23 @@ void Station::analyse_units(std::int64_t run_id, storage::Purpose purpose, const
         } else if (r) {
           detail["verification_id"] = (*r)["verification_id"];
           detail["pass"] = (*r)["pass"];
-          // The serial's certificate, issued now that its verification is stored (certificate.hpp).
-          try {
-            auto body = certificate::build(store_, config_.analysis, config_.station_id, serials[i]);
-            auto cert = body ? certificate::issue(store_, *body, wall_clock_(), signing_key())
-                             : ApiResult<std::pair<json, bool>>(std::unexpected(body.error()));
-            if (cert) detail["certificate_sha256"] = cert->first["sha256"];
-            else detail["certificate_error"] = cert.error().message;
-          } catch (const std::exception& e) {
-            detail["certificate_error"] = e.what();
+          // A bare verify run decides the serial's verdict by the analysis settings; a plan's
+          // step leaves it to the plan, decided when the plan is done with the unit.
+          auto run = store_.get_run(run_id);
+          const auto plan_id = run ? verdict::plan_of_run(*run) : std::nullopt;
+          if (plan_id) {
+            detail["verdict_by"] = "plan " + std::to_string(*plan_id);
+          } else {
+            const auto v = verdict::from_verification(serials[i], run_id, units[k], (*r)["model_id"].get<std::int64_t>(),
+                                                      (*r)["result"]);
+            detail["verdict"] = v.verdict;
+            try {
+              auto cert = decide(v);
+              if (cert) detail["certificate_sha256"] = *cert;
+              else detail["certificate_error"] = cert.error().message;
+            } catch (const std::exception& e) {
+              detail["certificate_error"] = e.what();
+            }
           }
         }
         detail["ok"] = r.has_value();
@@ -76,6 +85,16 @@ void Station::analyse_units(std::int64_t run_id, storage::Purpose purpose, const
       if (config_.plant) queue_for_plant(run_id);
     };
   });
+}
+
+ApiResult<std::string> Station::decide(const storage::NewVerdict& v) {
+  if (auto id = store_.put_verdict(v); !id) return std::unexpected(from_store(id.error()));
+  if (config_.plant) queue_for_plant(v.run_id);
+  auto body = certificate::build(store_, config_.analysis, config_.station_id, v.serial);
+  if (!body) return std::unexpected(body.error());
+  auto cert = certificate::issue(store_, *body, wall_clock_(), signing_key());
+  if (!cert) return std::unexpected(cert.error());
+  return cert->first["sha256"].get<std::string>();
 }
 
 }  // namespace fogbench::daemon

@@ -203,10 +203,18 @@
         const g = await call({ cmd: "run.get", run_id: run.id });
         if (!g.result) continue;
         const parts = [];
-        (g.result.verifications || []).forEach((x) => {
-          const verdict = (x.result && x.result.verdict) || (x.pass ? "pass" : "fail");
-          const ratio = x.result && x.result.ratio !== undefined ? " " + Number(x.result.ratio).toFixed(3) : "";
-          parts.push("<span class='" + verdict + "'>" + (run.units[x.unit] || x.unit) + " " + verdict + ratio + "</span>");
+        // Each unit's one verdict (issue 24): the station decided it once; the panel only shows it.
+        (g.result.verdicts || []).forEach((x) => {
+          if (!x) return;
+          const span = document.createElement("span");
+          if (x.verdict) {
+            span.className = x.verdict;
+            span.textContent = x.serial + " " + x.verdict.toUpperCase() + " (" +
+              (x.plan ? "plan " + (x.plan.name || x.plan.id) : "analysis settings") + ")";
+          } else {
+            span.textContent = x.serial + ": " + (x.pending || "no verdict");
+          }
+          parts.push(span.outerHTML);
         });
         (g.result.models || []).forEach((m) => parts.push(m.serial + " model v" + m.version));
         v.innerHTML = parts.join(", ");

@@ -31,7 +31,7 @@ namespace {
 constexpr std::array kMeasurements = {Measurement::comp_raw,       Measurement::noise_factor,
                                       Measurement::fail_s,         Measurement::peak_excursion,
                                       Measurement::sensitivity,    Measurement::arw,
-                                      Measurement::bias_instability};
+                                      Measurement::bias_instability, Measurement::firmware};
 }
 
 std::string_view to_string(Measurement m) {
@@ -43,6 +43,7 @@ std::string_view to_string(Measurement m) {
     case Measurement::sensitivity: return "sensitivity";
     case Measurement::arw: return "arw";
     case Measurement::bias_instability: return "bias_instability";
+    case Measurement::firmware: return "firmware";
   }
   return "?";
 }
@@ -53,7 +54,8 @@ bool measured_in(Measurement m, StepPurpose p) {
     case Measurement::noise_factor:
     case Measurement::fail_s:
     case Measurement::peak_excursion: return p == StepPurpose::verify;
-    case Measurement::sensitivity: return p == StepPurpose::fit;
+    case Measurement::sensitivity:
+    case Measurement::firmware: return p == StepPurpose::fit;
     case Measurement::arw:
     case Measurement::bias_instability: return p == StepPurpose::fit || p == StepPurpose::soak;
   }
@@ -97,6 +99,7 @@ std::string Limit::describe() const {
   static constexpr std::array<const char*, 4> ops = {"<", "<=", ">", ">="};
   std::string u(unit_of(measurement));
   u = u.empty() ? "" : " " + u;
+  if (compare == Compare::required) return name() + " required";
   if (compare == Compare::within) return name() + " within " + number(value) + " .. " + number(high) + u;
   return name() + " " + ops[static_cast<std::size_t>(compare)] + " " + number(value) + u;
 }
@@ -109,6 +112,7 @@ bool Limit::met(double v) const {
     case Compare::gt: return v > value;
     case Compare::ge: return v >= value;
     case Compare::within: return v >= value && v <= high;
+    case Compare::required: return v >= 1.0;
   }
   return false;
 }
@@ -212,7 +216,8 @@ class Parser {
       if (!measured)
         return fail_at(l.line, 1, lines_[l.line],
                        "no step of this plan measures " + std::string(to_string(l.measurement)) + " (" +
-                           std::string(l.measurement == Measurement::sensitivity ? "a fit step"
+                           std::string(l.measurement == Measurement::sensitivity || l.measurement == Measurement::firmware
+                                           ? "a fit step"
                                        : (l.measurement == Measurement::arw ||
                                           l.measurement == Measurement::bias_instability)
                                            ? "a fit or soak step"
@@ -313,6 +318,19 @@ class Parser {
     for (const Limit& o : plan_.limits)
       if (o.measurement == l.measurement && o.term == l.term)
         return here(t[1].column, "a limit on " + l.name() + " is given twice (first on line " + std::to_string(o.line) + ")");
+    if (l.measurement == Measurement::firmware) {
+      // `limit firmware required [stop|continue|retest]`: the fitted model must compile to the
+      // firmware form (model::firmware::compile, lags the firmware can meet).
+      if (t.size() <= i || t[i].text != "required")
+        return here(i < t.size() ? t[i].column : end_column(),
+                    "expected 'required' after 'firmware', found " + (i < t.size() ? quoted(t[i].text) : std::string("end of line")));
+      l.compare = Compare::required;
+      l.value = 1.0;
+      ++i;
+      if (auto ok = on_fail(t, i, l); !ok) return ok;
+      plan_.limits.push_back(std::move(l));
+      return no_more(t, i, "limit");
+    }
     if (t.size() <= i)
       return here(end_column(), "expected '<', '<=', '>', '>=' or 'within' after " + quoted(l.name()) + ", found end of line");
     const auto op = t[i].text;
@@ -350,16 +368,21 @@ class Parser {
                                          " (" + l.name() + " has no unit)"
                                    : "expected the unit '" + std::string(unit) + "' or 'stop', 'continue', 'retest', found " +
                                          quoted(t[i].text));
-    if (i < t.size()) {
-      const auto a = t[i].text;
-      if (a == "stop") l.on_fail = OnFail::stop;
-      else if (a == "continue") l.on_fail = OnFail::go_on;
-      else if (a == "retest") l.on_fail = OnFail::retest;
-      else return here(t[i].column, "expected 'stop', 'continue' or 'retest', found " + quoted(a));
-      ++i;
-    }
+    if (auto ok = on_fail(t, i, l); !ok) return ok;
     plan_.limits.push_back(std::move(l));
     return no_more(t, i, "limit");
+  }
+
+  // The optional action after a limit: stop (the default), continue or retest.
+  Ok on_fail(const std::vector<Token>& t, std::size_t& i, Limit& l) {
+    if (i >= t.size()) return {};
+    const auto a = t[i].text;
+    if (a == "stop") l.on_fail = OnFail::stop;
+    else if (a == "continue") l.on_fail = OnFail::go_on;
+    else if (a == "retest") l.on_fail = OnFail::retest;
+    else return here(t[i].column, "expected 'stop', 'continue' or 'retest', found " + quoted(a));
+    ++i;
+    return {};
   }
 
   Plan plan_;

@@ -30,9 +30,8 @@ PlantResult<std::vector<SerialSummary>> serials(Connection& c, const FleetFilter
   const std::string sql = std::string(
                               "SELECT u.serial, count(*), string_agg(DISTINCT u.lot, ','), "
                               "string_agg(DISTINCT r.bench_id, ','), min(") + kIso + "), max(" + kIso +
-                          "), (SELECT v.verdict FROM fogbench.verifications v JOIN fogbench.units w USING "
-                          "(bench_id, run_id, unit_index) JOIN fogbench.runs q USING (bench_id, run_id) "
-                          "WHERE w.serial = u.serial ORDER BY q.ended_at DESC NULLS LAST, v.verification_id DESC "
+                          "), (SELECT v.verdict FROM fogbench.verdicts v "
+                          "WHERE v.serial = u.serial ORDER BY v.decided_at DESC, v.verdict_id DESC "
                           "LIMIT 1) FROM fogbench.units u JOIN fogbench.runs r USING (bench_id, run_id) WHERE " +
                           kWhere + " GROUP BY u.serial ORDER BY u.serial";
   auto rows = c.query(sql, params(f), "list the serials");
@@ -48,8 +47,8 @@ PlantResult<std::vector<HistoryEntry>> serial_history(Connection& c, const std::
   g.serial = serial;
   const std::string sql =
       std::string("SELECT r.bench_id, r.run_id, u.unit_index, u.lot, ") + kIso +
-      ", r.purpose, r.state, (SELECT v.verdict FROM fogbench.verifications v WHERE v.bench_id = u.bench_id AND "
-      "v.run_id = u.run_id AND v.unit_index = u.unit_index ORDER BY v.verification_id DESC LIMIT 1), "
+      ", r.purpose, r.state, (SELECT v.verdict FROM fogbench.verdicts v WHERE v.bench_id = u.bench_id AND "
+      "v.run_id = u.run_id AND v.unit_index = u.unit_index ORDER BY v.verdict_id DESC LIMIT 1), "
       "(SELECT string_agg(fg.source || ':' || fg.name || '=' || fg.value::text, E'\\t' ORDER BY fg.source, fg.name) "
       "FROM fogbench.figures fg WHERE fg.bench_id = u.bench_id AND fg.run_id = u.run_id AND fg.unit_index = "
       "u.unit_index), ri.station_id, ri.operator, ri.operator_source, ri.software_version, ri.git_hash, "

@@ -1,6 +1,7 @@
 // The fleet generator (generate.hpp).
 #include "fogbench/plant/generate.hpp"
 
+#include <cstring>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -72,7 +73,7 @@ PlantResult<GeneratedPlant> generate_fleet(Connection& c, const GenerateOptions&
   GeneratedPlant g;
   g.shifted_lot = lot_name(o.shifted_lot);
   if (o.marginal_bench > 0) g.marginal_bench = o.bench_prefix + std::to_string(o.marginal_bench);
-  std::string runs, units, models, verifications, figures, samples;
+  std::string runs, units, models, verifications, verdicts, figures, samples;
   const std::int64_t t0 = 1767225600;  // 2026-01-01T00:00:00Z
   for (int r = 0; r < o.runs; ++r) {
     const std::string bench = o.bench_prefix + std::to_string(1 + r % o.benches);
@@ -110,6 +111,9 @@ PlantResult<GeneratedPlant> generate_fleet(Connection& c, const GenerateOptions&
                                 : "t\tpass";
       verifications += bench + "\t" + ver_id + "\t" + std::to_string(run_id) + "\t" + std::to_string(u) + "\t" +
                        model_id + "\t" + iso(end) + "\t" + verdict + "\t{\"generated\": true}\n";
+      // The unit's verdict as a bench decides it (issue 24): the analysis settings' rule.
+      verdicts += bench + "\t" + ver_id + "\t" + serial + "\t" + std::to_string(run_id) + "\t" + std::to_string(u) + "\t" +
+                  model_id + "\t" + (std::strchr(verdict, '\t') + 1) + "\tanalysis\t[]\t[]\t" + iso(end) + "\n";
     }
   }
 
@@ -139,12 +143,15 @@ PlantResult<GeneratedPlant> generate_fleet(Connection& c, const GenerateOptions&
         Copy{"COPY fogbench.verifications (bench_id, verification_id, run_id, unit_index, model_id, created_at, pass, "
              "verdict, result_json) FROM STDIN",
              &verifications},
+        Copy{"COPY fogbench.verdicts (bench_id, verdict_id, serial, run_id, unit_index, model_id, verdict, rule, "
+             "limits_json, reasons_json, decided_at) FROM STDIN",
+             &verdicts},
         Copy{"COPY fogbench.figures (bench_id, run_id, unit_index, source, source_id, name, value) FROM STDIN",
              &figures}}) {
     if (auto n = c.copy_in(cp.sql, *cp.data, cp.sql); !n) return fail(n.error());
   }
   if (auto ok = c.exec("COMMIT", "commit"); !ok) return fail(ok.error());
-  for (std::string* s : {&runs, &units, &models, &verifications, &figures}) std::string().swap(*s);
+  for (std::string* s : {&runs, &units, &models, &verifications, &verdicts, &figures}) std::string().swap(*s);
 
   // The samples of the first sample_runs runs (every run by default): a slow drift with the
   // chamber's ramp and noise (what they look like matters little here: they measure the store).

@@ -1,6 +1,6 @@
 // Replication of one completed run from a bench's SQLite store to the plant, in one
 // transaction: delete what the plant held for (bench_id, run_id), then insert the run, its
-// identity, its units, events, models, verifications and figures, and COPY its samples; the
+// identity, its units, events, models, verifications, verdicts and figures, and COPY its samples; the
 // certificates of its units' serials are inserted when the plant does not hold them yet, and
 // the public key each was signed with goes into station_keys.
 #include <charconv>
@@ -100,6 +100,8 @@ PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& ben
   if (!verifications) return std::unexpected(from_store(verifications.error()));
   auto identity = bench.get_run_identity(run_id);
   if (!identity) return std::unexpected(from_store(identity.error()));
+  auto verdicts = bench.run_verdicts(run_id);
+  if (!verdicts) return std::unexpected(from_store(verdicts.error()));
   std::vector<storage::CertificateRecord> certificates;
   for (const auto& u : run.units) {
     auto cs = bench.list_certificates(u.serial);
@@ -304,6 +306,21 @@ PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& ben
     ++stats.verifications;
     for (const char* name : {"ratio", "comp_std", "meas_std", "noise_std", "noise_factor", "longest_fail_s"})
       figure(figures, b, run_id, v.unit_index, "verification", v.id, name, at(j, name));
+  }
+  // The verdicts this run decided (the bench's one verdict per serial, issue 24).
+  for (const auto& v : *verdicts) {
+    if (auto ok = plant.query(
+            "INSERT INTO fogbench.verdicts (bench_id, verdict_id, serial, run_id, unit_index, model_id, verdict, rule, "
+            "plan_id, plan_name, plan_sha256, limits_json, reasons_json, decided_at) "
+            "VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14)",
+            {b, std::to_string(v.id), v.serial, rid, std::to_string(v.unit_index),
+             v.model_id ? std::optional(std::to_string(*v.model_id)) : std::nullopt, v.verdict, v.rule,
+             v.plan_id ? std::optional(std::to_string(*v.plan_id)) : std::nullopt, v.plan_name, v.plan_sha256,
+             v.limits_json, v.reasons_json, v.decided_at},
+            "insert verdict " + std::to_string(v.id));
+        !ok)
+      return fail(ok.error());
+    ++stats.verdicts;
   }
   if (!figures.empty()) {
     auto n = plant.copy_in(

@@ -5,7 +5,7 @@
 // a bench's own ids are unique only on that bench. Later migrations add what other parts
 // bring: version 2 adds the run identity (keyed the same way, with ON DELETE CASCADE from
 // fogbench.runs, so that a re-sent run replaces it too), the certificates and each sample's
-// compensated rate; version 3 the stations' public keys (station_keys).
+// compensated rate; version 3 the stations' public keys (station_keys); version 4 the verdicts.
 #include <libpq-fe.h>
 
 #include "fogbench/plant/plant.hpp"
@@ -196,13 +196,41 @@ CREATE TABLE fogbench.station_keys (
 CREATE INDEX station_keys_key_id ON fogbench.station_keys (key_id);
 )sql";
 
+// Version 4 (issue 24, one verdict per serial): the verdicts the benches decided (a plan's limits
+// or the analysis settings, the bench's table verdicts), replicated with the run that decided
+// them. The fleet's verdicts (serials, history, p-charts) are read from here, never from the
+// verifications, whose own `verdict` is the analysis settings' computation only.
+constexpr const char* kV4 = R"sql(
+CREATE TABLE fogbench.verdicts (
+  bench_id      text NOT NULL,
+  verdict_id    bigint NOT NULL,
+  serial        text NOT NULL,
+  run_id        bigint NOT NULL,
+  unit_index    integer NOT NULL,
+  model_id      bigint,
+  verdict       text NOT NULL CHECK (verdict IN ('pass', 'marginal', 'fail', 'incomplete')),
+  rule          text NOT NULL CHECK (rule IN ('plan', 'analysis')),
+  plan_id       bigint,
+  plan_name     text NOT NULL DEFAULT '',
+  plan_sha256   text NOT NULL DEFAULT '',
+  limits_json   jsonb NOT NULL,
+  reasons_json  jsonb NOT NULL,
+  decided_at    timestamptz NOT NULL,
+  PRIMARY KEY (bench_id, verdict_id),
+  FOREIGN KEY (bench_id, run_id) REFERENCES fogbench.runs ON DELETE CASCADE
+);
+CREATE INDEX verdicts_serial ON fogbench.verdicts (serial);
+CREATE INDEX verdicts_run ON fogbench.verdicts (bench_id, run_id, unit_index);
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "runs, units, samples, events, models, verifications, figures", kV1},
     {2, "samples.compensated_dph, run_identity, unit_identity, certificates", kV2},
     {3, "station_keys", kV3},
+    {4, "verdicts", kV4},
 };
 
-constexpr int kCurrent = 3;
+constexpr int kCurrent = 4;
 
 // The version recorded, 0 when the schema is absent.
 PlantResult<int> read_version(Connection& c) {

@@ -13,12 +13,13 @@
 namespace fogbench::plant {
 
 PlantResult<std::vector<VerdictValue>> verdict_values(Connection& c, const FleetFilter& f) {
-  // The latest verification of each unit of each run, with the unit and run filters of fleet.cpp.
+  // The verdict each run decided for each unit (the bench's one verdict, issue 24: a plan's or
+  // the analysis settings'), with the unit and run filters of fleet.cpp.
   const std::string sql =
       "SELECT r.bench_id, r.run_id, u.unit_index, u.serial, u.lot, "
       "to_char(r.ended_at AT TIME ZONE 'UTC', 'YYYY-MM-DD\"T\"HH24:MI:SS\"Z\"'), v.verdict "
       "FROM (SELECT DISTINCT ON (bench_id, run_id, unit_index) bench_id, run_id, unit_index, verdict "
-      "      FROM fogbench.verifications ORDER BY bench_id, run_id, unit_index, verification_id DESC) v "
+      "      FROM fogbench.verdicts ORDER BY bench_id, run_id, unit_index, verdict_id DESC) v "
       "JOIN fogbench.units u USING (bench_id, run_id, unit_index) JOIN fogbench.runs r USING (bench_id, run_id) "
       "WHERE ($1::text IS NULL OR u.lot = $1) AND ($2::text IS NULL OR r.bench_id = $2) "
       "AND ($3::text IS NULL OR u.serial = $3) AND ($4::timestamptz IS NULL OR r.ended_at >= $4::timestamptz) "

@@ -240,3 +240,48 @@ TEST_CASE("fogctl cert: the HTML is drawn from the signed JSON, --check compares
   CHECK(check(d.write("plain.html", "<html><body>no certificate</body></html>"), {pub}).code == 2);
   CHECK(check(d.write("cut.html", html.substr(0, html.find("</script>"))), {pub}).code == 2);
 }
+
+TEST_CASE("fogctl cert: a one-verdict certificate (page 3) shows the rule that decided it, a plan's failure is no certificate of qualification, and its visible verdict is checked", "[cli][cert]") {
+  Dir d;
+  json c = unsigned_cert();
+  c.erase("verdicts");
+  c["verdict"] = "fail";
+  c["verifications"] = json::array({{{"run_id", 2}, {"verification_id", 1},
+                                     {"checks", {{{"check", "compensated std / raw std"}, {"value", 0.12}, {"limit", 0.2},
+                                                  {"rule", "value < limit"}, {"met", true}}}}}});
+  c["qualification"] = {{"verdict_id", 4}, {"serial", "FOG-1"}, {"verdict", "fail"}, {"rule", "plan"},
+                        {"plan", {{"id", 7}, {"name", "strict"}, {"sha256", std::string(64, 'a')}}},
+                        {"run_id", 2}, {"unit", 0}, {"model_id", 1}, {"decided_at", "2026-11-27 10:00:00"},
+                        {"limits", {{{"limit", "comp_raw < 0.05"}, {"line", 3}, {"value", 0.12}, {"met", false},
+                                     {"on_fail", "stop"}, {"run_id", 2}}}},
+                        {"reasons", {"step 2 (verify, run 2): comp_raw = 0.12, limit comp_raw < 0.05 (line 3)"}}};
+  REQUIRE(signing::sign_certificate(c, station_key(), c["station_id"]).has_value());
+  const std::string pub = d.write("station.pub", station_key().public_key().pem());
+  const std::string html = certificate_html(c);
+  CHECK(has(html, "fogbench-certificate-page 3"));
+  CHECK_FALSE(has(html, "Certificate of qualification"));
+  CHECK(has(html, "NOT QUALIFIED"));
+  CHECK(has(html, "plan strict (plan 7"));
+  CHECK(has(html, "<td>comp_raw &lt; 0.05</td><td>3</td><td>0.12</td><td>no</td>"));
+  CHECK(has(html, "limit comp_raw &lt; 0.05 (line 3)"));
+  auto ok = check(d.write("c.html", html), {pub});
+  CHECK(ok.code == 0);
+  // The visible verdict turned into a pass, the signed JSON left as it was: edited, exit 1.
+  std::string v = html;
+  const auto at = v.find(">fail<");
+  REQUIRE(at != std::string::npos);
+  v.replace(at, 6, ">pass<");
+  CHECK(check(d.write("v.html", v), {pub}).code == 1);
+  // The plan's limit line edited in the page only: edited too.
+  std::string l = html;
+  const auto lim = l.find("<td>comp_raw &lt; 0.05</td>");
+  REQUIRE(lim != std::string::npos);
+  l.replace(lim, 27, "<td>comp_raw &lt; 0.50</td>");
+  CHECK(check(d.write("l.html", l), {pub}).code == 1);
+
+  // The same facts with a pass: a certificate of qualification.
+  c["verdict"] = "pass";
+  c["qualification"]["verdict"] = "pass";
+  REQUIRE(signing::sign_certificate(c, station_key(), c["station_id"]).has_value());
+  CHECK(has(certificate_html(c), "Certificate of qualification: FOG-1"));
+}

@@ -49,9 +49,9 @@ TEST_CASE("certificate limits: the verdict's own limits after the configuration 
     REQUIRE(r.contains("result"));
     first = r["result"]["certificate"];
   }
-  REQUIRE(first["verdicts"].size() == 1);
-  CHECK(check_named(first["verdicts"][0], "compensated std / model noise std")["limit"] == 2.5);
-  CHECK(check_named(first["verdicts"][0], "longest failing interval, s")["limit"] == 90.0);
+  REQUIRE(first["verifications"].size() == 1);
+  CHECK(check_named(first["verifications"][0], "compensated std / model noise std")["limit"] == 2.5);
+  CHECK(check_named(first["verifications"][0], "longest failing interval, s")["limit"] == 90.0);
 
   // The station restarted with other limits: the certificate is the same, hash and limits.
   Station station{golden_config(analysis_limits(1.2, 30.0)), store};
@@ -63,12 +63,12 @@ TEST_CASE("certificate limits: the verdict's own limits after the configuration 
   CHECK(r["result"]["issued_now"] == false);
   const json again = r["result"]["certificate"];
   CHECK(again["sha256"] == first["sha256"]);
-  CHECK(check_named(again["verdicts"][0], "compensated std / model noise std")["limit"] == 2.5);
-  CHECK(check_named(again["verdicts"][0], "longest failing interval, s")["limit"] == 90.0);
+  CHECK(check_named(again["verifications"][0], "compensated std / model noise std")["limit"] == 2.5);
+  CHECK(check_named(again["verifications"][0], "longest failing interval, s")["limit"] == 90.0);
   // Built afresh under today's configuration: still the stored limits.
   auto body = certificate::build(store, station.config().analysis, "bench-7", "FOG-0001");
   REQUIRE(body);
-  CHECK(check_named((*body)["verdicts"][0], "longest failing interval, s")["limit"] == 90.0);
+  CHECK(check_named((*body)["verifications"][0], "longest failing interval, s")["limit"] == 90.0);
 
   // A verdict stored before the limits were (its result without them): not today's limits.
   auto vs = store.list_verifications(2);
@@ -81,14 +81,14 @@ TEST_CASE("certificate limits: the verdict's own limits after the configuration 
   REQUIRE(store.put_verification({2, 0, vs->front().model_id, old.dump(), vs->front().pass}));
   json third = handler.handle({{"id", 5}, {"cmd", "cert.get"}, {"serial", "FOG-0001"}}, session);
   REQUIRE(third.contains("result"));
-  const json& verdicts = third["result"]["certificate"]["verdicts"];
+  const json& verdicts = third["result"]["certificate"]["verifications"];
   REQUIRE(verdicts.size() == 2);
   for (const char* name : {"compensated std / model noise std", "longest failing interval, s"}) {
     INFO(name);
     CHECK(check_named(verdicts[0], name)["limit"].is_number());
     const json& c = check_named(verdicts[1], name);
     CHECK(c["limit"].is_null());
-    CHECK(c["pass"].is_null());
+    CHECK(c["met"].is_null());
     CHECK(c["rule"].get<std::string>().find("limits not recorded") != std::string::npos);
   }
 }

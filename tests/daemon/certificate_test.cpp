@@ -78,15 +78,26 @@ TEST_CASE("certificate: issued when a verify run completes, the same from cert.g
   }
   // The synthetic bench's d(T1) coefficient is -2.7 deg/h per degC/min: within 5 sigma.
   CHECK(std::abs(coefs[1]["value"].get<double>() + 2.7) < 5.0 * coefs[1]["sigma"].get<double>() + 0.05);
-  REQUIRE(cert["verdicts"].size() == 1);
-  const json& v = cert["verdicts"][0];
+  REQUIRE(cert["verifications"].size() == 1);
+  const json& v = cert["verifications"][0];
   CHECK(v["run_id"] == 2);
+  CHECK_FALSE(v.contains("verdict"));  // evidence only: the verdict is the serial's one
   REQUIRE(v["checks"].size() == 3);
   CHECK(v["checks"][0]["limit"] == 0.2);
   CHECK(v["checks"][0]["value"].get<double>() < 0.2);
   CHECK(v["checks"][1]["limit"] == 1.25);  // the one noise limit (model::NoiseRule), the daemon's default
   CHECK(v["checks"][2]["limit"] == 60.0);
-  CHECK(cert["verdict"] == (v["verdict"] == "pass" ? "pass" : "not passed"));
+  // The one verdict: decided by the bare verify run under the analysis settings, stored once,
+  // and the certificate shows that row.
+  auto decided = r.store.latest_verdict("FOG-0001");
+  REQUIRE(decided->has_value());
+  CHECK((*decided)->rule == "analysis");
+  CHECK((*decided)->run_id == 2);
+  CHECK(cert["verdict"] == (*decided)->verdict);
+  CHECK(cert["qualification"]["verdict_id"] == (*decided)->id);
+  CHECK(cert["qualification"]["rule"] == "analysis");
+  CHECK(cert["qualification"]["plan"].is_null());
+  CHECK(cert["qualification"]["limits"].size() == 3);
   REQUIRE(cert["runs"].size() == 2);
   CHECK(cert["runs"][0]["role"] == "fit");
   CHECK(cert["runs"][0]["identity"]["operator"] == "Ada");
@@ -108,7 +119,7 @@ TEST_CASE("certificate: issued when a verify run completes, the same from cert.g
 
   // Signed by the station's key for its station: valid with that key; the altered one is not,
   // even with its SHA-256 recomputed (a hash is not a signature).
-  CHECK(cert["format_version"] == 2);
+  CHECK(cert["format_version"] == 3);
   CHECK(cert["signed_by"]["algorithm"] == "ed25519");
   CHECK(cert["signed_by"]["key_id"] == r.station.signing_key().key_id());
   CHECK(cert["signed_by"]["station_id"] == "bench-7");
@@ -130,7 +141,9 @@ TEST_CASE("certificate: issued when a verify run completes, the same from cert.g
   REQUIRE(again.contains("result"));
   CHECK(again["result"]["issued_now"] == true);
   CHECK(again["result"]["certificate"]["model"]["version"] == 2);
-  CHECK(again["result"]["certificate"]["verdicts"].empty());  // not verified yet
+  CHECK(again["result"]["certificate"]["verifications"].empty());  // not verified yet
+  CHECK(again["result"]["certificate"]["verdict"] == "not verified");  // the pass was version 1's
+  CHECK(again["result"]["certificate"]["qualification"].is_null());
   CHECK(r.store.list_certificates("FOG-0001")->size() == 2);
 
   // A new station key (a rotation): the same facts are signed anew with it.

@@ -2,6 +2,7 @@
 // that name the line and column; the shipped plans parse.
 #include <catch2/catch.hpp>
 
+#include <cmath>
 #include <fstream>
 #include <sstream>
 
@@ -139,4 +140,38 @@ TEST_CASE("the shipped plans parse") {
   REQUIRE(paper.has_value());
   CHECK(paper->limits[0].describe() == "comp_raw < 0.2");
   CHECK(paper->limits[0].on_fail == OnFail::stop);
+}
+
+TEST_CASE("limit firmware required: a fit's model must have a firmware form, with an action, met by 1 only") {
+  auto p = parse_plan("step exp1 fit\nstep exp2 verify\nlimit firmware required continue\nlimit comp_raw < 0.2\n", "t.plan");
+  REQUIRE(p.has_value());
+  REQUIRE(p->limits.size() == 2);
+  const Limit& f = p->limits[0];
+  CHECK(f.measurement == Measurement::firmware);
+  CHECK(f.compare == Compare::required);
+  CHECK(f.on_fail == OnFail::go_on);
+  CHECK(f.line == 3);
+  CHECK(f.describe() == "firmware required");
+  CHECK(f.name() == "firmware");
+  CHECK(f.met(1.0));
+  CHECK_FALSE(f.met(0.0));
+  CHECK_FALSE(f.met(std::nan("")));
+  CHECK(measured_in(Measurement::firmware, StepPurpose::fit));
+  CHECK_FALSE(measured_in(Measurement::firmware, StepPurpose::verify));
+  // The default action is stop.
+  CHECK(parse_plan("step exp1 fit\nlimit firmware required\n", "t.plan")->limits[0].on_fail == OnFail::stop);
+
+  auto e = error_of("step exp1 fit\nlimit firmware < 1\n");
+  CHECK(e.line == 2);
+  CHECK(e.column == 16);
+  CHECK(e.message == "expected 'required' after 'firmware', found '<'");
+  e = error_of("step exp1 fit\nlimit firmware\n");
+  CHECK(e.message == "expected 'required' after 'firmware', found end of line");
+  e = error_of("step exp1 fit\nlimit firmware required later\n");
+  CHECK(e.column == 25);
+  CHECK(e.message == "expected 'stop', 'continue' or 'retest', found 'later'");
+  e = error_of("step exp2 verify\nlimit firmware required\n");  // no fit step to judge it
+  CHECK(e.message.find("no step of this plan measures firmware (a fit step does)") != std::string::npos);
+  e = error_of("step exp1 fit\nlimit firmware required\nlimit firmware required retest\n");
+  CHECK(e.message.find("given twice (first on line 2)") != std::string::npos);
 }

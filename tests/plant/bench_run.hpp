@@ -107,6 +107,15 @@ inline std::int64_t record_run(storage::Store& store, const std::vector<std::opt
     nv.result_json = model::to_json(*v).dump();
     nv.pass = v->pass;
     REQUIRE(store.put_verification(nv));
+    // The verdict, as the daemon decides it for a bare verify run (the analysis settings).
+    storage::NewVerdict verdict;
+    verdict.serial = nm.serial;
+    verdict.run_id = *id;
+    verdict.unit_index = u;
+    verdict.model_id = ref->id;
+    verdict.verdict = v->pass ? "pass" : "fail";
+    verdict.rule = "analysis";
+    REQUIRE(store.put_verdict(verdict));
   }
   return *id;
 }

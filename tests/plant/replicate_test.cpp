@@ -10,6 +10,7 @@
 #include "bench_run.hpp"
 #include "fogbench/plant/fleet.hpp"
 #include "fogbench/plant/plant.hpp"
+#include "fogbench/plant/verdicts.hpp"
 #include "fogbench/signing/certificate.hpp"
 #include "pg_server.hpp"
 
@@ -360,7 +361,7 @@ TEST_CASE("a refused login, a newer schema and bad ids are clear errors and writ
   }
 }
 
-TEST_CASE("a plant at schema 1 migrates to 3 on a bench's connection, keeping what it held") {
+TEST_CASE("a plant at schema 1 migrates to 4 on a bench's connection, keeping what it held") {
   PgServer pg;
   auto path = test::temp_store_path("migrate");
   auto bench = open_store(path);
@@ -378,7 +379,7 @@ TEST_CASE("a plant at schema 1 migrates to 3 on a bench's connection, keeping wh
     CHECK(st->certificates_held == 0);
     REQUIRE(c->exec("ALTER TABLE fogbench.samples DROP COLUMN compensated_dph; "
                     "DROP TABLE fogbench.run_identity, fogbench.unit_identity, fogbench.certificates, "
-                    "fogbench.station_keys; DELETE FROM fogbench.schema_version WHERE version >= 2",
+                    "fogbench.station_keys, fogbench.verdicts; DELETE FROM fogbench.schema_version WHERE version >= 2",
                     "back to schema 1"));
   }
   CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1");
@@ -387,14 +388,14 @@ TEST_CASE("a plant at schema 1 migrates to 3 on a bench's connection, keeping wh
   auto reader = plant::Connection::open(pg.conninfo(), false);
   REQUIRE_FALSE(reader);
   CHECK(reader.error().code == plant::PlantErrc::schema_missing);
-  CHECK_THAT(reader.error().message, Catch::Contains("schema version 1 is older than 3"));
+  CHECK_THAT(reader.error().message, Catch::Contains("schema version 1 is older than 4"));
 
   // A bench migrates: version 2 recorded, the run held before kept (its samples' compensated
   // rate NULL), and a run with identity and compensated rates then replicates in full.
   auto c = plant::Connection::open(pg.conninfo(), true);
   REQUIRE(c);
-  CHECK(c->schema_version() == 3);
-  CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2,3");
+  CHECK(c->schema_version() == 4);
+  CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2,3,4");
   const std::string old_rid = std::to_string(old_run);
   CHECK(count(*c, "SELECT count(*) FROM fogbench.samples WHERE run_id = " + old_rid) == *bench.count_samples(old_run));
   CHECK(count(*c, "SELECT count(compensated_dph) FROM fogbench.samples") == 0);
@@ -405,6 +406,28 @@ TEST_CASE("a plant at schema 1 migrates to 3 on a bench's connection, keeping wh
   CHECK(count(*c, "SELECT count(*) FROM fogbench.run_identity WHERE run_id = " + std::to_string(run)) == 1);
   CHECK(count(*c, "SELECT count(*) FROM fogbench.unit_identity WHERE run_id = " + std::to_string(run)) == 2);
   CHECK(count(*c, "SELECT count(compensated_dph) FROM fogbench.samples WHERE run_id = " + std::to_string(run)) > 0);
+  CHECK(st->verdicts == 0);
+
+  // The verdict a run decided (issue 24) travels with it, and the fleet's verdicts read it.
+  storage::NewVerdict v;
+  v.serial = bench.get_run(run)->run.units[1].serial;
+  v.run_id = run;
+  v.unit_index = 1;
+  v.verdict = "marginal";
+  v.rule = "analysis";
+  v.limits_json = R"([{"limit":"value < limit","measurement":"compensated std / raw std","value":0.1,"bound":0.2,"met":true}])";
+  REQUIRE(bench.put_verdict(v));
+  auto again = plant::replicate_run(*c, bench, "b1", run);
+  REQUIRE(again);
+  CHECK(again->verdicts == 1);
+  CHECK(pg.psql("SELECT verdict || ' ' || rule || ' ' || unit_index || ' ' || (limits_json->0->>'bound') FROM fogbench.verdicts "
+                "WHERE run_id = " + std::to_string(run)) == "marginal analysis 1 0.2");
+  plant::FleetFilter f;
+  f.serial = v.serial;
+  auto values = plant::verdict_values(*c, f);
+  REQUIRE(values);
+  REQUIRE(values->size() == 1);
+  CHECK(values->front().verdict == "marginal");
   std::filesystem::remove(path);
 }
 

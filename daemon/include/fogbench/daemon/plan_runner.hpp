@@ -63,6 +63,8 @@ class PlanRunner final : public TickListener {
   // The verdicts of the completed run's units, per the limits; updates progress.
   void judge(std::int64_t plan_id, nlohmann::json& progress, const plans::Plan& plan, const nlohmann::json& run_detail_events,
              std::int64_t run_id);
+  // The unit's verdict, final: stored as the serial's one verdict (Station::decide), once.
+  void decide_unit(std::int64_t plan_id, nlohmann::json& progress, nlohmann::json& unit);
   void finish_plan(std::int64_t plan_id, nlohmann::json& progress, const std::string& state,
                    const std::string& reason);
   void save(std::int64_t plan_id, const std::string& state, const std::string& reason,

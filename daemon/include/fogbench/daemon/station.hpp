@@ -154,6 +154,11 @@ class Station {
   // The automatic analysis of a completed run's `units` only (indices into `serials`).
   void analyse_units(std::int64_t run_id, storage::Purpose purpose, const std::vector<std::string>& serials,
                      const std::vector<int>& units);
+  // A serial's verdict decided (issue 24, one verdict: daemon/src/verdict.hpp): stored, the
+  // deciding run queued for the plant, and the serial's certificate issued again from it.
+  // Returns the certificate's sha256; an error when the verdict could not be stored, or the
+  // certificate not issued (a serial without a model has none: not_found; the verdict stays).
+  ApiResult<std::string> decide(const storage::NewVerdict& v);
 
  private:
   struct ActiveRun {

@@ -37,6 +37,7 @@ enum class Measurement : std::uint8_t {
   sensitivity,           // a fitted term's coefficient, deg/h per unit of the term
   arw,                   // angle random walk, deg/sqrt(h) (Allan, IEEE 952)
   bias_instability,      // bias instability, deg/h (Allan, IEEE 952)
+  firmware,              // the fitted model has a firmware form (`limit firmware required`): 1 yes, 0 no
 };
 std::string_view to_string(Measurement m);
 // Which step purposes give the measurement: verify steps, fit steps, or fit and soak steps.
@@ -51,8 +52,9 @@ enum class OnFail : std::uint8_t {
 };
 std::string_view to_string(OnFail a);
 
-// `<` `<=` `>` `>=` a bound, or `within lo .. hi` (inclusive).
-enum class Compare : std::uint8_t { lt, le, gt, ge, within };
+// `<` `<=` `>` `>=` a bound, `within lo .. hi` (inclusive), or `required` (firmware only: the
+// measurement is 1 when the model has what is required, 0 when not).
+enum class Compare : std::uint8_t { lt, le, gt, ge, within, required };
 
 struct Limit {
   Measurement measurement = Measurement::comp_raw;
@@ -62,7 +64,7 @@ struct Limit {
   double high = 0.0;              // within only
   OnFail on_fail = OnFail::stop;
   int line = 0;
-  // "comp_raw < 0.2", "sensitivity d(T1) within -3 .. -2"
+  // "comp_raw < 0.2", "sensitivity d(T1) within -3 .. -2", "firmware required"
   std::string describe() const;
   // Whether a measured value meets the limit (a non-finite value never does).
   bool met(double measured) const;

@@ -92,6 +92,7 @@ void copy_escape(std::string& out, std::string_view field);
 
 struct ReplicateStats {
   std::int64_t units = 0, samples = 0, events = 0, models = 0, verifications = 0, figures = 0;
+  std::int64_t verdicts = 0;  // the verdicts the run decided (issue 24)
   // Identity rows written: the run's (run_identity, 0 or 1) plus one per unit (unit_identity).
   std::int64_t identity_rows = 0;
   // The run's serials' certificates: newly stored in the plant, and sent but already held there

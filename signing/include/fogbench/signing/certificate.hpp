@@ -22,7 +22,9 @@
 
 namespace fogbench::signing {
 
-inline constexpr int kCertificateFormatVersion = 2;
+// 2: signed (issue 24 point 2); 3: the one verdict with the rule that decided it
+// (`qualification`) and the verifications as evidence (`verifications`, no verdict of their own).
+inline constexpr int kCertificateFormatVersion = 3;
 
 // The bytes the signature covers: the canonical JSON without `signature`.
 std::string signed_text(const nlohmann::json& cert);
