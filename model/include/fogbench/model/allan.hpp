@@ -79,8 +79,8 @@ struct AvarFit {
 //
 // How they are read: sigma^2(tau) = A/tau + F + C tau (white, flicker and random-walk rate) is
 // fitted to every tau of the curve by least squares weighted by each point's variance,
-// 2 sigma^4 / edf, with A, F, C >= 0 (the fit, its weights and the mixed EDF iterate to a fixed
-// point). A term is visible when its share of the fitted sigma^2 reaches 1/2 at some tau other
+// 2 sigma^4 / edf, with A, F, C >= 0 (six rounds, weights and mixed EDF from the round before,
+// the measured sigma^2 and white-noise EDF at first). A term is visible when its share of the fitted sigma^2 reaches 1/2 at some tau other
 // than the longest and its fitted part exceeds 2 standard errors. It is read at one tau: among
 // the taus where its share is >= 1/2, the longest excluded (its EDF is a handful), the one with
 // the narrowest relative interval of the term, (interval of sigma^2) / share. There the term's
