@@ -20,11 +20,17 @@ json estimate_json(const std::optional<allan::NoiseEstimate>& e, const std::stri
   json j = json::object();
   if (e)
     j = {{"value", e->value}, {"ci_low", e->ci_low}, {"ci_high", e->ci_high},
-         {"from_tau_s", e->from_tau_s}, {"to_tau_s", e->to_tau_s}};
+         {"from_tau_s", e->from_tau_s}, {"to_tau_s", e->to_tau_s}, {"edf", e->edf}, {"share", e->share}};
   else
     j = {{"value", nullptr}};
   if (!note.empty()) j["note"] = note;
   return j;
+}
+
+json fit_json(const allan::AvarFit& f) {
+  if (!f.ok) return nullptr;
+  return {{"white_dph2_s", f.white}, {"white_se", f.white_se}, {"flicker_dph2", f.flicker},
+          {"flicker_se", f.flicker_se}, {"walk_dph2_per_s", f.walk}, {"walk_se", f.walk_se}};
 }
 
 std::string cell(const std::optional<allan::NoiseEstimate>& e, int digits) {
@@ -98,6 +104,8 @@ int run_allan(const AllanOptions& o, std::ostream& out, std::ostream& err) {
 
   json results = json::array();
   Table t({"series", "from s", "to s", "samples", "ARW deg/sqrt(h)", "bias instab. deg/h", "RRW deg/h/sqrt(h)"});
+  // Where each figure was read: its tau, the EDF of sigma^2 there and the term's share of it.
+  Table where({"series", "figure", "tau s", "EDF", "share %"});
   std::vector<std::string> notes;
   for (const auto& x : series) {
     const auto sizes = allan::octave_cluster_sizes(x.rate_dph.size());
@@ -113,6 +121,9 @@ int run_allan(const AllanOptions& o, std::ostream& out, std::ostream& err) {
     for (const auto& [name, note] : {std::pair{"ARW", terms.arw_note}, std::pair{"bias instability", terms.bias_instability_note},
                                      std::pair{"RRW", terms.rrw_note}})
       if (!note.empty()) notes.push_back(x.what + ": " + name + ": " + note);
+    for (const auto& [name, e] : {std::pair{"ARW", &terms.arw_deg_per_sqrt_h}, std::pair{"bias instability", &terms.bias_instability_dph},
+                                  std::pair{"RRW", &terms.rrw_dph_per_sqrt_h}})
+      if (*e) where.add({x.what, name, fixed((*e)->from_tau_s, 0), fixed((*e)->edf, 1), fixed(100.0 * (*e)->share, 0)});
     json pts = json::array();
     for (const auto& p : *curve)
       pts.push_back({{"tau_s", p.tau_s}, {"adev_dph", p.adev_dph}, {"ci_low_dph", p.ci_low_dph},
@@ -121,16 +132,21 @@ int run_allan(const AllanOptions& o, std::ostream& out, std::ostream& err) {
                        {"tau0_s", x.stretch.tau0_s}, {"curve", pts},
                        {"arw_deg_per_sqrt_h", estimate_json(terms.arw_deg_per_sqrt_h, terms.arw_note)},
                        {"bias_instability_dph", estimate_json(terms.bias_instability_dph, terms.bias_instability_note)},
-                       {"rrw_dph_per_sqrt_h", estimate_json(terms.rrw_dph_per_sqrt_h, terms.rrw_note)}});
+                       {"rrw_dph_per_sqrt_h", estimate_json(terms.rrw_dph_per_sqrt_h, terms.rrw_note)},
+                       {"fit", fit_json(terms.fit)}});
   }
   if (o.json) {
     out << json{{"run", o.run}, {"series", results},
-                {"method", "overlapping Allan deviation at octave taus; noise terms and 1-sigma intervals per IEEE Std 952-1997 Annex C"}}
+                {"method", "overlapping Allan deviation at octave taus; sigma^2 = A/tau + F + C tau fitted (EDF-weighted, "
+                           "non-negative); each noise term read at one tau with its chi-square 1-sigma interval from the "
+                           "EDF there (IEEE Std 952-1997 Annex C, NIST SP 1065 Table 5)"}}
                .dump()
         << "\n";
   } else {
-    out << "Allan deviation of " << o.run << " (IEEE 952 Annex C; 1-sigma intervals in brackets)\n\n" << t.str();
+    out << "Allan deviation of " << o.run << " (IEEE 952 Annex C; 1-sigma chi-square intervals in brackets)\n\n" << t.str();
     for (const auto& n : notes) out << "  " << n << "\n";
+    out << "\nwhere each figure is read (equivalent degrees of freedom of sigma^2 there, NIST SP 1065 Table 5)\n\n"
+        << where.str();
   }
   return kExitOk;
 }

@@ -1,26 +1,22 @@
 // Overlapping Allan deviation and the IEEE 952 Annex C noise terms (see allan.hpp).
 #include "fogbench/model/allan.hpp"
 
+#include <Eigen/Dense>
 #include <algorithm>
+#include <array>
+#include <boost/math/distributions/chi_squared.hpp>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 namespace fogbench::model::allan {
 namespace {
 
-constexpr double kBiasInstabilityFactor = 0.664;  // sqrt(2 ln 2 / pi), IEEE 952 eq. (C.11)
-constexpr double kSlopeTolerance = 0.25;          // |local slope - expected| accepted
-constexpr double kFlatBand = 1.2;                 // a floor: sigma within 1.2 sigma_min ...
-constexpr double kFlatSpan = 8.0;                 // ... over a factor 8 of tau
-
-double relative_ci(const AdevPoint& p) {
-  return p.adev_dph > 0.0 ? (p.ci_high_dph - p.adev_dph) / p.adev_dph : 0.0;
-}
-
-NoiseEstimate estimate(double value, const AdevPoint& tightest, double from_tau_s, double to_tau_s) {
-  const double rel = relative_ci(tightest);
-  return {value, std::max(0.0, value * (1.0 - rel)), value * (1.0 + rel), from_tau_s, to_tau_s};
-}
+constexpr double kBiasInstabilityFactor = 0.664;        // sqrt(2 ln 2 / pi), IEEE 952 eq. (C.11)
+constexpr double kOneSigmaTail = 0.15865525393145707;   // (1 - erf(1/sqrt 2)) / 2: 68.27 % two-sided
+constexpr double kVisibleShare = 0.5;                   // a term shows where it is half of sigma^2 ...
+constexpr double kVisibleSe = 2.0;                      // ... and its fitted part exceeds 2 s.e.
+constexpr int kFitIterations = 6;                       // weights and EDF from the previous fit
 
 std::string fmt(double v) {
   char buf[32];
@@ -28,7 +24,204 @@ std::string fmt(double v) {
   return buf;
 }
 
+constexpr NoiseKind kKinds[] = {NoiseKind::white, NoiseKind::flicker, NoiseKind::random_walk};
+
+// The basis of sigma^2(tau) = A/tau + F + C tau.
+double basis(NoiseKind k, double tau_s) {
+  switch (k) {
+    case NoiseKind::white: return 1.0 / tau_s;
+    case NoiseKind::flicker: return 1.0;
+    case NoiseKind::random_walk: return tau_s;
+  }
+  return 0.0;
+}
+
+// 1-sigma (68.27 %) chi-square interval of a variance s2 estimated with edf degrees of freedom:
+// edf s2 / chi2_{1-q}(edf) .. edf s2 / chi2_{q}(edf) (NIST SP 1065 eq. 45).
+std::pair<double, double> chi2_interval(double s2, double edf) {
+  const boost::math::chi_squared dist(edf);
+  return {edf * s2 / boost::math::quantile(dist, 1.0 - kOneSigmaTail),
+          edf * s2 / boost::math::quantile(dist, kOneSigmaTail)};
+}
+
+struct Subfit {
+  bool ok = false;
+  double cost = 0.0;
+  std::array<double, 3> p{};
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+};
+
+// Weighted least squares of y on the parts in `mask` (bit k: kKinds[k]); columns scaled to unit
+// weighted norm so that 1/tau and tau over five decades do not ruin the conditioning.
+Subfit solve_subset(unsigned mask, const std::vector<double>& tau, const std::vector<double>& y,
+                    const std::vector<double>& w) {
+  Subfit f;
+  std::vector<int> cols;
+  for (int k = 0; k < 3; ++k)
+    if (mask & (1u << k)) cols.push_back(k);
+  const auto n = static_cast<Eigen::Index>(y.size());
+  const auto q = static_cast<Eigen::Index>(cols.size());
+  if (n < q) return f;
+  Eigen::MatrixXd x(n, q);
+  Eigen::VectorXd b(n);
+  Eigen::VectorXd scale(q);
+  for (Eigen::Index c = 0; c < q; ++c) {
+    double norm = 0.0;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const double v = basis(kKinds[cols[static_cast<std::size_t>(c)]], tau[static_cast<std::size_t>(i)]);
+      norm += w[static_cast<std::size_t>(i)] * v * v;
+    }
+    scale(c) = norm > 0.0 ? 1.0 / std::sqrt(norm) : 1.0;
+  }
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double sw = std::sqrt(w[static_cast<std::size_t>(i)]);
+    for (Eigen::Index c = 0; c < q; ++c)
+      x(i, c) = sw * basis(kKinds[cols[static_cast<std::size_t>(c)]], tau[static_cast<std::size_t>(i)]) * scale(c);
+    b(i) = sw * y[static_cast<std::size_t>(i)];
+  }
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(x);
+  if (qr.rank() < q) return f;
+  const Eigen::VectorXd ps = qr.solve(b);
+  const Eigen::MatrixXd inv = (x.transpose() * x).inverse();
+  for (Eigen::Index c = 0; c < q; ++c) {
+    const auto k = static_cast<std::size_t>(cols[static_cast<std::size_t>(c)]);
+    f.p[k] = ps(c) * scale(c);
+    if (!(f.p[k] >= 0.0)) return f;  // outside the feasible set: another subset holds it at 0
+    for (Eigen::Index d = 0; d < q; ++d)
+      f.cov(static_cast<Eigen::Index>(k), cols[static_cast<std::size_t>(d)]) = inv(c, d) * scale(c) * scale(d);
+  }
+  f.cost = (x * ps - b).squaredNorm();
+  f.ok = true;
+  return f;
+}
+
+// Non-negative weighted least squares over the three parts: with three unknowns the optimum is
+// the cheapest feasible unconstrained solution over the 7 subsets of free parts.
+Subfit solve_nonnegative(const std::vector<double>& tau, const std::vector<double>& y, const std::vector<double>& w) {
+  Subfit best;
+  for (unsigned mask = 1; mask < 8; ++mask) {
+    auto f = solve_subset(mask, tau, y, w);
+    if (f.ok && (!best.ok || f.cost < best.cost)) best = f;
+  }
+  return best;
+}
+
+// EDF of sigma^2 at one point for the fitted noise mix: 1/edf = sum_k share_k / edf_k, exact
+// where one type dominates.
+double mixed_edf(const AvarFit& fit, const AdevPoint& p) {
+  const std::int64_t n_samples = p.terms + 2 * p.m - 1;
+  const double total = fit.total(p.tau_s);
+  if (!fit.ok || !(total > 0.0)) return overlapping_edf(NoiseKind::white, n_samples, p.m);
+  double inv = 0.0;
+  for (const auto k : kKinds) inv += fit.part(k, p.tau_s) / total / overlapping_edf(k, n_samples, p.m);
+  return 1.0 / inv;
+}
+
+std::string kind_name(NoiseKind k) {
+  switch (k) {
+    case NoiseKind::white: return "white noise (slope -1/2)";
+    case NoiseKind::flicker: return "flicker noise (flat floor)";
+    case NoiseKind::random_walk: return "rate random walk (slope +1/2)";
+  }
+  return "";
+}
+
+// Reads term k at the tau (not the longest) where its share of sigma^2 is >= 1/2 and its
+// relative interval is narrowest; the part of sigma^2 there, (deg/h)^2, with its interval.
+struct Reading {
+  std::size_t i = 0;
+  double part = 0.0, lo = 0.0, hi = 0.0, edf = 0.0, share = 0.0;
+};
+std::optional<Reading> read_term(NoiseKind k, std::span<const AdevPoint> curve, const AvarFit& fit,
+                                 const Eigen::Matrix3d& cov, const std::vector<double>& edf, std::string& note) {
+  const std::size_t n = curve.size();
+  const double param = k == NoiseKind::white ? fit.white : k == NoiseKind::flicker ? fit.flicker : fit.walk;
+  const double se = k == NoiseKind::white ? fit.white_se : k == NoiseKind::flicker ? fit.flicker_se : fit.walk_se;
+  double top_share = 0.0, top_tau = 0.0;
+  for (std::size_t i = 0; i + 1 < n; ++i) {
+    const double sh = fit.part(k, curve[i].tau_s) / fit.total(curve[i].tau_s);
+    if (sh > top_share) top_share = sh, top_tau = curve[i].tau_s;
+  }
+  if (!(param > 0.0)) {
+    note = "no " + kind_name(k) + " in the fitted curve";
+    return std::nullopt;
+  }
+  if (top_share < kVisibleShare) {
+    note = kind_name(k) + " is under half of sigma^2 at every tau before the longest (" +
+           fmt(100.0 * top_share) + " % at most, at " + fmt(top_tau) + " s)";
+    return std::nullopt;
+  }
+  if (!(param > kVisibleSe * se)) {
+    note = kind_name(k) + ": its fitted part is within 2 standard errors of 0";
+    return std::nullopt;
+  }
+  std::optional<Reading> best;
+  double best_width = 0.0;
+  const auto ki = static_cast<Eigen::Index>(k == NoiseKind::white ? 0 : k == NoiseKind::flicker ? 1 : 2);
+  for (std::size_t i = 0; i + 1 < n; ++i) {
+    const double tau = curve[i].tau_s, total = fit.total(tau), mine = fit.part(k, tau);
+    if (mine / total < kVisibleShare) continue;
+    const double s2 = curve[i].adev_dph * curve[i].adev_dph;
+    const auto [lo, hi] = chi2_interval(s2, edf[i]);
+    // The other parts are subtracted as fitted; their standard error widens the interval.
+    Eigen::Vector3d g(1.0 / tau, 1.0, tau);
+    g(ki) = 0.0;
+    const double var_others = std::max(0.0, g.dot(cov * g));
+    const double others = total - mine;
+    Reading r;
+    r.i = i;
+    r.part = s2 - others;
+    r.lo = r.part - std::sqrt((s2 - lo) * (s2 - lo) + var_others);
+    r.hi = r.part + std::sqrt((hi - s2) * (hi - s2) + var_others);
+    r.edf = edf[i];
+    r.share = mine / total;
+    const double width = (r.hi - r.lo) / mine;
+    if (!best || width < best_width) best = r, best_width = width;
+  }
+  return best;
+}
+
+NoiseEstimate estimate_of(const Reading& r, const AdevPoint& p, double value, double low, double high) {
+  NoiseEstimate e;
+  e.value = value;
+  e.ci_low = low;
+  e.ci_high = high;
+  e.from_tau_s = e.to_tau_s = p.tau_s;
+  e.edf = r.edf;
+  e.share = r.share;
+  return e;
+}
+
 }  // namespace
+
+double AvarFit::part(NoiseKind k, double tau_s) const {
+  switch (k) {
+    case NoiseKind::white: return white / tau_s;
+    case NoiseKind::flicker: return flicker;
+    case NoiseKind::random_walk: return walk * tau_s;
+  }
+  return 0.0;
+}
+
+double overlapping_edf(NoiseKind kind, std::int64_t n_samples, std::int64_t m) {
+  const double big_n = static_cast<double>(n_samples) + 1.0;  // angle (phase) points
+  const double md = static_cast<double>(m);
+  double edf = 1.0;
+  switch (kind) {
+    case NoiseKind::white:
+      edf = (3.0 * (big_n - 1.0) / (2.0 * md) - 2.0 * (big_n - 2.0) / big_n) * 4.0 * md * md / (4.0 * md * md + 5.0);
+      break;
+    case NoiseKind::flicker:
+      edf = m == 1 ? 2.0 * (big_n - 2.0) * (big_n - 2.0) / (2.3 * big_n - 4.9)
+                   : 5.0 * big_n * big_n / (4.0 * md * (big_n + 3.0 * md));
+      break;
+    case NoiseKind::random_walk:
+      edf = (big_n - 2.0) / (md * (big_n - 3.0) * (big_n - 3.0)) *
+            ((big_n - 1.0) * (big_n - 1.0) - 3.0 * md * (big_n - 1.0) + 4.0 * md * md);
+      break;
+  }
+  return std::isfinite(edf) ? std::max(1.0, edf) : 1.0;
+}
 
 std::expected<std::vector<AdevPoint>, std::string> overlapping_adev(
     std::span<const double> rate_dph, double tau0_s, std::span<const std::int64_t> cluster_sizes) {
@@ -108,77 +301,80 @@ NoiseTerms noise_terms(std::span<const AdevPoint> curve) {
       return t;
     }
   const std::size_t n = curve.size();
-  std::vector<double> slope(n - 1);
-  for (std::size_t i = 0; i + 1 < n; ++i)
-    slope[i] = std::log(curve[i + 1].adev_dph / curve[i].adev_dph) /
-               std::log(curve[i + 1].tau_s / curve[i].tau_s);
-
-  // Angle random walk: slope -1/2 from the shortest tau, over at most a decade of tau.
-  if (std::abs(slope[0] + 0.5) > kSlopeTolerance) {
-    t.arw_note = "the curve does not start with slope -1/2 (first slope " + fmt(slope[0]) + ")";
-  } else {
-    std::size_t last = 1;  // last point of the -1/2 stretch
-    while (last < n - 1 && std::abs(slope[last] + 0.5) <= kSlopeTolerance &&
-           curve[last + 1].tau_s <= 10.0 * curve[0].tau_s)
-      ++last;
-    double log_n = 0.0;  // log of sigma * sqrt(tau): (deg/h) sqrt(s)
-    for (std::size_t i = 0; i <= last; ++i)
-      log_n += std::log(curve[i].adev_dph) + 0.5 * std::log(curve[i].tau_s);
-    log_n /= static_cast<double>(last + 1);
-    // (deg/h) sqrt(s) = (deg/h) sqrt(h / 3600) = (1/60) deg/sqrt(h).
-    t.arw_deg_per_sqrt_h = estimate(std::exp(log_n) / 60.0, curve[0], curve[0].tau_s, curve[last].tau_s);
+  std::vector<double> tau(n), s2(n), edf(n), model(n), w(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    tau[i] = curve[i].tau_s;
+    s2[i] = model[i] = curve[i].adev_dph * curve[i].adev_dph;
+    edf[i] = overlapping_edf(NoiseKind::white, curve[i].terms + 2 * curve[i].m - 1, curve[i].m);
   }
-
-  // Bias instability: the minimum, if it lies inside the curve.
-  const auto min_it = std::min_element(curve.begin(), curve.end(), [](const auto& a, const auto& b) {
-    return a.adev_dph < b.adev_dph;
-  });
-  const auto i_min = static_cast<std::size_t>(min_it - curve.begin());
-  if (i_min == n - 1) {
-    t.bias_instability_note = "no minimum: sigma still falls at the longest tau, " +
-                              fmt(curve[n - 1].tau_s) + " s (a longer record would show it)";
-  } else if (i_min == 0) {
-    t.bias_instability_note = "the minimum is at the shortest tau, " + fmt(curve[0].tau_s) +
-                              " s: no white-noise region before it";
-  } else {
-    // Flat: sigma within 1.2 sigma_min over at least a factor 8 of tau (three octaves). The
-    // bottom of white noise plus a rate random walk (sigma^2 = a/tau + b tau) stays within 1.2
-    // over a factor 5.7 only, so that V is not taken for a floor.
-    std::size_t lo = i_min, hi = i_min;
-    while (lo > 0 && curve[lo - 1].adev_dph <= kFlatBand * min_it->adev_dph) --lo;
-    while (hi + 1 < n && curve[hi + 1].adev_dph <= kFlatBand * min_it->adev_dph) ++hi;
-    const bool flat = curve[hi].tau_s >= kFlatSpan * curve[lo].tau_s;
-    t.bias_instability_dph = estimate(min_it->adev_dph / kBiasInstabilityFactor, *min_it,
-                                      curve[lo].tau_s, curve[hi].tau_s);
-    if (!flat)
-      t.bias_instability_note = "the minimum at " + fmt(min_it->tau_s) + " s is not flat (within " +
-                                "1.2x over " + fmt(curve[lo].tau_s) + ".." + fmt(curve[hi].tau_s) +
-                                " s only): sigma_min / 0.664 is an upper bound of the bias instability";
-  }
-
-  // Rate random walk: the longest stretch of slope +1/2 after the minimum.
-  std::size_t best_from = 0, best_len = 0;
-  for (std::size_t i = i_min; i + 1 < n;) {
-    if (std::abs(slope[i] - 0.5) > kSlopeTolerance) {
-      ++i;
-      continue;
+  // Weighted least squares with each point's variance 2 sigma^4 / edf, sigma^2 and the EDF's
+  // noise mix taken from the previous fit (the measured sigma^2 at first).
+  Subfit sub;
+  AvarFit& fit = t.fit;
+  for (int iter = 0; iter < kFitIterations; ++iter) {
+    for (std::size_t i = 0; i < n; ++i) w[i] = edf[i] / (2.0 * model[i] * model[i]);
+    sub = solve_nonnegative(tau, s2, w);
+    if (!sub.ok) break;
+    fit.ok = true;
+    fit.white = sub.p[0], fit.flicker = sub.p[1], fit.walk = sub.p[2];
+    fit.white_se = std::sqrt(std::max(0.0, sub.cov(0, 0)));
+    fit.flicker_se = std::sqrt(std::max(0.0, sub.cov(1, 1)));
+    fit.walk_se = std::sqrt(std::max(0.0, sub.cov(2, 2)));
+    for (std::size_t i = 0; i < n; ++i) {
+      const double m = fit.total(tau[i]);
+      model[i] = m > 0.0 ? m : s2[i];
+      edf[i] = mixed_edf(fit, curve[i]);
     }
-    std::size_t j = i;
-    while (j + 1 < n && std::abs(slope[j] - 0.5) <= kSlopeTolerance) ++j;
-    if (j - i > best_len) best_from = i, best_len = j - i;  // j - i segments, points i..j
-    i = j;
   }
-  if (best_len == 0) {
-    t.rrw_note = "no +1/2 slope after the minimum";
-  } else {
-    double log_k = 0.0;  // log of sigma / sqrt(tau / 3): (deg/h) / sqrt(s)
-    for (std::size_t i = best_from; i <= best_from + best_len; ++i)
-      log_k += std::log(curve[i].adev_dph) - 0.5 * std::log(curve[i].tau_s / 3.0);
-    log_k /= static_cast<double>(best_len + 1);
-    // (deg/h) / sqrt(s) = (deg/h) / sqrt(h / 3600) = 60 (deg/h)/sqrt(h).
-    t.rrw_dph_per_sqrt_h = estimate(std::exp(log_k) * 60.0, curve[best_from], curve[best_from].tau_s,
-                                    curve[best_from + best_len].tau_s);
+  if (!fit.ok) {
+    t.arw_note = t.bias_instability_note = t.rrw_note =
+        "sigma^2 = A/tau + F + C tau could not be fitted to " + std::to_string(n) + " taus";
+    return t;
   }
+  const auto clamp0 = [](double v) { return std::max(0.0, v); };
+
+  // Angle random walk: A = part * tau, N = sqrt(A) / 60 ((deg/h) sqrt(s) = (1/60) deg/sqrt(h)).
+  if (const auto r = read_term(NoiseKind::white, curve, fit, sub.cov, edf, t.arw_note)) {
+    const double tau_r = curve[r->i].tau_s;
+    const auto arw = [&](double part) { return std::sqrt(clamp0(part) * tau_r) / 60.0; };
+    t.arw_deg_per_sqrt_h = estimate_of(*r, curve[r->i], arw(r->part), arw(r->lo), arw(r->hi));
+  }
+  // Rate random walk: C = part / tau, K = 60 sqrt(3 C) ((deg/h)/sqrt(s) = 60 (deg/h)/sqrt(h)).
+  if (const auto r = read_term(NoiseKind::random_walk, curve, fit, sub.cov, edf, t.rrw_note)) {
+    const double tau_r = curve[r->i].tau_s;
+    const auto rrw = [&](double part) { return 60.0 * std::sqrt(3.0 * clamp0(part) / tau_r); };
+    t.rrw_dph_per_sqrt_h = estimate_of(*r, curve[r->i], rrw(r->part), rrw(r->lo), rrw(r->hi));
+  }
+  // Bias instability: B = sqrt(F) / 0.664.
+  std::string flicker_note;
+  if (const auto r = read_term(NoiseKind::flicker, curve, fit, sub.cov, edf, flicker_note)) {
+    const auto bi = [](double part) { return std::sqrt(std::max(0.0, part)) / kBiasInstabilityFactor; };
+    t.bias_instability_dph = estimate_of(*r, curve[r->i], bi(r->part), bi(r->lo), bi(r->hi));
+    return t;
+  }
+  // No flicker floor: where white noise meets a rate random walk the fitted curve has a V, and
+  // its bottom bounds B from above (a floor under it would raise it). Read at the tau of the
+  // fitted minimum, never the longest.
+  if (!t.arw_deg_per_sqrt_h || !t.rrw_dph_per_sqrt_h) {
+    if (!t.arw_deg_per_sqrt_h)
+      t.bias_instability_note = "no white-noise region before a minimum (" + t.arw_note + ")";
+    else
+      t.bias_instability_note = "no minimum: sigma still falls at the longest tau, " + fmt(curve[n - 1].tau_s) +
+                                " s (a longer record would show it); " + flicker_note;
+    return t;
+  }
+  std::size_t i_min = 1;
+  for (std::size_t i = 1; i + 1 < n; ++i)
+    if (fit.total(tau[i]) < fit.total(tau[i_min])) i_min = i;
+  const auto [lo, hi] = chi2_interval(s2[i_min], edf[i_min]);
+  Reading r;
+  r.i = i_min;
+  r.edf = edf[i_min];
+  r.share = fit.flicker / fit.total(tau[i_min]);
+  t.bias_instability_dph = estimate_of(r, curve[i_min], curve[i_min].adev_dph / kBiasInstabilityFactor,
+                                       std::sqrt(lo) / kBiasInstabilityFactor, std::sqrt(hi) / kBiasInstabilityFactor);
+  t.bias_instability_note = flicker_note + ": sigma at the bottom of the V, " + fmt(curve[i_min].tau_s) +
+                            " s, over 0.664 is an upper bound of the bias instability";
   return t;
 }
 

@@ -68,6 +68,12 @@ TEST_CASE("fogctl allan: each hold analysed apart, white noise read as angle ran
   // White noise of 0.3 deg/h per 1 s sample: N = 0.3 (deg/h) sqrt(s) = 0.3/60 deg/sqrt(h);
   // read over taus 1..8 s on 4,000 samples, the interval is ~2 %.
   CHECK(j["series"][0]["arw_deg_per_sqrt_h"]["value"].get<double>() == Approx(0.3 / 60.0).epsilon(0.04));
+  // Read at 1 s, where white noise is all of sigma^2 and the EDF is that of white noise on
+  // 4,000 samples: (3*4000/2 - 2*3999/4001) * 4/9 = 2665.8.
+  CHECK(j["series"][0]["arw_deg_per_sqrt_h"]["from_tau_s"].get<double>() == 1.0);
+  CHECK(j["series"][0]["arw_deg_per_sqrt_h"]["edf"].get<double>() == Approx(2665.8).epsilon(0.01));
+  CHECK(j["series"][0]["arw_deg_per_sqrt_h"]["share"].get<double>() > 0.95);
+  CHECK(j["series"][0]["fit"]["white_dph2_s"].get<double>() == Approx(0.09).epsilon(0.08));
   // sigma(1 s) of the curve is the noise's std itself.
   CHECK(j["series"][0]["curve"][0]["adev_dph"].get<double>() == Approx(0.3).epsilon(0.04));
   // White noise has no minimum within the record: said, not guessed.
@@ -78,6 +84,7 @@ TEST_CASE("fogctl allan: each hold analysed apart, white noise read as angle ran
   const auto table = allan(o);
   CHECK(table.out.find("hold 2") != std::string::npos);
   CHECK(table.out.find("ARW deg/sqrt(h)") != std::string::npos);
+  CHECK(table.out.find("EDF") != std::string::npos);
 
   o.whole_run = true;
   o.json = true;
