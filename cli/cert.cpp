@@ -24,7 +24,7 @@ namespace {
 constexpr const char* kScriptOpen = "<script type=\"application/json\" id=\"fogbench-certificate\">";
 // The page's layout version: --check compares a page's visible part only with a rendering of
 // the same version (bumped whenever certificate_html changes what it draws).
-constexpr const char* kRenderer = "fogbench-certificate-page 2";
+constexpr const char* kRenderer = "fogbench-certificate-page 3";
 constexpr const char* kRendererMeta = "<meta name=\"generator\" content=\"";
 
 std::string text_of(const json& v, int digits = 4) {
@@ -139,11 +139,17 @@ std::string certificate_html(const json& cert) {
   rows.clear();
   for (const auto& r : cert["runs"]) {
     const json& id = r["identity"];
+    // The certified unit's lot in this run (issue 24), "-" when none was given.
+    std::string lot = "-";
+    if (id.is_object() && id.contains("units") && id["units"].is_array())
+      for (const auto& u : id["units"])
+        if (u.is_object() && u.value("serial", json()) == cert.value("serial", json()) && u.contains("lot") && u["lot"].is_string())
+          lot = u["lot"].get<std::string>();
     rows.push_back({field_text(r, "id"), field_text(r, "role"), field_text(r, "profile"), field_text(r, "ended_at"),
-                    id.is_object() ? field_text(id, "station_id") : "-", id.is_object() ? field_text(id, "operator") : "-",
+                    id.is_object() ? field_text(id, "station_id") : "-", id.is_object() ? field_text(id, "operator") : "-", lot,
                     id.is_object() ? field_text(id, "software_version") + " " + field_text(id, "git_hash").substr(0, 12) : "-"});
   }
-  b += table({"run", "role", "profile", "ended", "station", "operator", "software"}, rows);
+  b += table({"run", "role", "profile", "ended", "station", "operator", "lot", "software"}, rows);
   b += "<h2>Integrity</h2><p class=\"hash\">SHA-256 " + html_escape(field_text(cert, "sha256")) + "</p>";
   if (cert.contains("signed_by") && cert["signed_by"].is_object())
     b += "<p class=\"hash\">Signed (Ed25519) by station " + html_escape(field_text(cert["signed_by"], "station_id")) + " with key " +

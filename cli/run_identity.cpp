@@ -43,8 +43,14 @@ std::string identity_csv_comments(const json& run_get, int unit) {
   auto id = identity_from_json(run_get.value("identity", json()));
   if (!id) return {};
   const json& run = run_get["run"];
-  return storage::identity_comment_lines(
-      storage::identity_fields(*id, run.value("id", std::int64_t{0}), run.value("profile", std::string()), unit));
+  auto fields = storage::identity_fields(*id, run.value("id", std::int64_t{0}), run.value("profile", std::string()), unit);
+  // The unit's production lot (issue 24), empty when none was given.
+  std::string lot;
+  if (run.contains("lots") && run["lots"].is_array() && unit >= 0 && static_cast<std::size_t>(unit) < run["lots"].size() &&
+      run["lots"][static_cast<std::size_t>(unit)].is_string())
+    lot = run["lots"][static_cast<std::size_t>(unit)].get<std::string>();
+  fields.emplace_back("lot", lot);
+  return storage::identity_comment_lines(fields);
 }
 
 void print_identity(const json& identity, std::ostream& out) {

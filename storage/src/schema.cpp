@@ -219,6 +219,16 @@ CREATE INDEX plant_outbox_pending ON plant_outbox (id) WHERE sent_at IS NULL;
 CREATE INDEX plant_outbox_run ON plant_outbox (run_id);
 )sql";
 
+// Version 8 (issue 24, traceability): who started a plan and the lot of each of its units,
+// given to every run the plan starts (operator and operator_source as in runs; lots_json is
+// {serial: lot}, a unit without a lot left out).
+constexpr const char* kPlanTraceability = R"sql(
+ALTER TABLE plans ADD COLUMN operator TEXT NOT NULL DEFAULT '';
+ALTER TABLE plans ADD COLUMN operator_source TEXT NOT NULL DEFAULT 'none'
+  CHECK (operator_source IN ('client', 'peer', 'import', 'none'));
+ALTER TABLE plans ADD COLUMN lots_json TEXT NOT NULL DEFAULT '{}' CHECK (json_valid(lots_json));
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "recording tables", kRecording},
     {2, "models and verifications", kModels},
@@ -227,6 +237,7 @@ constexpr Migration kMigrations[] = {
     {5, "live compensated rate", kLiveCompensation},
     {6, "qualification plans and their queue", kPlans},
     {7, "unit lots and the plant outbox", kPlant},
+    {8, "plan operator and unit lots", kPlanTraceability},
 };
 
 StoreResult<std::int64_t> query_int(Database& db, const std::string& sql, std::string_view what) {

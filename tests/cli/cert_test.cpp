@@ -230,7 +230,7 @@ TEST_CASE("fogctl cert: the HTML is drawn from the signed JSON, --check compares
 
   // A page of another renderer: its tables cannot be compared, so cannot tell (2), saying why.
   std::string foreign = html;
-  const auto meta = foreign.find("fogbench-certificate-page 2");
+  const auto meta = foreign.find("fogbench-certificate-page 3");
   REQUIRE(meta != std::string::npos);
   foreign.replace(meta, 27, "fogbench-certificate-page 1");
   auto fo = check(d.write("foreign.html", foreign), {pub});
