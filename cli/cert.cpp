@@ -211,11 +211,20 @@ std::string certificate_html(const json& cert) {
   rows.clear();
   for (const auto& r : cert["runs"]) {
     const json& id = r["identity"];
-    rows.push_back({field_text(r, "id"), field_text(r, "role"), field_text(r, "profile"), field_text(r, "ended_at"),
-                    id.is_object() ? field_text(id, "station_id") : "-", id.is_object() ? field_text(id, "operator") : "-",
-                    id.is_object() ? field_text(id, "software_version") + " " + field_text(id, "git_hash").substr(0, 12) : "-"});
+    // The certified unit's lot in this run (issue 24), "-" when none was given.
+    std::string lot = "-";
+    if (id.is_object() && id.contains("units") && id["units"].is_array())
+      for (const auto& u : id["units"])
+        if (u.is_object() && u.value("serial", json()) == cert.value("serial", json()) && u.contains("lot") && u["lot"].is_string())
+          lot = u["lot"].get<std::string>();
+    std::vector<std::string> row{field_text(r, "id"), field_text(r, "role"), field_text(r, "profile"), field_text(r, "ended_at"),
+                                 id.is_object() ? field_text(id, "station_id") : "-", id.is_object() ? field_text(id, "operator") : "-"};
+    if (v3) row.push_back(lot);  // page 2 (format 2) is drawn as it was, without the lot
+    row.push_back(id.is_object() ? field_text(id, "software_version") + " " + field_text(id, "git_hash").substr(0, 12) : "-");
+    rows.push_back(std::move(row));
   }
-  b += table({"run", "role", "profile", "ended", "station", "operator", "software"}, rows);
+  b += v3 ? table({"run", "role", "profile", "ended", "station", "operator", "lot", "software"}, rows)
+          : table({"run", "role", "profile", "ended", "station", "operator", "software"}, rows);
   b += "<h2>Integrity</h2><p class=\"hash\">SHA-256 " + html_escape(field_text(cert, "sha256")) + "</p>";
   if (cert.contains("signed_by") && cert["signed_by"].is_object())
     b += "<p class=\"hash\">Signed (Ed25519) by station " + html_escape(field_text(cert["signed_by"], "station_id")) + " with key " +

@@ -289,6 +289,36 @@ int cmd_model_get(const Common& o, const std::string& serial, std::int64_t model
 
 }  // namespace commands
 
+namespace commands {
+
+bool add_operator_and_lots(nlohmann::json& req, const std::string& operator_name, const std::vector<std::string>& lots,
+                           const std::string& what, std::ostream& err) {
+  // Checked here too, so that a bad name is refused before anything is sent.
+  if (!operator_name.empty()) {
+    if (auto why = storage::check_operator_name(operator_name); !why.empty()) {
+      err << what << ": " << why << "\n";
+      return false;
+    }
+    req["operator"] = operator_name;
+  }
+  // --lot LOT (every unit) or --lot SERIAL=LOT (repeatable): the units' lots (issue 14).
+  for (const auto& l : lots) {
+    const auto eq = l.find('=');
+    if (eq == std::string::npos) {
+      if (lots.size() > 1 || l.empty()) {
+        err << what << ": --lot: expected LOT (every unit) or SERIAL=LOT (repeatable), not '" << l << "'\n";
+        return false;
+      }
+      req["lot"] = l;
+    } else {
+      req["lots"][l.substr(0, eq)] = l.substr(eq + 1);
+    }
+  }
+  return true;
+}
+
+}  // namespace commands
+
 namespace {
 
 using namespace commands;
@@ -297,28 +327,8 @@ using nlohmann::json;
 int cmd_run_start(const Common& o, const std::string& profile, const std::vector<std::string>& units,
                   const std::vector<std::string>& lots, const std::string& purpose, const std::string& operator_name,
                   bool wait, bool quiet, std::ostream& out, std::ostream& err) {
-  // Checked here too, so that a bad name is refused before anything is sent.
-  if (!operator_name.empty()) {
-    if (auto why = storage::check_operator_name(operator_name); !why.empty()) {
-      err << "fogctl run start: " << why << "\n";
-      return kExitError;
-    }
-  }
   json req = {{"profile", profile}, {"units", units}, {"purpose", purpose}};
-  if (!operator_name.empty()) req["operator"] = operator_name;
-  // --lot LOT (every unit) or --lot SERIAL=LOT (repeatable): the units' lots (issue 14).
-  for (const auto& l : lots) {
-    const auto eq = l.find('=');
-    if (eq == std::string::npos) {
-      if (lots.size() > 1 || l.empty()) {
-        err << "fogctl run start: --lot: expected LOT (every unit) or SERIAL=LOT (repeatable), not '" << l << "'\n";
-        return kExitError;
-      }
-      req["lot"] = l;
-    } else {
-      req["lots"][l.substr(0, eq)] = l.substr(eq + 1);
-    }
-  }
+  if (!add_operator_and_lots(req, operator_name, lots, "fogctl run start", err)) return kExitError;
   auto c = open(o);
   if (!c) return report(c.error(), err);
   auto r = c->call("run.start", req);

@@ -41,6 +41,12 @@ std::string num_text(std::optional<double> v, int digits = 2);
 std::string num_text(double v, int digits = 2);
 // H:MM:SS, "-" for a negative or unknown duration.
 std::string duration_text(double s);
+
+// --operator NAME and --lot LOT | --lot SERIAL=LOT (repeatable) into a request's "operator",
+// "lot" or "lots" (run start, plan start, queue add); false, with the error on err naming
+// `what` ("fogctl run start"), when the name or a --lot is malformed.
+bool add_operator_and_lots(nlohmann::json& req, const std::string& operator_name, const std::vector<std::string>& lots,
+                           const std::string& what, std::ostream& err);
 // Per unit of a run: frames lost and corrupt, samples flagged (and samples stored when given).
 Table quality_table(const nlohmann::json& serials, const nlohmann::json& quality, const nlohmann::json* samples = nullptr);
 // Table 1 of a run's verifications.

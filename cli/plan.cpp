@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -44,10 +45,23 @@ std::expected<std::pair<std::string, std::string>, std::string> read_plan(const 
 
 std::string cell_text(const json& v) { return v.is_string() ? v.get<std::string>() : v.is_null() ? "-" : v.dump(); }
 
+// A plan's operator ("-" when nobody was recorded) and its units' lots ("SIM-0001=L7 ...", "-").
+std::string operator_text(const json& p) {
+  const std::string name = p.value("operator", "");
+  return name.empty() ? "-" : name;
+}
+std::string lots_text(const json& p) {
+  std::string t;
+  if (p.contains("lots") && p["lots"].is_object())
+    for (const auto& [serial, lot] : p["lots"].items()) t += (t.empty() ? "" : " ") + serial + "=" + cell_text(lot);
+  return t.empty() ? "-" : t;
+}
+
 void print_status(const json& s, std::ostream& out) {
   out << "plan " << s["plan_id"] << " " << cell_text(s["name"]) << " (" << cell_text(s["source"]) << "): " << cell_text(s["state"]);
   if (!s["reason"].get<std::string>().empty()) out << ": " << cell_text(s["reason"]);
   out << "\n";
+  out << "operator " << operator_text(s) << ", lots " << lots_text(s) << "\n";
   const json& p = s["progress"];
   if (p.is_object() && p.contains("runs")) {
     Table runs({"step", "profile", "purpose", "attempt", "run", "units"});
@@ -144,6 +158,7 @@ std::string plan_report_html(const json& s) {
   h << "<p>Source " << html_escape(cell_text(s["source"])) << ", state <b>" << html_escape(cell_text(s["state"])) << "</b>"
     << (s["reason"].get<std::string>().empty() ? "" : ": " + html_escape(s["reason"].get<std::string>())) << ". Started "
     << html_escape(cell_text(s["started_at"])) << ", ended " << html_escape(cell_text(s["ended_at"])) << ".</p>\n";
+  h << "<p>Operator " << html_escape(operator_text(s)) << ", lots " << html_escape(lots_text(s)) << ".</p>\n";
   h << "<h2>Verdicts</h2>\n<table><tr><th>serial</th><th>verdict</th><th>why</th></tr>\n";
   for (const auto& u : p["units"]) {
     const std::string v = cell_text(u["verdict"]);
@@ -179,8 +194,8 @@ std::string plan_report_html(const json& s) {
 
 void add_plan_commands(CLI::App& app, int& code) {
   static Common common;
-  static std::string file, reason, output;
-  static std::vector<std::string> units;
+  static std::string file, reason, output, operator_name;
+  static std::vector<std::string> units, lots;
   static bool wait = false, quiet = false;
   static std::int64_t plan_id = 0, position = 0;
   static std::optional<std::int64_t> status_id;
@@ -199,6 +214,10 @@ void add_plan_commands(CLI::App& app, int& code) {
     if (!c) return std::unexpected(report(c.error(), std::cerr));
     json args = {{"text", text->first}, {"source", text->second}};
     if (need_units || !units.empty()) args["units"] = units;
+    std::string what = "fogctl " + cmd;  // "fogctl plan start"
+    std::replace(what.begin(), what.end(), '.', ' ');
+    if (need_units && !add_operator_and_lots(args, operator_name, lots, what, std::cerr))
+      return std::unexpected(kExitError);
     auto r = c->call(cmd, args);
     if (!r) return std::unexpected(report(r.error(), std::cerr));
     return *r;
@@ -235,6 +254,9 @@ void add_plan_commands(CLI::App& app, int& code) {
   add_common(start, common);
   start->add_option("plan", file, "Plan file, or the name of a shipped plan (paper, qualification)")->required();
   start->add_option("--unit", units, "Serial of a unit under test (repeatable)")->required();
+  start->add_option("--operator", operator_name,
+                    "Who runs it, recorded in every run of the plan (default: the unix socket's user)");
+  start->add_option("--lot", lots, "The units' production lot: LOT for every unit, or SERIAL=LOT (repeatable)");
   start->add_flag("--wait", wait, "Follow the plan with a progress line on stderr until it ends; exit 0 all pass, "
                                   "3 marginal, 1 a unit failed, 2 the plan did not complete");
   start->add_flag("-q,--quiet", quiet, "With --wait: no progress line");
@@ -360,12 +382,12 @@ void add_plan_commands(CLI::App& app, int& code) {
     if (common.json_out) std::cout << r->dump() << "\n";
     else {
       std::cout << "running: " << ((*r)["running"].is_null() ? "no plan" : "plan " + (*r)["running"].dump()) << "\n";
-      Table t({"#", "plan", "name", "source", "units", "queued at"});
+      Table t({"#", "plan", "name", "source", "units", "operator", "lots", "queued at"});
       for (const auto& q : (*r)["queue"]) {
         std::string us;
         for (const auto& u : q["units"]) us += (us.empty() ? "" : " ") + u.get<std::string>();
         t.add({cell_text(q["position"]), cell_text(q["plan_id"]), cell_text(q["name"]), cell_text(q["source"]), us,
-               cell_text(q["created_at"])});
+               operator_text(q), lots_text(q), cell_text(q["created_at"])});
       }
       std::cout << t.str();
     }
@@ -375,6 +397,9 @@ void add_plan_commands(CLI::App& app, int& code) {
   add_common(add, common);
   add->add_option("plan", file, "Plan file, or the name of a shipped plan")->required();
   add->add_option("--unit", units, "Serial of a unit under test (repeatable)")->required();
+  add->add_option("--operator", operator_name,
+                  "Who runs it, recorded in every run of the plan (default: the unix socket's user when queued)");
+  add->add_option("--lot", lots, "The units' production lot: LOT for every unit, or SERIAL=LOT (repeatable)");
   add->callback([&, send_plan] {
     auto r = send_plan("queue.add", true);
     if (!r) {

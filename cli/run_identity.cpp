@@ -44,6 +44,12 @@ std::string identity_csv_comments(const json& run_get, int unit) {
   if (!id) return {};
   const json& run = run_get["run"];
   auto fields = storage::identity_fields(*id, run.value("id", std::int64_t{0}), run.value("profile", std::string()), unit);
+  // The unit's production lot (issue 24), empty when none was given.
+  std::string lot;
+  if (run.contains("lots") && run["lots"].is_array() && unit >= 0 && static_cast<std::size_t>(unit) < run["lots"].size() &&
+      run["lots"][static_cast<std::size_t>(unit)].is_string())
+    lot = run["lots"][static_cast<std::size_t>(unit)].get<std::string>();
+  fields.emplace_back("lot", lot);
   // The serial's one verdict as the station decided it (issue 24), so that a report or a reader
   // of the file sees that verdict, never a second one (docs/csv.md).
   const json verdicts = run_get.value("verdicts", json::array());

@@ -67,6 +67,14 @@ ApiResult<json> run_json(storage::Store& store, std::int64_t run_id, const std::
   if (!d) return std::unexpected(from_store(d.error()));
   auto id = store.get_run_identity(run_id);
   if (!id) return std::unexpected(from_store(id.error()));
+  // Each unit of the identity with its lot (null: none given), for traceability (issue 24).
+  json identity = identity_json(*id);
+  if (identity.is_object())
+    for (auto& u : identity["units"]) {
+      u["lot"] = nullptr;
+      for (const auto& ru : d->run.units)
+        if (u["unit"] == ru.unit_index && ru.lot) u["lot"] = *ru.lot;
+    }
   return json{{"id", run_id},
               {"role", role},
               {"profile", d->run.profile_name},
@@ -74,7 +82,7 @@ ApiResult<json> run_json(storage::Store& store, std::int64_t run_id, const std::
               {"state", std::string(storage::to_string(d->run.state))},
               {"started_at", d->run.started_at ? json(*d->run.started_at) : json(nullptr)},
               {"ended_at", d->run.ended_at ? json(*d->run.ended_at) : json(nullptr)},
-              {"identity", identity_json(*id)}};
+              {"identity", identity}};
 }
 
 }  // namespace

@@ -56,14 +56,17 @@ constexpr std::int64_t kMaxId = std::numeric_limits<std::int64_t>::max();
 constexpr std::size_t kMaxHeldOutRuns = 32;
 
 json run_json(const storage::RunRecord& r) {
-  json units = json::array();
-  for (const auto& u : r.units) units.push_back(u.serial);
+  json units = json::array(), lots = json::array();
+  for (const auto& u : r.units) {
+    units.push_back(u.serial);
+    lots.push_back(u.lot ? json(*u.lot) : json(nullptr));  // same positions; null: no lot given
+  }
   return {{"id", r.id}, {"created_at", r.created_at}, {"profile", r.profile_name},
           {"purpose", std::string(storage::to_string(r.purpose))},
           {"state", std::string(storage::to_string(r.state))}, {"reason", r.state_reason},
           {"started_at", r.started_at ? json(*r.started_at) : json(nullptr)},
           {"ended_at", r.ended_at ? json(*r.ended_at) : json(nullptr)},
-          {"time_scale", r.time_scale}, {"units", units}};
+          {"time_scale", r.time_scale}, {"units", units}, {"lots", lots}};
 }
 
 json parse_or_string(const std::string& text) {
@@ -434,6 +437,10 @@ struct CommandHandlers {
   static ApiResult<json> plan(const CommandCall& c) {
     return F(station(c).plan_runner(), c.cmd, c.req);
   }
+  template <PlanStartCommand F>
+  static ApiResult<json> plan_as_peer(const CommandCall& c) {
+    return F(station(c).plan_runner(), c.cmd, c.req, c.session.peer_user);
+  }
 
   // ---- offloaded ----
 
@@ -655,11 +662,11 @@ constexpr CommandEntry kCommands[] = {
     {"cert.check", Access::read, &CommandHandlers::cert_check},
     {"cert.public_key", Access::read, &CommandHandlers::cert_public_key},
     {"plan.validate", Access::read, &CommandHandlers::plan<plan_validate>},
-    {"plan.start", Access::control, &CommandHandlers::plan<plan_start>},
+    {"plan.start", Access::control, &CommandHandlers::plan_as_peer<plan_start>},
     {"plan.status", Access::read, &CommandHandlers::plan<plan_status>},
     {"plan.abort", Access::control, &CommandHandlers::plan<plan_abort>},
     {"queue.list", Access::read, &CommandHandlers::plan<queue_list>},
-    {"queue.add", Access::control, &CommandHandlers::plan<queue_add>},
+    {"queue.add", Access::control, &CommandHandlers::plan_as_peer<queue_add>},
     {"queue.remove", Access::control, &CommandHandlers::plan<queue_remove>},
     {"queue.move", Access::control, &CommandHandlers::plan<queue_move>},
 };

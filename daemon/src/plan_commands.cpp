@@ -4,6 +4,7 @@
 #include <vector>
 
 #include "fogbench/daemon/plan_runner.hpp"
+#include "fogbench/daemon/station.hpp"
 #include "fogbench/storage/identity.hpp"
 
 namespace fogbench::daemon {
@@ -50,6 +51,20 @@ ApiResult<PlanArgs> plan_args(const json& req, bool units_required) {
   return a;
 }
 
+// The operator (`operator`, else the unix peer's user, as run.start) and the lots (`lot` for
+// every unit or `lots` {serial: lot}, checked as run.start's).
+ApiResult<PlanTrace> plan_trace(const json& req, const std::vector<std::string>& units, const std::string& peer_user) {
+  PlanTrace t;
+  auto op = operator_of(req, peer_user);
+  if (!op) return std::unexpected(op.error());
+  t.op = std::move(*op);
+  auto lots = Station::unit_lots(req, units);
+  if (!lots) return std::unexpected(lots.error());
+  for (std::size_t i = 0; i < units.size(); ++i)
+    if ((*lots)[i]) t.lots[units[i]] = *(*lots)[i];
+  return t;
+}
+
 std::unexpected<ApiError> no_plans(const std::string& cmd) {
   return api_error(ErrorCode::unavailable, cmd + ": this station runs no plans");
 }
@@ -64,18 +79,27 @@ ApiResult<json> plan_validate(PlanRunner* runner, const std::string& cmd, const 
   return runner->validate(a->text, a->source, a->units);
 }
 
-ApiResult<json> plan_start(PlanRunner* runner, const std::string& cmd, const json& req) {
-  if (!runner) return no_plans(cmd);
-  auto a = plan_args(req, true);
-  if (!a) return std::unexpected(a.error());
-  return runner->start(a->text, a->source, a->units, req);
+json plan_trace_json(const std::string& operator_name, const std::string& operator_source,
+                     const std::map<std::string, std::string>& lots) {
+  return {{"operator", operator_name}, {"operator_source", operator_source}, {"lots", lots}};
 }
 
-ApiResult<json> queue_add(PlanRunner* runner, const std::string& cmd, const json& req) {
+ApiResult<json> plan_start(PlanRunner* runner, const std::string& cmd, const json& req, const std::string& peer_user) {
   if (!runner) return no_plans(cmd);
   auto a = plan_args(req, true);
   if (!a) return std::unexpected(a.error());
-  return runner->queue_add(a->text, a->source, a->units, req);
+  auto t = plan_trace(req, a->units, peer_user);
+  if (!t) return std::unexpected(t.error());
+  return runner->start(a->text, a->source, a->units, *t, req);
+}
+
+ApiResult<json> queue_add(PlanRunner* runner, const std::string& cmd, const json& req, const std::string& peer_user) {
+  if (!runner) return no_plans(cmd);
+  auto a = plan_args(req, true);
+  if (!a) return std::unexpected(a.error());
+  auto t = plan_trace(req, a->units, peer_user);
+  if (!t) return std::unexpected(t.error());
+  return runner->queue_add(a->text, a->source, a->units, *t, req);
 }
 
 ApiResult<json> plan_status(PlanRunner* runner, const std::string& cmd, const json& req) {

@@ -165,7 +165,7 @@ json initial_progress(const plans::Plan& p, const std::vector<std::string>& unit
 }  // namespace
 
 ApiResult<json> PlanRunner::start(const std::string& text, const std::string& source,
-                                  const std::vector<std::string>& units, const json& command) {
+                                  const std::vector<std::string>& units, const PlanTrace& trace, const json& command) {
   if (units.empty()) return api_error(ErrorCode::bad_request, "units: expected at least one serial");
   auto p = check(text, source, units);
   if (!p) return std::unexpected(p.error());
@@ -173,11 +173,15 @@ ApiResult<json> PlanRunner::start(const std::string& text, const std::string& so
     return api_error(ErrorCode::busy, "plan " + std::to_string(*running) + " is running: queue this one (queue.add)");
   if (auto run = station_.active_run_id())
     return api_error(ErrorCode::busy, "run " + std::to_string(*run) + " is active: queue the plan (queue.add)");
-  storage::NewPlan np{p->name, source, text, units, "running"};
-  auto id = station_.store().create_plan(np, "plan.start", command.dump());
+  storage::NewPlan np{p->name, source, text, units, "running", trace.op.name, trace.op.source, trace.lots};
+  json detail = command;
+  detail.update(plan_trace_json(trace.op.name, trace.op.source, trace.lots));
+  auto id = station_.store().create_plan(np, "plan.start", detail.dump());
   if (!id) return std::unexpected(from_store(id.error()));
   save(*id, "running", "", initial_progress(*p, units));
-  return json{{"plan_id", *id}, {"name", p->name}, {"state", "running"}, {"steps", p->steps.size()}};
+  json j = {{"plan_id", *id}, {"name", p->name}, {"state", "running"}, {"steps", p->steps.size()}};
+  j.update(plan_trace_json(trace.op.name, trace.op.source, trace.lots));
+  return j;
 }
 
 ApiResult<json> PlanRunner::status(std::optional<std::int64_t> plan_id) const {
@@ -205,6 +209,7 @@ ApiResult<json> PlanRunner::status(std::optional<std::int64_t> plan_id) const {
             {"started_at", rec.started_at ? json(*rec.started_at) : json(nullptr)},
             {"ended_at", rec.ended_at ? json(*rec.ended_at) : json(nullptr)}, {"progress", progress},
             {"plan_text", rec.plan_text}};
+  j.update(plan_trace_json(rec.operator_name, rec.operator_source, rec.lots));
   if (auto p = plans::parse_plan(rec.plan_text, rec.source)) {
     json steps = json::array();
     for (const auto& s : p->steps)
@@ -294,7 +299,9 @@ void PlanRunner::after_tick(double clock_s, double wall_time) {
     return;
   }
   save(next.id, "running", "", initial_progress(*p, next.units));
-  plan_event(next.id, "plan.start", {{"from", "queue"}});
+  json from_queue = {{"from", "queue"}};
+  from_queue.update(plan_trace_json(next.operator_name, next.operator_source, next.lots));
+  plan_event(next.id, "plan.start", from_queue);
   spdlog::info("plan {} ({}) starts from the queue", next.id, next.name);
 }
 
@@ -328,9 +335,14 @@ bool PlanRunner::advance(std::int64_t plan_id, double wall_time) {
       finish_plan(plan_id, progress, "completed", "every unit was dropped before step " + std::to_string(step_index + 1));
       return false;
     }
+    // The plan's operator and its units' lots go to the run (its identity and its units).
+    json lots = json::object();
+    for (const auto& s : units)
+      if (auto l = rec->lots.find(s); l != rec->lots.end()) lots[s] = l->second;
     json command = {{"cmd", "plan.step"}, {"plan_id", plan_id}, {"step", step_index + 1}, {"line", step.line},
-                    {"attempt", progress["attempt"]}};
-    auto run = station_.start_run(step.profile, units, run_purpose(step.purpose), command);
+                    {"attempt", progress["attempt"]}, {"operator", rec->operator_name}, {"lots", lots}};
+    auto run = station_.start_run(step.profile, units, run_purpose(step.purpose), command,
+                                  OperatorId{rec->operator_name, rec->operator_source});
     if (!run) {
       if (run.error().code == ErrorCode::unavailable || run.error().code == ErrorCode::busy) return false;  // try again
       finish_plan(plan_id, progress, "failed",
@@ -570,7 +582,8 @@ ApiResult<json> PlanRunner::queue_list() const {
   std::int64_t pos = 1;
   for (const auto& p : *q)
     arr.push_back({{"position", pos++}, {"plan_id", p.id}, {"name", p.name}, {"source", p.source}, {"units", p.units},
-                   {"created_at", p.created_at}});
+                   {"created_at", p.created_at}, {"operator", p.operator_name}, {"operator_source", p.operator_source},
+                   {"lots", p.lots}});
   json j = {{"queue", arr}};
   auto running = running_plan_id();
   j["running"] = running ? json(*running) : json(nullptr);
@@ -578,12 +591,15 @@ ApiResult<json> PlanRunner::queue_list() const {
 }
 
 ApiResult<json> PlanRunner::queue_add(const std::string& text, const std::string& source,
-                                      const std::vector<std::string>& units, const json& command) {
+                                      const std::vector<std::string>& units, const PlanTrace& trace,
+                                      const json& command) {
   if (units.empty()) return api_error(ErrorCode::bad_request, "units: expected at least one serial");
   auto p = check(text, source, units);
   if (!p) return std::unexpected(p.error());
-  storage::NewPlan np{p->name, source, text, units, "queued"};
-  auto id = station_.store().create_plan(np, "queue.add", command.dump());
+  storage::NewPlan np{p->name, source, text, units, "queued", trace.op.name, trace.op.source, trace.lots};
+  json detail = command;
+  detail.update(plan_trace_json(trace.op.name, trace.op.source, trace.lots));
+  auto id = station_.store().create_plan(np, "queue.add", detail.dump());
   if (!id) return std::unexpected(from_store(id.error()));
   auto q = queue_list();
   if (!q) return q;

@@ -26,6 +26,7 @@
       box.dataset.planId = "";
       box.dataset.state = "";
       $("plan-title").textContent = "no plan has run";
+      $("plan-trace").textContent = "";
       $("plan-steps").innerHTML = "";
       $("plan-units").querySelector("thead").innerHTML = "";
       $("plan-units").querySelector("tbody").innerHTML = "";
@@ -46,6 +47,7 @@
     }
     if (p.reason) title += " (" + p.reason + ")";
     $("plan-title").textContent = title;
+    $("plan-trace").textContent = "operator " + traceText(p);
 
     // The steps: profile, purpose, the runs made for it.
     const ol = $("plan-steps");
@@ -98,6 +100,15 @@
     });
   }
 
+  // Who runs a plan and its units' lots (issue 24): "Ada, lots SIM-0001=L7 SIM-0002=L7".
+  function lotsText(p) {
+    const lots = Object.entries(p.lots || {}).map(([serial, lot]) => serial + "=" + lot);
+    return lots.length ? lots.join(" ") : "-";
+  }
+  function traceText(p) {
+    return (p.operator || "-") + ", lots " + lotsText(p);
+  }
+
   function showQueue(q) {
     const body = $("queue").querySelector("tbody");
     body.innerHTML = "";
@@ -106,7 +117,8 @@
     items.forEach((x) => {
       const tr = el("tr");
       tr.dataset.planId = String(x.plan_id);
-      [x.position, x.plan_id, x.name, x.source, (x.units || []).join(" ")].forEach((t) => tr.appendChild(el("td", t)));
+      [x.position, x.plan_id, x.name, x.source, (x.units || []).join(" "), x.operator || "-", lotsText(x)]
+        .forEach((t) => tr.appendChild(el("td", t)));
       body.appendChild(tr);
     });
     $("queue-empty").style.display = items.length ? "none" : "";

@@ -243,6 +243,16 @@ CREATE INDEX verdicts_serial ON verdicts (serial, id);
 CREATE INDEX verdicts_run ON verdicts (run_id);
 )sql";
 
+// Version 9 (issue 24, traceability): who started a plan and the lot of each of its units,
+// given to every run the plan starts (operator and operator_source as in runs; lots_json is
+// {serial: lot}, a unit without a lot left out).
+constexpr const char* kPlanTraceability = R"sql(
+ALTER TABLE plans ADD COLUMN operator TEXT NOT NULL DEFAULT '';
+ALTER TABLE plans ADD COLUMN operator_source TEXT NOT NULL DEFAULT 'none'
+  CHECK (operator_source IN ('client', 'peer', 'import', 'none'));
+ALTER TABLE plans ADD COLUMN lots_json TEXT NOT NULL DEFAULT '{}' CHECK (json_valid(lots_json));
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "recording tables", kRecording},
     {2, "models and verifications", kModels},
@@ -252,6 +262,7 @@ constexpr Migration kMigrations[] = {
     {6, "qualification plans and their queue", kPlans},
     {7, "unit lots and the plant outbox", kPlant},
     {8, "one verdict per serial", kVerdicts},
+    {9, "plan operator and unit lots", kPlanTraceability},
 };
 
 StoreResult<std::int64_t> query_int(Database& db, const std::string& sql, std::string_view what) {

@@ -10,7 +10,8 @@ namespace fogbench::storage {
 namespace {
 
 #define FOGBENCH_PLAN_COLUMNS \
-  "id, name, source, plan_text, units_json, state, queue_pos, created_at, started_at, ended_at, reason, progress_json"
+  "id, name, source, plan_text, units_json, state, queue_pos, created_at, started_at, ended_at, reason, progress_json, " \
+  "operator, operator_source, lots_json"
 
 PlanRecord read_plan(const Query& q) {
   PlanRecord p;
@@ -27,6 +28,12 @@ PlanRecord read_plan(const Query& q) {
   p.ended_at = q.opt_text(9);
   p.reason = q.text(10);
   p.progress_json = q.text(11);
+  p.operator_name = q.text(12);
+  p.operator_source = q.text(13);
+  const auto lots = nlohmann::json::parse(q.text(14), nullptr, false);
+  if (lots.is_object())
+    for (const auto& [serial, lot] : lots.items())
+      if (lot.is_string()) p.lots[serial] = lot.get<std::string>();
   return p;
 }
 
@@ -66,8 +73,8 @@ StoreResult<std::int64_t> Store::create_plan(const NewPlan& p, std::string_view 
   }
   {
     auto stmt = db.statement(
-        "INSERT INTO plans (name, source, plan_text, units_json, state, queue_pos, created_at, started_at) "
-        "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)");
+        "INSERT INTO plans (name, source, plan_text, units_json, state, queue_pos, created_at, started_at, "
+        "operator, operator_source, lots_json) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)");
     if (!stmt) return fail(std::move(stmt));
     Query q(db, *stmt);
     const std::string now = db.now_iso();
@@ -75,6 +82,7 @@ StoreResult<std::int64_t> Store::create_plan(const NewPlan& p, std::string_view 
         .bind(5, p.state).bind(6, pos).bind(7, now);
     if (p.state == "running") q.bind(8, now);
     else q.bind_null(8);
+    q.bind(9, p.operator_name).bind(10, p.operator_source).bind(11, nlohmann::json(p.lots).dump());
     if (auto ok = run(db, q, what); !ok) return fail(std::move(ok));
   }
   const std::int64_t id = sqlite3_last_insert_rowid(db.handle());

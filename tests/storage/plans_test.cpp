@@ -1,4 +1,4 @@
-// The store's qualification plans (schema version 6, docs/plans.md): a plan's states and
+// The store's qualification plans (schema versions 6 and 8, docs/plans.md): a plan's states and
 // progress, the queue's order through set_queue, a removal, and the audit trail.
 #include <catch2/catch.hpp>
 
@@ -80,4 +80,25 @@ TEST_CASE("store plans: a running plan's progress and its end are stamped", "[st
   CHECK(s.update_plan(99, "running", "", "{}").error().code == StoreErrc::not_found);
   CHECK(s.get_plan(99).error().code == StoreErrc::not_found);
   CHECK_FALSE(s.create_plan(plan("x", "completed"), "plan.start", "").has_value());
+}
+
+TEST_CASE("store plans: a plan keeps its operator and its units' lots (schema version 8)", "[store][plans]") {
+  Store s = memory();
+  NewPlan p = plan("traced");
+  p.operator_name = "alice";
+  p.operator_source = "client";
+  p.lots = {{"SIM-0001", "LOT-7"}};
+  const auto id = s.create_plan(p, "queue.add", "").value();
+  auto rec = s.get_plan(id).value();
+  CHECK(rec.operator_name == "alice");
+  CHECK(rec.operator_source == "client");
+  CHECK(rec.lots == std::map<std::string, std::string>{{"SIM-0001", "LOT-7"}});
+  // A plan given neither: nobody and no lot, as a plan stored before version 8 reads back.
+  rec = s.get_plan(s.create_plan(plan("bare"), "queue.add", "").value()).value();
+  CHECK(rec.operator_name.empty());
+  CHECK(rec.operator_source == "none");
+  CHECK(rec.lots.empty());
+  // The schema refuses an operator source it does not know.
+  p.operator_source = "guess";
+  CHECK_FALSE(s.create_plan(p, "queue.add", "").has_value());
 }

@@ -63,11 +63,13 @@ TEST_CASE("the live panel shows the plan, its dropped unit, the verdicts per ste
 
   LineClient c(bench.socket());
   REQUIRE(c.ok());
-  auto s = c.call({{"cmd", "plan.start"}, {"text", kThreeSteps}, {"source", "two.plan"}, {"units", {"SIM-0001", "SIM-0002"}}});
+  auto s = c.call({{"cmd", "plan.start"}, {"text", kThreeSteps}, {"source", "two.plan"}, {"units", {"SIM-0001", "SIM-0002"}},
+                   {"operator", "Ada"}, {"lot", "L-7"}});
   INFO(s.dump());
   REQUIRE(code_of(s) == "ok");
   const auto plan_id = s["result"]["plan_id"].get<std::int64_t>();
-  auto a = c.call({{"cmd", "queue.add"}, {"text", "plan waiting-one\nstep pshort fit\n"}, {"source", "wait.plan"}, {"units", {"SIM-0001"}}});
+  auto a = c.call({{"cmd", "queue.add"}, {"text", "plan waiting-one\nstep pshort fit\n"}, {"source", "wait.plan"}, {"units", {"SIM-0001"}},
+                   {"operator", "Grace"}});
   INFO(a.dump());
   REQUIRE(code_of(a) == "ok");
   const auto queued_id = a["result"]["plan_id"].get<std::int64_t>();
@@ -81,6 +83,9 @@ TEST_CASE("the live panel shows the plan, its dropped unit, the verdicts per ste
   CHECK(b.until("document.getElementById('queue').dataset.count === '1'", 30s));
   CHECK(b.eval(q("document.querySelector('#queue tbody tr').dataset.planId")) == qid);
   CHECK(b.eval(q("document.querySelector('#queue tbody tr').textContent.includes('waiting-one')")) == true);
+  // Who runs each plan and the lots (issue 24).
+  CHECK(b.until("document.getElementById('plan-trace').textContent === 'operator Ada, lots SIM-0001=L-7 SIM-0002=L-7'", 30s));
+  CHECK(b.eval(q("document.querySelector('#queue tbody tr').textContent.includes('Grace')")) == true);
 
   // The third step: SIM-0002 failed comp_raw at step 2 and was dropped; SIM-0001 met every limit.
   REQUIRE(b.until("document.getElementById('plan').dataset.step === '3'", 600s));

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -16,12 +17,23 @@
 #include <nlohmann/json.hpp>
 
 #include "fogbench/daemon/api.hpp"
+#include "fogbench/daemon/run_identity.hpp"
 #include "fogbench/daemon/tick_input.hpp"
 #include "fogbench/plans/plan.hpp"
 
 namespace fogbench::daemon {
 
 class Station;
+
+// Who starts a plan and the lot of each of its units (issue 24): stored with the plan and given
+// to every run it starts (each run's identity names the operator, each unit of it its lot).
+struct PlanTrace {
+  OperatorId op;
+  std::map<std::string, std::string> lots;  // serial -> lot; a unit without a lot is absent
+};
+// The trace as the plan's JSON shows it: {operator, operator_source, lots}.
+nlohmann::json plan_trace_json(const std::string& operator_name, const std::string& operator_source,
+                               const std::map<std::string, std::string>& lots);
 
 class PlanRunner final : public TickListener {
  public:
@@ -38,7 +50,8 @@ class PlanRunner final : public TickListener {
   // plan.start: checked, stored as running; its first run starts at the next tick. Refused
   // (busy) while a run or another plan is active: queue it instead.
   ApiResult<nlohmann::json> start(const std::string& text, const std::string& source,
-                                  const std::vector<std::string>& units, const nlohmann::json& command);
+                                  const std::vector<std::string>& units, const PlanTrace& trace,
+                                  const nlohmann::json& command);
   // plan.status: the plan (the running one, else the last one, when id is empty).
   ApiResult<nlohmann::json> status(std::optional<std::int64_t> plan_id) const;
   // plan.abort: the running plan ends aborted, its active run too.
@@ -46,7 +59,8 @@ class PlanRunner final : public TickListener {
 
   ApiResult<nlohmann::json> queue_list() const;
   ApiResult<nlohmann::json> queue_add(const std::string& text, const std::string& source,
-                                      const std::vector<std::string>& units, const nlohmann::json& command);
+                                      const std::vector<std::string>& units, const PlanTrace& trace,
+                                      const nlohmann::json& command);
   ApiResult<nlohmann::json> queue_remove(std::int64_t plan_id, const nlohmann::json& command);
   // Moves a queued plan to `position` (1 = next).
   ApiResult<nlohmann::json> queue_move(std::int64_t plan_id, std::int64_t position, const nlohmann::json& command);
@@ -77,14 +91,19 @@ class PlanRunner final : public TickListener {
 
 // The socket commands plan.* and queue.* (docs/protocol.md), for the handler's command table
 // (handler.cpp), which names each one's access. `runner` is null on a station that runs no
-// plans; `cmd` is the command's name, for the messages.
+// plans; `cmd` is the command's name, for the messages. plan.start and queue.add take the
+// session's unix peer user too: the operator when the request names none (as run.start).
 using PlanCommand = ApiResult<nlohmann::json> (*)(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
+using PlanStartCommand = ApiResult<nlohmann::json> (*)(PlanRunner* runner, const std::string& cmd,
+                                                       const nlohmann::json& req, const std::string& peer_user);
 ApiResult<nlohmann::json> plan_validate(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
-ApiResult<nlohmann::json> plan_start(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
+ApiResult<nlohmann::json> plan_start(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req,
+                                     const std::string& peer_user);
 ApiResult<nlohmann::json> plan_status(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
 ApiResult<nlohmann::json> plan_abort(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
 ApiResult<nlohmann::json> queue_list(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
-ApiResult<nlohmann::json> queue_add(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
+ApiResult<nlohmann::json> queue_add(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req,
+                                    const std::string& peer_user);
 ApiResult<nlohmann::json> queue_remove(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
 ApiResult<nlohmann::json> queue_move(PlanRunner* runner, const std::string& cmd, const nlohmann::json& req);
 

@@ -160,6 +160,11 @@ class Station {
   // certificate not issued (a serial without a model has none: not_found; the verdict stays).
   ApiResult<std::string> decide(const storage::NewVerdict& v);
 
+  // The units' lots from run.start's (or plan.start's, queue.add's) "lot" (every unit) or
+  // "lots" ({serial: lot}), checked (station_plant.cpp); a unit without a lot is empty.
+  static ApiResult<std::vector<std::optional<std::string>>> unit_lots(const nlohmann::json& command,
+                                                                      const std::vector<std::string>& serials);
+
  private:
   struct ActiveRun {
     std::int64_t id = 0;
@@ -236,9 +241,6 @@ class Station {
 
   // The plant outbox (station_plant.cpp, issue 14).
   void queue_for_plant(std::int64_t run_id);
-  // The units' lots from run.start's "lot" (every unit) or "lots" ({serial: lot}).
-  static ApiResult<std::vector<std::optional<std::string>>> unit_lots(const nlohmann::json& command,
-                                                                      const std::vector<std::string>& serials);
   nlohmann::json plant_status() const;
 
   DaemonConfig config_;

@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <functional>
 #include <limits>
+#include <map>
 #include <memory>
 #include <optional>
 #include <span>
@@ -247,11 +248,17 @@ struct PlanRecord {
   std::optional<std::string> started_at, ended_at;
   std::string reason;
   std::string progress_json;
+  // Who started it (operator_source: client, peer or none, as a run's identity) and each
+  // unit's lot, given to every run of the plan (schema version 8).
+  std::string operator_name = {}, operator_source = "none";
+  std::map<std::string, std::string> lots = {};  // serial -> lot; a unit without a lot is absent
 };
 struct NewPlan {
   std::string name, source, plan_text;
   std::vector<std::string> units;
   std::string state = "queued";  // or running
+  std::string operator_name = {}, operator_source = "none";
+  std::map<std::string, std::string> lots = {};  // serial -> lot
 };
 // An entry of the plans' audit trail (queue edits, plan starts, steps, verdicts).
 struct PlanEvent {
