@@ -27,11 +27,12 @@ using namespace std::chrono_literals;
 struct LiveBench {
   std::filesystem::path bin, dir;
   std::unique_ptr<Process> sim, daemon;
+  json ready_daemon;  // fogbenchd's ready line (tcp_port, web_port)
 
   // `prepare`, when given, is called with the temp dir before fogbenchd starts (e.g. to fill the
-  // store, fogbench.db, with stored runs).
+  // store, fogbench.db, with stored runs). `patch` is merged into the configuration (merge_patch).
   LiveBench(const char* argv0, int units, double time_scale, const std::string& synchronous = "full",
-            const std::function<void(const std::filesystem::path&)>& prepare = {}) {
+            const std::function<void(const std::filesystem::path&)>& prepare = {}, const json& patch = json::object()) {
     bin = std::filesystem::absolute(argv0).parent_path();
     char tmpl[] = "/tmp/fogbench-bench-XXXXXX";
     dir = ::mkdtemp(tmpl);
@@ -50,13 +51,16 @@ struct LiveBench {
               {"safe_setpoint_c", 20},
               {"profile_dir", std::string(FOGBENCH_SOURCE_DIR) + "/profiles"},
               {"drivers", r["drivers_config"]}};
+    c.merge_patch(patch);
     std::ofstream(dir / "fogbenchd.json") << c.dump(2);
     if (prepare) prepare(dir);
     daemon = std::make_unique<Process>(
         std::vector<std::string>{(bin / "fogbenchd").string(), "--config", (dir / "fogbenchd.json").string(),
                                  "--time-scale", std::to_string(time_scale), "--log-level", "warn"},
         dir / "fogbenchd.log");
-    if (daemon->read_line(60s).empty()) fail("fogbenchd did not start; log in " + (dir / "fogbenchd.log").string());
+    const auto line = daemon->read_line(60s);
+    if (line.empty()) fail("fogbenchd did not start; log in " + (dir / "fogbenchd.log").string());
+    ready_daemon = json::parse(line, nullptr, false);
   }
   ~LiveBench() {
     daemon.reset();

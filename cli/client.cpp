@@ -125,6 +125,15 @@ std::expected<Client, ClientError> Client::handshake(int fd, int timeout_ms) {
   Client c(fd);
   auto hello = c.read_message(timeout_ms);
   if (!hello) return std::unexpected(hello.error());
+  // A daemon that refuses the connection says why in an error line instead of its hello (too
+  // many clients on this listener or from this address: docs/reliability.md): that reason.
+  if (hello->is_object() && hello->contains("error") && (*hello)["error"].is_object()) {
+    const json& e = (*hello)["error"];
+    const std::string code = e.value("code", json()).is_string() ? e["code"].get<std::string>() : "internal";
+    const std::string why = e.value("message", json()).is_string() ? e["message"].get<std::string>() : e.dump();
+    return std::unexpected(ClientError{ClientErrc::reply, "fogbenchd refused the connection: " + why,
+                                       protocol::error_code_from_string(code), code});
+  }
   // A daemon of another protocol version is refused here, before any request is sent.
   if (auto h = protocol::hello_from_json(*hello); !h) return fail(ClientErrc::protocol, h.error());
   c.hello_ = *hello;

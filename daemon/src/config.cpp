@@ -141,13 +141,38 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   if (j.contains("socket")) {
     const json& s = j["socket"];
     if (!s.is_object()) return Err("socket: expected an object");
-    if (auto ok = only_keys(s, "socket", {"path", "group", "tcp_port", "tcp", "max_clients", "idle_timeout_s"}); !ok)
+    if (auto ok = only_keys(s, "socket", {"path", "group", "tcp_port", "tcp", "max_clients", "unix_max_clients",
+                                          "max_clients_per_address", "first_request_timeout_s",
+                                          "refusal_log_interval_s", "idle_timeout_s"});
+        !ok)
       return Err(ok.error());
-    if (s.contains("max_clients") && !s["max_clients"].is_null()) {
-      const json& v = s["max_clients"];
+    // The connection limits (docs/reliability.md, "Connection limits"): each a count 1..100000.
+    for (auto [key, field] : {std::pair{"max_clients", &c.socket.max_clients},
+                              std::pair{"unix_max_clients", &c.socket.unix_max_clients},
+                              std::pair{"max_clients_per_address", &c.socket.max_clients_per_address}}) {
+      if (!s.contains(key) || s[key].is_null()) continue;
+      const json& v = s[key];
       if (!v.is_number_integer() || v.get<long long>() < 1 || v.get<long long>() > 100000)
-        return Err("socket.max_clients: expected an integer 1..100000");
-      c.socket.max_clients = static_cast<int>(v.get<long long>());
+        return Err(std::string("socket.") + key + ": expected an integer 1..100000");
+      *field = static_cast<int>(v.get<long long>());
+    }
+    if (s.contains("first_request_timeout_s")) {
+      // null: none; a number: seconds a network connection has to send its first request.
+      if (s["first_request_timeout_s"].is_null()) {
+        c.socket.first_request_timeout_s.reset();
+      } else {
+        auto t = number(s, "socket", "first_request_timeout_s");
+        if (!t) return Err(t.error());
+        if (!(*t > 0) || *t > 3600)
+          return Err("socket.first_request_timeout_s: expected seconds in (0, 3600], or null for none");
+        c.socket.first_request_timeout_s = *t;
+      }
+    }
+    if (s.contains("refusal_log_interval_s")) {
+      auto t = number(s, "socket", "refusal_log_interval_s");
+      if (!t) return Err(t.error());
+      if (!(*t >= 0.1) || *t > 86400) return Err("socket.refusal_log_interval_s: expected seconds in [0.1, 86400]");
+      c.socket.refusal_log_interval_s = *t;
     }
     if (s.contains("idle_timeout_s")) {
       // null: never; a number: seconds without a request before an unsubscribed client is closed.

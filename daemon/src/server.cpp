@@ -44,6 +44,7 @@
 #include "fogbench/daemon/run_identity.hpp"
 #include "fogbench/daemon/scheduling.hpp"
 #include "acquisition.hpp"
+#include "admission.hpp"
 #include "analysis_worker.hpp"
 #include "notify_status.hpp"
 #include "plant_link.hpp"
@@ -75,6 +76,14 @@ bool accept_starved(const boost::system::error_code& ec) {
          (v == EMFILE || v == ENFILE || v == ENOBUFS || v == ENOMEM);
 }
 
+AdmissionLimits admission_limits(const SocketConfig& s) {
+  AdmissionLimits l;
+  l.unix_max = static_cast<std::size_t>(s.unix_max_clients);
+  l.network_max = static_cast<std::size_t>(s.max_clients);
+  l.per_address_max = static_cast<std::size_t>(s.max_clients_per_address);
+  return l;
+}
+
 
 // The mock bench's paced clock as the acquisition's PacedWorld: one simulated second per call.
 class SimClockWorld final : public PacedWorld {
@@ -100,6 +109,11 @@ struct Server::Impl {
   std::optional<asio::local::stream_protocol::acceptor> unix_acceptor;
   std::optional<asio::ip::tcp::acceptor> tcp_acceptor;
   SessionSet sessions;  // every transport's live connections
+  // The connection limits per listener and per address (admission.hpp), and their log.
+  Admission admission{admission_limits(config.socket)};
+  RefusalLog refusals{std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(config.socket.refusal_log_interval_s))};
+  asio::steady_timer refusal_timer{io};
   // One daemon per store and per socket path (instance.hpp).
   std::optional<StoreLock> store_lock;
   SocketFileId socket_id;
@@ -137,36 +151,56 @@ struct Server::Impl {
 
   // --- command socket: admission and the accept loops (the binding is bind_sockets, below)
   template <class Socket>
-  void accept_session(Socket socket, std::string peer, bool may_control) {
+  void accept_session(Socket socket, std::string peer, bool may_control, Admission::Ticket ticket) {
     std::string user;
-    if constexpr (std::is_same_v<Socket, asio::local::stream_protocol::socket>) user = peer_user_name(socket.native_handle());
+    constexpr bool is_unix = std::is_same_v<Socket, asio::local::stream_protocol::socket>;
+    if constexpr (is_unix) user = peer_user_name(socket.native_handle());
     auto s = std::make_shared<Session<Socket>>(std::move(socket), *handler, turns, peer, may_control,
                                                may_control ? std::string() : config.socket.tcp_token);
     s->set_peer_user(std::move(user));
+    s->ticket = std::move(ticket);
     sessions.add(s);
     s->set_idle_timeout(config.socket.idle_timeout_s);
+    if (!is_unix) s->set_first_request_timeout(config.socket.first_request_timeout_s);
     s->start();
   }
 
   // Connections open now, both sockets together (and the WebSockets).
   std::size_t open_sessions() { return sessions.open(); }
 
-
-  // Connections open now, every transport: the sockets' and the WebSockets' sessions, and the
-  // web side's HTTP connections. What socket.max_clients limits.
-  std::size_t open_clients() { return open_sessions() + (web ? web->open_http() : 0); }
-
-  // A new connection: a session, or a refusal past socket.max_clients.
+  // A new connection: a session, or a refusal naming its reason (admission.hpp: the listener's
+  // limit or its address's). The unix socket has a share of its own, so no number of network
+  // clients keeps an operator out.
   template <class Socket>
-  void admit(Socket socket, std::string peer, bool may_control) {
-    const std::size_t open = open_clients();
-    if (open >= static_cast<std::size_t>(config.socket.max_clients)) {
-      spdlog::warn("client {}: {} clients connected (socket.max_clients); refused", peer, open);
-      refuse(std::move(socket), "too many clients (" + std::to_string(open) +
-                                    " connected, socket.max_clients); closing");
+  void admit(Socket socket, std::string peer, const std::string& address, Listener listener) {
+    auto ticket = admission.admit(listener, address);
+    if (!ticket) {
+      note_refusal(listener, peer, ticket.error());
+      refuse(std::move(socket), ticket.error());
       return;
     }
-    accept_session(std::move(socket), std::move(peer), may_control);
+    accept_session(std::move(socket), std::move(peer), listener == Listener::unix_socket, std::move(*ticket));
+  }
+
+  // A refused connection, logged at most once per socket.refusal_log_interval_s with the count
+  // (RefusalLog): a flood of refusals is a few lines, not one each.
+  void note_refusal(Listener listener, const std::string& peer, const std::string& why) {
+    if (auto line = refusals.refused(listener, peer, why, Clock::now())) {
+      spdlog::warn("{}", *line);
+      arm_refusal_flush();
+    }
+  }
+  void arm_refusal_flush() {
+    const auto due = refusals.flush_due();
+    if (!due) return;
+    refusal_timer.expires_at(*due);
+    refusal_timer.async_wait([this](boost::system::error_code e) {
+      if (e || stopping) return;
+      if (auto line = refusals.flush(Clock::now())) {
+        spdlog::warn("{}", *line);
+        arm_refusal_flush();
+      }
+    });
   }
 
   // A failed accept. Out of descriptors or memory, the next accept would fail at once (the
@@ -179,7 +213,7 @@ struct Server::Impl {
     if (!accept_logged || now - *accept_logged >= kAcceptLogEvery) {
       spdlog::warn("accept on {}: {} ({} failed accepts since the last report; {})", which, ec.message(),
                    accept_failures,
-                   accept_starved(ec) ? "retrying every 250 ms; raise LimitNOFILE or lower socket.max_clients"
+                   accept_starved(ec) ? "retrying every 250 ms; raise LimitNOFILE or lower socket.max_clients and socket.unix_max_clients"
                                       : "retrying");
       accept_logged = now;
       accept_failures = 0;
@@ -198,7 +232,7 @@ struct Server::Impl {
     unix_acceptor->async_accept([this](boost::system::error_code ec, asio::local::stream_protocol::socket s) {
       if (stopping || ec == asio::error::operation_aborted) return;
       if (ec) return accept_failed("the unix socket", ec, unix_accept_retry, &Impl::accept_unix);
-      admit(std::move(s), "unix", true);
+      admit(std::move(s), "unix", "", Listener::unix_socket);
       accept_unix();
     });
   }
@@ -209,7 +243,8 @@ struct Server::Impl {
       if (ec) return accept_failed("tcp", ec, tcp_accept_retry, &Impl::accept_tcp);
       boost::system::error_code e2;
       auto ep = s.remote_endpoint(e2);
-      admit(std::move(s), e2 ? std::string("tcp") : ep.address().to_string() + ":" + std::to_string(ep.port()), false);
+      const std::string address = e2 ? std::string("?") : ep.address().to_string();
+      admit(std::move(s), e2 ? std::string("tcp") : address + ":" + std::to_string(ep.port()), address, Listener::tcp);
       accept_tcp();
     });
   }
@@ -286,6 +321,7 @@ struct Server::Impl {
     boost::system::error_code ec;
     unix_accept_retry.cancel();
     tcp_accept_retry.cancel();
+    refusal_timer.cancel();
     if (unix_acceptor) unix_acceptor->close(ec);
     if (tcp_acceptor) tcp_acceptor->close(ec);
   }
@@ -415,7 +451,12 @@ std::expected<void, Server::StartError> Server::start() {
   m.handler = std::make_unique<Handler>(*m.station);
   if (m.config.web) {
     web::WebServer::Hooks hooks;
-    hooks.full = [&m] { return m.open_clients() >= static_cast<std::size_t>(m.config.socket.max_clients); };
+    hooks.take = [&m](const std::string& address, const std::string& peer) {
+      auto t = m.admission.admit(Listener::web, address);
+      if (!t) m.note_refusal(Listener::web, peer, t.error());
+      return t;
+    };
+    hooks.first_request_timeout_s = m.config.socket.first_request_timeout_s;
     hooks.admit = [&m](const std::shared_ptr<SessionBase>& s) { m.sessions.add(s); };
     hooks.metrics = [&m] { return m.metrics(); };
     const std::string& token = m.config.web->token.empty() ? m.config.socket.tcp_token : m.config.web->token;

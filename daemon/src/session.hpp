@@ -38,7 +38,8 @@ constexpr std::size_t kOutputHighWaterBytes = 256u << 10;
 constexpr int kLinesPerTurn = 16;
 inline std::shared_ptr<const std::string> wire(const json& message) { return Handler::to_line(message); }
 
-// A client over socket.max_clients: one error line, then the connection is closed. The line is
+// A client refused (admission.hpp: a listener's limit, or its address's): one `busy` error line
+// naming the reason and the configuration key, then the connection is closed. The line is
 // small enough for an empty socket buffer; a deadline closes it anyway if the write hangs.
 template <class Socket>
 void refuse(Socket socket, const std::string& why) {
@@ -70,6 +71,8 @@ class SessionBase {
   // reading, and the client has read its output down to kOutputHighWaterBytes.
   virtual bool servable() const = 0;
   bool in_turns = false;  // queued in Turns
+  // Its place under the connection limits (admission.hpp): given back when it closes.
+  std::shared_ptr<void> ticket;
 };
 
 // The fair loop: connections with a request to serve take turns, one request each, at most
@@ -128,7 +131,12 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
     send(wire(Handler::hello()));
     read();
     arm_idle();
+    arm_first_request();
   }
+
+  // socket.first_request_timeout_s (TCP): a connection that sends no whole request this long
+  // after it was accepted is closed, so silent connections do not hold the listener's places.
+  void set_first_request_timeout(std::optional<double> seconds) { first_request_s_ = seconds; }
 
   // socket.idle_timeout_s: a client that is not subscribed and neither sends a request nor waits
   // for a reply this long is closed. None when empty.
@@ -148,6 +156,8 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
     socket_.close(ec);
     timer_.cancel();
     idle_timer_.cancel();
+    first_timer_.cancel();
+    ticket.reset();
   }
 
   bool servable() const override {
@@ -175,6 +185,10 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
       if (!line.empty()) break;
     }
     last_request_ = Clock::now();
+    if (!got_request_) {
+      got_request_ = true;
+      first_timer_.cancel();
+    }
     awaiting_reply_ = true;
     handler_.handle_line(line, state_, [self = this->shared_from_this()](Handler::Line reply) {
       self->awaiting_reply_ = false;
@@ -185,6 +199,18 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
   }
 
  private:
+  void arm_first_request() {
+    if (!first_request_s_ || closed_) return;
+    first_timer_.expires_after(std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(*first_request_s_)));
+    first_timer_.async_wait([this, self = this->shared_from_this()](boost::system::error_code ec) {
+      if (ec || closed_ || got_request_) return;
+      // Debug only: a flood of silent connections must not flood the log (docs/reliability.md).
+      spdlog::debug("client {}: no request within {} s (socket.first_request_timeout_s); closing", peer_,
+                    *first_request_s_);
+      close();
+    });
+  }
+
   void arm_idle() {
     if (!idle_s_ || closed_) return;
     const auto idle = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(*idle_s_));
@@ -272,6 +298,9 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
   bool awaiting_reply_ = false;
   asio::steady_timer idle_timer_{socket_.get_executor()};
   std::optional<double> idle_s_;
+  asio::steady_timer first_timer_{socket_.get_executor()};
+  std::optional<double> first_request_s_;
+  bool got_request_ = false;
   Clock::time_point last_request_ = Clock::now();
 };
 

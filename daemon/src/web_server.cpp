@@ -86,6 +86,7 @@ class WsSession : public net::SessionBase, public std::enable_shared_from_this<W
     beast::get_lowest_layer(ws_).socket().shutdown(tcp::socket::shutdown_both, ec);
     beast::get_lowest_layer(ws_).socket().close(ec);
     timer_.cancel();
+    ticket.reset();
   }
   bool subscribed() const override { return state_.subscribed; }
   bool is_closed() const override { return closed_; }
@@ -178,10 +179,18 @@ http::status status_of(const std::string& reply) {
 
 class HttpSession : public std::enable_shared_from_this<HttpSession> {
  public:
-  // `refused`: a connection past socket.max_clients; its request is read and answered 503.
-  HttpSession(tcp::socket socket, std::shared_ptr<WebServer::Impl> server, std::string peer, bool refused)
-      : stream_(std::move(socket)), server_(std::move(server)), peer_(std::move(peer)), refused_(refused) {
+  // `refused`: why the connection is refused (a listener's or an address's limit), empty when
+  // admitted; a refused one's request is read and answered 503 with the reason.
+  HttpSession(tcp::socket socket, std::shared_ptr<WebServer::Impl> server, std::string peer, std::shared_ptr<void> ticket,
+              std::string refused)
+      : stream_(std::move(socket)), server_(std::move(server)), peer_(std::move(peer)), ticket_(std::move(ticket)),
+        why_refused_(std::move(refused)), refused_(!why_refused_.empty()) {
+    if (why_refused_.ends_with("; closing")) why_refused_.resize(why_refused_.size() - 9);
     if (!refused_) ++server_->http_open;
+    if (server_->hooks.first_request_timeout_s)
+      read_deadline_ = std::min<std::chrono::steady_clock::duration>(
+          kRequestDeadline, std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                std::chrono::duration<double>(*server_->hooks.first_request_timeout_s)));
   }
   ~HttpSession() {
     if (!refused_) --server_->http_open;
@@ -194,6 +203,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     beast::error_code ec;
     stream_.socket().shutdown(tcp::socket::shutdown_both, ec);
     stream_.close();
+    ticket_.reset();
   }
 
  private:
@@ -201,7 +211,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     parser_.emplace();
     parser_->header_limit(static_cast<std::uint32_t>(kMaxHeaderBytes));
     parser_->body_limit(kMaxBodyBytes);
-    stream_.expires_after(refused_ ? kRefusedDeadline : kRequestDeadline);
+    stream_.expires_after(refused_ ? kRefusedDeadline : read_deadline_);
     http::async_read(stream_, buf_, *parser_, [self = shared_from_this()](beast::error_code ec, std::size_t) {
       self->on_read(ec);
     });
@@ -224,7 +234,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     }
     ++server_->requests;
     if (refused_)
-      return error(http::status::service_unavailable, "too many clients (socket.max_clients); retry later", 11, true);
+      return error(http::status::service_unavailable, why_refused_ + "; retry later", 11, true);
     route(parser_->release());
   }
 
@@ -243,6 +253,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       // This connection was counted against socket.max_clients when it was accepted: as a
       // WebSocket it is counted as a session instead.
       auto ws = std::make_shared<WsSession>(stream_.release_socket(), server_->handler, peer_, server_->control_token);
+      ws->ticket = std::move(ticket_);
       if (server_->hooks.admit) server_->hooks.admit(ws);
       server_->websockets.remove_if([](const auto& w) { return w.expired(); });
       server_->websockets.push_back(ws);
@@ -352,7 +363,10 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   std::optional<http::request_parser<http::string_body>> parser_;
   std::shared_ptr<WebServer::Impl> server_;
   std::string peer_;
+  std::shared_ptr<void> ticket_;  // its place under the limits; the WebSocket's after an upgrade
+  std::string why_refused_;
   bool refused_ = false;
+  std::chrono::steady_clock::duration read_deadline_ = kRequestDeadline;
 };
 
 }  // namespace
@@ -372,11 +386,16 @@ void WebServer::Impl::accept() {
     boost::system::error_code e2;
     const auto ep = s.remote_endpoint(e2);
     std::string peer = e2 ? std::string("web") : ep.address().to_string() + ":" + std::to_string(ep.port());
-    // Past socket.max_clients (the sockets' sessions, the WebSockets and the HTTP connections
-    // together): the request is answered 503 and the connection closed.
-    const bool refused = self->hooks.full && self->hooks.full();
-    if (refused) spdlog::warn("web client {}: too many clients (socket.max_clients); refused with 503", peer);
-    auto h = std::make_shared<HttpSession>(std::move(s), self, std::move(peer), refused);
+    // Past socket.max_clients (TCP and the web together) or the address's limit: the request is
+    // answered 503 with the reason and the connection closed (the server logs refusals, counted).
+    std::shared_ptr<void> ticket;
+    std::string refused;
+    if (self->hooks.take) {
+      auto t = self->hooks.take(e2 ? std::string("?") : ep.address().to_string(), peer);
+      if (t) ticket = std::move(*t);
+      else refused = t.error();
+    }
+    auto h = std::make_shared<HttpSession>(std::move(s), self, std::move(peer), std::move(ticket), std::move(refused));
     self->closers.remove_if([](const auto& p) { return p.first.expired(); });
     self->closers.emplace_back(h, [w = std::weak_ptr<HttpSession>(h)] {
       if (auto x = w.lock()) x->close();

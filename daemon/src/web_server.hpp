@@ -12,6 +12,7 @@
 #include <expected>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "fogbench/daemon/config.hpp"
@@ -23,17 +24,23 @@ namespace fogbench::daemon::web {
 // Requests over these limits get 431 / 413 and the connection is closed.
 constexpr std::size_t kMaxHeaderBytes = 8 * 1024;
 constexpr std::size_t kMaxBodyBytes = 64 * 1024;
-// A request must arrive whole within this (slow clients do not hold a connection).
+// A request must arrive whole within this (slow clients do not hold a connection), unless
+// socket.first_request_timeout_s is shorter; an answer must be written within it.
 constexpr auto kRequestDeadline = std::chrono::seconds(30);
-// A connection past socket.max_clients gets this long to send the request its 503 answers.
+// A connection refused (a listener's or an address's limit) gets this long to send the request
+// its 503 answers.
 constexpr auto kRefusedDeadline = std::chrono::seconds(5);
 
 class WebServer {
  public:
   struct Hooks {
-    // Whether socket.max_clients connections are open already, all transports together (a new
-    // HTTP connection, WebSocket or not, is then answered 503 and closed).
-    std::function<bool()> full;
+    // A place for a new HTTP connection from an address (admission.hpp: socket.max_clients with
+    // TCP, socket.max_clients_per_address), held as long as the connection (and its WebSocket)
+    // lives; or the reason it is refused: its request is then answered 503 with that reason.
+    std::function<std::expected<std::shared_ptr<void>, std::string>(const std::string& address, const std::string& peer)> take;
+    // Each request (its headers and body) must arrive within this after the connection opened
+    // or the last answer went (keep-alive): slow or silent clients do not hold places.
+    std::optional<double> first_request_timeout_s;
     // A WebSocket session to register for pushed messages and the connection count.
     std::function<void(const std::shared_ptr<net::SessionBase>&)> admit;
     // The Prometheus exposition (GET /metrics).

@@ -129,7 +129,7 @@ TEST_CASE("e2e hardening: a key given twice is bad_json and the run is not abort
 
 TEST_CASE("e2e hardening: out of descriptors, accept backs off and logs once, and recovers") {
   require_sim();
-  LiveBench bench(20.0, {{"socket", {{"max_clients", 5000}}}});
+  LiveBench bench(20.0, {{"socket", {{"max_clients", 5000}, {"unix_max_clients", 5000}}}});
   // The same daemon again, under a file limit of 64 (its own files take some 20).
   bench.daemon.reset();
   bench.daemon_prefix = {"/usr/bin/prlimit", "--nofile=64:64", "--"};
@@ -167,9 +167,9 @@ TEST_CASE("e2e hardening: out of descriptors, accept backs off and logs once, an
   CHECK(bench.daemon->running());
 }
 
-TEST_CASE("e2e hardening: past socket.max_clients a client gets busy and is closed, and idle clients are closed") {
+TEST_CASE("e2e hardening: past socket.unix_max_clients a client gets busy and is closed, and idle clients are closed") {
   require_sim();
-  LiveBench bench(20.0, {{"socket", {{"max_clients", 3}, {"idle_timeout_s", 1.5}}}});
+  LiveBench bench(20.0, {{"socket", {{"unix_max_clients", 3}, {"idle_timeout_s", 1.5}}}});
   std::vector<std::unique_ptr<LineClient>> in;
   for (int i = 0; i < 3; ++i) {
     in.push_back(std::make_unique<LineClient>(bench.socket()));
@@ -185,7 +185,7 @@ TEST_CASE("e2e hardening: past socket.max_clients a client gets busy and is clos
   REQUIRE(refused.has_value());
   const json r = json::parse(*refused);
   CHECK(r["error"]["code"] == "busy");
-  CHECK_THAT(r["error"]["message"].get<std::string>(), Catch::Contains("socket.max_clients"));
+  CHECK_THAT(r["error"]["message"].get<std::string>(), Catch::Contains("socket.unix_max_clients"));
   CHECK_FALSE(extra.line(5s).has_value());
   CHECK(extra.closed());
 

@@ -1,7 +1,8 @@
-// socket.max_clients counts every connection to fogbenchd together: the unix and TCP command
-// sockets' sessions, the WebSockets and the plain HTTP connections of the web side (docs/web.md,
-// "Who may do what"). One past it gets 503 over HTTP, a refused handshake as a WebSocket and
-// `busy` on the socket; the clients already connected are served as before.
+// socket.max_clients counts the network's connections to fogbenchd together: the TCP socket's
+// sessions, the WebSockets and the plain HTTP connections of the web side (docs/web.md, "Who may
+// do what"). One past it gets 503 over HTTP, a refused handshake as a WebSocket and `busy` on
+// TCP; the clients already connected are served as before, and the unix socket, which has its
+// own limit (socket.unix_max_clients), is not touched by it.
 #include <catch2/catch.hpp>
 
 #include "../daemon/live_bench.hpp"
@@ -75,21 +76,23 @@ bool eventually_status(std::uint16_t port, int status) {
 
 }  // namespace
 
-TEST_CASE("socket.max_clients counts HTTP and WebSocket connections with the sockets': one past it gets 503, the others go on") {
+TEST_CASE("socket.max_clients counts HTTP and WebSocket connections with TCP's: one past it gets 503, the others go on") {
   require_sim();
-  LiveBench bench(20.0, {{"web", {{"listen", "127.0.0.1:0"}}}, {"socket", {{"max_clients", 3}}}});
+  const auto tcp_port = free_port();
+  LiveBench bench(20.0, {{"web", {{"listen", "127.0.0.1:0"}}},
+                         {"socket", {{"max_clients", 3}, {"first_request_timeout_s", 3600}, {"tcp", {{"port", tcp_port}, {"token", "web-limits-token-0123456789"}}}}}});
   REQUIRE(bench.ready_daemon["web_port"].is_number_integer());
   const auto port = bench.ready_daemon["web_port"].get<std::uint16_t>();
 
-  // Three clients: two keep-alive HTTP connections and one on the unix socket.
+  // Three clients: two keep-alive HTTP connections and one on TCP.
   KeepAlive a(port), b(port);
   REQUIRE(a.get("/metrics") == 200);
   REQUIRE(b.get("/") == 200);
-  LineClient c(bench.socket());
+  LineClient c(tcp_port);
   REQUIRE(c.ok());
   REQUIRE(code_of(c.call({{"cmd", "status"}})) == "ok");
 
-  // The fourth: 503 over HTTP, its reason named; a WebSocket refused; busy on the socket.
+  // The fourth: 503 over HTTP, its reason named; a WebSocket refused; busy on TCP.
   auto over = http_get(port, "/metrics");
   CHECK(over.status == 503);
   CHECK_THAT(over.body, Catch::Contains("socket.max_clients"));
@@ -97,12 +100,18 @@ TEST_CASE("socket.max_clients counts HTTP and WebSocket connections with the soc
   WsClient ws_over("127.0.0.1", port, "/ws");
   CHECK_FALSE(ws_over.ok());
   {
-    LineClient d(bench.socket());
+    LineClient d(tcp_port);
     REQUIRE(d.ok());
     auto line = d.line(10s);
     REQUIRE(line);
     const json busy = json::parse(*line, nullptr, false);
     CHECK(code_of(busy) == "busy");
+  }
+  // The unix socket has its own places: the operator is served.
+  {
+    LineClient u(bench.socket());
+    REQUIRE(u.ok());
+    CHECK(code_of(u.call({{"cmd", "status"}})) == "ok");
   }
 
   // The clients already connected are served as before.

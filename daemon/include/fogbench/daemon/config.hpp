@@ -28,8 +28,19 @@ struct SocketConfig {
   // Control commands over TCP need a request field `token` equal to this (from socket.tcp.token
   // or the first line of socket.tcp.token_file); empty: TCP only reads.
   std::string tcp_token;
-  // Connections open at once, both sockets together; one more gets an error line and is closed.
+  // Network connections open at once: TCP and the web side (HTTP and WebSocket) together; one
+  // more gets an error line (the web: 503) and is closed. The unix socket is not counted here.
   int max_clients = 256;
+  // The unix socket's own share, on top of max_clients: network clients never take it.
+  int unix_max_clients = 64;
+  // Network connections (TCP and web together) from one remote address at once.
+  int max_clients_per_address = 32;
+  // A TCP connection that sends no whole request line this long after its hello (wall seconds),
+  // or a web request that has not arrived whole this long after the connection opened or the
+  // last answer, is closed. None when empty. The unix socket has none.
+  std::optional<double> first_request_timeout_s = 10.0;
+  // Refused connections are logged at most once per this (wall seconds), with their count.
+  double refusal_log_interval_s = 60.0;
   // A client that is not subscribed and sends nothing this long (wall seconds) is closed; none
   // when empty. Subscribers only listen, so they are never idle.
   std::optional<double> idle_timeout_s = 600.0;
