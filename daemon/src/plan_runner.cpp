@@ -254,7 +254,7 @@ void PlanRunner::decide_unit(std::int64_t plan_id, json& progress, json& unit) {
   if (auto m = store.current_model(serial); m && *m) model_id = (*m)->id;
   auto v = verdict::from_plan(plan_id, rec->name, rec->plan_text, unit, progress["runs"], model_id);
   if (!v) return;  // the unit never ran: the plan's status says incomplete, nothing to certify
-  auto cert = station_.decide(*v);
+  auto cert = station_.decide(*v, true);  // the run again to the plant, with its verdict
   if (cert) unit["certificate_sha256"] = *cert;
   else if (cert.error().code != ErrorCode::not_found)  // not_found: no model, so no certificate
     spdlog::error("plan {}: the verdict of {} ({}): {}", plan_id, serial, v->verdict, cert.error().message);

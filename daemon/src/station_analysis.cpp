@@ -67,7 +67,7 @@ void Station::analyse_units(std::int64_t run_id, storage::Purpose purpose, const
                                                       (*r)["result"]);
             detail["verdict"] = v.verdict;
             try {
-              auto cert = decide(v);
+              auto cert = decide(v, false);  // queued below, once the run's notes are stored
               if (cert) detail["certificate_sha256"] = *cert;
               else detail["certificate_error"] = cert.error().message;
             } catch (const std::exception& e) {
@@ -87,12 +87,20 @@ void Station::analyse_units(std::int64_t run_id, storage::Purpose purpose, const
   });
 }
 
-ApiResult<std::string> Station::decide(const storage::NewVerdict& v) {
+ApiResult<std::string> Station::decide(const storage::NewVerdict& v, bool queue_run) {
   if (auto id = store_.put_verdict(v); !id) return std::unexpected(from_store(id.error()));
-  if (config_.plant) queue_for_plant(v.run_id);
+  // The run is queued for the plant only once its certificate is stored: the plant link takes
+  // a queued run at once, and a run sent before its certificate would reach the plant without it.
+  auto queue = [&] {
+    if (queue_run && config_.plant) queue_for_plant(v.run_id);
+  };
   auto body = certificate::build(store_, config_.analysis, config_.station_id, v.serial);
-  if (!body) return std::unexpected(body.error());
+  if (!body) {
+    queue();
+    return std::unexpected(body.error());
+  }
   auto cert = certificate::issue(store_, *body, wall_clock_(), signing_key());
+  queue();
   if (!cert) return std::unexpected(cert.error());
   return cert->first["sha256"].get<std::string>();
 }

@@ -155,10 +155,11 @@ class Station {
   void analyse_units(std::int64_t run_id, storage::Purpose purpose, const std::vector<std::string>& serials,
                      const std::vector<int>& units);
   // A serial's verdict decided (issue 24, one verdict: daemon/src/verdict.hpp): stored, the
-  // deciding run queued for the plant, and the serial's certificate issued again from it.
-  // Returns the certificate's sha256; an error when the verdict could not be stored, or the
-  // certificate not issued (a serial without a model has none: not_found; the verdict stays).
-  ApiResult<std::string> decide(const storage::NewVerdict& v);
+  // serial's certificate issued again from it, then (queue_run) the deciding run queued for the
+  // plant, so that it travels with its verdict and certificate. Returns the certificate's
+  // sha256; an error when the verdict could not be stored, or the certificate not issued (a
+  // serial without a model has none: not_found; the verdict stays).
+  ApiResult<std::string> decide(const storage::NewVerdict& v, bool queue_run);
 
   // The units' lots from run.start's (or plan.start's, queue.add's) "lot" (every unit) or
   // "lots" ({serial: lot}), checked (station_plant.cpp); a unit without a lot is empty.
