@@ -12,6 +12,7 @@
 #include "common.hpp"
 #include "fogbench/signing/certificate.hpp"
 #include "fogbench/signing/signing.hpp"
+#include "run_identity.hpp"
 #include "table.hpp"
 #include "html.hpp"
 
@@ -90,13 +91,15 @@ std::string estimate_text(const json& e) {
          text_of(e["from_tau_s"]) + ".." + text_of(e["to_tau_s"]) + " s)";
 }
 
-// Who decided the verdict: "plan NAME (plan 7, line-numbered limits; sha256 ab12...)" or the
-// station's analysis settings.
+// Who decided the verdict: "plan NAME (plan 7, text sha256 ab12...)" or "the station's analysis
+// settings".
 std::string decided_by_text(const json& q) {
+  std::string by = verdict_by_text(q);
   if (q.value("rule", "") == "plan" && q.contains("plan") && q["plan"].is_object())
-    return "plan " + field_text(q["plan"], "name") + " (plan " + field_text(q["plan"], "id") + ", text sha256 " +
-           field_text(q["plan"], "sha256").substr(0, 16) + "...)";
-  return "the station's analysis settings";
+    by.insert(by.size() - 1, ", text sha256 " + field_text(q["plan"], "sha256").substr(0, 16) + "...");
+  else
+    by = "the station's " + by;
+  return by;
 }
 
 // A judged limit as the verdict keeps it: a plan's "comp_raw < 0.05", an analysis check's

@@ -210,11 +210,8 @@ int cmd_run_get(const Common& o, std::int64_t id, std::ostream& out, std::ostrea
   for (const auto& v : r->value("verdicts", json::array())) {
     if (!v.is_object()) continue;
     any_verdict = true;
-    std::string by = v.value("rule", "") == "plan" ? "plan" : "analysis settings";
-    if (v.contains("plan") && v["plan"].is_object())
-      by = "plan " + v["plan"].value("name", std::string()) + " (" + std::to_string(v["plan"].value("id", std::int64_t{0})) + ")";
     const std::string verdict = v["verdict"].is_string() ? upper(v["verdict"].get<std::string>()) : v.value("pending", std::string("-"));
-    vt.add({std::to_string(v.value("unit", 0)), v.value("serial", std::string()), verdict, by,
+    vt.add({std::to_string(v.value("unit", 0)), v.value("serial", std::string()), verdict, verdict_by_text(v),
             v.value("decided_at", std::string("-"))});
   }
   if (any_verdict) out << "verdicts:\n" << vt.str();

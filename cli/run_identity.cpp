@@ -57,10 +57,7 @@ std::string identity_csv_comments(const json& run_get, int unit) {
     const json& v = verdicts[static_cast<std::size_t>(unit)];
     if (v.is_object() && v.value("verdict", json()).is_string()) {
       fields.emplace_back("verdict", v["verdict"].get<std::string>());
-      std::string by = "analysis settings";
-      if (v.value("rule", "") == "plan" && v.contains("plan") && v["plan"].is_object())
-        by = "plan " + v["plan"].value("name", std::string()) + " (plan " + std::to_string(v["plan"].value("id", std::int64_t{0})) + ")";
-      fields.emplace_back("verdict_by", by);
+      fields.emplace_back("verdict_by", verdict_by_text(v));
       fields.emplace_back("verdict_decided_at", v.value("decided_at", std::string()));
     }
   }
@@ -82,6 +79,12 @@ void print_identity(const json& identity, std::ostream& out) {
     t.add({std::to_string(u.unit_index), u.serial, u.powered_on_at.value_or("not seen"),
            u.since_power_on_s ? fixed(*u.since_power_on_s, 0) : "-"});
   out << t.str();
+}
+
+std::string verdict_by_text(const json& v) {
+  if (v.value("rule", "") == "plan" && v.contains("plan") && v["plan"].is_object())
+    return "plan " + v["plan"].value("name", std::string()) + " (plan " + std::to_string(v["plan"].value("id", std::int64_t{0})) + ")";
+  return "analysis settings";
 }
 
 std::vector<std::pair<std::string, std::string>> csv_file_identity(const std::string& path) {

@@ -19,6 +19,9 @@ std::optional<storage::RunIdentity> identity_from_json(const nlohmann::json& ide
 std::string identity_csv_comments(const nlohmann::json& run_get, int unit);
 // run get's lines: station, operator, software, hashes, and per unit its power-on.
 void print_identity(const nlohmann::json& identity, std::ostream& out);
+// Who decided a verdict (run.get's `verdicts` entry, a certificate's `qualification`):
+// "plan NAME (plan ID)" or "analysis settings".
+std::string verdict_by_text(const nlohmann::json& verdict);
 // The identity fields in the comments atop a CSV file (empty when none or unreadable).
 std::vector<std::pair<std::string, std::string>> csv_file_identity(const std::string& path);
 
