@@ -2,6 +2,7 @@
 // processes, the plan sent over the socket as fogctl sends it, accelerated (K = 100) with short
 // profiles written into the bench's profile directory. Every wait has a generous deadline.
 #include "../daemon/live_bench.hpp"
+#include "plan_wait.hpp"
 
 #include <fstream>
 #include <map>
@@ -30,18 +31,6 @@ json plan_call(LineClient& c, const std::string& cmd, const std::string& text, c
   json req = {{"cmd", cmd}, {"text", text}, {"source", source}};
   if (!units.empty()) req["units"] = units;
   return c.call(req);
-}
-
-// Polls plan.status until the plan is in one of `states`; the last reply.
-json wait_plan(LineClient& c, std::int64_t plan_id, std::set<std::string> states, std::chrono::seconds timeout) {
-  const auto deadline = SteadyClock::now() + timeout;
-  json r;
-  while (SteadyClock::now() < deadline) {
-    r = c.call({{"cmd", "plan.status"}, {"plan_id", plan_id}});
-    if (r.is_object() && r.contains("result") && states.contains(r["result"]["state"].get<std::string>())) return r;
-    std::this_thread::sleep_for(200ms);
-  }
-  return r;
 }
 
 const json& unit_in(const json& status, const std::string& serial) {

@@ -5,6 +5,7 @@
 // naming the field; the certificate of a unit a plan qualified names both. fogbenchd and
 // fogbench-sim as processes (K = 100) with short profiles; fogctl for its flags.
 #include "../daemon/live_bench.hpp"
+#include "plan_wait.hpp"
 
 #include <pwd.h>
 #include <sys/wait.h>
@@ -20,17 +21,6 @@ namespace {
 
 json plan_req(const std::string& cmd, const std::string& text, const std::vector<std::string>& units) {
   return {{"cmd", cmd}, {"text", text}, {"source", "t.plan"}, {"units", units}};
-}
-
-json wait_plan(LineClient& c, std::int64_t plan_id, std::set<std::string> states, std::chrono::seconds timeout) {
-  const auto deadline = SteadyClock::now() + timeout;
-  json r;
-  while (SteadyClock::now() < deadline) {
-    r = c.call({{"cmd", "plan.status"}, {"plan_id", plan_id}});
-    if (r.is_object() && r.contains("result") && states.contains(r["result"]["state"].get<std::string>())) return r;
-    std::this_thread::sleep_for(200ms);
-  }
-  return r;
 }
 
 // Every run of the finished plan: its identity's operator and each unit's lot, from run.get.

@@ -3,6 +3,7 @@
 // verdict (plan.status, run.get, the certificate, its limits and their lines) shows the plan's,
 // decided once and stored once.
 #include "../daemon/live_bench.hpp"
+#include "plan_wait.hpp"
 
 #include <fstream>
 
@@ -10,17 +11,6 @@ using namespace fogbench::daemon::test;
 using namespace fogbench::daemon::test::live;
 
 namespace {
-
-json wait_plan(LineClient& c, std::int64_t plan_id, std::chrono::seconds timeout) {
-  const auto deadline = SteadyClock::now() + timeout;
-  json r;
-  while (SteadyClock::now() < deadline) {
-    r = c.call({{"cmd", "plan.status"}, {"plan_id", plan_id}});
-    if (r.is_object() && r.contains("result") && r["result"]["state"] != "running") return r;
-    std::this_thread::sleep_for(200ms);
-  }
-  return r;
-}
 
 // A fit step and a verify step; comp_raw must be under 0.001 (the analysis settings say 0.2),
 // and the fit's model must have a firmware form (judged, marginal when not).
@@ -50,7 +40,7 @@ TEST_CASE("plan verdict e2e: a plan's stricter limit fails the unit, and the cer
   INFO(s.dump());
   REQUIRE(code_of(s) == "ok");
   const auto plan_id = s["result"]["plan_id"].get<std::int64_t>();
-  json done = wait_plan(c, plan_id, 600s);
+  json done = wait_plan(c, plan_id, {"completed", "aborted", "failed"}, 600s);
   INFO(done.dump(1));
   REQUIRE(done["result"]["state"] == "completed");
   const json& unit = done["result"]["progress"]["units"][0];
