@@ -40,17 +40,33 @@ std::pair<double, double> t_span(const std::vector<storage::SampleRow>& rows) {
 
 }  // namespace
 
+std::optional<storage::StoreError> RefusedRuns::find(std::int64_t run_id) const {
+  for (const auto& [id, first] : runs_)
+    if (id == run_id) return first;
+  return std::nullopt;
+}
+
+void RefusedRuns::add(std::int64_t run_id, const storage::StoreError& first) {
+  if (find(run_id)) return;
+  runs_.emplace_back(run_id, first);
+  if (runs_.size() > 16) runs_.pop_front();
+}
+
 // ---------------------------------------------------------------- inline
 
 void InlineSampleWriter::append(std::int64_t run_id, std::vector<storage::SampleRow> rows, double /*clock_s*/) {
   if (rows.empty()) return;
-  if (auto ok = store_.append_samples(run_id, rows); !ok) {
-    std::deque<SampleWriteFailure> one;
-    if (failure_) one.push_back(*failure_);
-    const auto [lo, hi] = t_span(rows);
-    fold(one, run_id, lo, hi, static_cast<std::int64_t>(rows.size()), ok.error());
-    failure_ = one.front();
-  }
+  std::deque<SampleWriteFailure> one;
+  if (failure_) one.push_back(*failure_);
+  // A hole in the run's seconds is worse than the seconds it would keep (sample_writer.hpp).
+  std::optional<storage::StoreError> refusal = refused_.find(run_id);
+  if (!refusal)
+    if (auto ok = store_.append_samples(run_id, rows); !ok) refusal = ok.error();
+  if (!refusal) return;
+  refused_.add(run_id, *refusal);
+  const auto [lo, hi] = t_span(rows);
+  fold(one, run_id, lo, hi, static_cast<std::int64_t>(rows.size()), *refusal);
+  failure_ = one.front();
 }
 
 std::optional<SampleWriteFailure> InlineSampleWriter::take_failure() {
@@ -165,10 +181,18 @@ void ThreadedSampleWriter::run() {
       queue_.pop_front();
       ++in_flight_;
     }
-    lock.unlock();
-    auto ok = store_.append_samples(run_id, rows);
-    lock.lock();
-    if (!ok) record_failure(run_id, rows, ok.error());
+    if (auto first = refused_.find(run_id)) {
+      // A hole in the run's seconds is worse than the seconds it would keep (sample_writer.hpp).
+      record_failure(run_id, rows, *first);
+    } else {
+      lock.unlock();
+      auto ok = store_.append_samples(run_id, rows);
+      lock.lock();
+      if (!ok) {
+        refused_.add(run_id, ok.error());
+        record_failure(run_id, rows, ok.error());
+      }
+    }
     in_flight_ = 0;
     in_flight_clock_s_.reset();
     progress_.notify_all();

@@ -9,6 +9,9 @@
 // What the station relies on, both ways: rows are committed in the order handed over, each
 // hand-over all or nothing (the writer may join several of one run into one transaction: then
 // all or nothing together); a refused commit is reported by take_failure(), never lost silently;
+// after a refusal, the run's later hand-overs are refused with it, untried, so a run's stored
+// seconds are always a gapless prefix (a disk full for one batch may take the next after a
+// checkpoint freed pages: the hole that would leave is worse than the seconds it would keep);
 // drain() returns once everything handed over is committed or reported (the run's end is
 // recorded after its samples, and its analysis reads them all).
 #pragma once
@@ -23,6 +26,7 @@
 #include <mutex>
 #include <optional>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "fogbench/storage/store.hpp"
@@ -36,6 +40,18 @@ struct SampleWriteFailure {
   double last_t_s = 0.0;      // the latest second lost, s
   std::int64_t rows = 0;      // sample rows lost (all units)
   storage::StoreError error;  // the first refusal
+};
+
+// The runs whose samples were refused (the latest few; a run ends at its first refusal, so the
+// list only needs to outlive the batches already queued behind it).
+class RefusedRuns {
+ public:
+  // The run's first refusal, when it had one.
+  std::optional<storage::StoreError> find(std::int64_t run_id) const;
+  void add(std::int64_t run_id, const storage::StoreError& first);
+
+ private:
+  std::deque<std::pair<std::int64_t, storage::StoreError>> runs_;
 };
 
 class SampleWriter {
@@ -68,6 +84,7 @@ class InlineSampleWriter final : public SampleWriter {
  private:
   storage::Store& store_;
   std::optional<SampleWriteFailure> failure_;
+  RefusedRuns refused_;
 };
 
 // A thread of its own with a write connection of its own (SQLite's WAL lets two connections of
@@ -117,6 +134,7 @@ class ThreadedSampleWriter final : public SampleWriter {
   std::optional<double> in_flight_clock_s_;  // the oldest tag of the transaction being written
   std::size_t in_flight_ = 0;                // its hand-overs
   std::deque<SampleWriteFailure> failures_;
+  RefusedRuns refused_;
   bool stopping_ = false;
   bool held_ = false;
   std::thread thread_;
