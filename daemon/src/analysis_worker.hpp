@@ -19,10 +19,10 @@ namespace fogbench::daemon::net {
 namespace asio = boost::asio;
 
 // The analysis worker (offload.hpp): one thread with its own read-only connection to the store.
-// The queue is the loop's: one job at a time goes to the thread, and the next only once the
-// previous one's continuation has run on the loop, so every job reads what the jobs before it
-// stored (a run.get sent after a run's end sees the models its automatic fit stored), as with
-// InlineOffload. The thread runs niced (+10): on a busy host the loop, which acquires and
+// The queue is the loop's (JobQueue: the station's analyses, then the local operator's, then the
+// network's): one job at a time goes to the thread, and the next only once the previous one's
+// continuation has run on the loop, so every job reads what the jobs before it stored (a run.get
+// sent after a run's end sees the models its automatic fit stored), as with InlineOffload. The thread runs niced (+10): on a busy host the loop, which acquires and
 // answers, wins the CPU from it.
 class AnalysisWorker final : public Offload {
  public:
@@ -35,10 +35,11 @@ class AnalysisWorker final : public Offload {
   ~AnalysisWorker() override { stop(); }
 
   // On the loop thread.
-  void submit(Job job) override {
-    queue_.push_back(std::move(job));
+  void submit(Job job, JobOrigin origin) override {
+    queue_.push(std::move(job), std::move(origin));
     if (!busy_) next();
   }
+  std::size_t pending_from(std::string_view address) const override { return queue_.pending_from(address); }
 
   // Jobs not yet started are dropped (the loop is stopping); the one running finishes first.
   void stop() {
@@ -49,26 +50,27 @@ class AnalysisWorker final : public Offload {
 
  private:
   void next() {
-    busy_ = !queue_.empty();
+    auto job = queue_.pop();
+    busy_ = job.has_value();
     if (!busy_) return;
-    asio::post(jobs_, [this, job = std::move(queue_.front())] {
+    asio::post(jobs_, [this, job = std::move(job->job), address = std::move(job->address)] {
       Then then;
       try {
         then = job(reader_);
       } catch (const std::exception& e) {  // jobs catch their own; this is a last guard
         spdlog::error("analysis worker: {}", e.what());
       }
-      asio::post(loop_, [this, then = std::move(then)] {
+      asio::post(loop_, [this, then = std::move(then), address] {
+        queue_.done(address);
         if (then) then();
         next();
       });
     });
-    queue_.pop_front();
   }
 
   asio::io_context& loop_;
   storage::Store reader_;
-  std::deque<Job> queue_;  // the loop's
+  JobQueue queue_;  // the loop's
   bool busy_ = false;      // a job is on the thread or its continuation on the loop
   asio::io_context jobs_;
   asio::executor_work_guard<asio::io_context::executor_type> guard_{jobs_.get_executor()};

@@ -142,14 +142,15 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
     const json& s = j["socket"];
     if (!s.is_object()) return Err("socket: expected an object");
     if (auto ok = only_keys(s, "socket", {"path", "group", "tcp_port", "tcp", "max_clients", "unix_max_clients",
-                                          "max_clients_per_address", "first_request_timeout_s",
+                                          "max_clients_per_address", "max_analyses_per_address", "first_request_timeout_s",
                                           "refusal_log_interval_s", "idle_timeout_s"});
         !ok)
       return Err(ok.error());
     // The connection limits (docs/reliability.md, "Connection limits"): each a count 1..100000.
     for (auto [key, field] : {std::pair{"max_clients", &c.socket.max_clients},
                               std::pair{"unix_max_clients", &c.socket.unix_max_clients},
-                              std::pair{"max_clients_per_address", &c.socket.max_clients_per_address}}) {
+                              std::pair{"max_clients_per_address", &c.socket.max_clients_per_address},
+                              std::pair{"max_analyses_per_address", &c.socket.max_analyses_per_address}}) {
       if (!s.contains(key) || s[key].is_null()) continue;
       const json& v = s[key];
       if (!v.is_number_integer() || v.get<long long>() < 1 || v.get<long long>() > 100000)

@@ -290,14 +290,37 @@ struct CommandHandlers {
 
   // ---- offloaded ----
 
+  // Who asks (offload.hpp, JobClass): the unix socket is the local operator; a network client
+  // is served after it, and has at most socket.max_analyses_per_address jobs waiting or running
+  // from its address, so a few pipelining clients cannot hold up the station's work or each
+  // other's.
+  static JobOrigin origin_of(const CommandCall& c) {
+    if (c.session.may_control) return {JobClass::local, {}};
+    return {JobClass::remote, c.session.address.empty() ? std::string("(unknown address)") : c.session.address};
+  }
+  static std::expected<JobOrigin, ApiError> admit_job(const CommandCall& c) {
+    JobOrigin o = origin_of(c);
+    if (o.job_class != JobClass::remote) return o;
+    const auto limit = static_cast<std::size_t>(station(c).config().socket.max_analyses_per_address);
+    const auto waiting = station(c).offload().pending_from(o.address);
+    if (waiting >= limit)
+      return std::unexpected(ApiError{ErrorCode::busy, "too many analysis requests from " + o.address + " (" +
+                                                           std::to_string(waiting) +
+                                                           " waiting or running, socket.max_analyses_per_address); "
+                                                           "send it again once one is answered"});
+    return o;
+  }
+
   // A read: the whole reply built and serialised on the worker (10,000 samples are megabytes).
   static void read(const CommandCall& c, const json& id, Handler::Done done,
                    std::function<ApiResult<json>(storage::Store&)> compute) {
+    auto origin = admit_job(c);
+    if (!origin) return fail(id, done, origin.error());
     station(c).offload().submit([id, compute = std::move(compute), done](storage::Store& reader) -> Offload::Then {
       ApiResult<json> r = guarded<json>([&] { return compute(reader); });
       Handler::Line line = Handler::to_line(r ? Handler::reply(id, std::move(*r)) : Handler::error(id, r.error().code, r.error().message));
       return [done, line] { done(line); };
-    });
+    }, std::move(*origin));
   }
 
   // An analysis: computed on the worker, what it produced stored here on the loop (its Commit),
@@ -305,6 +328,8 @@ struct CommandHandlers {
   // model.add_term).
   static void analyse(const CommandCall& c, const json& id, Handler::Done done, std::int64_t run_id, bool audit,
                       std::function<ApiResult<analysis::Commit>(storage::Store&)> compute) {
+    auto origin = admit_job(c);
+    if (!origin) return fail(id, done, origin.error());
     Station* st = &station(c);
     st->offload().submit([st, id, run_id, audit, req = c.req, compute = std::move(compute), done](storage::Store& reader) -> Offload::Then {
       auto commit = std::make_shared<ApiResult<analysis::Commit>>(guarded<analysis::Commit>([&] { return compute(reader); }));
@@ -317,7 +342,7 @@ struct CommandHandlers {
         if (r && audit) st->audit(run_id, req);
         done(Handler::to_line(r ? Handler::reply(id, std::move(*r)) : Handler::error(id, r.error().code, r.error().message)));
       };
-    });
+    }, std::move(*origin));
   }
 
   // The run an analysis is asked of: not the run being recorded.
@@ -355,6 +380,8 @@ struct CommandHandlers {
   static void cert_get(const CommandCall& c, const json& id, Handler::Done done) {
     auto serial = req_string(c.req, "serial");
     if (!serial) return fail(id, done, serial.error());
+    auto origin = admit_job(c);
+    if (!origin) return fail(id, done, origin.error());
     Station* st = &station(c);
     st->offload().submit([st, id, s = *serial, limits = st->config().analysis,
                           station_id = st->config().station_id, done](storage::Store& reader) -> Offload::Then {
@@ -367,7 +394,7 @@ struct CommandHandlers {
         });
         done(Handler::to_line(r ? Handler::reply(id, std::move(*r)) : Handler::error(id, r.error().code, r.error().message)));
       };
-    });
+    }, std::move(*origin));
   }
 
   static void model_fit(const CommandCall& c, const json& id, Handler::Done done) {

@@ -151,13 +151,15 @@ struct Server::Impl {
 
   // --- command socket: admission and the accept loops (the binding is bind_sockets, below)
   template <class Socket>
-  void accept_session(Socket socket, std::string peer, bool may_control, Admission::Ticket ticket) {
+  void accept_session(Socket socket, std::string peer, const std::string& address, bool may_control,
+                      Admission::Ticket ticket) {
     std::string user;
     constexpr bool is_unix = std::is_same_v<Socket, asio::local::stream_protocol::socket>;
     if constexpr (is_unix) user = peer_user_name(socket.native_handle());
     auto s = std::make_shared<Session<Socket>>(std::move(socket), *handler, turns, peer, may_control,
                                                may_control ? std::string() : config.socket.tcp_token);
     s->set_peer_user(std::move(user));
+    if (!is_unix) s->set_address(address);
     s->ticket = std::move(ticket);
     sessions.add(s);
     s->set_idle_timeout(config.socket.idle_timeout_s);
@@ -179,7 +181,7 @@ struct Server::Impl {
       refuse(std::move(socket), ticket.error());
       return;
     }
-    accept_session(std::move(socket), std::move(peer), listener == Listener::unix_socket, std::move(*ticket));
+    accept_session(std::move(socket), std::move(peer), address, listener == Listener::unix_socket, std::move(*ticket));
   }
 
   // A refused connection, logged at most once per socket.refusal_log_interval_s with the count

@@ -126,6 +126,8 @@ class Session : public SessionBase, public std::enable_shared_from_this<Session<
 
   // Who is at the other end of a unix socket (SessionState::peer_user).
   void set_peer_user(std::string user) { state_.peer_user = std::move(user); }
+  // A network client's address, without its port (SessionState::address).
+  void set_address(std::string address) { state_.address = std::move(address); }
 
   void start() {
     send(wire(Handler::hello()));

@@ -84,7 +84,7 @@ void Station::analyse_units(std::int64_t run_id, storage::Purpose purpose, const
       // The run, its models and verdicts are all stored: queue it for the plant (issue 14).
       if (config_.plant) queue_for_plant(run_id);
     };
-  });
+  }, JobOrigin{JobClass::station, {}});
 }
 
 ApiResult<std::string> Station::decide(const storage::NewVerdict& v, bool queue_run) {

@@ -49,6 +49,12 @@ struct WebServer::Impl : std::enable_shared_from_this<WebServer::Impl> {
 
 namespace {
 
+// A peer "ADDRESS:PORT" without its port (IPv6 addresses keep their colons).
+std::string address_of(const std::string& peer) {
+  const auto colon = peer.rfind(':');
+  return colon == std::string::npos ? peer : peer.substr(0, colon);
+}
+
 // A WebSocket carrying the command protocol: one JSON request per text message, one reply per
 // request (in order: the next message is read once the reply is queued), pushed messages after
 // `subscribe`. Bounded like the socket's sessions: a client that stops reading is dropped.
@@ -58,6 +64,7 @@ class WsSession : public net::SessionBase, public std::enable_shared_from_this<W
       : ws_(std::move(socket)), timer_(ws_.get_executor()), handler_(handler), peer_(std::move(peer)) {
     state_.may_control = false;
     state_.control_token = std::move(control_token);
+    state_.address = address_of(peer_);
   }
 
   void start(http::request<http::string_body> req) {
@@ -272,6 +279,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       auto state = std::make_shared<SessionState>();
       state->may_control = false;
       state->control_token = server_->control_token;
+      state->address = address_of(peer_);
       auto self = shared_from_this();
       auto r = std::make_shared<http::request<http::string_body>>(std::move(req));
       server_->handler.handle_line(r->body(), *state, [self, state, r](Handler::Line reply) {

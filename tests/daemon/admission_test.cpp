@@ -146,19 +146,21 @@ TEST_CASE("config: the connection limits, their defaults and errors naming the f
   CHECK(c->socket.max_clients == 256);
   CHECK(c->socket.unix_max_clients == 64);
   CHECK(c->socket.max_clients_per_address == 32);
+  CHECK(c->socket.max_analyses_per_address == 4);
   REQUIRE(c->socket.first_request_timeout_s.has_value());
   CHECK(*c->socket.first_request_timeout_s == 10.0);
   CHECK(c->socket.refusal_log_interval_s == 60.0);
 
   auto j = golden_config_json();
   j.merge_patch({{"socket", {{"max_clients", 5}, {"unix_max_clients", 2}, {"max_clients_per_address", 3},
-                             {"refusal_log_interval_s", 2.5}}}});
+                             {"max_analyses_per_address", 1}, {"refusal_log_interval_s", 2.5}}}});
   j["socket"]["first_request_timeout_s"] = nullptr;  // after the merge: a patch's null deletes
   auto d = parse_daemon_config(j, golden_dir());
   REQUIRE(d.has_value());
   CHECK(d->socket.max_clients == 5);
   CHECK(d->socket.unix_max_clients == 2);
   CHECK(d->socket.max_clients_per_address == 3);
+  CHECK(d->socket.max_analyses_per_address == 1);
   CHECK_FALSE(d->socket.first_request_timeout_s.has_value());
   CHECK(d->socket.refusal_log_interval_s == 2.5);
 
@@ -166,6 +168,8 @@ TEST_CASE("config: the connection limits, their defaults and errors naming the f
   CHECK(refusal({{"socket", {{"unix_max_clients", "many"}}}}) == "socket.unix_max_clients: expected an integer 1..100000");
   CHECK(refusal({{"socket", {{"max_clients_per_address", 100001}}}}) ==
         "socket.max_clients_per_address: expected an integer 1..100000");
+  CHECK(refusal({{"socket", {{"max_analyses_per_address", 0}}}}) ==
+        "socket.max_analyses_per_address: expected an integer 1..100000");
   CHECK(refusal({{"socket", {{"max_clients", 2.5}}}}) == "socket.max_clients: expected an integer 1..100000");
   CHECK_THAT(refusal({{"socket", {{"first_request_timeout_s", 0}}}}), Catch::StartsWith("socket.first_request_timeout_s: "));
   CHECK_THAT(refusal({{"socket", {{"first_request_timeout_s", "soon"}}}}),

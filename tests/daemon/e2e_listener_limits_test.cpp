@@ -5,7 +5,11 @@
 // refusals are logged once per interval with a count (docs/reliability.md, "Connection limits").
 #include "live_bench.hpp"
 
+#include <algorithm>
+#include <atomic>
 #include <fstream>
+#include <mutex>
+#include <thread>
 
 using namespace fogbench::daemon::test;
 using namespace fogbench::daemon::test::live;
@@ -270,4 +274,89 @@ TEST_CASE("e2e listener limits: connections that send nothing are closed after s
   REQUIRE(second.has_value());
   CHECK(code_of(json::parse(*second)) == "ok");
   CHECK_FALSE(talker.closed());
+}
+
+// Issue 27, point 6: network clients that keep the analysis worker busy do not hold up a finished
+// run's own analysis (the station's jobs go first), and one address has a bounded share of it.
+TEST_CASE("e2e listener limits: network clients asking for diagnoses do not hold up a finished run's fit") {
+  require_sim();
+  const auto port = free_port();
+  LiveBench bench(100.0, {{"socket", {{"tcp", {{"port", port}, {"token", kToken}}}, {"max_analyses_per_address", 4}}}});
+  LineClient c(bench.socket());
+  REQUIRE(c.ok());
+  const auto first = bench.start_run(c, "short", {"SIM-0001"});
+  json done = bench.wait_state(c, first, {"completed", "aborted", "failed"}, 120s);
+  REQUIRE(done["result"]["run"]["state"] == "completed");
+  for (int i = 0; i < 100 && done["result"]["models"].empty(); ++i) {
+    std::this_thread::sleep_for(100ms);
+    done = c.call({{"cmd", "run.get"}, {"run_id", first}});
+  }
+  REQUIRE(done["result"]["models"].size() == 1);
+
+  // Six token-less TCP clients from one address, each asking for a diagnosis of the first run
+  // again as soon as it has its answer: four may wait at once, the others are told `busy`.
+  struct Answer {
+    SteadyClock::time_point at;
+    std::string code;
+    std::string message;
+  };
+  std::mutex mutex;
+  std::vector<Answer> answers;
+  std::atomic<bool> stop{false};
+  std::vector<std::thread> clients;
+  for (int k = 0; k < 6; ++k) {
+    clients.emplace_back([&, k] {
+      RawTcp t(port, "127.0.0.1");
+      if (!t.ok() || !t.line(10s)) return;  // hello
+      for (int i = 0; !stop; ++i) {
+        if (!t.send(json{{"id", k * 100000 + i}, {"cmd", "model.diagnose"}, {"run_id", first}}.dump() + "\n")) return;
+        auto l = t.line(120s);
+        if (!l) return;
+        const json r = json::parse(*l, nullptr, false);
+        {
+          std::lock_guard lock(mutex);
+          answers.push_back({SteadyClock::now(), code_of(r), r.contains("error") ? r["error"].value("message", "") : ""});
+        }
+        if (code_of(r) == "busy") std::this_thread::sleep_for(20ms);
+      }
+    });
+  }
+  // The clients' diagnoses are flowing.
+  const auto flowing = SteadyClock::now() + 60s;
+  auto count_ok = [&](SteadyClock::time_point from, SteadyClock::time_point to) {
+    std::lock_guard lock(mutex);
+    return std::count_if(answers.begin(), answers.end(),
+                         [&](const Answer& a) { return a.code == "ok" && a.at > from && a.at < to; });
+  };
+  while (count_ok(SteadyClock::time_point{}, SteadyClock::now()) < 6 && SteadyClock::now() < flowing)
+    std::this_thread::sleep_for(50ms);
+  REQUIRE(count_ok(SteadyClock::time_point{}, SteadyClock::now()) >= 6);
+
+  // A second run ends while four diagnoses wait: its fit is the next job the worker takes, so at
+  // most the diagnosis running then (and one answered as the run ended) comes before its model.
+  const auto second = bench.start_run(c, "short", {"SIM-0001"});
+  json ended = bench.wait_state(c, second, {"completed", "aborted", "failed"}, 120s);
+  REQUIRE(ended["result"]["run"]["state"] == "completed");
+  const auto ended_at = SteadyClock::now();
+  json got = ended;
+  const auto deadline = SteadyClock::now() + 120s;
+  while (got["result"]["models"].empty() && SteadyClock::now() < deadline) {
+    std::this_thread::sleep_for(20ms);
+    got = c.call({{"cmd", "run.get"}, {"run_id", second}});
+  }
+  const auto modelled_at = SteadyClock::now();
+  stop = true;
+  for (auto& t : clients) t.join();
+  REQUIRE(got["result"]["models"].size() == 1);
+  const auto between = count_ok(ended_at, modelled_at);
+  INFO("diagnoses answered between the run's end and its model: " << between);
+  CHECK(between <= 2);  // before the fix: the four waiting ones, and more
+
+  // Some were refused, with the address and the key; the others were served.
+  std::lock_guard lock(mutex);
+  const auto busy = std::find_if(answers.begin(), answers.end(), [](const Answer& a) { return a.code == "busy"; });
+  REQUIRE(busy != answers.end());
+  CHECK_THAT(busy->message, Catch::Contains("127.0.0.1"));
+  CHECK_THAT(busy->message, Catch::Contains("socket.max_analyses_per_address"));
+  CHECK(std::count_if(answers.begin(), answers.end(), [](const Answer& a) { return a.code == "ok"; }) >= 6);
 }

@@ -16,23 +16,31 @@ using nlohmann::json;
 
 namespace {
 
-// Jobs wait until the test releases them, oldest first; each then runs with its continuation,
-// as fogbenchd's worker and then its loop would run them.
+// Jobs wait until the test releases them, in fogbenchd's worker's order (JobQueue: the
+// station's, then the local operator's, then the network's, each oldest first); each then runs
+// with its continuation, as fogbenchd's worker and then its loop would run them.
 class HeldOffload final : public Offload {
  public:
   explicit HeldOffload(storage::Store& store) : store_(store) {}
-  void submit(Job job) override { jobs_.push_back(std::move(job)); }
-  std::size_t held() const { return jobs_.size(); }
+  void submit(Job job, JobOrigin origin) override {
+    queue_.push(std::move(job), std::move(origin));
+    ++held_;
+  }
+  std::size_t pending_from(std::string_view address) const override { return queue_.pending_from(address); }
+  std::size_t held() const { return held_; }
   void release_one() {
-    REQUIRE(!jobs_.empty());
-    Job job = std::move(jobs_.front());
-    jobs_.pop_front();
-    if (Then then = job(store_)) then();
+    auto next = queue_.pop();
+    REQUIRE(next.has_value());
+    --held_;
+    Then then = next->job(store_);
+    queue_.done(next->address);
+    if (then) then();
   }
 
  private:
   storage::Store& store_;
-  std::deque<Job> jobs_;
+  JobQueue queue_;
+  std::size_t held_ = 0;
 };
 
 struct Rig {
@@ -142,4 +150,101 @@ TEST_CASE("offload: run.samples and run.get are answered from the worker, errors
   CHECK(ra[2]["result"]["samples"] == json::array({40, 40}));
   CHECK(ra[3]["id"] == 4);
   CHECK(ra[3]["error"]["code"] == "not_found");
+}
+
+TEST_CASE("offload: the job queue serves the station, then the local operator, then the network, each in order") {
+  JobQueue q;
+  std::vector<std::string> ran;
+  auto job = [&ran](std::string name) {
+    return [&ran, name](storage::Store&) -> Offload::Then {
+      ran.push_back(name);
+      return {};
+    };
+  };
+  q.push(job("remote 1"), {JobClass::remote, "10.0.0.1"});
+  q.push(job("local 1"), {JobClass::local, {}});
+  q.push(job("remote 2"), {JobClass::remote, "10.0.0.2"});
+  q.push(job("station 1"), {JobClass::station, {}});
+  q.push(job("remote 3"), {JobClass::remote, "10.0.0.1"});
+  q.push(job("local 2"), {JobClass::local, {}});
+  CHECK(q.pending_from("10.0.0.1") == 2);
+  CHECK(q.pending_from("10.0.0.2") == 1);
+  CHECK(q.pending_from("10.0.0.3") == 0);
+  storage::Store store = memory_store();
+  std::vector<std::string> addresses;
+  while (auto next = q.pop()) {
+    next->job(store);
+    addresses.push_back(next->address);
+  }
+  CHECK(q.empty());
+  CHECK(ran == std::vector<std::string>{"station 1", "local 1", "local 2", "remote 1", "remote 2", "remote 3"});
+  // A popped job still counts for its address until it is done (it is running).
+  CHECK(q.pending_from("10.0.0.1") == 2);
+  for (const auto& a : addresses) q.done(a);
+  CHECK(q.pending_from("10.0.0.1") == 0);
+  CHECK(q.pending_from("10.0.0.2") == 0);
+}
+
+TEST_CASE("offload: a finished run's analysis goes before the network's waiting requests, and one address has a bounded share") {
+  Rig r;
+  SessionState local;
+  std::vector<json> rl;
+  // Network clients: read-only, from one address (socket.max_analyses_per_address is 4).
+  std::vector<SessionState> remote(6);
+  std::vector<std::vector<json>> rr(6);
+  for (auto& s : remote) {
+    s.may_control = false;
+    s.address = "192.0.2.7";
+  }
+  SyntheticBench bench(1);
+  double clock_s = 0.0;
+  r.send(R"({"id":1,"cmd":"run.start","profile":"short","units":["FOG-0001"]})", local, rl);
+  REQUIRE(rl.size() == 1);
+  for (; clock_s < 30.0; clock_s += 1.0) r.station.tick(clock_s, bench.step(20));
+  // While the run records, the network asks for reads: four are queued, the fifth and sixth
+  // are refused with the reason and the key.
+  for (std::size_t i = 0; i < remote.size(); ++i)
+    r.send(json{{"id", 10 + i}, {"cmd", "run.get"}, {"run_id", 1}}.dump(), remote[i], rr[i]);
+  CHECK(r.offload.held() == 4);
+  for (std::size_t i = 0; i < 4; ++i) CHECK(rr[i].empty());
+  for (std::size_t i = 4; i < 6; ++i) {
+    REQUIRE(rr[i].size() == 1);
+    CHECK(rr[i][0]["error"]["code"] == "busy");
+    CHECK_THAT(rr[i][0]["error"]["message"].get<std::string>(), Catch::Contains("192.0.2.7"));
+    CHECK_THAT(rr[i][0]["error"]["message"].get<std::string>(), Catch::Contains("socket.max_analyses_per_address"));
+  }
+  // Another address is not counted against it.
+  SessionState other;
+  other.may_control = false;
+  other.address = "192.0.2.8";
+  std::vector<json> ro;
+  r.send(R"({"id":20,"cmd":"run.get","run_id":1})", other, ro);
+  CHECK(r.offload.held() == 5);
+
+  // The run ends: its automatic fit is queued behind five network jobs, and runs first.
+  run_to_end(r.station, bench, clock_s);
+  REQUIRE(r.station.status()["last_run"]["state"] == "completed");
+  CHECK(r.offload.held() == 6);
+  CHECK(!current_model_id(r.store, "FOG-0001"));
+  r.offload.release_one();
+  CHECK(current_model_id(r.store, "FOG-0001") == 1);
+  for (std::size_t i = 0; i < 4; ++i) CHECK(rr[i].empty());
+  // The local operator's request goes before the network's too.
+  r.send(R"({"id":2,"cmd":"run.get","run_id":1})", local, rl);
+  r.offload.release_one();
+  REQUIRE(rl.size() == 2);
+  CHECK(rl[1]["id"] == 2);
+  for (std::size_t i = 0; i < 4; ++i) CHECK(rr[i].empty());
+  // Then the network's, in the order sent; once one is answered, its address may send again.
+  r.offload.release_one();
+  REQUIRE(rr[0].size() == 1);
+  CHECK(rr[0][0]["id"] == 10);
+  CHECK(rr[0][0].contains("result"));
+  r.send(R"({"id":30,"cmd":"run.get","run_id":1})", remote[4], rr[4]);
+  CHECK(rr[4].size() == 1);  // queued, not refused
+  while (r.offload.held() > 0) r.offload.release_one();
+  for (std::size_t i = 1; i < 4; ++i) CHECK(rr[i].size() == 1);
+  REQUIRE(rr[4].size() == 2);
+  CHECK(rr[4][1]["id"] == 30);
+  CHECK(ro.size() == 1);
 }

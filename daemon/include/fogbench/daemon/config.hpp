@@ -35,6 +35,10 @@ struct SocketConfig {
   int unix_max_clients = 64;
   // Network connections (TCP and web together) from one remote address at once.
   int max_clients_per_address = 32;
+  // Analysis requests (fits, the workbench, large reads: the commands the analysis worker
+  // answers) waiting or running at once from one network address; one more gets `busy`. The
+  // unix socket has no such limit, and its requests are served before the network's.
+  int max_analyses_per_address = 4;
   // A TCP connection that sends no whole request line this long after its hello (wall seconds),
   // or a web request that has not arrived whole this long after the connection opened or the
   // last answer, is closed. None when empty. The unix socket has none.

@@ -28,6 +28,9 @@ struct SessionState {
   // The unix socket's peer (SO_PEERCRED): its user name, or "uid N" when it has none; empty on
   // TCP. A run started without `operator` records it as its operator (docs/daemon.md).
   std::string peer_user;
+  // A network client's address (no port): its share of the analysis worker is counted by it
+  // (socket.max_analyses_per_address). Empty on the unix socket.
+  std::string address;
 };
 
 // What a socket command needs of its connection (docs/protocol.md, "Read-only and control
