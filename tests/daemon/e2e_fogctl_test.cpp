@@ -320,6 +320,7 @@ TEST_CASE("e2e fogctl: run start --slot puts a serial in a bench slot per run, a
   CHECK(bad.code == 2);
   CHECK(bad.err.find("--slot A=FOG-0043") != std::string::npos);
   bad = fogctl(bench, "plan validate paper " + sock(bench) + " --slot C=FOG-0043");
+  INFO(bad.err);
   CHECK(bad.code == 2);
   CHECK(bad.err.find("slots.C") != std::string::npos);
 
