@@ -102,9 +102,11 @@ int cmd_status(const Common& o, std::ostream& out, std::ostream& err) {
   out << "chamber: " << num_text(ch["chamber_c"]) << " C, setpoint " << num_text(ch["setpoint_c"]) << " C (commanded "
       << num_text((*s)["setpoint_c"]) << " C), link " << ch["link"].get<std::string>()
       << (ch.value("alarm", false) ? ", ALARM" : "") << "\n";
-  Table t({"unit", "gyro_dph", "frames", "t1_c", "t2_c"});
+  // One row per bench slot; its unit: the active run's, else the configured default ("-": none).
+  Table t({"slot", "unit", "gyro_dph", "frames", "t1_c", "t2_c"});
   for (const auto& u : (*s)["units"])
-    t.add({u["serial"].get<std::string>(), num_text(u["gyro_dph"], 3), std::to_string(u.value("frames", 0)),
+    t.add({u.value("slot", std::string("-")), u["serial"].is_string() ? u["serial"].get<std::string>() : "-",
+           num_text(u["gyro_dph"], 3), std::to_string(u.value("frames", 0)),
            num_text(u["t1_c"]), num_text(u["t2_c"])});
   out << t.str();
   const json& r = (*s)["run"];
@@ -314,6 +316,29 @@ bool add_operator_and_lots(nlohmann::json& req, const std::string& operator_name
   return true;
 }
 
+bool add_units_and_slots(nlohmann::json& req, const std::vector<std::string>& units,
+                         const std::vector<std::string>& slots, const std::string& what, std::ostream& err) {
+  if (units.empty() && slots.empty()) {
+    err << what << ": give the units: --slot SLOT=SERIAL (repeatable) or --unit SERIAL (a slot's configured serial)\n";
+    return false;
+  }
+  if (!units.empty()) req["units"] = units;
+  for (const auto& s : slots) {
+    const auto eq = s.find('=');
+    if (eq == std::string::npos || eq == 0) {
+      err << what << ": --slot: expected SLOT=SERIAL, e.g. A=FOG-0042, not '" << s << "'\n";
+      return false;
+    }
+    const std::string slot = s.substr(0, eq);
+    if (req.contains("slots") && req["slots"].contains(slot)) {
+      err << what << ": --slot: slot " << slot << " given twice\n";
+      return false;
+    }
+    req["slots"][slot] = s.substr(eq + 1);  // the daemon checks the serial (empty, control characters, length)
+  }
+  return true;
+}
+
 }  // namespace commands
 
 namespace {
@@ -322,9 +347,10 @@ using namespace commands;
 using nlohmann::json;
 
 int cmd_run_start(const Common& o, const std::string& profile, const std::vector<std::string>& units,
-                  const std::vector<std::string>& lots, const std::string& purpose, const std::string& operator_name,
+                  const std::vector<std::string>& slots, const std::vector<std::string>& lots, const std::string& purpose, const std::string& operator_name,
                   bool wait, bool quiet, std::ostream& out, std::ostream& err) {
-  json req = {{"profile", profile}, {"units", units}, {"purpose", purpose}};
+  json req = {{"profile", profile}, {"purpose", purpose}};
+  if (!add_units_and_slots(req, units, slots, "fogctl run start", err)) return kExitError;
   if (!add_operator_and_lots(req, operator_name, lots, "fogctl run start", err)) return kExitError;
   auto c = open(o);
   if (!c) return report(c.error(), err);
@@ -373,7 +399,7 @@ void add_client_commands(CLI::App& app, int& code) {
   run->require_subcommand(1);
 
   static std::string profile, purpose = "fit", reason, state, output, operator_name;
-  static std::vector<std::string> units, lots;
+  static std::vector<std::string> units, lots, slots;
   static bool wait = false, quiet = false, settle = false;
   static std::int64_t run_id = 0;
   static int limit = 50;
@@ -384,7 +410,10 @@ void add_client_commands(CLI::App& app, int& code) {
   auto* start = run->add_subcommand("start", "Start a run of a profile on units; --wait follows it to the end");
   add_common(start, common);
   start->add_option("--profile", profile, "Profile name in the daemon's profile directory, e.g. exp1")->required();
-  start->add_option("--unit", units, "Serial of a unit under test (repeatable)")->required();
+  start->add_option("--slot", slots,
+                    "SLOT=SERIAL: the serial of the unit in that bench slot for this run, e.g. A=FOG-0042 (repeatable; "
+                    "`fogctl status` lists the slots)");
+  start->add_option("--unit", units, "Serial of a unit under test that is a slot's configured serial (repeatable)");
   start->add_option("--purpose", purpose, "fit (a model is fitted at the end) or verify (the current model is checked)")
       ->check(CLI::IsMember({"fit", "verify"}));
   start->add_option("--operator", operator_name,
@@ -392,7 +421,7 @@ void add_client_commands(CLI::App& app, int& code) {
   start->add_option("--lot", lots, "The units' production lot: LOT for every unit, or SERIAL=LOT (repeatable)");
   start->add_flag("--wait", wait, "Follow the run with a progress line on stderr until it ends");
   start->add_flag("-q,--quiet", quiet, "With --wait: no progress line");
-  start->callback([&] { code = cmd_run_start(common, profile, units, lots, purpose, operator_name, wait, quiet, std::cout, std::cerr); });
+  start->callback([&] { code = cmd_run_start(common, profile, units, slots, lots, purpose, operator_name, wait, quiet, std::cout, std::cerr); });
 
   auto* w = run->add_subcommand("watch", "Follow a run (the active one by default) to its end; reconnects if the daemon restarts");
   add_common(w, common);

@@ -47,6 +47,12 @@ std::string duration_text(double s);
 // `what` ("fogctl run start"), when the name or a --lot is malformed.
 bool add_operator_and_lots(nlohmann::json& req, const std::string& operator_name, const std::vector<std::string>& lots,
                            const std::string& what, std::ostream& err);
+// --unit SERIAL (repeatable: a slot's configured default serial) and --slot SLOT=SERIAL
+// (repeatable: the serial in that bench slot for this run) into a request's "units" and "slots"
+// (run start, plan start, queue add); false, with the error on err naming `what`, when a --slot
+// is malformed, a slot is given twice, or neither is given.
+bool add_units_and_slots(nlohmann::json& req, const std::vector<std::string>& units,
+                         const std::vector<std::string>& slots, const std::string& what, std::ostream& err);
 // Per unit of a run: frames lost and corrupt, samples flagged (and samples stored when given).
 Table quality_table(const nlohmann::json& serials, const nlohmann::json& quality, const nlohmann::json* samples = nullptr);
 // Table 1 of a run's verifications.

@@ -195,7 +195,7 @@ std::string plan_report_html(const json& s) {
 void add_plan_commands(CLI::App& app, int& code) {
   static Common common;
   static std::string file, reason, output, operator_name;
-  static std::vector<std::string> units, lots;
+  static std::vector<std::string> units, lots, slots;
   static bool wait = false, quiet = false;
   static std::int64_t plan_id = 0, position = 0;
   static std::optional<std::int64_t> status_id;
@@ -213,9 +213,10 @@ void add_plan_commands(CLI::App& app, int& code) {
     auto c = open(common);
     if (!c) return std::unexpected(report(c.error(), std::cerr));
     json args = {{"text", text->first}, {"source", text->second}};
-    if (need_units || !units.empty()) args["units"] = units;
     std::string what = "fogctl " + cmd;  // "fogctl plan start"
     std::replace(what.begin(), what.end(), '.', ' ');
+    if ((need_units || !units.empty() || !slots.empty()) && !add_units_and_slots(args, units, slots, what, std::cerr))
+      return std::unexpected(kExitError);
     if (need_units && !add_operator_and_lots(args, operator_name, lots, what, std::cerr))
       return std::unexpected(kExitError);
     auto r = c->call(cmd, args);
@@ -228,6 +229,7 @@ void add_plan_commands(CLI::App& app, int& code) {
   validate->add_option("plan", file, "Plan file, or the name of a shipped plan (paper, qualification)")->required();
   validate->add_option("--unit", units, "Serial of a unit (repeatable): also checks it is configured and has a model "
                                         "where a verify step needs one");
+  validate->add_option("--slot", slots, "SLOT=SERIAL: a unit in a bench slot (repeatable), checked as --unit is");
   validate->callback([&, send_plan] {
     auto r = send_plan("plan.validate", false);
     if (!r) {
@@ -253,7 +255,9 @@ void add_plan_commands(CLI::App& app, int& code) {
   auto* start = plan->add_subcommand("start", "Start a plan on units; --wait follows it to the end and exits with the verdict");
   add_common(start, common);
   start->add_option("plan", file, "Plan file, or the name of a shipped plan (paper, qualification)")->required();
-  start->add_option("--unit", units, "Serial of a unit under test (repeatable)")->required();
+  start->add_option("--slot", slots,
+                    "SLOT=SERIAL: the serial of the unit in that bench slot, e.g. A=FOG-0042, for every run of the plan (repeatable)");
+  start->add_option("--unit", units, "Serial of a unit under test that is a slot's configured serial (repeatable)");
   start->add_option("--operator", operator_name,
                     "Who runs it, recorded in every run of the plan (default: the unix socket's user)");
   start->add_option("--lot", lots, "The units' production lot: LOT for every unit, or SERIAL=LOT (repeatable)");
@@ -396,7 +400,9 @@ void add_plan_commands(CLI::App& app, int& code) {
   auto* add = queue->add_subcommand("add", "Queue a plan on units; it starts when the chamber is free");
   add_common(add, common);
   add->add_option("plan", file, "Plan file, or the name of a shipped plan")->required();
-  add->add_option("--unit", units, "Serial of a unit under test (repeatable)")->required();
+  add->add_option("--slot", slots,
+                    "SLOT=SERIAL: the serial of the unit in that bench slot, e.g. A=FOG-0042, for every run of the plan (repeatable)");
+  add->add_option("--unit", units, "Serial of a unit under test that is a slot's configured serial (repeatable)");
   add->add_option("--operator", operator_name,
                   "Who runs it, recorded in every run of the plan (default: the unix socket's user when queued)");
   add->add_option("--lot", lots, "The units' production lot: LOT for every unit, or SERIAL=LOT (repeatable)");

@@ -145,15 +145,15 @@ struct CommandHandlers {
     if (!profile) return std::unexpected(profile.error());
     if (auto why = storage::check_stored_text("profile", *profile, storage::kMaxNameBytes); !why.empty())
       return api_error(ErrorCode::bad_request, why);
-    auto serials = serials_field(req, true);
-    if (!serials) return std::unexpected(serials.error());
+    auto units = slot_units(req, station(c).config().drivers.units, true);  // bench_slots.hpp
+    if (!units) return std::unexpected(units.error());
     auto purpose_text = opt_string(req, "purpose");
     if (!purpose_text) return std::unexpected(purpose_text.error());
     const auto purpose = storage::purpose_from_string(purpose_text->value_or("fit"));
     if (!purpose) return api_error(ErrorCode::bad_request, "purpose: expected \"fit\" or \"verify\"");
     auto op = operator_of(req, c.session.peer_user);
     if (!op) return std::unexpected(op.error());
-    auto id = station(c).start_run(*profile, *serials, *purpose, req, *op);
+    auto id = station(c).start_run_in_slots(*profile, *units, *purpose, req, *op);
     if (!id) return std::unexpected(id.error());
     return json{{"run_id", *id}, {"state", "pending"}};
   }

@@ -34,8 +34,10 @@ ApiResult<std::int64_t> id_field(const json& req, const char* key) {
 struct PlanArgs {
   std::string text, source;
   std::vector<std::string> units;
+  std::map<std::string, std::string> slots;  // serial -> bench slot, for every unit
 };
-ApiResult<PlanArgs> plan_args(const json& req, bool units_required) {
+// `units` and `slots` read as run.start's (bench_slots.hpp).
+ApiResult<PlanArgs> plan_args(const json& req, bool units_required, const std::vector<drivers::UnitConfig>& configured) {
   PlanArgs a;
   auto text = string_field(req, "text", true);
   if (!text) return std::unexpected(text.error());
@@ -45,9 +47,10 @@ ApiResult<PlanArgs> plan_args(const json& req, bool units_required) {
   if (auto why = storage::check_stored_text("source", *source, storage::kMaxSourceBytes); !why.empty())
     return api_error(ErrorCode::bad_request, why);
   a.source = source->empty() ? "plan" : *source;
-  auto units = serials_field(req, units_required);
+  auto units = slot_units(req, configured, units_required);
   if (!units) return std::unexpected(units.error());
-  a.units = std::move(*units);
+  a.units = serials_of(*units);
+  for (const auto& u : *units) a.slots[u.serial] = configured[u.config_index].slot;
   return a;
 }
 
@@ -73,10 +76,10 @@ std::unexpected<ApiError> no_plans(const std::string& cmd) {
 
 ApiResult<json> plan_validate(PlanRunner* runner, const std::string& cmd, const json& req) {
   if (!runner) return no_plans(cmd);
-  auto a = plan_args(req, false);
+  auto a = plan_args(req, false, runner->bench_slots());
   if (!a) return std::unexpected(a.error());
   // Without units: the text and the profiles only (no unit, no model on file checked).
-  return runner->validate(a->text, a->source, a->units);
+  return runner->validate(a->text, a->source, a->units, a->slots);
 }
 
 json plan_trace_json(const std::string& operator_name, const std::string& operator_source,
@@ -86,19 +89,21 @@ json plan_trace_json(const std::string& operator_name, const std::string& operat
 
 ApiResult<json> plan_start(PlanRunner* runner, const std::string& cmd, const json& req, const std::string& peer_user) {
   if (!runner) return no_plans(cmd);
-  auto a = plan_args(req, true);
+  auto a = plan_args(req, true, runner->bench_slots());
   if (!a) return std::unexpected(a.error());
   auto t = plan_trace(req, a->units, peer_user);
   if (!t) return std::unexpected(t.error());
+  t->slots = a->slots;
   return runner->start(a->text, a->source, a->units, *t, req);
 }
 
 ApiResult<json> queue_add(PlanRunner* runner, const std::string& cmd, const json& req, const std::string& peer_user) {
   if (!runner) return no_plans(cmd);
-  auto a = plan_args(req, true);
+  auto a = plan_args(req, true, runner->bench_slots());
   if (!a) return std::unexpected(a.error());
   auto t = plan_trace(req, a->units, peer_user);
   if (!t) return std::unexpected(t.error());
+  t->slots = a->slots;
   return runner->queue_add(a->text, a->source, a->units, *t, req);
 }
 

@@ -90,17 +90,42 @@ AllanFigures allan_figures(const model::RunData& run) {
 
 }  // namespace
 
+const std::vector<drivers::UnitConfig>& PlanRunner::bench_slots() const { return station_.config().drivers.units; }
+
+namespace {
+
+// The run units of a plan's step: each serial in its slot (`slots`), else in the slot whose
+// configured default serial it is.
+ApiResult<std::vector<SlotUnit>> plan_slot_units(const std::vector<drivers::UnitConfig>& configured,
+                                                 const std::vector<std::string>& units,
+                                                 const std::map<std::string, std::string>& slots) {
+  std::vector<SlotUnit> out;
+  for (const auto& serial : units) {
+    auto s = slots.find(serial);
+    auto it = std::find_if(configured.begin(), configured.end(), [&](const auto& u) {
+      return s != slots.end() ? u.slot == s->second : !u.serial.empty() && u.serial == serial;
+    });
+    if (it == configured.end())
+      return api_error(ErrorCode::unknown_serial, s != slots.end()
+                                                      ? "units: " + serial + ": slot " + s->second + " is not configured on this bench"
+                                                      : "units: " + serial + " is not configured on this bench");
+    out.push_back({static_cast<std::size_t>(it - configured.begin()), serial});
+  }
+  return out;
+}
+
+}  // namespace
+
 ApiResult<plans::Plan> PlanRunner::check(const std::string& text, const std::string& source,
-                                         const std::vector<std::string>& units) const {
+                                         const std::vector<std::string>& units,
+                                         const std::map<std::string, std::string>& slots) const {
   auto p = plans::parse_plan(text, source);
   if (!p) return api_error(ErrorCode::bad_request, p.error().to_string());
-  const auto& configured = station_.config().drivers.units;
   for (std::size_t i = 0; i < units.size(); ++i) {
     for (std::size_t j = 0; j < i; ++j)
       if (units[j] == units[i]) return api_error(ErrorCode::bad_request, "units: " + units[i] + " given twice");
-    if (std::none_of(configured.begin(), configured.end(), [&](const auto& u) { return u.serial == units[i]; }))
-      return api_error(ErrorCode::unknown_serial, "units: " + units[i] + " is not configured on this bench");
   }
+  if (auto placed = plan_slot_units(bench_slots(), units, slots); !placed) return std::unexpected(placed.error());
   bool fitted = false;
   for (const plans::Step& s : p->steps) {
     auto prof = station_.load_profile(s.profile);
@@ -121,8 +146,9 @@ ApiResult<plans::Plan> PlanRunner::check(const std::string& text, const std::str
 }
 
 ApiResult<json> PlanRunner::validate(const std::string& text, const std::string& source,
-                                     const std::vector<std::string>& units) const {
-  auto p = check(text, source, units);
+                                     const std::vector<std::string>& units,
+                                     const std::map<std::string, std::string>& slots) const {
+  auto p = check(text, source, units, slots);
   if (!p) return std::unexpected(p.error());
   double nominal_s = 0.0;
   json steps = json::array(), limits = json::array();
@@ -167,13 +193,13 @@ json initial_progress(const plans::Plan& p, const std::vector<std::string>& unit
 ApiResult<json> PlanRunner::start(const std::string& text, const std::string& source,
                                   const std::vector<std::string>& units, const PlanTrace& trace, const json& command) {
   if (units.empty()) return api_error(ErrorCode::bad_request, "units: expected at least one serial");
-  auto p = check(text, source, units);
+  auto p = check(text, source, units, trace.slots);
   if (!p) return std::unexpected(p.error());
   if (auto running = running_plan_id())
     return api_error(ErrorCode::busy, "plan " + std::to_string(*running) + " is running: queue this one (queue.add)");
   if (auto run = station_.active_run_id())
     return api_error(ErrorCode::busy, "run " + std::to_string(*run) + " is active: queue the plan (queue.add)");
-  storage::NewPlan np{p->name, source, text, units, "running", trace.op.name, trace.op.source, trace.lots};
+  storage::NewPlan np{p->name, source, text, units, "running", trace.op.name, trace.op.source, trace.lots, trace.slots};
   json detail = command;
   detail.update(plan_trace_json(trace.op.name, trace.op.source, trace.lots));
   auto id = station_.store().create_plan(np, "plan.start", detail.dump());
@@ -210,6 +236,7 @@ ApiResult<json> PlanRunner::status(std::optional<std::int64_t> plan_id) const {
             {"ended_at", rec.ended_at ? json(*rec.ended_at) : json(nullptr)}, {"progress", progress},
             {"plan_text", rec.plan_text}};
   j.update(plan_trace_json(rec.operator_name, rec.operator_source, rec.lots));
+  j["slots"] = rec.slots;
   if (auto p = plans::parse_plan(rec.plan_text, rec.source)) {
     json steps = json::array();
     for (const auto& s : p->steps)
@@ -291,7 +318,7 @@ void PlanRunner::after_tick(double clock_s, double wall_time) {
   auto queued = station_.store().list_plans("queued");
   if (!queued || queued->empty()) return;
   const auto& next = queued->front();
-  auto p = check(next.plan_text, next.source, next.units);
+  auto p = check(next.plan_text, next.source, next.units, next.slots);
   if (!p) {
     json progress = json::object();
     save(next.id, "failed", "not started: " + p.error().message, progress);
@@ -341,7 +368,13 @@ bool PlanRunner::advance(std::int64_t plan_id, double wall_time) {
       if (auto l = rec->lots.find(s); l != rec->lots.end()) lots[s] = l->second;
     json command = {{"cmd", "plan.step"}, {"plan_id", plan_id}, {"step", step_index + 1}, {"line", step.line},
                     {"attempt", progress["attempt"]}, {"operator", rec->operator_name}, {"lots", lots}};
-    auto run = station_.start_run(step.profile, units, run_purpose(step.purpose), command,
+    auto placed = plan_slot_units(bench_slots(), units, rec->slots);
+    if (!placed) {
+      finish_plan(plan_id, progress, "failed",
+                  at_line(*plan, step.line) + "step " + step.profile + " could not start: " + placed.error().message);
+      return false;
+    }
+    auto run = station_.start_run_in_slots(step.profile, *placed, run_purpose(step.purpose), command,
                                   OperatorId{rec->operator_name, rec->operator_source});
     if (!run) {
       if (run.error().code == ErrorCode::unavailable || run.error().code == ErrorCode::busy) return false;  // try again
@@ -583,7 +616,7 @@ ApiResult<json> PlanRunner::queue_list() const {
   for (const auto& p : *q)
     arr.push_back({{"position", pos++}, {"plan_id", p.id}, {"name", p.name}, {"source", p.source}, {"units", p.units},
                    {"created_at", p.created_at}, {"operator", p.operator_name}, {"operator_source", p.operator_source},
-                   {"lots", p.lots}});
+                   {"lots", p.lots}, {"slots", p.slots}});
   json j = {{"queue", arr}};
   auto running = running_plan_id();
   j["running"] = running ? json(*running) : json(nullptr);
@@ -594,9 +627,9 @@ ApiResult<json> PlanRunner::queue_add(const std::string& text, const std::string
                                       const std::vector<std::string>& units, const PlanTrace& trace,
                                       const json& command) {
   if (units.empty()) return api_error(ErrorCode::bad_request, "units: expected at least one serial");
-  auto p = check(text, source, units);
+  auto p = check(text, source, units, trace.slots);
   if (!p) return std::unexpected(p.error());
-  storage::NewPlan np{p->name, source, text, units, "queued", trace.op.name, trace.op.source, trace.lots};
+  storage::NewPlan np{p->name, source, text, units, "queued", trace.op.name, trace.op.source, trace.lots, trace.slots};
   json detail = command;
   detail.update(plan_trace_json(trace.op.name, trace.op.source, trace.lots));
   auto id = station_.store().create_plan(np, "queue.add", detail.dump());

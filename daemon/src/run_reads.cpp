@@ -16,17 +16,19 @@ namespace fogbench::daemon {
 using nlohmann::json;
 
 json run_json(const storage::RunRecord& r) {
-  json units = json::array(), lots = json::array();
+  json units = json::array(), lots = json::array(), slots = json::array();
   for (const auto& u : r.units) {
     units.push_back(u.serial);
     lots.push_back(u.lot ? json(*u.lot) : json(nullptr));  // same positions; null: no lot given
+    slots.push_back(u.slot ? json(*u.slot) : json(nullptr));  // null: stored before bench slots
   }
   return {{"id", r.id}, {"created_at", r.created_at}, {"profile", r.profile_name},
           {"purpose", std::string(storage::to_string(r.purpose))},
           {"state", std::string(storage::to_string(r.state))}, {"reason", r.state_reason},
           {"started_at", r.started_at ? json(*r.started_at) : json(nullptr)},
           {"ended_at", r.ended_at ? json(*r.ended_at) : json(nullptr)},
-          {"time_scale", r.time_scale}, {"units", units}, {"lots", lots}};
+          {"time_scale", r.time_scale}, {"units", units}, {"lots", lots},
+          {"slots", slots}};
 }
 
 json parse_or_string(const std::string& text) {

@@ -121,21 +121,41 @@ ApiResult<std::int64_t> Station::start_run(const std::string& profile_name,
                                            const std::vector<std::string>& serials,
                                            storage::Purpose purpose, const json& command,
                                            const OperatorId& op) {
+  std::vector<SlotUnit> units;
+  for (std::size_t i = 0; i < serials.size(); ++i) {
+    for (std::size_t j = 0; j < i; ++j)
+      if (serials[j] == serials[i]) return api_error(ErrorCode::bad_request, "units: " + serials[i] + " given twice");
+    const auto& configured = config_.drivers.units;
+    auto it = std::find_if(configured.begin(), configured.end(),
+                           [&](const auto& u) { return !u.serial.empty() && u.serial == serials[i]; });
+    if (it == configured.end())
+      return api_error(ErrorCode::unknown_serial, "unit " + serials[i] + ": not configured on this bench");
+    units.push_back({static_cast<std::size_t>(it - configured.begin()), serials[i]});
+  }
+  return start_run_in_slots(profile_name, units, purpose, command, op);
+}
+
+ApiResult<std::int64_t> Station::start_run_in_slots(const std::string& profile_name, const std::vector<SlotUnit>& units,
+                                           storage::Purpose purpose, const json& command,
+                                           const OperatorId& op) {
   if (run_) return api_error(ErrorCode::busy, "run " + std::to_string(run_->id) + " is " +
                                                   std::string(storage::to_string(run_->state)));
   if (recovery_error_) return std::unexpected(not_recovered(*recovery_error_));
   if (auto down = chamber_unavailable()) return std::unexpected(*down);
-  if (serials.empty()) return api_error(ErrorCode::bad_request, "units: expected at least one serial");
+  if (units.empty()) return api_error(ErrorCode::bad_request, "units: expected at least one serial");
 
+  const std::vector<std::string> serials = serials_of(units);
   std::vector<std::size_t> index;
+  std::vector<std::string> slots;
   for (std::size_t i = 0; i < serials.size(); ++i) {
-    for (std::size_t j = 0; j < i; ++j)
+    for (std::size_t j = 0; j < i; ++j) {
       if (serials[j] == serials[i]) return api_error(ErrorCode::bad_request, "units: " + serials[i] + " given twice");
-    const auto& units = config_.drivers.units;
-    auto it = std::find_if(units.begin(), units.end(), [&](const auto& u) { return u.serial == serials[i]; });
-    if (it == units.end())
-      return api_error(ErrorCode::unknown_serial, "unit " + serials[i] + ": not configured on this bench");
-    index.push_back(static_cast<std::size_t>(it - units.begin()));
+      if (units[j].config_index == units[i].config_index)
+        return api_error(ErrorCode::bad_request, "slots: slot " + config_.drivers.units[units[i].config_index].slot + " given twice");
+    }
+    assert(units[i].config_index < config_.drivers.units.size());
+    index.push_back(units[i].config_index);
+    slots.push_back(config_.drivers.units[units[i].config_index].slot);
     if (purpose == storage::Purpose::verify) {
       auto m = store_.current_model(serials[i]);
       if (!m) return std::unexpected(from_store(m.error()));
@@ -157,6 +177,7 @@ ApiResult<std::int64_t> Station::start_run(const std::string& profile_name,
   auto lots = unit_lots(command, serials);  // station_plant.cpp
   if (!lots) return std::unexpected(lots.error());
   nr.unit_lots = std::move(*lots);
+  nr.unit_slots = std::move(slots);
   std::vector<UnitPowerOn> power;
   for (std::size_t ci : index) {
     UnitPowerOn p;
@@ -200,10 +221,14 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
   run.purpose = rec.purpose;
   run.profile_name = rec.profile_name;
   for (const auto& u : rec.units) {
+    // In the slot it was stored in; a run stored before slots, in the slot of its default serial.
     const auto& units = config_.drivers.units;
-    auto it = std::find_if(units.begin(), units.end(), [&](const auto& c) { return c.serial == u.serial; });
+    auto it = std::find_if(units.begin(), units.end(), [&](const auto& c) {
+      return u.slot ? c.slot == *u.slot : !c.serial.empty() && c.serial == u.serial;
+    });
     if (it == units.end())
-      return api_error(ErrorCode::unknown_serial, "unit " + u.serial + ": not configured on this bench");
+      return api_error(ErrorCode::unknown_serial, "unit " + u.serial + (u.slot ? " (slot " + *u.slot + ")" : "") +
+                                                      ": not configured on this bench");
     run.serials.push_back(u.serial);
     run.config_index.push_back(static_cast<std::size_t>(it - units.begin()));
   }

@@ -42,7 +42,14 @@ json Station::status() const {
   json chamber = {{"chamber_c", nullptr}, {"setpoint_c", nullptr}, {"alarm", false}, {"link", "unknown"}};
   json units = json::array();
   for (std::size_t i = 0; i < config_.drivers.units.size(); ++i) {
-    json u = {{"serial", config_.drivers.units[i].serial}, {"gyro_dph", nullptr},
+    // The slot's serial: the active run's unit in it, else the configured default (null: none).
+    const auto& cu = config_.drivers.units[i];
+    json serial = cu.serial.empty() ? json(nullptr) : json(cu.serial);
+    if (run_) {
+      for (std::size_t k = 0; k < run_->config_index.size() && k < run_->serials.size(); ++k)
+        if (run_->config_index[k] == i) serial = run_->serials[k];
+    }
+    json u = {{"slot", cu.slot}, {"serial", serial}, {"gyro_dph", nullptr},
               {"frames", 0}, {"t1_c", nullptr}, {"t2_c", nullptr}};
     if (last_input_ && i < last_input_->units.size()) {
       const auto& r = last_input_->units[i];
@@ -63,9 +70,11 @@ json Station::status() const {
   s["units"] = units;
   if (run_) {
     const auto& r = *run_;
+    json run_slots = json::array();
+    for (std::size_t ci : r.config_index) run_slots.push_back(config_.drivers.units[ci].slot);
     s["run"] = {{"id", r.id}, {"state", std::string(storage::to_string(r.state))},
                 {"profile", r.profile_name}, {"purpose", std::string(storage::to_string(r.purpose))},
-                {"units", r.serials}, {"elapsed_s", r.elapsed_s},
+                {"units", r.serials}, {"slots", run_slots}, {"elapsed_s", r.elapsed_s},
                 {"remaining_s", r.executor ? json(r.last.remaining_s) : json(nullptr)},
                 {"phase", r.phase ? json(std::string(profiles::to_string(*r.phase))) : json(nullptr)},
                 {"step", r.step},

@@ -123,18 +123,28 @@ std::string render_metrics(const MetricsInput& in) {
   }
 
   const json& units = at(s, "units");
+  // A unit's labels: its bench slot (when the status has one) and the serial in it, "" for an
+  // empty slot without a default serial (the slot keeps such series apart).
+  auto unit_labels = [](const json& u) {
+    Labels l;
+    if (u.contains("slot") && u["slot"].is_string()) l.push_back({"slot", u["slot"].get<std::string>()});
+    l.push_back({"serial", u.contains("serial") && u["serial"].is_string() ? u["serial"].get<std::string>() : ""});
+    return l;
+  };
   w.family("fogbench_unit_rate_degrees_per_hour", "gauge", "Each unit's gyro output of the last second, deg/h.");
   if (units.is_array())
-    for (const auto& u : units) w.sample("fogbench_unit_rate_degrees_per_hour", {{"serial", u.value("serial", "")}}, at(u, "gyro_dph"));
+    for (const auto& u : units) w.sample("fogbench_unit_rate_degrees_per_hour", unit_labels(u), at(u, "gyro_dph"));
   w.family("fogbench_unit_temperature_celsius", "gauge", "Each unit's coil temperatures of the last second (sensor t1: centre, t2: wall), degC.");
   if (units.is_array())
     for (const auto& u : units)
-      for (const char* t : {"t1", "t2"})
-        w.sample("fogbench_unit_temperature_celsius", {{"serial", u.value("serial", "")}, {"sensor", t}},
-                 at(u, (std::string(t) + "_c").c_str()));
+      for (const char* t : {"t1", "t2"}) {
+        Labels l = unit_labels(u);
+        l.push_back({"sensor", t});
+        w.sample("fogbench_unit_temperature_celsius", l, at(u, (std::string(t) + "_c").c_str()));
+      }
   w.family("fogbench_unit_frames", "gauge", "Gyro frames averaged into each unit's last second.");
   if (units.is_array())
-    for (const auto& u : units) w.sample("fogbench_unit_frames", {{"serial", u.value("serial", "")}}, at(u, "frames"));
+    for (const auto& u : units) w.sample("fogbench_unit_frames", unit_labels(u), at(u, "frames"));
 
   // The active run's quality counters: they start from 0 with each run (a counter reset).
   const json& quality = at(run, "quality");

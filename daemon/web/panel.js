@@ -143,14 +143,27 @@
     $("run-step").textContent = r ? String(r.step) + (r.phase ? " (" + r.phase + ")" : "") : "";
     $("run-elapsed").textContent = r ? fmtS(r.elapsed_s) : "";
     $("run-remaining").textContent = r ? fmtS(r.remaining_s) : "";
+    // One serial entry per bench slot (docs/web.md): typed, or a barcode scanner's input and its
+    // Enter, which moves on to the next slot (from the last, to Start). Prefilled with the slot's
+    // configured default serial; an empty slot takes no part in the run.
     const unitsEl = $("units");
     if (!unitsEl.childElementCount && st.units) {
-      st.units.forEach((u) => {
+      st.units.forEach((u, i) => {
+        const slot = u.slot || String.fromCharCode(65 + i);  // a daemon before slots: A, B, ...
         const l = document.createElement("label");
         const c = document.createElement("input");
-        c.type = "checkbox"; c.checked = true; c.value = u.serial; c.className = "unit";
+        c.type = "text"; c.size = 12; c.className = "slot-serial"; c.dataset.slot = slot;
+        c.placeholder = "scan serial"; c.value = u.serial || ""; c.autocomplete = "off";
+        c.addEventListener("keydown", (e) => {
+          if (e.key !== "Enter") return;
+          e.preventDefault();
+          const all = Array.from(document.querySelectorAll("input.slot-serial"));
+          const next = all[all.indexOf(c) + 1];
+          (next || $("start")).focus();
+          if (next) next.select();
+        });
+        l.appendChild(document.createTextNode("slot " + slot + " "));
         l.appendChild(c);
-        l.appendChild(document.createTextNode(" " + u.serial));
         unitsEl.appendChild(l);
       });
     }
@@ -255,8 +268,13 @@
     return r;
   }
   async function start() {
-    const units = Array.from(document.querySelectorAll("input.unit")).filter((c) => c.checked).map((c) => c.value);
-    const req = { cmd: "run.start", profile: $("profile").value, units: units, purpose: $("purpose").value };
+    // {slot: serial} of the slots with a serial; the daemon checks each (docs/protocol.md "Bench slots").
+    const slots = {};
+    document.querySelectorAll("input.slot-serial").forEach((c) => {
+      const serial = c.value.trim();
+      if (serial) slots[c.dataset.slot] = serial;
+    });
+    const req = { cmd: "run.start", profile: $("profile").value, slots: slots, purpose: $("purpose").value };
     if (token()) req.token = token();
     return showResult("start", await call(req));
   }

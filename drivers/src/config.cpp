@@ -284,15 +284,40 @@ Result<GyroChannelConfig> parse_gyro_channel(const json& value, const std::strin
   return g;
 }
 
-Result<UnitConfig> parse_unit_config(const json& value, const std::string& path) {
+std::string check_slot_name(std::string_view name) {
+  if (name.empty()) return "must not be empty";
+  if (name.size() > kMaxSlotBytes)
+    return "longer than " + std::to_string(kMaxSlotBytes) + " characters (" + std::to_string(name.size()) + ")";
+  for (char c : name) {
+    const bool ok = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' || c == '-';
+    if (!ok) return "'" + std::string(name) + "': only letters, digits, '_' and '-'";
+  }
+  return {};
+}
+
+std::string default_slot_name(std::size_t index) {
+  std::string name;
+  for (std::size_t n = index + 1; n > 0; n = (n - 1) / 26) name.insert(name.begin(), static_cast<char>('A' + (n - 1) % 26));
+  return name;
+}
+
+Result<UnitConfig> parse_unit_config(const json& value, const std::string& path, std::size_t index) {
   if (auto ok = detail::expect_object(value, path); !ok) return std::unexpected(ok.error());
-  if (auto ok = detail::expect_known_keys(value, path, {"serial", "gyro", "thermistors"}); !ok) {
+  if (auto ok = detail::expect_known_keys(value, path, {"slot", "serial", "gyro", "thermistors"}); !ok) {
     return std::unexpected(ok.error());
   }
   UnitConfig unit;
-  FOGBENCH_TRY(serial, detail::get_string(value, path, "serial"));
-  if (serial->empty()) return config_error(join_path(path, "serial"), "must not be empty");
-  unit.serial = *serial;
+  unit.slot = default_slot_name(index);
+  if (value.contains("slot")) {
+    FOGBENCH_TRY(slot, detail::get_string(value, path, "slot"));
+    if (auto why = check_slot_name(*slot); !why.empty()) return config_error(join_path(path, "slot"), why);
+    unit.slot = *slot;
+  }
+  if (value.contains("serial")) {
+    FOGBENCH_TRY(serial, detail::get_string(value, path, "serial"));
+    if (serial->empty()) return config_error(join_path(path, "serial"), "must not be empty (leave it out for no default)");
+    unit.serial = *serial;
+  }
   const auto gp = join_path(path, "gyro");
   if (!value.contains("gyro")) return config_error(gp, "missing (expected an object)");
   FOGBENCH_TRY(gyro, parse_gyro_channel(value["gyro"], gp));
@@ -350,7 +375,7 @@ Result<DriversConfig> parse_drivers_config(const json& value, const std::filesys
   const auto up = join_path(path, "units");
   const json& units = value["units"];
   if (!units.is_array() || units.empty()) return config_error(up, "expected a non-empty array");
-  std::map<std::string, std::size_t> serials;
+  std::map<std::string, std::size_t> serials, slots;
   std::map<int, std::size_t> node_ids;
   struct Placed {
     std::string path;
@@ -359,8 +384,13 @@ Result<DriversConfig> parse_drivers_config(const json& value, const std::filesys
   std::vector<Placed> channels;
   for (std::size_t i = 0; i < units.size(); ++i) {
     const auto p = index_path(up, i);
-    FOGBENCH_TRY(unit, parse_unit_config(units[i], p));
-    if (auto [it, fresh] = serials.emplace(unit->serial, i); !fresh) {
+    FOGBENCH_TRY(unit, parse_unit_config(units[i], p, i));
+    if (auto [it, fresh] = slots.emplace(unit->slot, i); !fresh) {
+      return config_error(join_path(p, "slot"), "'" + unit->slot + "' is already the slot of " +
+                                                    index_path(up, it->second) +
+                                                    (units[i].contains("slot") ? "" : " (named by its index)"));
+    }
+    if (auto [it, fresh] = serials.emplace(unit->serial, i); !unit->serial.empty() && !fresh) {
       return config_error(join_path(p, "serial"), "'" + unit->serial + "' is already used by " +
                                                       index_path(up, it->second));
     }

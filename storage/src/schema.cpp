@@ -253,6 +253,14 @@ ALTER TABLE plans ADD COLUMN operator_source TEXT NOT NULL DEFAULT 'none'
 ALTER TABLE plans ADD COLUMN lots_json TEXT NOT NULL DEFAULT '{}' CHECK (json_valid(lots_json));
 )sql";
 
+// Version 10 (issue 24, bench slots): the fixture position (the configuration's slot name) each
+// unit of a run sat in, so that a resumed run reads the same CAN node and thermistors; NULL for
+// runs recorded before. A plan's slots_json is {serial: slot}, given to every run it starts.
+constexpr const char* kUnitSlots = R"sql(
+ALTER TABLE run_units ADD COLUMN slot TEXT CHECK (slot IS NULL OR length(slot) BETWEEN 1 AND 16);
+ALTER TABLE plans ADD COLUMN slots_json TEXT NOT NULL DEFAULT '{}' CHECK (json_valid(slots_json));
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "recording tables", kRecording},
     {2, "models and verifications", kModels},
@@ -263,6 +271,7 @@ constexpr Migration kMigrations[] = {
     {7, "unit lots and the plant outbox", kPlant},
     {8, "one verdict per serial", kVerdicts},
     {9, "plan operator and unit lots", kPlanTraceability},
+    {10, "unit slots", kUnitSlots},
 };
 
 StoreResult<std::int64_t> query_int(Database& db, const std::string& sql, std::string_view what) {

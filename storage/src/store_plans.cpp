@@ -11,7 +11,7 @@ namespace {
 
 #define FOGBENCH_PLAN_COLUMNS \
   "id, name, source, plan_text, units_json, state, queue_pos, created_at, started_at, ended_at, reason, progress_json, " \
-  "operator, operator_source, lots_json"
+  "operator, operator_source, lots_json, slots_json"
 
 PlanRecord read_plan(const Query& q) {
   PlanRecord p;
@@ -34,6 +34,10 @@ PlanRecord read_plan(const Query& q) {
   if (lots.is_object())
     for (const auto& [serial, lot] : lots.items())
       if (lot.is_string()) p.lots[serial] = lot.get<std::string>();
+  const auto slots = nlohmann::json::parse(q.text(15), nullptr, false);
+  if (slots.is_object())
+    for (const auto& [serial, slot] : slots.items())
+      if (slot.is_string()) p.slots[serial] = slot.get<std::string>();
   return p;
 }
 
@@ -74,7 +78,7 @@ StoreResult<std::int64_t> Store::create_plan(const NewPlan& p, std::string_view 
   {
     auto stmt = db.statement(
         "INSERT INTO plans (name, source, plan_text, units_json, state, queue_pos, created_at, started_at, "
-        "operator, operator_source, lots_json) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)");
+        "operator, operator_source, lots_json, slots_json) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12)");
     if (!stmt) return fail(std::move(stmt));
     Query q(db, *stmt);
     const std::string now = db.now_iso();
@@ -83,6 +87,7 @@ StoreResult<std::int64_t> Store::create_plan(const NewPlan& p, std::string_view 
     if (p.state == "running") q.bind(8, now);
     else q.bind_null(8);
     q.bind(9, p.operator_name).bind(10, p.operator_source).bind(11, nlohmann::json(p.lots).dump());
+    q.bind(12, nlohmann::json(p.slots).dump());
     if (auto ok = run(db, q, what); !ok) return fail(std::move(ok));
   }
   const std::int64_t id = sqlite3_last_insert_rowid(db.handle());

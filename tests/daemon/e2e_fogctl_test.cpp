@@ -282,3 +282,72 @@ TEST_CASE("e2e fogctl: a run's end the store refused is shown as not yet recorde
   auto st2 = fogctl(bench, "status " + sock(bench));
   CHECK(st2.out.find("NOT yet recorded") == std::string::npos);
 }
+
+TEST_CASE("e2e fogctl: run start --slot puts a serial in a bench slot per run, and the next run another") {
+  require_sim();
+  require_fogctl();
+  LiveBench bench(20.0);  // the simulator's configuration: slots A (SIM-0001) and B (SIM-0002) by index
+  auto start = fogctl(bench, "run start " + sock(bench) + " --profile short --slot B=FOG-0042 --json");
+  INFO(start.err);
+  REQUIRE(start.code == 0);
+  const auto first = json::parse(start.out)["run_id"].get<std::int64_t>();
+
+  auto sj = fogctl(bench, "status --json " + sock(bench));
+  REQUIRE(sj.code == 0);
+  const json s = json::parse(sj.out);
+  CHECK(s["run"]["units"] == json{"FOG-0042"});
+  CHECK(s["run"]["slots"] == json{"B"});
+  REQUIRE(s["units"].size() == 2);
+  CHECK(s["units"][0]["slot"] == "A");
+  CHECK(s["units"][0]["serial"] == "SIM-0001");  // not in the run: its configured default
+  CHECK(s["units"][1]["slot"] == "B");
+  CHECK(s["units"][1]["serial"] == "FOG-0042");
+  auto st = fogctl(bench, "status " + sock(bench));
+  REQUIRE(st.code == 0);
+  CHECK(row_of(st.out, "FOG-0042").at(0) == "B");  // slot unit gyro_dph ...
+
+  // Refusals name what is wrong, exit 2, and start nothing (the run is still the first).
+  auto bad = fogctl(bench, "run start " + sock(bench) + " --profile short --slot C=FOG-0043");
+  CHECK(bad.code == 2);
+  CHECK(bad.err.find("slots.C: no such slot on this bench (slots: A, B)") != std::string::npos);
+  bad = fogctl(bench, "run start " + sock(bench) + " --profile short --slot B");
+  CHECK(bad.code == 2);
+  CHECK(bad.err.find("--slot: expected SLOT=SERIAL") != std::string::npos);
+  bad = fogctl(bench, "run start " + sock(bench) + " --profile short --slot A=FOG-1 --slot A=FOG-2");
+  CHECK(bad.code == 2);
+  CHECK(bad.err.find("slot A given twice") != std::string::npos);
+  bad = fogctl(bench, "run start " + sock(bench) + " --profile short --unit FOG-0043");
+  CHECK(bad.code == 2);
+  CHECK(bad.err.find("--slot A=FOG-0043") != std::string::npos);
+  bad = fogctl(bench, "plan validate paper " + sock(bench) + " --slot C=FOG-0043");
+  INFO(bad.err);
+  CHECK(bad.code == 2);
+  CHECK(bad.err.find("slots.C") != std::string::npos);
+
+  REQUIRE(fogctl(bench, "run abort " + sock(bench) + " --reason next").code == 0);
+  LineClient c(bench.socket());
+  REQUIRE(c.ok());
+  bench.wait_state(c, first, {"aborted"}, 60s);
+  auto gj = fogctl(bench, "run get " + std::to_string(first) + " --json " + sock(bench));
+  REQUIRE(gj.code == 0);
+  json g = json::parse(gj.out);
+  CHECK(g["run"]["units"] == json{"FOG-0042"});
+  CHECK(g["run"]["slots"] == json{"B"});
+  CHECK(g["identity"]["units"][0]["serial"] == "FOG-0042");
+
+  // The next gyro in the same slot: no configuration change, no restart.
+  start = fogctl(bench, "run start " + sock(bench) + " --profile short --slot B=FOG-0043 --json");
+  INFO(start.err);
+  REQUIRE(start.code == 0);
+  const auto second = json::parse(start.out)["run_id"].get<std::int64_t>();
+  CHECK(second != first);
+  gj = fogctl(bench, "run get " + std::to_string(second) + " --json " + sock(bench));
+  REQUIRE(gj.code == 0);
+  g = json::parse(gj.out);
+  CHECK(g["run"]["units"] == json{"FOG-0043"});
+  CHECK(g["run"]["slots"] == json{"B"});
+  sj = fogctl(bench, "status --json " + sock(bench));
+  REQUIRE(sj.code == 0);
+  CHECK(json::parse(sj.out)["units"][1]["serial"] == "FOG-0043");
+  REQUIRE(fogctl(bench, "run abort " + sock(bench) + " --reason done").code == 0);
+}

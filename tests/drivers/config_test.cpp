@@ -74,6 +74,52 @@ TEST_CASE("units must not share a node id, a serial or a thermistor register") {
         "units[0].thermistors.t1 (input 0 (int16))");
 }
 
+TEST_CASE("units are bench slots: named by index unless configured, the serial only a default") {
+  json j = example();
+  auto cfg = parse_drivers_config(j, map_dir);
+  REQUIRE(cfg);
+  CHECK(cfg->units[0].slot == "A");  // no "slot" in the example: named by index
+  CHECK(cfg->units[1].slot == "B");
+  CHECK(cfg->units[1].serial == "FOG-0002");  // an old configuration keeps its serials as defaults
+
+  j["units"][0]["slot"] = "left-1";
+  j["units"][1].erase("serial");
+  cfg = parse_drivers_config(j, map_dir);
+  REQUIRE(cfg);
+  CHECK(cfg->units[0].slot == "left-1");
+  CHECK(cfg->units[1].slot == "B");
+  CHECK(cfg->units[1].serial.empty());  // no default: the serial is given per run
+
+  CHECK(default_slot_name(25) == "Z");
+  CHECK(default_slot_name(26) == "AA");
+  CHECK(default_slot_name(27) == "AB");
+}
+
+TEST_CASE("a bad or repeated slot name names the key") {
+  json j = example();
+  j["units"][0]["slot"] = "B";  // units[1] is named B by its index
+  CHECK(error_of(j) == "units[1].slot: 'B' is already the slot of units[0] (named by its index)");
+  j["units"][1]["slot"] = "B";
+  CHECK(error_of(j) == "units[1].slot: 'B' is already the slot of units[0]");
+
+  j = example();
+  j["units"][1]["slot"] = "";
+  CHECK(error_of(j) == "units[1].slot: must not be empty");
+  j["units"][1]["slot"] = "A 2";
+  CHECK(error_of(j) == "units[1].slot: 'A 2': only letters, digits, '_' and '-'");
+  j["units"][1]["slot"] = std::string(17, 'x');
+  CHECK(error_of(j) == "units[1].slot: longer than 16 characters (17)");
+  j["units"][1]["slot"] = 2;
+  CHECK(error_of(j).starts_with("units[1].slot: expected a string"));
+
+  j = example();
+  j["units"][1]["serial"] = "";
+  CHECK(error_of(j) == "units[1].serial: must not be empty (leave it out for no default)");
+  j["units"][0].erase("serial");
+  j["units"][1].erase("serial");  // two slots without a default serial do not clash
+  CHECK(parse_drivers_config(j, map_dir).has_value());
+}
+
 TEST_CASE("gyro mode fields") {
   json j = example();
   j["units"][1]["gyro"].erase("frame_rate_hz");

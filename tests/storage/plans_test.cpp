@@ -102,3 +102,25 @@ TEST_CASE("store plans: a plan keeps its operator and its units' lots (schema ve
   p.operator_source = "guess";
   CHECK_FALSE(s.create_plan(p, "queue.add", "").has_value());
 }
+
+TEST_CASE("store plans and runs keep each unit's bench slot, none for those stored before", "[store][plans]") {
+  Store s = memory();
+  NewPlan p = plan("slotted");
+  p.slots = {{"SIM-0001", "A"}, {"SIM-0002", "left-2"}};
+  const auto id = s.create_plan(p, "queue.add", "").value();
+  CHECK(s.get_plan(id).value().slots == p.slots);
+  CHECK(s.get_plan(s.create_plan(plan("plain"), "queue.add", "").value()).value().slots.empty());
+
+  NewRun r;
+  r.profile_name = "exp1";
+  r.unit_serials = {"FOG-0042", "FOG-0043"};
+  r.unit_slots = {"B"};  // shorter: the second unit has none
+  const auto run = s.create_run(r).value();
+  const auto units = s.get_run(run).value().run.units;
+  REQUIRE(units.size() == 2);
+  CHECK(units[0].slot == std::optional<std::string>("B"));
+  CHECK(units[1].slot == std::nullopt);
+  // The column's bound: a slot name is 1..16 characters.
+  r.unit_slots = {std::string(17, 'x'), "A"};
+  CHECK_FALSE(s.create_run(r).has_value());
+}

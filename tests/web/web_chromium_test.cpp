@@ -77,6 +77,26 @@ TEST_CASE("the live panel in headless Chromium: samples plotted, a fault shown, 
   CHECK(b.eval("document.getElementById('token').value = '" + kToken + "'; fogPanel.abort().then(r => r.error ? r.error.code : 'ok')") == "ok");
   CHECK(bench.wait_state(c, run2, {"aborted"}, 60s)["result"]["run"]["reason"] == "aborted by operator: from the web panel");
 
+  // The Start form: a serial entry per bench slot, prefilled with its default; a barcode
+  // scanner's Enter moves on (from the last slot to Start) and starts nothing by itself.
+  CHECK(b.eval("document.querySelectorAll('input.slot-serial').length") == 2);
+  CHECK(b.eval("document.querySelector('input.slot-serial[data-slot=\"A\"]').value") == "SIM-0001");
+  CHECK(b.eval("(() => { const a = document.querySelector('input.slot-serial[data-slot=\"A\"]'); "
+               "const s = document.querySelector('input.slot-serial[data-slot=\"B\"]'); "
+               "a.focus(); a.value = ''; a.dispatchEvent(new KeyboardEvent('keydown', {key: 'Enter', bubbles: true})); "
+               "const moved = document.activeElement === s; s.value = 'FOG-0077'; "
+               "s.dispatchEvent(new KeyboardEvent('keydown', {key: 'Enter', bubbles: true})); "
+               "return moved && document.activeElement.id === 'start'; })()") == true);
+  CHECK(c.call({{"cmd", "status"}})["result"]["run"].is_null());
+  const json started = b.eval("document.getElementById('profile').value = 'short'; "
+                              "fogPanel.start().then(r => r.error ? r.error.code : r.result.run_id)");
+  REQUIRE(started.is_number_integer());
+  const json run3 = c.call({{"cmd", "run.get"}, {"run_id", started}})["result"]["run"];
+  CHECK(run3["units"] == json{"FOG-0077"});  // slot A left empty: not in the run
+  CHECK(run3["slots"] == json{"B"});
+  REQUIRE(c.call({{"cmd", "run.abort"}, {"reason", "slots checked"}}).contains("result"));
+  bench.wait_state(c, started.get<std::int64_t>(), {"aborted"}, 60s);
+
   // The daemon restarts: the page notices, and reconnects by itself.
   bench.daemon.reset();
   CHECK(b.until("document.getElementById('conn').className === 'down'", 60s));

@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "fogbench/daemon/api.hpp"
+#include "fogbench/daemon/bench_slots.hpp"
 #include "fogbench/daemon/run_identity.hpp"
 #include "fogbench/daemon/tick_input.hpp"
 #include "fogbench/plans/plan.hpp"
@@ -30,6 +31,9 @@ class Station;
 struct PlanTrace {
   OperatorId op;
   std::map<std::string, std::string> lots;  // serial -> lot; a unit without a lot is absent
+  // serial -> bench slot (bench_slots.hpp); a unit absent sits in the slot whose configured
+  // default serial it is.
+  std::map<std::string, std::string> slots;
 };
 // The trace as the plan's JSON shows it: {operator, operator_source, lots}.
 nlohmann::json plan_trace_json(const std::string& operator_name, const std::string& operator_source,
@@ -43,10 +47,14 @@ class PlanRunner final : public TickListener {
   // within the chamber's limits, the units are configured, and a verify step that no fit step
   // precedes has a model on file for every unit. Errors name the line (and the field).
   ApiResult<plans::Plan> check(const std::string& text, const std::string& source,
-                               const std::vector<std::string>& units) const;
+                               const std::vector<std::string>& units,
+                               const std::map<std::string, std::string>& slots = {}) const;
+  // The configured bench slots, for plan.* and queue.* to read `slots` against.
+  const std::vector<drivers::UnitConfig>& bench_slots() const;
   // plan.validate: the check's summary ({name, steps, limits, nominal_duration_s}).
   ApiResult<nlohmann::json> validate(const std::string& text, const std::string& source,
-                                     const std::vector<std::string>& units) const;
+                                     const std::vector<std::string>& units,
+                                     const std::map<std::string, std::string>& slots = {}) const;
   // plan.start: checked, stored as running; its first run starts at the next tick. Refused
   // (busy) while a run or another plan is active: queue it instead.
   ApiResult<nlohmann::json> start(const std::string& text, const std::string& source,

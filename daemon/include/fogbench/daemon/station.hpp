@@ -24,6 +24,7 @@
 #include <nlohmann/json.hpp>
 
 #include "fogbench/daemon/api.hpp"
+#include "fogbench/daemon/bench_slots.hpp"
 #include "fogbench/daemon/config.hpp"
 #include "fogbench/daemon/live_compensation.hpp"
 #include "fogbench/daemon/offload.hpp"
@@ -71,6 +72,12 @@ class Station {
   // request as received, stored as the run's first command event.
   // `op` is who started it, recorded in the run's identity with the station, the software, the
   // hashes of the configuration and the profile and each unit's power-on (run_identity.hpp).
+  // `units`: each unit's slot and serial (bench_slots.hpp), stored with the run.
+  ApiResult<std::int64_t> start_run_in_slots(const std::string& profile_name, const std::vector<SlotUnit>& units,
+                                    storage::Purpose purpose, const nlohmann::json& command,
+                                    const OperatorId& op = {});
+  // The same with serials alone, each in the slot whose configured default serial it is
+  // (unknown_serial when none is).
   ApiResult<std::int64_t> start_run(const std::string& profile_name,
                                     const std::vector<std::string>& serials,
                                     storage::Purpose purpose, const nlohmann::json& command,

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "fogbench/drivers/backoff.hpp"
@@ -77,9 +78,12 @@ struct ThermistorModuleConfig {
   ModbusEndpoint modbus;
 };
 
-// One unit under test: its gyro on the CAN bus and its coil thermistors on the input module.
+// One bench slot (a fixture position): its gyro on the CAN bus and its coil thermistors on the
+// input module. The serial of the unit in it is given when a run starts (run.start's `slots`);
+// `serial` here is only a default, empty when none is configured.
 struct UnitConfig {
-  std::string serial;
+  std::string slot;    // the position's name: "A", "B", ... by index unless configured
+  std::string serial;  // the default serial, or 
   GyroChannelConfig gyro;
   ThermistorChannelConfig t1;  // coil centre
   ThermistorChannelConfig t2;  // coil outer wall
@@ -98,7 +102,16 @@ struct DriversConfig {
 
 Result<ModbusEndpoint> parse_modbus_endpoint(const nlohmann::json& value, const std::string& path);
 Result<GyroChannelConfig> parse_gyro_channel(const nlohmann::json& value, const std::string& path);
-Result<UnitConfig> parse_unit_config(const nlohmann::json& value, const std::string& path);
+// `index` is the unit's place in `units`: it names the slot when "slot" is absent.
+Result<UnitConfig> parse_unit_config(const nlohmann::json& value, const std::string& path,
+                                     std::size_t index = 0);
+
+// A slot's name: 1..kMaxSlotBytes characters out of A-Z a-z 0-9 _ - (a fixture label, typed
+// at the command line and on the panel). "" when good, else why not.
+inline constexpr std::size_t kMaxSlotBytes = 16;
+std::string check_slot_name(std::string_view name);
+// The slot name of the unit at `index` when none is configured: A..Z, then AA, AB, ...
+std::string default_slot_name(std::size_t index);
 
 // A line-oriented controller's endpoint ({"transport": "tcp", "host", "port"} or
 // {"transport": "serial", "device", "baud", ...}); `default_port` when "port" is absent.
@@ -116,7 +129,7 @@ Result<ChamberConfig> parse_chamber_config(const nlohmann::json& value, const st
                                            const std::filesystem::path& map_dir);
 
 // The whole {"chamber", "thermistors", "gyro_bus", "units"} object, with the checks that span
-// units: distinct serials and node ids, no two thermistor channels on one register.
+// units: distinct slot names, default serials and node ids, no two thermistor channels on one register.
 Result<DriversConfig> parse_drivers_config(const nlohmann::json& value,
                                            const std::filesystem::path& map_dir,
                                            const std::string& path = "");

@@ -108,12 +108,15 @@ struct NewRun {
   std::optional<RunIdentity> identity;   // stored in the same transaction (identity.hpp)
   // Each unit's lot id (same positions; shorter or empty: no lot), 1..64 characters.
   std::vector<std::optional<std::string>> unit_lots;
+  // Each unit's bench slot (same positions; shorter or empty: none), 1..16 characters.
+  std::vector<std::string> unit_slots;
 };
 
 struct RunUnit {
   int unit_index = 0;
   std::string serial;
   std::optional<std::string> lot;  // the production lot the unit came from, when given
+  std::optional<std::string> slot; // the bench slot it sat in; empty for runs stored before slots
 };
 
 struct RunRecord {
@@ -252,6 +255,8 @@ struct PlanRecord {
   // unit's lot, given to every run of the plan (schema version 8).
   std::string operator_name = {}, operator_source = "none";
   std::map<std::string, std::string> lots = {};  // serial -> lot; a unit without a lot is absent
+  // Each unit's bench slot (schema version 10); absent for plans stored before slots.
+  std::map<std::string, std::string> slots = {};  // serial -> slot
 };
 struct NewPlan {
   std::string name, source, plan_text;
@@ -259,6 +264,7 @@ struct NewPlan {
   std::string state = "queued";  // or running
   std::string operator_name = {}, operator_source = "none";
   std::map<std::string, std::string> lots = {};  // serial -> lot
+  std::map<std::string, std::string> slots = {};  // serial -> slot
 };
 // An entry of the plans' audit trail (queue edits, plan starts, steps, verdicts).
 struct PlanEvent {
