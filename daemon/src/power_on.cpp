@@ -24,7 +24,8 @@ std::vector<PowerWatch::Edge> PowerWatch::update(double clock_s, std::span<const
       continue;
     }
     u.link_down_s = 0;
-    if (e->starts > 0) {
+    if (e->read && e->frames == 0 && !u.seen_sending) u.heard_silent = true;
+    if (e->starts > 0 && (u.seen_sending || u.heard_silent)) {
       // The gyro says it started: in this period, whenever its frames were read.
       u.on_at_s = clock_s - period_s_;
       edges[i] = u.seen_sending ? Edge::restart : Edge::power_on;

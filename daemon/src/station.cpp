@@ -403,7 +403,9 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
   std::vector<std::optional<GyroEvidence>> sent(config_.drivers.units.size());
   for (std::size_t i = 0; i < sent.size() && i < in.units.size(); ++i)
     if (in.gyro_link_up)
-      sent[i] = GyroEvidence{.frames = in.units[i].frames + in.units[i].frames_corrupt, .starts = in.units[i].gyro_starts};
+      sent[i] = GyroEvidence{.frames = in.units[i].frames + in.units[i].frames_corrupt,
+                             .starts = in.units[i].gyro_starts,
+                             .read = in.gyro_read};
   const auto power_edges = power_.update(clock_s, sent);
   if (!run_) return {setpoint_c_};
   ActiveRun& run = *run_;

@@ -17,11 +17,13 @@ struct P {
   int frames = 100;
   int starts = 0;
   bool down = false;
+  bool read = true;
 };
-constexpr P quiet{0, 0, false};     // read, nothing came (a late bench, a paused loop, the gyro off)
-constexpr P down{0, 0, true};       // the bus link down: frames lost
-constexpr P start{60, 1, false};    // frames of which one begins a start-up
-constexpr P sending{100, 0, false};
+constexpr P quiet{0, 0, false, true};     // read, nothing came (a late bench, a paused loop, the gyro off)
+constexpr P unread{0, 0, false, false};   // not read (the loop late, a paced world that did not step)
+constexpr P down{0, 0, true, false};      // the bus link down: frames lost
+constexpr P start{60, 1, false, true};    // frames of which one begins a start-up
+constexpr P sending{100, 0, false, true};
 
 // Feeds one period per entry from clock from_s, a second apart; returns the edges and the time
 // since power-on after each period (empty: unknown).
@@ -35,7 +37,7 @@ Trace feed(PowerWatch& w, const std::vector<P>& periods, double from_s = 1.0) {
   for (const P& p : periods) {
     const std::optional<GyroEvidence> in[] = {
         p.down ? std::nullopt
-               : std::optional(GyroEvidence{static_cast<std::uint32_t>(p.frames), static_cast<std::uint32_t>(p.starts)})};
+               : std::optional(GyroEvidence{static_cast<std::uint32_t>(p.frames), static_cast<std::uint32_t>(p.starts), p.read})};
     t.edges.push_back(w.update(clock, in)[0]);
     t.since_s.push_back(w.since_power_on_s(0, clock));
     clock += 1.0;
@@ -77,8 +79,8 @@ TEST_CASE("power watch: a start-up frame is a power-on, dated to its period's st
   SECTION("late ticks and a paused loop give no edge: the time since power-on only grows") {
     // A loop paused 30 s, then the frames it missed in one burst; bunched, thin and empty periods.
     std::vector<P> late(30, quiet);
-    late.push_back({3000, 0, false});
-    for (int i = 0; i < 20; ++i) late.push_back(i % 3 == 0 ? quiet : P{i * 37 % 250, 0, false});
+    late.push_back({3000, 0, false, true});
+    for (int i = 0; i < 20; ++i) late.push_back(i % 3 == 0 ? unread : i % 3 == 1 ? quiet : P{i * 37 % 250, 0, false, true});
     auto c = feed(w, late, 7.0);
     CHECK(c.edges == nones(late.size()));
     for (std::size_t i = 0; i < c.since_s.size(); ++i) {
@@ -98,6 +100,19 @@ TEST_CASE("power watch: a start-up frame is a power-on, dated to its period's st
   }
 }
 
+TEST_CASE("power watch: a first start-up the daemon was not listening for is no known power-on") {
+  // A paced world's first frames: its gyros' own start-up, but nothing was read before it (the
+  // world stood still), so the daemon cannot tell it from a unit on before it listened.
+  PowerWatch w(1);
+  auto t = feed(w, {unread, unread, start, sending});
+  CHECK(t.edges == nones(4));
+  CHECK_FALSE(t.since_s[3].has_value());
+  // Its next start-up is a restart the daemon sees.
+  auto c = feed(w, {quiet, start}, 5.0);
+  CHECK(c.edges == std::vector<Edge>{Edge::none, Edge::restart});
+  CHECK(c.since_s[1] == 1.0);
+}
+
 TEST_CASE("power watch: a unit that comes on while the link is down is known by its start-up frames only") {
   PowerWatch w(1);
   auto t = feed(w, {quiet, quiet, down, down, down, sending, sending});
@@ -107,8 +122,8 @@ TEST_CASE("power watch: a unit that comes on while the link is down is known by 
 
 TEST_CASE("power watch: units are followed apart") {
   PowerWatch w(2);
-  const std::optional<GyroEvidence> a[] = {GyroEvidence{100, 0}, GyroEvidence{0, 0}};
-  const std::optional<GyroEvidence> b[] = {GyroEvidence{100, 0}, GyroEvidence{50, 1}};
+  const std::optional<GyroEvidence> a[] = {GyroEvidence{100, 0, true}, GyroEvidence{0, 0, true}};
+  const std::optional<GyroEvidence> b[] = {GyroEvidence{100, 0, true}, GyroEvidence{50, 1, true}};
   w.update(1, a);
   w.update(2, a);
   auto e = w.update(3, b);

@@ -6,9 +6,11 @@
 // docs/can-frames.md "Power-on"). It is dated to the start of the period that frame was read in.
 // Silence is no evidence: frames that come late (a busy host, a paused or late loop, a bench
 // that falls behind) keep their counter and carry no `warming_up`, so they never make a
-// power-on, a restart or a power-off, and the time since power-on only grows. A unit sending
-// from the daemon's first periods was powered on before the daemon could see it: its power-on
-// is unknown, never guessed. Periods in which the bus link was down lose frames, and a whole
+// power-on, a restart or a power-off, and the time since power-on only grows. A unit's first
+// start-up is its power-on only when the daemon had read the bus and heard nothing from the unit
+// before (it was listening when the unit came on); a unit sending from the daemon's first periods
+// (a paced world's first frames included) was powered on before the daemon could see it: its
+// power-on is unknown, never guessed. Periods in which the bus link was down lose frames, and a whole
 // start-up could hide in them: `gap_s` of those in a row lose the power-on.
 // Pure: the station feeds it one period at a time. docs/daemon.md "Power-on".
 #pragma once
@@ -28,6 +30,8 @@ inline constexpr double kPowerGapS = 2.0;
 struct GyroEvidence {
   std::uint32_t frames = 0;  // anything it sent (well-formed or corrupt)
   std::uint32_t starts = 0;  // frames that begin a power-on
+  // The bus was read for the period (false: the loop late, a paced world that did not step).
+  bool read = true;
 };
 
 class PowerWatch {
@@ -56,6 +60,7 @@ class PowerWatch {
   struct Unit {
     double link_down_s = 0;     // not read since ...
     bool seen_sending = false;  // frames seen at least once
+    bool heard_silent = false;  // read and silent before its first frames
     std::optional<double> on_at_s;
   };
   std::vector<Unit> units_;
