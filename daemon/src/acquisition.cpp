@@ -385,7 +385,7 @@ struct Acquisition::Impl {
   }
   // The gyro's averages since the last tick.
   void fill_gyro(TickInput& in) {
-    in.gyro_read = bus && gyro_sd.is_open();
+    in.gyro_read = in.gyro_link_up = bus && gyro_sd.is_open();
     if (!bus) return;
     auto s = bus->close_samples();
     for (std::size_t i = 0; i < s.units.size() && i < in.units.size(); ++i) {
@@ -393,6 +393,7 @@ struct Acquisition::Impl {
       in.units[i].frames = s.units[i].frames;
       in.units[i].frames_lost = s.units[i].frames_lost;
       in.units[i].frames_corrupt = s.units[i].frames_corrupt;
+      in.units[i].gyro_starts = s.units[i].starts;
     }
   }
   static void fill_chamber(TickInput& in, const DeviceReading& d) {
@@ -422,6 +423,7 @@ struct Acquisition::Impl {
     TickInput in = new_input();
     in.late = true;
     in.gyro_read = false;  // its frames go into the next period's sample
+    in.gyro_link_up = bus && gyro_sd.is_open();
     const double sp = emit(k, in);
     if (setpoint_unwritten(sp)) post_write_setpoint(sp);
   }

@@ -422,16 +422,20 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
       spdlog::info("the store took the interrupted marks; runs may start");
     }
   }
-  // Power-ons and restarts of the gyros, from what they sent this period (anything: a corrupt
-  // frame is a gyro that is on).
-  std::vector<std::optional<std::uint32_t>> sent(config_.drivers.units.size());
+  // Power-ons and restarts of the gyros, from what their frames of this period say (anything
+  // sent counts as sending: a corrupt frame is a gyro that is on). Never from the period's
+  // timing: a late period holds no evidence.
+  std::vector<std::optional<GyroEvidence>> sent(config_.drivers.units.size());
   for (std::size_t i = 0; i < sent.size() && i < in.units.size(); ++i)
-    if (in.gyro_read) sent[i] = in.units[i].frames + in.units[i].frames_corrupt;
+    if (in.gyro_link_up)
+      sent[i] = GyroEvidence{.frames = in.units[i].frames + in.units[i].frames_corrupt,
+                             .starts = in.units[i].gyro_starts,
+                             .read = in.gyro_read};
   const auto power_edges = power_.update(clock_s, sent);
   if (!run_) return {setpoint_c_};
   ActiveRun& run = *run_;
 
-  // A gyro's power-on, restart or power-off is an event of the run (and a unit's power-on
+  // A gyro's power-on, restart or lost power-on is an event of the run (and a unit's power-on
   // not seen is said at the start: its samples then carry no time since power-on).
   auto power_event = [&](std::size_t i, std::string_view what, double t_s) {
     const std::size_t ci = run.config_index[i];

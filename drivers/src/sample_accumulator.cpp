@@ -40,6 +40,15 @@ void SampleAccumulator::add(const ::can_frame& frame) noexcept {
     const std::uint32_t gap = static_cast<std::uint8_t>(step - 1);
     current_.frames_lost += gap - std::min(gap, corrupt_since_good_);
   }
+  // A power-on as the gyro tells it: only a start-up sets `warming_up`, and its counter starts
+  // at 0. Late or bunched frames of a running gyro carry neither, whatever the reader's timing.
+  const bool warming_up = (decoded->status & can::status::warming_up) != 0;
+  if (warming_up) {
+    const bool starts = have_sequence_ ? !last_warming_up_ || (decoded->sequence == 0 && last_sequence_ != 255)
+                                       : decoded->sequence == 0;
+    if (starts) ++current_.starts;
+  }
+  last_warming_up_ = warming_up;
   have_sequence_ = true;
   last_sequence_ = decoded->sequence;
   corrupt_since_good_ = 0;

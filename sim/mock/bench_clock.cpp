@@ -214,7 +214,8 @@ void BenchClock::emit(Batch& b, Clock::time_point until, Clock::time_point t0, s
           ++st.frames_lost;
           continue;
         }
-        ::can_frame frame = drivers::can::encode({cfg_.units[u].gyro.node_id, slot.counts, slot.sequence, drivers::can::status::valid});
+        const std::uint8_t status = drivers::can::status::valid | (slot.warming_up ? drivers::can::status::warming_up : 0);
+        ::can_frame frame = drivers::can::encode({cfg_.units[u].gyro.node_id, slot.counts, slot.sequence, status});
         if (f.corrupt_fraction > 0 && uniform(rng) < f.corrupt_fraction) {
           // One bit of bytes 0..6: CRC-8 detects every single-bit error.
           const auto bit = std::uniform_int_distribution<int>(0, 55)(rng);

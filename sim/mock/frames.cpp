@@ -73,6 +73,7 @@ void GyroStream::second(std::int64_t second_s, double drift_dph, const PowerWind
     f.counts = static_cast<std::int32_t>(c);
     f.sequence = sequence_++;
     f.powered = true;
+    f.warming_up = t_s - on_since_s_ < p_.startup_flag_s;
   }
   last_mean_dph_ = powered_frames > 0 ? sum_dph / static_cast<double>(powered_frames) : std::nan("");
 }

@@ -2,7 +2,8 @@
 // that the mean of ANY N consecutive frames (N frames per simulated second) carries the 1 s
 // noise the physics specifies (sim::GyroTruth: AR(p) with k1..kp and sigma_a at 1 s), whatever
 // the phase of the reader's averaging window. Also the gyro's power (frames only while powered,
-// the sequence counter from 0 at each power-on) and its optional warm-up transient. Pure: the
+// the sequence counter from 0 at each power-on, the status bit `warming_up` for its first second)
+// and its optional warm-up transient. Pure: the
 // caller steps it one simulated second at a time and sends the frames. docs/mock-bench.md.
 #pragma once
 
@@ -23,6 +24,11 @@ struct StreamParams {
   double white_dph = 0;           // extra white noise per frame (electronics), deg/h, 1 sigma
   double warmup_dph = 0;          // warm-up transient A*exp(-t/tau) after each power-on, deg/h
   double warmup_tau_s = 600;      // its time constant tau, simulated s (> 0)
+  // The start-up a real FOG announces: its frames carry the status bit `warming_up` for this
+  // long after each power-on, simulated s (0: never). With the counter from 0, the gyro's own
+  // evidence of a power-on (docs/can-frames.md "Power-on"); readers that ignore the bit see the
+  // same frames as before.
+  double startup_flag_s = 1.0;
 };
 
 // When the unit has no power: from off_from_s (inclusive) to on_at_s (exclusive), simulated s.
@@ -37,6 +43,7 @@ struct StreamFrame {
   std::int32_t counts = 0;
   std::uint8_t sequence = 0;
   bool powered = false;  // false: no frame in this slot (the gyro had no power)
+  bool warming_up = false;  // within startup_flag_s of its power-on: the status bit `warming_up`
 };
 
 class GyroStream {

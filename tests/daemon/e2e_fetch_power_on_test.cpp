@@ -48,8 +48,10 @@ TEST_CASE("e2e fetch: fit --run with ton and warm(tau) terms gives what the same
   {
     LineClient c(bench.socket());
     REQUIRE(c.ok());
-    // The daemon dates a unit's power-on from the power-on it sees in the frames: SIM-0001 is
-    // power-cycled before the run (5 s off: a silence of 2 s is an off), so every sample of the run has its time since.
+    // The daemon dates a unit's power-on from the start-up the gyro announces in its frames:
+    // SIM-0001 is power-cycled before the run, so every sample of the run has its time since.
+    // Only that start-up restarts the count: a busy host that delays frames does not, so the
+    // ton and warm(tau) columns are the same smooth count in the store and in its CSV.
     REQUIRE(bench.sim_command({{"cmd", "fault"}, {"name", "power_cycle"}, {"unit", 0}, {"off_s", 5}})["ok"] == true);
     const auto deadline = SteadyClock::now() + 120s;
     bool seen = false;

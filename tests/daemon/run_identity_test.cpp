@@ -84,11 +84,13 @@ TEST_CASE("run identity: a unit's power-on seen by the daemon is recorded with t
   SyntheticBench bench(2);
   double clock_s = 0.0;
   const double wall0 = 1764057600.0;  // 2025-11-25T08:00:00Z
-  // Both units silent for 5 s (read, no frames), then FOG-0001 sends for 10 s; FOG-0002 stays silent.
+  // Both units silent for 5 s (read, no frames), then FOG-0001 starts up (its first frames say
+  // so: warming_up, counter at 0) and sends for 10 s; FOG-0002 stays silent.
   for (int k = 0; k < 15; ++k) {
     TickInput in = bench.step(20.0, wall0 + clock_s);
     for (auto& u : in.units) u.frames = 0, u.gyro_dph.reset();
     if (k >= 5) in.units[0].frames = 100, in.units[0].gyro_dph = 0.0;
+    if (k == 5) in.units[0].gyro_starts = 1;
     r.station.tick(clock_s, in);
     clock_s += 1.0;
   }
@@ -98,7 +100,7 @@ TEST_CASE("run identity: a unit's power-on seen by the daemon is recorded with t
   REQUIRE(id->has_value());
   const auto& u = (*id)->units;
   REQUIRE(u.size() == 2);
-  // Dated to the start of the period its first frames came in (power_on.hpp): within a period.
+  // Dated to the start of the period its start-up frames came in (power_on.hpp): within a period.
   REQUIRE(u[0].since_power_on_s.has_value());
   CHECK(*u[0].since_power_on_s >= 9.0);
   CHECK(*u[0].since_power_on_s <= 11.0);

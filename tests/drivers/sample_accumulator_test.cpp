@@ -165,3 +165,51 @@ TEST_CASE("a repeated sequence number is counted and not averaged twice") {
   CHECK(s.frames_used == 2);
   CHECK(s.frames_lost == 0);
 }
+
+TEST_CASE("a power-on is a frame that says so: warming_up rising or the counter back at 0 while warming up") {
+  SampleAccumulator acc(rate_unit());
+  constexpr std::uint8_t warm = ok | can::status::warming_up;
+  SECTION("a running gyro's frames, however late, bunched or lost, start nothing") {
+    // The reader's timing cannot show in the frames: the counter runs on and no warming_up.
+    for (int s = 0; s < 600; ++s) acc.add(frame(static_cast<std::uint8_t>(s), 1000));
+    CHECK(acc.close().starts == 0);
+    CHECK(acc.close().starts == 0);  // a period with no frame at all (a paused reader)
+    acc.add(frame(0, 1000));         // 600 mod 256 = 88 was next: frames lost up to 255, then 0
+    CHECK(acc.close().starts == 0);  // lost frames are lost, not a power cycle
+  }
+  SECTION("a restart: the counter from 0 in warming_up after frames that were not") {
+    acc.add(frame(40, 1000));
+    acc.add(frame(41, 1000));
+    CHECK(acc.close().starts == 0);
+    acc.add(frame(0, 1000, warm));
+    for (std::uint8_t s = 1; s < 100; ++s) acc.add(frame(s, 1000, warm));
+    acc.add(frame(100, 1000));  // at specification: warming_up clear
+    CHECK(acc.close().starts == 1);
+    acc.add(frame(101, 1000));
+    CHECK(acc.close().starts == 0);
+  }
+  SECTION("the first frame of a restart lost: the rising warming_up is still the start") {
+    acc.add(frame(9, 1000));
+    acc.add(frame(2, 1000, warm));  // 0 and 1 lost
+    acc.add(frame(3, 1000, warm));
+    CHECK(acc.close().starts == 1);
+  }
+  SECTION("a long warm-up wraps its counter without a new start, a restart within it is one") {
+    acc.add(frame(0, 1000, warm));  // the first frame ever seen, at 0: the gyro's own first
+    for (int s = 1; s < 300; ++s) acc.add(frame(static_cast<std::uint8_t>(s), 1000, warm));  // 255 -> 0
+    CHECK(acc.close().starts == 1);
+    acc.add(frame(0, 1000, warm));  // after 43 (299 mod 256): back to 0, a restart in the warm-up
+    CHECK(acc.close().starts == 1);
+  }
+  SECTION("a gyro seen first in the middle of its warm-up: when it started is not told") {
+    acc.add(frame(37, 1000, warm));
+    acc.add(frame(38, 1000, warm));
+    CHECK(acc.close().starts == 0);
+  }
+  SECTION("a repeated frame is no new start") {
+    acc.add(frame(5, 1000));
+    acc.add(frame(0, 1000, warm));
+    acc.add(frame(0, 1000, warm));
+    CHECK(acc.close().starts == 1);
+  }
+}

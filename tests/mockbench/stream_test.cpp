@@ -145,7 +145,7 @@ TEST_CASE("the quantiser carries its remainder: any N consecutive frames sum to 
   CHECK(frames.back().sequence == 243);
 }
 
-TEST_CASE("power: no frames while unpowered, the counter from 0 at power-on, and the warm-up decays from there") {
+TEST_CASE("power: no frames while unpowered, the counter from 0 and warming_up for 1 s at power-on, and the warm-up decays from there") {
   // No noise, so every value is exact: rate mode at 1e-4 deg/h per count, 10 frames a second,
   // warm-up 5 deg/h with tau 20 s. The unit is off from 3 s to 7.5 s.
   StreamParams p;
@@ -179,6 +179,8 @@ TEST_CASE("power: no frames while unpowered, the counter from 0 at power-on, and
     const double t_on = t < 3.0 ? 0.0 : 7.5;
     const double expect_dph = mu0_dph + 5.0 * std::exp(-(t - t_on) / 20.0);
     CHECK(all[i].counts * 1e-4 == Approx(expect_dph).margin(1e-4));
+    // The start-up the gyro announces: `warming_up` for the first second of each power-on.
+    CHECK(all[i].warming_up == (t - t_on < 1.0));
   }
   // The counter: 0..29 before the cut, 0 again at 7.5 s (frame 75).
   CHECK(all[29].sequence == 29);

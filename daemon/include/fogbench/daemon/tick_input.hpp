@@ -16,6 +16,7 @@ struct UnitReading {
   std::uint32_t frames = 0;
   std::uint32_t frames_lost = 0;
   std::uint32_t frames_corrupt = 0;  // bad CRC or length: discarded, so lost to the average too
+  std::uint32_t gyro_starts = 0;     // frames that began a power-on (drivers::GyroSample::starts)
   std::optional<double> t1_c;
   std::optional<double> t2_c;
   bool out_of_range = false;  // a sensor or the gyro reported a value outside its range
@@ -33,8 +34,12 @@ struct TickInput {
   // is missing for that, not for a fault. A run that fails after such seconds says so.
   bool late = false;
   // The gyro bus was read for this period (false: its link down, the loop late, a paced bench
-  // that did not step): no frames then is no silence of the gyros (PowerWatch, power_on.hpp).
+  // that did not step).
   bool gyro_read = true;
+  // The gyro bus was connected through this period. A loop that is late loses no frame (they wait
+  // in the socket and are read later, their counter intact); a link down does, and a gyro's whole
+  // start-up could be among them (PowerWatch, power_on.hpp).
+  bool gyro_link_up = true;
 };
 
 // Told after every second the station has ticked (the plan runner, plan_runner.hpp): the station

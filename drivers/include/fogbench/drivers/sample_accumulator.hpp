@@ -40,6 +40,11 @@ struct GyroSample {
   std::uint32_t frames_foreign = 0;  // another id, or not a standard data frame
   std::uint32_t frames_repeated = 0; // same sequence number as the frame before: not averaged
   std::uint8_t status_or = 0;        // OR of the status bytes of the well-formed frames
+  // Frames that begin a power-on, by the gyro's own evidence (docs/can-frames.md "Power-on"):
+  // `warming_up` set where the frame before had it clear, or the counter back at 0 in
+  // `warming_up` without continuing from 255; the first frame ever seen counts only at sequence 0.
+  // A late reader, a paused one or lost frames of a running gyro never make one.
+  std::uint32_t starts = 0;
   std::int64_t sum_counts = 0;       // of the frames used (exact; the mean is this / frames_used)
 };
 
@@ -61,6 +66,7 @@ class SampleAccumulator {
   GyroSample current_;
   bool have_sequence_ = false;
   std::uint8_t last_sequence_ = 0;
+  bool last_warming_up_ = false;  // the last well-formed, non-repeated frame was warming up
   std::uint32_t corrupt_since_good_ = 0;  // explains sequence gaps: a corrupt frame is not lost
 };
 
