@@ -40,6 +40,17 @@ std::pair<double, double> t_span(const std::vector<storage::SampleRow>& rows) {
 
 }  // namespace
 
+std::vector<storage::SampleRow> gap_rows(const SampleGap& gap, double from_s, double to_s) {
+  std::vector<storage::SampleRow> rows;
+  if (to_s > from_s) rows.reserve(static_cast<std::size_t>(to_s - from_s) * gap.rows.size());
+  for (double t = from_s; t < to_s; t += 1.0)
+    for (const auto& r : gap.rows) {
+      rows.push_back(r);
+      rows.back().t_s = t;
+    }
+  return rows;
+}
+
 // ---------------------------------------------------------------- inline
 
 void InlineSampleWriter::append(std::int64_t run_id, std::vector<storage::SampleRow> rows, double /*clock_s*/) {
@@ -51,6 +62,11 @@ void InlineSampleWriter::append(std::int64_t run_id, std::vector<storage::Sample
     fold(one, run_id, lo, hi, static_cast<std::int64_t>(rows.size()), ok.error());
     failure_ = one.front();
   }
+}
+
+void InlineSampleWriter::append_gap(std::int64_t run_id, SampleGap gap, double clock_s) {
+  for (double t = gap.from_s; t < gap.to_s; t += kGapSliceSeconds)
+    append(run_id, gap_rows(gap, t, std::min(gap.to_s, t + kGapSliceSeconds)), clock_s);
 }
 
 std::optional<SampleWriteFailure> InlineSampleWriter::take_failure() {
@@ -81,7 +97,16 @@ void ThreadedSampleWriter::append(std::int64_t run_id, std::vector<storage::Samp
   if (rows.empty()) return;
   {
     std::lock_guard lock(mutex_);
-    queue_.push_back({run_id, clock_s, std::move(rows)});
+    queue_.push_back({run_id, clock_s, std::move(rows), std::nullopt});
+  }
+  work_.notify_one();
+}
+
+void ThreadedSampleWriter::append_gap(std::int64_t run_id, SampleGap gap, double clock_s) {
+  if (gap.to_s <= gap.from_s || gap.rows.empty()) return;
+  {
+    std::lock_guard lock(mutex_);
+    queue_.push_back({run_id, clock_s, {}, std::move(gap)});
   }
   work_.notify_one();
 }
@@ -128,7 +153,8 @@ void ThreadedSampleWriter::stop(std::chrono::milliseconds timeout) {
     stopping_ = true;
     held_ = false;
     if (!drained) {
-      for (const auto& b : queue_) lost += b.rows.size();
+      for (const auto& b : queue_)
+        lost += b.gap ? static_cast<std::size_t>(b.gap->to_s - b.gap->from_s) * b.gap->rows.size() : b.rows.size();
       queue_.clear();
     }
   }
@@ -153,13 +179,32 @@ void ThreadedSampleWriter::run() {
   for (;;) {
     work_.wait(lock, [this] { return stopping_ || (!held_ && !queue_.empty()); });
     if (queue_.empty()) return;  // stopping, nothing left
-    // The seconds of one run that queued up go into one transaction (one fsync).
     const std::int64_t run_id = queue_.front().run_id;
     in_flight_clock_s_ = queue_.front().clock_s;
+    if (queue_.front().gap) {
+      // A resume's gap: one slice a transaction; the rest stays first in the queue, so the
+      // seconds handed over after it are stored after it.
+      SampleGap& gap = *queue_.front().gap;
+      const double from_s = gap.from_s, to_s = std::min(gap.to_s, from_s + kGapSliceSeconds);
+      std::vector<storage::SampleRow> rows = gap_rows(gap, from_s, to_s);
+      gap.from_s = to_s;
+      if (to_s >= gap.to_s) queue_.pop_front();
+      in_flight_ = 1;
+      lock.unlock();
+      auto ok = store_.append_samples(run_id, rows);
+      lock.lock();
+      if (!ok) record_failure(run_id, rows, ok.error());
+      in_flight_ = 0;
+      in_flight_clock_s_.reset();
+      progress_.notify_all();
+      continue;
+    }
+    // The seconds of one run that queued up go into one transaction (one fsync).
     std::vector<storage::SampleRow> rows = std::move(queue_.front().rows);
     queue_.pop_front();
     in_flight_ = 1;
-    while (!queue_.empty() && queue_.front().run_id == run_id && in_flight_ < kMaxBatchesPerCommit) {
+    while (!queue_.empty() && !queue_.front().gap && queue_.front().run_id == run_id &&
+           in_flight_ < kMaxBatchesPerCommit) {
       auto& next = queue_.front().rows;
       rows.insert(rows.end(), std::make_move_iterator(next.begin()), std::make_move_iterator(next.end()));
       queue_.pop_front();
