@@ -190,8 +190,15 @@ void ThreadedSampleWriter::run() {
       gap.from_s = to_s;
       if (to_s >= gap.to_s) queue_.pop_front();
       in_flight_ = 1;
+      const bool more = to_s < gap.to_s;
       lock.unlock();
+      const auto began = std::chrono::steady_clock::now();
       auto ok = store_.append_samples(run_id, rows);
+      // Slices back to back would keep the write lock from the loop's own connection (its
+      // busy handler retries in sleeps that land in the next slice): the loop's event or state
+      // change would wait for the whole gap. A pause as long as the slice took lets it in.
+      if (more) std::this_thread::sleep_for(std::max<std::chrono::steady_clock::duration>(
+                    std::chrono::steady_clock::now() - began, std::chrono::milliseconds(2)));
       lock.lock();
       if (!ok) record_failure(run_id, rows, ok.error());
       in_flight_ = 0;

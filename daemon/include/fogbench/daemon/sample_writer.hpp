@@ -41,14 +41,15 @@ struct SampleWriteFailure {
 // The seconds a resumed run was away (Station::resume_run): [from_s, to_s) of the run clock, each
 // stored as `rows` (one per unit, flagged missing + link_gap; their t_s is set per second). A gap
 // of a long downtime is tens of thousands of seconds: it is written in slices of
-// kGapSliceSeconds, one transaction each, so a kill loses at most the slice in progress and the
+// kGapSliceSeconds, one transaction each, with a pause as long as each took after it (the loop's
+// connection gets the write lock between them), so a kill loses at most the slice in progress and the
 // seconds written stay (the next resume completes the gap from the last stored second).
 struct SampleGap {
   double from_s = 0.0;  // the first second of the gap, s since the run's start
   double to_s = 0.0;    // one past the last, s
   std::vector<storage::SampleRow> rows;
 };
-inline constexpr double kGapSliceSeconds = 600.0;
+inline constexpr double kGapSliceSeconds = 120.0;
 // The rows of the gap's seconds [from_s, to_s), every unit's for each second.
 std::vector<storage::SampleRow> gap_rows(const SampleGap& gap, double from_s, double to_s);
 
