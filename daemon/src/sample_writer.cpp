@@ -52,6 +52,17 @@ void RefusedRuns::add(std::int64_t run_id, const storage::StoreError& first) {
   if (runs_.size() > 16) runs_.pop_front();
 }
 
+std::vector<storage::SampleRow> gap_rows(const SampleGap& gap, double from_s, double to_s) {
+  std::vector<storage::SampleRow> rows;
+  if (to_s > from_s) rows.reserve(static_cast<std::size_t>(to_s - from_s) * gap.rows.size());
+  for (double t = from_s; t < to_s; t += 1.0)
+    for (const auto& r : gap.rows) {
+      rows.push_back(r);
+      rows.back().t_s = t;
+    }
+  return rows;
+}
+
 // ---------------------------------------------------------------- inline
 
 void InlineSampleWriter::append(std::int64_t run_id, std::vector<storage::SampleRow> rows, double /*clock_s*/) {
@@ -67,6 +78,11 @@ void InlineSampleWriter::append(std::int64_t run_id, std::vector<storage::Sample
   const auto [lo, hi] = t_span(rows);
   fold(one, run_id, lo, hi, static_cast<std::int64_t>(rows.size()), *refusal);
   failure_ = one.front();
+}
+
+void InlineSampleWriter::append_gap(std::int64_t run_id, SampleGap gap, double clock_s) {
+  for (double t = gap.from_s; t < gap.to_s; t += kGapSliceSeconds)
+    append(run_id, gap_rows(gap, t, std::min(gap.to_s, t + kGapSliceSeconds)), clock_s);
 }
 
 std::optional<SampleWriteFailure> InlineSampleWriter::take_failure() {
@@ -97,7 +113,16 @@ void ThreadedSampleWriter::append(std::int64_t run_id, std::vector<storage::Samp
   if (rows.empty()) return;
   {
     std::lock_guard lock(mutex_);
-    queue_.push_back({run_id, clock_s, std::move(rows)});
+    queue_.push_back({run_id, clock_s, std::move(rows), std::nullopt});
+  }
+  work_.notify_one();
+}
+
+void ThreadedSampleWriter::append_gap(std::int64_t run_id, SampleGap gap, double clock_s) {
+  if (gap.to_s <= gap.from_s || gap.rows.empty()) return;
+  {
+    std::lock_guard lock(mutex_);
+    queue_.push_back({run_id, clock_s, {}, std::move(gap)});
   }
   work_.notify_one();
 }
@@ -144,7 +169,8 @@ void ThreadedSampleWriter::stop(std::chrono::milliseconds timeout) {
     stopping_ = true;
     held_ = false;
     if (!drained) {
-      for (const auto& b : queue_) lost += b.rows.size();
+      for (const auto& b : queue_)
+        lost += b.gap ? static_cast<std::size_t>(b.gap->to_s - b.gap->from_s) * b.gap->rows.size() : b.rows.size();
       queue_.clear();
     }
   }
@@ -169,13 +195,53 @@ void ThreadedSampleWriter::run() {
   for (;;) {
     work_.wait(lock, [this] { return stopping_ || (!held_ && !queue_.empty()); });
     if (queue_.empty()) return;  // stopping, nothing left
-    // The seconds of one run that queued up go into one transaction (one fsync).
     const std::int64_t run_id = queue_.front().run_id;
     in_flight_clock_s_ = queue_.front().clock_s;
+    if (queue_.front().gap) {
+      // A resume's gap: one slice a transaction; the rest stays first in the queue, so the
+      // seconds handed over after it are stored after it.
+      SampleGap& gap = *queue_.front().gap;
+      if (auto first = refused_.find(run_id)) {
+        // The run's samples were refused: none of its gap is written either (no hole).
+        const auto n = static_cast<std::int64_t>(gap.to_s - gap.from_s) * static_cast<std::int64_t>(gap.rows.size());
+        spdlog::error("sample writer: the gap of run {} (t_s {} to {} s, {} rows) not stored: the run's samples were refused",
+                      run_id, gap.from_s, gap.to_s - 1.0, n);
+        fold(failures_, run_id, gap.from_s, gap.to_s - 1.0, n, *first);
+        queue_.pop_front();
+        in_flight_clock_s_.reset();
+        progress_.notify_all();
+        continue;
+      }
+      const double from_s = gap.from_s, to_s = std::min(gap.to_s, from_s + kGapSliceSeconds);
+      std::vector<storage::SampleRow> rows = gap_rows(gap, from_s, to_s);
+      gap.from_s = to_s;
+      if (to_s >= gap.to_s) queue_.pop_front();
+      in_flight_ = 1;
+      const bool more = to_s < gap.to_s;
+      lock.unlock();
+      const auto began = std::chrono::steady_clock::now();
+      auto ok = store_.append_samples(run_id, rows);
+      // Slices back to back would keep the write lock from the loop's own connection (its
+      // busy handler retries in sleeps that land in the next slice): the loop's event or state
+      // change would wait for the whole gap. A pause as long as the slice took lets it in.
+      if (more) std::this_thread::sleep_for(std::max<std::chrono::steady_clock::duration>(
+                    std::chrono::steady_clock::now() - began, std::chrono::milliseconds(2)));
+      lock.lock();
+      if (!ok) {
+        refused_.add(run_id, ok.error());
+        record_failure(run_id, rows, ok.error());
+      }
+      in_flight_ = 0;
+      in_flight_clock_s_.reset();
+      progress_.notify_all();
+      continue;
+    }
+    // The seconds of one run that queued up go into one transaction (one fsync).
     std::vector<storage::SampleRow> rows = std::move(queue_.front().rows);
     queue_.pop_front();
     in_flight_ = 1;
-    while (!queue_.empty() && queue_.front().run_id == run_id && in_flight_ < kMaxBatchesPerCommit) {
+    while (!queue_.empty() && !queue_.front().gap && queue_.front().run_id == run_id &&
+           in_flight_ < kMaxBatchesPerCommit) {
       auto& next = queue_.front().rows;
       rows.insert(rows.end(), std::make_move_iterator(next.begin()), std::make_move_iterator(next.end()));
       queue_.pop_front();

@@ -249,11 +249,15 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
   std::size_t n = rows.empty() ? 0 : rows[0].size();
   for (const auto& r : rows) n = std::min(n, r.size());
   double wall_last = now_wall_time;
+  double wall_last_t_s = -1.0;  // the run second of wall_last: the last one the bench was read
   for (std::size_t i = 0; i < n; ++i) {
     const storage::SampleRow& r0 = rows[0][i];
     const double t_s = r0.t_s;
     const bool gap = (r0.flags & model::flag::link_gap) != 0;
-    if (gap && config_.link_loss.policy == LinkLossConfig::Policy::hold && run.updated) {
+    // An earlier resume's gap (no wall time: nothing was read) held the profile clock whatever
+    // the policy, as the resume that wrote it did.
+    const bool away = gap && !std::isfinite(r0.wall_time) && (r0.flags & model::flag::missing) != 0;
+    if (((gap && config_.link_loss.policy == LinkLossConfig::Policy::hold) || away) && run.updated) {
       run.held_s += t_s - run.prev_t_s;
     } else {
       profiles::Readings readings;
@@ -265,7 +269,10 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
     run.prev_t_s = t_s;
     run.phase = run.last.phase;
     run.step = run.last.step_index;
-    if (std::isfinite(r0.wall_time)) wall_last = r0.wall_time;
+    if (std::isfinite(r0.wall_time)) {
+      wall_last = r0.wall_time;
+      wall_last_t_s = t_s;
+    }
   }
   if (run.last.finished || run.last.failed)
     return api_error(ErrorCode::bad_request, "run_id: run " + std::to_string(run_id) +
@@ -278,33 +285,39 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
   for (std::size_t u = 0; u < rows.size(); ++u)
     for (const auto& r : rows[u]) run.live.step(u, r);
   const double last_t_s = n == 0 ? -1.0 : rows[0][n - 1].t_s;
-  // The time the bench was without the daemon, in run seconds: the run clock counts it.
+  // The time the bench was without the daemon, in run seconds: the run clock counts it. It is
+  // measured from the last second read (the last stored with a wall time), so it is the same
+  // whether an earlier resume's gap was stored whole, in part (killed while writing it) or not
+  // at all: the gap ends where the run clock stands now, and only its seconds not yet stored are
+  // added. A gap is written once.
   const double down_s = std::max(0.0, std::floor((now_wall_time - wall_last) * time_scale_));
-  const double gap_from_s = last_t_s + 1.0, gap_to_s = last_t_s + 1.0 + down_s;  // [from, to)
+  const double gap_from_s = last_t_s + 1.0;                                  // [from, to)
+  const double gap_to_s = std::max(gap_from_s, wall_last_t_s + 1.0 + down_s);
+  const double already_s = std::max(0.0, gap_from_s - (wall_last_t_s + 1.0));  // stored by an earlier resume
+  const double add_s = gap_to_s - gap_from_s;
   // The gap's seconds as rows, flagged: every second of the run is in the store, none invented.
-  for (double t = gap_from_s; t < gap_to_s; t += 1.0) {
-    std::vector<storage::SampleRow> gap_rows;
-    for (std::size_t u = 0; u < run.serials.size(); ++u) {
-      storage::SampleRow r;
-      r.unit_index = static_cast<int>(u);
-      r.t_s = t;
-      r.setpoint_c = run.last.setpoint_c;
-      r.phase = storage::model_phase(run.last.phase);
-      r.step = static_cast<int>(run.last.step_index);
-      r.flags = model::flag::missing | model::flag::link_gap;
-      r.compensated_dph = run.live.step(u, r);  // none: the gap restarts the compensators
-      gap_rows.push_back(r);
-    }
-    if (auto ok = store_.append_samples(run_id, gap_rows); !ok) return std::unexpected(from_store(ok.error()));
+  // Written by the sample writer, off the loop for fogbenchd (one slice a transaction), before
+  // any second the run reads after it.
+  SampleGap gap{gap_from_s, gap_to_s, {}};
+  for (std::size_t u = 0; u < run.serials.size(); ++u) {
+    storage::SampleRow r;
+    r.unit_index = static_cast<int>(u);
+    r.t_s = gap_from_s;
+    r.setpoint_c = run.last.setpoint_c;
+    r.phase = storage::model_phase(run.last.phase);
+    r.step = static_cast<int>(run.last.step_index);
+    r.flags = model::flag::missing | model::flag::link_gap;
+    r.compensated_dph = run.live.step(u, r);  // none: the gap restarts the compensators
+    gap.rows.push_back(r);
   }
-  run.held_s += down_s;  // the profile clock stood still through the gap
+  run.held_s += add_s;  // the profile clock stood still through the gap (its stored part was replayed)
   // The counts go on from the store: every second stored flagged, the gap's included. The
   // frames lost and corrupt before the crash were only in the dead daemon's memory: they count
   // from here.
   run.quality.assign(run.serials.size(), {});
   for (std::size_t u = 0; u < rows.size(); ++u) {
     for (std::size_t i = 0; i < n; ++i) run.quality[u].samples_flagged += rows[u][i].flags != 0;
-    run.quality[u].samples_flagged += static_cast<std::uint64_t>(down_s);
+    run.quality[u].samples_flagged += static_cast<std::uint64_t>(add_s);
   }
   run.prev_t_s = gap_to_s - 1.0;
   run.resume_at_s = gap_to_s;
@@ -312,10 +325,16 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
   run.link_down = true;  // so the first tick records the link as up again when it is
   run_ = std::move(run);
   event(run_id, storage::EventKind::command, command, gap_from_s);
-  event(run_id, storage::EventKind::fault,
-        {{"resumed", true}, {"gap_from_s", gap_from_s}, {"gap_s", down_s},
-         {"profile_clock_s", run_->prev_t_s - run_->held_s}},
-        gap_from_s);
+  // Recorded before the gap's rows are: what is to be stored, and what an earlier resume had
+  // already stored of it (a resume killed while writing its gap).
+  json fault = {{"resumed", true}, {"gap_from_s", gap_from_s}, {"gap_s", add_s}, {"gap_to_s", gap_to_s},
+                {"profile_clock_s", run_->prev_t_s - run_->held_s}};
+  if (already_s > 0) {
+    fault["gap_stored_before_s"] = already_s;
+    fault["gap_started_s"] = wall_last_t_s + 1.0;
+  }
+  event(run_id, storage::EventKind::fault, fault, gap_from_s);
+  if (add_s > 0) samples_->append_gap(run_id, std::move(gap), clock_s_);
   return run_id;
 }
 

@@ -367,6 +367,89 @@ TEST_CASE("station faults: an interrupted run resumes where its profile clock st
   CHECK(rows->at(750).setpoint_c == Approx(rows->at(699).setpoint_c + 1.0 / 60.0));
 }
 
+namespace {
+// A writer that dies in the middle of a resume's gap, as fogbenchd killed while its writer thread
+// writes it: the seconds go to the store, of a gap only its first slice.
+class DiesInGap final : public SampleWriter {
+ public:
+  explicit DiesInGap(storage::Store& s) : inline_(s) {}
+  void append(std::int64_t run_id, std::vector<storage::SampleRow> rows, double clock_s) override {
+    inline_.append(run_id, std::move(rows), clock_s);
+  }
+  void append_gap(std::int64_t run_id, SampleGap gap, double clock_s) override {
+    inline_.append(run_id, gap_rows(gap, gap.from_s, std::min(gap.to_s, gap.from_s + kGapSliceSeconds)), clock_s);
+  }
+  std::optional<SampleWriteFailure> take_failure() override { return inline_.take_failure(); }
+  bool drain(std::chrono::milliseconds) override { return true; }
+  std::optional<double> oldest_pending_clock_s() const override { return std::nullopt; }
+  std::size_t pending() const override { return 0; }
+
+ private:
+  InlineSampleWriter inline_;
+};
+}  // namespace
+
+TEST_CASE("station faults: a resume killed while writing its gap is completed by the next resume, the gap stored once") {
+  auto store = memory_store();
+  std::int64_t run = 0;
+  double sp_c = 20.0;
+  SyntheticBench bench(1);
+  {
+    Station st(golden_config(), store, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
+    run = *st.start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
+    // 700 s: wall time = 1000 + run second, the last stored at 1699.
+    for (int k = 0; k < 700; ++k) sp_c = st.tick(k, bench.step(sp_c, 1000.0 + k)).setpoint_c;
+  }
+  const double away_s = 5000.0;  // the bench without the daemon, wall s (time scale 1)
+  {
+    // The first resume: only its gap's first slice is stored before the daemon dies.
+    Station st(golden_config(), store, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
+    DiesInGap dies(store);
+    st.set_sample_writer(&dies);
+    REQUIRE(st.recover().has_value());
+    REQUIRE(st.resume_run(run, 1699.0 + away_s, {{"cmd", "run.resume"}, {"run_id", run}}).has_value());
+    CHECK(*store.count_samples(run, 0) == 700 + static_cast<std::int64_t>(kGapSliceSeconds));
+  }
+  // The second, 100 s later: the gap ends where the run clock stands now (5100 s after second
+  // 699), its stored slice is not added again.
+  Station st(golden_config(), store, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
+  REQUIRE(st.recover().has_value());
+  REQUIRE(store.get_run(run)->run.state == storage::RunState::interrupted);
+  REQUIRE(st.resume_run(run, 1699.0 + away_s + 100.0, {{"cmd", "run.resume"}, {"run_id", run}}).has_value());
+  CHECK(st.status()["run"]["quality"][0]["samples_flagged"] == away_s + 100.0);
+  const auto n = *store.count_samples(run, 0);
+  CHECK(n == 700 + static_cast<std::int64_t>(away_s) + 100);
+  auto rows = store.get_samples(run, 0, 0, n);
+  REQUIRE(static_cast<std::int64_t>(rows->size()) == n);
+  for (std::size_t i = 0; i < rows->size(); ++i) {
+    INFO("row " << i);
+    CHECK(rows->at(i).t_s == static_cast<double>(i));
+    CHECK(((rows->at(i).flags & model::flag::link_gap) != 0) == (i >= 700));
+  }
+  // Each resume said what it stored; the second that it completed the first's gap.
+  auto d = store.get_run(run);
+  std::vector<json> resumes;
+  for (const auto& e : d->events) {
+    json j = json::parse(e.detail_json);
+    if (e.kind == storage::EventKind::fault && j.value("resumed", false)) resumes.push_back(j);
+  }
+  REQUIRE(resumes.size() == 2);
+  CHECK(resumes[0]["gap_from_s"] == 700.0);
+  CHECK(resumes[0]["gap_s"] == away_s);
+  CHECK_FALSE(resumes[0].contains("gap_stored_before_s"));
+  CHECK(resumes[1]["gap_from_s"] == 700.0 + kGapSliceSeconds);
+  CHECK(resumes[1]["gap_stored_before_s"] == kGapSliceSeconds);
+  CHECK(resumes[1]["gap_started_s"] == 700.0);
+  CHECK(resumes[1]["gap_to_s"] == 700.0 + away_s + 100.0);
+  // The profile clock stood through the whole gap: the run goes on from 700 s of profile, 1101
+  // seconds to its end.
+  int ticks = 0;
+  for (double clock_s = 10000; st.active_run_id() && ticks < 5000; clock_s += 1, ++ticks)
+    sp_c = st.tick(clock_s, bench.step(sp_c, 1699.0 + away_s + 100.0 + ticks)).setpoint_c;
+  CHECK(ticks == 1101);
+  CHECK(store.get_run(run)->run.state == storage::RunState::completed);
+}
+
 TEST_CASE("station faults: run.start and run.resume are refused while the chamber link is down, accepted once it is back") {
   storage::Store store = memory_store();
   Station st(golden_config(), store, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });

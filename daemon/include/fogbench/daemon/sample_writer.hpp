@@ -54,12 +54,31 @@ class RefusedRuns {
   std::deque<std::pair<std::int64_t, storage::StoreError>> runs_;
 };
 
+// The seconds a resumed run was away (Station::resume_run): [from_s, to_s) of the run clock, each
+// stored as `rows` (one per unit, flagged missing + link_gap; their t_s is set per second). A gap
+// of a long downtime is tens of thousands of seconds: it is written in slices of
+// kGapSliceSeconds, one transaction each, with a pause as long as each took after it (the loop's
+// connection gets the write lock between them), so a kill loses at most the slice in progress and the
+// seconds written stay (the next resume completes the gap from the last stored second).
+struct SampleGap {
+  double from_s = 0.0;  // the first second of the gap, s since the run's start
+  double to_s = 0.0;    // one past the last, s
+  std::vector<storage::SampleRow> rows;
+};
+inline constexpr double kGapSliceSeconds = 120.0;
+// The rows of the gap's seconds [from_s, to_s), every unit's for each second.
+std::vector<storage::SampleRow> gap_rows(const SampleGap& gap, double from_s, double to_s);
+
 class SampleWriter {
  public:
   virtual ~SampleWriter() = default;
   // Hands over one second's rows of a run (every unit), tagged with the daemon's clock at the
   // hand-over (s), which oldest_pending_clock_s() gives back. Inline: committed before it returns.
   virtual void append(std::int64_t run_id, std::vector<storage::SampleRow> rows, double clock_s) = 0;
+  // Hands over a resumed run's gap (SampleGap), to be stored before anything handed over after
+  // it, slice by slice. The thread writes it off the loop; it counts as one hand-over, tagged
+  // `clock_s`, until its last slice is committed. Inline: written before it returns.
+  virtual void append_gap(std::int64_t run_id, SampleGap gap, double clock_s) = 0;
   // The refusals not yet taken, folded into one per run (the first run's when several).
   virtual std::optional<SampleWriteFailure> take_failure() = 0;
   // Waits until every row handed over is committed or refused, `timeout` at most. False: rows
@@ -76,6 +95,7 @@ class InlineSampleWriter final : public SampleWriter {
  public:
   explicit InlineSampleWriter(storage::Store& store) : store_(store) {}
   void append(std::int64_t run_id, std::vector<storage::SampleRow> rows, double clock_s) override;
+  void append_gap(std::int64_t run_id, SampleGap gap, double clock_s) override;
   std::optional<SampleWriteFailure> take_failure() override;
   bool drain(std::chrono::milliseconds) override { return true; }
   std::optional<double> oldest_pending_clock_s() const override { return std::nullopt; }
@@ -103,6 +123,7 @@ class ThreadedSampleWriter final : public SampleWriter {
   ThreadedSampleWriter& operator=(const ThreadedSampleWriter&) = delete;
 
   void append(std::int64_t run_id, std::vector<storage::SampleRow> rows, double clock_s) override;
+  void append_gap(std::int64_t run_id, SampleGap gap, double clock_s) override;
   std::optional<SampleWriteFailure> take_failure() override;
   bool drain(std::chrono::milliseconds timeout) override;
   std::optional<double> oldest_pending_clock_s() const override;
@@ -122,6 +143,7 @@ class ThreadedSampleWriter final : public SampleWriter {
     std::int64_t run_id = 0;
     double clock_s = 0.0;
     std::vector<storage::SampleRow> rows;
+    std::optional<SampleGap> gap;  // a gap's seconds not yet written (rows empty); stays first until done
   };
   void run();
   void record_failure(std::int64_t run_id, const std::vector<storage::SampleRow>& rows, const storage::StoreError& e);
