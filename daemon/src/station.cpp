@@ -307,7 +307,8 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
     r.phase = storage::model_phase(run.last.phase);
     r.step = static_cast<int>(run.last.step_index);
     r.flags = model::flag::missing | model::flag::link_gap;
-    r.compensated_dph = run.live.step(u, r);  // none: the gap restarts the compensators
+    // None: a gap restarts the compensators (no gap, resumed within the second: they go on).
+    if (add_s > 0) r.compensated_dph = run.live.step(u, r);
     gap.rows.push_back(r);
   }
   run.held_s += add_s;  // the profile clock stood still through the gap (its stored part was replayed)

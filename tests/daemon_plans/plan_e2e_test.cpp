@@ -268,7 +268,7 @@ TEST_CASE("plan e2e: bad plans are refused naming the line or field, and nothing
 
   auto serial = plan_call(c, "queue.add", "step pfit fit\n", {"SIM-0009"}, "bad.plan");
   CHECK(code_of(serial) == "unknown_serial");
-  CHECK_THAT(serial.dump(), Catch::Contains("units: SIM-0009"));
+  CHECK_THAT(serial.dump(), Catch::Contains("unit SIM-0009: not the default serial of any slot") && Catch::Contains("--slot A=SIM-0009"));
 
   auto no_units = c.call({{"cmd", "plan.start"}, {"text", "step pfit fit\n"}});
   CHECK(code_of(no_units) == "bad_request");
