@@ -113,7 +113,7 @@ TEST_CASE("sample writer: held-back seconds are committed in order once the writ
   CHECK(store->integrity_check()->empty());
 }
 
-TEST_CASE("sample writer: a refusal names the run, the seconds and the rows lost; the run's later seconds are refused with it") {
+TEST_CASE("sample writer: a refusal names the run, the seconds and the rows lost, and the run's later seconds are refused with it") {
   TempDir dir;
   const auto db = dir.path / "fogbench.db";
   auto store = storage::Store::open(db);
