@@ -47,11 +47,11 @@ ApiResult<std::vector<SlotUnit>> slot_units(const nlohmann::json& req,
       const std::string& s = (*serials)[i];
       const std::string field = "units[" + std::to_string(i) + "]";
       if (s.empty()) return api_error(ErrorCode::bad_request, field + ": empty serial");
-      auto it = std::find_if(configured.begin(), configured.end(), [&](const auto& u) { return u.serial == s; });
-      if (it == configured.end())
+      const auto ci = find_slot(configured, s);
+      if (!ci)
         return api_error(ErrorCode::unknown_serial, "unit " + s + ": not the default serial of any slot on this bench (" +
                                                         "give its slot: slots {\"A\": \"" + s + "\"}, fogctl --slot A=" + s + ")");
-      if (auto ok = place(static_cast<std::size_t>(it - configured.begin()), s, field); !ok) {
+      if (auto ok = place(*ci, s, field); !ok) {
         // The same serial twice in `units` keeps its old message.
         if (std::count(serials->begin(), serials->end(), s) > 1)
           return api_error(ErrorCode::bad_request, "units: " + s + " given twice");
@@ -65,7 +65,7 @@ ApiResult<std::vector<SlotUnit>> slot_units(const nlohmann::json& req,
       return api_error(ErrorCode::bad_request, "slots: expected an object {slot: serial}, e.g. {\"A\": \"FOG-0042\"}");
     // In the configuration's order, so that the unit indices do not depend on the JSON's.
     for (const auto& [key, value] : slots.items()) {
-      if (std::none_of(configured.begin(), configured.end(), [&](const auto& u) { return u.slot == key; }))
+      if (!find_slot(configured, {}, key))
         return api_error(ErrorCode::bad_request, "slots." + key + ": no such slot on this bench (slots: " + slot_list(configured) + ")");
       const std::string field = "slots." + key;
       if (!value.is_string()) return api_error(ErrorCode::bad_request, field + ": expected a serial (a string)");
@@ -82,6 +82,15 @@ ApiResult<std::vector<SlotUnit>> slot_units(const nlohmann::json& req,
   }
   if (out.empty()) return api_error(ErrorCode::bad_request, has_slots ? "slots: expected at least one slot" : "units: expected at least one serial");
   return out;
+}
+
+std::optional<std::size_t> find_slot(const std::vector<drivers::UnitConfig>& configured, std::string_view serial,
+                                     std::optional<std::string_view> slot) {
+  auto it = std::find_if(configured.begin(), configured.end(), [&](const auto& u) {
+    return slot ? u.slot == *slot : !u.serial.empty() && u.serial == serial;
+  });
+  if (it == configured.end()) return std::nullopt;
+  return static_cast<std::size_t>(it - configured.begin());
 }
 
 std::vector<std::string> serials_of(const std::vector<SlotUnit>& units) {

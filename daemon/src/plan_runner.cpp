@@ -102,14 +102,13 @@ ApiResult<std::vector<SlotUnit>> plan_slot_units(const std::vector<drivers::Unit
   std::vector<SlotUnit> out;
   for (const auto& serial : units) {
     auto s = slots.find(serial);
-    auto it = std::find_if(configured.begin(), configured.end(), [&](const auto& u) {
-      return s != slots.end() ? u.slot == s->second : !u.serial.empty() && u.serial == serial;
-    });
-    if (it == configured.end())
+    const auto ci = find_slot(configured, serial,
+                              s != slots.end() ? std::optional<std::string_view>(s->second) : std::nullopt);
+    if (!ci)
       return api_error(ErrorCode::unknown_serial, s != slots.end()
                                                       ? "units: " + serial + ": slot " + s->second + " is not configured on this bench"
                                                       : "units: " + serial + " is not configured on this bench");
-    out.push_back({static_cast<std::size_t>(it - configured.begin()), serial});
+    out.push_back({*ci, serial});
   }
   return out;
 }

@@ -182,6 +182,12 @@ void ThreadedSampleWriter::stop(std::chrono::milliseconds timeout) {
   thread_.join();
 }
 
+void ThreadedSampleWriter::refuse(std::int64_t run_id, const std::vector<storage::SampleRow>& rows,
+                                  const storage::StoreError& e) {
+  refused_.add(run_id, e);
+  record_failure(run_id, rows, e);
+}
+
 void ThreadedSampleWriter::record_failure(std::int64_t run_id, const std::vector<storage::SampleRow>& rows,
                                           const storage::StoreError& e) {
   const auto [lo, hi] = t_span(rows);
@@ -227,10 +233,7 @@ void ThreadedSampleWriter::run() {
       if (more) std::this_thread::sleep_for(std::max<std::chrono::steady_clock::duration>(
                     std::chrono::steady_clock::now() - began, std::chrono::milliseconds(2)));
       lock.lock();
-      if (!ok) {
-        refused_.add(run_id, ok.error());
-        record_failure(run_id, rows, ok.error());
-      }
+      if (!ok) refuse(run_id, rows, ok.error());
       in_flight_ = 0;
       in_flight_clock_s_.reset();
       progress_.notify_all();
@@ -254,10 +257,7 @@ void ThreadedSampleWriter::run() {
       lock.unlock();
       auto ok = store_.append_samples(run_id, rows);
       lock.lock();
-      if (!ok) {
-        refused_.add(run_id, ok.error());
-        record_failure(run_id, rows, ok.error());
-      }
+      if (!ok) refuse(run_id, rows, ok.error());
     }
     in_flight_ = 0;
     in_flight_clock_s_.reset();

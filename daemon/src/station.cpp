@@ -125,12 +125,9 @@ ApiResult<std::int64_t> Station::start_run(const std::string& profile_name,
   for (std::size_t i = 0; i < serials.size(); ++i) {
     for (std::size_t j = 0; j < i; ++j)
       if (serials[j] == serials[i]) return api_error(ErrorCode::bad_request, "units: " + serials[i] + " given twice");
-    const auto& configured = config_.drivers.units;
-    auto it = std::find_if(configured.begin(), configured.end(),
-                           [&](const auto& u) { return !u.serial.empty() && u.serial == serials[i]; });
-    if (it == configured.end())
-      return api_error(ErrorCode::unknown_serial, "unit " + serials[i] + ": not configured on this bench");
-    units.push_back({static_cast<std::size_t>(it - configured.begin()), serials[i]});
+    const auto ci = find_slot(config_.drivers.units, serials[i]);
+    if (!ci) return api_error(ErrorCode::unknown_serial, "unit " + serials[i] + ": not configured on this bench");
+    units.push_back({*ci, serials[i]});
   }
   return start_run_in_slots(profile_name, units, purpose, command, op);
 }
@@ -222,15 +219,13 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
   run.profile_name = rec.profile_name;
   for (const auto& u : rec.units) {
     // In the slot it was stored in; a run stored before slots, in the slot of its default serial.
-    const auto& units = config_.drivers.units;
-    auto it = std::find_if(units.begin(), units.end(), [&](const auto& c) {
-      return u.slot ? c.slot == *u.slot : !c.serial.empty() && c.serial == u.serial;
-    });
-    if (it == units.end())
+    const auto ci = find_slot(config_.drivers.units, u.serial,
+                              u.slot ? std::optional<std::string_view>(*u.slot) : std::nullopt);
+    if (!ci)
       return api_error(ErrorCode::unknown_serial, "unit " + u.serial + (u.slot ? " (slot " + *u.slot + ")" : "") +
                                                       ": not configured on this bench");
     run.serials.push_back(u.serial);
-    run.config_index.push_back(static_cast<std::size_t>(it - units.begin()));
+    run.config_index.push_back(*ci);
   }
   auto profile = check_profile_text(rec.profile_text, rec.profile_name + ".profile");
   if (!profile) return std::unexpected(profile.error());

@@ -5,7 +5,9 @@
 #pragma once
 
 #include <cstddef>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -32,6 +34,11 @@ struct SlotUnit {
 ApiResult<std::vector<SlotUnit>> slot_units(const nlohmann::json& req,
                                             const std::vector<drivers::UnitConfig>& configured,
                                             bool required);
+
+// The index (into `configured`) of the slot named `slot` when one is given, else of the slot
+// whose configured default serial is `serial`; nullopt when there is none.
+std::optional<std::size_t> find_slot(const std::vector<drivers::UnitConfig>& configured, std::string_view serial,
+                                     std::optional<std::string_view> slot = std::nullopt);
 
 // The serials of `units`, in order.
 std::vector<std::string> serials_of(const std::vector<SlotUnit>& units);

@@ -147,6 +147,8 @@ class ThreadedSampleWriter final : public SampleWriter {
   };
   void run();
   void record_failure(std::int64_t run_id, const std::vector<storage::SampleRow>& rows, const storage::StoreError& e);
+  // A refusal by the store: the run is refused from now on (RefusedRuns), and the rows recorded.
+  void refuse(std::int64_t run_id, const std::vector<storage::SampleRow>& rows, const storage::StoreError& e);
 
   storage::Store store_;
   mutable std::mutex mutex_;
