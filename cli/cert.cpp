@@ -87,8 +87,12 @@ std::string table(const std::vector<std::string>& head, const std::vector<std::v
 std::string estimate_text(const json& e) {
   if (!e.is_object() || !e.contains("value") || e["value"].is_null())
     return "not visible" + (e.is_object() && e.contains("note") && !e["note"].get<std::string>().empty() ? " (" + e["note"].get<std::string>() + ")" : std::string());
-  return text_of(e["value"]) + " (" + text_of(e["ci_low"]) + " .. " + text_of(e["ci_high"]) + ", tau " +
-         text_of(e["from_tau_s"]) + ".." + text_of(e["to_tau_s"]) + " s)";
+  std::string s = text_of(e["value"]) + " (" + text_of(e["ci_low"]) + " .. " + text_of(e["ci_high"]) + ", tau " +
+                  text_of(e["from_tau_s"]) + ".." + text_of(e["to_tau_s"]) + " s";
+  // Certificates issued before the EDF was recorded have none: nothing is invented for them.
+  if (e.contains("edf") && e["edf"].is_number()) s += ", EDF " + text_of(e["edf"]);
+  if (e.contains("share") && e["share"].is_number()) s += ", " + fixed(100.0 * e["share"].get<double>(), 0) + " % of sigma^2";
+  return s + ")";
 }
 
 // Who decided the verdict: "plan NAME (plan 7, text sha256 ab12...)" or "the station's analysis

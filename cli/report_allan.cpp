@@ -50,6 +50,14 @@ std::string allan_cell(const std::optional<allan::NoiseEstimate>& e, int digits)
   return fixed(e->value, digits) + " (" + fixed(e->ci_low, digits) + ".." + fixed(e->ci_high, digits) + ")";
 }
 
+// The cell with the interval's evidence: the tau it is read at, the EDF of sigma^2 there and
+// the term's share of sigma^2 (what makes the 1-sigma interval as wide as it is).
+static std::string allan_cell_with_evidence(const std::optional<allan::NoiseEstimate>& e, int digits) {
+  if (!e) return "-";
+  return allan_cell(e, digits) + " at tau " + fixed(e->from_tau_s, 0) + " s, EDF " + fixed(e->edf, 1) + ", " +
+         fixed(100.0 * e->share, 0) + " %";
+}
+
 std::string allan_section(const model::Model& m, const model::RunData& run, const std::string& key, nlohmann::json& specs,
                           std::size_t max_points) {
   std::string html = "<h3>Allan deviation (IEEE Std 952 Annex C): " + html_escape(run.name) + "</h3>";
@@ -90,8 +98,8 @@ std::string allan_section(const model::Model& m, const model::RunData& run, cons
     const bool comp = x.what == "compensated";
     rows += std::string("<tr") + (comp ? " class=\"hit\"" : "") + "><td class=\"w\">" + html_escape(x.what) + "</td><td>" + fixed(from_s, 0) +
             "</td><td>" + fixed(to_s, 0) + "</td><td>" + std::to_string(x.rate_dph.size()) + "</td><td>" +
-            allan_cell(t.arw_deg_per_sqrt_h, 5) + "</td><td>" + allan_cell(t.bias_instability_dph, 4) + "</td><td>" +
-            allan_cell(t.rrw_dph_per_sqrt_h, 4) + "</td></tr>";
+            allan_cell_with_evidence(t.arw_deg_per_sqrt_h, 5) + "</td><td>" + allan_cell_with_evidence(t.bias_instability_dph, 4) +
+            "</td><td>" + allan_cell_with_evidence(t.rrw_dph_per_sqrt_h, 4) + "</td></tr>";
     for (const auto& [name, note] : {std::pair{"ARW", t.arw_note}, std::pair{"bias instability", t.bias_instability_note},
                                      std::pair{"RRW", t.rrw_note}})
       if (!note.empty()) notes.push_back(x.what + ": " + name + ": " + note);
@@ -145,9 +153,12 @@ std::string allan_section(const model::Model& m, const model::RunData& run, cons
   html += rows;
   html += "<p class=\"note\">Overlapping Allan deviation at octave taus of each hold (evenly spaced, unflagged, at least " +
           std::to_string(kAllanMinSamples) +
-          " samples) and of the longest such stretch of the output compensated with the model. In brackets: 1-sigma intervals "
-          "(IEEE 952 eq. C.7). ARW from the -1/2 slope read at tau = 1 s; bias instability the flat minimum over 0.664; RRW from the "
-          "+1/2 slope where the curve shows it. fogctl allan prints the same figures.</p>";
+          " samples) and of the longest such stretch of the output compensated with the model. sigma^2(tau) = A/tau + F + C tau "
+          "(white, flicker and random-walk rate) is fitted to the whole curve; each figure is read at one tau where its term is "
+          "at least half of sigma^2 (never the longest tau alone), the one with the narrowest interval. In brackets: its "
+          "1-sigma interval from the chi-square of sigma^2 at that tau (equivalent degrees of freedom of the noise mix there, "
+          "IEEE 952 Annex C, NIST SP 1065), then the tau, the EDF and the term's share of sigma^2 at that tau. "
+          "fogctl allan prints the same figures.</p>";
   if (!notes.empty()) {
     html += "<ul class=\"note\">";
     for (const auto& n : notes) html += "<li>" + html_escape(n) + "</li>";

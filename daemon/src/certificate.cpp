@@ -27,7 +27,10 @@ json estimate_json(const std::optional<allan::NoiseEstimate>& e, const std::stri
   json j = json::object();
   if (e)
     j = {{"value", num_or_null(e->value)}, {"ci_low", num_or_null(e->ci_low)}, {"ci_high", num_or_null(e->ci_high)},
-         {"from_tau_s", e->from_tau_s}, {"to_tau_s", e->to_tau_s}};
+         {"from_tau_s", e->from_tau_s}, {"to_tau_s", e->to_tau_s},
+         // The interval's evidence: sigma^2's equivalent degrees of freedom at that tau and the
+         // term's share of sigma^2 there (0..1), as fogctl allan prints them.
+         {"edf", num_or_null(e->edf)}, {"share", num_or_null(e->share)}};
   else
     j = {{"value", nullptr}};
   j["note"] = note;

@@ -226,7 +226,10 @@ TEST_CASE("fogctl report: the Allan section of each run has model::allan's figur
                                                        comp.gyro_dph.begin() + static_cast<std::ptrdiff_t>(longest->end))});
 
   auto cell = [](const std::optional<allan::NoiseEstimate>& e, int digits) {
-    return e ? fixed(e->value, digits) + " (" + fixed(e->ci_low, digits) + ".." + fixed(e->ci_high, digits) + ")" : std::string("-");
+    // The figure, its 1-sigma interval, then the interval's evidence: tau, EDF, share of sigma^2.
+    return e ? fixed(e->value, digits) + " (" + fixed(e->ci_low, digits) + ".." + fixed(e->ci_high, digits) + ") at tau " +
+                   fixed(e->from_tau_s, 0) + " s, EDF " + fixed(e->edf, 1) + ", " + fixed(100.0 * e->share, 0) + " %"
+             : std::string("-");
   };
   const auto table_at = html.find("<table class=\"allan\"");
   REQUIRE(table_at != std::string::npos);

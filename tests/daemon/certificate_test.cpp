@@ -106,6 +106,20 @@ TEST_CASE("certificate: issued when a verify run completes, the same from cert.g
   REQUIRE(cert["allan"].size() == 1);
   CHECK(cert["allan"][0]["samples"].get<int>() > 100);
   CHECK(cert["allan"][0].contains("arw_deg_per_sqrt_h"));
+  // Each figure read carries its interval's evidence: the EDF at its tau and its share there.
+  for (const char* figure : {"arw_deg_per_sqrt_h", "bias_instability_dph", "rrw_dph_per_sqrt_h"}) {
+    const json& e = cert["allan"][0][figure];
+    INFO(figure << ": " << e.dump());
+    if (e["value"].is_null()) continue;
+    CHECK(e["edf"].get<double>() >= 1.0);
+    CHECK(e["share"].get<double>() >= 0.0);
+    // ARW and RRW are read only where their term is at least half of sigma^2 (a bias
+    // instability given as an upper bound is read at the curve's minimum, whatever its share).
+    if (std::string(figure) != "bias_instability_dph") CHECK(e["share"].get<double>() >= 0.5);
+    CHECK(e["share"].get<double>() <= 1.0);
+    CHECK(e["ci_low"].get<double>() <= e["value"].get<double>());
+  }
+  CHECK(!cert["allan"][0]["arw_deg_per_sqrt_h"]["value"].is_null());  // the white noise of the simulated gyro shows
 
   // One digit altered: the hash no longer matches; the store knows the true hash, not the other.
   json altered = cert;
