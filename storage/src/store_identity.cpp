@@ -138,6 +138,12 @@ std::vector<std::pair<std::string, std::string>> read_comment_fields(std::string
   return out;
 }
 
+std::optional<std::string> lot_from_fields(const std::vector<std::pair<std::string, std::string>>& fields) {
+  for (const auto& [key, value] : fields)
+    if (key == "lot") return value.empty() ? std::nullopt : std::optional<std::string>(value);
+  return std::nullopt;
+}
+
 std::optional<RunIdentity> identity_from_fields(const std::vector<std::pair<std::string, std::string>>& fields) {
   RunIdentity id;
   UnitIdentity u;

@@ -179,6 +179,10 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
   };
   const std::size_t n = data.size();
   if (options.serial.empty()) return invalid("no unit serial given");
+  if (options.lot) {
+    if (options.lot->empty()) return invalid("the lot is empty (leave it out for a unit without one)");
+    if (auto why = check_stored_text("lot", *options.lot, 64); !why.empty()) return invalid(why);
+  }
   if (n == 0) return invalid("no samples");
   const std::pair<std::string_view, std::size_t> sizes[] = {
       {"gyro_dph", data.gyro_dph.size()},     {"t1_c", data.t1_c.size()},
@@ -219,10 +223,10 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
   const std::int64_t id = sqlite3_last_insert_rowid(db.handle());
   {
     auto stmt =
-        db.statement("INSERT INTO run_units (run_id, unit_index, serial) VALUES (?1, ?2, ?3)");
+        db.statement("INSERT INTO run_units (run_id, unit_index, serial, lot) VALUES (?1, ?2, ?3, ?4)");
     if (!stmt) return fail(std::move(stmt));
     Query q(db, *stmt);
-    q.bind(1, id).bind(2, 0).bind(3, options.serial);
+    q.bind(1, id).bind(2, 0).bind(3, options.serial).bind(4, options.lot);
     if (auto ok = run(db, q, what); !ok) return fail(std::move(ok));
   }
   {

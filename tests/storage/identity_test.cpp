@@ -152,6 +152,23 @@ TEST_CASE("identity: the CSV comments read back to the same identity, and the ru
   REQUIRE(stored->has_value());
   CHECK((*stored)->station_id == "bench-3");
   CHECK((*stored)->units.at(0).since_power_on_s == 120.0);
+  CHECK(s.get_run(*run)->run.units.at(0).lot == std::nullopt);  // the file had no lot line
+
+  // A `# lot:` line is read back with the data and stored with the imported unit; an empty one
+  // (no lot was given) stays no lot; a lot with a control character is refused, naming it.
+  auto with_lot = fields;
+  with_lot.emplace_back("lot", "L-7");
+  const std::string lot_csv = identity_comment_lines(with_lot) + to_csv(small_run());
+  CHECK(lot_from_fields(read_comment_fields(lot_csv)) == std::optional<std::string>("L-7"));
+  CHECK(lot_from_fields({{"lot", ""}}) == std::nullopt);
+  o.lot = lot_from_fields(read_comment_fields(lot_csv));
+  auto lot_run = s.import_run(*data, o);
+  REQUIRE(lot_run.has_value());
+  CHECK(s.get_run(*lot_run)->run.units.at(0).lot == std::optional<std::string>("L-7"));
+  o.lot = std::string("L") + char(0x1b) + "[2J";
+  auto bad_lot = s.import_run(*data, o);
+  REQUIRE_FALSE(bad_lot.has_value());
+  CHECK(bad_lot.error().message.find("lot") != std::string::npos);
 
   // Comments after the header are data's business, not the identity's; a file without
   // software_version is no fogbench export.

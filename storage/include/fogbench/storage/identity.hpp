@@ -70,6 +70,9 @@ std::vector<std::pair<std::string, std::string>> read_comment_fields(std::string
 // An identity from such fields (one unit, index 0): operator_source becomes "import" when an
 // operator is named. Empty when the fields hold no software_version (not a fogbench export).
 std::optional<RunIdentity> identity_from_fields(const std::vector<std::pair<std::string, std::string>>& fields);
+// The unit's lot from such fields (`# lot: L-7`), for ImportOptions::lot: empty when the file
+// has no lot line or an empty one (`# lot:`, none was given). Not part of the identity.
+std::optional<std::string> lot_from_fields(const std::vector<std::pair<std::string, std::string>>& fields);
 
 // A certificate as the store keeps it (docs/storage.md "certificates").
 struct CertificateRecord {

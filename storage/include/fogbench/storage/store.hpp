@@ -194,6 +194,9 @@ struct ImportOptions {
   std::string config_json = "{}";
   std::string profile_text;                // the profile as run, when known
   std::optional<RunIdentity> identity;     // e.g. read back from the CSV's comments
+  // The unit's production lot (a CSV export's `# lot:` line, lot_from_fields), 1..64 bytes of
+  // printable text; none: the run has no lot, as a run started without one.
+  std::optional<std::string> lot;
 };
 
 struct NewModel {
