@@ -17,6 +17,7 @@
 #include "fleet.hpp"
 #include "offline.hpp"
 #include "plan.hpp"
+#include "table.hpp"
 #include "workbench.hpp"
 
 int main(int argc, char** argv) {
@@ -39,6 +40,12 @@ int main(int argc, char** argv) {
   CLI::App app{"fogctl: fibre-optic gyro thermal-drift qualification (fogbench " FOGBENCH_VERSION ")"};
   app.set_version_flag("--version", std::string(FOGBENCH_VERSION));
   app.require_subcommand(1);
+  // Human tables fit the terminal (cli/table.hpp: wrapped text columns); --wide prints whole
+  // lines. Given anywhere on the line: the commands' unmatched options fall through to here.
+  app.fallthrough();
+  app.add_flag_callback("--wide", [] { fogbench::cli::set_output_width(0); },
+                        "Print tables with whole lines, however wide (default: fit the terminal's width, "
+                        "or $COLUMNS; piped output keeps whole lines)");
   int code = fogbench::cli::kExitOk;
   fogbench::cli::add_offline_commands(app, code);
   fogbench::cli::add_client_commands(app, code);

@@ -1,9 +1,14 @@
 // Plain-text table rendering for fogctl's human output.
 #include "table.hpp"
 
+#include <sys/ioctl.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <utility>
 
 namespace fogbench::cli {
 namespace {
@@ -33,27 +38,135 @@ std::string printable(std::string_view text, std::size_t max_bytes) {
   return out;
 }
 
-std::string Table::str() const {
-  std::vector<std::size_t> width(header_.size(), 0);
-  for (std::size_t c = 0; c < header_.size(); ++c) width[c] = header_[c].size();
-  for (const auto& r : rows_)
-    for (std::size_t c = 0; c < r.size() && c < width.size(); ++c) width[c] = std::max(width[c], r[c].size());
-  auto line = [&](const std::vector<std::string>& r, bool head) {
-    std::string s;
-    for (std::size_t c = 0; c < width.size(); ++c) {
-      const std::string cell = c < r.size() ? r[c] : "";
-      const std::size_t pad = width[c] - cell.size();
-      const bool right = !head && numeric(cell);
-      if (c) s += "  ";
-      s += right ? std::string(pad, ' ') + cell : cell + (c + 1 < width.size() ? std::string(pad, ' ') : "");
+namespace {
+constexpr std::size_t kAutoWidth = static_cast<std::size_t>(-1);
+std::size_t g_output_width = kAutoWidth;
+
+std::size_t detect_width() {
+  if (const char* env = std::getenv("COLUMNS")) {
+    char* end = nullptr;
+    const long n = std::strtol(env, &end, 10);
+    if (end != env && *end == '\0' && n >= 20) return static_cast<std::size_t>(n);
+  }
+  if (::isatty(STDOUT_FILENO)) {
+    winsize ws{};
+    if (::ioctl(STDOUT_FILENO, TIOCGWINSZ, &ws) == 0 && ws.ws_col >= 20) return ws.ws_col;
+    return 100;  // a terminal that does not say its width
+  }
+  return 0;
+}
+
+bool utf8_continuation(char c) { return (static_cast<unsigned char>(c) & 0xC0) == 0x80; }
+
+// The longest prefix of `text` that takes at most `width` columns, cut at a code point.
+std::size_t prefix_bytes(std::string_view text, std::size_t width) {
+  std::size_t cols = 0, i = 0;
+  while (i < text.size()) {
+    std::size_t j = i + 1;
+    while (j < text.size() && utf8_continuation(text[j])) ++j;
+    if (cols + 1 > width) break;
+    ++cols;
+    i = j;
+  }
+  return i;
+}
+}  // namespace
+
+void set_output_width(std::size_t columns) { g_output_width = columns; }
+
+std::size_t output_width() {
+  if (g_output_width == kAutoWidth) g_output_width = detect_width();
+  return g_output_width;
+}
+
+std::size_t display_width(std::string_view text) {
+  std::size_t n = 0;
+  for (char c : text) n += utf8_continuation(c) ? 0 : 1;
+  return n;
+}
+
+std::vector<std::string> wrap_text(std::string_view text, std::size_t width) {
+  width = std::max<std::size_t>(width, 1);
+  std::vector<std::string> lines;
+  std::string line;
+  std::size_t pos = 0;
+  while (pos < text.size()) {
+    const std::size_t end = std::min(text.find(' ', pos), text.size());
+    std::string_view word = text.substr(pos, end - pos);
+    pos = end + 1;
+    if (word.empty()) continue;
+    const std::size_t need = display_width(word) + (line.empty() ? 0 : 1);
+    if (display_width(line) + need <= width) {
+      if (!line.empty()) line += ' ';
+      line += word;
+      continue;
     }
-    return s + "\n";
+    if (!line.empty()) lines.push_back(std::exchange(line, {}));
+    while (display_width(word) > width) {  // a word longer than the column: cut it
+      const std::size_t cut = prefix_bytes(word, width);
+      lines.emplace_back(word.substr(0, cut));
+      word.remove_prefix(cut);
+    }
+    line = word;
+  }
+  if (!line.empty() || lines.empty()) lines.push_back(line);
+  return lines;
+}
+
+std::string Table::str(std::size_t max_width) const {
+  const std::size_t n = header_.size();
+  std::vector<std::size_t> width(n, 0), floor(n, 0);
+  std::vector<bool> text_column(n, false);
+  for (std::size_t c = 0; c < n; ++c) {
+    width[c] = display_width(header_[c]);
+    for (const auto& w : wrap_text(header_[c], 1)) floor[c] = std::max(floor[c], display_width(w));
+  }
+  for (const auto& r : rows_)
+    for (std::size_t c = 0; c < r.size() && c < n; ++c) {
+      width[c] = std::max(width[c], display_width(r[c]));
+      if (!r[c].empty() && !numeric(r[c])) text_column[c] = true;
+    }
+  auto total_of = [&] {
+    std::size_t t = n ? 2 * (n - 1) : 0;
+    for (std::size_t w : width) t += w;
+    return t;
   };
-  std::string out = line(header_, true);
-  std::size_t total = 0;
-  for (std::size_t w : width) total += w;
-  out += std::string(total + 2 * (width.size() - 1), '-') + "\n";
-  for (const auto& r : rows_) out += line(r, false);
+  // Too wide: narrow the widest text column one column at a time, down to its floor.
+  if (max_width > 0)
+    while (total_of() > max_width) {
+      std::size_t widest = n;
+      for (std::size_t c = 0; c < n; ++c) {
+        const std::size_t lowest = std::max<std::size_t>(floor[c], std::min<std::size_t>(10, width[c]));
+        if (text_column[c] && width[c] > lowest && (widest == n || width[c] > width[widest])) widest = c;
+      }
+      if (widest == n) break;  // every text column at its floor: the table stays wider
+      --width[widest];
+    }
+  auto lines = [&](const std::vector<std::string>& r, bool head) {
+    std::vector<std::vector<std::string>> cells(n);
+    std::size_t height = 1;
+    for (std::size_t c = 0; c < n; ++c) {
+      const std::string cell = c < r.size() ? r[c] : "";
+      cells[c] = display_width(cell) <= width[c] ? std::vector<std::string>{cell} : wrap_text(cell, width[c]);
+      height = std::max(height, cells[c].size());
+    }
+    std::string s;
+    for (std::size_t k = 0; k < height; ++k) {
+      std::string l;
+      for (std::size_t c = 0; c < n; ++c) {
+        const std::string cell = k < cells[c].size() ? cells[c][k] : "";
+        const std::size_t pad = width[c] - std::min(width[c], display_width(cell));
+        const bool right = !head && cells[c].size() == 1 && numeric(cell);
+        if (c) l += "  ";
+        l += right ? std::string(pad, ' ') + cell : cell + (c + 1 < n ? std::string(pad, ' ') : "");
+      }
+      s += l + "\n";
+    }
+    return s;
+  };
+  std::string out = lines(header_, true);
+  out += std::string(total_of(), '-') + "\n";
+  for (const auto& r : rows_) out += lines(r, false);
   return out;
 }
 

@@ -12,6 +12,20 @@ namespace fogbench::cli {
 // names at every entry (storage::check_stored_text); this guards what older stores hold.
 std::string printable(std::string_view text, std::size_t max_bytes = 500);
 
+// How wide human output may be, in terminal columns (0: whole lines, as `--wide` asks). Unless
+// set, the limit is $COLUMNS when exported (a number of at least 20), else the terminal's width
+// when stdout is one, else 0: piped output keeps whole lines, for grep and files.
+void set_output_width(std::size_t columns);
+std::size_t output_width();
+
+// Columns a UTF-8 string takes in a terminal (one per code point: fogctl prints no wide or
+// combining characters of its own).
+std::size_t display_width(std::string_view text);
+
+// `text` wrapped at spaces into lines of at most `width` columns (a longer word is cut);
+// always at least one line.
+std::vector<std::string> wrap_text(std::string_view text, std::size_t width);
+
 class Table {
  public:
   explicit Table(std::vector<std::string> header) : header_(std::move(header)) {}
@@ -20,7 +34,11 @@ class Table {
     for (auto& cell : row) cell = printable(cell);
     rows_.push_back(std::move(row));
   }
-  std::string str() const;
+  // Aligned within output_width(): when the natural table is wider, the text columns are
+  // narrowed (widest first, none below 10 columns or its header's longest word) and their cells
+  // wrapped onto continuation lines; numbers never wrap.
+  std::string str() const { return str(output_width()); }
+  std::string str(std::size_t max_width) const;  // 0: no limit
 
  private:
   std::vector<std::string> header_;
