@@ -147,6 +147,32 @@ int plan_exit_code(const json& s) {
   return fail ? kExitFailed : marginal ? kExitMarginal : kExitOk;
 }
 
+// For each unit, the command that reports its runs of the plan (model, Table 1, plots) from
+// the daemon: `fogctl report --unit SERIAL --run 1 --run 2`, with the unit's current model when
+// the plan fitted one, else with a model file to give (`--model MODEL.json`).
+static std::string report_commands_html(const json& progress) {
+  std::string items;
+  for (const auto& u : progress["units"]) {
+    const std::string serial = cell_text(u["serial"]);
+    std::string runs;
+    bool fitted = false;
+    for (const auto& r : progress["runs"]) {
+      if (!r["run_id"].is_number_integer()) continue;
+      bool has = false;
+      for (const auto& x : r["units"]) has = has || (x.is_string() && x.get<std::string>() == serial);
+      if (!has) continue;
+      runs += " --run " + std::to_string(r["run_id"].get<std::int64_t>());
+      fitted = fitted || (r["purpose"].is_string() && r["purpose"].get<std::string>() == "fit");
+    }
+    if (runs.empty()) continue;
+    items += "<li><code>" + html_escape("fogctl report " + std::string(fitted ? "" : "--model MODEL.json ") + "--unit " + serial + runs) +
+             "</code>" + (fitted ? "" : " (the plan fitted no model of this unit: give one)") + "</li>";
+  }
+  if (items.empty()) return "<p>No run of the plan has been stored yet: no report to make.</p>\n";
+  return "<p>Each unit's report of its runs (the model, Table 1, the plots), through the daemon's socket "
+         "(<code>--socket</code> or <code>--connect</code> as for any fogctl command):</p><ul>" + items + "</ul>\n";
+}
+
 std::string plan_report_html(const json& s) {
   std::ostringstream h;
   const json& p = s["progress"];
@@ -187,8 +213,9 @@ std::string plan_report_html(const json& s) {
         << "</td><td>" << html_escape(cell_text(m["limit"])) << " (line " << m["line"] << ")</td><td>" << (met ? "yes" : "no")
         << "</td><td>" << html_escape(cell_text(m["on_fail"])) << "</td><td>" << html_escape(m.value("note", "")) << "</td></tr>\n";
     }
-  h << "</table>\n<h2>The plan</h2>\n<pre>" << html_escape(cell_text(s["plan_text"])) << "</pre>\n"
-    << "<p>Each run's own report: <code>fogctl report RUN</code>.</p>\n</body></html>\n";
+  h << "</table>\n<h2>The plan</h2>\n<pre>" << html_escape(cell_text(s["plan_text"])) << "</pre>\n";
+  h << report_commands_html(p);
+  h << "</body></html>\n";
   return h.str();
 }
 

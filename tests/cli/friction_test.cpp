@@ -13,6 +13,7 @@
 
 #include "fogbench/model/json.hpp"
 #include "offline.hpp"
+#include "plan.hpp"
 #include "progress.hpp"
 
 using namespace fogbench::cli;
@@ -298,4 +299,28 @@ TEST_CASE("fogctl profile list and validate") {
   const Ran lim = fogctl(d, "profile validate exp1 --min 0 --max 1 --max-rate 1");
   CHECK(lim.code == kExitError);
   CHECK(fogctl(d, "profile validate exp1 --min 0").code == kExitError);  // limits go together
+}
+
+TEST_CASE("fogctl plan report: the page ends with each unit's report command, with its runs and its model") {
+  using nlohmann::json;
+  auto run = [](int id, const char* purpose, json units) {
+    return json{{"step", id}, {"profile", "exp" + std::to_string(id)}, {"purpose", purpose}, {"attempt", 0},
+                {"run_id", id}, {"units", std::move(units)}};
+  };
+  json status = {{"plan_id", 3}, {"name", "paper"}, {"source", "paper.plan"}, {"state", "completed"}, {"reason", ""},
+                 {"started_at", "2026-11-27T08:00:00Z"}, {"ended_at", "2026-11-27T09:00:00Z"}, {"plan_text", "plan paper"},
+                 {"progress",
+                  {{"units", json::array({json{{"serial", "FOG-1"}, {"verdict", "pass"}, {"reasons", json::array()},
+                                               {"measurements", json::array()}},
+                                          json{{"serial", "FOG-2"}, {"verdict", "fail"}, {"reasons", json::array()},
+                                               {"measurements", json::array()}}})},
+                   {"runs", json::array({run(1, "fit", {"FOG-1"}), run(2, "verify", {"FOG-1", "FOG-2"}),
+                                         run(3, "verify", {"FOG-1"})})}}}};
+  const std::string html = plan_report_html(status);
+  // FOG-1 was fitted by the plan: its current model is the one to report with; FOG-2 was not.
+  CHECK_THAT(html, Contains("<code>fogctl report --unit FOG-1 --run 1 --run 2 --run 3</code>"));
+  CHECK_THAT(html, Contains("<code>fogctl report --model MODEL.json --unit FOG-2 --run 2</code>"));
+  CHECK_THAT(html, !Contains("fogctl report RUN"));
+  status["progress"]["runs"] = json::array();
+  CHECK_THAT(plan_report_html(status), Contains("No run of the plan has been stored yet"));
 }
