@@ -1,6 +1,8 @@
 // Loading runs, models and profiles for fogctl.
 #include "common.hpp"
 
+#include <algorithm>
+
 #include <CLI/CLI.hpp>
 
 #include <chrono>
@@ -89,46 +91,45 @@ std::expected<void, std::string> write_text(const std::string& path, const std::
   return {};
 }
 
-std::vector<std::filesystem::path> profile_dirs() {
+namespace {
+std::string_view shipped_variable(std::string_view kind) {
+  return kind == "plans" ? "FOGBENCH_PLAN_DIR" : "FOGBENCH_PROFILE_DIR";
+}
+}  // namespace
+
+std::vector<std::filesystem::path> shipped_dirs(std::string_view kind) {
   std::vector<std::filesystem::path> dirs;
-  if (const char* env = std::getenv("FOGBENCH_PROFILE_DIR"); env && *env) dirs.emplace_back(env);
-  // Beside the executable: <prefix>/bin/../share/fogbench/profiles, installed or in the build
-  // tree (profiles/CMakeLists.txt lays them out there too).
+  if (const char* env = std::getenv(std::string(shipped_variable(kind)).c_str()); env && *env) dirs.emplace_back(env);
+  // Beside the executable: <prefix>/bin/../share/fogbench/<kind>, installed or in the build
+  // tree (profiles/ and plans/CMakeLists.txt lay them out there too).
   std::error_code ec;
   if (const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec); !ec)
-    dirs.push_back(exe.parent_path().parent_path() / "share" / "fogbench" / "profiles");
-  std::string builtin = FOGBENCH_PROFILE_DIRS;
-  std::size_t b = 0;
-  while (b <= builtin.size()) {
-    const std::size_t e = builtin.find(':', b);
-    const std::string d = builtin.substr(b, e == std::string::npos ? std::string::npos : e - b);
-    if (!d.empty()) dirs.emplace_back(d);
-    if (e == std::string::npos) break;
-    b = e + 1;
-  }
+    dirs.push_back(exe.parent_path().parent_path() / "share" / "fogbench" / kind);
+  const auto installed = std::filesystem::path(FOGBENCH_DATA_DIR) / kind;
+  if (std::find(dirs.begin(), dirs.end(), installed) == dirs.end()) dirs.push_back(installed);
   return dirs;
 }
 
+std::expected<std::filesystem::path, std::string> find_shipped(std::string_view kind, const std::string& name,
+                                                               std::string_view extension) {
+  if (std::filesystem::exists(name)) return std::filesystem::path(name);
+  const auto dirs = shipped_dirs(kind);
+  for (const auto& d : dirs)
+    for (const auto& candidate : {d / name, d / (name + std::string(extension))})
+      if (std::filesystem::is_regular_file(candidate)) return candidate;
+  const std::string what = kind == "plans" ? "plan" : "profile";
+  std::string where;
+  for (const auto& d : dirs) where += (where.empty() ? "" : ", ") + d.string();
+  return std::unexpected(what + " '" + name + "': no such file, and no shipped " + what + " of that name in " + where +
+                         " (give a file's path, or set " + std::string(shipped_variable(kind)) + " to the folder that holds it)");
+}
+
+std::vector<std::filesystem::path> profile_dirs() { return shipped_dirs("profiles"); }
+
 std::expected<profiles::Profile, std::string> load_profile(const std::string& name) {
-  std::filesystem::path path = name;
-  if (!std::filesystem::exists(path)) {
-    bool found = false;
-    for (const auto& d : profile_dirs()) {
-      for (const auto& candidate : {d / name, d / (name + ".profile")}) {
-        if (std::filesystem::is_regular_file(candidate)) {
-          path = candidate;
-          found = true;
-          break;
-        }
-      }
-      if (found) break;
-    }
-    if (!found) {
-      std::string where;
-      for (const auto& d : profile_dirs()) where += " " + d.string();
-      return std::unexpected("profile '" + name + "': no such file, and no shipped profile of that name in:" + where);
-    }
-  }
+  auto found = find_shipped("profiles", name, ".profile");
+  if (!found) return std::unexpected(found.error());
+  const std::filesystem::path path = *found;
   auto text = read_file(path.string());
   if (!text) return std::unexpected(text.error());
   auto p = profiles::parse_profile(*text, path.filename().string());

@@ -66,8 +66,16 @@ void add_run_input(CLI::App* command, RunInput& in);
 std::expected<model::Model, std::string> load_model(const std::string& path);
 std::expected<void, std::string> write_text(const std::string& path, const std::string& text);
 
-// A profile named `exp1` (a shipped one, found in $FOGBENCH_PROFILE_DIR, the source tree or
-// the installed share/fogbench/profiles) or a file path.
+// Where shipped files of a kind ("profiles", "plans") are looked for, in order: the folder in
+// $FOGBENCH_PROFILE_DIR or $FOGBENCH_PLAN_DIR, <the executable's prefix>/share/fogbench/<kind>
+// (installed, or the build tree, which lays them out the same), and the configured install
+// prefix's share/fogbench/<kind>.
+std::vector<std::filesystem::path> shipped_dirs(std::string_view kind);
+// `name` as a file path, else `name` or `name`+`extension` in shipped_dirs(kind). The error
+// names every folder searched and the variable that adds one.
+std::expected<std::filesystem::path, std::string> find_shipped(std::string_view kind, const std::string& name,
+                                                               std::string_view extension);
+// A profile named `exp1` (a shipped one, see shipped_dirs) or a file path.
 std::expected<profiles::Profile, std::string> load_profile(const std::string& name_or_path);
 std::vector<std::filesystem::path> profile_dirs();
 

@@ -16,6 +16,7 @@
 #include "client_commands.hpp"
 #include "common.hpp"
 #include "html.hpp"
+#include "fogbench/plans/plan.hpp"
 
 namespace fogbench::cli {
 
@@ -24,23 +25,51 @@ using namespace commands;
 
 namespace {
 
-// The plan file: a path, or the name of a shipped plan (<prefix>/share/fogbench/plans).
+// The plan file: a path, or the name of a shipped plan (shipped_dirs("plans"): $FOGBENCH_PLAN_DIR,
+// <prefix>/share/fogbench/plans).
 std::expected<std::pair<std::string, std::string>, std::string> read_plan(const std::string& name) {
-  std::filesystem::path path = name;
-  if (!std::filesystem::exists(path)) {
-    std::error_code ec;
-    const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec);
-    const auto dir = exe.parent_path().parent_path() / "share" / "fogbench" / "plans";
-    for (const auto& c : {dir / name, dir / (name + ".plan")})
-      if (!ec && std::filesystem::is_regular_file(c)) path = c;
-    if (!std::filesystem::exists(path))
-      return std::unexpected("plan '" + name + "': no such file, and no shipped plan of that name in " + dir.string());
-  }
+  auto found = find_shipped("plans", name, ".plan");
+  if (!found) return std::unexpected(found.error());
+  const std::filesystem::path path = *found;
   std::ifstream in(path);
   if (!in) return std::unexpected("plan '" + path.string() + "': cannot be read");
   std::stringstream ss;
   ss << in.rdbuf();
   return std::make_pair(ss.str(), path.filename().string());
+}
+
+// `plan validate --offline`: the plan checked as the daemon checks it, without one: its
+// language and limits (plans::parse_plan), and each step's profile as this fogctl finds it
+// (shipped_dirs("profiles")), parsed. The reply has the daemon's shape, with "checked":
+// "offline". Units, models and the daemon's own profile directory are not checked.
+std::expected<json, int> validate_offline(const std::string& name) {
+  auto text = read_plan(name);
+  if (!text) {
+    std::cerr << "fogctl: " << text.error() << "\n";
+    return std::unexpected(kExitError);
+  }
+  auto plan = plans::parse_plan(text->first, text->second);
+  if (!plan) {
+    std::cerr << "fogctl: " << plan.error().to_string() << "\n" << plan.error().excerpt() << "\n";
+    return std::unexpected(kExitError);
+  }
+  json steps = json::array(), limits = json::array();
+  double total_s = 0.0;
+  for (const auto& step : plan->steps) {
+    auto profile = load_profile(step.profile);
+    if (!profile) {
+      std::cerr << "fogctl: " << text->second << ":" << step.line << ": step '" << step.profile << "': " << profile.error() << "\n";
+      return std::unexpected(kExitError);
+    }
+    const double nominal_s = profile->nominal_duration_s();
+    total_s += nominal_s;
+    steps.push_back({{"line", step.line}, {"profile", step.profile}, {"purpose", plans::to_string(step.purpose)},
+                     {"nominal_duration_s", nominal_s}});
+  }
+  for (const auto& l : plan->limits)
+    limits.push_back({{"line", l.line}, {"limit", l.describe()}, {"on_fail", plans::to_string(l.on_fail)}});
+  return json{{"name", plan->name}, {"steps", std::move(steps)}, {"limits", std::move(limits)},
+              {"nominal_duration_s", total_s}, {"checked", "offline"}};
 }
 
 std::string cell_text(const json& v) { return v.is_string() ? v.get<std::string>() : v.is_null() ? "-" : v.dump(); }
@@ -223,7 +252,7 @@ void add_plan_commands(CLI::App& app, int& code) {
   static Common common;
   static std::string file, reason, output, operator_name;
   static std::vector<std::string> units, lots, slots;
-  static bool wait = false, quiet = false;
+  static bool wait = false, quiet = false, offline = false;
   static std::int64_t plan_id = 0, position = 0;
   static std::optional<std::int64_t> status_id;
 
@@ -238,7 +267,13 @@ void add_plan_commands(CLI::App& app, int& code) {
       return std::unexpected(kExitError);
     }
     auto c = open(common);
-    if (!c) return std::unexpected(report(c.error(), std::cerr));
+    if (!c) {
+      const int rc = report(c.error(), std::cerr);
+      if (cmd == "plan.validate")
+        std::cerr << "hint: without a daemon, `fogctl plan validate --offline " << file
+                  << "` checks the plan's language, limits and profiles\n";
+      return std::unexpected(rc);
+    }
     json args = {{"text", text->first}, {"source", text->second}};
     std::string what = "fogctl " + cmd;  // "fogctl plan start"
     std::replace(what.begin(), what.end(), '.', ' ');
@@ -257,8 +292,11 @@ void add_plan_commands(CLI::App& app, int& code) {
   validate->add_option("--unit", units, "Serial of a unit (repeatable): also checks it is configured and has a model "
                                         "where a verify step needs one");
   validate->add_option("--slot", slots, "SLOT=SERIAL: a unit in a bench slot (repeatable), checked as --unit is");
+  validate->add_flag("--offline", offline,
+                     "Check without a daemon: the plan's language, its limits and its profiles as this fogctl finds them "
+                     "($FOGBENCH_PROFILE_DIR, the shipped ones); units and models are not checked");
   validate->callback([&, send_plan] {
-    auto r = send_plan("plan.validate", false);
+    auto r = offline ? validate_offline(file) : send_plan("plan.validate", false);
     if (!r) {
       code = r.error();
       return;
@@ -266,7 +304,9 @@ void add_plan_commands(CLI::App& app, int& code) {
     if (common.json_out) std::cout << r->dump() << "\n";
     else {
       std::cout << "plan " << cell_text((*r)["name"]) << ": valid, " << (*r)["steps"].size() << " steps, nominally "
-                << duration_text((*r)["nominal_duration_s"].get<double>()) << "\n";
+                << duration_text((*r)["nominal_duration_s"].get<double>())
+                << (offline ? " (checked offline: this fogctl's profiles; units, models and the daemon's profiles not checked)" : "")
+                << "\n";
       Table t({"line", "profile", "purpose", "nominal"});
       for (const auto& s : (*r)["steps"])
         t.add({cell_text(s["line"]), cell_text(s["profile"]), cell_text(s["purpose"]),

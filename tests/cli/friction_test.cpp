@@ -324,3 +324,52 @@ TEST_CASE("fogctl plan report: the page ends with each unit's report command, wi
   status["progress"]["runs"] = json::array();
   CHECK_THAT(plan_report_html(status), Contains("No run of the plan has been stored yet"));
 }
+
+TEST_CASE("fogctl plan validate --offline: a plan checked without a daemon, a copied fogctl finds what the variables name") {
+  Dir d;
+  // The shipped plan, by name, from the build tree's share/fogbench: no daemon is running.
+  const Ran paper = fogctl(d, "plan validate --offline paper");
+  INFO(paper.out << paper.err);
+  CHECK(paper.code == kExitOk);
+  CHECK_THAT(paper.out, Contains("valid, 3 steps") && Contains("checked offline") && Contains("comp_raw < 0.2"));
+  const Ran js = fogctl(d, "plan validate --offline paper --json");
+  REQUIRE(js.code == kExitOk);
+  const auto j = nlohmann::json::parse(js.out);
+  CHECK(j["checked"] == "offline");
+  CHECK(j["steps"].size() == 3);
+  CHECK(j["nominal_duration_s"].get<double>() > 3600.0);
+
+  // A plan of its own with a profile of its own, found through FOGBENCH_PROFILE_DIR.
+  fs::create_directories(d.path / "mine");
+  write((d.path / "mine" / "short.profile").string(), "setpoint 20 C\nhold 3 min\n");
+  write(d.file("soak.plan"), "plan soak\nstep short soak\nlimit arw < 1 deg/sqrt(h)\n");
+  const std::string mine = "FOGBENCH_PROFILE_DIR='" + (d.path / "mine").string() + "'";
+  const Ran soak = fogctl(d, "plan validate --offline " + d.file("soak.plan"), mine);
+  INFO(soak.out << soak.err);
+  CHECK(soak.code == kExitOk);
+  CHECK_THAT(soak.out, Contains("plan soak: valid, 1 steps"));
+  // Without it, the step's profile is not found: the line and the variable are named.
+  const Ran lost = fogctl(d, "plan validate --offline " + d.file("soak.plan"), "-u FOGBENCH_PROFILE_DIR");
+  CHECK(lost.code == kExitError);
+  CHECK_THAT(lost.err, Contains("soak.plan:2: step 'short'") && Contains("FOGBENCH_PROFILE_DIR"));
+  // A language error names its line and column.
+  write(d.file("bad.plan"), "plan bad\nstep short soak\nlimit arw < 1 deg/h\n");
+  const Ran bad = fogctl(d, "plan validate --offline " + d.file("bad.plan"), mine);
+  CHECK(bad.code == kExitError);
+  CHECK_THAT(bad.err, Contains("bad.plan:3:15:"));
+  // No such plan: every folder searched is named, and the variable that adds one.
+  const Ran none = fogctl(d, "plan validate --offline no-such-plan");
+  CHECK(none.code == kExitError);
+  CHECK_THAT(none.err, Contains("plan 'no-such-plan': no such file") && Contains("FOGBENCH_PLAN_DIR"));
+
+  // A fogctl copied out of the build tree finds the shipped plans and profiles through the variables.
+  const fs::path copy = d.path / "bin" / "fogctl";
+  fs::create_directories(copy.parent_path());
+  fs::copy_file(std::string(FOGBENCH_BIN_DIR) + "/fogctl", copy);
+  const std::string src = FOGBENCH_SOURCE_DIR;
+  const std::string cmd = "env FOGBENCH_PLAN_DIR='" + src + "/plans' FOGBENCH_PROFILE_DIR='" + src + "/profiles' '" + copy.string() +
+                          "' plan validate --offline paper >'" + d.file("copy.out") + "' 2>&1";
+  const int st = std::system(cmd.c_str());
+  INFO(slurp(d.file("copy.out")));
+  CHECK((WIFEXITED(st) && WEXITSTATUS(st) == 0));
+}

@@ -16,7 +16,7 @@ cmake --install "$build" --prefix "$p" --component runtime >/dev/null
 for f in bin/fogctl sbin/fogbenchd lib/systemd/system/fogbenchd.service lib/systemd/system/fogbenchd@.service \
          lib/sysusers.d/fogbench.conf lib/tmpfiles.d/fogbench.conf share/man/man1/fogctl.1 share/man/man8/fogbenchd.8 \
          share/bash-completion/completions/fogctl share/zsh/vendor-completions/_fogctl \
-         share/doc/fogbench/fogbenchd.json.example share/doc/fogbench/daemon.md share/fogbench/profiles/exp1.profile; do
+         share/doc/fogbench/fogbenchd.json.example share/doc/fogbench/daemon.md share/fogbench/profiles/exp1.profile share/fogbench/plans/paper.plan; do
   [[ -e $p/$f ]] || fail "$f not installed"
 done
 # The mock bench is not a production tool: not in the runtime component.
