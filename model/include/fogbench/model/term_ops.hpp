@@ -109,8 +109,11 @@ inline constexpr std::array<TermOp, kExprKinds> kTermOps = {{
 constexpr const TermOp& term_op(Expr::Kind k) { return kTermOps[static_cast<std::size_t>(k)]; }
 
 namespace detail {
-// True for every enumerator of Expr::Kind. No default: a new kind left out is a -Wswitch error,
-// and once added here the static_assert below asks for kExprKinds and a row of kTermOps.
+// True for every enumerator of Expr::Kind. No default, and -Wswitch an error here in every
+// build: a new kind left out does not compile, and once added here the static_assert below
+// asks for kExprKinds and a row of kTermOps.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic error "-Wswitch"
 constexpr bool is_expr_kind(Expr::Kind k) {
   switch (k) {
     case Expr::Kind::number: case Expr::Kind::signal: case Expr::Kind::d: case Expr::Kind::dd: case Expr::Kind::up: case Expr::Kind::down: case Expr::Kind::lp:
@@ -119,6 +122,7 @@ constexpr bool is_expr_kind(Expr::Kind k) {
   }
   return false;
 }
+#pragma GCC diagnostic pop
 constexpr bool rows_in_kind_order() {
   for (std::size_t i = 0; i < kTermOps.size(); ++i)
     if (static_cast<std::size_t>(kTermOps[i].kind) != i) return false;
@@ -149,6 +153,8 @@ inline constexpr std::array<TermSignal, kSignals> kTermSignals = {{
 }};
 constexpr const TermSignal& term_signal(Signal s) { return kTermSignals[static_cast<std::size_t>(s)]; }
 namespace detail {
+#pragma GCC diagnostic push
+#pragma GCC diagnostic error "-Wswitch"
 constexpr bool is_signal(Signal s) {
   switch (s) {
     case Signal::T1: case Signal::T2: case Signal::Ta: case Signal::grad: case Signal::ton: case Signal::trun:
@@ -156,6 +162,7 @@ constexpr bool is_signal(Signal s) {
   }
   return false;
 }
+#pragma GCC diagnostic pop
 constexpr bool signals_in_order() {
   for (std::size_t i = 0; i < kTermSignals.size(); ++i)
     if (static_cast<std::size_t>(kTermSignals[i].signal) != i) return false;
