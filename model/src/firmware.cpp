@@ -1,5 +1,6 @@
 // Compiling a model to the firmware's causal program, and running it (see firmware.hpp).
 #include "fogbench/model/firmware.hpp"
+#include "fogbench/model/term_ops.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -42,7 +43,13 @@ struct Compiler {
     d.n = by;
     return {emit(d), x.delay + by};
   }
+  // An operator kTermOps marks refused fails with its named error; the others compile below
+  // (a switch with no default: a new Expr::Kind is a -Wswitch error here).
   std::optional<Node> compile(const Expr& e) {
+    if (const TermOp& top = term_op(e.kind); top.firmware == OpFirmware::refused) {
+      error = std::string(top.firmware_form);
+      return std::nullopt;
+    }
     switch (e.kind) {
       case Expr::Kind::number: {
         Op o;
@@ -56,29 +63,28 @@ struct Compiler {
           o.n = n;
           return emit(o);
         };
-        switch (e.signal) {
-          case Signal::T1: return Node{sig(0), 0};
-          case Signal::T2: return Node{sig(1), 0};
-          case Signal::Ta: p.uses_ta = true; return Node{sig(2), 0};
-          case Signal::ton: p.uses_ton = true; return Node{sig(3), 0};
-          case Signal::trun:
-            error = "trun (time since the run's start) is a drift in time found on runs, not a compensation: the firmware has no run clock; refit without it";
-            return std::nullopt;
-          case Signal::grad: {
-            Op o;
-            o.kind = K::sub;
-            o.a = sig(0);
-            o.b = sig(1);
-            return Node{emit(o), 0};
-          }
+        // kTermSignals says which input a signal is, or that it is T1 - T2, or refused.
+        const TermSignal& ts = term_signal(e.signal);
+        if (ts.firmware_input == -1) {
+          error = std::string(ts.firmware_refusal);
+          return std::nullopt;
         }
-        return std::nullopt;
+        if (ts.firmware_input == -2) {
+          Op o;
+          o.kind = K::sub;
+          o.a = sig(0);
+          o.b = sig(1);
+          return Node{emit(o), 0};
+        }
+        if (ts.firmware_input == 2) p.uses_ta = true;
+        if (ts.firmware_input == 3) p.uses_ton = true;
+        return Node{sig(ts.firmware_input), 0};
       }
       case Expr::Kind::d: case Expr::Kind::dd: {
         auto x = compile(*e.a);
         if (!x) return x;
         const int hw = half_window(p.dt_s);
-        for (int k = 0; k < (e.kind == Expr::Kind::dd ? 2 : 1); ++k) {
+        for (int k = 0; k < term_op(e.kind).derivatives; ++k) {
           Op o;
           o.kind = K::slope;
           o.a = x->op;

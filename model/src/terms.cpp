@@ -1,6 +1,8 @@
 // Parser, printer and evaluator of the term language (shared/TERMS.md).
 // Over 600 lines: the parser, the printer and the evaluator of one small language, kept
-// together because a new operator changes all three.
+// together because a new operator changes all three. The operators' names, syntax,
+// precedence and units are rows of kTermOps (term_ops.hpp); what is code here (the grammar's
+// recursion, evaluation) switches over Expr::Kind with no default.
 //
 // Grammar (whitespace ignored):
 //   list    := 'paper' | ['-'] summand (('+' | '-') summand)*
@@ -11,6 +13,7 @@
 //   expr    := product-with-delays joined by + and - (inside parentheses only)
 // Numbers multiplying a summand form its coefficient; the rest is the term.
 #include "fogbench/model/terms.hpp"
+#include "fogbench/model/term_ops.hpp"
 
 #include <algorithm>
 #include <charconv>
@@ -144,7 +147,7 @@ class Parser {
     if (!std::isfinite(t.coef))
       return std::unexpected(error("the term's numeric factors multiply to a number out of the range of a double"));
     if (!depends_on_signal(*term))
-      return std::unexpected(error("a term must contain a signal (T1, T2, Ta, grad, ton or trun); '" + to_string(*term) + "' is a constant"));
+      return std::unexpected(error("a term must contain a signal (" + signal_names(true) + "); '" + to_string(*term) + "' is a constant"));
     t.expr = term;
     skip();
     if (peek() == '@') {
@@ -286,53 +289,47 @@ class Parser {
       return e;
     }
     std::string_view w = peek_word();
-    if (w.empty()) return fail("expected a signal (T1, T2, Ta, grad, ton, trun), a function (d, dd, up, down, lp, warm), a number or '('");
+    if (w.empty()) return fail("expected a signal (" + signal_names() + "), a function (" + function_names() + "), a number or '('");
     pos_ += w.size();
-    if (w == "T1" || w == "T2" || w == "Ta" || w == "grad" || w == "ton" || w == "trun") {
-      auto e = make(K::signal);
-      std::const_pointer_cast<Expr>(e)->signal = w == "T1"   ? Signal::T1
-                                                 : w == "T2" ? Signal::T2
-                                                 : w == "Ta" ? Signal::Ta
-                                                 : w == "ton" ? Signal::ton
-                                                 : w == "trun" ? Signal::trun
-                                                              : Signal::grad;
-      return e;
+    for (const TermSignal& sig : kTermSignals)
+      if (w == sig.name) {
+        auto e = make(K::signal);
+        std::const_pointer_cast<Expr>(e)->signal = sig.signal;
+        return e;
+      }
+    const TermOp* op = nullptr;
+    for (const TermOp& o : kTermOps)
+      if ((o.syntax == OpSyntax::call || o.syntax == OpSyntax::call_tau || o.syntax == OpSyntax::tau_only) && w == o.name) op = &o;
+    if (!op) {
+      pos_ = start;
+      return std::unexpected(error("unknown name '" + std::string(w) + "': expected a signal (" + signal_names() + ") or a function (" +
+                                   function_names() + ")"));
     }
-    if (w == "warm") {  // warm(tau) = exp(-ton/tau): a number, not an expression, inside
+    const std::string name(op->name);
+    if (op->syntax == OpSyntax::tau_only) {  // warm(tau) = exp(-ton/tau): a number, not an expression, inside
       skip();
-      if (peek() != '(') return fail("expected '(' and a time constant in seconds after 'warm': warm(tau)");
+      if (peek() != '(') return fail("expected '(' and a time constant in seconds after '" + name + "': " + name + "(tau)");
       ++pos_;
-      auto tau = time_constant("warm(tau)");
+      auto tau = time_constant(name + "(tau)");
       if (!tau) return std::unexpected(tau.error());
       skip();
-      if (peek() != ')') return fail("expected ')' to close 'warm(' (warm takes one number, the time constant in s)");
+      if (peek() != ')') return fail("expected ')' to close '" + name + "(' (" + name + " takes one number, the time constant in s)");
       ++pos_;
-      auto e = make(K::warm);
+      auto e = make(op->kind);
       std::const_pointer_cast<Expr>(e)->value = *tau;
       return e;
-    }
-    K k;
-    if (w == "d") k = K::d;
-    else if (w == "dd") k = K::dd;
-    else if (w == "up") k = K::up;
-    else if (w == "down") k = K::down;
-    else if (w == "lp") k = K::lp;
-    else {
-      pos_ = start;
-      return std::unexpected(error("unknown name '" + std::string(w) +
-                                   "': expected a signal (T1, T2, Ta, grad, ton, trun) or a function (d, dd, up, down, lp, warm)"));
     }
     skip();
     if (peek() != '(') return fail("expected '(' after '" + std::string(w) + "'");
     ++pos_;
     auto arg = expr();
     if (!arg) return arg;
-    auto e = make(k, *arg);
+    auto e = make(op->kind, *arg);
     skip();
-    if (k == K::lp) {
-      if (peek() != ',') return fail("expected ',' and a time constant in seconds: lp(x, tau)");
+    if (op->syntax == OpSyntax::call_tau) {
+      if (peek() != ',') return fail("expected ',' and a time constant in seconds: " + name + "(x, tau)");
       ++pos_;
-      auto tau = time_constant("lp(x, tau)");
+      auto tau = time_constant(name + "(x, tau)");
       if (!tau) return std::unexpected(tau.error());
       std::const_pointer_cast<Expr>(e)->value = *tau;
       skip();
@@ -356,14 +353,14 @@ class Parser {
 
   // A time constant in seconds (warm(tau), lp(x, tau)) within kMinTau_s..kMaxTau_s; form names
   // the construct in the error, which points at the number.
-  std::expected<double, ParseError> time_constant(const char* form) {
+  std::expected<double, ParseError> time_constant(const std::string& form) {
     skip();
     const std::size_t at = pos_;
     auto tau = number();
     if (!tau) return tau;
     if (!(*tau >= kMinTau_s && *tau <= kMaxTau_s)) {
       pos_ = at;
-      return std::unexpected(error(std::string(form) + ": the time constant must be " + fmt_limit(kMinTau_s) + " to " +
+      return std::unexpected(error(form + ": the time constant must be " + fmt_limit(kMinTau_s) + " to " +
                                    fmt_limit(kMaxTau_s) + " s, got " + fmt_limit(*tau)));
     }
     return tau;
@@ -422,16 +419,8 @@ std::string fmt_number(double v) {
   return o.str();
 }
 
-int precedence(const Expr& e) {
-  switch (e.kind) {
-    case K::add: case K::sub: return 1;
-    case K::mul: return 2;
-    case K::neg: return 1;  // parenthesised in products: (-T2)*T2 is not -(T2*T2)
-    case K::delay: return 4;
-    case K::pow: return 3;
-    default: return 4;
-  }
-}
+// kTermOps' precedence: neg is 1, parenthesised in products: (-T2)*T2 is not -(T2*T2).
+int precedence(const Expr& e) { return term_op(e.kind).precedence; }
 
 std::string wrap(const Expr& e, int min_prec) {
   std::string s = to_string(e);
@@ -460,33 +449,51 @@ std::expected<Term, ParseError> parse_term(std::string_view text) {
 }
 
 std::string to_string(const Expr& e) {
+  const TermOp& op = term_op(e.kind);
   switch (e.kind) {
-    case K::number: return fmt_number(e.value);
-    case K::signal:
-      switch (e.signal) {
-        case Signal::T1: return "T1";
-        case Signal::T2: return "T2";
-        case Signal::Ta: return "Ta";
-        case Signal::grad: return "grad";
-        case Signal::ton: return "ton";
-        case Signal::trun: return "trun";
-      }
-      return "?";
-    case K::warm: return "warm(" + fmt_number(e.value) + ")";
-    case K::d: return "d(" + to_string(*e.a) + ")";
-    case K::dd: return "dd(" + to_string(*e.a) + ")";
-    case K::up: return "up(" + to_string(*e.a) + ")";
-    case K::down: return "down(" + to_string(*e.a) + ")";
-    case K::lp: return "lp(" + to_string(*e.a) + "," + fmt_number(e.value) + ")";
-    case K::pow: return wrap(*e.a, 4) + "^" + std::to_string(e.power);
-    case K::mul: return wrap(*e.a, 2) + "*" + wrap(*e.b, 3);
-    case K::add: return to_string(*e.a) + "+" + wrap(*e.b, 2);
-    case K::sub: return to_string(*e.a) + "-" + wrap(*e.b, 2);
-    case K::neg: return "-" + wrap(*e.a, 3);
+    case K::number: return spell(op, {}, {}, fmt_number(e.value));
+    case K::signal: return spell(op, {}, {}, term_signal(e.signal).name);
+    case K::warm: return spell(op, {}, {}, fmt_number(e.value));
+    case K::d: case K::dd: case K::up: case K::down: return spell(op, to_string(*e.a));
+    case K::lp: return spell(op, to_string(*e.a), {}, fmt_number(e.value));
+    case K::pow: return spell(op, wrap(*e.a, 4), {}, std::to_string(e.power));
+    case K::mul: return spell(op, wrap(*e.a, 2), wrap(*e.b, 3));
+    case K::add: case K::sub: return spell(op, to_string(*e.a), wrap(*e.b, 2));
+    case K::neg: return spell(op, wrap(*e.a, 3));
     // Always in parentheses: `(T1@30)*T2` and `(T1@30)@auto` must not read as a term's lag.
-    case K::delay: return "(" + wrap(*e.a, 3) + "@" + std::to_string(e.delay_s) + ")";
+    case K::delay: return spell(op, wrap(*e.a, 3), {}, std::to_string(e.delay_s));
   }
   return "?";
+}
+
+std::string spell(const TermOp& op, std::string_view a, std::string_view b, std::string_view param) {
+  const std::string name(op.name);
+  switch (op.syntax) {
+    case OpSyntax::number: case OpSyntax::signal: return std::string(param);
+    case OpSyntax::call: return name + "(" + std::string(a) + ")";
+    case OpSyntax::call_tau: return name + "(" + std::string(a) + "," + std::string(param) + ")";
+    case OpSyntax::tau_only: return name + "(" + std::string(param) + ")";
+    case OpSyntax::power: return std::string(a) + name + std::string(param);
+    case OpSyntax::infix: return std::string(a) + name + std::string(b);
+    case OpSyntax::prefix: return name + std::string(a);
+    case OpSyntax::delay: return "(" + std::string(a) + name + std::string(param) + ")";
+  }
+  return "?";
+}
+
+std::string function_names() {
+  std::string s;
+  for (const TermOp& o : kTermOps)
+    if (o.syntax == OpSyntax::call || o.syntax == OpSyntax::call_tau || o.syntax == OpSyntax::tau_only)
+      s += (s.empty() ? "" : ", ") + std::string(o.name);
+  return s;
+}
+
+std::string signal_names(bool or_last) {
+  std::string s;
+  for (std::size_t i = 0; i < kTermSignals.size(); ++i)
+    s += (i == 0 ? "" : or_last && i + 1 == kTermSignals.size() ? " or " : ", ") + std::string(kTermSignals[i].name);
+  return s;
 }
 
 std::string to_string(const Term& t, bool with_lag) {
@@ -517,15 +524,14 @@ struct Unit {
   int hour = 0;     // power of h (trun)
 };
 Unit unit_of(const Expr& e) {
-  switch (e.kind) {
-    case K::number: case K::warm: return {};
-    case K::signal: return e.signal == Signal::ton ? Unit{0, 0, 1, 0} : e.signal == Signal::trun ? Unit{0, 0, 0, 1} : Unit{1, 0, 0, 0};
-    case K::d: { auto u = unit_of(*e.a); u.per_min += 1; return u; }
-    case K::dd: { auto u = unit_of(*e.a); u.per_min += 2; return u; }
-    case K::up: case K::down: case K::lp: case K::neg: case K::delay: return unit_of(*e.a);
-    case K::pow: { auto u = unit_of(*e.a); u.temp *= e.power; u.per_min *= e.power; u.sec *= e.power; u.hour *= e.power; return u; }
-    case K::mul: { auto a = unit_of(*e.a), b = unit_of(*e.b); return {a.temp + b.temp, a.per_min + b.per_min, a.sec + b.sec, a.hour + b.hour}; }
-    case K::add: case K::sub: return unit_of(*e.a);
+  const TermOp& op = term_op(e.kind);
+  switch (op.unit) {
+    case OpUnit::none: return {};
+    case OpUnit::signal: return e.signal == Signal::ton ? Unit{0, 0, 1, 0} : e.signal == Signal::trun ? Unit{0, 0, 0, 1} : Unit{1, 0, 0, 0};
+    case OpUnit::rate: { auto u = unit_of(*e.a); u.per_min += op.derivatives; return u; }
+    case OpUnit::operand: return unit_of(*e.a);
+    case OpUnit::power: { auto u = unit_of(*e.a); u.temp *= e.power; u.per_min *= e.power; u.sec *= e.power; u.hour *= e.power; return u; }
+    case OpUnit::product: { auto a = unit_of(*e.a), b = unit_of(*e.b); return {a.temp + b.temp, a.per_min + b.per_min, a.sec + b.sec, a.hour + b.hour}; }
   }
   return {};
 }
@@ -608,9 +614,8 @@ std::expected<std::vector<double>, std::string> evaluate(const Expr& e, const Si
     case K::d: case K::dd: {
       auto v = sub(*e.a);
       if (!v) return v;
-      auto d1 = derivative_per_min(*v, s.dt_s);
-      if (e.kind == K::dd) d1 = derivative_per_min(d1, s.dt_s);
-      return d1;
+      for (int k = 0; k < term_op(e.kind).derivatives; ++k) *v = derivative_per_min(*v, s.dt_s);
+      return v;
     }
     case K::up: case K::down: {
       auto v = sub(*e.a);

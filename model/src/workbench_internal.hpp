@@ -73,6 +73,11 @@ struct Generated {
   std::string expr, effect, explanation;
 };
 
+// The candidates diagnose's language search generates, canonical expression and name (empty
+// when the options ask for too many): tests/model/term_ops_test.cpp checks them against
+// kTermOps' `searched`.
+std::vector<Generated> search_expressions(const DiagnoseOptions& o, bool has_ta, bool has_ton);
+
 struct SearchStats {
   std::size_t scanned = 0;   // generated candidates lag-scanned
   std::size_t refitted = 0;  // candidates refitted and scored (library and generated)

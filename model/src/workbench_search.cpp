@@ -9,6 +9,7 @@
 #include <limits>
 #include <numeric>
 
+#include "fogbench/model/term_ops.hpp"
 #include "fogbench/model/workbench.hpp"
 #include "common.hpp"
 #include "workbench_internal.hpp"
@@ -37,27 +38,58 @@ std::vector<int> tau_grid(int points) {
   return g;
 }
 
-std::string family_name(const std::string& expr) {
-  auto starts = [&](const char* p) { return expr.rfind(p, 0) == 0; };
-  if (starts("warm(")) return "warm-up after power-on (exp(-ton/tau), tau " + expr.substr(5, expr.size() - 6) + " s)";
-  if (expr == "ton") return "drift with the time since power-on (aging of the source, slow warm-up)";
-  if (expr == "trun") return wbi::kTimeDriftName;
-  if (starts("d(lp(")) return "rate through a slow thermal path (" + expr.substr(2, expr.size() - 3) + ")";
-  if (starts("lp(")) return "a slow thermal path (" + expr + ")";
-  if (expr.find('*') != std::string::npos) return "a product of two signals (" + expr + "), not in the library";
-  if (expr.find('^') != std::string::npos) return "a nonlinear power (" + expr + "), not in the library";
-  return "an effect outside the library (" + expr + ")";
+using K = Expr::Kind;
+
+bool contains(const Expr& e, K k) { return e.kind == k || (e.a && contains(*e.a, k)) || (e.b && contains(*e.b, k)); }
+
+// How diagnose names a generated candidate that is not in the effects library, by its
+// outermost operator (key: its canonical spelling). No default: a new operator says here how
+// the search names it.
+std::string family_name(const Expr& e, const std::string& key) {
+  auto product_or_power = [&] {
+    if (contains(e, K::mul)) return "a product of two signals (" + key + "), not in the library";
+    if (contains(e, K::pow)) return "a nonlinear power (" + key + "), not in the library";
+    return "an effect outside the library (" + key + ")";
+  };
+  switch (e.kind) {
+    case K::warm: {
+      const std::size_t open = term_op(K::warm).name.size() + 1;  // the tau between "warm(" and ")"
+      return "warm-up after power-on (exp(-ton/tau), tau " + key.substr(open, key.size() - open - 1) + " s)";
+    }
+    case K::signal:
+      if (e.signal == Signal::ton) return "drift with the time since power-on (aging of the source, slow warm-up)";
+      if (e.signal == Signal::trun) return wbi::kTimeDriftName;
+      return product_or_power();
+    case K::d:
+      if (e.a->kind == K::lp) return "rate through a slow thermal path (" + to_string(*e.a) + ")";
+      return product_or_power();
+    case K::lp: return "a slow thermal path (" + key + ")";
+    case K::number: case K::dd: case K::up: case K::down: case K::pow: case K::mul: case K::add: case K::sub: case K::neg:
+    case K::delay:
+      return product_or_power();
+  }
+  return product_or_power();
 }
 
-std::string family_explanation(const std::string& expr) {
-  auto starts = [&](const char* p) { return expr.rfind(p, 0) == 0; };
-  if (expr == "trun") return wbi::kTimeDriftExplanation;
-  if (starts("warm(") || expr == "ton")
-    return "the source, the detector and the electronics warm up after power-on whatever the chamber does: a drift that follows the "
-           "time since power-on, not temperature";
-  if (starts("lp(") || starts("d(lp("))
-    return "part of the gyro reaches the coil's temperature through a slower path (mount, potting, housing) than the model's terms";
-  return "found by the search over the term language; no physical name is attached to it";
+std::string family_explanation(const Expr& e) {
+  static const std::string warm_up =
+      "the source, the detector and the electronics warm up after power-on whatever the chamber does: a drift that follows the "
+      "time since power-on, not temperature";
+  static const std::string slow_path =
+      "part of the gyro reaches the coil's temperature through a slower path (mount, potting, housing) than the model's terms";
+  static const std::string other = "found by the search over the term language; no physical name is attached to it";
+  switch (e.kind) {
+    case K::signal:
+      if (e.signal == Signal::trun) return wbi::kTimeDriftExplanation;
+      return e.signal == Signal::ton ? warm_up : other;
+    case K::warm: return warm_up;
+    case K::lp: return slow_path;
+    case K::d: return e.a->kind == K::lp ? slow_path : other;
+    case K::number: case K::dd: case K::up: case K::down: case K::pow: case K::mul: case K::add: case K::sub: case K::neg:
+    case K::delay:
+      return other;
+  }
+  return other;
 }
 
 // The search space of the term language (docs/workbench.md lists it).
@@ -70,30 +102,31 @@ std::expected<Space, FitError> generate(const DiagnoseOptions& o, bool has_ta, b
   std::vector<std::string> sig = {"T1", "T2", "grad"};
   if (has_ta) sig.push_back("Ta");
   std::vector<std::string> rates;
-  for (const auto& s : sig) rates.push_back("d(" + s + ")");
+  // Spelled by the operators' table (term_ops.hpp); kTermOps' `searched` says which appear.
+  for (const auto& s : sig) rates.push_back(spell(K::d, s));
   std::vector<std::string> exprs;
   for (const auto& s : sig) exprs.push_back(s);
   for (const auto& r : rates) exprs.push_back(r);
-  exprs.push_back("dd(T1)");
+  exprs.push_back(spell(K::dd, "T1"));
   for (const auto& s : sig)
-    for (int p : {2, 3}) exprs.push_back(s + "^" + std::to_string(p));
+    for (int p : {2, 3}) exprs.push_back(spell(K::pow, s, {}, std::to_string(p)));
   for (const auto& r : rates) {
-    exprs.push_back("up(" + r + ")");
-    exprs.push_back("down(" + r + ")");
+    exprs.push_back(spell(K::up, r));
+    exprs.push_back(spell(K::down, r));
   }
   std::vector<std::string> prod = sig;
   for (const auto& r : rates) prod.push_back(r);
   for (std::size_t a = 0; a < prod.size(); ++a)
-    for (std::size_t b = a + 1; b < prod.size(); ++b) exprs.push_back(prod[a] + "*" + prod[b]);
+    for (std::size_t b = a + 1; b < prod.size(); ++b) exprs.push_back(spell(K::mul, prod[a], prod[b]));
   const std::vector<int> taus = tau_grid(o.tau_points);
   for (const auto& s : sig)
     for (int tau : taus) {
-      exprs.push_back("lp(" + s + "," + std::to_string(tau) + ")");
-      exprs.push_back("d(lp(" + s + "," + std::to_string(tau) + "))");
+      exprs.push_back(spell(K::lp, s, {}, std::to_string(tau)));
+      exprs.push_back(spell(K::d, spell(K::lp, s, {}, std::to_string(tau))));
     }
   if (has_ton) {
     exprs.push_back("ton");
-    for (int tau : taus) exprs.push_back("warm(" + std::to_string(tau) + ")");
+    for (int tau : taus) exprs.push_back(spell(K::warm, {}, {}, std::to_string(tau)));
   }
   const std::size_t total = exprs.size() + effects_library().size() + o.extra_terms.size();
   if (total > o.max_candidates)
@@ -105,7 +138,7 @@ std::expected<Space, FitError> generate(const DiagnoseOptions& o, bool has_ta, b
     if (!t) return fail(FitError::Code::bad_term, "internal: the search generated '" + e + "': " + t.error().pretty());
     const std::string k = to_string(*t->expr);
     const Effect* eff = find_effect(k);
-    sp.gen.push_back({k, eff ? eff->name : family_name(k), eff ? eff->explanation : family_explanation(k)});
+    sp.gen.push_back({k, eff ? eff->name : family_name(*t->expr, k), eff ? eff->explanation : family_explanation(*t->expr)});
   }
   sp.j = {{"signals", sig},
           {"ton", has_ton},
@@ -130,6 +163,10 @@ std::expected<Space, FitError> generate(const DiagnoseOptions& o, bool has_ta, b
 }  // namespace
 
 namespace wbi {
+std::vector<Generated> search_expressions(const DiagnoseOptions& o, bool has_ta, bool has_ton) {
+  auto sp = generate(o, has_ta, has_ton);
+  return sp ? sp->gen : std::vector<Generated>{};
+}
 // The residual of a model on a run, with the weights of compare (flagged, non-finite and
 // settle samples 0; spikes about the 61 s average 0), the residual 0 where the weight is.
 std::expected<Residual, FitError> residual_of(const Model& m, const RunData& run) {

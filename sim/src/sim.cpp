@@ -1,6 +1,8 @@
 // Physics of the chamber, the coil and the gyro; see sim.hpp.
 #include "fogbench/sim/sim.hpp"
 
+#include "fogbench/model/term_ops.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -11,15 +13,17 @@ namespace {
 // One exact step of a first-order lag y' = (x - y)/tau over dt for x held constant.
 double lag_step(double y, double x, double tau_s, double dt_s) { return x + (y - x) * std::exp(-dt_s / tau_s); }
 
+// The seconds of history a simulated term needs before its first sample: each operator's
+// kind of history is a column of model::kTermOps (no default: a new kind of history must say
+// what it needs here).
 int history_needed(const model::Expr& e) {
-  using K = model::Expr::Kind;
+  const model::TermOp& op = model::term_op(e.kind);
   int own = 0;
-  switch (e.kind) {
-    case K::d: own = 2 * model::kDerivativeHalfWidth; break;
-    case K::dd: own = 4 * model::kDerivativeHalfWidth; break;
-    case K::lp: own = static_cast<int>(8.0 * e.value); break;
-    case K::delay: own = e.delay_s; break;
-    default: break;
+  switch (op.history) {
+    case model::OpHistory::none: break;
+    case model::OpHistory::derivative: own = 2 * model::kDerivativeHalfWidth * op.derivatives; break;
+    case model::OpHistory::lowpass: own = static_cast<int>(8.0 * e.value); break;
+    case model::OpHistory::delay: own = e.delay_s; break;
   }
   return own + std::max(e.a ? history_needed(*e.a) : 0, e.b ? history_needed(*e.b) : 0);
 }

@@ -19,10 +19,12 @@ namespace fogbench::model {
 // trun: time since the run's start, h (sample index x dt_s / 3600): a drift in time (ageing,
 // outgassing) on a run that has no power-on column.
 enum class Signal { T1, T2, Ta, grad, ton, trun };
+inline constexpr std::size_t kSignals = 6;  // enumerators of Signal (term_ops.hpp's table checks it)
 
 // One node of an expression. Immutable once parsed; shared between copies of a model.
 struct Expr {
   // warm: exp(-ton/tau), the warm-up of a gyro after power-on (value: tau in s).
+  // An operator is a row of kTermOps (term_ops.hpp): see docs/adding-a-term-operator.md.
   enum class Kind { number, signal, d, dd, up, down, lp, pow, mul, add, sub, neg, delay, warm };
   Kind kind = Kind::number;
   double value = 0.0;        // number: the value; lp, warm: tau in s
@@ -32,6 +34,7 @@ struct Expr {
   std::shared_ptr<const Expr> a, b;
 };
 using ExprPtr = std::shared_ptr<const Expr>;
+inline constexpr std::size_t kExprKinds = 14;  // enumerators of Expr::Kind (term_ops.hpp's table checks it)
 
 // The lag of a model term: fixed (seconds) or estimated by the fit within [0, max_lag_s].
 struct Lag {
