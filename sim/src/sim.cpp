@@ -42,6 +42,12 @@ std::expected<DriftLaw, std::string> make_drift_law(const UnitParams& u) {
     if (!l) return std::unexpected(std::string(what) + " '" + text + "': " + l.error().pretty());
     for (auto t : l->terms) {
       if (t.lag.automatic) return std::unexpected(std::string(what) + ": a simulated term needs a fixed lag, not @auto: '" + model::to_string(t) + "'");
+      // The simulated gyro has no power-on clock: a term of ton (or warm(tau), which reads it)
+      // would evaluate to nothing and leave the run without the effect asked for.
+      if (model::uses_signal(*t.expr, model::Signal::ton))
+        return std::unexpected(std::string(what) + " '" + model::to_string(t) +
+                               "': the simulated gyro has no time since power-on, so ton and warm(tau) cannot be simulated; "
+                               "add a warm-up to a run's gyro_dph with its since_power_on_s column instead (docs/simulation.md)");
       law.history_s = std::max(law.history_s, history_needed(*t.expr) + t.lag.seconds);
       law.terms.push_back(std::move(t));
     }
