@@ -397,9 +397,9 @@ ApiResult<json> Server::Impl::reload(const std::string& origin) {
   station->reload_config(std::move(outcome->config));
   report["file"] = file.string();
   report["active_run"] = active ? json(*active) : json(nullptr);
-  // The run acquiring meanwhile keeps what it started with; its audit trail says the file
-  // changed under it.
-  if (active && report["changed"].get<bool>())
+  // The run acquiring meanwhile keeps what it started with; its audit trail says what the
+  // reload put in force under it (a reload that applied nothing is only logged).
+  if (active && !outcome->applied.empty())
     station->audit(*active, {{"cmd", "config.reload"}, {"origin", origin}, {"applied", report["applied"]},
                              {"needs_restart", report["needs_restart"]}});
   const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
