@@ -381,6 +381,37 @@ int cmd_run_resume(const Common& o, std::int64_t id, bool wait, bool quiet, std:
   return watch(o, id, quiet, 300.0, out, err);
 }
 
+// fogbenchd reads its configuration file again (config.reload, as SIGHUP does): a table of the
+// changed keys, each applied or needing a restart; a broken file is an error naming the key and
+// its line (exit 2), and nothing changed.
+int cmd_config_reload(const Common& o, std::ostream& out, std::ostream& err) {
+  auto c = open(o);
+  if (!c) return report(c.error(), err);
+  auto r = c->call("config.reload", json::object());
+  if (!r) return report(r.error(), err);
+  if (o.json_out) {
+    out << r->dump() << "\n";
+    return kExitOk;
+  }
+  out << "configuration reloaded from " << printable(r->value("file", std::string("?"))) << "\n";
+  if (!r->value("changed", false)) {
+    out << "nothing changed\n";
+    return kExitOk;
+  }
+  Table t({"key", "reload", "when"});
+  for (const auto& a : (*r)["applied"]) t.add({a.value("key", ""), "applied", a.value("from", "")});
+  for (const auto& a : (*r)["needs_restart"]) t.add({a.value("key", ""), "needs a restart (old value kept)", a.value("why", "")});
+  out << t.str();
+  if (!(*r)["needs_restart"].empty()) {
+    out << "needs a restart:";
+    for (const auto& a : (*r)["needs_restart"]) out << " " << printable(a.value("key", ""));
+    out << "\n";
+  }
+  if ((*r)["active_run"].is_number())
+    out << "run " << (*r)["active_run"] << " goes on with the units and analysis settings it started with\n";
+  return kExitOk;
+}
+
 }  // namespace
 
 // The subcommand of that name, or null (CLI11 2.1's get_subcommand throws).
@@ -480,6 +511,14 @@ void add_client_commands(CLI::App& app, int& code) {
     }
     code = cmd_model_get(common, model_serial, model_id, model_output, std::cout, std::cerr);
   });
+
+  auto* config = app.add_subcommand("config", "fogbenchd's configuration");
+  config->require_subcommand(1);
+  auto* reload = config->add_subcommand(
+      "reload", "Make fogbenchd read its configuration file again (as systemctl reload): apply what can change "
+                "without touching the active run, name what needs a restart; a broken file changes nothing (exit 2)");
+  add_common(reload, common);
+  reload->callback([&] { code = cmd_config_reload(common, std::cout, std::cerr); });
 }
 
 }  // namespace fogbench::cli

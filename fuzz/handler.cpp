@@ -145,7 +145,7 @@ bool documented_code(const std::string& code) {
   static const std::set<std::string> codes = {"bad_json",        "bad_request", "unknown_command",
                                               "not_found",       "busy",        "invalid_profile",
                                               "limits",          "unknown_serial", "forbidden",
-                                              "internal",        "unavailable"};
+                                              "internal",        "unavailable", "invalid_config"};
   return codes.contains(code);
 }
 

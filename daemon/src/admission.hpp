@@ -83,6 +83,8 @@ class Admission {
     return it == state_->per_address.end() ? 0 : it->second;
   }
   const AdmissionLimits& limits() const { return state_->limits; }
+  // A configuration reload: new connections are admitted by these; the open ones stay.
+  void set_limits(AdmissionLimits limits) { state_->limits = limits; }
 
  private:
   // Shared with the tickets: a connection may outlive the server's own members on the way out.
@@ -101,6 +103,8 @@ class RefusalLog {
  public:
   using Clock = std::chrono::steady_clock;
   explicit RefusalLog(Clock::duration every) : every_(every) {}
+  // A configuration reload: the next interval is this long.
+  void set_interval(Clock::duration every) { every_ = every; }
 
   // A refusal at `now`: the line to log now, if any. When a line is returned and no flush is
   // pending, the caller arms one at flush_due().

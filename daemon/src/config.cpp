@@ -52,14 +52,12 @@ std::filesystem::path resolve(const std::filesystem::path& base, const std::stri
 std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
                                                              const std::filesystem::path& base_dir) {
   if (!j.is_object()) return Err("configuration: expected a JSON object");
-  if (auto ok = only_keys(j, "", {"simulated", "storage", "socket", "chamber_limits",
-                                  "safe_setpoint_c", "profile_dir", "map_dir", "analysis",
-                                  "link_loss", "tracking", "drivers", "sim_clock", "web",
-                                  "station", "plant", "signing"});
+  if (auto ok = only_keys(j, "", config_fields::kTopKeys);
       !ok)
     return Err(ok.error());
   DaemonConfig c;
   c.source = j;
+  c.file_json = j;
 
   if (j.contains("plant")) {
     auto p = parse_plant_config(j["plant"]);
@@ -83,7 +81,7 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
     // Recorded with every run (its identity) and printed on certificates.
     const json& st = j["station"];
     if (!st.is_object()) return Err("station: expected an object {\"id\": ...}");
-    if (auto ok = only_keys(st, "station", {"id"}); !ok) return Err(ok.error());
+    if (auto ok = only_keys(st, "station", config_fields::kStationKeys); !ok) return Err(ok.error());
     if (st.contains("id")) {
       auto id = string(st, "station", "id");
       if (!id) return Err(id.error());
@@ -98,7 +96,7 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
     return Err("storage: expected an object {\"path\": ...}");
   {
     const json& s = j["storage"];
-    if (auto ok = only_keys(s, "storage", {"path", "synchronous", "size_limit_bytes"}); !ok) return Err(ok.error());
+    if (auto ok = only_keys(s, "storage", config_fields::kStorageKeys); !ok) return Err(ok.error());
     auto path = string(s, "storage", "path");
     if (!path) return Err(path.error());
     c.storage_path = *path == ":memory:" ? std::filesystem::path(*path) : resolve(base_dir, *path);
@@ -121,7 +119,7 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   if (j.contains("signing")) {
     const json& sg = j["signing"];
     if (!sg.is_object()) return Err("signing: expected an object {\"key_path\": ...}");
-    if (auto ok = only_keys(sg, "signing", {"key_path"}); !ok) return Err(ok.error());
+    if (auto ok = only_keys(sg, "signing", config_fields::kSigningKeys); !ok) return Err(ok.error());
     if (sg.contains("key_path")) {
       auto kp = string(sg, "signing", "key_path");
       if (!kp) return Err(kp.error());
@@ -141,9 +139,7 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   if (j.contains("socket")) {
     const json& s = j["socket"];
     if (!s.is_object()) return Err("socket: expected an object");
-    if (auto ok = only_keys(s, "socket", {"path", "group", "tcp_port", "tcp", "max_clients", "unix_max_clients",
-                                          "max_clients_per_address", "max_analyses_per_address", "first_request_timeout_s",
-                                          "refusal_log_interval_s", "idle_timeout_s"});
+    if (auto ok = only_keys(s, "socket", config_fields::kSocketKeys);
         !ok)
       return Err(ok.error());
     // The connection limits (docs/reliability.md, "Connection limits"): each a count 1..100000.
@@ -197,7 +193,7 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
     if (s.contains("tcp")) {
       const json& t = s["tcp"];
       if (!t.is_object()) return Err("socket.tcp: expected an object {\"port\", \"address\", \"token\" | \"token_file\"}");
-      if (auto ok = only_keys(t, "socket.tcp", {"port", "address", "token", "token_file", "allow_remote"}); !ok)
+      if (auto ok = only_keys(t, "socket.tcp", config_fields::kSocketTcpKeys); !ok)
         return Err(ok.error());
       const json& v = t.contains("port") ? t["port"] : json(nullptr);
       if (!v.is_number_integer() || v.get<long long>() < 1 || v.get<long long>() > 65535)
@@ -266,7 +262,7 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
     return Err("chamber_limits: expected an object {\"min_c\", \"max_c\", \"max_rate_c_per_min\"}");
   {
     const json& l = j["chamber_limits"];
-    if (auto ok = only_keys(l, "chamber_limits", {"min_c", "max_c", "max_rate_c_per_min"}); !ok)
+    if (auto ok = only_keys(l, "chamber_limits", config_fields::kChamberLimitsKeys); !ok)
       return Err(ok.error());
     auto lo = number(l, "chamber_limits", "min_c");
     if (!lo) return Err(lo.error());
@@ -296,8 +292,7 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   if (j.contains("analysis")) {
     const json& a = j["analysis"];
     if (!a.is_object()) return Err("analysis: expected an object");
-    if (auto ok = only_keys(a, "analysis", {"terms", "method", "verify_threshold", "verify_max_noise_factor",
-                                            "verify_max_fail_s", "max_iterations", "causal_lags"});
+    if (auto ok = only_keys(a, "analysis", config_fields::kAnalysisKeys);
         !ok)
       return Err(ok.error());
     if (a.contains("terms")) {
@@ -345,7 +340,7 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   if (j.contains("link_loss")) {
     const json& l = j["link_loss"];
     if (!l.is_object()) return Err("link_loss: expected an object {\"policy\", \"tolerance_s\"}");
-    if (auto ok = only_keys(l, "link_loss", {"policy", "tolerance_s"}); !ok) return Err(ok.error());
+    if (auto ok = only_keys(l, "link_loss", config_fields::kLinkLossKeys); !ok) return Err(ok.error());
     if (l.contains("policy")) {
       const json& v = l["policy"];
       if (v == "hold") c.link_loss.policy = LinkLossConfig::Policy::hold;
@@ -363,7 +358,7 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   if (j.contains("tracking")) {
     const json& t = j["tracking"];
     if (!t.is_object()) return Err("tracking: expected an object {\"max_error_c\", \"for_s\", \"frozen_s\"}");
-    if (auto ok = only_keys(t, "tracking", {"max_error_c", "for_s", "frozen_s"}); !ok) return Err(ok.error());
+    if (auto ok = only_keys(t, "tracking", config_fields::kTrackingKeys); !ok) return Err(ok.error());
     for (auto [key, out] : {std::pair{"max_error_c", &c.tracking.max_error_c},
                             std::pair{"for_s", &c.tracking.for_s}, std::pair{"frozen_s", &c.tracking.frozen_s}}) {
       if (!t.contains(key)) continue;

@@ -3,7 +3,7 @@
 #pragma once
 
 #include <expected>
-#include <initializer_list>
+#include <span>
 #include <string>
 #include <string_view>
 
@@ -16,10 +16,43 @@ inline std::string join(const std::string& path, const std::string& key) {
   return path.empty() ? key : path + "." + key;
 }
 
+// The keys each section of the file may hold: the parser refuses any other, and the reload's
+// table (config_reload.cpp) is tested to classify every one of them. The drivers' sections are
+// the drivers library's own (drivers/config.hpp).
+inline constexpr std::string_view kTopKeys[] = {"simulated", "storage", "socket", "chamber_limits",
+                                                "safe_setpoint_c", "profile_dir", "map_dir", "analysis",
+                                                "link_loss", "tracking", "drivers", "sim_clock", "web",
+                                                "station", "plant", "signing"};
+inline constexpr std::string_view kStationKeys[] = {"id"};
+inline constexpr std::string_view kStorageKeys[] = {"path", "synchronous", "size_limit_bytes"};
+inline constexpr std::string_view kSigningKeys[] = {"key_path"};
+inline constexpr std::string_view kSocketKeys[] = {"path", "group", "tcp_port", "tcp", "max_clients",
+                                                   "unix_max_clients", "max_clients_per_address",
+                                                   "max_analyses_per_address", "first_request_timeout_s",
+                                                   "refusal_log_interval_s", "idle_timeout_s"};
+inline constexpr std::string_view kSocketTcpKeys[] = {"port", "address", "token", "token_file", "allow_remote"};
+inline constexpr std::string_view kChamberLimitsKeys[] = {"min_c", "max_c", "max_rate_c_per_min"};
+inline constexpr std::string_view kAnalysisKeys[] = {"terms", "method", "verify_threshold", "verify_max_noise_factor",
+                                                     "verify_max_fail_s", "max_iterations", "causal_lags"};
+inline constexpr std::string_view kLinkLossKeys[] = {"policy", "tolerance_s"};
+inline constexpr std::string_view kTrackingKeys[] = {"max_error_c", "for_s", "frozen_s"};
+inline constexpr std::string_view kWebKeys[] = {"listen", "allow_remote", "enabled", "token_file", "hosts"};
+inline constexpr std::string_view kPlantKeys[] = {"conninfo", "bench_id", "poll_s", "retry_max_s"};
+
+struct Section {
+  std::string_view path;  // "" for the top level
+  std::span<const std::string_view> keys;
+};
+inline constexpr Section kSections[] = {
+    {"", kTopKeys},           {"station", kStationKeys},     {"storage", kStorageKeys},
+    {"signing", kSigningKeys}, {"socket", kSocketKeys},       {"socket.tcp", kSocketTcpKeys},
+    {"chamber_limits", kChamberLimitsKeys}, {"analysis", kAnalysisKeys}, {"link_loss", kLinkLossKeys},
+    {"tracking", kTrackingKeys}, {"web", kWebKeys},           {"plant", kPlantKeys}};
+
 // Unknown keys are refused so that a typo is an error, not a silently ignored setting:
 // "socket.tcp.tokn: unknown field".
 inline std::expected<void, std::string> only_keys(const nlohmann::json& obj, const std::string& path,
-                                                  std::initializer_list<std::string_view> allowed) {
+                                                  std::span<const std::string_view> allowed) {
   for (const auto& [key, value] : obj.items()) {
     bool known = false;
     for (std::string_view a : allowed) known = known || a == key;

@@ -10,7 +10,7 @@ namespace fogbench::daemon {
 std::expected<PlantConfig, std::string> parse_plant_config(const nlohmann::json& j) {
   using Err = std::unexpected<std::string>;
   if (!j.is_object()) return Err("plant: expected an object {\"conninfo\", \"bench_id\"}");
-  if (auto ok = config_fields::only_keys(j, "plant", {"conninfo", "bench_id", "poll_s", "retry_max_s"}); !ok)
+  if (auto ok = config_fields::only_keys(j, "plant", config_fields::kPlantKeys); !ok)
     return Err(ok.error());
   PlantConfig p;
   if (!j.contains("conninfo") || !j["conninfo"].is_string() || j["conninfo"].get<std::string>().empty())

@@ -125,6 +125,10 @@ struct CommandHandlers {
     return json{{"known", !found->empty()}, {"certificates", certs}};
   }
 
+  // The configuration file read again (docs/daemon.md "Reloading the configuration"): what
+  // applied and what needs a restart, or invalid_config with nothing changed.
+  static ApiResult<json> config_reload(const CommandCall& c) { return station(c).reload(); }
+
   // The station's public key (fogctl cert --public-key): what a customer checks certificates
   // with, offline (docs/daemon.md "The station key").
   static ApiResult<json> cert_public_key(const CommandCall& c) {
@@ -542,6 +546,7 @@ constexpr CommandEntry kCommands[] = {
     {"queue.add", Access::control, &CommandHandlers::plan_as_peer<queue_add>},
     {"queue.remove", Access::control, &CommandHandlers::plan<queue_remove>},
     {"queue.move", Access::control, &CommandHandlers::plan<queue_move>},
+    {"config.reload", Access::control, &CommandHandlers::config_reload},
 };
 
 constexpr bool table_is_sound() {

@@ -1,6 +1,7 @@
 // fogbenchd: the bench daemon. Runs in the foreground, logs to stderr (to the journal in its
-// format under systemd), stops on SIGTERM; Type=notify: READY=1 once its sockets are bound,
-// STATUS= lines, WATCHDOG=1 while its event loop turns.
+// format under systemd), stops on SIGTERM, reloads its configuration on SIGHUP; Type=notify:
+// READY=1 once its sockets are bound, RELOADING=1 then READY=1 around a reload, STATUS= lines,
+// WATCHDOG=1 while its event loop turns.
 #include <CLI/CLI.hpp>
 #include <atomic>
 #include <chrono>
@@ -109,7 +110,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   const std::string socket_path = config->socket.unix_path.string();
-  fogbench::daemon::Server server(std::move(*config), {time_scale});
+  fogbench::daemon::Server server(std::move(*config), {time_scale, std::filesystem::absolute(config_path)});
   if (auto ok = server.start(); !ok) {
     sd::notify("STATUS=start-up failed: " + ok.error().message);
     spdlog::error("{}", ok.error().message);

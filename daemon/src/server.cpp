@@ -27,11 +27,14 @@
 #include <boost/asio.hpp>
 #include <chrono>
 #include <cstdlib>
+#include <fstream>
+#include <sstream>
 #include <iostream>
 
 #include <spdlog/spdlog.h>
 
 #include "fogbench/protocol/framing.hpp"
+#include "fogbench/daemon/config_reload.hpp"
 #include "fogbench/daemon/handler.hpp"
 #include "fogbench/daemon/instance.hpp"
 #include "fogbench/daemon/metrics.hpp"
@@ -106,6 +109,7 @@ struct Server::Impl {
   ServerOptions options;
   asio::io_context io;
   asio::signal_set signals{io, SIGTERM, SIGINT};
+  asio::signal_set hangup{io, SIGHUP};  // a configuration reload (systemctl reload)
   std::optional<asio::local::stream_protocol::acceptor> unix_acceptor;
   std::optional<asio::ip::tcp::acceptor> tcp_acceptor;
   SessionSet sessions;  // every transport's live connections
@@ -296,6 +300,7 @@ struct Server::Impl {
     station->shutdown("fogbenchd stopping: " + why);
     close_acceptors();
     signals.cancel();
+    hangup.cancel();
     if (web) web->stop();
     sessions.close_all();
     // The last job: the safe setpoint. Its completion, or the deadline, ends the loop.
@@ -328,10 +333,82 @@ struct Server::Impl {
     if (tcp_acceptor) tcp_acceptor->close(ec);
   }
 
+  // --- the configuration's reload (config_reload.hpp, docs/daemon.md)
+  void await_hangup() {
+    hangup.async_wait([this](boost::system::error_code ec, int) {
+      if (ec || stopping) return;
+      (void)reload("SIGHUP");
+      await_hangup();
+    });
+  }
+  ApiResult<json> reload(const std::string& origin);
+
   // --- wiring
   std::expected<void, StartError> bind_sockets();
   std::expected<void, std::string> open_acquisition();
 };
+
+// The file read again and parsed as at start; what the table says applies is put in force in the
+// station (runs started after it, max_analyses_per_address) and here (the connection limits, the
+// refusal log), the rest kept as it is and named. On the loop: a file of a few kB parses in well
+// under a millisecond, and the seconds of an active run are read by the acquisition meanwhile.
+ApiResult<json> Server::Impl::reload(const std::string& origin) {
+  const auto t0 = Clock::now();
+  const auto& file = options.config_path;
+  if (file.empty()) return api_error(ErrorCode::unavailable, "this daemon has no configuration file to reload");
+  systemd::notify("RELOADING=1\nSTATUS=reloading " + file.string());
+  auto ready = [&](const std::string& status) { systemd::notify("READY=1\nSTATUS=" + status); };
+  std::ifstream in(file);
+  std::stringstream text;
+  if (in) text << in.rdbuf();
+  if (!in) {
+    const std::string why = file.string() + ": cannot be read; the configuration in force is unchanged";
+    spdlog::error("configuration reload ({}): {}", origin, why);
+    ready("reload failed: " + why);
+    return api_error(ErrorCode::internal, why);
+  }
+  auto outcome = plan_reload(station->config(), text.str(), file.parent_path());
+  if (!outcome) {
+    const std::string why = file.string() + ": " + outcome.error() + "; the configuration in force is unchanged";
+    spdlog::error("configuration reload ({}) refused: {}", origin, why);
+    ready("reload refused: " + outcome.error());
+    return api_error(ErrorCode::invalid_config, why);
+  }
+  // Here: what the listeners read of the socket section, and the slots and settings for the
+  // record; the drivers' own fields (scaled backoffs) stay as they are.
+  const DaemonConfig& next = outcome->config;
+  config.socket.max_clients = next.socket.max_clients;
+  config.socket.unix_max_clients = next.socket.unix_max_clients;
+  config.socket.max_clients_per_address = next.socket.max_clients_per_address;
+  config.socket.max_analyses_per_address = next.socket.max_analyses_per_address;
+  config.socket.refusal_log_interval_s = next.socket.refusal_log_interval_s;
+  for (std::size_t i = 0; i < config.drivers.units.size() && i < next.drivers.units.size(); ++i) {
+    config.drivers.units[i].serial = next.drivers.units[i].serial;
+    config.drivers.units[i].slot = next.drivers.units[i].slot;
+  }
+  config.analysis = next.analysis;
+  config.source = next.source;
+  config.file_json = next.file_json;
+  admission.set_limits(admission_limits(config.socket));
+  refusals.set_interval(std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(config.socket.refusal_log_interval_s)));
+  const auto active = station->active_run_id();
+  json report = outcome->report();
+  station->reload_config(std::move(outcome->config));
+  report["file"] = file.string();
+  report["active_run"] = active ? json(*active) : json(nullptr);
+  // The run acquiring meanwhile keeps what it started with; its audit trail says what the
+  // reload put in force under it (a reload that applied nothing is only logged).
+  if (active && !outcome->applied.empty())
+    station->audit(*active, {{"cmd", "config.reload"}, {"origin", origin}, {"applied", report["applied"]},
+                             {"needs_restart", report["needs_restart"]}});
+  const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  report["elapsed_ms"] = ms;
+  if (outcome->restart.empty()) spdlog::info("{} ({}, {:.1f} ms)", outcome->log_line(), origin, ms);
+  else spdlog::warn("{} ({}, {:.1f} ms)", outcome->log_line(), origin, ms);
+  ready("serving on " + config.socket.unix_path.string() + " (configuration reloaded)");
+  return report;
+}
 
 // The command sockets: the unix socket (mode 0660, the operators' group) and, when configured,
 // the TCP port. A socket another daemon answers on is never taken over; a stale one (a crash) is
@@ -451,6 +528,7 @@ std::expected<void, Server::StartError> Server::start() {
     m.station->set_signing_key(std::move(key->key), m.config.signing_key_path);
   }
   m.handler = std::make_unique<Handler>(*m.station);
+  if (!m.options.config_path.empty()) m.station->set_reloader([&m] { return m.reload("config.reload"); });
   if (m.config.web) {
     web::WebServer::Hooks hooks;
     hooks.take = [&m](const std::string& address, const std::string& peer) {
@@ -516,6 +594,7 @@ int Server::run() {
   m.signals.async_wait([&m](boost::system::error_code ec, int sig) {
     if (!ec) m.begin_stop(sig == SIGTERM ? "SIGTERM" : "SIGINT");
   });
+  m.await_hangup();
   m.accept_unix();
   if (m.tcp_acceptor) m.accept_tcp();
   if (m.web) m.web->start();

@@ -194,8 +194,10 @@ ApiResult<std::int64_t> Station::start_run_in_slots(const std::string& profile_n
   run.profile_name = profile_name;
   run.serials = serials;
   run.config_index = std::move(index);
+  run.slots = nr.unit_slots;
   run.executor = std::make_unique<profiles::Executor>(std::move(*profile));
   run.live = LiveCompensation::load(store_, serials);
+  run_analysis_[*id] = config_.analysis;
   run_ = std::move(run);
   event(*id, storage::EventKind::command, command, std::nullopt);
   return *id;
@@ -226,6 +228,7 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
                                                       ": not configured on this bench");
     run.serials.push_back(u.serial);
     run.config_index.push_back(*ci);
+    run.slots.push_back(u.slot ? *u.slot : config_.drivers.units[*ci].slot);
   }
   auto profile = check_profile_text(rec.profile_text, rec.profile_name + ".profile");
   if (!profile) return std::unexpected(profile.error());
@@ -319,6 +322,7 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
   run.resume_at_s = gap_to_s;
   run.state = RunState::interrupted;
   run.link_down = true;  // so the first tick records the link as up again when it is
+  if (!run_analysis_.contains(run_id)) run_analysis_[run_id] = config_.analysis;
   run_ = std::move(run);
   event(run_id, storage::EventKind::command, command, gap_from_s);
   // Recorded before the gap's rows are: what is to be stored, and what an earlier resume had

@@ -30,7 +30,10 @@ void Station::analyse_units(std::int64_t run_id, storage::Purpose purpose, const
   // The fits or verifications are computed on the offload (fogbenchd's analysis worker, with its
   // own read connection): a long fit must not hold up the next run's seconds or the replies.
   // What they produced is stored here, on the loop, in unit order, each with its note.
-  const AnalysisConfig config = config_.analysis;
+  // The settings the run started with (a reload since applies to later runs only); a run this
+  // process did not start (a plan's analysis asked again after a restart) takes the file's.
+  const auto started = run_analysis_.find(run_id);
+  const AnalysisConfig config = started != run_analysis_.end() ? started->second : config_.analysis;
   const std::string created_at = wall_clock_();
   offload_->submit([this, run_id, purpose, serials, units, config, created_at](storage::Store& reader) -> Offload::Then {
     auto computed = std::make_shared<std::vector<ApiResult<analysis::Commit>>>();

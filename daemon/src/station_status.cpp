@@ -70,8 +70,7 @@ json Station::status() const {
   s["units"] = units;
   if (run_) {
     const auto& r = *run_;
-    json run_slots = json::array();
-    for (std::size_t ci : r.config_index) run_slots.push_back(config_.drivers.units[ci].slot);
+    const json run_slots = r.slots;  // as the run started (a reload may have renamed a slot since)
     s["run"] = {{"id", r.id}, {"state", std::string(storage::to_string(r.state))},
                 {"profile", r.profile_name}, {"purpose", std::string(storage::to_string(r.purpose))},
                 {"units", r.serials}, {"slots", run_slots}, {"elapsed_s", r.elapsed_s},

@@ -18,7 +18,7 @@ std::expected<WebConfig, std::string> parse_web_config(const json& j, const std:
   using Err = std::unexpected<std::string>;
   if (!j.is_object())
     return Err("web: expected an object {\"listen\": \"127.0.0.1:8080\", \"allow_remote\"?, \"enabled\"?, \"token_file\"?, \"hosts\"?}");
-  if (auto ok = config_fields::only_keys(j, "web", {"listen", "allow_remote", "enabled", "token_file", "hosts"}); !ok)
+  if (auto ok = config_fields::only_keys(j, "web", config_fields::kWebKeys); !ok)
     return Err(ok.error());
   WebConfig w;
   if (j.contains("enabled")) {

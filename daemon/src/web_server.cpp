@@ -176,7 +176,7 @@ http::status status_of(const std::string& reply) {
   const std::string code = j["error"].value("code", "");
   if (code == "forbidden") return http::status::forbidden;
   if (code == "bad_json" || code == "bad_request" || code == "unknown_command" || code == "invalid_profile" ||
-      code == "limits" || code == "unknown_serial")
+      code == "limits" || code == "unknown_serial" || code == "invalid_config")
     return http::status::bad_request;
   if (code == "not_found") return http::status::not_found;
   if (code == "busy") return http::status::conflict;

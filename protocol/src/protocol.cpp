@@ -11,7 +11,7 @@ using nlohmann::json;
 
 namespace {
 
-constexpr std::array<std::pair<ErrorCode, std::string_view>, 11> kCodes{{
+constexpr std::array<std::pair<ErrorCode, std::string_view>, 12> kCodes{{
     {ErrorCode::bad_json, "bad_json"},
     {ErrorCode::bad_request, "bad_request"},
     {ErrorCode::unknown_command, "unknown_command"},
@@ -23,6 +23,7 @@ constexpr std::array<std::pair<ErrorCode, std::string_view>, 11> kCodes{{
     {ErrorCode::forbidden, "forbidden"},
     {ErrorCode::internal, "internal"},
     {ErrorCode::unavailable, "unavailable"},
+    {ErrorCode::invalid_config, "invalid_config"},
 }};
 
 // Readers of a received object: each names the field that is missing or of the wrong type.

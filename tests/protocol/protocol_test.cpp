@@ -17,7 +17,7 @@ TEST_CASE("protocol: every error code has its documented wire string, and back")
       {ErrorCode::busy, "busy"},                 {ErrorCode::invalid_profile, "invalid_profile"},
       {ErrorCode::limits, "limits"},             {ErrorCode::unknown_serial, "unknown_serial"},
       {ErrorCode::forbidden, "forbidden"},       {ErrorCode::internal, "internal"},
-      {ErrorCode::unavailable, "unavailable"},
+      {ErrorCode::unavailable, "unavailable"},   {ErrorCode::invalid_config, "invalid_config"},
   };
   for (const auto& [code, text] : table) {
     CHECK(to_string(code) == text);

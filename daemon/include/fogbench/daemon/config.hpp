@@ -148,6 +148,8 @@ struct DaemonConfig {
   std::filesystem::path signing_key_path;
   std::optional<PlantConfig> plant;        // replication to the plant store; none when absent
   nlohmann::json source;                   // the file as read, stored with every run (plant.conninfo left out)
+  // The file as read, nothing left out: what a reload compares the new file with (never stored).
+  nlohmann::json file_json;
 };
 
 // The `plant` section (config_plant.cpp).

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <expected>
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <string>
@@ -15,6 +16,8 @@ namespace fogbench::daemon {
 
 struct ServerOptions {
   double time_scale = 1.0;  // daemon seconds per wall second; > 1 only when simulated
+  // The configuration file (absolute), read again on SIGHUP and config.reload; none: no reload.
+  std::filesystem::path config_path;
 };
 
 class Server {

@@ -15,6 +15,7 @@
 #include <deque>
 #include <expected>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <set>
@@ -131,6 +132,17 @@ class Station {
 
   storage::Store& store() { return store_; }
   const DaemonConfig& config() const { return config_; }
+  // A configuration reload (config_reload.hpp) puts `next` in force: the server has kept every
+  // key that needs a restart at its old value. The active run keeps its units' slots and the
+  // analysis settings it started with; runs started afterwards take the new ones.
+  void reload_config(DaemonConfig next) { config_ = std::move(next); }
+  // Who reloads the configuration file for config.reload (the server); unset: unavailable.
+  using Reloader = std::function<ApiResult<nlohmann::json>()>;
+  void set_reloader(Reloader r) { reloader_ = std::move(r); }
+  ApiResult<nlohmann::json> reload() {
+    if (!reloader_) return api_error(ErrorCode::unavailable, "this daemon has no configuration file to reload");
+    return reloader_();
+  }
   // The key certificates are signed with (docs/daemon.md "The station key"): the server sets
   // the one of config().signing_key_path at start; until then (a station in a test) a key made
   // for this process alone, with no file (`signing_key_path()` empty).
@@ -180,6 +192,7 @@ class Station {
     std::string profile_name;
     std::vector<std::string> serials;
     std::vector<std::size_t> config_index;  // of each run unit in config_.drivers.units
+    std::vector<std::string> slots;         // each run unit's slot name, as the run started
     storage::RunState state = storage::RunState::pending;
     std::unique_ptr<profiles::Executor> executor;
     // Per run unit: what the run lost, for status and the `quality` note stored at its end.
@@ -281,6 +294,10 @@ class Station {
   std::vector<TickListener*> tick_listeners_;
   std::set<std::int64_t> skip_analysis_;
   std::set<std::int64_t> analysing_;
+  // The analysis settings each run started (or resumed) with: its automatic fit or verification
+  // uses them, whatever a reload changed meanwhile (one verdict, by one rule).
+  std::map<std::int64_t, AnalysisConfig> run_analysis_;
+  Reloader reloader_;
 };
 
 // ISO 8601 UTC now, to the second.

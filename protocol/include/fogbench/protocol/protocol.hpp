@@ -45,6 +45,7 @@ enum class ErrorCode {
   forbidden,        // a command that changes something, on a connection that may only read (TCP)
   internal,         // storage or analysis failed; the daemon keeps running
   unavailable,      // the bench cannot run now: the chamber link is down (run.start, run.resume)
+  invalid_config,   // config.reload: the configuration file does not parse; nothing changed
 };
 std::string_view to_string(ErrorCode c);
 // The code of a wire string; nullopt for one this side does not know (a newer daemon's).
