@@ -1,5 +1,6 @@
 // Parsing of fogbenchd's configuration file, field by field, with errors that name the field.
 #include "fogbench/daemon/config.hpp"
+#include "fogbench/daemon/config_reload.hpp"
 
 #include <tuple>
 #include <grp.h>
@@ -400,10 +401,9 @@ std::expected<DaemonConfig, std::string> load_daemon_config(const std::filesyste
   if (!in) return Err(file.string() + ": cannot be read");
   std::stringstream ss;
   ss << in.rdbuf();
-  json j = json::parse(ss.str(), nullptr, false);
-  if (j.is_discarded()) return Err(file.string() + ": not valid JSON");
-  auto base = std::filesystem::absolute(file).parent_path();
-  auto c = parse_daemon_config(j, base);
+  // The reload's parser (config_reload.cpp): a syntax error names its line and column, a bad
+  // key its line, at start-up and under --check-config as on a reload.
+  auto c = parse_daemon_config_text(ss.str(), std::filesystem::absolute(file).parent_path());
   if (!c) return Err(file.string() + ": " + c.error());
   return c;
 }

@@ -148,7 +148,11 @@ TEST_CASE("fogbenchd --check-config: 0 for a valid file, 2 naming the key of an 
     return WIFEXITED(s) ? WEXITSTATUS(s) : -1;
   };
   CHECK(run("--check-config '" + (dir / "bad.json").string() + "'") == 2);
-  CHECK_THAT(slurp(dir / "out"), Catch::Contains("max_rate_c_per_min"));
+  // The key and its line (issue 28: --check-config names where, as a reload does).
+  CHECK_THAT(slurp(dir / "out"), Catch::Contains("chamber_limits.max_rate_c_per_min (line 2)"));
+  std::ofstream(dir / "comma.json") << "{\"simulated\": true,\n \"storage\": {\"path\": \"x.db\"},\n}\n";  // a trailing comma
+  CHECK(run("--check-config '" + (dir / "comma.json").string() + "'") == 2);
+  CHECK_THAT(slurp(dir / "out"), Catch::Contains("comma.json: line 3, column 1: not valid JSON"));
   CHECK(run("--check-config '" + (dir / "missing.json").string() + "'") == 2);
   CHECK(run("") == 2);  // neither --config nor --check-config
   {
