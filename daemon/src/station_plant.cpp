@@ -22,7 +22,11 @@ void Station::queue_for_plant(std::int64_t run_id) {
 
 json Station::plant_status() const {
   auto o = store_.outbox_status();
-  if (!o) return {{"bench_id", config_.plant->bench_id}, {"error", o.error().message}};
+  if (!o) {
+    json e = {{"bench_id", config_.plant->bench_id}, {"error", o.error().message}};
+    if (plant_link_state_) e.update(plant_link_state_());
+    return e;
+  }
   auto opt = [](const std::optional<std::string>& v) { return v ? json(*v) : json(nullptr); };
   json out = {{"bench_id", config_.plant->bench_id},
           {"outbox_depth", o->depth},
