@@ -8,7 +8,9 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <iomanip>
 #include <iostream>
+#include <sstream>
 
 #include "client_commands.hpp"
 #include "run_identity.hpp"
@@ -86,6 +88,29 @@ Table quality_table(const json& serials, const json& quality, const json* sample
   return t;
 }
 
+// status.plant in one line: the outbox, and the link's state (STALLED in capitals: a transaction
+// or connection attempt without progress for plant.stall_s, docs/plant.md "The link's state").
+std::string plant_status_text(const json& p) {
+  std::ostringstream o;
+  o << "plant: bench '" << p.value("bench_id", std::string("?")) << "', outbox " << p.value("outbox_depth", 0)
+    << " waiting, " << p.value("sent", 0) << " sent";
+  if (p.contains("error") && p["error"].is_string()) o << ", outbox unreadable: " << p["error"].get<std::string>();
+  if (p.contains("link") && p["link"].is_string()) {
+    const std::string link = p["link"].get<std::string>();
+    const bool stalled = p.value("stalled", false);
+    o << "; link " << (stalled ? "STALLED" : link);
+    if (p.contains("sending_run_id") && p["sending_run_id"].is_number_integer())
+      o << (stalled ? " sending run " : " run ") << p["sending_run_id"].get<std::int64_t>();
+    if (link != "idle" && link != "stopped" && p.contains("link_busy_s") && p["link_busy_s"].is_number())
+      o << " for " << std::fixed << std::setprecision(1) << p["link_busy_s"].get<double>() << " s";
+    if (stalled && p.contains("link_quiet_s") && p["link_quiet_s"].is_number())
+      o << ", no progress for " << std::fixed << std::setprecision(1) << p["link_quiet_s"].get<double>() << " s";
+  }
+  if (p.contains("last_error") && p["last_error"].is_string())
+    o << "; last error: " << p["last_error"].get<std::string>();
+  return o.str();
+}
+
 // --- status
 int cmd_status(const Common& o, std::ostream& out, std::ostream& err) {
   auto c = open(o);
@@ -125,6 +150,7 @@ int cmd_status(const Common& o, std::ostream& out, std::ostream& err) {
     out << "last run " << last["run_id"] << ": " << last["state"].get<std::string>() << " ("
         << last["reason"].get<std::string>() << ")"
         << (last.value("recorded", true) ? "" : "; NOT yet recorded in the store (retried every 10 s)") << "\n";
+  if (const json& p = s->value("plant", json()); p.is_object()) out << plant_status_text(p) << "\n";
   return kExitOk;
 }
 

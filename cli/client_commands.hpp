@@ -41,6 +41,9 @@ std::string num_text(std::optional<double> v, int digits = 2);
 std::string num_text(double v, int digits = 2);
 // H:MM:SS, "-" for a negative or unknown duration.
 std::string duration_text(double s);
+// status.plant in one line for `fogctl status`: the outbox, the link's state (STALLED in
+// capitals, with the run and how long without progress) and the last error.
+std::string plant_status_text(const nlohmann::json& plant);
 
 // --operator NAME and --lot LOT | --lot SERIAL=LOT (repeatable) into a request's "operator",
 // "lot" or "lots" (run start, plan start, queue add); false, with the error on err naming

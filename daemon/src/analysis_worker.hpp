@@ -5,8 +5,11 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <boost/asio.hpp>
+#include <chrono>
 #include <deque>
+#include <future>
 #include <thread>
 
 #include <spdlog/spdlog.h>
@@ -27,12 +30,18 @@ namespace asio = boost::asio;
 class AnalysisWorker final : public Offload {
  public:
   AnalysisWorker(asio::io_context& loop, storage::Store reader) : loop_(loop), reader_(std::move(reader)) {
+    ended_ = ended_promise_.get_future();
     thread_ = std::thread([this] {
       ::setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), 10);
       jobs_.run();
+      ended_promise_.set_value();
     });
   }
-  ~AnalysisWorker() override { stop(); }
+  ~AnalysisWorker() override {
+    // A job that would not end (stop() said so) cannot be joined without hanging: the server
+    // ends the process instead of destroying the worker; this is the last guard.
+    if (!stop(std::chrono::seconds(2)) && thread_.joinable()) thread_.detach();
+  }
 
   // On the loop thread.
   void submit(Job job, JobOrigin origin) override {
@@ -41,11 +50,27 @@ class AnalysisWorker final : public Offload {
   }
   std::size_t pending_from(std::string_view address) const override { return queue_.pending_from(address); }
 
-  // Jobs not yet started are dropped (the loop is stopping); the one running finishes first.
-  void stop() {
+  // Jobs not yet started are dropped (the loop is stopping); the one running has `timeout` to
+  // finish. True when the thread ended and was joined; false (logged, with how long the job had
+  // run) leaves the job running, its result never stored, for the process's end to take.
+  bool stop(std::chrono::milliseconds timeout) {
     guard_.reset();
     jobs_.stop();
-    if (thread_.joinable()) thread_.join();
+    if (!thread_.joinable()) return true;
+    if (ended_.wait_for(timeout) != std::future_status::ready) {
+      const auto began = job_began_ns_.load();
+      const double ran_s =
+          began ? std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch() -
+                                                std::chrono::nanoseconds(began))
+                      .count()
+                : 0.0;
+      spdlog::warn("analysis worker: stopping: abandoned the job running for {:.1f} s (not finished within {} ms; "
+                   "its result is not stored)",
+                   ran_s, timeout.count());
+      return false;
+    }
+    thread_.join();
+    return true;
   }
 
  private:
@@ -54,6 +79,7 @@ class AnalysisWorker final : public Offload {
     busy_ = job.has_value();
     if (!busy_) return;
     asio::post(jobs_, [this, job = std::move(job->job), address = std::move(job->address)] {
+      job_began_ns_ = std::chrono::steady_clock::now().time_since_epoch().count();
       Then then;
       try {
         then = job(reader_);
@@ -72,6 +98,9 @@ class AnalysisWorker final : public Offload {
   storage::Store reader_;
   JobQueue queue_;  // the loop's
   bool busy_ = false;      // a job is on the thread or its continuation on the loop
+  std::atomic<std::int64_t> job_began_ns_{0};  // steady clock: the running job's start
+  std::promise<void> ended_promise_;            // set when the thread's loop returns
+  std::future<void> ended_;
   asio::io_context jobs_;
   asio::executor_work_guard<asio::io_context::executor_type> guard_{jobs_.get_executor()};
   std::thread thread_;

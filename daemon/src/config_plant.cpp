@@ -21,7 +21,8 @@ std::expected<PlantConfig, std::string> parse_plant_config(const nlohmann::json&
   p.bench_id = j["bench_id"].get<std::string>();
   if (auto why = plant::check_id(p.bench_id, "plant.bench_id"); !why.empty()) return Err(why);
   for (auto [key, field, lo, hi] : {std::tuple{"poll_s", &p.poll_s, 0.01, 3600.0},
-                                    std::tuple{"retry_max_s", &p.retry_max_s, 0.01, 86400.0}}) {
+                                    std::tuple{"retry_max_s", &p.retry_max_s, 0.01, 86400.0},
+                                    std::tuple{"stall_s", &p.stall_s, 0.5, 86400.0}}) {
     if (!j.contains(key)) continue;
     const auto& v = j[key];
     if (!v.is_number() || !std::isfinite(v.get<double>()) || v.get<double>() < lo || v.get<double>() > hi)

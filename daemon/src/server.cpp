@@ -53,6 +53,7 @@
 #include "plant_link.hpp"
 #include "session.hpp"
 #include "sim_clock.hpp"
+#include "stop_budget.hpp"
 #include "web_server.hpp"
 
 namespace fogbench::daemon {
@@ -69,8 +70,8 @@ namespace {
 constexpr auto kAcceptBackoff = std::chrono::milliseconds(250);
 // Failed accepts are logged at most this often, with how many there were.
 constexpr auto kAcceptLogEvery = std::chrono::seconds(60);
-// The chamber is sent to its safe setpoint on the way out; this long at most.
-constexpr auto kShutdownDeadline = std::chrono::seconds(5);
+// The chamber is sent to its safe setpoint on the way out; this long at most (stop_budget.hpp).
+constexpr auto kShutdownDeadline = stop_budget::kSafeSetpoint;
 
 // Whether an accept failed for want of resources, so retrying at once would spin.
 bool accept_starved(const boost::system::error_code& ec) {
@@ -148,6 +149,7 @@ struct Server::Impl {
   std::unique_ptr<web::WebServer> web;
 
   bool stopping = false;
+  StopGuard stop_guard;  // the stop's whole budget (stop_budget.hpp)
   asio::steady_timer shutdown_timer{io};
   int exit_code = 0;
 
@@ -296,8 +298,14 @@ struct Server::Impl {
     // systemd hears it before the shutdown work (the run's end, the safe setpoint) begins.
     systemd::notify("STOPPING=1\nSTATUS=stopping: " + why);
     if (notifier) notifier->stop();
-    spdlog::info("stopping: {}", why);
+    spdlog::info("stopping: {} (budget {} s: the run's end, the safe setpoint, the plant link, the workers)", why,
+                 std::chrono::duration_cast<std::chrono::seconds>(stop_budget::kTotal).count());
+    stop_guard.arm(stop_budget::kTotal);
+    // The plant link first: its grace runs while the run ends and the chamber is made safe.
+    if (plant) plant->request_stop();
+    stop_guard.step("the run's end");
     station->shutdown("fogbenchd stopping: " + why);
+    stop_guard.step("the safe setpoint");
     close_acceptors();
     signals.cancel();
     hangup.cancel();
@@ -486,8 +494,8 @@ Server::Server(DaemonConfig config, ServerOptions options)
     : impl_(std::make_unique<Impl>(std::move(config), options)) {}
 
 Server::~Server() {
-  if (impl_ && impl_->analysis) impl_->analysis->stop();
-  if (impl_ && impl_->samples) impl_->samples->stop();
+  if (impl_ && impl_->analysis) impl_->analysis->stop(stop_budget::kAnalysis);
+  if (impl_ && impl_->samples) impl_->samples->stop(stop_budget::kSampleWriter);
   if (impl_) impl_->acquisition.reset();  // stops and joins the device workers
   // Only the socket file this daemon bound: another daemon's is never removed.
   if (impl_ && impl_->unix_acceptor) remove_if_ours(impl_->config.socket.unix_path, impl_->socket_id);
@@ -570,7 +578,17 @@ std::expected<void, Server::StartError> Server::start() {
   }
   if (m.config.plant) {
     if (m.config.storage_path == ":memory:") spdlog::warn("plant: an in-memory store is not replicated");
-    else m.plant = std::make_unique<PlantLink>(*m.config.plant, m.config.storage_path);
+    else {
+      m.plant = std::make_unique<PlantLink>(*m.config.plant, m.config.storage_path);
+      m.station->set_plant_link_state([link = m.plant.get()] {
+        const PlantLinkState st = link->state();
+        return json{{"link", st.state},
+                    {"stalled", st.stalled},
+                    {"sending_run_id", st.run_id ? json(st.run_id) : json(nullptr)},
+                    {"link_busy_s", st.busy_s},
+                    {"link_quiet_s", st.quiet_s}};
+      });
+    }
   }
   m.station->set_publisher([&m](const json& msg) { m.publish(msg); });
   // A store that cannot take the interrupted marks now (a full disk, a lock held) must not keep
@@ -627,12 +645,42 @@ int Server::run() {
       spdlog::error("event loop: {}", e.what());
     }
   }
-  if (m.analysis) m.analysis->stop();
-  if (m.plant) m.plant->stop();
-  if (m.samples) m.samples->stop();  // the station drained it when the run ended; a last guard
+  // The threads, each within its share of the stop's budget (stop_budget.hpp); one that would not
+  // end is left to the process's end, which comes at once (below) rather than after a join that
+  // could hang past systemd's TimeoutStopSec.
+  using namespace stop_budget;
+  const auto now = std::chrono::steady_clock::now();
+  m.stop_guard.arm(kTotal);  // a loop that ended without begin_stop (a test's io.stop)
+  bool all_ended = true;
+  if (m.analysis) {
+    m.stop_guard.step("the analysis worker");
+    all_ended &= m.analysis->stop(kAnalysis);
+  }
+  if (m.plant) {
+    m.stop_guard.step("the plant link");
+    const auto from = m.stopping ? m.stop_guard.began() : now;
+    all_ended &= m.plant->stop(std::max(from + kPlantGrace, std::chrono::steady_clock::now()),
+                               std::max(from + kPlantGrace + kPlantAfterAbandon, std::chrono::steady_clock::now()));
+  }
+  if (m.samples) {
+    m.stop_guard.step("the sample writer");
+    m.samples->stop(kSampleWriter);  // the station drained it when the run ended; a last guard
+  }
+  m.stop_guard.step("the device workers");
   m.acquisition->join();
+  m.stop_guard.step("done");
   remove_if_ours(m.config.socket.unix_path, m.socket_id);
   m.unix_acceptor.reset();
+  spdlog::info("stopped in {:.2f} s (budget {} s), exit status {}", m.stop_guard.elapsed_s(),
+               std::chrono::duration_cast<std::chrono::seconds>(kTotal).count(), m.exit_code);
+  m.stop_guard.disarm();
+  if (!all_ended) {
+    // A thread still in a call that no deadline reaches: the process ends here, without the
+    // destructors that would join it. The store's commits are on disk (SQLite's WAL).
+    spdlog::warn("stopping: a thread did not end (see above): the process exits without waiting for it");
+    spdlog::default_logger()->flush();
+    std::_Exit(m.exit_code);
+  }
   return m.exit_code;
 }
 

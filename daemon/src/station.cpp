@@ -347,6 +347,7 @@ ApiResult<std::int64_t> Station::abort_run(const std::string& reason, const json
 }
 
 void Station::shutdown(const std::string& reason) {
+  sample_drain_timeout_ = kStopSampleDrainTimeout;
   if (run_) finish(RunState::aborted, reason);
   setpoint_c_ = config_.safe_setpoint_c;
   // A last try for what the store refused; what it still refuses is lost with the process
@@ -393,7 +394,7 @@ void Station::finish(RunState to, const std::string& reason_in, EndCause cause) 
   // The run's samples first: its end is recorded after them, and a refusal among its last
   // seconds (the writer's thread reports it after the second was handed over) ends it aborted.
   const bool stalled = cause == EndCause::storage_stalled;
-  const bool drained = samples_->drain(stalled ? std::chrono::milliseconds(0) : kSampleDrainTimeout);
+  const bool drained = samples_->drain(stalled ? std::chrono::milliseconds(0) : sample_drain_timeout_);
   if (auto lost = samples_->take_failure(); lost && lost->run_id == run.id) {
     if (WriteJournal::may_pass(lost->error.code)) journal_.set_refused(true);
     // A reason that is already the storage's (the tick took an earlier refusal) stays as it is.

@@ -22,15 +22,21 @@ void Station::queue_for_plant(std::int64_t run_id) {
 
 json Station::plant_status() const {
   auto o = store_.outbox_status();
-  if (!o) return {{"bench_id", config_.plant->bench_id}, {"error", o.error().message}};
+  if (!o) {
+    json e = {{"bench_id", config_.plant->bench_id}, {"error", o.error().message}};
+    if (plant_link_state_) e.update(plant_link_state_());
+    return e;
+  }
   auto opt = [](const std::optional<std::string>& v) { return v ? json(*v) : json(nullptr); };
-  return {{"bench_id", config_.plant->bench_id},
+  json out = {{"bench_id", config_.plant->bench_id},
           {"outbox_depth", o->depth},
           {"sent", o->sent},
           {"oldest_queued_at", opt(o->oldest_queued_at)},
           {"attempts", o->attempts},
           {"last_error", o->last_error.empty() ? json(nullptr) : json(o->last_error)},
           {"last_sent_at", opt(o->last_sent_at)}};
+  if (plant_link_state_) out.update(plant_link_state_());
+  return out;
 }
 
 }  // namespace fogbench::daemon

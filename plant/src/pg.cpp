@@ -46,11 +46,14 @@ Connection::Connection(Connection&&) noexcept = default;
 Connection& Connection::operator=(Connection&&) noexcept = default;
 Connection::~Connection() = default;
 
+int Connection::socket() const { return PQsocket(conn_->pg); }
+
 PlantResult<void> Connection::exec(const std::string& sql, std::string_view what) {
   PGresult* res = PQexec(conn_->pg, sql.c_str());
   std::unique_ptr<PGresult, decltype(&PQclear)> guard(res, &PQclear);
   const auto st = PQresultStatus(res);
   if (st != PGRES_COMMAND_OK && st != PGRES_TUPLES_OK) return std::unexpected(pg_error(conn_->pg, res, what));
+  progressed();
   return {};
 }
 
@@ -64,6 +67,7 @@ PlantResult<Rows> Connection::query(const std::string& sql, const std::vector<st
   std::unique_ptr<PGresult, decltype(&PQclear)> guard(res, &PQclear);
   const auto st = PQresultStatus(res);
   if (st != PGRES_COMMAND_OK && st != PGRES_TUPLES_OK) return std::unexpected(pg_error(conn_->pg, res, what));
+  progressed();
   Rows out;
   const int nc = PQnfields(res), nr = PQntuples(res);
   for (int c = 0; c < nc; ++c) out.columns.emplace_back(PQfname(res, c));
@@ -90,6 +94,7 @@ PlantResult<void> Connection::copy_begin(const std::string& copy_sql, std::strin
   PGresult* res = PQexec(conn_->pg, copy_sql.c_str());
   std::unique_ptr<PGresult, decltype(&PQclear)> guard(res, &PQclear);
   if (PQresultStatus(res) != PGRES_COPY_IN) return std::unexpected(pg_error(conn_->pg, res, what));
+  progressed();
   return {};
 }
 
@@ -106,6 +111,7 @@ PlantResult<void> Connection::copy_put(std::string_view data, std::string_view w
       while (PGresult* r = PQgetResult(pg)) PQclear(r);
       return std::unexpected(std::move(e));
     }
+    progressed();
   }
   return {};
 }
@@ -130,6 +136,7 @@ PlantResult<std::int64_t> Connection::copy_end(std::string_view what) {
   }
   if (!err && PQstatus(pg) == CONNECTION_BAD) err = pg_error(pg, nullptr, what);
   if (err) return std::unexpected(std::move(*err));
+  progressed();
   return rows;
 }
 

@@ -3,6 +3,7 @@
 #include <catch2/catch.hpp>
 
 #include "client.hpp"
+#include "client_commands.hpp"
 
 using fogbench::cli::parse_connect;
 
@@ -209,4 +210,20 @@ TEST_CASE("fogctl client: an error reply carries its code as an enum, and an unk
   CHECK(odd.error().code == fogbench::cli::ClientErrc::reply);
   CHECK_FALSE(odd.error().reply_code.has_value());
   CHECK(odd.error().reply_code_text == "quantum_flux");
+}
+
+TEST_CASE("fogctl status: the plant's line says a stalled link, its run and how long without progress") {
+  using fogbench::cli::commands::plant_status_text;
+  const nlohmann::json stalled = {{"bench_id", "b7"},          {"outbox_depth", 2},     {"sent", 5},
+                                  {"last_error", nullptr},     {"link", "stalled"},     {"stalled", true},
+                                  {"sending_run_id", 12},      {"link_busy_s", 14.3},  {"link_quiet_s", 9.5}};
+  CHECK(plant_status_text(stalled) ==
+        "plant: bench 'b7', outbox 2 waiting, 5 sent; link STALLED sending run 12 for 14.3 s, no progress for 9.5 s");
+  const nlohmann::json idle = {{"bench_id", "b7"}, {"outbox_depth", 0}, {"sent", 5}, {"last_error", "connect: refused"},
+                               {"link", "idle"},   {"stalled", false},  {"sending_run_id", nullptr},
+                               {"link_busy_s", 0}, {"link_quiet_s", 0}};
+  CHECK(plant_status_text(idle) == "plant: bench 'b7', outbox 0 waiting, 5 sent; link idle; last error: connect: refused");
+  // A daemon without the link's fields (older): the outbox alone.
+  CHECK(plant_status_text({{"bench_id", "b7"}, {"outbox_depth", 1}, {"sent", 0}}) ==
+        "plant: bench 'b7', outbox 1 waiting, 0 sent");
 }

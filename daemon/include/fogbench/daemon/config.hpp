@@ -121,6 +121,7 @@ struct PlantConfig {
   std::string bench_id;        // this bench's name in the plant, 1..64 characters
   double poll_s = 2.0;         // how often the outbox is looked at when idle, wall s
   double retry_max_s = 60.0;   // the longest wait between failed attempts (doubling from 1 s), wall s
+  double stall_s = 30.0;       // a connection or run's transaction this long without progress is "stalled", wall s
 };
 
 struct DaemonConfig {

@@ -121,9 +121,15 @@ class Station {
   // store until the server gives it its writer thread. Not owned; it must outlive the station's
   // use of it. Set before the first run starts.
   void set_sample_writer(SampleWriter* writer) { samples_ = writer ? writer : &inline_samples_; }
+  // What the plant link is doing (status.plant's link fields: state, stalled, ...), from the
+  // server's PlantLink; none: status shows the outbox only.
+  void set_plant_link_state(std::function<nlohmann::json()> f) { plant_link_state_ = std::move(f); }
   // How long a run's end waits for its samples to be committed: the writer's own busy timeout
   // (5 s by default) and a slow fsync fit in it.
   static constexpr std::chrono::milliseconds kSampleDrainTimeout{15000};
+  // The same at a stop (shutdown()): its share of the stop's budget below systemd's
+  // TimeoutStopSec (docs/reliability.md "The stop's budget").
+  static constexpr std::chrono::milliseconds kStopSampleDrainTimeout{4000};
   // A second the writer has not committed after this much wall time is a stalled store (a disk
   // that does not answer): the run ends aborted rather than acquire on blind.
   static constexpr double kSampleStallWall_s = 30.0;
@@ -270,6 +276,8 @@ class Station {
   Offload* offload_ = &inline_offload_;
   InlineSampleWriter inline_samples_{store_};
   SampleWriter* samples_ = &inline_samples_;
+  std::chrono::milliseconds sample_drain_timeout_ = kSampleDrainTimeout;  // a run's end (shutdown: shorter)
+  std::function<nlohmann::json()> plant_link_state_;
   double time_scale_ = 1.0;
   WallClock wall_clock_;
   std::optional<signing::SigningKey> signing_key_;

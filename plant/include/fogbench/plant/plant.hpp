@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <expected>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
@@ -79,12 +80,27 @@ class Connection {
   PlantResult<void> copy_put(std::string_view data, std::string_view what);
   PlantResult<std::int64_t> copy_end(std::string_view what);
 
+  // Called on the calling thread each time the server answers a statement or takes a chunk
+  // (1 MB) of COPY data: how a watcher tells a slow transaction from one that makes no progress.
+  void on_progress(std::function<void()> f) { progress_ = std::move(f); }
+
+  // The connection's socket, for a caller that must abandon a call blocked in another thread:
+  // shutdown(2) on a dup(2) of it makes the blocked call fail at once with connection_lost (the
+  // server rolls the transaction back when it sees the connection gone). libpq's own cancel
+  // (PQcancel) asks the server's postmaster to interrupt the backend, which a backend that is
+  // stopped or unreachable never acts on; the socket's end does not depend on the server.
+  int socket() const;
+
   detail::Conn& raw() { return *conn_; }
 
  private:
   explicit Connection(std::unique_ptr<detail::Conn> c);
+  void progressed() {
+    if (progress_) progress_();
+  }
   std::unique_ptr<detail::Conn> conn_;
   int version_ = 0;
+  std::function<void()> progress_;
 };
 
 // A COPY text field: backslash, tab, newline and carriage return escaped.
