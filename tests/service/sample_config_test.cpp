@@ -73,11 +73,11 @@ TEST_CASE("the sample configuration's web section: off and loopback as shipped, 
   on["web"]["enabled"] = true;
   r = check_config(dir, on);
   CHECK(r.status == 2);
-  CHECK_THAT(r.out, Catch::Contains("web.token_file: cannot be read") && Catch::Contains("web.token"));
+  CHECK_THAT(r.out, Catch::Contains("web.token_file (line ") && Catch::Contains("): cannot be read") && Catch::Contains("web.token"));
   std::ofstream(dir / "web.token") << "short\n";
   r = check_config(dir, on);
   CHECK(r.status == 2);
-  CHECK_THAT(r.out, Catch::Contains("web.token_file: the token is shorter than 16 characters"));
+  CHECK_THAT(r.out, Catch::Contains("web.token_file (line ") && Catch::Contains("): the token is shorter than 16 characters"));
   std::ofstream(dir / "web.token") << "0123456789abcdef0123\n";
   r = check_config(dir, on);
   INFO(r.out);
@@ -88,15 +88,15 @@ TEST_CASE("the sample configuration's web section: off and loopback as shipped, 
   remote["web"]["listen"] = "0.0.0.0:8080";
   r = check_config(dir, remote);
   CHECK(r.status == 2);
-  CHECK_THAT(r.out, Catch::Contains("web.listen: 0.0.0.0 is not a loopback address"));
+  CHECK_THAT(r.out, Catch::Contains("web.listen (line ") && Catch::Contains("): 0.0.0.0 is not a loopback address"));
   json typo = shipped;
   typo["web"]["enable"] = true;
   r = check_config(dir, typo);
   CHECK(r.status == 2);
-  CHECK_THAT(r.out, Catch::Contains("web.enable: unknown field"));
+  CHECK_THAT(r.out, Catch::Contains("web.enable (line ") && Catch::Contains("): unknown field"));
   json bad = shipped;
   bad["web"]["enabled"] = "yes";
-  CHECK_THAT(check_config(dir, bad).out, Catch::Contains("web.enabled: expected true or false"));
+  CHECK_THAT(check_config(dir, bad).out, Catch::Contains("web.enabled (line ") && Catch::Contains("): expected true or false"));
   std::filesystem::remove_all(dir);
 }
 

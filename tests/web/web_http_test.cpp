@@ -270,6 +270,7 @@ TEST_CASE("a non-loopback web.listen without allow_remote keeps fogbenchd from s
   CHECK(p.wait(30s) == 2);
   const std::string log = slurp(dir / "log");
   INFO(log);
-  CHECK(log.find("web.listen: 0.0.0.0 is not a loopback address") != std::string::npos);
+  // The key, its line in the file (the start-up reads it as --check-config and a reload do), the reason.
+  CHECK(log.find("web.listen (line 1): 0.0.0.0 is not a loopback address") != std::string::npos);
   std::filesystem::remove_all(dir);
 }
