@@ -665,7 +665,7 @@ TEST_CASE("store: the live compensated rate is stored per sample, exported and i
   REQUIRE(b.has_value());
   CHECK_FALSE(b->has_compensated());
   // Imported back (a CSV of an export): the column comes with it.
-  auto imported = s.import_run(*a, ImportOptions{.serial = "FOG-X", .profile_text = {}, .identity = {}});
+  auto imported = s.import_run(*a, ImportOptions{.serial = "FOG-X", .profile_text = {}, .identity = {}, .lot = {}});
   REQUIRE(imported.has_value());
   auto again = s.export_run(*imported, 0, {.include_settle = true});
   REQUIRE(again.has_value());
