@@ -64,6 +64,19 @@ StoreResult<std::int64_t> Store::put_verdict(const NewVerdict& v) {
     if (!m) return std::unexpected(m.error());
     if (m->serial != v.serial) return bad("model " + std::to_string(*v.model_id) + " is " + m->serial + "'s");
   }
+  // The same decision again (a plan runner killed between its decide and its progress save
+  // decides on restart what it had decided): the serial's latest row already is this verdict,
+  // by the same rule, run, unit, plan and model, with the same limits and reasons: it is
+  // returned, not written twice. A serial has one verdict per decision.
+  auto latest = latest_verdict(v.serial);
+  if (!latest) return std::unexpected(latest.error());
+  if (*latest) {
+    const VerdictRecord& l = **latest;
+    if (l.run_id == v.run_id && l.unit_index == v.unit_index && l.model_id == v.model_id && l.verdict == v.verdict &&
+        l.rule == v.rule && l.plan_id == v.plan_id && l.plan_name == v.plan_name && l.plan_sha256 == v.plan_sha256 &&
+        l.limits_json == v.limits_json && l.reasons_json == v.reasons_json)
+      return l.id;
+  }
   return with_reserve(db, [&]() -> StoreResult<std::int64_t> {
     auto stmt = db.statement(
         "INSERT INTO verdicts (serial, run_id, unit_index, model_id, verdict, rule, plan_id, plan_name, plan_sha256, "

@@ -132,3 +132,37 @@ TEST_CASE("verdicts: a verdict that does not hold together is refused and nothin
   CHECK(s.run_verdicts(run)->empty());
   CHECK(s.put_verdict(v).has_value());
 }
+
+TEST_CASE("verdicts: the same decision twice is one row, a decision after another is a new one") {
+  Store s = mem();
+  const auto run = imported_run(s, "FOG-2");
+  const auto model = model_of(s, "FOG-2");
+  NewVerdict v;
+  v.serial = "FOG-2";
+  v.run_id = run;
+  v.model_id = model;
+  v.verdict = "fail";
+  v.rule = "analysis";
+  v.limits_json = R"([{"limit":"comp_raw < 0.2","value":0.3,"met":false}])";
+  v.reasons_json = R"(["comp/raw 30.0 % >= 20 %"])";
+  const auto first = s.put_verdict(v);
+  REQUIRE(first.has_value());
+  // Decided again, as after a restart between the decision and what followed it: one row.
+  const auto again = s.put_verdict(v);
+  REQUIRE(again.has_value());
+  CHECK(*again == *first);
+  CHECK(s.run_verdicts(run)->size() == 1);
+  // Not the same decision: another value of a limit is a new row, and the latest.
+  NewVerdict other = v;
+  other.limits_json = R"([{"limit":"comp_raw < 0.2","value":0.31,"met":false}])";
+  const auto second = s.put_verdict(other);
+  REQUIRE(second.has_value());
+  CHECK(*second != *first);
+  // The first decision once more after another one: a new decision (the latest is not it).
+  const auto third = s.put_verdict(v);
+  REQUIRE(third.has_value());
+  CHECK(*third != *first);
+  CHECK(*third != *second);
+  CHECK(s.run_verdicts(run)->size() == 3);
+  CHECK(s.latest_verdict("FOG-2")->value().id == *third);
+}

@@ -378,6 +378,9 @@ class Store {
   // --- verdicts (store_verdicts.cpp, verdict.hpp): one row per decision, the serial's verdict
   // its latest. Checked: a known verdict and rule, a plan's id/name/hash with rule plan only,
   // JSON arrays, the run's unit holding the serial, the model the serial's. Returns its id.
+  // The same decision again (the serial's latest row equal to it in every field but its time)
+  // is not written twice: its row's id is returned (a plan runner killed between its decide
+  // and its progress save decides again on restart).
   StoreResult<std::int64_t> put_verdict(const NewVerdict& v);
   // The serial's latest verdict; empty when it has none.
   StoreResult<std::optional<VerdictRecord>> latest_verdict(std::string_view serial);
