@@ -71,7 +71,10 @@ int run_fleet(const std::string& command, const FleetOptions& o, std::ostream& o
     err << where << "--level: expected a number between 0 and 1 (e.g. 0.95)\n";
     return kExitError;
   }
-  auto c = plant::Connection::open(o.db.empty() ? "service=" + o.service : o.db, false);
+  // A plant that does not answer is reported after 10 s (kFleetConnectTimeoutS), not after the
+  // kernel's two minutes of retries; a connect_timeout written in --db wins.
+  constexpr int kFleetConnectTimeoutS = 10;
+  auto c = plant::Connection::open(o.db.empty() ? "service=" + o.service : o.db, false, kFleetConnectTimeoutS);
   if (!c) {
     err << where << c.error().message << "\n";
     return kExitError;

@@ -37,7 +37,7 @@ inline constexpr std::string_view kAnalysisKeys[] = {"terms", "method", "verify_
 inline constexpr std::string_view kLinkLossKeys[] = {"policy", "tolerance_s"};
 inline constexpr std::string_view kTrackingKeys[] = {"max_error_c", "for_s", "frozen_s"};
 inline constexpr std::string_view kWebKeys[] = {"listen", "allow_remote", "enabled", "token_file", "hosts"};
-inline constexpr std::string_view kPlantKeys[] = {"conninfo", "bench_id", "poll_s", "retry_max_s", "stall_s"};
+inline constexpr std::string_view kPlantKeys[] = {"conninfo", "bench_id", "poll_s", "retry_max_s", "stall_s", "connect_timeout_s"};
 
 struct Section {
   std::string_view path;  // "" for the top level

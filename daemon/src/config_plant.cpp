@@ -1,5 +1,6 @@
 // The `plant` section of fogbenchd's configuration (issue 14, docs/daemon.md and docs/plant.md).
 #include <cmath>
+#include <cstdint>
 
 #include "fogbench/daemon/config.hpp"
 #include "config_fields.hpp"
@@ -29,6 +30,12 @@ std::expected<PlantConfig, std::string> parse_plant_config(const nlohmann::json&
       return Err(std::string("plant.") + key + ": expected a number " + std::to_string(lo) + " to " +
                  std::to_string(hi) + " (s)");
     *field = v.get<double>();
+  }
+  if (j.contains("connect_timeout_s")) {
+    const auto& v = j["connect_timeout_s"];
+    if (!v.is_number_integer() || v.get<std::int64_t>() < 1 || v.get<std::int64_t>() > 3600)
+      return Err("plant.connect_timeout_s: expected a whole number of seconds, 1 to 3600");
+    p.connect_timeout_s = v.get<int>();
   }
   return p;
 }

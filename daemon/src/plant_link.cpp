@@ -180,7 +180,7 @@ void PlantLink::run() {
     const storage::OutboxEntry entry = head->front();
     if (!plant) {
       set_phase(PlantActivity::Phase::connecting);
-      auto c = plant::Connection::open(config_.conninfo, true);
+      auto c = plant::Connection::open(config_.conninfo, true, config_.connect_timeout_s);
       set_phase(PlantActivity::Phase::idle);
       if (!c) {
         (void)store->mark_replication_failed(entry.id, c.error().message);

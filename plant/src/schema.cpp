@@ -289,9 +289,34 @@ PlantResult<int> migrate(Connection& c) {
 
 int Connection::current_schema_version() { return kCurrent; }
 
-PlantResult<Connection> Connection::open(const std::string& conninfo, bool do_migrate) {
+namespace {
+
+// Whether the connection string or URI names connect_timeout itself (unparsable: no; the
+// connection attempt then reports the syntax error).
+bool sets_connect_timeout(const std::string& conninfo) {
+  PQconninfoOption* options = PQconninfoParse(conninfo.c_str(), nullptr);
+  if (!options) return false;
+  bool set = false;
+  for (const PQconninfoOption* o = options; o->keyword; ++o)
+    if (std::string_view(o->keyword) == "connect_timeout" && o->val && *o->val) set = true;
+  PQconninfoFree(options);
+  return set;
+}
+
+}  // namespace
+
+PlantResult<Connection> Connection::open(const std::string& conninfo, bool do_migrate, int connect_timeout_s) {
   auto conn = std::make_unique<detail::Conn>();
-  conn->pg = PQconnectdb(conninfo.c_str());
+  if (connect_timeout_s > 0 && !sets_connect_timeout(conninfo)) {
+    // The arrays are read in order and a later keyword wins: the conninfo (expanded as the
+    // first dbname) first, then the bound. A service file only fills what is still unset.
+    const std::string timeout = std::to_string(connect_timeout_s);
+    const char* keywords[] = {"dbname", "connect_timeout", nullptr};
+    const char* values[] = {conninfo.c_str(), timeout.c_str(), nullptr};
+    conn->pg = PQconnectdbParams(keywords, values, 1);
+  } else {
+    conn->pg = PQconnectdb(conninfo.c_str());
+  }
   if (!conn->pg || PQstatus(conn->pg) != CONNECTION_OK) {
     std::string msg = conn->pg ? PQerrorMessage(conn->pg) : "out of memory";
     while (!msg.empty() && (msg.back() == '\n' || msg.back() == ' ')) msg.pop_back();

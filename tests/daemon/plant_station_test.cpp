@@ -32,6 +32,7 @@ TEST_CASE("plant config: the section parses, its errors name the field, the conn
   CHECK(c->plant->conninfo == "host=/tmp password=secret");
   CHECK(c->plant->bench_id == "bench-7");
   CHECK(c->plant->retry_max_s == 60);
+  CHECK(c->plant->connect_timeout_s == 10);
   CHECK_FALSE(c->source["plant"].contains("conninfo"));
   CHECK(c->source.dump().find("secret") == std::string::npos);
   CHECK_THAT(refusal({{"plant", {{"bench_id", "b"}}}}), Catch::StartsWith("plant.conninfo"));
@@ -41,6 +42,9 @@ TEST_CASE("plant config: the section parses, its errors name the field, the conn
              Catch::StartsWith("plant.bench_id: a control character at position 2"));
   CHECK_THAT(refusal({{"plant", {{"conninfo", "x"}, {"bench_id", "b"}, {"retry_max_s", -1}}}}),
              Catch::StartsWith("plant.retry_max_s"));
+  for (const json bad : {json(0), json(1.5), json(3601), json("10")})
+    CHECK_THAT(refusal({{"plant", {{"conninfo", "x"}, {"bench_id", "b"}, {"connect_timeout_s", bad}}}}),
+               Catch::StartsWith("plant.connect_timeout_s: expected a whole number of seconds, 1 to 3600"));
   CHECK_THAT(refusal({{"plant", {{"conninfo", "x"}, {"bench_id", "b"}, {"colour", 1}}}}),
              Catch::StartsWith("plant.colour: unknown field"));
 }

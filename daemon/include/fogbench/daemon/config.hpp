@@ -122,6 +122,7 @@ struct PlantConfig {
   double poll_s = 2.0;         // how often the outbox is looked at when idle, wall s
   double retry_max_s = 60.0;   // the longest wait between failed attempts (doubling from 1 s), wall s
   double stall_s = 30.0;       // a connection or run's transaction this long without progress is "stalled", wall s
+  int connect_timeout_s = 10;  // one connection attempt's bound (libpq connect_timeout) unless conninfo sets one, wall s
 };
 
 struct DaemonConfig {

@@ -57,7 +57,11 @@ class Connection {
   // dbname=plant" or "service=plant"). With `migrate` the schema is created or brought up to
   // date (the bench side); without, a missing or older schema is refused (the readers). A
   // schema newer than this fogbench knows is refused either way, untouched.
-  static PlantResult<Connection> open(const std::string& conninfo, bool migrate);
+  // `connect_timeout_s` (> 0) bounds the connection attempt (libpq's connect_timeout: each
+  // address's TCP connect and start-up exchange; a name lookup is not bounded by it) unless the
+  // conninfo sets its own connect_timeout; it overrides a service file's. 0: libpq's default
+  // (no bound: an unreachable host waits for the kernel's retries, about two minutes).
+  static PlantResult<Connection> open(const std::string& conninfo, bool migrate, int connect_timeout_s = 0);
 
   Connection(Connection&&) noexcept;
   Connection& operator=(Connection&&) noexcept;
@@ -135,6 +139,12 @@ PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& ben
 // which is harmless.
 PlantResult<std::int64_t> send_outbox(Connection& plant, storage::Store& bench, std::string_view bench_id,
                                       std::int64_t limit);
+
+// The verdicts of this bench that the plant lacks although it holds their runs (runs replicated
+// before the plant's schema had verdicts, schema version 4), inserted in one transaction; a
+// verdict the plant holds is left as it is. Returns how many were sent. The plant link calls
+// it on each new connection: a few ids per run read, nothing sent when nothing is missing.
+PlantResult<std::int64_t> send_missing_verdicts(Connection& plant, storage::Store& bench, std::string_view bench_id);
 
 // A bench id or lot id: 1..64 characters, none a control character. "" when fine, else why.
 std::string check_id(std::string_view value, std::string_view field);
