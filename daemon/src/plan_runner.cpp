@@ -162,6 +162,31 @@ ApiResult<json> PlanRunner::validate(const std::string& text, const std::string&
   return json{{"valid", true}, {"name", p->name}, {"steps", steps}, {"limits", limits}, {"nominal_duration_s", nominal_s}};
 }
 
+std::optional<std::string> PlanRunner::slot_change_refusal(const std::vector<drivers::UnitConfig>& next) const {
+  const auto& now = bench_slots();
+  for (const char* state : {"running", "queued"}) {
+    auto plans = const_cast<Station&>(station_).store().list_plans(state);
+    if (!plans) continue;  // the store's error is the next step's to report
+    for (const auto& rec : *plans)
+      for (const auto& serial : rec.units) {
+        auto s = rec.slots.find(serial);
+        const auto given = s != rec.slots.end() ? std::optional<std::string_view>(s->second) : std::nullopt;
+        const auto before = find_slot(now, serial, given);
+        if (!before) continue;  // placed nowhere already: its step's start says so
+        const auto after = find_slot(next, serial, given);
+        if (after == before) continue;
+        return "drivers.units: " + std::string(state) + " plan " + std::to_string(rec.id) + " (" + rec.name +
+               ") has " + serial + " in slot " + now[*before].slot + " (position " + std::to_string(*before + 1) +
+               "); this file would place it " +
+               (after ? "in slot " + next[*after].slot + " (position " + std::to_string(*after + 1) + ")"
+                      : std::string("in no slot")) +
+               " at the plan's next step: change that slot once the plan has ended, or abort the plan "
+               "(fogctl plan abort) or remove it from the queue (fogctl queue remove)";
+      }
+  }
+  return std::nullopt;
+}
+
 std::optional<std::int64_t> PlanRunner::running_plan_id() const {
   auto r = const_cast<Station&>(station_).store().list_plans("running");
   if (!r || r->empty()) return std::nullopt;

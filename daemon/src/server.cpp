@@ -382,6 +382,15 @@ ApiResult<json> Server::Impl::reload(const std::string& origin) {
     ready("reload refused: " + outcome.error());
     return api_error(ErrorCode::invalid_config, why);
   }
+  // A plan not yet done keeps each unit in its bench position: a file that would move one is
+  // refused whole, as a bad file is.
+  if (const PlanRunner* plans = station->plan_runner())
+    if (auto why = plans->slot_change_refusal(outcome->config.drivers.units)) {
+      const std::string msg = file.string() + ": " + *why + "; the configuration in force is unchanged";
+      spdlog::error("configuration reload ({}) refused: {}", origin, msg);
+      ready("reload refused: " + *why);
+      return api_error(ErrorCode::invalid_config, msg);
+    }
   // Here: what the listeners read of the socket section, and the slots and settings for the
   // record; the drivers' own fields (scaled backoffs) stay as they are.
   const DaemonConfig& next = outcome->config;

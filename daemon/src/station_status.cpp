@@ -43,14 +43,21 @@ json Station::status() const {
   json units = json::array();
   for (std::size_t i = 0; i < config_.drivers.units.size(); ++i) {
     // The slot's serial: the active run's unit in it, else the configured default (null: none).
+    // A slot in use shows the name the run stored for it; a reload that renamed it since says
+    // the new name in `next_slot` (the name of the next run's unit there).
     const auto& cu = config_.drivers.units[i];
     json serial = cu.serial.empty() ? json(nullptr) : json(cu.serial);
+    std::string slot = cu.slot;
     if (run_) {
       for (std::size_t k = 0; k < run_->config_index.size() && k < run_->serials.size(); ++k)
-        if (run_->config_index[k] == i) serial = run_->serials[k];
+        if (run_->config_index[k] == i) {
+          serial = run_->serials[k];
+          if (k < run_->slots.size()) slot = run_->slots[k];
+        }
     }
-    json u = {{"slot", cu.slot}, {"serial", serial}, {"gyro_dph", nullptr},
+    json u = {{"slot", slot}, {"serial", serial}, {"gyro_dph", nullptr},
               {"frames", 0}, {"t1_c", nullptr}, {"t2_c", nullptr}};
+    if (slot != cu.slot) u["next_slot"] = cu.slot;
     if (last_input_ && i < last_input_->units.size()) {
       const auto& r = last_input_->units[i];
       u["gyro_dph"] = num(r.gyro_dph);

@@ -209,3 +209,37 @@ TEST_CASE("bench slots: plan.start and queue.add take slots, and the plan's runs
   CHECK(units[0].serial == "FOG-0042");
   CHECK(units[0].slot == std::optional<std::string>("B"));
 }
+
+TEST_CASE("bench slots: a reload may not rename or remove the slot of a unit of a plan not yet done, and may change default serials") {
+  auto store = memory_store();
+  Station st(golden_config(), store);
+  PlanRunner runner(st);
+  const std::string text = "plan one-step\nstep short fit\n";
+  // A running plan with FOG-0042 given slot B, a queued one with FOG-0001 in its default slot A
+  // (a plan stores every unit's slot by name when it is accepted).
+  json req = {{"cmd", "plan.start"}, {"text", text}, {"source", "one.plan"}, {"slots", {{"B", "FOG-0042"}}}};
+  REQUIRE(plan_start(&runner, "plan.start", req, "").has_value());
+  REQUIRE(queue_add(&runner, "queue.add", {{"cmd", "queue.add"}, {"text", text}, {"source", "two.plan"},
+                                           {"units", {"FOG-0001"}}},
+                    "")
+              .has_value());
+  CHECK_FALSE(runner.slot_change_refusal(st.config().drivers.units).has_value());  // the same file
+
+  auto next = st.config().drivers.units;
+  next[1].slot = "RIGHT";  // the running plan named slot B: it would find no slot at its next step
+  auto why = runner.slot_change_refusal(next);
+  REQUIRE(why.has_value());
+  CHECK_THAT(*why, Catch::StartsWith("drivers.units: running plan 1 (one-step) has FOG-0042 in slot B (position 2); "
+                                     "this file would place it in no slot at the plan's next step"));
+
+  next = st.config().drivers.units;
+  next[0].slot = "LEFT";  // the queued plan's FOG-0001 was placed in A when it was queued
+  why = runner.slot_change_refusal(next);
+  REQUIRE(why.has_value());
+  CHECK_THAT(*why, Catch::StartsWith("drivers.units: queued plan 2 (one-step) has FOG-0001 in slot A (position 1)"));
+
+  next = st.config().drivers.units;
+  next[0].serial = "FOG-0005";  // a new default serial: the plans keep their slots by name
+  next[1].serial = "FOG-0006";
+  CHECK_FALSE(runner.slot_change_refusal(next).has_value());
+}

@@ -40,7 +40,9 @@ TEST_CASE("station reload: the active run keeps its analysis settings and slots,
   st.reload_config(*reloaded);
   const json s = st.status();
   CHECK(s["run"]["slots"] == json{"A"});        // as the run started
-  CHECK(s["units"][0]["slot"] == "LEFT");       // the configuration's name now
+  CHECK(s["units"][0]["slot"] == "A");          // in use: the run's name for it
+  CHECK(s["units"][0]["next_slot"] == "LEFT");  // the configuration's name now, for the next run
+  CHECK_FALSE(s["units"][1].contains("next_slot"));
   CHECK(s["units"][0]["serial"] == "FOG-0001");  // the run's unit
   CHECK(s["units"][1]["serial"] == "FOG-0777");  // idle: the new default
 
@@ -57,6 +59,8 @@ TEST_CASE("station reload: the active run keeps its analysis settings and slots,
   // The next run: the new settings (lags unconstrained) and the new names.
   REQUIRE(st.start_run("short", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}}).has_value());
   CHECK(st.status()["run"]["slots"] == json{"LEFT"});
+  CHECK(st.status()["units"][0]["slot"] == "LEFT");
+  CHECK_FALSE(st.status()["units"][0].contains("next_slot"));
   run_to_end(st, bench, clock_s);
   CHECK(lag_of_first_term(store, "FOG-0001") < 30);
 }

@@ -79,6 +79,12 @@ class PlanRunner final : public TickListener {
 
   std::optional<std::int64_t> running_plan_id() const;
 
+  // A configuration reload's slots (`next`, drivers.units) against the plans not yet done
+  // (running and queued): why the reload is refused when a unit of one would sit in another
+  // bench position, or in none, at its next step (a plan names each unit's slot when accepted:
+  // that slot renamed or removed); nullopt when every unit keeps its position.
+  std::optional<std::string> slot_change_refusal(const std::vector<drivers::UnitConfig>& next) const;
+
  private:
   // One pass of the running plan's state machine; returns whether it changed something.
   bool advance(std::int64_t plan_id, double wall_time);
