@@ -193,9 +193,22 @@ void PlantLink::run() {
         std::lock_guard lock(mutex_);
         activity_.progress_s = now;
       });
+      {
+        std::lock_guard lock(mutex_);
+        abort_fd_ = ::fcntl(plant->socket(), F_DUPFD_CLOEXEC, 0);
+        if (stopping_) continue;  // the loop's top ends it
+      }
+      // Verdicts of runs the plant got before its schema had verdicts (or any it lacks): sent
+      // once per connection, nothing when none is missing. A failure is logged and tried again
+      // at the next connection; the runs go on meanwhile.
+      set_phase(PlantActivity::Phase::sending);
+      if (auto n = plant::send_missing_verdicts(*plant, *store, config_.bench_id); !n)
+        spdlog::warn("plant: {}", n.error().message);
+      else if (*n > 0)
+        spdlog::info("plant: sent {} verdict(s) the plant lacked (runs sent before the plant had verdicts)", *n);
+      set_phase(PlantActivity::Phase::idle);
       std::lock_guard lock(mutex_);
-      abort_fd_ = ::fcntl(plant->socket(), F_DUPFD_CLOEXEC, 0);
-      if (stopping_) continue;  // the loop's top ends it
+      if (stopping_) continue;
     }
     set_phase(PlantActivity::Phase::sending, entry.run_id);
     auto r = plant::replicate_run(*plant, *store, config_.bench_id, entry.run_id);

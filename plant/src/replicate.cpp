@@ -5,6 +5,8 @@
 // the public key each was signed with goes into station_keys.
 #include <charconv>
 #include <cmath>
+#include <set>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -63,6 +65,21 @@ void figure(std::string& out, std::string_view bench, std::int64_t run, int unit
   out += '\t';
   put_number(out, x);
   out += '\n';
+}
+
+// One verdict row; `if_absent`: a row the plant holds already is left as it is.
+PlantResult<Rows> insert_verdict(Connection& plant, const std::string& bench, const storage::VerdictRecord& v,
+                                 bool if_absent) {
+  return plant.query(
+      std::string("INSERT INTO fogbench.verdicts (bench_id, verdict_id, serial, run_id, unit_index, model_id, verdict, "
+                  "rule, plan_id, plan_name, plan_sha256, limits_json, reasons_json, decided_at) "
+                  "VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14)") +
+          (if_absent ? " ON CONFLICT DO NOTHING" : ""),
+      {bench, std::to_string(v.id), v.serial, std::to_string(v.run_id), std::to_string(v.unit_index),
+       v.model_id ? std::optional(std::to_string(*v.model_id)) : std::nullopt, v.verdict, v.rule,
+       v.plan_id ? std::optional(std::to_string(*v.plan_id)) : std::nullopt, v.plan_name, v.plan_sha256,
+       v.limits_json, v.reasons_json, v.decided_at},
+      "insert verdict " + std::to_string(v.id));
 }
 
 const nlohmann::json* at(const nlohmann::json& j, const char* key) {
@@ -309,17 +326,7 @@ PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& ben
   }
   // The verdicts this run decided (the bench's one verdict per serial, issue 24).
   for (const auto& v : *verdicts) {
-    if (auto ok = plant.query(
-            "INSERT INTO fogbench.verdicts (bench_id, verdict_id, serial, run_id, unit_index, model_id, verdict, rule, "
-            "plan_id, plan_name, plan_sha256, limits_json, reasons_json, decided_at) "
-            "VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14)",
-            {b, std::to_string(v.id), v.serial, rid, std::to_string(v.unit_index),
-             v.model_id ? std::optional(std::to_string(*v.model_id)) : std::nullopt, v.verdict, v.rule,
-             v.plan_id ? std::optional(std::to_string(*v.plan_id)) : std::nullopt, v.plan_name, v.plan_sha256,
-             v.limits_json, v.reasons_json, v.decided_at},
-            "insert verdict " + std::to_string(v.id));
-        !ok)
-      return fail(ok.error());
+    if (auto ok = insert_verdict(plant, b, v, false); !ok) return fail(ok.error());
     ++stats.verdicts;
   }
   if (!figures.empty()) {
@@ -350,6 +357,36 @@ PlantResult<std::int64_t> send_outbox(Connection& plant, storage::Store& bench, 
     ++sent;
   }
   return sent;
+}
+
+PlantResult<std::int64_t> send_missing_verdicts(Connection& plant, storage::Store& bench, std::string_view bench_id) {
+  const std::string b(bench_id);
+  const std::string what = "send the verdicts the plant lacks";
+  auto mine = bench.list_verdicts();
+  if (!mine) return std::unexpected(from_store(mine.error()));
+  if (mine->empty()) return 0;
+  auto held = plant.query("SELECT verdict_id FROM fogbench.verdicts WHERE bench_id = $1", {b}, what);
+  if (!held) return std::unexpected(held.error());
+  auto runs = plant.query("SELECT run_id FROM fogbench.runs WHERE bench_id = $1", {b}, what);
+  if (!runs) return std::unexpected(runs.error());
+  std::set<std::int64_t> held_ids, run_ids;
+  for (const auto& r : held->rows) held_ids.insert(std::stoll(r.at(0).value_or("0")));
+  for (const auto& r : runs->rows) run_ids.insert(std::stoll(r.at(0).value_or("0")));
+  std::vector<const storage::VerdictRecord*> missing;
+  for (const auto& v : *mine)
+    if (!held_ids.contains(v.id) && run_ids.contains(v.run_id)) missing.push_back(&v);
+  if (missing.empty()) return 0;
+  auto fail = [&](PlantError e) {
+    if (e.code != PlantErrc::connection_lost) (void)plant.exec("ROLLBACK", what);
+    e.message = what + ": " + e.message;
+    return std::unexpected(std::move(e));
+  };
+  if (auto ok = plant.exec("BEGIN", what); !ok) return fail(ok.error());
+  if (auto ok = plant.exec("SET LOCAL synchronous_commit = on", what); !ok) return fail(ok.error());
+  for (const auto* v : missing)
+    if (auto ok = insert_verdict(plant, b, *v, true); !ok) return fail(ok.error());
+  if (auto ok = plant.exec("COMMIT", what); !ok) return std::unexpected(ok.error());
+  return static_cast<std::int64_t>(missing.size());
 }
 
 }  // namespace fogbench::plant

@@ -14,7 +14,6 @@ bool is_verdict_rule(std::string_view r) { return r == "plan" || r == "analysis"
 
 namespace {
 
-
 constexpr std::string_view kVerdictColumns =
     "id, serial, run_id, unit_index, model_id, verdict, rule, plan_id, plan_name, plan_sha256, limits_json, "
     "reasons_json, decided_at";
@@ -35,6 +34,18 @@ VerdictRecord read_verdict(const Query& q) {
   v.reasons_json = q.text(11);
   v.decided_at = q.text(12);
   return v;
+}
+
+// Every row of a verdicts query.
+StoreResult<std::vector<VerdictRecord>> read_verdicts(detail::Database& db, Query& q, const std::string& what) {
+  std::vector<VerdictRecord> out;
+  for (;;) {
+    auto got = row(db, q, what);
+    if (!got) return fail(std::move(got));
+    if (!*got) break;
+    out.push_back(read_verdict(q));
+  }
+  return out;
 }
 
 bool is_json_array(std::string_view text) {
@@ -114,14 +125,16 @@ StoreResult<std::vector<VerdictRecord>> Store::run_verdicts(std::int64_t run_id)
   const std::string what = "read the verdicts of run " + std::to_string(run_id);
   Query q(*db_, *stmt);
   q.bind(1, run_id);
-  std::vector<VerdictRecord> out;
-  for (;;) {
-    auto got = row(*db_, q, what);
-    if (!got) return fail(std::move(got));
-    if (!*got) break;
-    out.push_back(read_verdict(q));
-  }
-  return out;
+  return read_verdicts(*db_, q, what);
+}
+
+StoreResult<std::vector<VerdictRecord>> Store::list_verdicts() {
+  assert(db_);
+  static const std::string sql = "SELECT " + std::string(kVerdictColumns) + " FROM verdicts ORDER BY id";
+  auto stmt = db_->statement(sql);
+  if (!stmt) return fail(std::move(stmt));
+  Query q(*db_, *stmt);
+  return read_verdicts(*db_, q, "read the verdicts");
 }
 
 }  // namespace fogbench::storage

@@ -428,6 +428,29 @@ TEST_CASE("a plant at schema 1 migrates to 4 on a bench's connection, keeping wh
   REQUIRE(values);
   REQUIRE(values->size() == 1);
   CHECK(values->front().verdict == "marginal");
+
+  // The run sent at schema 1 had its verdict decided too: the plant had no table for it then.
+  // The link's reconciliation sends it, once; a verdict of a run the plant does not hold yet
+  // waits for its run, and one the plant holds is left as it is.
+  storage::NewVerdict old_v = v;
+  old_v.run_id = old_run;
+  old_v.unit_index = 0;
+  old_v.serial = bench.get_run(old_run)->run.units[0].serial;
+  old_v.verdict = "pass";
+  REQUIRE(bench.put_verdict(old_v));
+  const auto unsent = test::record_run(bench, {std::nullopt, std::nullopt}, 1, 6, false);
+  storage::NewVerdict unsent_v = old_v;
+  unsent_v.run_id = unsent;
+  REQUIRE(bench.put_verdict(unsent_v));
+  auto sent = plant::send_missing_verdicts(*c, bench, "b1");
+  REQUIRE(sent);
+  CHECK(*sent == 1);
+  CHECK(pg.psql("SELECT verdict || ' ' || unit_index FROM fogbench.verdicts WHERE run_id = " + old_rid) == "pass 0");
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.verdicts WHERE run_id = " + std::to_string(unsent)) == 0);
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.verdicts") == 2);
+  sent = plant::send_missing_verdicts(*c, bench, "b1");
+  REQUIRE(sent);
+  CHECK(*sent == 0);
   std::filesystem::remove(path);
 }
 

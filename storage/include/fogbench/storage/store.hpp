@@ -386,6 +386,8 @@ class Store {
   StoreResult<std::optional<VerdictRecord>> latest_verdict(std::string_view serial);
   // The verdicts a run decided, by unit then id.
   StoreResult<std::vector<VerdictRecord>> run_verdicts(std::int64_t run_id);
+  // Every verdict, by id (the plant link's reconciliation: plant/replicate.cpp).
+  StoreResult<std::vector<VerdictRecord>> list_verdicts();
   // --- qualification plans and their queue (store_plans.cpp)
   // A queued plan goes to the end of the queue. Adds a plan_events entry of `event_kind` with
   // `event_detail` in the same transaction.
