@@ -62,39 +62,30 @@ std::expected<void, FitError> check_collinear(const std::vector<std::vector<doub
   auto at = [&](std::size_t j, std::size_t t) { return cols[j][t >= lag[j] ? t - lag[j] : 0]; };
   const double sw = std::accumulate(w.begin(), w.end(), 0.0);
   std::vector<double> mean(m, 0.0), sd(m, 0.0);
-  // One pass over the run for all columns (each sum still in the order of t, so the numbers
-  // are those of a pass per column or pair: a zero weight skips a sample, NaN and all).
-  {
-    std::vector<double> s(m, 0.0);
-    for (std::size_t j = 0; j < m; ++j)
-      for (std::size_t t = 0; t < head; ++t)
-        if (w[t] != 0.0) s[j] += w[t] * at(j, t);
-    for (std::size_t t = head; t < n; ++t) {
-      if (w[t] == 0.0) continue;
-      for (std::size_t j = 0; j < m; ++j) s[j] += w[t] * cols[j][t - lag[j]];
-    }
-    for (std::size_t j = 0; j < m; ++j) mean[j] = s[j] / sw;
+  for (std::size_t j = 0; j < m; ++j) {
+    double s = 0.0;
+    for (std::size_t t = 0; t < head; ++t)
+      if (w[t] != 0.0) s += w[t] * at(j, t);
+    const double* x = cols[j].data();
+    const std::size_t l = lag[j];
+    for (std::size_t t = head; t < n; ++t) s += w[t] != 0.0 ? w[t] * x[t - l] : 0.0;
+    mean[j] = s / sw;
   }
   // The centred cross products (two passes for accuracy: a term of large mean and small
-  // spread loses nothing to cancellation).
+  // spread loses nothing to cancellation); a weight of zero skips a sample, NaN and all.
   Eigen::MatrixXd C(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(m));
-  {
-    std::vector<double> c(m * m, 0.0), d(m);
-    for (std::size_t a = 0; a < m; ++a)
-      for (std::size_t b = a; b < m; ++b)
-        for (std::size_t t = 0; t < head; ++t)
-          if (w[t] != 0.0) c[a * m + b] += w[t] * (at(a, t) - mean[a]) * (at(b, t) - mean[b]);
-    for (std::size_t t = head; t < n; ++t) {
-      if (w[t] == 0.0) continue;
-      for (std::size_t j = 0; j < m; ++j) d[j] = cols[j][t - lag[j]] - mean[j];
-      for (std::size_t a = 0; a < m; ++a) {
-        const double wa = w[t] * d[a];
-        for (std::size_t b = a; b < m; ++b) c[a * m + b] += wa * d[b];
-      }
+  for (std::size_t a = 0; a < m; ++a)
+    for (std::size_t b = a; b < m; ++b) {
+      double c = 0.0;
+      for (std::size_t t = 0; t < head; ++t)
+        if (w[t] != 0.0) c += w[t] * (at(a, t) - mean[a]) * (at(b, t) - mean[b]);
+      const double* xa = cols[a].data();
+      const double* xb = cols[b].data();
+      const std::size_t la = lag[a], lb = lag[b];
+      const double ma = mean[a], mb = mean[b];
+      for (std::size_t t = head; t < n; ++t) c += w[t] != 0.0 ? w[t] * (xa[t - la] - ma) * (xb[t - lb] - mb) : 0.0;
+      C(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) = c;
     }
-    for (std::size_t a = 0; a < m; ++a)
-      for (std::size_t b = a; b < m; ++b) C(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) = c[a * m + b];
-  }
   for (std::size_t j = 0; j < m; ++j) {
     sd[j] = std::sqrt(C(static_cast<Eigen::Index>(j), static_cast<Eigen::Index>(j)) / sw);
     const double scale = std::max(1.0, std::abs(mean[j]));
