@@ -1,5 +1,6 @@
 // The paper's two-step method: mu0 and the AR noise from the opening hold, then the trend of
 // the smoothed output regressed on the terms with one lag shared by the @auto terms.
+#include <algorithm>
 #include <cmath>
 
 #include "common.hpp"
@@ -153,9 +154,28 @@ std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<T
     return all;
   };
   ScanResult best = scan(*pp.sc, z, &pp.wz_spec, fixed, varying, Lc, L);
-  for (int shared = 0; shared < Lc; ++shared) {
-    ScanResult r = solve_at(z, w, columns_at(shared), shared);
-    if (r.ok && (!best.ok || r.sse < best.sse)) best = std::move(r);
+  // Below Lc the shared lags fall into segments [a, b) between the terms' distinct leasts: in
+  // each, the terms whose least is above a stay at their least (fixed columns) and the others
+  // move with the shared lag, so a segment is one more scan (sums by FFT, not one QR of the
+  // whole run per lag: on a 3-day run those QRs were most of diagnose's time). A segment where
+  // no term moves is one regression, solved at its first lag.
+  {
+    std::vector<int> bounds{0, Lc};
+    for (int l : least)
+      if (l > 0 && l < Lc) bounds.push_back(l);
+    std::sort(bounds.begin(), bounds.end());
+    bounds.erase(std::unique(bounds.begin(), bounds.end()), bounds.end());
+    for (std::size_t s = 0; s + 1 < bounds.size(); ++s) {
+      const int a = bounds[s], b = bounds[s + 1];
+      std::vector<Column> seg_fixed = fixed;
+      std::vector<const Lagged*> seg_varying;
+      for (std::size_t v = 0; v < varying.size(); ++v) {
+        if (least[v] <= a) seg_varying.push_back(varying[v]);
+        else seg_fixed.push_back(lagged_view(*varying[v], L, least[v]));
+      }
+      ScanResult r = seg_varying.empty() ? solve_at(z, w, columns_at(a), a) : scan(*pp.sc, z, &pp.wz_spec, seg_fixed, seg_varying, a, b - 1);
+      if (r.ok && (!best.ok || r.sse < best.sse)) best = std::move(r);
+    }
   }
   if (!best.ok) return fail(FitError::Code::degenerate, "no lag in 0.." + std::to_string(L) + " s gives a solvable regression");
   // The coefficients at the lag chosen, by the kernel (fixed columns first, as the scan orders them).

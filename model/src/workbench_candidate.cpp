@@ -253,7 +253,15 @@ EvaluatedCandidate evaluate_candidate(const StepContext& ctx, const Cand& cd, Sc
     return out;
   }
   score(ctx, cd, *r.model, r.extra_params, fs, held_sc, c);
-  if (auto col = column(r.term, ctx.fr.sig, r.term.lag.seconds)) out.partial = ctx.scan.partial(*col);
+  // x is r.term's column unlagged (the same expression, evaluated on the same signals).
+  out.partial = ctx.scan.partial(lagged(*x, r.term.lag.seconds));
+  // The scorers' columns of terms the base model lacks are used by this candidate only: dropped,
+  // so that memory does not grow with the candidates refitted (a 3-day run's column is 2 MB).
+  for (const auto& ft : r.model->terms)
+    if (!has_key(ctx.base, term_key(ft.term))) {
+      fs.forget(term_key(ft.term));
+      for (auto& h : held_sc) h.forget(term_key(ft.term));
+    }
   return out;
 }
 

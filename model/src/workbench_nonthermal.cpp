@@ -331,11 +331,29 @@ std::optional<PeriodicDisturbance> find_periodic(const Model& m, const RunData& 
   };
   const NoiseFloor floor0 = read_floor(res->r);
   auto expected = [&](const NoiseFloor& fl, double f) { return m_used * floor_psd(fl, f) / (2.0 * bd); };
+  // The grid's powers. f = k / span_s with span_s = M b, and a full block's time is i b + c
+  // (c = (b - 1) / 2), so its phase is 2 pi (k i / M + f c): the M roots of unity in a table
+  // (index k i mod M) replace a sincos per block and frequency (on a 3-day run 35 M of them were
+  // a tenth of diagnose), and the common phase f c drops out of |X|^2. A last, partial block is
+  // added at its own time.
   std::vector<double> fk, pk;
-  for (int k = k_lo; k <= k_hi; ++k) {
-    const double f = static_cast<double>(k) / span_s;
-    fk.push_back(f);
-    pk.push_back(power(f));
+  {
+    const std::size_t M = xb.size();
+    const double c = 0.5 * (bd - 1.0);
+    std::vector<std::complex<double>> root(M);
+    for (std::size_t j = 0; j < M; ++j) root[j] = std::polar(1.0, -2.0 * kPi * static_cast<double>(j) / static_cast<double>(M));
+    const bool last_partial = M * b != n;
+    const std::size_t full = last_partial ? M - 1 : M;
+    for (int k = k_lo; k <= k_hi; ++k) {
+      const double f = static_cast<double>(k) / span_s;
+      const std::size_t ku = static_cast<std::size_t>(k) % M;
+      std::complex<double> x{0.0, 0.0};
+      for (std::size_t i = 0, idx = 0; i < full; ++i, idx = idx + ku >= M ? idx + ku - M : idx + ku)
+        if (wb[i] != 0.0) x += xb[i] * root[idx];
+      if (last_partial && wb[M - 1] != 0.0) x += xb[M - 1] * std::polar(1.0, -2.0 * kPi * f * (tb[M - 1] - c));
+      fk.push_back(f);
+      pk.push_back(std::norm(x));
+    }
   }
   std::size_t best = 0;
   double best_z = 0.0;

@@ -214,6 +214,9 @@ class Scorer {
     return stddev(kept);
   }
 
+  // Drops the cached column of the expression key (a candidate's, once it is scored).
+  void forget(const std::string& key) { cols_.erase(key); }
+
   // What the refits on this run share (the candidates' refits on the fit run: detail::fit_with),
   // made on first use; the refits' whole-run Ljung-Box is not computed (they are only scored).
   detail::FitCache& fit_cache() {
