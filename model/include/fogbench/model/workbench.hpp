@@ -81,7 +81,7 @@ std::expected<RunComparison, FitError> compare(const Model& m, const RunData& ru
 // diagnose: why a model fails, and which effect of the library is missing.
 // Where diagnose is, for a progress line on long runs (DiagnoseOptions::progress).
 struct DiagnoseProgress {
-  std::string stage;                // "base fit", "bias jumps", "screening", "refitting", "adequacy checks"
+  std::string stage;                // "base fit", "bias jumps", "screening", "refitting", "backfitting", "adequacy checks"
   int step = 0;                     // the search's step: 0 the model as given, k after k terms added
   std::size_t done = 0, total = 0;  // candidates done of total in the stage (0 of 0: no count)
 };
