@@ -359,8 +359,8 @@ void promote_time(Diagnosis& d, const TimeDrift& td, const DiagnoseOptions& o) {
 
 // Several effects at once (issue 25): the per-run rule (the fit run falls by 2%, every held-out
 // run by 1%) misses an effect once one run is near its floor while another still carries it
-// (on the distributed coil with a hidden T1*d(T1), after d(T2) and T1: exp1 -4.1%, exp3 -2%,
-// exp2 -0.6%, and the loop stopped at 1.10 x the floor on exp3). Judged over all the runs
+// (on the distributed coil with a hidden T1*d(T1), after d(T2) and T1: exp1 -4.1%, exp2 -0.6%,
+// and the loop stopped at 1.10 x the floor on exp3). Judged over all the runs
 // instead, as the greedy step weighs them: BIC and p as for any candidate, the mean fall over the
 // fit run and every scored held-out run at least min_mean_fall, the fit run's at least
 // min_fit_fall_pooled (with no hidden effect the best candidate takes 0.1% off at most), no

@@ -150,8 +150,8 @@ TEST_CASE("workbench, a slow path beside a product, and a step that spells two e
 TEST_CASE("workbench on the distributed coil with effects beside its own: every run within 1.05 x the floor") {
   // The field alone needs d(T2) and T1 beside the paper's terms (workbench_coil_test.cpp).
   check_case({"", sim::CoilModel::distributed, {}, {21}});
-  // A product near the floor beside the field's own terms: after d(T2) and T1, exp1 falls 4%,
-  // exp3 2% and exp2 0.6% with T1*d(T1); the per-run rule (every held-out run 1%) had stopped
+  // A product near the floor beside the field's own terms: after d(T2) and T1, exp1 falls 4%
+  // and exp2 0.6% with T1*d(T1); the per-run rule (every held-out run 1%) had stopped
   // the loop at 1.10 x on exp3 (seed 1): the pooled rule finds it.
   check_case({"0.02*T1*d(T1)", sim::CoilModel::distributed, {kProduct}, {1}});
   check_case({"0.01*T1 + 0.003*T1^2", sim::CoilModel::distributed, {{"T1^2", "Ta^2", "T2^2"}}, {7}});
