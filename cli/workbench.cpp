@@ -449,7 +449,7 @@ void add_workbench_commands(CLI::App& app, int& code) {
   d->add_option("--candidate", dia.candidates, "A further candidate term beyond the library (repeatable)");
   d->add_option("--max-lag", dia.max_lag_s, "Longest lag searched, s (default: the model's; lower it for short runs)");
   d->add_option("--search", dia.search, "library (the effects library) or language (the term language, default)");
-  d->add_option("--max-terms", dia.max_terms, "Greedy forward selection: terms added at most, 1 to 3 (default 3)");
+  d->add_option("--max-terms", dia.max_terms, "Greedy forward selection: terms added at most, 1 to 6 (default 5)");
   d->add_option("--tau-points", dia.tau_points, "Time constants of lp and warm on a log grid 30 s to 4 h (default 12)");
   d->add_flag("--json", dia.json, "Print one JSON object");
   d->add_flag("--progress", dia.progress, "Progress lines on stderr even when it is not a terminal (on a terminal they are drawn anyway)");

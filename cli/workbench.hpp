@@ -34,7 +34,7 @@ struct DiagnoseCommandOptions {
   std::vector<std::string> candidates;  // extra candidate terms beyond the library
   std::optional<int> max_lag_s;         // lags searched, s (default: the model's)
   std::string search = "language";      // library | language
-  int max_terms = 3;                    // greedy forward selection: terms added at most
+  int max_terms = 5;                    // greedy forward selection: terms added at most
   int tau_points = 12;                  // time constants of lp and warm on the log grid 30 s .. 4 h
   bool json = false;
   bool progress = false;                // progress lines on stderr even when it is not a terminal

@@ -188,6 +188,7 @@ void score(const StepContext& ctx, const Cand& cd, const Model& m2, int extra_pa
   } else {
     c.detected = c.delta_bic < o.max_delta_bic_alone && significant && c.fall >= o.min_fit_fall_alone;
   }
+  c.within_slow_noise = !within_slow.empty();
   const bool explained_by_noise = c.detected && !within_slow.empty();
   if (explained_by_noise) c.detected = false;
   if (c.detected) {

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <limits>
 #include <numeric>
+#include <optional>
 
 #include "fogbench/model/term_ops.hpp"
 #include "fogbench/model/workbench.hpp"
@@ -356,6 +357,45 @@ void promote_time(Diagnosis& d, const TimeDrift& td, const DiagnoseOptions& o) {
     });
 }
 
+// Several effects at once (issue 25): the per-run rule (the fit run falls by 2%, every held-out
+// run by 1%) misses an effect once one run is near its floor while another still carries it
+// (on the distributed coil with a hidden T1*d(T1), after d(T2) and T1: exp1 -4.1%, exp2 -0.6%,
+// and the loop stopped at 1.10 x the floor on exp3). Judged over all the runs
+// instead, as the greedy step weighs them: BIC and p as for any candidate, the mean fall over the
+// fit run and every scored held-out run at least min_mean_fall, the fit run's at least
+// min_fit_fall_pooled (with no hidden effect the best candidate takes 0.1% off at most), no
+// held-out run worse by more than max_held_out_rise, and more variance removed than the gyro's
+// slow noise gives on every run (score's test). The one detection rule: adequacy reads it too.
+void promote_pooled(Diagnosis& d, const DiagnoseOptions& o) {
+  bool changed = false;
+  for (auto& c : d.candidates) {
+    if (!c.evaluated || c.detected || c.within_slow_noise) continue;
+    if (!(c.delta_bic < o.max_delta_bic) || !(c.p_value < o.max_p_value) || !(c.fall >= o.min_fit_fall_pooled)) continue;
+    int scored = 0;
+    bool rises = false;
+    for (const auto& h : c.held_out) {
+      if (!h.scored) continue;
+      ++scored;
+      if (!(h.rms_after_dph <= h.rms_before_dph * (1.0 + o.max_held_out_rise))) rises = true;
+    }
+    if (scored == 0 || rises) continue;
+    const double mean_fall = 1.0 - std::exp(held_score(c));
+    if (!(mean_fall >= o.min_mean_fall)) continue;
+    c.detected = true;
+    c.verdict = "missing: over the runs the compensated std falls " + fmt(100.0 * mean_fall, 1) + "% on average (" +
+                fmt(100.0 * c.fall, 1) + "% on the fit run, at least " + fmt(100.0 * c.held_out_fall, 1) +
+                "% on every held-out run), delta BIC " + fmt(c.delta_bic, 1);
+    changed = true;
+  }
+  if (changed)
+    std::stable_sort(d.candidates.begin(), d.candidates.end(), [](const Candidate& x, const Candidate& y) {
+      auto rank = [](const Candidate& c) { return c.detected ? 0 : c.evaluated ? 1 : 2; };
+      if (rank(x) != rank(y)) return rank(x) < rank(y);
+      if (rank(x) < 2) return x.delta_bic < y.delta_bic;
+      return false;
+    });
+}
+
 bool passes(const std::vector<RunCheck>& v) {
   for (const auto& c : v)
     if (!c.reasons.empty()) return false;
@@ -365,7 +405,10 @@ bool passes(const std::vector<RunCheck>& v) {
 }  // namespace
 
 std::expected<void, std::string> DiagnoseOptions::validate() const {
-  if (max_terms < 1 || max_terms > 3) return std::unexpected("max_terms must be 1 to 3, got " + std::to_string(max_terms));
+  if (max_terms < 1 || max_terms > 6) return std::unexpected("max_terms must be 1 to 6, got " + std::to_string(max_terms));
+  if (!(min_mean_fall > 0.0 && min_mean_fall < 1.0)) return std::unexpected("min_mean_fall must be in (0, 1)");
+  if (!(min_fit_fall_pooled > 0.0 && min_fit_fall_pooled < 1.0)) return std::unexpected("min_fit_fall_pooled must be in (0, 1)");
+  if (!(max_held_out_rise >= 0.0 && max_held_out_rise < 1.0)) return std::unexpected("max_held_out_rise must be in [0, 1)");
   if (refit_top < 1 || refit_top > 50) return std::unexpected("refit_top must be 1 to 50, got " + std::to_string(refit_top));
   if (tau_points < 2 || tau_points > 24) return std::unexpected("tau_points must be 2 to 24, got " + std::to_string(tau_points));
   if (max_candidates < 1 || max_candidates > 2000) return std::unexpected("the candidate limit must be 1 to 2000");
@@ -432,6 +475,94 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     Model cur;
     TimeDrift td;
   };
+  // Backfitting (issue 25: several effects at once). A greedy step may take a look-alike that
+  // spells two effects on the fit run and only part of them on another (hidden -1.5*d(T1)@300 +
+  // 0.03*T1: d(lp(grad,2700))@310 took exp1 to its floor and left exp3 at 1.17 x, with no single
+  // term falling 1% more). When the model the search ends with still fails a check on some run,
+  // each of the first two steps is taken out in turn, the others kept, and the search run again from there within
+  // the same budget of terms; the set that lowers the error over the runs (the mean log of the
+  // compensated std over the fit run and every held-out run) by more than 1% replaces it.
+  auto mean_log_rms = [](const Model& mm, const RunData& f, std::span<const RunData> h) {
+    double s = 0.0;
+    int k = 0;
+    auto add = [&](const RunData& r) {
+      if (auto v = verify(mm, r); v && v->run.comp_std > 0.0) {
+        s += std::log(v->run.comp_std);
+        ++k;
+      }
+    };
+    add(f);
+    for (const auto& r : h) add(r);
+    return k ? s / k : kNaN;
+  };
+  auto backfit = [&](std::vector<SearchStep>& steps, Model& cur, const Model& base_m, const RunData& f, const std::vector<RunData>& h,
+                     const auto& at_step, const TimeDrift& tdrift) {
+    if (steps.empty()) return;
+    {
+      const DiagnoseOptions oc = with_floor(cur, f, h);
+      std::vector<RunCheck> fc{check_run(cur, f, false, oc)};
+      for (const auto& r : h) fc.push_back(check_run(cur, r, true, oc));
+      if (passes(fc)) return;
+    }
+    if (o.progress) o.progress(DiagnoseProgress{"backfitting", static_cast<int>(steps.size()), 0, steps.size()});
+    double best = mean_log_rms(cur, f, h);
+    std::vector<SearchStep> best_steps;
+    std::optional<Model> best_model;
+    // The first two steps only: the largest falls, where a look-alike of two effects is taken
+    // (each try repeats up to max_terms searches).
+    for (std::size_t j = 0; j < steps.size() && j < 2; ++j) {
+      Model m2 = base_m;
+      std::vector<SearchStep> s2;
+      bool ok = true;
+      for (std::size_t i = 0; i < steps.size() && ok; ++i) {
+        if (i == j) continue;
+        auto a = add_term(m2, f, steps[i].added);
+        if (!a) ok = false;
+        else {
+          m2 = a->model;
+          s2.push_back(steps[i]);
+        }
+      }
+      if (!ok) continue;
+      for (int k = static_cast<int>(s2.size()); k < o.max_terms; ++k) {
+        auto next = wbi::diagnose_once(m2, f, h, at_step(k), space.gen, &stats);
+        if (!next) break;
+        promote_time(*next, tdrift, o);
+        promote_pooled(*next, o);
+        // The first term in its place is another one: taking back the step just removed is
+        // the model as it was.
+        if (k == static_cast<int>(s2.size()))
+          for (auto& c : next->candidates)
+            if (c.expr == steps[j].expr) c.detected = false;
+        const Candidate* pick = pick_step(*next);
+        if (!pick) break;
+        auto a = add_term(m2, f, pick->term);
+        if (!a) break;
+        SearchStep ss;
+        ss.added = a->added;
+        ss.expr = pick->expr;
+        ss.effect = pick->effect;
+        ss.library = find_effect(pick->expr) != nullptr;
+        ss.rms_before_dph = pick->rms_before_dph;
+        ss.rms_after_dph = pick->rms_after_dph;
+        ss.held_out = pick->held_out;
+        ss.look_alikes = pick->collinear_with;
+        s2.push_back(ss);
+        m2 = a->model;
+      }
+      if (s2.size() < steps.size()) continue;
+      const double score = mean_log_rms(m2, f, h);
+      if (score < best - 0.01) {
+        best = score;
+        best_steps = std::move(s2);
+        best_model = std::move(m2);
+      }
+    }
+    if (best_model) {
+      steps = std::move(best_steps);
+      cur = std::move(*best_model);
+    }
+  };
   auto search_pass = [&](const Model* jumps_by) {
     Pass ps;
     ps.fit_copy = fit_run;
@@ -482,6 +613,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     ps.d = wbi::diagnose_once(m, ps.fit_copy, ps.held_copy, at_step(0), space.gen, &stats);
     if (!ps.d) return ps;
     promote_time(*ps.d, ps.td, o);
+    promote_pooled(*ps.d, o);
     // Greedy forward selection: add the first detected candidate, search again from there.
     ps.cur = ps.base;
     Diagnosis step = *ps.d;
@@ -506,8 +638,10 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       auto next = wbi::diagnose_once(ps.cur, ps.fit_copy, ps.held_copy, at_step(k + 1), space.gen, &stats);
       if (!next) break;
       promote_time(*next, ps.td, o);
+      promote_pooled(*next, o);
       step = std::move(*next);
     }
+    backfit(ps.d->steps, ps.cur, ps.base, ps.fit_copy, ps.held_copy, at_step, ps.td);
     return ps;
   };
   Pass ps = search_pass(nullptr);

@@ -169,7 +169,7 @@ TEST_CASE("diagnose: a search beyond its candidate limit is refused, naming the 
   REQUIRE_FALSE(d);
   CHECK(d.error().code == FitError::Code::bad_options);
   CHECK(d.error().message.find("over the limit of 150") != std::string::npos);
-  o.max_terms = 4;
+  o.max_terms = 7;
   auto e = wb::diagnose(*m, r, {}, o);
   REQUIRE_FALSE(e);
   CHECK(e.error().message.find("max_terms") != std::string::npos);

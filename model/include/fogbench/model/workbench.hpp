@@ -81,7 +81,7 @@ std::expected<RunComparison, FitError> compare(const Model& m, const RunData& ru
 // diagnose: why a model fails, and which effect of the library is missing.
 // Where diagnose is, for a progress line on long runs (DiagnoseOptions::progress).
 struct DiagnoseProgress {
-  std::string stage;                // "base fit", "bias jumps", "screening", "refitting", "adequacy checks"
+  std::string stage;                // "base fit", "bias jumps", "screening", "refitting", "backfitting", "adequacy checks"
   int step = 0;                     // the search's step: 0 the model as given, k after k terms added
   std::size_t done = 0, total = 0;  // candidates done of total in the stage (0 of 0: no count)
 };
@@ -97,6 +97,14 @@ struct DiagnoseOptions {
   double min_held_out_fall = 0.01;     // ... and on every held-out run by at least 1%
   double min_fit_fall_alone = 0.05;    // without held-out runs: at least 5% on the fit run
   double max_delta_bic_alone = -40.0;  // ... and BIC falls by more than 40
+  // ... or, with held-out runs (issue 25: several effects at once, a run already near its floor
+  // cannot fall by 1% while another still carries the effect), over all the runs: BIC and p as
+  // above, the error falls by at least min_mean_fall on average over the fit run and every
+  // scored held-out run (the greedy step's mean log of after/before), by at least
+  // min_fit_fall_pooled on the fit run, and rises on no held-out run by more than max_held_out_rise.
+  double min_mean_fall = 0.01;
+  double min_fit_fall_pooled = 0.01;
+  double max_held_out_rise = 0.005;
   // Two detected candidates are indistinguishable when their columns, with the model's own
   // terms regressed out, correlate beyond this on the fit run and both give a similar fall.
   double collinear_r = 0.95;
@@ -116,7 +124,7 @@ struct DiagnoseOptions {
   // Issue 10: the search over the term language, greedy forward selection, adequacy.
   enum class Search { library, language };
   Search search = Search::language;    // library: the effects library only
-  int max_terms = 3;                   // greedy forward selection: terms added at most (1..3)
+  int max_terms = 5;                   // greedy forward selection: terms added at most (1..6)
   int refit_top = 10;                  // generated candidates refitted per step (the best by lag-scan gain)
   int tau_points = 12;                 // lp, d(lp) and warm time constants: a log grid 30 s .. 4 h (2..24 points)
   std::size_t max_candidates = 400;    // a search space larger than this is refused (an error naming it)
@@ -187,6 +195,7 @@ struct Candidate {
   double t = 0.0, p_value = 1.0;    // t = coef/se, two-sided normal p
   std::vector<HeldOutScore> held_out;
   double held_out_fall = 0.0;       // the smallest fall over scored held-out runs (0 when none)
+  bool within_slow_noise = false;   // on some run it removes less variance than the gyro's slow noise
   bool detected = false;
   std::string verdict;              // one line: why detected or not
   std::vector<std::string> collinear_with;  // detected candidates it cannot be told from
