@@ -384,7 +384,7 @@ ApiResult<json> Server::Impl::reload(const std::string& origin) {
   }
   // A plan not yet done keeps each unit in its bench position: a file that would move one is
   // refused whole, as a bad file is.
-  if (const PlanRunner* plans = station->plan_runner())
+  if (plans)
     if (auto why = plans->slot_change_refusal(outcome->config.drivers.units)) {
       const std::string msg = file.string() + ": " + *why + "; the configuration in force is unchanged";
       spdlog::error("configuration reload ({}) refused: {}", origin, msg);
