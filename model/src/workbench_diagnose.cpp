@@ -14,6 +14,15 @@
 
 namespace fogbench::model::workbench {
 
+void sort_detected_first(std::vector<Candidate>& candidates) {
+  std::stable_sort(candidates.begin(), candidates.end(), [](const Candidate& x, const Candidate& y) {
+    auto rank = [](const Candidate& c) { return c.detected ? 0 : c.evaluated ? 1 : 2; };
+    if (rank(x) != rank(y)) return rank(x) < rank(y);
+    if (rank(x) < 2) return x.delta_bic < y.delta_bic;
+    return false;
+  });
+}
+
 using detail::fail;
 
 namespace wbi {
@@ -332,13 +341,7 @@ void mark_look_alikes(Diagnosis& d, const std::vector<std::vector<double>>& part
 }
 
 void rank_candidates(Diagnosis& d, const DiagnoseOptions& o) {
-  // Ranking: the detected first, each group by delta BIC, the skipped last.
-  std::stable_sort(d.candidates.begin(), d.candidates.end(), [](const Candidate& x, const Candidate& y) {
-    auto rank = [](const Candidate& c) { return c.detected ? 0 : c.evaluated ? 1 : 2; };
-    if (rank(x) != rank(y)) return rank(x) < rank(y);
-    if (rank(x) < 2) return x.delta_bic < y.delta_bic;
-    return false;
-  });
+  sort_detected_first(d.candidates);
   // Look-alikes the data cannot rank (BIC within o.tie_bic of the best, columns collinear):
   // the first of them in the library, which lists effects from the most direct (the coil's
   // own temperature) to the most remote (the air, slow paths), is named first.

@@ -21,6 +21,10 @@ inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // Why a term cannot be evaluated on a run (Ta or ton not recorded), empty when it can.
 std::string missing_signal_of(const Expr& e, const RunData& run);
 
+// The candidates' one order: the detected first, then the evaluated, each group by delta BIC;
+// the skipped last, as they were (a stable sort).
+void sort_detected_first(std::vector<Candidate>& candidates);
+
 namespace wbi {
 
 // v with `digits` decimals, for the workbench's sentences.

@@ -348,13 +348,7 @@ void promote_time(Diagnosis& d, const TimeDrift& td, const DiagnoseOptions& o) {
                 ", the runs' slopes agree) and the term lowers the error over the runs";
     changed = true;
   }
-  if (changed)
-    std::stable_sort(d.candidates.begin(), d.candidates.end(), [](const Candidate& x, const Candidate& y) {
-      auto rank = [](const Candidate& c) { return c.detected ? 0 : c.evaluated ? 1 : 2; };
-      if (rank(x) != rank(y)) return rank(x) < rank(y);
-      if (rank(x) < 2) return x.delta_bic < y.delta_bic;
-      return false;
-    });
+  if (changed) sort_detected_first(d.candidates);
 }
 
 // Several effects at once (issue 25): the per-run rule (the fit run falls by 2%, every held-out
@@ -387,13 +381,7 @@ void promote_pooled(Diagnosis& d, const DiagnoseOptions& o) {
                 "% on every held-out run), delta BIC " + fmt(c.delta_bic, 1);
     changed = true;
   }
-  if (changed)
-    std::stable_sort(d.candidates.begin(), d.candidates.end(), [](const Candidate& x, const Candidate& y) {
-      auto rank = [](const Candidate& c) { return c.detected ? 0 : c.evaluated ? 1 : 2; };
-      if (rank(x) != rank(y)) return rank(x) < rank(y);
-      if (rank(x) < 2) return x.delta_bic < y.delta_bic;
-      return false;
-    });
+  if (changed) sort_detected_first(d.candidates);
 }
 
 bool passes(const std::vector<RunCheck>& v) {

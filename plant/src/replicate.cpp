@@ -67,6 +67,14 @@ void figure(std::string& out, std::string_view bench, std::int64_t run, int unit
   out += '\n';
 }
 
+// A transaction's failure: rolled back (unless the connection is gone, which rolls it back), the
+// error named by what was being done.
+std::unexpected<PlantError> rolled_back(Connection& plant, const std::string& what, PlantError e) {
+  if (e.code != PlantErrc::connection_lost) (void)plant.exec("ROLLBACK", what);
+  e.message = what + ": " + e.message;
+  return std::unexpected(std::move(e));
+}
+
 // One verdict row; `if_absent`: a row the plant holds already is left as it is.
 PlantResult<Rows> insert_verdict(Connection& plant, const std::string& bench, const storage::VerdictRecord& v,
                                  bool if_absent) {
@@ -129,11 +137,7 @@ PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& ben
   ReplicateStats stats;
   const std::string b(bench_id);
   const std::string rid = std::to_string(run_id);
-  auto fail = [&](PlantError e) {
-    if (e.code != PlantErrc::connection_lost) (void)plant.exec("ROLLBACK", what);
-    e.message = what + ": " + e.message;
-    return std::unexpected(std::move(e));
-  };
+  auto fail = [&](PlantError e) { return rolled_back(plant, what, std::move(e)); };
   if (auto ok = plant.exec("BEGIN", what); !ok) return fail(ok.error());
   // The bench marks the run sent once COMMIT returns: the commit must then be on the plant's
   // disk, whatever the server's default (synchronous_commit = off would lose it in a crash).
@@ -376,11 +380,7 @@ PlantResult<std::int64_t> send_missing_verdicts(Connection& plant, storage::Stor
   for (const auto& v : *mine)
     if (!held_ids.contains(v.id) && run_ids.contains(v.run_id)) missing.push_back(&v);
   if (missing.empty()) return 0;
-  auto fail = [&](PlantError e) {
-    if (e.code != PlantErrc::connection_lost) (void)plant.exec("ROLLBACK", what);
-    e.message = what + ": " + e.message;
-    return std::unexpected(std::move(e));
-  };
+  auto fail = [&](PlantError e) { return rolled_back(plant, what, std::move(e)); };
   if (auto ok = plant.exec("BEGIN", what); !ok) return fail(ok.error());
   if (auto ok = plant.exec("SET LOCAL synchronous_commit = on", what); !ok) return fail(ok.error());
   for (const auto* v : missing)
