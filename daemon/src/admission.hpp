@@ -32,6 +32,11 @@ inline const char* to_string(Listener l) {
   return "?";
 }
 
+// The acceptors' pause after a refusal while every network place is taken: at most 50 refusals
+// a second per listener, each connection opened meanwhile waiting in the kernel's backlog
+// (docs/reliability.md "Connection limits"; measured by bench_daemon_listeners).
+inline constexpr std::chrono::milliseconds kFullNetworkPause{20};
+
 struct AdmissionLimits {
   std::size_t unix_max = 64;          // socket.unix_max_clients
   std::size_t network_max = 256;      // socket.max_clients: TCP and web together
@@ -83,6 +88,11 @@ class Admission {
     return it == state_->per_address.end() ? 0 : it->second;
   }
   const AdmissionLimits& limits() const { return state_->limits; }
+  // Every network place taken (socket.max_clients): a TCP or web connection now is refused
+  // whoever opens it. The acceptors then pause kFullNetworkPause before the next accept, so that
+  // a flood of reconnections is refused at a bounded rate instead of taking the loop (an
+  // address's own limit does not pause them: the others' connections must keep coming in).
+  bool network_full() const { return state_->network_open >= state_->limits.network_max; }
   // A configuration reload: new connections are admitted by these; the open ones stay.
   void set_limits(AdmissionLimits limits) { state_->limits = limits; }
 

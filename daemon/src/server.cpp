@@ -179,15 +179,17 @@ struct Server::Impl {
   // A new connection: a session, or a refusal naming its reason (admission.hpp: the listener's
   // limit or its address's). The unix socket has a share of its own, so no number of network
   // clients keeps an operator out.
+  // Returns whether it was admitted.
   template <class Socket>
-  void admit(Socket socket, std::string peer, const std::string& address, Listener listener) {
+  bool admit(Socket socket, std::string peer, const std::string& address, Listener listener) {
     auto ticket = admission.admit(listener, address);
     if (!ticket) {
       note_refusal(listener, peer, ticket.error());
       refuse(std::move(socket), ticket.error());
-      return;
+      return false;
     }
     accept_session(std::move(socket), std::move(peer), address, listener == Listener::unix_socket, std::move(*ticket));
+    return true;
   }
 
   // A refused connection, logged at most once per socket.refusal_log_interval_s with the count
@@ -252,8 +254,14 @@ struct Server::Impl {
       boost::system::error_code e2;
       auto ep = s.remote_endpoint(e2);
       const std::string address = e2 ? std::string("?") : ep.address().to_string();
-      admit(std::move(s), e2 ? std::string("tcp") : address + ":" + std::to_string(ep.port()), address, Listener::tcp);
-      accept_tcp();
+      const bool admitted =
+          admit(std::move(s), e2 ? std::string("tcp") : address + ":" + std::to_string(ep.port()), address, Listener::tcp);
+      if (admitted || !admission.network_full()) return accept_tcp();
+      // Every network place taken: the next connections would be refused too (admission.hpp).
+      tcp_accept_retry.expires_after(kFullNetworkPause);
+      tcp_accept_retry.async_wait([this](boost::system::error_code e) {
+        if (!e && !stopping) accept_tcp();
+      });
     });
   }
 
@@ -553,6 +561,7 @@ std::expected<void, Server::StartError> Server::start() {
       if (!t) m.note_refusal(Listener::web, peer, t.error());
       return t;
     };
+    hooks.full = [&m] { return m.admission.network_full(); };
     hooks.first_request_timeout_s = m.config.socket.first_request_timeout_s;
     hooks.admit = [&m](const std::shared_ptr<SessionBase>& s) { m.sessions.add(s); };
     hooks.metrics = [&m] { return m.metrics(); };

@@ -4,6 +4,7 @@
 // the same Handler the command socket uses, its replies and the pushed `sample`/`event` lines go
 // back as text messages. Everything runs on the daemon's loop thread.
 #include "web_server.hpp"
+#include "admission.hpp"
 
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
@@ -409,7 +410,11 @@ void WebServer::Impl::accept() {
       if (auto x = w.lock()) x->close();
     });
     h->start();
-    self->accept();
+    if (refused.empty() || !self->hooks.full || !self->hooks.full()) return self->accept();
+    auto t = std::make_shared<asio::steady_timer>(self->io, net::kFullNetworkPause);
+    t->async_wait([self, t](boost::system::error_code) {
+      if (!self->stopped) self->accept();
+    });
   });
 }
 

@@ -38,6 +38,9 @@ class WebServer {
     // TCP, socket.max_clients_per_address), held as long as the connection (and its WebSocket)
     // lives; or the reason it is refused: its request is then answered 503 with that reason.
     std::function<std::expected<std::shared_ptr<void>, std::string>(const std::string& address, const std::string& peer)> take;
+    // Whether every network place is taken (admission.hpp): after a refusal the acceptor then
+    // pauses net::kFullNetworkPause before its next accept.
+    std::function<bool()> full;
     // Each request (its headers and body) must arrive within this after the connection opened
     // or the last answer went (keep-alive): slow or silent clients do not hold places.
     std::optional<double> first_request_timeout_s;

@@ -36,10 +36,12 @@ TEST_CASE("admission: network clients at socket.max_clients leave the unix socke
   std::vector<Admission::Ticket> held;
   // TCP and the web fill their shared limit from several addresses.
   for (int i = 0; i < 4; ++i) {
+    CHECK_FALSE(a.network_full());
     auto t = a.admit(i % 2 ? Listener::tcp : Listener::web, "10.0.0." + std::to_string(i));
     REQUIRE(t.has_value());
     held.push_back(*t);
   }
+  CHECK(a.network_full());  // the acceptors pause after a refusal now
   auto over = a.admit(Listener::tcp, "10.0.0.9");
   REQUIRE_FALSE(over.has_value());
   CHECK_THAT(over.error(), Catch::Contains("socket.max_clients"));
@@ -63,6 +65,7 @@ TEST_CASE("admission: network clients at socket.max_clients leave the unix socke
   CHECK_FALSE(a.admit(Listener::tcp, "10.0.0.9").has_value());
   // A network client gone frees a network place.
   held.pop_back();
+  CHECK_FALSE(a.network_full());
   CHECK(a.admit(Listener::tcp, "10.0.0.9").has_value());
 }
 
@@ -80,6 +83,7 @@ TEST_CASE("admission: one address over socket.max_clients_per_address is refused
   REQUIRE_FALSE(over.has_value());
   CHECK_THAT(over.error(), Catch::Contains("127.0.0.1"));
   CHECK_THAT(over.error(), Catch::Contains("socket.max_clients_per_address"));
+  CHECK_FALSE(a.network_full());  // one address's limit: the acceptors go on (the others come in)
   auto other = a.admit(Listener::tcp, "127.0.0.2");
   REQUIRE(other.has_value());
   CHECK(a.from("127.0.0.2") == 1);
