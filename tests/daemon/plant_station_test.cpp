@@ -42,7 +42,7 @@ TEST_CASE("plant config: the section parses, its errors name the field, the conn
              Catch::StartsWith("plant.bench_id: a control character at position 2"));
   CHECK_THAT(refusal({{"plant", {{"conninfo", "x"}, {"bench_id", "b"}, {"retry_max_s", -1}}}}),
              Catch::StartsWith("plant.retry_max_s"));
-  for (const json bad : {json(0), json(1.5), json(3601), json("10")})
+  for (const json& bad : {json(0), json(1.5), json(3601), json("10")})
     CHECK_THAT(refusal({{"plant", {{"conninfo", "x"}, {"bench_id", "b"}, {"connect_timeout_s", bad}}}}),
                Catch::StartsWith("plant.connect_timeout_s: expected a whole number of seconds, 1 to 3600"));
   CHECK_THAT(refusal({{"plant", {{"conninfo", "x"}, {"bench_id", "b"}, {"colour", 1}}}}),
