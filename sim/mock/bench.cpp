@@ -113,6 +113,13 @@ struct Bench::Impl final : ControlHandler {
     for (const auto& f : cfg.start_faults) {
       if (auto ok = fault(f); !ok) return std::unexpected("--fault " + f.value("name", std::string("?")) + ": " + ok.error());
     }
+    // Before the first simulated second the status says what the start's faults make of it: a
+    // unit powered off from 0 s (--fault power_off=D) is off, not the streams' initial on (a
+    // status asked that early, on a busy host, said powered with a rate).
+    for (std::size_t u = 0; u < snap.units.size(); ++u) {
+      const auto& f = shared.faults.units[u];
+      snap.units[u].powered = PowerWindow{f.power_off_from_s, f.power_on_at_s}.powered_at(snap.time_s);
+    }
     return {};
   }
 
