@@ -12,9 +12,10 @@ set(FOGBENCH_FUZZ ON CACHE BOOL "")
 set(BUILD_TESTING OFF CACHE BOOL "")
 # The fuzzers need model, profiles, storage, drivers and daemon: the rest is left out.
 set(FOGBENCH_SKIP "sim;cli;bench" CACHE STRING "")
-# -O1 -g without NDEBUG: the project's asserts are the fuzzers' oracles too.
+# -O1 without NDEBUG: the project's asserts are the fuzzers' oracles too. -g1: the line tables
+# that ASan's and UBSan's reports need to name file and line, without full -g's compile time.
 set(CMAKE_BUILD_TYPE Fuzz CACHE STRING "")
-set(CMAKE_CXX_FLAGS_FUZZ "-O1 -g" CACHE STRING "")
+set(CMAKE_CXX_FLAGS_FUZZ "-O1 -g1" CACHE STRING "")
 set(CMAKE_CXX_FLAGS
     "-fsanitize=fuzzer-no-link,address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer -U__cpp_concepts -D__cpp_concepts=202002L"
     CACHE STRING "")
