@@ -140,6 +140,39 @@ StoreResult<void> create_with_mode(const std::filesystem::path& path, unsigned m
   return {};
 }
 
+// Before a migration, the file as it is, next to it: `<store>.schema-<N>.bak` (VACUUM INTO: a
+// consistent copy with the WAL's commits in it, written to a temporary name and renamed, so a
+// copy cut short never stands as the backup; an older backup of the same version is replaced
+// by this newer one). The way back to the fogbench that wrote version N (docs/storage.md,
+// "Upgrade and downgrade"). A failure (no space, a read-only directory) refuses the migration.
+StoreResult<std::filesystem::path> backup_before_migration(Database& db, const std::filesystem::path& path,
+                                                          int from_version, int to_version) {
+  const std::filesystem::path backup = path.string() + ".schema-" + std::to_string(from_version) + ".bak";
+  const std::filesystem::path tmp = backup.string() + ".tmp-" + std::to_string(::getpid());
+  const std::string what = "back up '" + path.string() + "' to '" + backup.string() + "' before migrating schema " +
+                           std::to_string(from_version) + " -> " + std::to_string(to_version);
+  auto refused = [&](std::string why) {
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
+    StoreError e;
+    e.code = StoreErrc::migration_failed;
+    e.message = "cannot " + what + ": " + why + "; the store was not migrated and is unchanged";
+    return std::unexpected(std::move(e));
+  };
+  std::error_code ec;
+  std::filesystem::remove(tmp, ec);  // a copy of an earlier attempt cut short
+  std::string quoted;
+  for (const char c : tmp.string()) quoted += c == '\'' ? std::string("''") : std::string(1, c);
+  if (auto ok = db.exec("VACUUM INTO '" + quoted + "'", "VACUUM INTO"); !ok) return refused(ok.error().message);
+  // The backup holds what the store holds: the store's mode, not the umask's.
+  const auto mode = std::filesystem::status(path, ec).permissions();
+  if (!ec) std::filesystem::permissions(tmp, mode, ec);
+  if (ec) return refused("setting its mode: " + ec.message());
+  std::filesystem::rename(tmp, backup, ec);
+  if (ec) return refused(ec.message());
+  return backup;
+}
+
 // The size limit's shares (OpenOptions::size_limit_bytes): the WAL index, then the WAL (a
 // quarter of the limit, at most 4 MiB, SQLite's default checkpoint size), the rest the file.
 constexpr std::int64_t kShmBytes = 32 * 1024;  // one WAL-index block: up to 4096 WAL frames
@@ -177,6 +210,17 @@ StoreResult<Store> Store::open(const std::filesystem::path& path, const OpenOpti
   if (auto ok = db->exec("PRAGMA foreign_keys = ON", "enable foreign keys"); !ok)
     return fail(std::move(ok));
 
+  // SQLite opens a file it may not write (its mode, a read-only filesystem) read-only without a
+  // word, and writes then fail as they come (store_failure_test). A file that needs migrating
+  // cannot be used at all that way: said at once, naming the file, before anything is written.
+  if (!options.read_only && *version > 0 && *version < detail::current_version() &&
+      sqlite3_db_readonly(db->handle(), "main") == 1)
+    return std::unexpected(db->error(
+        StoreErrc::read_only,
+        "schema version " + std::to_string(*version) + " needs migrating to " +
+            std::to_string(detail::current_version()) +
+            ", but the file or its filesystem is read-only; nothing was changed (make it writable "
+            "for the upgrade, or use the fogbench that wrote it)"));
   if (options.read_only) {
     if (*version < detail::current_version())
       return std::unexpected(db->error(
@@ -202,6 +246,10 @@ StoreResult<Store> Store::open(const std::filesystem::path& path, const OpenOpti
     const char* sync =
         options.synchronous_full ? "PRAGMA synchronous = FULL" : "PRAGMA synchronous = NORMAL";
     if (auto ok = db->exec(sync, "set synchronous"); !ok) return fail(std::move(ok));
+    if (options.backup_before_migration && on_disk && *version > 0 && *version < detail::current_version()) {
+      auto backup = backup_before_migration(*db, path, *version, detail::current_version());
+      if (!backup) return fail(std::move(backup));
+    }
     auto migrated = detail::migrate(*db, *version);
     if (!migrated) return fail(std::move(migrated));
     db->version = *migrated;

@@ -178,6 +178,131 @@ TEST_CASE("store: migration from version 0 and version 1", "[store][schema]") {
   }
 }
 
+TEST_CASE("store: a migration first backs the file up as it was, the way back to the older fogbench", "[store][schema]") {
+  TempDir tmp;
+  const auto path = tmp / "v1.db";
+  const auto backup = tmp / "v1.db.schema-1.bak";
+  auto make_v1 = [&](int samples) {
+    std::filesystem::remove(path);
+    Raw raw(path);
+    raw.exec(kSchemaV1);
+    raw.exec("INSERT INTO runs (id, created_at, profile_name, purpose, state) "
+             "VALUES (7, '2026-01-01T00:00:00.000Z', 'old', 'fit', 'completed');"
+             "INSERT INTO run_units VALUES (7, 0, 'FOG-OLD');");
+    for (int t = 0; t < samples; ++t)
+      raw.exec("INSERT INTO samples (run_id, unit_index, t_s, gyro_dph, t1_c, t2_c) VALUES (7, 0, " +
+               std::to_string(t) + ", 0.5, 20, 21)");
+    ::chmod(path.c_str(), 0600);
+  };
+  SECTION("the backup holds version 1 and every row, with the store's mode") {
+    make_v1(3);
+    { Store s = open_ok(path); CHECK(s.schema_version() == Store::current_schema_version()); }
+    REQUIRE(std::filesystem::exists(backup));
+    Raw old(backup);
+    CHECK(old.integer("PRAGMA user_version") == 1);
+    CHECK(old.integer("SELECT count(*) FROM samples") == 3);
+    CHECK(old.integer("SELECT count(*) FROM sqlite_schema WHERE name = 'models'") == 0);
+    CHECK((std::filesystem::status(backup).permissions() & std::filesystem::perms::all) ==
+          (std::filesystem::perms::owner_read | std::filesystem::perms::owner_write));
+    // Opening the migrated store again makes no new backup (nothing to migrate).
+    std::filesystem::remove(backup);
+    { Store s = open_ok(path); }
+    CHECK_FALSE(std::filesystem::exists(backup));
+  }
+  SECTION("an older backup of the same version is replaced by the newer file's") {
+    make_v1(1);
+    { Store s = open_ok(path); }
+    make_v1(5);  // restored and written to by the older fogbench, then upgraded again
+    { Store s = open_ok(path); }
+    Raw old(backup);
+    CHECK(old.integer("SELECT count(*) FROM samples") == 5);
+  }
+  SECTION("a backup that cannot be made refuses the migration and leaves the file as it was") {
+    make_v1(2);
+    std::filesystem::create_directories(backup / "in-the-way");  // rename onto it fails
+    auto s = Store::open(path);
+    REQUIRE_FALSE(s.has_value());
+    CHECK(s.error().code == StoreErrc::migration_failed);
+    CHECK_THAT(s.error().message, Contains("cannot back up '" + path.string() + "'"));
+    CHECK_THAT(s.error().message, Contains("schema 1 -> " + std::to_string(Store::current_schema_version())));
+    CHECK_THAT(s.error().message, Contains("the store was not migrated"));
+    Raw raw(path);
+    CHECK(raw.integer("PRAGMA user_version") == 1);
+    CHECK(raw.integer("SELECT count(*) FROM samples") == 2);
+    // No temporary copy is left beside it.
+    for (const auto& e : std::filesystem::directory_iterator(tmp.dir))
+      CHECK(e.path().filename().string().find(".tmp-") == std::string::npos);
+  }
+  SECTION("without a backup when asked (OpenOptions::backup_before_migration = false)") {
+    make_v1(1);
+    OpenOptions o;
+    o.backup_before_migration = false;
+    auto s = Store::open(path, o);
+    REQUIRE(s.has_value());
+    CHECK_FALSE(std::filesystem::exists(backup));
+  }
+}
+
+TEST_CASE("store: an old file that cannot be written is refused at upgrade, named, untouched", "[store][schema][failure]") {
+  namespace fs = std::filesystem;
+  TempDir tmp;
+  const auto path = tmp / "v1ro.db";
+  {
+    Raw raw(path);
+    raw.exec(kSchemaV1);
+    raw.exec("INSERT INTO runs (id, created_at, profile_name, purpose, state) "
+             "VALUES (7, '2026-01-01T00:00:00.000Z', 'old', 'fit', 'completed');");
+  }
+  fs::permissions(path, fs::perms::owner_read | fs::perms::group_read | fs::perms::others_read);
+  // What the open said, as one line ("ok" when it opened). Root ignores file modes: as root the
+  // open runs in a child that gives up root for `nobody` (uid/gid 65534), owner of the folder
+  // and the file as a user would be of theirs (as store_failure_test does).
+  auto attempt = [&]() -> std::string {
+    auto s = Store::open(path);
+    if (s) return "ok";
+    return std::string(to_string(s.error().code)) + ": " + s.error().message;
+  };
+  std::string said;
+  if (::geteuid() != 0) {
+    said = attempt();
+  } else {
+    constexpr uid_t kNobody = 65534;
+    REQUIRE(::chown(path.c_str(), kNobody, kNobody) == 0);
+    REQUIRE(::chown(tmp.dir.c_str(), kNobody, kNobody) == 0);
+    int out[2];
+    REQUIRE(::pipe(out) == 0);
+    const pid_t child = ::fork();
+    REQUIRE(child >= 0);
+    if (child == 0) {
+      ::close(out[0]);
+      const std::string report =
+          (::setgid(kNobody) != 0 || ::setuid(kNobody) != 0) ? "could not become nobody" : attempt();
+      const auto written = ::write(out[1], report.data(), report.size());
+      ::_exit(written == static_cast<ssize_t>(report.size()) ? 0 : 1);
+    }
+    ::close(out[1]);
+    char buf[1024];
+    for (ssize_t k; (k = ::read(out[0], buf, sizeof buf)) > 0;) said.append(buf, static_cast<std::size_t>(k));
+    ::close(out[0]);
+    int status = 0;
+    REQUIRE(::waitpid(child, &status, 0) == child);
+    CHECK(WIFEXITED(status));
+    REQUIRE(::chown(tmp.dir.c_str(), 0, 0) == 0);
+    REQUIRE(::chown(path.c_str(), 0, 0) == 0);
+  }
+  INFO(said);
+  CHECK(said.starts_with("read_only: "));
+  CHECK_THAT(said, Contains("schema version 1 needs migrating to " + std::to_string(Store::current_schema_version())));
+  CHECK_THAT(said, Contains("read-only; nothing was changed"));
+  CHECK_THAT(said, Contains(path.string()));
+  fs::permissions(path, fs::perms::owner_read | fs::perms::owner_write);
+  Raw raw(path);
+  CHECK(raw.integer("PRAGMA user_version") == 1);
+  CHECK(raw.text("PRAGMA journal_mode") != "wal");  // not even switched to WAL
+  CHECK(raw.integer("SELECT count(*) FROM runs") == 1);
+  CHECK_FALSE(fs::exists(tmp / "v1ro.db.schema-1.bak"));
+}
+
 TEST_CASE("store: newer, foreign and non-database files are refused untouched", "[store][schema]") {
   TempDir tmp;
   SECTION("a newer schema version") {

@@ -94,6 +94,10 @@ struct OpenOptions {
   // The mode a new database file is created with (its -wal and -shm get the same from SQLite),
   // set with fchmod so the umask does not matter. A file that exists keeps its mode.
   unsigned file_mode = 0640;
+  // Before migrating a file on disk from an older schema N, copy it to `<path>.schema-<N>.bak`
+  // (the way back to the fogbench that wrote it, docs/storage.md "Upgrade and downgrade"); a
+  // copy that cannot be made refuses the migration (migration_failed) and leaves the file as it was.
+  bool backup_before_migration = true;
   // The source of created_at and event times (ISO 8601 UTC); system_clock::now when empty.
   std::function<std::chrono::system_clock::time_point()> clock;
 };
