@@ -11,6 +11,7 @@
 #include <spdlog/spdlog.h>
 
 #include "fogbench/daemon/config.hpp"
+#include "repeat_log.hpp"
 
 namespace fogbench::daemon {
 
@@ -101,6 +102,7 @@ struct Acquisition::Impl {
 
   std::optional<double> written_setpoint_c;
   bool write_in_flight = false;
+  RepeatLog setpoint_log;  // "setpoint not written", at most once a minute
 
   // The paced clock. Second k is acquired once a worker job has written the setpoint of tick
   // k-1, asked the world to step one second (so its frames are in the gyro socket) and polled the
@@ -183,13 +185,23 @@ struct Acquisition::Impl {
       std::string err = r ? "" : r.error().to_string();
       asio::post(io, [this, sp_c, err] {
         write_in_flight = false;
-        if (err.empty()) {
-          written_setpoint_c = sp_c;
-        } else {
-          spdlog::warn("setpoint {} C not written: {}", sp_c, err);
-        }
+        setpoint_written(sp_c, err);
       });
     });
+  }
+  // A write's outcome (err empty: written). A chamber that is off refuses every second's write:
+  // the warning is logged once a minute with its count, not every second (repeat_log.hpp).
+  void setpoint_written(double sp_c, const std::string& err) {
+    if (err.empty()) {
+      written_setpoint_c = sp_c;
+      if (setpoint_log.active()) {
+        for (const auto& line : setpoint_log.cleared()) spdlog::warn("{}", line);
+        spdlog::info("setpoint {} C written again", sp_c);
+      }
+      return;
+    }
+    for (const auto& line : setpoint_log.occurred(repeat_key(err), fmt::format("setpoint {} C not written: {}", sp_c, err), Clock::now()))
+      spdlog::warn("{}", line);
   }
   bool setpoint_unwritten(double sp_c) const { return !written_setpoint_c || *written_setpoint_c != sp_c; }
 
@@ -485,8 +497,7 @@ struct Acquisition::Impl {
       }
       asio::post(io, [this, setpoint_c, write_error, clock_error, r = std::move(r)]() mutable {
         if (setpoint_c) {
-          if (write_error.empty()) written_setpoint_c = *setpoint_c;
-          else spdlog::warn("setpoint {} C not written: {}", *setpoint_c, write_error);
+          setpoint_written(*setpoint_c, write_error);
         }
         if (!clock_error.empty()) {
           if (!clock_logged_down) spdlog::error("simulated clock: {}", clock_error);

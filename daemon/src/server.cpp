@@ -541,6 +541,8 @@ std::expected<void, Server::StartError> Server::start() {
   auto store = storage::Store::open(m.config.storage_path, so);
   if (!store) return fail("storage: " + store.error().message);
   m.store.emplace(std::move(*store));
+  // Which schema the store is at, for an upgrade's or a downgrade's record (docs/storage.md).
+  spdlog::info("store {} at schema version {}", m.config.storage_path.string(), m.store->schema_version());
   m.station = std::make_unique<Station>(m.config, *m.store, m.options.time_scale);
   // The station's signing key, made at the first start (docs/daemon.md "The station key"); one
   // unsafe or unreadable is refused: exit 2 naming its path.
