@@ -54,7 +54,10 @@ int main(int argc, char** argv) {
   fogbench::cli::add_coefficients_command(app, code);
   fogbench::cli::add_cert_command(app, code);
   fogbench::cli::add_plan_commands(app, code);
-  fogbench::cli::add_fleet_command(app, code);
+  // The fleet commands run in fogctl-fleet, which links libpq: fogctl never loads it (fleet.hpp).
+  fogbench::cli::add_fleet_command(app, code, [argv](const std::string&, const fogbench::cli::FleetOptions&) {
+    return fogbench::cli::run_fleet_program(argv, std::cerr);
+  });
   fogbench::cli::add_profile_commands(app, code);
   fogbench::cli::add_stored_run_options(app);  // after the commands it extends
   fogbench::cli::add_generate_command(app, code);  // last: it walks the whole table

@@ -13,7 +13,7 @@ fail() { echo "install layout: $*" >&2; exit 1; }
 p=$tmp/prefix
 cmake --install "$build" --prefix "$p" --component runtime >/dev/null
 
-for f in bin/fogctl sbin/fogbenchd lib/systemd/system/fogbenchd.service lib/systemd/system/fogbenchd@.service \
+for f in bin/fogctl libexec/fogbench/fogctl-fleet sbin/fogbenchd lib/systemd/system/fogbenchd.service lib/systemd/system/fogbenchd@.service \
          lib/sysusers.d/fogbench.conf lib/tmpfiles.d/fogbench.conf share/man/man1/fogctl.1 share/man/man8/fogbenchd.8 \
          share/bash-completion/completions/fogctl share/zsh/vendor-completions/_fogctl \
          share/doc/fogbench/fogbenchd.json.example share/doc/fogbench/daemon.md share/fogbench/profiles/exp1.profile share/fogbench/plans/paper.plan; do
@@ -37,6 +37,10 @@ example=$p/share/doc/fogbench/fogbenchd.json.example
 sed "s|$p||g" "$example" | grep -q "/tmp" && fail "the sample configuration points at /tmp (the unit has PrivateTmp)"
 grep -q "\"$p/share/fogbench/profiles\"" "$example" || fail "sample profile_dir is not the prefix's"
 "$p/sbin/fogbenchd" --check-config "$example" >/dev/null || fail "the sample configuration does not pass --check-config"
+
+# The installed fogctl runs its fleet commands in the installed fogctl-fleet (its own usage error).
+fleet_err=$("$p/bin/fogctl" fleet serials 2>&1 >/dev/null || true)
+[[ $fleet_err == *"give the plant store with exactly one of --db"* ]] || fail "fogctl fleet does not reach libexec/fogbench/fogctl-fleet: $fleet_err"
 
 grep -q '^\.TH FOGCTL 1' "$p/share/man/man1/fogctl.1" || fail "fogctl.1 has no .TH"
 grep -q '^\.SS fogctl run start' "$p/share/man/man1/fogctl.1" || fail "fogctl.1 lacks run start"
