@@ -243,26 +243,58 @@ std::expected<std::vector<AdevPoint>, std::string> overlapping_adev(
     previous = m;
   }
 
-  // Angle in units of (deg/h)*tau0, accumulated in long double: 86,400 sums of values near a
-  // bias of hundreds of deg/h lose digits in double before the second differences cancel them.
-  // The mean rate is removed first; it cancels in the second difference anyway.
+  // The second difference of the angle at cluster size m is a difference of two window sums,
+  // S_m(k + m) - S_m(k), S_m(k) the sum of the m rates from k (in (deg/h)*tau0). The window sums
+  // are kept, not the angle: an angle accumulated over 864,000 samples of a drifting gyro
+  // reaches 1e6 and more, and its second differences at short taus would lose 7 of double's 16
+  // digits. The mean rate is removed first (in long double; it cancels in the second difference
+  // anyway). When m doubles, as at octave taus, S_2m(k) = S_m(k) + S_m(k + m) in place, one
+  // vectorised pass per tau over one array of doubles; another m is summed afresh from the
+  // angle in long double (half-octave taus on short holds). What this replaced, a long-double
+  // loop over the angle for every tau, took 84 ms at 864,000 samples and 19 taus
+  // (docs/performance.md, "Allan deviation").
   long double mean = 0.0L;
   for (const double r : rate_dph) mean += r;
   mean /= static_cast<long double>(n);
-  std::vector<long double> theta(static_cast<std::size_t>(n) + 1, 0.0L);
+  std::vector<long double> theta;  // the angle, made only for a cluster size that does not double
+  std::vector<double> window(static_cast<std::size_t>(n), 0.0);  // S_m(k), k = 0 .. n - m
   for (std::int64_t i = 0; i < n; ++i)
-    theta[static_cast<std::size_t>(i) + 1] =
-        theta[static_cast<std::size_t>(i)] + (rate_dph[static_cast<std::size_t>(i)] - mean);
+    window[static_cast<std::size_t>(i)] = static_cast<double>(rate_dph[static_cast<std::size_t>(i)] - mean);
+  std::int64_t window_m = 1;
+  const auto sums_from_angle = [&](std::int64_t m) {
+    if (theta.empty()) {
+      theta.assign(static_cast<std::size_t>(n) + 1, 0.0L);
+      for (std::int64_t i = 0; i < n; ++i)
+        theta[static_cast<std::size_t>(i) + 1] =
+            theta[static_cast<std::size_t>(i)] + (rate_dph[static_cast<std::size_t>(i)] - mean);
+    }
+    for (std::int64_t k = 0; k + m <= n; ++k)
+      window[static_cast<std::size_t>(k)] =
+          static_cast<double>(theta[static_cast<std::size_t>(k + m)] - theta[static_cast<std::size_t>(k)]);
+    window_m = m;
+  };
+  double* const s = window.data();
 
   std::vector<AdevPoint> out;
   out.reserve(cluster_sizes.size());
   for (const auto m : cluster_sizes) {
+    while (window_m < m && 2 * window_m <= m) {  // double the windows while m is reached that way
+      // Forward order: S_m(k + m) is read before it is overwritten. Fusing this pass into the
+      // sums' below, block by block, measured slower (22 against 17 ms at 864,000).
+      const std::int64_t len = n - 2 * window_m + 1;
+      for (std::int64_t k = 0; k < len; ++k) s[k] += s[k + window_m];
+      window_m *= 2;
+    }
+    if (window_m != m) sums_from_angle(m);
     const std::int64_t terms = n - 2 * m + 1;
+    // Summed in blocks (each block's partial sums vectorised by Eigen), the blocks' sums added
+    // in long double: the rounding of 864,000 squares stays near one block's.
+    constexpr std::int64_t kBlock = 4096;
     long double sum = 0.0L;
-    for (std::int64_t k = 0; k < terms; ++k) {
-      const auto d = theta[static_cast<std::size_t>(k + 2 * m)] -
-                     2.0L * theta[static_cast<std::size_t>(k + m)] + theta[static_cast<std::size_t>(k)];
-      sum += d * d;
+    for (std::int64_t k0 = 0; k0 < terms; k0 += kBlock) {
+      const std::int64_t len = std::min(kBlock, terms - k0);
+      const Eigen::Map<const Eigen::ArrayXd> a(s + k0, len), b(s + k0 + m, len);
+      sum += (b - a).square().sum();
     }
     // theta is in rate*tau0 units, so (theta diff / (m tau0))^2 * tau0^2 = diff^2 / m^2.
     const double avar = static_cast<double>(sum / (2.0L * static_cast<long double>(m) * m * terms));

@@ -79,6 +79,35 @@ TEST_CASE("a large rate bias does not change the deviation", "[allan]") {
   for (std::size_t i = 0; i < ca.size(); ++i) CHECK(cb[i].adev_dph == Approx(ca[i].adev_dph).epsilon(1e-9));
 }
 
+TEST_CASE("a steep drift under small noise keeps every digit of the deviation", "[allan]") {
+  // A 100 deg/h ramp over 200,000 s under 0.001 deg/h of white noise: the angle reaches ~2e6
+  // (deg/h) s while its second differences at 1 s are ~1e-3. Summed in double (numpy's float64
+  // cumsum) the deviation is off by 5e-10 relative at 1 s; the estimator must agree with the
+  // definition summed wholly in long double (written out here) to 2e-11 at every octave tau.
+  Normal g(11);
+  const int n = 200000;
+  std::vector<double> rate(n);
+  for (int i = 0; i < n; ++i) rate[static_cast<std::size_t>(i)] = 100.0 * i / n + 0.001 * g();
+  const auto m = octave_cluster_sizes(rate.size());
+  const auto c = curve_of(rate, m);
+  long double mean = 0.0L;
+  for (const double r : rate) mean += r;
+  mean /= n;
+  std::vector<long double> theta(static_cast<std::size_t>(n) + 1, 0.0L);
+  for (std::size_t i = 0; i < rate.size(); ++i) theta[i + 1] = theta[i] + (rate[i] - mean);
+  for (std::size_t j = 0; j < m.size(); ++j) {
+    const auto mj = static_cast<std::size_t>(m[j]);
+    const std::size_t terms = static_cast<std::size_t>(n) - 2 * mj + 1;
+    long double sum = 0.0L;
+    for (std::size_t k = 0; k < terms; ++k) {
+      const long double d = theta[k + 2 * mj] - 2.0L * theta[k + mj] + theta[k];
+      sum += d * d;
+    }
+    const double expected = std::sqrt(static_cast<double>(sum / (2.0L * mj * mj * terms)));
+    CHECK(c[j].adev_dph == Approx(expected).epsilon(2e-11));
+  }
+}
+
 TEST_CASE("angle and rate random walk recovered from white noise plus a random walk of known strength",
           "[allan]") {
   // White rate noise of std s_w = 1 deg/h per 1 s sample: sigma(tau) = s_w / sqrt(tau/1 s), so
