@@ -12,6 +12,7 @@
 
 #include "fogbench/model/model.hpp"
 #include "fogbench/model/terms.hpp"
+#include "lagscan.hpp"
 
 namespace fogbench::model {
 
@@ -88,37 +89,49 @@ std::vector<double> bridged(std::span<const double> x, const std::vector<char>& 
 }
 
 // The lag k (s) in -max_k..max_k at which b(t + k) best correlates with a(t): b's lag behind a.
-// The rates are smooth (61 s derivative window), so the correlation is summed over every
-// second sample and scanned on a 4 s grid first, then at 1 s around the best; refined between
-// samples by a parabola through the peak and its neighbours. A million samples cost about
-// 10^8 products, not 8 * 10^8.
+// Pearson's r over the overlap of a(t) and b(t + k) at every lag, the cross sums of all lags
+// by FFT (LagScanner, lagscan.hpp: the two one-sided correlations of a against b and b against
+// a), the other sums by prefix sums; refined between samples by a parabola through the peak and
+// its neighbours. The direct sums over every second sample on a 4 s grid that this replaced
+// were 40 % of `fogctl allan` on 864,000 samples (docs/performance.md, "Allan deviation").
 std::optional<double> lag_behind(const std::vector<double>& a, const std::vector<double>& b, int max_k) {
-  const auto n = static_cast<long>(a.size());
-  if (n < 4L * max_k) return std::nullopt;
-  std::vector<double> r(static_cast<std::size_t>(2 * max_k + 1), -2.0);
-  auto corr = [&](int k) {
-    double& out = r[static_cast<std::size_t>(k + max_k)];
-    if (out > -2.0) return out;
-    const long lo = std::max(0L, -static_cast<long>(k)), hi = std::min(n, n - k);
-    double sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0, m = 0;
-    for (long t = lo; t < hi; t += 2) {
-      const double x = a[static_cast<std::size_t>(t)], y = b[static_cast<std::size_t>(t + k)];
-      sa += x, sb += y, saa += x * x, sbb += y * y, sab += x * y, m += 1;
-    }
-    const double va = saa - sa * sa / m, vb = sbb - sb * sb / m;
-    out = va > 0 && vb > 0 ? (sab - sa * sb / m) / std::sqrt(va * vb) : -1.5;
-    return out;
-  };
-  int best = 0;
-  for (int k = -max_k; k <= max_k; k += 4)
-    if (corr(k) > corr(best)) best = k;
-  const int coarse = best;
-  for (int k = std::max(-max_k, coarse - 4); k <= std::min(max_k, coarse + 4); ++k)
-    if (corr(k) > corr(best)) best = k;
-  if (corr(best) < 0.3) return std::nullopt;  // nothing in common: no lag to speak of
+  const std::size_t n = a.size();
+  if (n < 4 * static_cast<std::size_t>(max_k) || max_k < 1) return std::nullopt;
+  const detail::LagScanner scanner(n, max_k, std::vector<double>(n, 1.0));
+  // ahead[i] = sum_t b(t) a(t - i), behind[i] = sum_t a(t) b(t - i), i = 0..max_k, each with its
+  // series held at its first value before the run (make_lagged): that hold is taken off below.
+  const auto ahead = scanner.corr(detail::make_lagged(a, max_k), b);
+  const auto behind = scanner.corr(detail::make_lagged(b, max_k), a);
+  std::vector<long double> pa(n + 1, 0.0L), paa(n + 1, 0.0L), pb(n + 1, 0.0L), pbb(n + 1, 0.0L);
+  for (std::size_t t = 0; t < n; ++t) {
+    pa[t + 1] = pa[t] + a[t], paa[t + 1] = paa[t] + static_cast<long double>(a[t]) * a[t];
+    pb[t + 1] = pb[t] + b[t], pbb[t + 1] = pbb[t] + static_cast<long double>(b[t]) * b[t];
+  }
+  std::vector<double> r(static_cast<std::size_t>(2 * max_k + 1), -1.5);
+  for (int k = -max_k; k <= max_k; ++k) {
+    // The overlap: a(t), t in [lo, hi), against b(t + k).
+    const std::size_t shift = static_cast<std::size_t>(std::abs(k));
+    const std::size_t lo = k < 0 ? shift : 0, hi = k < 0 ? n : n - shift;
+    const auto m = static_cast<long double>(hi - lo);
+    long double sab = 0.0L;
+    if (k >= 0)
+      sab = static_cast<long double>(ahead[shift]) - static_cast<long double>(a[0]) * pb[shift];
+    else
+      sab = static_cast<long double>(behind[shift]) - static_cast<long double>(b[0]) * pa[shift];
+    const long double sa = pa[hi] - pa[lo], saa = paa[hi] - paa[lo];
+    // b over [lo + k, hi + k).
+    const auto b_lo = static_cast<std::size_t>(static_cast<long>(lo) + k), b_hi = b_lo + (hi - lo);
+    const long double sb = pb[b_hi] - pb[b_lo], sbb = pbb[b_hi] - pbb[b_lo];
+    const long double va = saa - sa * sa / m, vb = sbb - sb * sb / m;
+    if (va > 0 && vb > 0) r[static_cast<std::size_t>(k + max_k)] = static_cast<double>((sab - sa * sb / m) / std::sqrt(va * vb));
+  }
+  const auto best_at = std::max_element(r.begin(), r.end()) - r.begin();
+  const int best = static_cast<int>(best_at) - max_k;
+  if (r[static_cast<std::size_t>(best_at)] < 0.3) return std::nullopt;  // nothing in common: no lag to speak of
   double k = best;
   if (best > -max_k && best < max_k) {
-    const double y0 = corr(best - 1), y1 = corr(best), y2 = corr(best + 1);
+    const double y0 = r[static_cast<std::size_t>(best_at - 1)], y1 = r[static_cast<std::size_t>(best_at)],
+                 y2 = r[static_cast<std::size_t>(best_at + 1)];
     const double den = y0 - 2 * y1 + y2;
     if (den < 0) k += 0.5 * (y0 - y2) / den;
   }
@@ -361,14 +374,26 @@ class Assessor {
           "check the gyro's range and mode; skip the interval (--quality clean)", 2 * iv.size() <= n_, false);
     }
     // Spikes: beyond spike_sigma robust sigmas of the output about its 31 s running median.
+    // The window (the usable samples within +-15 s) is kept sorted as it slides: one value out,
+    // one in, each placed by binary search, the median its middle element, the same value as
+    // sorting each window (nth_element on every window was a third of `fogctl allan`'s time on
+    // 864,000 samples).
     constexpr std::size_t half = 15;
-    std::vector<double> resid(n_, kNaN), window;
+    const auto usable = [&](std::size_t j) { return std::isfinite(y[j]) && !known_bad(j) && !sat[j]; };
+    std::vector<double> resid(n_, kNaN), sorted;
+    sorted.reserve(2 * half + 1);
+    const auto enter = [&](std::size_t j) {
+      if (j < n_ && usable(j)) sorted.insert(std::upper_bound(sorted.begin(), sorted.end(), y[j]), y[j]);
+    };
+    for (std::size_t j = 0; j <= half; ++j) enter(j);
     for (std::size_t i = 0; i < n_; ++i) {
-      if (!std::isfinite(y[i]) || known_bad(i) || sat[i]) continue;
-      window.clear();
-      for (std::size_t j = i >= half ? i - half : 0; j <= std::min(n_ - 1, i + half); ++j)
-        if (std::isfinite(y[j]) && !known_bad(j) && !sat[j]) window.push_back(y[j]);
-      resid[i] = y[i] - median(window);
+      if (i > 0) {  // the window of i is [i - half, i + half], clipped to the run
+        if (i >= half + 1 && usable(i - half - 1))
+          sorted.erase(std::lower_bound(sorted.begin(), sorted.end(), y[i - half - 1]));
+        enter(i + half);
+      }
+      if (!usable(i)) continue;
+      resid[i] = y[i] - sorted[sorted.size() / 2];
     }
     std::vector<double> finite;
     for (double r : resid)
