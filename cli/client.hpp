@@ -113,6 +113,8 @@ CLI::App* find_subcommand(CLI::App& app, const std::string& name);
 void add_stored_run_options(CLI::App& app);
 // fogctl profile list|validate (profile_commands.cpp).
 void add_profile_commands(CLI::App& app, int& code);
+// fogctl store prune (store_commands.cpp).
+void add_store_commands(CLI::App& app, int& code);
 // The hidden `fogctl __generate commands|bash|zsh` the build runs (generate.cpp).
 void add_generate_command(CLI::App& app, int& code);
 

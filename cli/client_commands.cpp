@@ -216,6 +216,9 @@ int cmd_run_get(const Common& o, std::int64_t id, std::ostream& out, std::ostrea
       << "  purpose " << run["purpose"].get<std::string>() << ", profile " << run["profile"].get<std::string>()
       << ", time scale " << run["time_scale"] << "\n  created " << run["created_at"].get<std::string>() << ", started "
       << opt_str(run["started_at"]) << ", ended " << opt_str(run["ended_at"]) << "\n";
+  if (run.contains("pruned_at") && run["pruned_at"].is_string())
+    out << "  samples pruned at " << run["pruned_at"].get<std::string>() << " ("
+        << run.value("pruned_samples", std::int64_t{0}) << " deleted by `fogctl store prune`; the plant store keeps them)\n";
   if (!run.value("recorded", true))
     out << "  its end is NOT yet recorded in the store (a full disk?); the daemon retries every 10 s\n";
   // Per unit: the samples stored and what the run lost (frames lost, corrupt, samples flagged).

@@ -59,6 +59,7 @@ int main(int argc, char** argv) {
     return fogbench::cli::run_fleet_program(argv, std::cerr);
   });
   fogbench::cli::add_profile_commands(app, code);
+  fogbench::cli::add_store_commands(app, code);
   fogbench::cli::add_stored_run_options(app);  // after the commands it extends
   fogbench::cli::add_generate_command(app, code);  // last: it walks the whole table
   try {

@@ -6,7 +6,9 @@
 namespace fogbench::daemon {
 
 ApiError from_store(const storage::StoreError& e) {
-  if (e.code == storage::StoreErrc::not_found) return {ErrorCode::not_found, e.message};
+  // A pruned run's samples are not here any more: not_found, with when and where they went.
+  if (e.code == storage::StoreErrc::not_found || e.code == storage::StoreErrc::pruned)
+    return {ErrorCode::not_found, e.message};
   return {ErrorCode::internal, std::string(storage::to_string(e.code)) + ": " + e.message};
 }
 

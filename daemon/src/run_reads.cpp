@@ -28,7 +28,10 @@ json run_json(const storage::RunRecord& r) {
           {"started_at", r.started_at ? json(*r.started_at) : json(nullptr)},
           {"ended_at", r.ended_at ? json(*r.ended_at) : json(nullptr)},
           {"time_scale", r.time_scale}, {"units", units}, {"lots", lots},
-          {"slots", slots}};
+          {"slots", slots},
+          // Store::prune deleted its samples (fogctl store prune): when, and how many.
+          {"pruned_at", r.pruned_at ? json(*r.pruned_at) : json(nullptr)},
+          {"pruned_samples", r.pruned_samples}};
 }
 
 json parse_or_string(const std::string& text) {

@@ -261,6 +261,13 @@ ALTER TABLE run_units ADD COLUMN slot TEXT CHECK (slot IS NULL OR length(slot) B
 ALTER TABLE plans ADD COLUMN slots_json TEXT NOT NULL DEFAULT '{}' CHECK (json_valid(slots_json));
 )sql";
 
+// Version 11 (issue 28, retention): a run whose samples `fogctl store prune` deleted keeps its
+// record with when and how many (Store::prune, docs/storage.md "Retention").
+constexpr const char* kPrunedRuns = R"sql(
+ALTER TABLE runs ADD COLUMN pruned_at TEXT;
+ALTER TABLE runs ADD COLUMN pruned_samples INTEGER NOT NULL DEFAULT 0 CHECK (pruned_samples >= 0);
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "recording tables", kRecording},
     {2, "models and verifications", kModels},
@@ -272,6 +279,7 @@ constexpr Migration kMigrations[] = {
     {8, "one verdict per serial", kVerdicts},
     {9, "plan operator and unit lots", kPlanTraceability},
     {10, "unit slots", kUnitSlots},
+    {11, "pruned runs", kPrunedRuns},
 };
 
 StoreResult<std::int64_t> query_int(Database& db, const std::string& sql, std::string_view what) {

@@ -38,6 +38,7 @@ std::string_view to_string(StoreErrc code) {
     case StoreErrc::busy: return "busy";
     case StoreErrc::corrupt: return "corrupt";
     case StoreErrc::sqlite: return "sqlite";
+    case StoreErrc::pruned: return "pruned";
   }
   return "unknown";
 }

@@ -14,6 +14,8 @@ StoreResult<std::int64_t> Store::enqueue_replication(std::int64_t run_id) {
   Transaction tx(db);
   if (auto ok = tx.begin(what); !ok) return fail(std::move(ok));
   if (auto ok = require_run(db, run_id); !ok) return fail(std::move(ok));
+  // A pruned run sent again would replace the plant's copy of its samples with none.
+  if (auto ok = require_samples_kept(db, run_id); !ok) return fail(std::move(ok));
   auto find = db.statement("SELECT id FROM plant_outbox WHERE run_id = ?1 AND sent_at IS NULL");
   if (!find) return fail(std::move(find));
   {
@@ -42,7 +44,7 @@ StoreResult<std::int64_t> Store::enqueue_unqueued_completed_runs() {
   auto stmt = db.statement(
       "INSERT INTO plant_outbox (run_id, queued_at) "
       "SELECT id, ?1 FROM runs WHERE state = 'completed' "
-      "AND id NOT IN (SELECT run_id FROM plant_outbox) ORDER BY ended_at, id");
+      "AND pruned_at IS NULL AND id NOT IN (SELECT run_id FROM plant_outbox) ORDER BY ended_at, id");
   if (!stmt) return fail(std::move(stmt));
   Query q(db, *stmt);
   q.bind(1, db.now_iso());

@@ -81,7 +81,7 @@ inline StoreResult<bool> row(Database& db, Query& q, std::string_view what) {
 
 #define FOGBENCH_RUN_COLUMNS                                                                  \
   "id, created_at, profile_name, profile_text, purpose, state, state_reason, config_json, " \
-  "started_at, ended_at, time_scale"
+  "started_at, ended_at, time_scale, pruned_at, pruned_samples"
 #define FOGBENCH_MODEL_COLUMNS \
   "id, serial, version, run_id, parent_id, created_at, model_json, method, terms"
 #define FOGBENCH_SAMPLE_COLUMNS                                                              \
@@ -115,6 +115,8 @@ inline StoreResult<RunRecord> read_run(Database& db, const Query& q) {
   r.started_at = q.opt_text(8);
   r.ended_at = q.opt_text(9);
   r.time_scale = q.real(10);
+  r.pruned_at = q.opt_text(11);
+  r.pruned_samples = q.int64(12);
   return r;
 }
 
@@ -187,6 +189,21 @@ inline StoreResult<std::string> require_unit(Database& db, std::int64_t run_id, 
   if (auto ok = require_run(db, run_id); !ok) return fail(std::move(ok));
   return std::unexpected(db.error(StoreErrc::not_found, run_label(run_id) + " has no unit " +
                                                             std::to_string(unit_index)));
+}
+
+// pruned when Store::prune deleted the run's samples: says when, how many, and where they are.
+inline StoreResult<void> require_samples_kept(Database& db, std::int64_t run_id) {
+  auto stmt = db.statement("SELECT pruned_at, pruned_samples FROM runs WHERE id = ?1 AND pruned_at IS NOT NULL");
+  if (!stmt) return fail(std::move(stmt));
+  Query q(db, *stmt);
+  q.bind(1, run_id);
+  auto found = row(db, q, "look up " + run_label(run_id));
+  if (!found) return fail(std::move(found));
+  if (!*found) return {};
+  return std::unexpected(db.error(
+      StoreErrc::pruned, "the samples of " + run_label(run_id) + " were pruned at " + q.text(0) + " (" +
+                             std::to_string(q.int64(1)) +
+                             " samples deleted by `fogctl store prune`; the plant store keeps the runs it received)"));
 }
 
 inline StoreResult<std::int64_t> insert_event(Database& db, std::int64_t run_id,

@@ -69,6 +69,7 @@ StoreResult<std::vector<SampleRow>> Store::get_samples(std::int64_t run_id, int 
     return std::unexpected(
         db.error(StoreErrc::invalid_argument, what + ": offset and limit must be >= 0"));
   if (auto ok = require_unit(db, run_id, unit_index); !ok) return fail(std::move(ok));
+  if (auto ok = require_samples_kept(db, run_id); !ok) return fail(std::move(ok));
   auto stmt = db.statement("SELECT " FOGBENCH_SAMPLE_COLUMNS
                            " FROM samples WHERE run_id = ?1 AND unit_index = ?2 "
                            "ORDER BY t_s LIMIT ?3 OFFSET ?4");
@@ -92,6 +93,7 @@ StoreResult<model::RunData> Store::export_run(std::int64_t run_id, int unit_inde
   const std::string label = "unit " + std::to_string(unit_index) + " of " + run_label(run_id);
   auto serial = require_unit(db, run_id, unit_index);
   if (!serial) return fail(std::move(serial));
+  if (auto ok = require_samples_kept(db, run_id); !ok) return fail(std::move(ok));
   auto count = count_samples(run_id, unit_index);
   if (!count) return fail(std::move(count));
 

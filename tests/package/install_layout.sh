@@ -19,6 +19,15 @@ for f in bin/fogctl libexec/fogbench/fogctl-fleet sbin/fogbenchd lib/systemd/sys
          share/doc/fogbench/fogbenchd.json.example share/doc/fogbench/daemon.md share/fogbench/profiles/exp1.profile share/fogbench/plans/paper.plan; do
   [[ -e $p/$f ]] || fail "$f not installed"
 done
+# Stripped by default (no symbol table, no line tables), whatever the build's -g1.
+for f in bin/fogctl libexec/fogbench/fogctl-fleet sbin/fogbenchd; do
+  readelf -S "$p/$f" | grep -q -e '\.symtab' -e '\.debug_line' && fail "$f installed with symbols or debug information"
+done
+# FOGBENCH_INSTALL_KEEP_SYMBOLS=1 keeps them (the build's line tables, for gdb).
+k=$tmp/keep
+FOGBENCH_INSTALL_KEEP_SYMBOLS=1 cmake --install "$build" --prefix "$k" --component runtime >/dev/null
+readelf -S "$k/bin/fogctl" | grep -q '\.debug_line' || fail "FOGBENCH_INSTALL_KEEP_SYMBOLS=1: fogctl stripped anyway"
+rm -rf "$k"
 # The mock bench is not a production tool: not in the runtime component.
 [[ ! -e $p/bin/fogbench-sim ]] || fail "fogbench-sim installed with the runtime component"
 

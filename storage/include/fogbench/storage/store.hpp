@@ -46,6 +46,7 @@ enum class StoreErrc {
   busy,              // SQLITE_BUSY or SQLITE_LOCKED after the busy timeout
   corrupt,           // SQLITE_CORRUPT or SQLITE_NOTADB
   sqlite,            // any other SQLite failure
+  pruned,            // the run's samples were deleted by Store::prune (its record stays)
 };
 std::string_view to_string(StoreErrc code);
 
@@ -136,6 +137,8 @@ struct RunRecord {
   std::optional<std::string> ended_at;    // entry into a terminal state
   double time_scale = 1.0;
   std::vector<RunUnit> units;             // by unit_index
+  std::optional<std::string> pruned_at;   // when Store::prune deleted its samples (ISO 8601 UTC)
+  std::int64_t pruned_samples = 0;        // how many it deleted
 };
 
 struct RunEvent {
@@ -290,6 +293,40 @@ struct OutboxEntry {
   std::string last_error;   // the last attempt's error, "" when none failed
 };
 
+// Store::prune: the samples (every unit's seconds, the bulk of a store) of the runs that ended
+// before a date are deleted; everything else a run has stays (its record, units, events,
+// models, verifications, verdicts, certificates), and the run is marked pruned (RunRecord's
+// pruned_at). By default only runs the plant store has received are pruned (docs/storage.md,
+// "Retention").
+struct PruneOptions {
+  std::string before;                 // YYYY-MM-DD (midnight UTC) or YYYY-MM-DDTHH:MM:SSZ
+  bool include_unreplicated = false;  // prune runs the plant store has not received too
+  bool dry_run = false;               // say what would be pruned, change nothing
+};
+
+struct PrunedRun {
+  std::int64_t run_id = 0;
+  std::string ended_at;
+  std::string state;                  // completed, aborted or failed
+  std::vector<std::string> serials;   // by unit_index
+  std::int64_t samples = 0;           // deleted (or, on a dry run, that would be)
+  std::optional<std::string> sent_at; // when the plant store received it; empty: never
+};
+
+struct KeptRun {
+  std::int64_t run_id = 0;
+  std::string ended_at;
+  std::string reason;                 // why it was not pruned
+};
+
+struct PruneReport {
+  std::string before;                 // the cut-off as compared: YYYY-MM-DDTHH:MM:SS.000Z
+  std::vector<PrunedRun> pruned;
+  std::vector<KeptRun> kept;
+  std::int64_t samples = 0;           // deleted in all
+  bool dry_run = false;
+};
+
 struct OutboxStatus {
   std::int64_t depth = 0;                     // entries waiting
   std::optional<std::string> oldest_queued_at;
@@ -425,6 +462,13 @@ class Store {
   // Counts the attempt and keeps its error; the entry keeps its place at the head.
   StoreResult<void> mark_replication_failed(std::int64_t entry_id, std::string_view error);
   StoreResult<OutboxStatus> outbox_status();
+
+  // Retention (store_prune.cpp): deletes the samples of the runs that ended before
+  // options.before, as PruneOptions says; marks each run first, then deletes in chunks of
+  // 50,000 rows, each its own transaction (a daemon writing to the same file waits at most one
+  // chunk); a prune cut short leaves a run marked with part of its samples, and the next prune
+  // finishes it. invalid_argument for a malformed date.
+  StoreResult<PruneReport> prune(const PruneOptions& options);
 
   // SQLite's integrity check and foreign-key check: an empty list when all is well, or the
   // problems found.

@@ -1,0 +1,112 @@
+// fogctl store prune: retention for the bench's store (issue 28). Opens the store file itself
+// (SQLite lets it share the file with a running fogbenchd: each delete is a short transaction),
+// so an admin prunes with the daemon running or stopped. docs/storage.md, "Retention".
+#include <CLI/CLI.hpp>
+#include <filesystem>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+#include "client.hpp"
+#include "common.hpp"
+#include "fogbench/storage/store.hpp"
+#include "table.hpp"
+
+namespace fogbench::cli {
+namespace {
+
+using nlohmann::json;
+
+struct PruneCliOptions {
+  std::string store;
+  std::string before;
+  bool include_unreplicated = false;
+  bool dry_run = false;
+  bool json_out = false;
+};
+
+std::string join(const std::vector<std::string>& v) {
+  std::string s;
+  for (const auto& x : v) s += (s.empty() ? "" : ", ") + x;
+  return s;
+}
+
+int run_store_prune(const PruneCliOptions& o, std::ostream& out, std::ostream& err) {
+  // Never create a store by mistyping its path: Store::open would make an empty one.
+  std::error_code ec;
+  if (o.store != ":memory:" && !std::filesystem::is_regular_file(o.store, ec)) {
+    err << "fogctl store prune: --store " << o.store << ": no such store file (fogbenchd's storage.path)\n";
+    return kExitError;
+  }
+  auto store = storage::Store::open(o.store);
+  if (!store) {
+    err << "fogctl store prune: " << store.error().message << "\n";
+    return kExitError;
+  }
+  storage::PruneOptions po;
+  po.before = o.before;
+  po.include_unreplicated = o.include_unreplicated;
+  po.dry_run = o.dry_run;
+  auto r = store->prune(po);
+  if (!r) {
+    // What was pruned before a failure stays pruned and marked; a second prune finishes it.
+    err << "fogctl store prune: " << r.error().message << "\n";
+    return kExitError;
+  }
+  if (o.json_out) {
+    json pruned = json::array(), kept = json::array();
+    for (const auto& p : r->pruned)
+      pruned.push_back({{"run_id", p.run_id}, {"ended_at", p.ended_at}, {"state", p.state}, {"serials", p.serials},
+                        {"samples", p.samples}, {"plant_sent_at", p.sent_at ? json(*p.sent_at) : json(nullptr)}});
+    for (const auto& k : r->kept)
+      kept.push_back({{"run_id", k.run_id}, {"ended_at", k.ended_at}, {"reason", k.reason}});
+    out << json{{"store", o.store}, {"before", r->before}, {"dry_run", r->dry_run}, {"pruned", pruned},
+                {"kept", kept}, {"samples", r->samples}}
+               .dump()
+        << "\n";
+    return kExitOk;
+  }
+  const std::string verb = r->dry_run ? "would delete" : "deleted";
+  if (r->pruned.empty()) {
+    out << "no run that ended before " << r->before << " has samples to prune\n";
+  } else {
+    Table t({"run", "ended", "state", "serials", "samples " + verb, "plant store received"});
+    for (const auto& p : r->pruned)
+      t.add({std::to_string(p.run_id), p.ended_at, p.state, join(p.serials), std::to_string(p.samples),
+             p.sent_at ? *p.sent_at : "never"});
+    out << t.str();
+  }
+  if (!r->kept.empty()) {
+    out << "kept (ended before " << r->before << "):\n";
+    Table t({"run", "ended", "why"});
+    for (const auto& k : r->kept) t.add({std::to_string(k.run_id), k.ended_at, k.reason});
+    out << t.str();
+  }
+  out << (r->dry_run ? "dry run: nothing changed; " : "") << r->pruned.size() << " run" << (r->pruned.size() == 1 ? "" : "s")
+      << ", " << r->samples << " samples " << verb
+      << "; records, events, models, verdicts and certificates kept";
+  if (!r->dry_run && !r->pruned.empty())
+    out << ". The file does not shrink: SQLite reuses the freed pages for new runs";
+  out << "\n";
+  return kExitOk;
+}
+
+}  // namespace
+
+void add_store_commands(CLI::App& app, int& code) {
+  auto* s = app.add_subcommand("store", "The bench's store (the SQLite file fogbenchd records in): retention");
+  s->require_subcommand(1);
+  static PruneCliOptions po;
+  auto* p = s->add_subcommand(
+      "prune",
+      "Delete the samples of runs ended before a date that the plant store has; keep the records");
+  p->add_option("--store", po.store, "The store file (fogbenchd's storage.path)")->required();
+  p->add_option("--before", po.before, "Runs that ended before this: YYYY-MM-DD (midnight UTC) or YYYY-MM-DDTHH:MM:SSZ")
+      ->required();
+  p->add_flag("--include-unreplicated", po.include_unreplicated,
+              "Also prune runs the plant store has not received (their samples are then gone for good)");
+  p->add_flag("--dry-run", po.dry_run, "Say what would be pruned; change nothing");
+  p->add_flag("--json", po.json_out, "Print JSON for machines");
+  p->callback([&] { code = run_store_prune(po, std::cout, std::cerr); });
+}
+
+}  // namespace fogbench::cli

@@ -1,0 +1,152 @@
+// The Store's retention (issue 28): `fogctl store prune --before DATE` deletes the samples of
+// old runs, the bulk of a store, and keeps everything else a run has (docs/storage.md,
+// "Retention"). The other rooms: store.cpp (opening, runs), store_samples.cpp, store_outbox.cpp.
+#include <cctype>
+#include <nlohmann/json.hpp>
+
+#include "fogbench/storage/store.hpp"
+#include "store_rows.hpp"
+
+namespace fogbench::storage {
+namespace {
+
+constexpr std::int64_t kDeleteChunkRows = 50000;
+
+// YYYY-MM-DD or YYYY-MM-DDTHH:MM:SSZ, checked field by field, as the stored times' form
+// (YYYY-MM-DDTHH:MM:SS.mmmZ, compared as text). The error names the field that is wrong.
+std::expected<std::string, std::string> cutoff(std::string_view s) {
+  const auto digits = [&](std::size_t at, std::size_t n) {
+    for (std::size_t i = at; i < at + n; ++i)
+      if (i >= s.size() || !std::isdigit(static_cast<unsigned char>(s[i]))) return false;
+    return true;
+  };
+  const auto number = [&](std::size_t at, std::size_t n) { return std::stoi(std::string(s.substr(at, n))); };
+  const std::string form = " (give YYYY-MM-DD, midnight UTC, or YYYY-MM-DDTHH:MM:SSZ)";
+  if (!(s.size() == 10 || s.size() == 20) || !digits(0, 4) || s[4] != '-' || !digits(5, 2) || s[7] != '-' ||
+      !digits(8, 2))
+    return std::unexpected("'" + std::string(s) + "' is not a date" + form);
+  const int month = number(5, 2), day = number(8, 2);
+  if (month < 1 || month > 12) return std::unexpected("'" + std::string(s) + "': month " + std::to_string(month) + " is not 1..12");
+  if (day < 1 || day > 31) return std::unexpected("'" + std::string(s) + "': day " + std::to_string(day) + " is not 1..31");
+  if (s.size() == 10) return std::string(s) + "T00:00:00.000Z";
+  if (s[10] != 'T' || !digits(11, 2) || s[13] != ':' || !digits(14, 2) || s[16] != ':' || !digits(17, 2) ||
+      s[19] != 'Z')
+    return std::unexpected("'" + std::string(s) + "' is not a date and UTC time" + form);
+  if (number(11, 2) > 23 || number(14, 2) > 59 || number(17, 2) > 59)
+    return std::unexpected("'" + std::string(s) + "': the time of day is not 00:00:00..23:59:59");
+  return std::string(s.substr(0, 19)) + ".000Z";
+}
+
+}  // namespace
+
+StoreResult<PruneReport> Store::prune(const PruneOptions& options) {
+  assert(db_);
+  Database& db = *db_;
+  auto before = cutoff(options.before);
+  if (!before)
+    return std::unexpected(db.error(StoreErrc::invalid_argument, "prune: --before " + before.error()));
+  const std::string what = "prune the runs that ended before " + *before;
+  PruneReport report;
+  report.before = *before;
+  report.dry_run = options.dry_run;
+
+  // The candidates: ended before the cut-off and not pruned yet, or pruned by a prune cut short
+  // (marked, with samples left: finished below whatever the date).
+  struct Candidate {
+    std::int64_t id = 0;
+    std::string state, ended_at;
+    std::optional<std::string> pruned_at, sent_at;
+    std::int64_t waiting = 0;
+  };
+  std::vector<Candidate> candidates;
+  {
+    auto stmt = db.statement(
+        "SELECT r.id, r.state, r.ended_at, r.pruned_at, "
+        "(SELECT max(sent_at) FROM plant_outbox o WHERE o.run_id = r.id), "
+        "(SELECT count(*) FROM plant_outbox o WHERE o.run_id = r.id AND o.sent_at IS NULL) "
+        "FROM runs r WHERE (r.pruned_at IS NULL AND r.ended_at IS NOT NULL AND r.ended_at < ?1) "
+        "OR (r.pruned_at IS NOT NULL AND EXISTS (SELECT 1 FROM samples s WHERE s.run_id = r.id)) "
+        "ORDER BY r.id");
+    if (!stmt) return fail(std::move(stmt));
+    Query q(db, *stmt);
+    q.bind(1, *before);
+    int rc;
+    while ((rc = q.step()) == SQLITE_ROW)
+      candidates.push_back({q.int64(0), q.text(1), q.opt_text(2).value_or(""), q.opt_text(3), q.opt_text(4), q.int64(5)});
+    if (rc != SQLITE_DONE) return std::unexpected(db.error(rc, what));
+  }
+
+  for (const auto& c : candidates) {
+    const bool finishing = c.pruned_at.has_value();
+    if (!finishing) {
+      std::string reason;
+      if (c.state == "interrupted")
+        reason = "interrupted: it may still be resumed (abort it to end it)";
+      else if (c.state != "completed" && c.state != "aborted" && c.state != "failed")
+        reason = "still " + c.state;
+      else if (!options.include_unreplicated && c.waiting > 0)
+        reason = "waiting in the plant outbox: the plant store has not received it yet";
+      else if (!options.include_unreplicated && !c.sent_at)
+        reason = "never sent to the plant store (--include-unreplicated deletes its samples for good)";
+      if (!reason.empty()) {
+        report.kept.push_back({c.id, c.ended_at, std::move(reason)});
+        continue;
+      }
+    }
+    PrunedRun p{c.id, c.ended_at, c.state, {}, 0, c.sent_at};
+    {
+      auto stmt = db.statement("SELECT serial FROM run_units WHERE run_id = ?1 ORDER BY unit_index");
+      if (!stmt) return fail(std::move(stmt));
+      Query q(db, *stmt);
+      q.bind(1, c.id);
+      int rc;
+      while ((rc = q.step()) == SQLITE_ROW) p.serials.push_back(q.text(0));
+      if (rc != SQLITE_DONE) return std::unexpected(db.error(rc, what));
+    }
+    {
+      auto stmt = db.statement("SELECT count(*) FROM samples WHERE run_id = ?1");
+      if (!stmt) return fail(std::move(stmt));
+      Query q(db, *stmt);
+      q.bind(1, c.id);
+      auto got = row(db, q, what);
+      if (!got) return fail(std::move(got));
+      p.samples = q.int64(0);
+    }
+    if (!options.dry_run) {
+      const std::string run_what = "prune " + run_label(c.id);
+      if (!finishing) {
+        // Marked first, in one transaction with its event: from here the run says it is pruned
+        // (its samples are refused by export), whether or not the deletes below all happen.
+        Transaction tx(db);
+        if (auto ok = tx.begin(run_what); !ok) return fail(std::move(ok));
+        auto mark = db.statement("UPDATE runs SET pruned_at = ?2, pruned_samples = ?3 WHERE id = ?1");
+        if (!mark) return fail(std::move(mark));
+        {
+          Query q(db, *mark);
+          q.bind(1, c.id).bind(2, db.now_iso()).bind(3, p.samples);
+          if (auto ok = run(db, q, run_what); !ok) return fail(std::move(ok));
+        }
+        nlohmann::json detail = {{"pruned", {{"samples", p.samples}, {"before", *before},
+                                             {"plant_sent_at", c.sent_at ? nlohmann::json(*c.sent_at) : nlohmann::json(nullptr)}}}};
+        if (auto ok = insert_event(db, c.id, std::nullopt, EventKind::note, detail.dump()); !ok)
+          return fail(std::move(ok));
+        if (auto ok = tx.commit(run_what); !ok) return fail(std::move(ok));
+      }
+      auto del = db.statement(
+          "DELETE FROM samples WHERE run_id = ?1 AND (unit_index, t_s) IN "
+          "(SELECT unit_index, t_s FROM samples WHERE run_id = ?1 LIMIT ?2)");
+      if (!del) return fail(std::move(del));
+      for (;;) {
+        Query q(db, *del);
+        q.bind(1, c.id).bind(2, kDeleteChunkRows);
+        if (auto ok = run(db, q, run_what); !ok) return fail(std::move(ok));
+        if (sqlite3_changes(db.handle()) == 0) break;
+      }
+    }
+    report.samples += p.samples;
+    report.pruned.push_back(std::move(p));
+  }
+  return report;
+}
+
+}  // namespace fogbench::storage
