@@ -15,47 +15,16 @@
 #include "offline.hpp"
 #include "plan.hpp"
 #include "progress.hpp"
+#include "fogctl_process.hpp"
 
 using namespace fogbench::cli;
+using namespace fogbench::cli::testing;
 namespace fs = std::filesystem;
 using Catch::Contains;
 
 namespace {
 
-struct Dir {
-  fs::path path;
-  Dir() {
-    static int counter = 0;
-    path = fs::temp_directory_path() / ("fogctl-friction-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    fs::create_directories(path);
-  }
-  ~Dir() { fs::remove_all(path); }
-  std::string file(const std::string& name) const { return (path / name).string(); }
-};
-
-std::string slurp(const std::string& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
-
 void write(const std::string& p, const std::string& text) { std::ofstream(p, std::ios::binary) << text; }
-
-struct Ran {
-  int code = -1;
-  std::string out, err;
-};
-
-// The built fogctl with `args` (shell words), stdout and stderr to files: not a terminal.
-Ran fogctl(const Dir& d, const std::string& args, const std::string& env = "") {
-  const std::string exe = std::string(FOGBENCH_BIN_DIR) + "/fogctl";
-  REQUIRE(fs::exists(exe));
-  const std::string out = d.file("out.txt"), err = d.file("err.txt");
-  const std::string cmd = "env -u FOGCTL_PROGRESS " + env + " '" + exe + "' " + args + " >'" + out + "' 2>'" + err + "' </dev/null";
-  const int s = std::system(cmd.c_str());
-  return {WIFEXITED(s) ? WEXITSTATUS(s) : -1, slurp(out), slurp(err)};
-}
 
 void simulate(const std::string& profile, std::uint64_t seed, const std::string& path, std::vector<std::string> effects = {}) {
   SimulateOptions o;

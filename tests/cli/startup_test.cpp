@@ -9,52 +9,22 @@
 #include <sstream>
 
 #include "common.hpp"
+#include "fogctl_process.hpp"
 #include "offline.hpp"
 
 using namespace fogbench::cli;
+using namespace fogbench::cli::testing;
 namespace fs = std::filesystem;
 using Catch::Contains;
 
 namespace {
-
-struct Dir {
-  fs::path path;
-  Dir() {
-    path = fs::temp_directory_path() / ("fogctl-startup-" + std::to_string(::getpid()));
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~Dir() { fs::remove_all(path); }
-  std::string file(const std::string& name) const { return (path / name).string(); }
-};
-
-std::string slurp(const std::string& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
-
-struct Ran {
-  int code = -1;
-  std::string out, err;
-};
-
-// `exe args` (shell words) with `env` before it, stdout and stderr to files.
-Ran run(const Dir& d, const std::string& exe, const std::string& args, const std::string& env = "") {
-  REQUIRE(fs::exists(exe));
-  const std::string out = d.file("out.txt"), err = d.file("err.txt");
-  const std::string cmd = "env " + env + " '" + exe + "' " + args + " >'" + out + "' 2>'" + err + "' </dev/null";
-  const int s = std::system(cmd.c_str());
-  return {WIFEXITED(s) ? WEXITSTATUS(s) : -1, slurp(out), slurp(err)};
-}
 
 const std::string fogctl_exe = std::string(FOGBENCH_BIN_DIR) + "/fogctl";
 
 }  // namespace
 
 TEST_CASE("fogctl: offline commands load no PostgreSQL client, fleet commands load it in fogctl-fleet") {
-  Dir d;
+  Dir d("fogctl-startup");
   SimulateOptions s;
   s.profile = "exp1";
   s.seed = 1;
@@ -92,7 +62,7 @@ TEST_CASE("fogctl: offline commands load no PostgreSQL client, fleet commands lo
 }
 
 TEST_CASE("fogctl: without fogctl-fleet beside it, a fleet command names the program and the paths tried") {
-  Dir d;
+  Dir d("fogctl-startup");
   const fs::path copy = d.path / "bin" / "fogctl";
   fs::create_directories(copy.parent_path());
   fs::copy_file(fogctl_exe, copy);

@@ -3,51 +3,17 @@
 #include <catch2/catch.hpp>
 #include <chrono>
 #include <filesystem>
-#include <fstream>
 #include <nlohmann/json.hpp>
-#include <sstream>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include "fogbench/storage/store.hpp"
+#include "fogctl_process.hpp"
 
 namespace fs = std::filesystem;
 using Catch::Contains;
 using namespace fogbench::storage;
+using namespace fogbench::cli::testing;
 
 namespace {
-
-struct Dir {
-  fs::path path;
-  Dir() {
-    static int counter = 0;
-    path = fs::temp_directory_path() / ("fogctl-prune-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    fs::create_directories(path);
-  }
-  ~Dir() { fs::remove_all(path); }
-  std::string file(const std::string& name) const { return (path / name).string(); }
-};
-
-std::string slurp(const std::string& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
-
-struct Ran {
-  int code = -1;
-  std::string out, err;
-};
-
-Ran fogctl(const Dir& d, const std::string& args) {
-  const std::string exe = std::string(FOGBENCH_BIN_DIR) + "/fogctl";
-  REQUIRE(fs::exists(exe));
-  const std::string out = d.file("out.txt"), err = d.file("err.txt");
-  const std::string cmd = "'" + exe + "' " + args + " >'" + out + "' 2>'" + err + "' </dev/null";
-  const int s = std::system(cmd.c_str());
-  return {WIFEXITED(s) ? WEXITSTATUS(s) : -1, slurp(out), slurp(err)};
-}
 
 // Two runs ended on 2026-01-01: run 1 sent to the plant store, run 2 never sent; 50 samples each.
 void make_store(const std::string& path) {
@@ -83,7 +49,7 @@ std::int64_t samples_of(const std::string& path, std::int64_t run) {
 
 TEST_CASE("fogctl store prune: the plant's runs lose their samples, the others are listed with why",
           "[cli][store]") {
-  Dir d;
+  Dir d("fogctl-prune");
   const auto db = d.file("fogbench.db");
   make_store(db);
 
@@ -115,7 +81,7 @@ TEST_CASE("fogctl store prune: the plant's runs lose their samples, the others a
 
 TEST_CASE("fogctl store prune: a bad date or a store path that is not a file is exit 2, nothing made or touched",
           "[cli][store]") {
-  Dir d;
+  Dir d("fogctl-prune");
   const auto db = d.file("fogbench.db");
   make_store(db);
   auto bad = fogctl(d, "store prune --store '" + db + "' --before 2026-13-01");
