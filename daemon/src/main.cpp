@@ -14,6 +14,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "fogbench/drivers/serial_devices.hpp"
 #include "fogbench/daemon/config.hpp"
 #include "fogbench/daemon/server.hpp"
 #include "fogbench/daemon/systemd.hpp"
@@ -59,12 +60,15 @@ class Watchdog {
 
 int main(int argc, char** argv) {
   CLI::App app{"fogbenchd: the fogbench bench daemon (fogbench " FOGBENCH_DAEMON_VERSION ")"};
-  std::string config_path, check_path;
+  std::string config_path, check_path, device_allow_path;
   double time_scale = 1.0;
   std::string log_level = "info";
   app.add_option("-c,--config", config_path, "configuration file (JSON, see docs/daemon.md)");
   app.add_option("--check-config", check_path,
                  "validate a configuration file and exit: 0 valid, 2 invalid (the error names the key)");
+  app.add_option("--device-allow", device_allow_path,
+                 "print the systemd drop-in that lets the unit open the serial devices a configuration "
+                 "file names (DeviceAllow= lines) and exit");
   app.add_option("--time-scale", time_scale,
                  "run the daemon clock K times faster (mock bench only: needs \"simulated\": true)");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error");
@@ -82,6 +86,29 @@ int main(int argc, char** argv) {
       return 2;
     }
     std::cout << check_path << ": valid\n";
+    // The shipped unit allows /dev/ttyUSB* only: any other serial device would be refused
+    // (EPERM) when the service opens it, though the file is valid.
+    for (const auto& d : fogbench::drivers::serial_devices(config->drivers))
+      if (!fogbench::drivers::allowed_by_shipped_unit(d.path))
+        std::cout << "note: " << d.key << " " << d.path
+                  << ": the shipped unit allows only /dev/ttyUSB* (DeviceAllow=char-ttyUSB); as a service, "
+                     "allow it with the drop-in `fogbenchd --device-allow "
+                  << check_path << "` prints\n";
+    return 0;
+  }
+  if (!device_allow_path.empty()) {
+    auto config = fogbench::daemon::load_daemon_config(device_allow_path);
+    if (!config) {
+      std::cerr << "fogbenchd: " << config.error() << "\n";
+      return 2;
+    }
+    const auto devices = fogbench::drivers::serial_devices(config->drivers);
+    if (devices.empty()) {
+      std::cerr << "fogbenchd: " << device_allow_path
+                << " names no serial device (its chamber and thermistor module are reached over TCP): no drop-in needed\n";
+      return 0;
+    }
+    std::cout << fogbench::drivers::device_allow_dropin(devices, device_allow_path);
     return 0;
   }
   if (config_path.empty()) {

@@ -130,3 +130,43 @@ TEST_CASE("the web side's token_file is its control token, apart from socket.tcp
   }
   std::filesystem::remove_all(dir);
 }
+
+TEST_CASE("serial devices the shipped unit does not allow are named by --check-config, and --device-allow prints their drop-in") {
+  REQUIRE(std::filesystem::exists(kBin / "fogbenchd"));
+  char tmpl[] = "/tmp/fogbench-devallow-XXXXXX";
+  const std::filesystem::path dir = ::mkdtemp(tmpl);
+  json c = sample();
+  // The sample reaches its chamber and module over TCP: nothing to allow.
+  auto tcp = check_config(dir, c);
+  CHECK(tcp.status == 0);
+  CHECK(tcp.out.find("note:") == std::string::npos);
+  const auto dropin_of = [&](const json& config) {
+    std::ofstream(dir / "fogbenchd.json") << config.dump(2);
+    const std::string cmd = "'" + (kBin / "fogbenchd").string() + "' --device-allow '" + (dir / "fogbenchd.json").string() +
+                            "' >'" + (dir / "out").string() + "' 2>&1";
+    const int s = std::system(cmd.c_str());
+    return Check{WIFEXITED(s) ? WEXITSTATUS(s) : -1, read_all(dir / "out")};
+  };
+  auto none = dropin_of(c);
+  CHECK(none.status == 0);
+  CHECK_THAT(none.out, Catch::Contains("names no serial device"));
+  // The chamber over Modbus RTU on a USB-ACM adapter, the module on a ttyUSB one.
+  c["drivers"]["chamber"]["modbus"] = {{"transport", "rtu"}, {"device", "/dev/ttyACM0"}, {"baud", 9600}, {"unit_id", 1}};
+  c["drivers"]["thermistors"]["modbus"] = {{"transport", "rtu"}, {"device", "/dev/ttyUSB3"}, {"unit_id", 2}};
+  auto rtu = check_config(dir, c);
+  INFO(rtu.out);
+  CHECK(rtu.status == 0);
+  CHECK_THAT(rtu.out, Catch::Contains("note: drivers.chamber.modbus.device /dev/ttyACM0: the shipped unit allows only /dev/ttyUSB*"));
+  CHECK(rtu.out.find("/dev/ttyUSB3") == std::string::npos);  // allowed as shipped: not named
+  auto dropin = dropin_of(c);
+  INFO(dropin.out);
+  CHECK(dropin.status == 0);
+  CHECK_THAT(dropin.out, Catch::Contains("[Service]\nDeviceAllow=/dev/ttyACM0 rw\nDeviceAllow=/dev/ttyUSB3 rw\n"));
+  // A broken file: exit 2 naming the key, no drop-in.
+  c["drivers"]["chamber"]["modbus"]["device"] = "";
+  auto bad = dropin_of(c);
+  CHECK(bad.status == 2);
+  CHECK_THAT(bad.out, Catch::Contains("drivers.chamber.modbus.device"));
+  CHECK(bad.out.find("[Service]") == std::string::npos);
+  std::filesystem::remove_all(dir);
+}
