@@ -83,6 +83,7 @@ namespace {
 // A settled stretch, and whether it lies before the run's first ramp (the opening hold).
 struct Stretch {
   std::vector<double> x;
+  std::vector<double> t1_c, t2_c;  // the thermistors over the stretch, degC (empty: not recorded)
   bool opening = false;
 };
 void settled_stretches(const FloorRun& fr, const NoiseFloorOptions& o, std::vector<Stretch>& out) {
@@ -122,11 +123,141 @@ void settled_stretches(const FloorRun& fr, const NoiseFloorOptions& o, std::vect
     j = last_good + 1;
     std::size_t b = i;
     while (b < j && run.time_s[b] - last_ramp_s < o.settle_s) ++b;
-    if (j > b && j - b >= o.min_stretch_s)
-      out.push_back({std::vector<double>(x.begin() + static_cast<std::ptrdiff_t>(b), x.begin() + static_cast<std::ptrdiff_t>(j)),
-                     last_ramp_s == -std::numeric_limits<double>::infinity()});
+    if (j > b && j - b >= o.min_stretch_s) {
+      const auto pb = static_cast<std::ptrdiff_t>(b), pj = static_cast<std::ptrdiff_t>(j);
+      Stretch st{std::vector<double>(x.begin() + pb, x.begin() + pj), {}, {}, last_ramp_s == -std::numeric_limits<double>::infinity()};
+      if (run.t1_c.size() >= j) st.t1_c.assign(run.t1_c.begin() + pb, run.t1_c.begin() + pj);
+      if (run.t2_c.size() >= j) st.t2_c.assign(run.t2_c.begin() + pb, run.t2_c.begin() + pj);
+      out.push_back(std::move(st));
+    }
     i = j;
   }
+}
+
+// The part of the holds' residual that the thermistors' creep explains, taken out before the
+// Allan curve is read. The coil thermistors still creep slowly through a hold after a ramp, and
+// a thermal term the model misses (or a wrong one it holds) then moves the residual with them:
+// read as slow noise, it would widen the limits and excuse itself and whatever else is
+// missing. Regressors pooled over all stretches, each demeaned within its stretch: T1 and T2
+// levels (degC) and their rates (degC/s, a slope over +-rate_half_s). Taken out only when
+// significant: the explained sum of squares over the residual's variance, a chi-square of p
+// degrees of freedom under no creep, scaled down by the post-fit residual's autocorrelation
+// over lags 1..max_lag_s (1 + 2 sum rho: slow noise has fewer independent samples than it has
+// samples), above its 99.9 % quantile. The gyro's own slow noise does not follow the
+// thermistors; where by chance it does, the guard keeps it in the floor unless the match is
+// far beyond chance. Returns the scaled chi-square (0: no regressor moved).
+struct CreepFit {
+  double chi2_eff = 0.0, quantile = 0.0, removed_var_dph2 = 0.0;
+  bool removed = false;
+};
+CreepFit remove_creep(std::vector<Stretch>& spans) {
+  constexpr std::size_t rate_half_s = 30, max_lag_s = 600;
+  constexpr double p_false = 1e-3;
+  CreepFit cf;
+  std::size_t n = 0;
+  for (const auto& sp : spans) n += sp.x.size();
+  // The candidate columns, each demeaned within each stretch; a stretch without a thermistor
+  // contributes zeros to its columns.
+  auto level = [](const std::vector<double>& t, std::size_t len, std::vector<double>& col) {
+    if (t.size() != len) {
+      col.insert(col.end(), len, 0.0);
+      return;
+    }
+    double m = 0.0;
+    for (double v : t) m += v;
+    m /= static_cast<double>(len);
+    for (double v : t) col.push_back(v - m);
+  };
+  auto rate = [](const std::vector<double>& t, std::size_t len, std::vector<double>& col) {
+    if (t.size() != len || len < 2) {
+      col.insert(col.end(), len, 0.0);
+      return;
+    }
+    std::vector<double> r(len);
+    for (std::size_t i = 0; i < len; ++i) {
+      const std::size_t a = i > rate_half_s ? i - rate_half_s : 0, b = std::min(len - 1, i + rate_half_s);
+      r[i] = (t[b] - t[a]) / static_cast<double>(b - a);  // degC/s at 1 s samples
+    }
+    double m = 0.0;
+    for (double v : r) m += v;
+    m /= static_cast<double>(len);
+    for (double v : r) col.push_back(v - m);
+  };
+  std::vector<std::vector<double>> cols(4);
+  std::vector<double> y;
+  y.reserve(n);
+  for (const auto& sp : spans) {
+    const std::size_t len = sp.x.size();
+    level(sp.t1_c, len, cols[0]);
+    level(sp.t2_c, len, cols[1]);
+    rate(sp.t1_c, len, cols[2]);
+    rate(sp.t2_c, len, cols[3]);
+    double m = 0.0;
+    for (double v : sp.x) m += v;
+    m /= static_cast<double>(len);
+    for (double v : sp.x) y.push_back(v - m);
+  }
+  // Columns that move at all, scaled to unit norm (levels and rates differ by orders of magnitude).
+  std::vector<std::size_t> use;
+  std::vector<double> scale;
+  for (std::size_t c = 0; c < cols.size(); ++c) {
+    double ss = 0.0;
+    for (double v : cols[c]) ss += v * v;
+    if (std::sqrt(ss) > 1e-9) {
+      use.push_back(c);
+      scale.push_back(1.0 / std::sqrt(ss));
+    }
+  }
+  if (use.empty() || n < 10 * use.size() + spans.size()) return cf;
+  const auto ni = static_cast<Eigen::Index>(n);
+  Eigen::MatrixXd X(ni, static_cast<Eigen::Index>(use.size()));
+  for (std::size_t c = 0; c < use.size(); ++c)
+    for (std::size_t i = 0; i < n; ++i) X(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(c)) = cols[use[c]][i] * scale[c];
+  const Eigen::VectorXd yv = Eigen::Map<const Eigen::VectorXd>(y.data(), ni);
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(X);
+  qr.setThreshold(1e-8);
+  const auto rank = static_cast<std::size_t>(qr.rank());
+  if (rank == 0) return cf;
+  const Eigen::VectorXd b = qr.solve(yv);
+  const Eigen::VectorXd fit = X * b;
+  const Eigen::VectorXd e = yv - fit;
+  // Degrees of freedom: n samples less one mean per stretch less the fitted coefficients.
+  const double dof = static_cast<double>(n) - static_cast<double>(spans.size()) - static_cast<double>(rank);
+  if (dof < 1.0) return cf;
+  const double var_e = e.squaredNorm() / dof;
+  if (!(var_e > 0.0)) return cf;
+  // The post-fit residual's autocorrelation, pooled over the stretches (lags within a stretch).
+  double factor = 1.0;
+  {
+    std::vector<double> acc(max_lag_s + 1, 0.0), cnt(max_lag_s + 1, 0.0);
+    std::size_t off = 0;
+    for (const auto& sp : spans) {
+      const std::size_t len = sp.x.size();
+      for (std::size_t lag = 0; lag <= max_lag_s && lag < len; ++lag)
+        for (std::size_t i = lag; i < len; ++i) {
+          acc[lag] += e(static_cast<Eigen::Index>(off + i)) * e(static_cast<Eigen::Index>(off + i - lag));
+          cnt[lag] += 1.0;
+        }
+      off += len;
+    }
+    const double c0 = acc[0] / cnt[0];
+    for (std::size_t lag = 1; lag <= max_lag_s && cnt[lag] > 0.0; ++lag)
+      factor += 2.0 * (1.0 - static_cast<double>(lag) / static_cast<double>(max_lag_s + 1)) * (acc[lag] / cnt[lag]) / c0;
+    factor = std::max(1.0, factor);
+  }
+  const double chi2 = fit.squaredNorm() / var_e;
+  cf.chi2_eff = chi2 / factor;
+  // The chi-square of `rank` degrees of freedom is 2 x a gamma of shape rank / 2.
+  cf.quantile = 2.0 * gamma_quantile(0.5 * static_cast<double>(rank), 1.0 - p_false);
+  if (!(cf.chi2_eff > cf.quantile)) return cf;
+  cf.removed = true;
+  cf.removed_var_dph2 = fit.squaredNorm() / static_cast<double>(n);
+  std::size_t off = 0;
+  for (auto& sp : spans) {
+    for (std::size_t i = 0; i < sp.x.size(); ++i) sp.x[i] -= fit(static_cast<Eigen::Index>(off + i));
+    off += sp.x.size();
+  }
+  return cf;
 }
 
 }  // namespace
@@ -172,6 +303,13 @@ NoiseFloor estimate_noise_floor(std::span<const FloorRun> runs, std::span<const 
     fl.note = "no settled hold of " + std::to_string(o.min_stretch_s) + " s or more: the model's AR noise alone";
     return fl;
   }
+  const CreepFit creep = o.remove_creep ? remove_creep(spans) : CreepFit{};
+  fl.creep_removed = creep.removed;
+  fl.creep_chi2 = creep.chi2_eff;
+  const std::string creep_note =
+      creep.removed ? "; the thermistors' creep taken out of the holds (" + fmt(std::sqrt(creep.removed_var_dph2), 4) + " deg/h rms, chi-square " +
+                          fmt(creep.chi2_eff, 1) + " against " + fmt(creep.quantile, 1) + ")"
+                    : std::string();
   // The pooled curve: each stretch's overlapping Allan variance at half-octave cluster sizes up
   // to a third of it, weighted by its number of terms; degrees of freedom N/m - 1 summed (IEEE
   // 952's conservative count).
@@ -325,7 +463,7 @@ NoiseFloor estimate_noise_floor(std::span<const FloorRun> runs, std::span<const 
             fmt(fl.longest_tau_s, 0) + " s): white noise " + fmt(std::sqrt(best.a), 3) + " deg/h in 1 s (the model's AR noise " + fmt(ar_std, 3) + ")" +
             (fl.flicker_h > 0.0 ? ", bias instability " + fmt(fl.bias_instability_dph, 4) + " deg/h" : std::string()) +
             (fl.walk_h > 0.0 ? ", rate random walk " + fmt(fl.rrw_dph_per_sqrt_h, 4) + " deg/h/sqrt(h)" : std::string()) +
-            (fl.slow() ? "" : ", no flicker or random walk seen");
+            (fl.slow() ? "" : ", no flicker or random walk seen") + creep_note;
   return fl;
 }
 
