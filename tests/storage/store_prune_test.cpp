@@ -135,7 +135,7 @@ TEST_CASE("store prune: the samples of old runs the plant received go, their rec
   CHECK(c.store.count_samples(recent).value() == 20);
 }
 
-TEST_CASE("store prune: a prune cut short is finished by the next, whatever its date; large runs go in chunks",
+TEST_CASE("store prune: a prune cut short is finished by the next, whatever its date, and large runs go in chunks",
           "[store][prune]") {
   ClockedStore c;
   const auto big = c.run(60000, RunState::completed);  // 120,000 rows: three delete chunks
