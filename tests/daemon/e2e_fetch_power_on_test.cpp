@@ -78,7 +78,11 @@ TEST_CASE("e2e fetch: fit --run with ton and warm(tau) terms gives what the same
     fogbench::storage::bridge_missing(*d);
     REQUIRE(fogbench::storage::write_csv_file(csv, *d));
   }
-  const std::string terms = "--terms 'd(T1) + T1 + warm(600) + ton'";
+  // --quality warn on both: the check before physics is not what is compared here, and on a
+  // ramp's first minute the mock's coil centre can hold one 0.01 degC step for over 60 s while
+  // the setpoint moves, which the stuck check names (once in CI, 2026-11-28: a false alarm of
+  // that check on a lagging coil, left for issue 25's data quality).
+  const std::string terms = "--terms 'd(T1) + T1 + warm(600) + ton' --quality warn";
   auto from_csv = run_fogctl(bench, "fit '" + csv.string() + "' " + terms + " --json");
   INFO(from_csv.err);
   REQUIRE(from_csv.code == 0);
