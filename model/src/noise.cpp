@@ -83,7 +83,8 @@ namespace {
 // A settled stretch, and whether it lies before the run's first ramp (the opening hold).
 struct Stretch {
   std::vector<double> x;
-  std::vector<double> t1_c, t2_c;  // the thermistors over the stretch, degC (empty: not recorded)
+  std::vector<double> t1_c, t2_c;  // the thermistors over the stretch, degC (empty: not recorded,
+                                   // or not asked for: only remove_creep reads them)
   bool opening = false;
 };
 void settled_stretches(const FloorRun& fr, const NoiseFloorOptions& o, std::vector<Stretch>& out) {
@@ -126,8 +127,8 @@ void settled_stretches(const FloorRun& fr, const NoiseFloorOptions& o, std::vect
     if (j > b && j - b >= o.min_stretch_s) {
       const auto pb = static_cast<std::ptrdiff_t>(b), pj = static_cast<std::ptrdiff_t>(j);
       Stretch st{std::vector<double>(x.begin() + pb, x.begin() + pj), {}, {}, last_ramp_s == -std::numeric_limits<double>::infinity()};
-      if (run.t1_c.size() >= j) st.t1_c.assign(run.t1_c.begin() + pb, run.t1_c.begin() + pj);
-      if (run.t2_c.size() >= j) st.t2_c.assign(run.t2_c.begin() + pb, run.t2_c.begin() + pj);
+      if (o.remove_creep && run.t1_c.size() >= j) st.t1_c.assign(run.t1_c.begin() + pb, run.t1_c.begin() + pj);
+      if (o.remove_creep && run.t2_c.size() >= j) st.t2_c.assign(run.t2_c.begin() + pb, run.t2_c.begin() + pj);
       out.push_back(std::move(st));
     }
     i = j;
@@ -145,7 +146,8 @@ void settled_stretches(const FloorRun& fr, const NoiseFloorOptions& o, std::vect
 // over lags 1..max_lag_s (1 + 2 sum rho: slow noise has fewer independent samples than it has
 // samples), above its 99.9 % quantile. The gyro's own slow noise does not follow the
 // thermistors; where by chance it does, the guard keeps it in the floor unless the match is
-// far beyond chance. Returns the scaled chi-square (0: no regressor moved).
+// far beyond chance. Returns the scaled chi-square (0: no regressor moved), its quantile and
+// the variance taken out, (deg/h)^2.
 struct CreepFit {
   double chi2_eff = 0.0, quantile = 0.0, removed_var_dph2 = 0.0;
   bool removed = false;
@@ -158,30 +160,29 @@ CreepFit remove_creep(std::vector<Stretch>& spans) {
   for (const auto& sp : spans) n += sp.x.size();
   // The candidate columns, each demeaned within each stretch; a stretch without a thermistor
   // contributes zeros to its columns.
-  auto level = [](const std::vector<double>& t, std::size_t len, std::vector<double>& col) {
-    if (t.size() != len) {
-      col.insert(col.end(), len, 0.0);
-      return;
-    }
+  auto demeaned = [](const std::vector<double>& v, std::vector<double>& col) {
     double m = 0.0;
-    for (double v : t) m += v;
-    m /= static_cast<double>(len);
-    for (double v : t) col.push_back(v - m);
+    for (double x : v) m += x;
+    m /= static_cast<double>(v.size());
+    for (double x : v) col.push_back(x - m);
   };
-  auto rate = [](const std::vector<double>& t, std::size_t len, std::vector<double>& col) {
+  auto level = [&](const std::vector<double>& t, std::size_t len, std::vector<double>& col) {
+    if (t.size() == len)
+      demeaned(t, col);
+    else
+      col.insert(col.end(), len, 0.0);
+  };
+  auto rate = [&](const std::vector<double>& t, std::size_t len, std::vector<double>& col) {
     if (t.size() != len || len < 2) {
       col.insert(col.end(), len, 0.0);
       return;
     }
-    std::vector<double> r(len);
+    std::vector<double> r(len);  // degC/s at 1 s samples
     for (std::size_t i = 0; i < len; ++i) {
       const std::size_t a = i > rate_half_s ? i - rate_half_s : 0, b = std::min(len - 1, i + rate_half_s);
-      r[i] = (t[b] - t[a]) / static_cast<double>(b - a);  // degC/s at 1 s samples
+      r[i] = (t[b] - t[a]) / static_cast<double>(b - a);
     }
-    double m = 0.0;
-    for (double v : r) m += v;
-    m /= static_cast<double>(len);
-    for (double v : r) col.push_back(v - m);
+    demeaned(r, col);
   };
   std::vector<std::vector<double>> cols(4);
   std::vector<double> y;
@@ -192,10 +193,7 @@ CreepFit remove_creep(std::vector<Stretch>& spans) {
     level(sp.t2_c, len, cols[1]);
     rate(sp.t1_c, len, cols[2]);
     rate(sp.t2_c, len, cols[3]);
-    double m = 0.0;
-    for (double v : sp.x) m += v;
-    m /= static_cast<double>(len);
-    for (double v : sp.x) y.push_back(v - m);
+    demeaned(sp.x, y);
   }
   // Columns that move at all, scaled to unit norm (levels and rates differ by orders of magnitude).
   std::vector<std::size_t> use;
