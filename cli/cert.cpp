@@ -3,11 +3,14 @@
 #include "cert.hpp"
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <iostream>
 #include <optional>
 #include <sstream>
+#include <string_view>
 
 #include "common.hpp"
 #include "fogbench/signing/certificate.hpp"
@@ -24,14 +27,17 @@ namespace {
 
 constexpr const char* kScriptOpen = "<script type=\"application/json\" id=\"fogbench-certificate\">";
 // The page's layout version: --check compares a page's visible part only with a rendering of
-// the same version (bumped whenever certificate_html changes what it draws). Page 3 (issue 24,
-// one verdict) draws the serial's verdict with the rule that decided it; a certificate issued
-// before it (per-verification verdicts, no `qualification`) is still drawn as page 2, the same
-// bytes as then, so its pages keep checking.
-constexpr const char* kRenderer = "fogbench-certificate-page 3";
-constexpr const char* kRendererV2 = "fogbench-certificate-page 2";
+// the same version (bumped whenever certificate_html changes what it draws), and draws a page of
+// an earlier version as that version drew it, byte for byte, so an issued page keeps checking.
+// Page 2: per-verification verdicts (certificates issued before issue 24, no `qualification`).
+// Page 3 (issue 24, one verdict): the serial's verdict with the rule that decided it. Page 4
+// (issue 28, point 3): page 3 as an incoming inspection prints it: the verdict in the title,
+// serial, verdict and "page x of y" in every page's margins, table headers repeated on a page
+// that continues a table, each section kept on one page when it fits (no heading or row alone).
+constexpr int kPageLatest = 4;
 bool one_verdict_layout(const json& cert) { return cert.contains("verifications") || cert.contains("qualification"); }
-const char* renderer_of(const json& cert) { return one_verdict_layout(cert) ? kRenderer : kRendererV2; }
+int latest_page_of(const json& cert) { return one_verdict_layout(cert) ? kPageLatest : 2; }
+std::string renderer_name(int page) { return "fogbench-certificate-page " + std::to_string(page); }
 constexpr const char* kRendererMeta = "<meta name=\"generator\" content=\"";
 
 std::string text_of(const json& v, int digits = 4) {
@@ -153,13 +159,54 @@ int print_summary(const json& cert, std::ostream& out) {
   return kExitOk;
 }
 
-}  // namespace
+// A text as a CSS string's content ("..."): quotes, backslashes, '<' (which could end the
+// <style> element) and control characters as CSS escapes.
+std::string css_string(std::string_view text) {
+  std::string s = "\"";
+  for (const char ch : text) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c == '"' || c == '\\' || c == '<' || c == '>' || c < 0x20 || c == 0x7f) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\%x ", static_cast<unsigned>(c));
+      s += buf;
+    } else {
+      s += ch;
+    }
+  }
+  return s + "\"";
+}
 
-std::string certificate_html(const json& cert) {
+// Page 4's print furniture around page 3's body: sections kept whole, table headers in <thead>.
+std::string page4_body(const std::string& b) {
+  std::string out = "<section>";
+  for (std::size_t at = 0;;) {
+    const auto h2 = b.find("<h2>", at);
+    out += b.substr(at, h2 == std::string::npos ? std::string::npos : h2 - at);
+    if (h2 == std::string::npos) break;
+    out += "</section><section>";
+    at = h2 + 4;
+    out += "<h2>";
+  }
+  out += "</section>";
+  std::string with_thead;
+  for (std::size_t at = 0;;) {
+    const auto t = out.find("<table><tr>", at);
+    if (t == std::string::npos) {
+      with_thead += out.substr(at);
+      break;
+    }
+    const auto head_end = out.find("</tr>", t);
+    with_thead += out.substr(at, t - at) + "<table><thead><tr>" + out.substr(t + 11, head_end - (t + 11)) + "</tr></thead>";
+    at = head_end + 5;
+  }
+  return with_thead;
+}
+
+std::string render_certificate(const json& cert, int page) {
   const json& m = cert["model"];
   const std::string verdict = field_text(cert, "verdict");
   std::string b;
-  const bool v3 = one_verdict_layout(cert);
+  const bool v3 = page >= 3;
   if (!v3 || verdict == "pass")
     b += "<h1>Certificate of qualification: " + html_escape(field_text(cert, "serial")) + "</h1>";
   else  // a unit that did not pass gets no certificate of qualification, only its record
@@ -242,10 +289,29 @@ std::string certificate_html(const json& cert) {
   // "</" inside a script would end it: JSON's "\/" keeps it out and parses back to "/".
   std::string j = cert.dump(), safe;
   for (std::size_t i = 0; i < j.size(); ++i) safe += (j[i] == '/' && i > 0 && j[i - 1] == '<') ? std::string("\\/") : std::string(1, j[i]);
-  return "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">" + std::string(kRendererMeta) + renderer_of(cert) +
-         "\"><title>Certificate " + html_escape(field_text(cert, "serial")) +
-         "</title><style>" + kStyle + "</style></head><body>" + b + kScriptOpen + safe + "</script></body></html>\n";
+  const std::string head = "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\">" + std::string(kRendererMeta) + renderer_name(page) + "\">";
+  if (page < 4)
+    return head + "<title>Certificate " + html_escape(field_text(cert, "serial")) + "</title><style>" + kStyle + "</style></head><body>" + b +
+           kScriptOpen + safe + "</script></body></html>\n";
+  // The verdict in the title (a browser's tab, a saved PDF's name, a print queue) and in every
+  // printed page's margins with the serial and "page x of y"; the SHA-256's first 16 digits tie
+  // each sheet to the signed content.
+  const std::string serial = field_text(cert, "serial");
+  const std::string shown_verdict = verdict == "pass" ? "QUALIFIED (pass)" : "NOT QUALIFIED (" + verdict + ")";
+  const std::string title = (verdict == "pass" ? "Certificate of qualification " : "Qualification record ") + serial + ": " + shown_verdict;
+  const std::string margins = "@page{@top-left{content:" + css_string(title) + ";font:9pt system-ui,sans-serif;color:#5a6472}" +
+                              "@bottom-left{content:" + css_string("SHA-256 " + field_text(cert, "sha256").substr(0, 16) + "...") +
+                              ";font:8pt monospace;color:#5a6472}" +
+                              "@bottom-right{content:\"page \" counter(page) \" of \" counter(pages);font:9pt system-ui,sans-serif}}"
+                              "section{break-inside:avoid}thead{display:table-header-group}p,li{orphans:3;widows:3}";
+  return head + "<title>" + html_escape(title) + "</title><style>" + kStyle + margins + "</style></head><body>" + page4_body(b) + kScriptOpen +
+         safe + "</script></body></html>\n";
 }
+
+}  // namespace
+
+std::string certificate_html(const json& cert) { return render_certificate(cert, latest_page_of(cert)); }
+std::string certificate_html(const json& cert, int page) { return render_certificate(cert, std::clamp(page, 2, kPageLatest)); }
 
 std::expected<json, std::string> certificate_from_text(const std::string& text) {
   std::string body = text;
@@ -287,11 +353,16 @@ std::expected<std::string, std::string> visible_difference(const std::string& ht
     const auto from = at + std::string(kRendererMeta).size();
     version = html.substr(from, html.find('"', from) - from);
   }
-  if (version != renderer_of(cert))
+  // The pages this fogctl can draw for this content: page 2 for a certificate of per-verification
+  // verdicts, pages 3 and 4 for one with the one verdict.
+  int page = 0;
+  for (int p = one_verdict_layout(cert) ? 3 : 2; p <= latest_page_of(cert); ++p)
+    if (version == renderer_name(p)) page = p;
+  if (page == 0)
     return std::unexpected("the page was drawn by " + (version.empty() ? std::string("an older fogctl") : "'" + version + "'") +
-                           ", this fogctl draws its certificate as '" + renderer_of(cert) +
+                           ", this fogctl draws its certificate as '" + renderer_name(latest_page_of(cert)) +
                            "': its visible tables cannot be compared (the embedded JSON can)");
-  const std::string seen = visible_part(html), signed_page = visible_part(certificate_html(cert));
+  const std::string seen = visible_part(html), signed_page = visible_part(render_certificate(cert, page));
   if (seen == signed_page) return std::string();
   std::size_t i = 0;
   while (i < seen.size() && i < signed_page.size() && seen[i] == signed_page[i]) ++i;

@@ -34,6 +34,9 @@ void add_cert_command(CLI::App& app, int& code);
 // <script type="application/json" id="fogbench-certificate">. Deterministic: --check renders
 // the embedded JSON again and compares the page's visible part with it.
 std::string certificate_html(const nlohmann::json& cert);
+// The same page as layout `page` (2, 3 or 4: cli/cert.cpp says what each draws) drew it, byte
+// for byte: --check compares an issued page with the layout that drew it.
+std::string certificate_html(const nlohmann::json& cert, int page);
 // Whether an HTML page's visible part (all but the embedded JSON) is what `cert` renders to:
 // "" when it is, else where it differs. A page of another renderer version cannot be compared:
 // std::unexpected saying so.

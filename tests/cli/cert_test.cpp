@@ -12,11 +12,13 @@
 #include <unistd.h>
 
 #include "cert.hpp"
+#include "cert_fixture.hpp"
 #include "fogbench/signing/certificate.hpp"
 #include "fogbench/signing/signing.hpp"
 
 using namespace fogbench;
 using namespace fogbench::cli;
+using namespace fogbench::cli::test;
 using nlohmann::json;
 namespace fs = std::filesystem;
 
@@ -32,24 +34,11 @@ struct Dir {
   }
 };
 
-const signing::SigningKey& station_key() {
-  static const signing::SigningKey k = *signing::SigningKey::generate();
-  return k;
-}
 const signing::SigningKey& other_key() {
   static const signing::SigningKey k = *signing::SigningKey::generate();
   return k;
 }
 
-// A certificate of the daemon's shape (certificate.hpp), before its signature.
-json unsigned_cert() {
-  return {{"format", "fogbench.certificate"}, {"format_version", 1}, {"serial", "FOG-1"}, {"station_id", "line </script> 2"},
-          {"issued_at", "2026-11-25T09:00:00Z"}, {"verdict", "pass"},
-          {"model", {{"id", 1}, {"version", 1}, {"method", "paper"}, {"terms", "d(T1)@40 + grad@40"}, {"sigma_a_dph", 0.05},
-                     {"coefficients", {{{"term", "mu0"}, {"value", -8.0123}, {"sigma", 0.01}, {"unit", "deg/h"}, {"lag_s", 0}}}}}},
-          {"verdicts", json::array()}, {"runs", json::array()}, {"allan", json::array()},
-          {"software", {{"version", "0.1.0"}, {"git_hash", "abc"}}}};
-}
 json signed_cert(const signing::SigningKey& key = station_key()) {
   json c = unsigned_cert();
   REQUIRE(signing::sign_certificate(c, key, c["station_id"]).has_value());
@@ -241,7 +230,7 @@ TEST_CASE("fogctl cert: the HTML is drawn from the signed JSON, --check compares
   CHECK(check(d.write("cut.html", html.substr(0, html.find("</script>"))), {pub}).code == 2);
 }
 
-TEST_CASE("fogctl cert: a one-verdict certificate (page 3) shows the rule that decided it, a plan's failure is no certificate of qualification, and its visible verdict is checked", "[cli][cert]") {
+TEST_CASE("fogctl cert: a one-verdict certificate (page 4) shows the rule that decided it, a plan's failure is no certificate of qualification, and its visible verdict is checked", "[cli][cert]") {
   Dir d;
   json c = unsigned_cert();
   c.erase("verdicts");
@@ -258,8 +247,9 @@ TEST_CASE("fogctl cert: a one-verdict certificate (page 3) shows the rule that d
   REQUIRE(signing::sign_certificate(c, station_key(), c["station_id"]).has_value());
   const std::string pub = d.write("station.pub", station_key().public_key().pem());
   const std::string html = certificate_html(c);
-  CHECK(has(html, "fogbench-certificate-page 3"));
+  CHECK(has(html, "fogbench-certificate-page 4"));
   CHECK_FALSE(has(html, "Certificate of qualification"));
+  CHECK(has(html, "<title>Qualification record FOG-1: NOT QUALIFIED (fail)</title>"));
   CHECK(has(html, "NOT QUALIFIED"));
   CHECK(has(html, "plan strict (plan 7"));
   CHECK(has(html, "<td>comp_raw &lt; 0.05</td><td>3</td><td>0.12</td><td>no</td>"));
@@ -284,4 +274,44 @@ TEST_CASE("fogctl cert: a one-verdict certificate (page 3) shows the rule that d
   c["qualification"]["verdict"] = "pass";
   REQUIRE(signing::sign_certificate(c, station_key(), c["station_id"]).has_value());
   CHECK(has(certificate_html(c), "Certificate of qualification: FOG-1"));
+}
+
+TEST_CASE("fogctl cert: page 4 prints serial, verdict and page x of y in every page's margins, repeats table headers, keeps sections whole, and a page 3 issued before it still checks", "[cli][cert]") {
+  Dir d;
+  const std::string pub = d.write("station.pub", station_key().public_key().pem());
+  const json c = one_verdict_cert("FOG-7", "pass", 3);
+  const std::string html = certificate_html(c);
+  CHECK(has(html, "fogbench-certificate-page 4"));
+  CHECK(has(html, "<title>Certificate of qualification FOG-7: QUALIFIED (pass)</title>"));
+  CHECK(has(html, "@top-left{content:\"Certificate of qualification FOG-7: QUALIFIED (pass)\""));
+  CHECK(has(html, "counter(page) \" of \" counter(pages)"));
+  CHECK(has(html, "SHA-256 " + c["sha256"].get<std::string>().substr(0, 16)));
+  CHECK(has(html, "<table><thead><tr><th>term</th>"));
+  CHECK_FALSE(has(html, "<table><tr>"));  // every table's header repeats on a continued page
+  CHECK(has(html, "section{break-inside:avoid}"));
+  CHECK(check(d.write("p4.html", html), {pub}).code == 0);
+
+  // The page as layout 3 drew it (issued before page 4): no print furniture, and it still checks.
+  const std::string p3 = certificate_html(c, 3);
+  CHECK(has(p3, "fogbench-certificate-page 3"));
+  CHECK_FALSE(has(p3, "counter(pages)"));
+  CHECK(has(p3, "<title>Certificate FOG-7</title>"));
+  auto ok3 = check(d.write("p3.html", p3), {pub});
+  CHECK(ok3.code == 0);
+  CHECK(has(ok3.out, "visible page matches"));
+  // ... and an edit of it is still seen, compared with page 3 (not with page 4).
+  std::string e3 = p3;
+  e3.replace(e3.find("<title>Certificate FOG-7"), 24, "<title>Certificate FOG-8");
+  CHECK(check(d.write("e3.html", e3), {pub}).code == 1);
+  // A page claiming a layout this fogctl never drew: cannot tell.
+  std::string p9 = html;
+  p9.replace(p9.find("fogbench-certificate-page 4"), 27, "fogbench-certificate-page 9");
+  CHECK(check(d.write("p9.html", p9), {pub}).code == 2);
+
+  // A serial that would close the <style> element or the CSS string: escaped in the margins.
+  const json evil = one_verdict_cert("X\"}</style><b>", "fail", 1);
+  const std::string eh = certificate_html(evil);
+  CHECK(has(eh, "content:\"Qualification record X\\22 }\\3c /style\\3e \\3c b\\3e : NOT QUALIFIED (fail)\""));
+  CHECK(eh.find("</style>") == eh.rfind("</style>"));  // the one that closes the stylesheet
+  CHECK(check(d.write("evil.html", eh), {pub}).code == 0);
 }
