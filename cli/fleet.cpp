@@ -9,6 +9,8 @@
 #include "fleet_html.hpp"
 #include "fleet_pchart.hpp"
 #include "fogbench/plant/fleet_spc.hpp"
+#include "fogbench/plant/generate.hpp"
+#include "progress.hpp"
 #include "table.hpp"
 
 namespace fogbench::cli {
@@ -45,6 +47,82 @@ std::expected<std::vector<std::string>, std::string> figure_list(plant::Connecti
   return out;
 }
 
+// fogctl fleet generate: a demonstration plant (plant/generate.hpp), each option checked by name
+// before anything is written; progress on stderr while samples are copied.
+int run_generate(const FleetOptions& o, std::ostream& out, std::ostream& err) {
+  const std::string where = "fogctl fleet generate: ";
+  auto bad = [&](const std::string& what) {
+    err << where << what << "\n";
+    return kExitError;
+  };
+  if (o.gen_runs < 1 || o.gen_runs > 1000000) return bad("--runs: expected 1 to 1,000,000, not " + std::to_string(o.gen_runs));
+  if (o.gen_units_per_run < 1 || o.gen_units_per_run > 64)
+    return bad("--units-per-run: expected 1 to 64 (the bench slots of one run), not " + std::to_string(o.gen_units_per_run));
+  if (o.gen_lots < 1 || o.gen_lots > o.gen_runs)
+    return bad("--lots: expected 1 to --runs (" + std::to_string(o.gen_runs) + ": a lot holds whole runs), not " + std::to_string(o.gen_lots));
+  if (o.gen_benches < 1 || o.gen_benches > 1000) return bad("--benches: expected 1 to 1000, not " + std::to_string(o.gen_benches));
+  if (o.gen_outliers < 0 || o.gen_outliers > o.gen_runs)
+    return bad("--outliers: expected 0 to --runs (one per run at most), not " + std::to_string(o.gen_outliers));
+  if (o.gen_sample_runs < 0 || o.gen_sample_runs > o.gen_runs)
+    return bad("--sample-runs: expected 0 to --runs, not " + std::to_string(o.gen_sample_runs));
+  if (o.gen_samples_per_unit < 1 || o.gen_samples_per_unit > 1000000)
+    return bad("--samples-per-unit: expected 1 to 1,000,000, not " + std::to_string(o.gen_samples_per_unit));
+  plant::GenerateOptions g;
+  g.runs = o.gen_runs;
+  g.units_per_run = o.gen_units_per_run;
+  g.lots = o.gen_lots;
+  g.benches = o.gen_benches;
+  g.shifted_lot = std::min(o.gen_lots - 1, (2 * o.gen_lots) / 3);
+  g.outliers = o.gen_outliers;
+  // The bench with extra marginal verdicts from the plant's middle on: the p-charts' finding.
+  g.marginal_bench = std::min(3, o.gen_benches);
+  g.marginal_from_run = o.gen_runs / 2;
+  g.sample_runs = o.gen_sample_runs;
+  g.samples_per_unit = o.gen_samples_per_unit;
+  g.seed = o.gen_seed;
+  if (g.shifted_lot == 0 && g.lots > 1) g.shifted_lot = 1;
+  Progress progress(err, progress_redraws(), 5.0);
+  g.progress = [&](std::int64_t done, std::int64_t total, std::int64_t samples) {
+    progress.update("copying samples", "samples of " + std::to_string(done) + " of " + std::to_string(total) + " runs copied (" +
+                                           std::to_string(samples) + " rows)");
+  };
+  progress.update("writing runs", "writing " + std::to_string(o.gen_runs) + " runs, their units, models and verdicts");
+  constexpr int kFleetConnectTimeoutS = 10;
+  auto c = plant::Connection::open(o.db.empty() ? "service=" + o.service : o.db, true, kFleetConnectTimeoutS);
+  if (!c) return bad(c.error().message);
+  auto r = plant::generate_fleet(*c, g);
+  progress.finish();
+  if (!r) return bad(r.error().message);
+  const std::string benches = g.bench_prefix + "1.." + g.bench_prefix + std::to_string(g.benches);
+  if (o.json) {
+    out << json{{"generated", {{"runs", r->runs}, {"units", r->units}, {"figures", r->figures}, {"samples", r->samples},
+                               {"benches", benches}, {"shifted_lot", r->shifted_lot}, {"shifted_figure", g.figure},
+                               {"shift_sigma", g.shift_sigma}, {"outlier_serials", r->outlier_serials},
+                               {"outlier_sigma", g.outlier_sigma},
+                               {"marginal_bench", r->marginal_bench.empty() ? json(nullptr) : json(r->marginal_bench)},
+                               {"seed", g.seed}}}}
+               .dump(2)
+        << "\n";
+    return kExitOk;
+  }
+  Table t({"what", "generated"});
+  t.add({"runs", std::to_string(r->runs) + " on " + benches});
+  t.add({"units", std::to_string(r->units) + " in " + std::to_string(g.lots) + " lots"});
+  t.add({"figures", std::to_string(r->figures)});
+  t.add({"samples", std::to_string(r->samples)});
+  t.add({"shifted lot", r->shifted_lot + ": " + g.figure + " mean moved by " + num(g.shift_sigma) + " sigma"});
+  std::string outliers;
+  for (const auto& s : r->outlier_serials) outliers += (outliers.empty() ? "" : ", ") + s;
+  t.add({"outlier units", outliers.empty() ? "none" : outliers + " (" + g.figure + " " + num(g.outlier_sigma) + " sigma away)"});
+  t.add({"marginal bench", r->marginal_bench.empty() ? "none"
+                                                      : r->marginal_bench + ": marginal verdicts at " + num(100 * g.marginal_bench_rate) +
+                                                            " % from run " + std::to_string(g.marginal_from_run + 1) + " on (" +
+                                                            num(100 * g.marginal_rate) + " % elsewhere)"});
+  out << t.str() << "What the charts should find: `fogctl fleet spc --figure '" << g.figure
+      << "' --html spc.html` with the same --db or --service.\n";
+  return kExitOk;
+}
+
 }  // namespace
 
 int run_fleet(const std::string& command, const FleetOptions& o, std::ostream& out, std::ostream& err) {
@@ -70,6 +148,7 @@ int run_fleet(const std::string& command, const FleetOptions& o, std::ostream& o
     err << where << "--level: expected a number between 0 and 1 (e.g. 0.95)\n";
     return kExitError;
   }
+  if (command == "generate") return run_generate(o, out, err);
   // A plant that does not answer is reported after 10 s (kFleetConnectTimeoutS), not after the
   // kernel's two minutes of retries; a connect_timeout written in --db wins.
   constexpr int kFleetConnectTimeoutS = 10;

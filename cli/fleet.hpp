@@ -9,6 +9,7 @@
 // arguments (fleet_exec.cpp); every other command starts without loading libpq (issue 30).
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <iosfwd>
 #include <optional>
@@ -39,9 +40,16 @@ struct FleetOptions {
   std::string html;     // spc: the report's file
   std::string period = "month";            // spc: the p-charts' period (month, week, day)
   std::optional<std::size_t> p_baseline_n; // spc: the p-charts' limits from the first N verdicts (2000)
+  // generate: a demonstration plant (plant/generate.hpp) on benches gen-bench-1..N; what those
+  // benches held before is replaced, nothing of any other bench is touched.
+  int gen_runs = 400, gen_units_per_run = 2, gen_lots = 8, gen_benches = 4, gen_outliers = 5;
+  int gen_sample_runs = 0;        // the first N runs also get samples (the charts read none)
+  int gen_samples_per_unit = 1000; // ... this many per unit, 1 s apart
+  std::uint64_t gen_seed = 1;
 };
 
-// command: serials | serial (alias history) | figures | dist | spc. In fogbench_cli_fleet (links libpq).
+// command: serials | serial (alias history) | figures | dist | spc | generate. In fogbench_cli_fleet
+// (links libpq).
 int run_fleet(const std::string& command, const FleetOptions& o, std::ostream& out, std::ostream& err);
 
 // What a parsed fleet command does: run_fleet in fogctl-fleet, run_fleet_program in fogctl.

@@ -51,6 +51,21 @@ void add_fleet_command(CLI::App& app, int& code, FleetRunner run) {
   c->add_option("--p-baseline", o.p_baseline_n,
                 "The p-charts' limits from the first N verdicts (default 2000; --baseline-from/--baseline-to apply too)");
   c->callback([&code, run] { code = run("spc", o); });
+  auto* gen = f->add_subcommand("generate",
+                              "Fill the plant store with a demonstration plant on benches gen-bench-1..N (one lot shifted, outlier units, "
+                              "a bench with extra marginal verdicts), replacing only what those benches held");
+  gen->add_option("--db", o.db, "The plant store: a libpq connection string or URI (\"host=... dbname=plant\")");
+  gen->add_option("--service", o.service, "The plant store by its name in pg_service.conf");
+  gen->add_option("--runs", o.gen_runs, "Runs to generate (default 400)");
+  gen->add_option("--units-per-run", o.gen_units_per_run, "Units (serials) per run (default 2)");
+  gen->add_option("--lots", o.gen_lots, "Lots, consecutive runs each (default 8); the one two thirds in is shifted by 1 sigma in d(T1)");
+  gen->add_option("--benches", o.gen_benches, "Benches the runs go to in turn (default 4)");
+  gen->add_option("--outliers", o.gen_outliers, "Units planted 6 sigma away in d(T1) (default 5)");
+  gen->add_option("--sample-runs", o.gen_sample_runs, "The first N runs also get samples (default 0: the charts read none)");
+  gen->add_option("--samples-per-unit", o.gen_samples_per_unit, "Samples per unit of those runs, 1 s apart (default 1000)");
+  gen->add_option("--seed", o.gen_seed, "The random seed (default 1): the same seed, the same plant");
+  gen->add_flag("--json", o.json, "Print JSON instead of a table");
+  gen->callback([&code, run] { code = run("generate", o); });
 }
 
 }  // namespace fogbench::cli

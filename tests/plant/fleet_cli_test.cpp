@@ -123,3 +123,67 @@ TEST_CASE("fogctl fleet: serials, history, dist and spc with --json and --html o
   bad.figures = {"no-such-figure"};
   CHECK_THAT(fleet("spc", bad).err, Catch::Contains("no values of figure 'no-such-figure'"));
 }
+
+TEST_CASE("fogctl fleet generate: a demonstration plant that spc then finds (its shifted lot and outliers), the same seed the same plant, and each bad option named") {
+  test::PgServer pg;
+  cli::FleetOptions o;
+  o.db = pg.conninfo();
+  o.gen_runs = 120;
+  o.gen_lots = 4;
+  o.gen_outliers = 2;
+  o.gen_sample_runs = 3;
+  o.gen_samples_per_unit = 50;
+  o.gen_seed = 9;
+  o.json = true;
+  auto g = fleet("generate", o);
+  REQUIRE(g.code == cli::kExitOk);
+  const auto j = nlohmann::json::parse(g.out)["generated"];
+  CHECK(j["runs"] == 120);
+  CHECK(j["units"] == 240);
+  CHECK(j["samples"] == 3 * 2 * 50);
+  CHECK(j["shifted_lot"].get<std::string>().rfind("LOT-", 0) == 0);
+  REQUIRE(j["outlier_serials"].size() == 2);
+
+  // What it planted is what the charts find: every outlier serial is flagged.
+  o.figures = {"d(T1)"};
+  auto spc = fleet("spc", o);
+  REQUIRE(spc.code == cli::kExitOk);
+  const auto sj = nlohmann::json::parse(spc.out);
+  std::set<std::string> flagged;
+  for (const auto& u : sj["charts"][0]["flagged_units"]) flagged.insert(u["serial"].get<std::string>());
+  CHECK(sj["charts"][0]["flagged_lots"] == nlohmann::json::array({j["shifted_lot"]}));
+  for (const auto& s : j["outlier_serials"]) CHECK(flagged.count(s.get<std::string>()) == 1);
+
+  // Again with the same seed: the same plant (replaced, not added to).
+  auto again = fleet("generate", o);
+  REQUIRE(again.code == cli::kExitOk);
+  CHECK(nlohmann::json::parse(again.out)["generated"] == j);
+  o.json = false;
+  auto serials = fleet("serials", o);
+  REQUIRE(serials.code == cli::kExitOk);
+  CHECK_THAT(serials.out, Catch::Contains("240 serials"));
+  // The human summary names what to look for.
+  auto text = fleet("generate", o);
+  REQUIRE(text.code == cli::kExitOk);
+  CHECK_THAT(text.out, Catch::Contains("shifted lot"));
+  CHECK_THAT(text.out, Catch::Contains(j["outlier_serials"][0].get<std::string>()));
+
+  // Bad options: named, exit 2, nothing written.
+  auto bad = o;
+  bad.gen_lots = 0;
+  auto r = fleet("generate", bad);
+  CHECK(r.code == cli::kExitError);
+  CHECK_THAT(r.err, Catch::Contains("--lots"));
+  bad = o;
+  bad.gen_lots = 500;
+  r = fleet("generate", bad);
+  CHECK(r.code == cli::kExitError);
+  CHECK_THAT(r.err, Catch::Contains("--lots: expected 1 to --runs (120"));
+  bad = o;
+  bad.gen_sample_runs = -1;
+  CHECK_THAT(fleet("generate", bad).err, Catch::Contains("--sample-runs"));
+  bad = o;
+  bad.service = "x";
+  CHECK_THAT(fleet("generate", bad).err, Catch::Contains("exactly one of --db"));
+  CHECK_THAT(fleet("serials", o).out, Catch::Contains("240 serials"));
+}
