@@ -152,6 +152,41 @@ TEST_CASE("fogctl fleet generate: a demonstration plant that spc then finds (its
   std::set<std::string> flagged;
   for (const auto& u : sj["charts"][0]["flagged_units"]) flagged.insert(u["serial"].get<std::string>());
   CHECK(sj["charts"][0]["flagged_lots"] == nlohmann::json::array({j["shifted_lot"]}));
+
+  // The charts as a quality engineer reads them (issue 28, point 4): run-end dates on the x axis,
+  // the figure's unit, every rule's signals marked and listed, a per-lot view; drawn by headless
+  // Chromium (its DOM after the scripts ran).
+  const auto html = pg.dir() / "generated.html";
+  o.html = html.string();
+  REQUIRE(fleet("spc", o).code == cli::kExitOk);
+  o.html.clear();
+  std::stringstream page;
+  page << std::ifstream(html).rdbuf();
+  const std::string p = page.str();
+  CHECK_THAT(p, Catch::Contains("<h2>d(T1) (deg/h per degC/min)</h2>"));
+  CHECK_THAT(p, Catch::Contains("<table class=signals>"));
+  CHECK_THAT(p, Catch::Contains("<td>1</td><td>one value beyond 3 sigma, above</td>"));
+  for (const auto& s : j["outlier_serials"]) CHECK_THAT(p, Catch::Contains("<td>" + s.get<std::string>() + "</td>"));
+  CHECK_THAT(p, Catch::Contains("<table class=lots>"));
+  CHECK_THAT(p, Catch::Contains("<td>" + j["shifted_lot"].get<std::string>() + "</td>"));
+  CHECK_THAT(p, Catch::Contains("out of limits</b>"));
+  CHECK_THAT(p, Catch::Contains("\"t\":[1767"));  // 2026's run ends, as seconds since 1970
+  REQUIRE(std::system("command -v chromium >/dev/null 2>&1") == 0);  // scripts/deps installs it
+  const auto dom = pg.dir() / "dom.html";
+  const std::string cmd = "timeout 120 chromium --headless --no-sandbox --disable-gpu --no-first-run --disable-sync "
+                          "--disable-background-networking --user-data-dir=" + (pg.dir() / "chrome").string() +
+                          " --dump-dom file://" + html.string() + " >" + dom.string() + " 2>" + (pg.dir() / "chrome.err").string();
+  REQUIRE(std::system(cmd.c_str()) == 0);
+  std::stringstream drawn;
+  drawn << std::ifstream(dom).rdbuf();
+  const std::string d = drawn.str();
+  INFO(d.substr(0, 2000));
+  CHECK_THAT(d, Catch::Contains("d(T1): individuals"));
+  CHECK_THAT(d, Catch::Contains("d(T1): moving range"));
+  CHECK_THAT(d, Catch::Contains("d(T1): lot means"));
+  CHECK_THAT(d, Catch::Contains(">rule 1<"));     // the legend of rule 1's markers
+  CHECK_THAT(d, Catch::Contains(">run end<"));    // dates on the x axis
+  CHECK_THAT(d, Catch::Contains(">lot out of limits<"));
   for (const auto& s : j["outlier_serials"]) CHECK(flagged.count(s.get<std::string>()) == 1);
 
   // Again with the same seed: the same plant (replaced, not added to).
