@@ -268,3 +268,31 @@ TEST_CASE("e2e resume gap: the replay of 300000 stored seconds runs off the loop
   REQUIRE(ev.size() == 2);
   CHECK(ev[1]["gap_from_s"].get<double>() >= 300000.0);
 }
+
+TEST_CASE("e2e resume gap: an 850000-second gap of 2 units is written whole, the run not aborted as stalled") {
+  require_sim();
+  LiveBench bench(50.0);
+  // 17,000 s of wall time at time scale 50: 850,000 s, 1.7 million rows, more than the 30 s of
+  // the writer's stall rule to store (before: the run aborted "storage stalled" after 30 s).
+  const auto run = run_then_kill(bench, 17000.0);
+  LineClient* c = nullptr;
+  std::unique_ptr<LineClient> keep;
+  restart(bench, c, keep);
+  const auto before = stored(bench.dir / "fogbench.db", run, 0);
+  REQUIRE(code_of(c->call({{"cmd", "run.resume"}, {"run_id", run}})) == "ok");
+  auto s = bench.wait_status(*c, [](const json& r) {
+    return !r["run"].is_object() || (r["run"]["state"] == "running" && r["run"]["samples_pending"] == 0);
+  }, 300s);
+  INFO(s.dump());
+  REQUIRE(s["result"]["run"].is_object());
+  REQUIRE(s["result"]["run"]["state"] == "running");
+  REQUIRE(code_of(c->call({{"cmd", "run.abort"}, {"reason", "gap checked"}})) == "ok");
+  for (int unit : {0, 1}) {
+    const auto g = gaps_of(bench.dir / "fogbench.db", run, unit);
+    INFO("unit " << unit);
+    CHECK(g.contiguous);
+    REQUIRE(g.runs.size() == 1);
+    CHECK(g.runs[0].first == static_cast<double>(before));
+    CHECK(g.runs[0].second - g.runs[0].first + 1 >= 850000.0);
+  }
+}
