@@ -528,6 +528,18 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
     for (std::size_t i = 0; i < run.config_index.size(); ++i) {
       const std::size_t ci = run.config_index[i];
       if (ci < power_edges.size() && power_edges[ci] != PowerWatch::Edge::none) continue;  // said below
+      if (!config_.drivers.units[ci].gyro.startup_flag && !power_.since_power_on_s(ci, clock_s)) {
+        // A gyro kind whose frames carry no `warming_up` bit: a counter from 0 alone is what
+        // frames lost of a running gyro also show, and silence is no evidence (a late reader),
+        // so neither a power-on nor a power cycle can be known from its frames: said plainly,
+        // once, rather than nothing.
+        json detail = {{"gyro_power", "power_on_unknowable"}, {"unit", static_cast<int>(i)}, {"serial", run.serials[i]},
+                       {"reason", "this gyro's frames carry no warm-up status bit (drivers.units[" + std::to_string(ci) +
+                                      "].gyro.startup_flag false): its power-on and power cycles cannot be known from "
+                                      "its frames; its samples carry no since_power_on_s"}};
+        event(run.id, storage::EventKind::note, detail, 0.0);
+        continue;
+      }
       power_event(i, power_.since_power_on_s(ci, clock_s) ? "on" : "power_on_not_seen", 0.0);
     }
   } else if (run.state == RunState::interrupted) {
