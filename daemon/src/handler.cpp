@@ -178,14 +178,17 @@ struct CommandHandlers {
     return json{{"run_id", *id}, {"state", "aborted"}};
   }
 
-  static ApiResult<json> run_resume(const CommandCall& c) {
+  // Offloaded: the replay of the run's stored seconds runs on the worker (Station::
+  // resume_run_async), the run is taken up back on the loop, then the reply.
+  static void run_resume(const CommandCall& c, const json& id, Handler::Done done) {
     auto run_id = opt_int(c.req, "run_id", 1, kMaxId);
-    if (!run_id) return std::unexpected(run_id.error());
-    if (!*run_id) return api_error(ErrorCode::bad_request, "run_id: missing");
+    if (!run_id) return fail(id, done, run_id.error());
+    if (!*run_id) return fail(id, done, ApiError{ErrorCode::bad_request, "run_id: missing"});
     const double now = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
-    auto id = station(c).resume_run(**run_id, now, c.req);
-    if (!id) return std::unexpected(id.error());
-    return json{{"run_id", *id}, {"state", "interrupted"}, {"resumes", "at the next tick"}};
+    station(c).resume_run_async(**run_id, now, c.req, origin_of(c), [id, done](ApiResult<std::int64_t> r) {
+      done(Handler::to_line(r ? Handler::reply(id, json{{"run_id", *r}, {"state", "interrupted"}, {"resumes", "at the next tick"}})
+                              : Handler::error(id, r.error().code, r.error().message)));
+    });
   }
 
   static ApiResult<json> run_list(const CommandCall& c) {

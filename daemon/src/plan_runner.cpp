@@ -420,20 +420,30 @@ bool PlanRunner::advance(std::int64_t plan_id, double wall_time) {
 
   const auto run_id = progress["run_id"].get<std::int64_t>();
   if (station_.active_run_id() == run_id) return false;
+  if (station_.resuming_run_id() == run_id) return false;  // its stored seconds being replayed
   auto detail = station_.store().get_run(run_id);
   if (!detail) return false;
   const auto state = detail->run.state;
   if (state == storage::RunState::interrupted || state == storage::RunState::pending) {
     // The daemon stopped during the step: the run is taken up again as run.resume does.
     json command = {{"cmd", "plan.resume"}, {"plan_id", plan_id}, {"run_id", run_id}};
-    auto r = station_.resume_run(run_id, wall_time, command);
-    if (r && !analysed(step.purpose)) station_.skip_analysis(run_id);
-    if (r) {
-      plan_event(plan_id, "plan.resume", {{"step", step_index + 1}, {"run_id", run_id}});
-      spdlog::info("plan {}: run {} of step {} resumed", plan_id, run_id, step_index + 1);
-    } else if (r.error().code != ErrorCode::unavailable && r.error().code != ErrorCode::busy) {
-      finish_plan(plan_id, progress, "failed", "run " + std::to_string(run_id) + " could not resume: " + r.error().message);
-    }
+    // The stored seconds are replayed off the loop (Station::resume_run_async); the plan goes
+    // on once the run is taken up. Refused `busy` or `unavailable`: tried again at a later tick.
+    const bool skip = !analysed(step.purpose);
+    station_.resume_run_async(run_id, wall_time, command, {JobClass::station, {}},
+                              [this, plan_id, run_id, step_index, skip](ApiResult<std::int64_t> r) {
+      if (r && skip) station_.skip_analysis(run_id);
+      if (r) {
+        plan_event(plan_id, "plan.resume", {{"step", step_index + 1}, {"run_id", run_id}});
+        spdlog::info("plan {}: run {} of step {} resumed", plan_id, run_id, step_index + 1);
+      } else if (r.error().code != ErrorCode::unavailable && r.error().code != ErrorCode::busy) {
+        auto now_rec = station_.store().get_plan(plan_id);
+        if (!now_rec || now_rec->state != "running") return;  // aborted meanwhile
+        json now = json::parse(now_rec->progress_json, nullptr, false);
+        if (!now.is_object()) return;
+        finish_plan(plan_id, now, "failed", "run " + std::to_string(run_id) + " could not resume: " + r.error().message);
+      }
+    });
     return false;
   }
   if (state != storage::RunState::completed) {

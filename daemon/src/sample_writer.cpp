@@ -114,6 +114,7 @@ void ThreadedSampleWriter::append(std::int64_t run_id, std::vector<storage::Samp
   {
     std::lock_guard lock(mutex_);
     queue_.push_back({run_id, clock_s, std::move(rows), std::nullopt});
+    latest_clock_s_ = std::max(latest_clock_s_.value_or(clock_s), clock_s);
   }
   work_.notify_one();
 }
@@ -123,6 +124,7 @@ void ThreadedSampleWriter::append_gap(std::int64_t run_id, SampleGap gap, double
   {
     std::lock_guard lock(mutex_);
     queue_.push_back({run_id, clock_s, {}, std::move(gap)});
+    latest_clock_s_ = std::max(latest_clock_s_.value_or(clock_s), clock_s);
   }
   work_.notify_one();
 }
@@ -142,9 +144,13 @@ bool ThreadedSampleWriter::drain(std::chrono::milliseconds timeout) {
 
 std::optional<double> ThreadedSampleWriter::oldest_pending_clock_s() const {
   std::lock_guard lock(mutex_);
-  if (in_flight_clock_s_) return in_flight_clock_s_;
-  if (!queue_.empty()) return queue_.front().clock_s;
-  return std::nullopt;
+  std::optional<double> oldest;
+  if (in_flight_clock_s_) oldest = in_flight_clock_s_;
+  else if (!queue_.empty()) oldest = queue_.front().clock_s;
+  // A gap's slices going in are the store answering: what waits (the rest of the gap, the
+  // seconds behind it) is as old as that progress at most.
+  if (oldest && gap_progress_clock_s_) oldest = std::max(*oldest, *gap_progress_clock_s_);
+  return oldest;
 }
 
 std::size_t ThreadedSampleWriter::pending() const {
@@ -227,16 +233,21 @@ void ThreadedSampleWriter::run() {
       lock.unlock();
       const auto began = std::chrono::steady_clock::now();
       auto ok = store_.append_samples(run_id, rows);
-      // Slices back to back would keep the write lock from the loop's own connection (its
-      // busy handler retries in sleeps that land in the next slice): the loop's event or state
-      // change would wait for the whole gap. A pause as long as the slice took lets it in.
-      if (more) std::this_thread::sleep_for(std::max<std::chrono::steady_clock::duration>(
-                    std::chrono::steady_clock::now() - began, std::chrono::milliseconds(2)));
+      const auto took = std::chrono::steady_clock::now() - began;
       lock.lock();
       if (!ok) refuse(run_id, rows, ok.error());
+      else gap_progress_clock_s_ = latest_clock_s_;
       in_flight_ = 0;
       in_flight_clock_s_.reset();
       progress_.notify_all();
+      // Slices back to back would keep the write lock from the loop's own connection (its
+      // busy handler retries in sleeps that land in the next slice): the loop's event or state
+      // change would wait for the whole gap. A pause as long as the slice took lets it in.
+      if (more) {
+        lock.unlock();
+        std::this_thread::sleep_for(std::max<std::chrono::steady_clock::duration>(took, std::chrono::milliseconds(2)));
+        lock.lock();
+      }
       continue;
     }
     // The seconds of one run that queued up go into one transaction (one fsync).

@@ -135,8 +135,7 @@ ApiResult<std::int64_t> Station::start_run(const std::string& profile_name,
 ApiResult<std::int64_t> Station::start_run_in_slots(const std::string& profile_name, const std::vector<SlotUnit>& units,
                                            storage::Purpose purpose, const json& command,
                                            const OperatorId& op) {
-  if (run_) return api_error(ErrorCode::busy, "run " + std::to_string(run_->id) + " is " +
-                                                  std::string(storage::to_string(run_->state)));
+  if (auto busy = station_busy()) return std::unexpected(*busy);
   if (recovery_error_) return std::unexpected(not_recovered(*recovery_error_));
   if (auto down = chamber_unavailable()) return std::unexpected(*down);
   if (units.empty()) return api_error(ErrorCode::bad_request, "units: expected at least one serial");
@@ -203,9 +202,42 @@ ApiResult<std::int64_t> Station::start_run_in_slots(const std::string& profile_n
   return *id;
 }
 
+std::optional<ApiError> Station::station_busy() const {
+  if (run_) return ApiError{ErrorCode::busy, "run " + std::to_string(run_->id) + " is " +
+                                                 std::string(storage::to_string(run_->state))};
+  if (resuming_) return ApiError{ErrorCode::busy, "run " + std::to_string(*resuming_) +
+                                                      " is being resumed (its stored seconds are replayed)"};
+  return std::nullopt;
+}
+
 ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall_time, const json& command) {
-  if (run_) return api_error(ErrorCode::busy, "run " + std::to_string(run_->id) + " is " +
-                                                  std::string(storage::to_string(run_->state)));
+  auto r = begin_resume(run_id);
+  if (!r) return std::unexpected(r.error());
+  if (auto ok = replay_stored(store_, *r); !ok) return std::unexpected(ok.error());
+  return finish_resume(std::move(*r), now_wall_time, command);
+}
+
+void Station::resume_run_async(std::int64_t run_id, double now_wall_time, const json& command, JobOrigin origin,
+                               ResumeDone done) {
+  auto r = begin_resume(run_id);
+  if (!r) return done(std::unexpected(r.error()));
+  resuming_ = run_id;
+  auto replay = std::make_shared<ResumeReplay>(std::move(*r));
+  const auto submitted = std::chrono::steady_clock::now();
+  // The job touches only `replay` and the worker's store; the rest is decided on the loop.
+  offload_->submit([this, replay, run_id, now_wall_time, command, submitted, done](storage::Store& reader) -> Offload::Then {
+    auto ok = std::make_shared<ApiResult<void>>(replay_stored(reader, *replay));
+    return [this, replay, ok, run_id, now_wall_time, command, submitted, done] {
+      if (resuming_ == run_id) resuming_.reset();
+      if (!*ok) return done(std::unexpected(ok->error()));
+      const double took_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - submitted).count();
+      done(finish_resume(std::move(*replay), now_wall_time + took_s, command));
+    };
+  }, std::move(origin));
+}
+
+ApiResult<Station::ResumeReplay> Station::begin_resume(std::int64_t run_id) {
+  if (auto busy = station_busy()) return std::unexpected(*busy);
   if (recovery_error_) return std::unexpected(not_recovered(*recovery_error_));
   if (auto down = chamber_unavailable()) return std::unexpected(*down);
   auto detail = store_.get_run(run_id);
@@ -215,7 +247,9 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
     return api_error(ErrorCode::bad_request, "run_id: run " + std::to_string(run_id) + " is " +
                                                  std::string(storage::to_string(rec.state)) +
                                                  "; only an interrupted run resumes");
-  ActiveRun run;
+  ResumeReplay replay;
+  replay.policy = config_.link_loss.policy;
+  ActiveRun& run = replay.run;
   run.id = run_id;
   run.purpose = rec.purpose;
   run.profile_name = rec.profile_name;
@@ -233,21 +267,29 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
   auto profile = check_profile_text(rec.profile_text, rec.profile_name + ".profile");
   if (!profile) return std::unexpected(profile.error());
   run.executor = std::make_unique<profiles::Executor>(std::move(*profile));
+  // The live compensation with the models the run started with; its state is rebuilt from the
+  // stored seconds by the replay (the gap's below restart it).
+  const auto recorded = LiveCompensation::recorded_models(*detail);
+  run.live = LiveCompensation::load(store_, run.serials, recorded);
+  run.live_noted = !recorded.empty();
+  return replay;
+}
 
+ApiResult<void> Station::replay_stored(storage::Store& store, ResumeReplay& r) {
+  ActiveRun& run = r.run;
+  const std::int64_t run_id = run.id;
   // Replay the stored seconds through the executor exactly as tick() fed them, gaps held.
   std::vector<std::vector<storage::SampleRow>> rows(run.serials.size());
   for (std::size_t u = 0; u < rows.size(); ++u) {
     for (std::int64_t off = 0;; off += 10000) {
-      auto page = store_.get_samples(run_id, static_cast<int>(u), off, 10000);
+      auto page = store.get_samples(run_id, static_cast<int>(u), off, 10000);
       if (!page) return std::unexpected(from_store(page.error()));
       rows[u].insert(rows[u].end(), page->begin(), page->end());
       if (page->size() < 10000) break;
     }
   }
   std::size_t n = rows.empty() ? 0 : rows[0].size();
-  for (const auto& r : rows) n = std::min(n, r.size());
-  double wall_last = now_wall_time;
-  double wall_last_t_s = -1.0;  // the run second of wall_last: the last one the bench was read
+  for (const auto& v : rows) n = std::min(n, v.size());
   for (std::size_t i = 0; i < n; ++i) {
     const storage::SampleRow& r0 = rows[0][i];
     const double t_s = r0.t_s;
@@ -255,7 +297,7 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
     // An earlier resume's gap (no wall time: nothing was read) held the profile clock whatever
     // the policy, as the resume that wrote it did.
     const bool away = gap && !std::isfinite(r0.wall_time) && (r0.flags & model::flag::missing) != 0;
-    if (((gap && config_.link_loss.policy == LinkLossConfig::Policy::hold) || away) && run.updated) {
+    if (((gap && r.policy == LinkLossConfig::Policy::hold) || away) && run.updated) {
       run.held_s += t_s - run.prev_t_s;
     } else {
       profiles::Readings readings;
@@ -268,21 +310,40 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
     run.phase = run.last.phase;
     run.step = run.last.step_index;
     if (std::isfinite(r0.wall_time)) {
-      wall_last = r0.wall_time;
-      wall_last_t_s = t_s;
+      r.wall_last = r0.wall_time;
+      r.wall_last_t_s = t_s;
     }
+  }
+  for (std::size_t u = 0; u < rows.size(); ++u)
+    for (const auto& row : rows[u]) run.live.step(u, row);
+  r.n = n;
+  r.last_t_s = n == 0 ? -1.0 : rows[0][n - 1].t_s;
+  r.flagged.assign(rows.size(), 0);
+  for (std::size_t u = 0; u < rows.size(); ++u)
+    for (std::size_t i = 0; i < n; ++i) r.flagged[u] += rows[u][i].flags != 0;
+  return {};
+}
+
+ApiResult<std::int64_t> Station::finish_resume(ResumeReplay replay, double now_wall_time, const json& command) {
+  ActiveRun& run = replay.run;
+  const std::int64_t run_id = run.id;
+  // Decided again on the loop: what may have changed while the seconds were replayed.
+  if (auto busy = station_busy()) return std::unexpected(*busy);
+  if (recovery_error_) return std::unexpected(not_recovered(*recovery_error_));
+  if (auto down = chamber_unavailable()) return std::unexpected(*down);
+  if (auto rec = store_.get_run(run_id); !rec) {
+    return std::unexpected(from_store(rec.error()));
+  } else if (rec->run.state != RunState::interrupted) {
+    return api_error(ErrorCode::bad_request, "run_id: run " + std::to_string(run_id) + " is " +
+                                                 std::string(storage::to_string(rec->run.state)) +
+                                                 "; only an interrupted run resumes");
   }
   if (run.last.finished || run.last.failed)
     return api_error(ErrorCode::bad_request, "run_id: run " + std::to_string(run_id) +
                                                  ": its profile had already ended; nothing to resume");
-  // The live compensation with the models the run started with, its state rebuilt from the
-  // stored seconds (the gap's below restart it).
-  const auto recorded = LiveCompensation::recorded_models(*detail);
-  run.live = LiveCompensation::load(store_, run.serials, recorded);
-  run.live_noted = !recorded.empty();
-  for (std::size_t u = 0; u < rows.size(); ++u)
-    for (const auto& r : rows[u]) run.live.step(u, r);
-  const double last_t_s = n == 0 ? -1.0 : rows[0][n - 1].t_s;
+  const double wall_last = replay.wall_last.value_or(now_wall_time);
+  const double wall_last_t_s = replay.wall_last_t_s;
+  const double last_t_s = replay.last_t_s;
   // The time the bench was without the daemon, in run seconds: the run clock counts it. It is
   // measured from the last second read (the last stored with a wall time), so it is the same
   // whether an earlier resume's gap was stored whole, in part (killed while writing it) or not
@@ -314,10 +375,8 @@ ApiResult<std::int64_t> Station::resume_run(std::int64_t run_id, double now_wall
   // frames lost and corrupt before the crash were only in the dead daemon's memory: they count
   // from here.
   run.quality.assign(run.serials.size(), {});
-  for (std::size_t u = 0; u < rows.size(); ++u) {
-    for (std::size_t i = 0; i < n; ++i) run.quality[u].samples_flagged += rows[u][i].flags != 0;
-    run.quality[u].samples_flagged += static_cast<std::uint64_t>(add_s);
-  }
+  for (std::size_t u = 0; u < run.quality.size(); ++u)
+    run.quality[u].samples_flagged = (u < replay.flagged.size() ? replay.flagged[u] : 0) + static_cast<std::uint64_t>(add_s);
   run.prev_t_s = gap_to_s - 1.0;
   run.resume_at_s = gap_to_s;
   run.state = RunState::interrupted;
@@ -469,6 +528,18 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
     for (std::size_t i = 0; i < run.config_index.size(); ++i) {
       const std::size_t ci = run.config_index[i];
       if (ci < power_edges.size() && power_edges[ci] != PowerWatch::Edge::none) continue;  // said below
+      if (!config_.drivers.units[ci].gyro.startup_flag && !power_.since_power_on_s(ci, clock_s)) {
+        // A gyro kind whose frames carry no `warming_up` bit: a counter from 0 alone is what
+        // frames lost of a running gyro also show, and silence is no evidence (a late reader),
+        // so neither a power-on nor a power cycle can be known from its frames: said plainly,
+        // once, rather than nothing.
+        json detail = {{"gyro_power", "power_on_unknowable"}, {"unit", static_cast<int>(i)}, {"serial", run.serials[i]},
+                       {"reason", "this gyro's frames carry no warm-up status bit (drivers.units[" + std::to_string(ci) +
+                                      "].gyro.startup_flag false): its power-on and power cycles cannot be known from "
+                                      "its frames; its samples carry no since_power_on_s"}};
+        event(run.id, storage::EventKind::note, detail, 0.0);
+        continue;
+      }
       power_event(i, power_.since_power_on_s(ci, clock_s) ? "on" : "power_on_not_seen", 0.0);
     }
   } else if (run.state == RunState::interrupted) {

@@ -93,6 +93,9 @@ json Station::status() const {
   }
   if (config_.plant) s["plant"] = plant_status();
   s["last_run"] = last_run_;
+  // A run.resume whose stored seconds are being replayed on the worker (Station::resume_run_async);
+  // absent otherwise.
+  if (resuming_) s["resuming_run_id"] = *resuming_;
   s["recovery"] = recovery_error_ ? json{{"pending", true}, {"error", *recovery_error_}} : json(nullptr);
   if (last_run_.is_object()) {
     const auto id = last_run_["run_id"].get<std::int64_t>();

@@ -242,13 +242,17 @@ Result<GyroChannelConfig> parse_gyro_channel(const json& value, const std::strin
   if (auto ok = detail::expect_object(value, path); !ok) return std::unexpected(ok.error());
   if (auto ok = detail::expect_known_keys(
           value, path,
-          {"node_id", "mode", "scale_dph_per_count", "scale_deg_per_count", "frame_rate_hz"});
+          {"node_id", "mode", "scale_dph_per_count", "scale_deg_per_count", "frame_rate_hz", "startup_flag"});
       !ok) {
     return std::unexpected(ok.error());
   }
   GyroChannelConfig g;
   FOGBENCH_TRY(node, detail::get_int(value, path, "node_id", 1, 2047));
   g.node_id = static_cast<std::uint16_t>(*node);
+  if (value.contains("startup_flag")) {
+    if (!value["startup_flag"].is_boolean()) return config_error(join_path(path, "startup_flag"), "expected true or false");
+    g.startup_flag = value["startup_flag"].get<bool>();
+  }
   FOGBENCH_TRY(mode, detail::get_string_or(value, path, "mode", "rate"));
   auto nonzero = [&](std::string_view key) -> Result<double> {
     FOGBENCH_TRY(v, detail::get_number(value, path, key));

@@ -328,6 +328,8 @@ namespace {
 // section for its dialect when that is not Modbus.
 json served_drivers_config(const BenchConfig& c) {
   json out = drivers_config(c.where, c.map, c.units);
+  if (!c.startup_flag)
+    for (auto& u : out["units"]) u["gyro"]["startup_flag"] = false;
   if (c.dialect == ChamberDialect::modbus) return out;
   json chamber = {{"kind", to_string(c.dialect)},
                   {"link", {{"transport", "tcp"}, {"host", c.where.host}, {"port", c.where.chamber_port}}}};

@@ -43,6 +43,9 @@ struct BenchConfig {
   // apart. time_scale then only describes the pace the client is expected to keep.
   bool paced = false;
   double frame_noise_dph = 0;      // extra white noise per frame (electronics), 1 sigma, deg/h
+  // The gyros' frames carry the status bit `warming_up` for their first second after a power-on
+  // (false: a gyro kind without it; docs/can-frames.md "Power-on").
+  bool startup_flag = true;
   std::vector<Warmup> warmup;      // per unit (missing: none)
   sim::SimConfig sim;              // the physics; sim.units in the order of `units`
   std::vector<UnitLayout> units;

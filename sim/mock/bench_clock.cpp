@@ -37,7 +37,8 @@ std::expected<void, std::string> BenchClock::init() {
                                        .outlier_dph = g.outlier_dph,
                                        .white_dph = cfg_.frame_noise_dph,
                                        .warmup_dph = wu.dph,
-                                       .warmup_tau_s = wu.tau_s});
+                                       .warmup_tau_s = wu.tau_s,
+                                       .startup_flag_s = cfg_.startup_flag ? 1.0 : 0.0});
   }
   return {};
 }

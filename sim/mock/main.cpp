@@ -53,6 +53,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--warmup-dph", o.warmup_dph, "warm-up transient after each power-on, A in A*exp(-t/tau), deg/h; 0: none")
       ->capture_default_str();
+  app.add_flag("--no-startup-flag", o.no_startup_flag,
+               "a gyro kind without the warm-up status bit: no frame carries `warming_up` after a power-on (the counter "
+               "still starts from 0); the drivers_config served says so (gyro.startup_flag false)");
   app.add_option("--warmup-tau-s", o.warmup_tau_s, "time constant tau of the warm-up, simulated s")->capture_default_str();
   app.add_option("--map", o.map_file, "serve another chamber register map (default: the built-in drivers/maps/mock.json)");
   app.add_option("--duration-s", o.duration_s, "stop after this many simulated seconds; 0: run until stopped")->capture_default_str();

@@ -203,6 +203,7 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
   cfg.duration_s = o.duration_s;
   cfg.paced = o.paced;
   cfg.frame_noise_dph = o.frame_noise_dph;
+  cfg.startup_flag = !o.no_startup_flag;
   cfg.sim.seed = o.seed;
   cfg.sim.start_c = o.start_c;
 

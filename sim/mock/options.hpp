@@ -34,6 +34,7 @@ struct Options {
   std::string config_file;
   std::vector<std::string> faults;   // NAME[=VALUE][,KEY=VALUE...]
   int frame_rate_hz = 100;
+  bool no_startup_flag = false;      // a gyro kind without the warm-up status bit: no frame carries `warming_up`
   double frame_noise_dph = 0;        // extra white noise per frame, on top of the gyro's own
   double warmup_dph = 0;             // every unit's warm-up after power-on: A*exp(-t/tau)
   double warmup_tau_s = 600;

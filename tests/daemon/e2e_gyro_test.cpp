@@ -274,3 +274,37 @@ TEST_CASE("e2e gyro: the noise of the daemon's 1 s samples has the AR(2) paramet
     CHECK(se_sigma < 0.003);
   }
 }
+
+TEST_CASE("e2e gyro: a gyro kind without the warm-up bit, power-cycled mid-run: the run says plainly its power-on cannot be known") {
+  require_sim();
+  // The mock's frames without `warming_up` (fogbench-sim --no-startup-flag); the drivers
+  // configuration it serves says so (gyro.startup_flag false).
+  LiveBench bench(100.0, json::object(), true, nullptr, {"--no-startup-flag"});
+  INFO("test dir " << bench.dir);
+  LineClient c(bench.socket());
+  REQUIRE(c.ok());
+  const auto run = bench.start_run(c, "short", {"SIM-0001", "SIM-0002"});
+  wait_elapsed(bench, c, 300);
+  REQUIRE(bench.sim_command({{"cmd", "fault"}, {"name", "power_cycle"}, {"unit", 0}, {"off_s", 5}})["ok"] == true);
+  wait_elapsed(bench, c, 600);
+  REQUIRE(code_of(c.call({{"cmd", "run.abort"}, {"reason", "notes checked"}})) == "ok");
+
+  auto g = c.call({{"cmd", "run.get"}, {"run_id", run}});
+  REQUIRE(code_of(g) == "ok");
+  for (int unit : {0, 1}) {
+    const auto notes = power_notes(g, unit);
+    INFO("unit " << unit << " power notes: " << json(notes).dump());
+    // One note, at the start, naming why (before: `power_on_not_seen` with no reason, and the
+    // power cycle of unit 0 passed without a word).
+    REQUIRE(notes.size() == 1);
+    CHECK(notes[0]["gyro_power"] == "power_on_unknowable");
+    CHECK(notes[0]["reason"].get<std::string>().find("startup_flag false") != std::string::npos);
+    CHECK(notes[0]["t_s"] == 0.0);
+    // No time since power-on is invented for any sample, the cycle's included.
+    const auto rows = all_samples(c, run, unit);
+    REQUIRE(rows.size() > 600);
+    std::size_t known = 0;
+    for (const auto& r : rows) known += !r["since_power_on_s"].is_null();
+    CHECK(known == 0);
+  }
+}

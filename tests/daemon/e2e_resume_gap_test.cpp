@@ -211,3 +211,88 @@ TEST_CASE("e2e resume gap: SIGKILL while the gap is written, the next resume com
     CHECK(len <= 300000.0 + (since_kill_s + 2.0) * 50.0);
   }
 }
+
+TEST_CASE("e2e resume gap: the replay of 300000 stored seconds runs off the loop, status answers while it runs") {
+  require_sim();
+  LiveBench bench(50.0);
+  // A run with 300,000 seconds stored: a first resume's gap (6,000 s of wall time at time scale
+  // 50), stored whole, then the daemon killed again.
+  const auto run = run_then_kill(bench, 6000.0);
+  LineClient* c = nullptr;
+  std::unique_ptr<LineClient> keep;
+  restart(bench, c, keep);
+  REQUIRE(code_of(c->call({{"cmd", "run.resume"}, {"run_id", run}})) == "ok");
+  auto s = bench.wait_status(*c, [](const json& r) {
+    return r["run"].is_object() && r["run"]["state"] == "running" && r["run"]["samples_pending"] == 0;
+  }, 120s);
+  REQUIRE(s["result"]["run"]["state"] == "running");
+  bench.daemon->kill_now();
+  keep.reset();
+  REQUIRE(stored(bench.dir / "fogbench.db", run, 0) > 300000);
+
+  restart(bench, c, keep);
+  LineClient other(bench.socket());
+  REQUIRE(other.ok());
+  REQUIRE(other.line());  // its hello
+  // run.resume sent, not waited for: the other client asks `status` until its answer comes.
+  REQUIRE(c->send_raw(json{{"id", 900}, {"cmd", "run.resume"}, {"run_id", run}}.dump() + "\n"));
+  const auto t0 = SteadyClock::now();
+  double slowest_s = 0.0;
+  int answered = 0;
+  bool seen_resuming = false;
+  std::optional<json> resumed;
+  while (!resumed && SteadyClock::now() - t0 < 60s) {
+    const auto a = SteadyClock::now();
+    auto st = other.call({{"cmd", "status"}}, 10s);
+    slowest_s = std::max(slowest_s, std::chrono::duration<double>(SteadyClock::now() - a).count());
+    REQUIRE(code_of(st) == "ok");
+    ++answered;
+    if (st["result"].value("resuming_run_id", json(nullptr)) == json(run)) seen_resuming = true;
+    if (auto l = c->line(20ms)) {  // (under 1 ms, line() does not read)
+      auto j = json::parse(*l, nullptr, false);
+      if (j.is_object() && j.value("type", "") == "reply" && j["id"] == 900) resumed = j;
+    }
+  }
+  REQUIRE(resumed.has_value());
+  CHECK(code_of(*resumed) == "ok");
+  const double resume_s = std::chrono::duration<double>(SteadyClock::now() - t0).count();
+  INFO("run.resume answered after " << resume_s << " s; " << answered << " status meanwhile, the slowest "
+                                    << slowest_s << " s");
+  // The replay took the worker 0.95 s here (on the loop before: status waited as long). While it
+  // runs, status answers and says which run is being resumed.
+  CHECK(seen_resuming);
+  CHECK(slowest_s < 0.5);
+  // Nothing else starts meanwhile, and the run is taken up once, its gap after the stored seconds.
+  REQUIRE(code_of(c->call({{"cmd", "run.abort"}, {"reason", "replay checked"}})) == "ok");
+  auto ev = resume_events(*c, run);
+  REQUIRE(ev.size() == 2);
+  CHECK(ev[1]["gap_from_s"].get<double>() >= 300000.0);
+}
+
+TEST_CASE("e2e resume gap: an 850000-second gap of 2 units is written whole, the run not aborted as stalled") {
+  require_sim();
+  LiveBench bench(50.0);
+  // 17,000 s of wall time at time scale 50: 850,000 s, 1.7 million rows, more than the 30 s of
+  // the writer's stall rule to store (before: the run aborted "storage stalled" after 30 s).
+  const auto run = run_then_kill(bench, 17000.0);
+  LineClient* c = nullptr;
+  std::unique_ptr<LineClient> keep;
+  restart(bench, c, keep);
+  const auto before = stored(bench.dir / "fogbench.db", run, 0);
+  REQUIRE(code_of(c->call({{"cmd", "run.resume"}, {"run_id", run}})) == "ok");
+  auto s = bench.wait_status(*c, [](const json& r) {
+    return !r["run"].is_object() || (r["run"]["state"] == "running" && r["run"]["samples_pending"] == 0);
+  }, 300s);
+  INFO(s.dump());
+  REQUIRE(s["result"]["run"].is_object());
+  REQUIRE(s["result"]["run"]["state"] == "running");
+  REQUIRE(code_of(c->call({{"cmd", "run.abort"}, {"reason", "gap checked"}})) == "ok");
+  for (int unit : {0, 1}) {
+    const auto g = gaps_of(bench.dir / "fogbench.db", run, unit);
+    INFO("unit " << unit);
+    CHECK(g.contiguous);
+    REQUIRE(g.runs.size() == 1);
+    CHECK(g.runs[0].first == static_cast<double>(before));
+    CHECK(g.runs[0].second - g.runs[0].first + 1 >= 850000.0);
+  }
+}

@@ -191,3 +191,17 @@ TEST_CASE("top-level sections") {
   j["chamberr"] = 1;
   CHECK(error_of(j).starts_with("chamberr: unknown field"));
 }
+
+TEST_CASE("a gyro's startup_flag: true unless configured false, anything else named") {
+  json j = example();
+  auto cfg = parse_drivers_config(j, map_dir);
+  REQUIRE(cfg.has_value());
+  CHECK(cfg->units[0].gyro.startup_flag);
+  j["units"][0]["gyro"]["startup_flag"] = false;
+  cfg = parse_drivers_config(j, map_dir);
+  REQUIRE(cfg.has_value());
+  CHECK_FALSE(cfg->units[0].gyro.startup_flag);
+  CHECK(cfg->units[1].gyro.startup_flag);
+  j["units"][0]["gyro"]["startup_flag"] = "no";
+  CHECK(error_of(j).starts_with("units[0].gyro.startup_flag: expected true or false"));
+}

@@ -84,7 +84,11 @@ class SampleWriter {
   // Waits until every row handed over is committed or refused, `timeout` at most. False: rows
   // are still waiting (a stalled disk), and they stay queued.
   virtual bool drain(std::chrono::milliseconds timeout) = 0;
-  // The tag of the oldest hand-over not yet committed or refused; empty when none waits.
+  // The tag of the oldest hand-over not yet committed or refused; empty when none waits. While a
+  // resume's gap is written, and after it, its progress counts: once a slice of it is committed
+  // the answer is no older than the latest tag handed over by then (a gap of any length, and the
+  // seconds queued behind it, are not "stalled" while its slices go in; issue 27: a gap over
+  // some 800,000 s of 2 units took more than the 30 s stall rule and aborted the run).
   virtual std::optional<double> oldest_pending_clock_s() const = 0;
   // Hand-overs (seconds) not yet committed or refused.
   virtual std::size_t pending() const = 0;
@@ -156,6 +160,8 @@ class ThreadedSampleWriter final : public SampleWriter {
   std::condition_variable progress_;  // a batch committed or refused
   std::deque<Batch> queue_;
   std::optional<double> in_flight_clock_s_;  // the oldest tag of the transaction being written
+  std::optional<double> latest_clock_s_;     // the latest tag handed over
+  std::optional<double> gap_progress_clock_s_;  // latest_clock_s_ when a gap's slice was last committed
   std::size_t in_flight_ = 0;                // its hand-overs
   std::deque<SampleWriteFailure> failures_;
   RefusedRuns refused_;

@@ -88,7 +88,21 @@ class Station {
   // they did), the run clock counts the time it was down, and the seconds of that gap are
   // stored flagged missing and link_gap, the profile clock held through them.
   // `now_wall_time` (unix s) measures the gap against the last stored sample's wall time.
+  // Everything on the caller's thread, the stored seconds replayed on this station's store
+  // (tests, the inline offload).
   ApiResult<std::int64_t> resume_run(std::int64_t run_id, double now_wall_time, const nlohmann::json& command);
+  // The same with the replay of the stored seconds (every row of the run read and stepped
+  // through the profile and the live compensation: 0.25 s of loop for 30,000 stored seconds of 2
+  // units, 0.95 s for 300,000) done as a job on the offload (its worker in fogbenchd), so the loop
+  // goes on meanwhile (issue 27, "nothing long runs on the loop"). The checks that need no rows
+  // answer at once through `done`; the rest is decided back on the loop once replayed: the run
+  // taken up with the gap measured at that moment (`now_wall_time` plus the steady time the
+  // replay took). While one is replayed, run.start and another resume are refused `busy`.
+  using ResumeDone = std::function<void(ApiResult<std::int64_t>)>;
+  void resume_run_async(std::int64_t run_id, double now_wall_time, const nlohmann::json& command, JobOrigin origin,
+                        ResumeDone done);
+  // The run whose stored seconds are being replayed for a resume, if any.
+  std::optional<std::int64_t> resuming_run_id() const { return resuming_; }
   // Ends the active run as aborted; the chamber goes back to the safe setpoint at the next tick.
   ApiResult<std::int64_t> abort_run(const std::string& reason, const nlohmann::json& command);
 
@@ -232,6 +246,23 @@ class Station {
   };
 
   static nlohmann::json quality_json(const ActiveRun& run);
+  // A resume in three steps (resume_run): the checks and the run's skeleton on the loop, the
+  // replay of its stored seconds on any store and thread (it touches only the struct), the gap
+  // and the take-over on the loop again.
+  struct ResumeReplay {
+    ActiveRun run;
+    LinkLossConfig::Policy policy = LinkLossConfig::Policy::hold;
+    std::size_t n = 0;                 // seconds stored for every unit
+    std::optional<double> wall_last;   // the wall time of the last second the bench was read
+    double wall_last_t_s = -1.0;       // its run second
+    double last_t_s = -1.0;            // the last stored second
+    std::vector<std::uint64_t> flagged;  // per unit: stored seconds flagged
+  };
+  ApiResult<ResumeReplay> begin_resume(std::int64_t run_id);
+  static ApiResult<void> replay_stored(storage::Store& store, ResumeReplay& r);
+  ApiResult<std::int64_t> finish_resume(ResumeReplay r, double now_wall_time, const nlohmann::json& command);
+  // Why no run may start or be resumed now: a run active or a resume being replayed.
+  std::optional<ApiError> station_busy() const;
   TickOutput tick_station(double clock_s, const TickInput& in);
   // Why no run may start now (the chamber link is down), if so.
   std::optional<ApiError> chamber_unavailable() const;
@@ -284,6 +315,7 @@ class Station {
   std::filesystem::path signing_key_path_;
   Publish publish_;
   std::optional<ActiveRun> run_;
+  std::optional<std::int64_t> resuming_;  // a resume's stored seconds being replayed (resume_run_async)
   double setpoint_c_ = 0.0;      // the setpoint commanded now
   double clock_s_ = 0.0;         // last tick's daemon time
   std::optional<TickInput> last_input_;

@@ -21,6 +21,10 @@ struct GyroChannelConfig {
   double scale_dph_per_count = 0;  // rate mode
   double scale_deg_per_count = 0;  // increment mode
   double frame_rate_hz = 0;        // increment mode: the gyro's nominal output rate
+  // Its frames carry the status bit `warming_up` after a power-on (docs/can-frames.md
+  // "Power-on"), the evidence a power-on is known by. False ("startup_flag": false): a gyro kind
+  // without it, whose power-on cannot be known from its frames (its runs say so in a note).
+  bool startup_flag = true;
 
   // The mean of the counts of a sample's frames as a rate in deg/h. In increment mode the mean
   // increment per frame times the nominal frame rate: a lost frame then leaves the rate unbiased,
