@@ -219,6 +219,84 @@ class Assessor {
     return true;
   }
 
+  // A witness of a thermistor's stuck check: a temperature that leads it (or the setpoint) and
+  // the thermistor's lag behind it, s.
+  struct Witness {
+    std::string name;
+    const std::vector<double>* x;
+    double lag_s;
+  };
+
+  // The witnesses of s: the setpoint, the air and the coil's twin (T1 centre, T2 outer wall),
+  // each with s's lag behind it: the cross-correlation peak of the rates (lag_behind), clamped
+  // to 0..max_lag_scan_s, or the coil's bound when the run cannot measure it (no ramp, too
+  // short), plus stuck_lag_margin_s for the spread of a coil's response (the peak is near the
+  // median of the delay, a coil's first-minute rise near its end).
+  std::vector<Witness> witnesses_of(const Sensor& s, const std::vector<char>& bad) {
+    const auto& x = *s.x;
+    std::vector<char> ok(n_, 0);
+    for (std::size_t i = 0; i < n_; ++i) ok[i] = !bad[i] && !known_bad(i) && std::isfinite(x[i]);
+    const auto own = bridged(x, ok);
+    const bool measurable = !own.empty() && std::isfinite(own[0]);
+    const auto own_rate = measurable ? derivative_per_min(own, 1.0) : std::vector<double>{};
+    const int k = static_cast<int>(o_.max_lag_scan_s);
+    std::vector<Witness> out;
+    auto add_witness = [&](const std::string& name, const std::vector<double>& y, double bound_s) {
+      if (y.empty() || &y == s.x) return;
+      std::vector<char> yok(n_, 0);
+      for (std::size_t i = 0; i < n_; ++i) yok[i] = std::isfinite(y[i]) && y[i] > o_.min_temp_c && y[i] < o_.max_temp_c;
+      const auto yb = bridged(y, yok);
+      if (yb.empty() || !std::isfinite(yb[0])) return;
+      std::optional<double> lag;
+      if (measurable) lag = lag_behind(derivative_per_min(yb, 1.0), own_rate, k);
+      // A witness leads s (lag >= 0), except the coil's thermistors witnessing the air (<= 0).
+      const double lo = bound_s < 0 ? -o_.max_lag_scan_s : 0.0, hi = bound_s < 0 ? 0.0 : o_.max_lag_scan_s;
+      const double l = lag ? std::clamp(*lag, lo, hi) : bound_s;
+      out.push_back({name, &y, l + o_.stuck_lag_margin_s});
+    };
+    const double core = o_.max_core_lag_s, wall = o_.max_wall_lag_s, air = o_.max_air_lag_s;
+    if (s.name == "T1") {
+      add_witness("T2", run_.t2_c, core);
+      add_witness("Ta", run_.chamber_c, core + wall);
+      add_witness("the setpoint", run_.setpoint_c, core + wall + air);
+    } else if (s.name == "T2") {
+      // The centre follows the wall: T1 still moves after the wall has settled, so it is a
+      // witness (looked at later) only when neither the air nor the setpoint is recorded.
+      add_witness("Ta", run_.chamber_c, wall);
+      add_witness("the setpoint", run_.setpoint_c, wall + air);
+      if (!run_.has_chamber() && !run_.has_setpoint()) add_witness("T1", run_.t1_c, -core);
+    } else if (run_.has_setpoint()) {
+      // The air's only witness is the setpoint: the coil follows the air, so its thermistors
+      // still move for many minutes after the air has settled.
+      add_witness("the setpoint", run_.setpoint_c, air);
+    } else {
+      // No setpoint: the coil's thermistors, looked at later by their lag behind the air.
+      add_witness("T2", run_.t2_c, -wall);
+      add_witness("T1", run_.t1_c, -wall - core);
+    }
+    return out;
+  }
+
+  // The smallest of y's moves (max - min over its in-range readings, degC) over the interval
+  // shifted back by lag_s and by lag_s - stuck_lag_margin_s (forward when negative): the margin
+  // only ever lowers the evidence, at a ramp's start and at its end alike. 0 when the window is
+  // outside the run.
+  double shifted_move(const std::vector<double>& y, Interval iv, double lag_s) const {
+    auto move_at = [&](double shift_s) {
+      const auto sh = static_cast<long>(std::lround(shift_s));
+      const long a = static_cast<long>(iv.first) - sh, b = static_cast<long>(iv.last) - sh;
+      const long end = static_cast<long>(n_) - 1;
+      if (b < 0 || a > end) return 0.0;
+      double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+      for (long i = std::max(0L, a); i <= std::min(b, end); ++i) {
+        const double v = y[static_cast<std::size_t>(i)];
+        if (std::isfinite(v) && v > o_.min_temp_c && v < o_.max_temp_c) lo = std::min(lo, v), hi = std::max(hi, v);
+      }
+      return hi > lo ? hi - lo : 0.0;
+    };
+    return std::min(move_at(lag_s), move_at(lag_s - o_.stuck_lag_margin_s));
+  }
+
   // Dropouts, values out of the coil's range and stuck readings of one thermistor.
   void readings(const Sensor& s, std::vector<char>& bad) {
     const auto& x = *s.x;
@@ -265,26 +343,30 @@ class Assessor {
     }
     for (std::size_t i = 0; i < n_; ++i) bad[i] = nan[i] || out[i];
     // Stuck: exact repeats of an in-range reading while another temperature moves.
-    std::vector<char> same(n_, 0);
-    for (std::size_t i = 1; i < n_; ++i)
-      if (!bad[i] && !bad[i - 1] && !known_bad(i) && x[i] == x[i - 1]) same[i - 1] = same[i] = 1;
-    for (const auto& iv : runs_of(same)) {
+    // Runs of one value (a mask of "equals its neighbour" would merge 20.00, 20.00, 20.01,
+    // 20.01, ... into one run: a coarse thermistor on a slow ramp would be stuck for the whole run).
+    std::vector<Interval> repeats;
+    for (std::size_t i = 1; i < n_; ++i) {
+      if (bad[i] || bad[i - 1] || known_bad(i) || x[i] != x[i - 1]) continue;
+      if (!repeats.empty() && repeats.back().last == i - 1 && x[repeats.back().first] == x[i]) repeats.back().last = i;
+      else repeats.push_back({i - 1, i});
+    }
+    std::vector<Witness> witnesses;
+    bool prepared = false;
+    for (const auto& iv : repeats) {
       const double dur = static_cast<double>(iv.size());
       if (dur < o_.stuck_min_s) continue;
-      // The largest move of any other temperature over the interval.
+      if (!prepared) witnesses = witnesses_of(s, bad), prepared = true;
+      // The evidence that s should have moved: each witness's move over the interval shifted
+      // back by s's lag behind it (a coil's centre follows the air minutes late, so at a ramp's
+      // start it legitimately stays put), the largest over the witnesses (docs/data-quality.md).
       double move = 0.0;
       std::string mover;
-      auto span_of = [&](const std::vector<double>& y, const std::string& who) {
-        if (y.empty() || &y == s.x) return;
-        double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-        for (std::size_t i = iv.first; i <= iv.last; ++i)
-          if (std::isfinite(y[i]) && y[i] > o_.min_temp_c && y[i] < o_.max_temp_c) lo = std::min(lo, y[i]), hi = std::max(hi, y[i]);
-        if (hi - lo > move) move = hi - lo, mover = who;
-      };
-      span_of(run_.t1_c, "T1");
-      span_of(run_.t2_c, "T2");
-      span_of(run_.chamber_c, "Ta");
-      span_of(run_.setpoint_c, "the setpoint");
+      for (const auto& w : witnesses) {
+        const double m = shifted_move(*w.x, iv, w.lag_s);
+        if (m > move) move = m, mover = w.name + " (" + num(std::abs(w.lag_s), 0) + " s " + (w.lag_s >= 0 ? "earlier" : "later") +
+                                      ", its lead on " + s.name + " with a margin)";
+      }
       if (move <= o_.stuck_move_c) continue;
       for (std::size_t i = iv.first; i <= iv.last; ++i) bad[i] = 1;
       const bool whole = 2 * iv.size() > n_;
@@ -573,7 +655,7 @@ std::expected<void, std::string> QualityOptions::validate() const {
   if (!(std::isfinite(min_temp_c) && std::isfinite(max_temp_c) && min_temp_c < max_temp_c))
     return std::unexpected("min_temp_c must be below max_temp_c (degC), got " + num(min_temp_c) + " and " + num(max_temp_c));
   const std::pair<const char*, double> must_be_positive[] = {
-      {"stuck_min_s", stuck_min_s}, {"stuck_move_c", stuck_move_c}, {"max_bridge_s", max_bridge_s},
+      {"stuck_min_s", stuck_min_s}, {"stuck_move_c", stuck_move_c}, {"stuck_lag_margin_s", stuck_lag_margin_s}, {"max_bridge_s", max_bridge_s},
       {"max_noise_c", max_noise_c}, {"max_air_noise_c", max_air_noise_c}, {"noise_window_s", noise_window_s},
       {"max_offset_c", max_offset_c}, {"settled_rate_c_per_min", settled_rate_c_per_min}, {"settled_min_s", settled_min_s},
       {"min_rate_c_per_min", min_rate_c_per_min}, {"max_lag_scan_s", max_lag_scan_s}, {"spike_sigma", spike_sigma},

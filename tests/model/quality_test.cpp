@@ -134,3 +134,136 @@ TEST_CASE("quality: identification warnings of a fit", "[quality]") {
   REQUIRE_FALSE(w.empty());
   CHECK_THAT(w.back(), Contains("too short for the lag range"));
 }
+
+namespace {
+
+// A bench run with a recorded setpoint: a 600 s hold at 20 degC, a ramp of 10 degC at
+// rate_c_per_min, a 1800 s hold, the ramp back and a 1200 s hold. The air follows the setpoint
+// by a first-order lag of 43 s, the outer wall (T2) the air by tau_wall_s, the coil's centre
+// (T1) the wall by tau_core_s (Euler steps of 0.1 s); every thermistor rounded to resolution_c,
+// no noise: the longest a real thermistor can stay put.
+RunData lagged_bench(double rate_c_per_min, double tau_wall_s, double tau_core_s, double resolution_c) {
+  const double ramp_s = 10.0 / rate_c_per_min * 60.0;
+  const double n_s = 600 + ramp_s + 1800 + ramp_s + 1200;
+  auto sp = [&](double t) {
+    if (t < 600) return 20.0;
+    if (t < 600 + ramp_s) return 20.0 + (t - 600) * rate_c_per_min / 60;
+    if (t < 2400 + ramp_s) return 30.0;
+    if (t < 2400 + 2 * ramp_s) return 30.0 - (t - 2400 - ramp_s) * rate_c_per_min / 60;
+    return 20.0;
+  };
+  auto q = [&](double v) { return std::round(v / resolution_c) * resolution_c; };
+  RunData r;
+  r.name = "lagged bench";
+  double ta = 20, t2 = 20, t1 = 20;
+  for (std::size_t i = 0; static_cast<double>(i) < n_s; ++i) {
+    const double t = static_cast<double>(i);
+    r.time_s.push_back(t);
+    r.setpoint_c.push_back(sp(t));
+    r.chamber_c.push_back(q(ta));
+    r.t2_c.push_back(q(t2));
+    r.t1_c.push_back(q(t1));
+    r.gyro_dph.push_back(-8.0);
+    for (int s = 0; s < 10; ++s) {
+      const double u = t + 0.1 * s;
+      ta += 0.1 * (sp(u) - ta) / 43.0;
+      t2 += 0.1 * (ta - t2) / tau_wall_s;
+      t1 += 0.1 * (t2 - t1) / tau_core_s;
+    }
+  }
+  return r;
+}
+
+std::vector<QualityFlag> stuck_flags(const QualityReport& q, const std::string& sensor) {
+  std::vector<QualityFlag> out;
+  for (const auto& f : q.flags)
+    if (f.kind == QualityKind::stuck && f.sensor == sensor) out.push_back(f);
+  return out;
+}
+
+std::string all_messages(const QualityReport& q) {
+  std::string s;
+  for (const auto& f : q.flags) s += f.message() + "\n";
+  return s;
+}
+
+// The longest run of exact repeats of x, s.
+double longest_repeat_s(const std::vector<double>& x) {
+  std::size_t best = 0, cur = 1;
+  for (std::size_t i = 1; i < x.size(); ++i) {
+    cur = x[i] == x[i - 1] ? cur + 1 : 1;
+    best = std::max(best, cur);
+  }
+  return static_cast<double>(best);
+}
+
+struct Coil {
+  const char* name;
+  double tau_wall_s, tau_core_s;
+};
+// The mock bench's coil (its centre 68 s at 20.00 degC at a ramp's start, last session's false
+// alarm), and a big coil whose centre lags the air by 3..5 min.
+constexpr Coil kLaggedCoils[] = {{"mock", 105, 38}, {"big", 150, 120}, {"big, slow centre", 120, 180}};
+
+}  // namespace
+
+TEST_CASE("quality: a coil's centre lagging the air at a ramp's start is not stuck", "[quality][stuck]") {
+  for (const auto& coil : kLaggedCoils)
+    for (double rate : {2.0, 1.0, 0.2})
+      for (double res : {0.01, 0.1}) {
+        const auto r = lagged_bench(rate, coil.tau_wall_s, coil.tau_core_s, res);
+        INFO(coil.name << " coil, " << rate << " degC/min, resolution " << res << " degC");
+        // The case is real: the centre stays put a minute or more after the air moved.
+        if (res == 0.01 && rate == 1.0) CHECK(longest_repeat_s(r.t1_c) >= 60);
+        const auto q = assess_quality(r);
+        INFO(all_messages(q));
+        CHECK(stuck_flags(q, "T1").empty());
+        CHECK(stuck_flags(q, "T2").empty());
+        CHECK(stuck_flags(q, "Ta").empty());
+      }
+}
+
+TEST_CASE("quality: a thermistor truly stuck is still named, mid-ramp, over a whole ramp, from a ramp's start", "[quality][stuck]") {
+  for (const auto& coil : kLaggedCoils)
+    for (const std::string sensor : {"T1", "T2"}) {
+      INFO(coil.name << " coil, " << sensor);
+      auto col = [&](RunData& r) -> std::vector<double>& { return sensor == "T1" ? r.t1_c : r.t2_c; };
+      {
+        // Frozen 5 min in the middle of a 10 min ramp at 1 degC/min (600..1200 s).
+        auto r = lagged_bench(1.0, coil.tau_wall_s, coil.tau_core_s, 0.01);
+        for (std::size_t i = 900; i < 1200; ++i) col(r)[i] = col(r)[900];
+        const auto q = assess_quality(r);
+        INFO(all_messages(q));
+        const auto f = stuck_flags(q, sensor);
+        REQUIRE(f.size() == 1);
+        CHECK(f[0].start_s <= 900);
+        CHECK(f[0].end_s >= 1199);
+      }
+      {
+        // Frozen from the ramp's start to 10 minutes after its end.
+        auto r = lagged_bench(1.0, coil.tau_wall_s, coil.tau_core_s, 0.01);
+        for (std::size_t i = 600; i < 1800; ++i) col(r)[i] = col(r)[600];
+        const auto q = assess_quality(r);
+        INFO(all_messages(q));
+        const auto f = stuck_flags(q, sensor);
+        REQUIRE(f.size() == 1);
+        CHECK(f[0].start_s <= 600);
+        CHECK(f[0].end_s >= 1799);
+      }
+      {
+        // Frozen over the hold that follows the ramp, 10 min after the coil settled: nothing
+        // moves, no evidence of sticking, no flag (a sensor still during a hold is not stuck).
+        auto r = lagged_bench(1.0, coil.tau_wall_s, coil.tau_core_s, 0.01);
+        for (std::size_t i = 2700; i < 3000; ++i) col(r)[i] = col(r)[2700];
+        const auto q = assess_quality(r);
+        INFO(all_messages(q));
+        CHECK(stuck_flags(q, sensor).empty());
+      }
+    }
+  // The mock coil frozen for 8 min from the ramp's start while its wall and the air move by degrees.
+  auto r = lagged_bench(1.0, 105, 38, 0.01);
+  for (std::size_t i = 600; i < 1080; ++i) r.t1_c[i] = 20.0;
+  const auto q = assess_quality(r);
+  INFO(all_messages(q));
+  REQUIRE(stuck_flags(q, "T1").size() == 1);
+}

@@ -61,8 +61,14 @@ struct QualityOptions {
   // A reading repeating exactly for this long while another temperature moves by more than
   // stuck_move_c is stuck. A thermistor with a resolution of 0.01 degC on a 0.005 degC noise
   // changes value every few seconds; a moving coil changes it anyway.
+  // "Another temperature moves" is judged lag-aware: each witness (the setpoint, the air, the
+  // coil's twin) over the interval shifted back by the thermistor's measured lag behind it
+  // (cross-correlation of the rates; the coil's bound when not measurable), and shifted by
+  // stuck_lag_margin_s more, the smaller move of the two counting: a coil's centre that stays
+  // put for a minute or more at a ramp's start is the coil lagging the air, not a stuck sensor.
   double stuck_min_s = 60.0;
   double stuck_move_c = 0.5;
+  double stuck_lag_margin_s = 60.0;
   // Dropouts (NaN not flagged missing) up to this long are bridged by default (the fits
   // interpolate flagged temperatures): at 2 degC/min a linear bridge of 60 s is exact on a ramp
   // and off by at most the curvature at a corner.
