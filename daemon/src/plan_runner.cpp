@@ -473,7 +473,12 @@ bool PlanRunner::advance(std::int64_t plan_id, double wall_time) {
                    run_id, step_index + 1);
       station_.analyse_units(run_id, detail->run.purpose, serials, missing);
     }
-    progress["waiting"] = "analysis";
+    // Saved (once, when it changes), so that status, also after a restart, shows what the plan
+    // waits for; not saved every tick while it stays the same.
+    if (progress.value("waiting", json()) != "analysis") {
+      progress["waiting"] = "analysis";
+      save(plan_id, "running", "", progress);
+    }
     return false;
   }
   judge(plan_id, progress, *plan, notes, run_id);
