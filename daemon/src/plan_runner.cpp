@@ -8,7 +8,6 @@
 #include <cmath>
 #include <cstdio>
 
-#include "fogbench/daemon/station.hpp"
 #include "fogbench/model/allan.hpp"
 #include "fogbench/model/firmware.hpp"
 #include "fogbench/model/json.hpp"
@@ -90,7 +89,7 @@ AllanFigures allan_figures(const model::RunData& run) {
 
 }  // namespace
 
-const std::vector<drivers::UnitConfig>& PlanRunner::bench_slots() const { return station_.config().drivers.units; }
+const std::vector<drivers::UnitConfig>& PlanRunner::bench_slots() const { return runs_.bench_units(); }
 
 namespace {
 
@@ -127,12 +126,12 @@ ApiResult<plans::Plan> PlanRunner::check(const std::string& text, const std::str
   if (auto placed = plan_slot_units(bench_slots(), units, slots); !placed) return std::unexpected(placed.error());
   bool fitted = false;
   for (const plans::Step& s : p->steps) {
-    auto prof = station_.load_profile(s.profile);
+    auto prof = runs_.load_profile(s.profile);
     if (!prof) return api_error(prof.error().code, at_line(*p, s.line) + "step " + s.profile + ": " + prof.error().message);
     if (s.purpose == plans::StepPurpose::fit) fitted = true;
     if (s.purpose == plans::StepPurpose::verify && !fitted) {
       for (const auto& serial : units) {
-        auto m = const_cast<Station&>(station_).store().current_model(serial);
+        auto m = store_.current_model(serial);
         if (!m) return std::unexpected(from_store(m.error()));
         if (!*m)
           return api_error(ErrorCode::unknown_serial, at_line(*p, s.line) + "step " + s.profile +
@@ -152,7 +151,7 @@ ApiResult<json> PlanRunner::validate(const std::string& text, const std::string&
   double nominal_s = 0.0;
   json steps = json::array(), limits = json::array();
   for (const auto& s : p->steps) {
-    auto prof = station_.load_profile(s.profile);
+    auto prof = runs_.load_profile(s.profile);
     const double d = prof ? prof->nominal_duration_s() : 0.0;
     nominal_s += d;
     steps.push_back({{"profile", s.profile}, {"purpose", std::string(plans::to_string(s.purpose))}, {"line", s.line},
@@ -165,7 +164,7 @@ ApiResult<json> PlanRunner::validate(const std::string& text, const std::string&
 std::optional<std::string> PlanRunner::slot_change_refusal(const std::vector<drivers::UnitConfig>& next) const {
   const auto& now = bench_slots();
   for (const char* state : {"running", "queued"}) {
-    auto plans = const_cast<Station&>(station_).store().list_plans(state);
+    auto plans = store_.list_plans(state);
     if (!plans) continue;  // the store's error is the next step's to report
     for (const auto& rec : *plans)
       for (const auto& serial : rec.units) {
@@ -188,18 +187,18 @@ std::optional<std::string> PlanRunner::slot_change_refusal(const std::vector<dri
 }
 
 std::optional<std::int64_t> PlanRunner::running_plan_id() const {
-  auto r = const_cast<Station&>(station_).store().list_plans("running");
+  auto r = store_.list_plans("running");
   if (!r || r->empty()) return std::nullopt;
   return r->front().id;
 }
 
 void PlanRunner::plan_event(std::optional<std::int64_t> plan_id, const std::string& kind, const json& detail) {
-  if (auto ok = station_.store().add_plan_event(plan_id, kind, detail.dump()); !ok)
+  if (auto ok = store_.add_plan_event(plan_id, kind, detail.dump()); !ok)
     spdlog::error("plan {}: could not store the event {}: {}", plan_id.value_or(0), kind, ok.error().message);
 }
 
 void PlanRunner::save(std::int64_t plan_id, const std::string& state, const std::string& reason, const json& progress) {
-  if (auto ok = station_.store().update_plan(plan_id, state, reason, progress.dump()); !ok)
+  if (auto ok = store_.update_plan(plan_id, state, reason, progress.dump()); !ok)
     spdlog::error("plan {}: could not store its progress: {}", plan_id, ok.error().message);
 }
 
@@ -221,12 +220,12 @@ ApiResult<json> PlanRunner::start(const std::string& text, const std::string& so
   if (!p) return std::unexpected(p.error());
   if (auto running = running_plan_id())
     return api_error(ErrorCode::busy, "plan " + std::to_string(*running) + " is running: queue this one (queue.add)");
-  if (auto run = station_.active_run_id())
+  if (auto run = runs_.active_run_id())
     return api_error(ErrorCode::busy, "run " + std::to_string(*run) + " is active: queue the plan (queue.add)");
   storage::NewPlan np{p->name, source, text, units, "running", trace.op.name, trace.op.source, trace.lots, trace.slots};
   json detail = command;
   detail.update(plan_trace_json(trace.op.name, trace.op.source, trace.lots));
-  auto id = station_.store().create_plan(np, "plan.start", detail.dump());
+  auto id = store_.create_plan(np, "plan.start", detail.dump());
   if (!id) return std::unexpected(from_store(id.error()));
   save(*id, "running", "", initial_progress(*p, units));
   json j = {{"plan_id", *id}, {"name", p->name}, {"state", "running"}, {"steps", p->steps.size()}};
@@ -235,7 +234,7 @@ ApiResult<json> PlanRunner::start(const std::string& text, const std::string& so
 }
 
 ApiResult<json> PlanRunner::status(std::optional<std::int64_t> plan_id) const {
-  auto& store = const_cast<Station&>(station_).store();
+  auto& store = store_;
   storage::PlanRecord rec;
   if (plan_id) {
     auto r = store.get_plan(*plan_id);
@@ -268,8 +267,8 @@ ApiResult<json> PlanRunner::status(std::optional<std::int64_t> plan_id) const {
     j["steps"] = steps;
   }
   if (rec.state == "running") {
-    if (auto run = station_.active_run_id(); run && progress.value("run_id", json()) == *run) {
-      auto st = station_.status();
+    if (auto run = runs_.active_run_id(); run && progress.value("run_id", json()) == *run) {
+      auto st = runs_.status();
       j["run"] = st.contains("run") ? st["run"] : json(nullptr);
     }
   }
@@ -279,13 +278,13 @@ ApiResult<json> PlanRunner::status(std::optional<std::int64_t> plan_id) const {
 ApiResult<json> PlanRunner::abort(const std::string& reason, const json& command) {
   auto id = running_plan_id();
   if (!id) return api_error(ErrorCode::not_found, "no plan is running");
-  auto rec = station_.store().get_plan(*id);
+  auto rec = store_.get_plan(*id);
   if (!rec) return std::unexpected(from_store(rec.error()));
   json progress = json::parse(rec->progress_json, nullptr, false);
   const std::string why = "aborted by operator" + (reason.empty() ? std::string() : ": " + reason);
   plan_event(*id, "plan.abort", command);
-  if (auto run = station_.active_run_id(); run && progress.value("run_id", json()) == *run)
-    (void)station_.abort_run(why + " (plan " + std::to_string(*id) + ")", command);
+  if (auto run = runs_.active_run_id(); run && progress.value("run_id", json()) == *run)
+    (void)runs_.abort_run(why + " (plan " + std::to_string(*id) + ")", command);
   finish_plan(*id, progress, "aborted", why);
   return json{{"plan_id", *id}, {"state", "aborted"}};
 }
@@ -293,7 +292,7 @@ ApiResult<json> PlanRunner::abort(const std::string& reason, const json& command
 void PlanRunner::decide_unit(std::int64_t plan_id, json& progress, json& unit) {
   if (unit.value("decided", false)) return;
   unit["decided"] = true;
-  auto& store = station_.store();
+  auto& store = store_;
   auto rec = store.get_plan(plan_id);
   if (!rec) {
     spdlog::error("plan {}: cannot read it to store the verdict of {}: {}", plan_id, unit.value("serial", ""),
@@ -305,7 +304,7 @@ void PlanRunner::decide_unit(std::int64_t plan_id, json& progress, json& unit) {
   if (auto m = store.current_model(serial); m && *m) model_id = (*m)->id;
   auto v = verdict::from_plan(plan_id, rec->name, rec->plan_text, unit, progress["runs"], model_id);
   if (!v) return;  // the unit never ran: the plan's status says incomplete, nothing to certify
-  auto cert = station_.decide(*v, true);  // the run again to the plant, with its verdict
+  auto cert = runs_.decide(*v, true);  // the run again to the plant, with its verdict
   if (cert) unit["certificate_sha256"] = *cert;
   else if (cert.error().code != ErrorCode::not_found)  // not_found: no model, so no certificate
     spdlog::error("plan {}: the verdict of {} ({}): {}", plan_id, serial, v->verdict, cert.error().message);
@@ -337,9 +336,9 @@ void PlanRunner::after_tick(double clock_s, double wall_time) {
   }
   // The queue: the next plan starts when the chamber is free (no run active), looked at once
   // per daemon second at most.
-  if (clock_s - last_queue_look_s_ < 1.0 || station_.active_run_id()) return;
+  if (clock_s - last_queue_look_s_ < 1.0 || runs_.active_run_id()) return;
   last_queue_look_s_ = clock_s;
-  auto queued = station_.store().list_plans("queued");
+  auto queued = store_.list_plans("queued");
   if (!queued || queued->empty()) return;
   const auto& next = queued->front();
   auto p = check(next.plan_text, next.source, next.units, next.slots);
@@ -357,7 +356,7 @@ void PlanRunner::after_tick(double clock_s, double wall_time) {
 }
 
 bool PlanRunner::advance(std::int64_t plan_id, double wall_time) {
-  auto rec = station_.store().get_plan(plan_id);
+  auto rec = store_.get_plan(plan_id);
   if (!rec) return false;
   auto plan = plans::parse_plan(rec->plan_text, rec->source);
   json progress = json::parse(rec->progress_json, nullptr, false);
@@ -374,7 +373,7 @@ bool PlanRunner::advance(std::int64_t plan_id, double wall_time) {
   const plans::Step& step = plan->steps[step_index];
 
   if (progress["run_id"].is_null()) {
-    if (station_.active_run_id()) return false;  // someone else's run: wait for the chamber
+    if (runs_.active_run_id()) return false;  // someone else's run: wait for the chamber
     std::vector<std::string> units;
     if (progress["step_units"].is_array()) {
       for (const auto& s : progress["step_units"]) units.push_back(s.get<std::string>());
@@ -398,7 +397,7 @@ bool PlanRunner::advance(std::int64_t plan_id, double wall_time) {
                   at_line(*plan, step.line) + "step " + step.profile + " could not start: " + placed.error().message);
       return false;
     }
-    auto run = station_.start_run_in_slots(step.profile, *placed, run_purpose(step.purpose), command,
+    auto run = runs_.start_run_in_slots(step.profile, *placed, run_purpose(step.purpose), command,
                                   OperatorId{rec->operator_name, rec->operator_source});
     if (!run) {
       if (run.error().code == ErrorCode::unavailable || run.error().code == ErrorCode::busy) return false;  // try again
@@ -406,7 +405,7 @@ bool PlanRunner::advance(std::int64_t plan_id, double wall_time) {
                   at_line(*plan, step.line) + "step " + step.profile + " could not start: " + run.error().message);
       return false;
     }
-    if (!analysed(step.purpose)) station_.skip_analysis(*run);
+    if (!analysed(step.purpose)) runs_.skip_analysis(*run);
     progress["run_id"] = *run;
     progress["step_units"] = units;
     progress["waiting"] = "run";
@@ -419,25 +418,25 @@ bool PlanRunner::advance(std::int64_t plan_id, double wall_time) {
   }
 
   const auto run_id = progress["run_id"].get<std::int64_t>();
-  if (station_.active_run_id() == run_id) return false;
-  if (station_.resuming_run_id() == run_id) return false;  // its stored seconds being replayed
-  auto detail = station_.store().get_run(run_id);
+  if (runs_.active_run_id() == run_id) return false;
+  if (runs_.resuming_run_id() == run_id) return false;  // its stored seconds being replayed
+  auto detail = store_.get_run(run_id);
   if (!detail) return false;
   const auto state = detail->run.state;
   if (state == storage::RunState::interrupted || state == storage::RunState::pending) {
     // The daemon stopped during the step: the run is taken up again as run.resume does.
     json command = {{"cmd", "plan.resume"}, {"plan_id", plan_id}, {"run_id", run_id}};
-    // The stored seconds are replayed off the loop (Station::resume_run_async); the plan goes
+    // The stored seconds are replayed off the loop (RunControl::resume_run_async); the plan goes
     // on once the run is taken up. Refused `busy` or `unavailable`: tried again at a later tick.
     const bool skip = !analysed(step.purpose);
-    station_.resume_run_async(run_id, wall_time, command, {JobClass::station, {}},
-                              [this, plan_id, run_id, step_index, skip](ApiResult<std::int64_t> r) {
-      if (r && skip) station_.skip_analysis(run_id);
+    runs_.resume_run_async(run_id, wall_time, command, {JobClass::station, {}},
+                           [this, plan_id, run_id, step_index, skip](ApiResult<std::int64_t> r) {
+      if (r && skip) runs_.skip_analysis(run_id);
       if (r) {
         plan_event(plan_id, "plan.resume", {{"step", step_index + 1}, {"run_id", run_id}});
         spdlog::info("plan {}: run {} of step {} resumed", plan_id, run_id, step_index + 1);
       } else if (r.error().code != ErrorCode::unavailable && r.error().code != ErrorCode::busy) {
-        auto now_rec = station_.store().get_plan(plan_id);
+        auto now_rec = store_.get_plan(plan_id);
         if (!now_rec || now_rec->state != "running") return;  // aborted meanwhile
         json now = json::parse(now_rec->progress_json, nullptr, false);
         if (!now.is_object()) return;
@@ -463,7 +462,7 @@ bool PlanRunner::advance(std::int64_t plan_id, double wall_time) {
     if (d.is_object() && d.contains("analysis") && d.contains("unit")) notes.push_back(d);
   }
   if (notes.size() < detail->run.units.size()) {
-    if (!station_.analysing(run_id)) {
+    if (!runs_.analysing(run_id)) {
       // Nobody computes it: the daemon was killed between the run's end and the storage of its
       // analysis. Done again now from the stored samples, for the units without a note (the
       // units with one keep theirs); a failure is noted and judged as any failed analysis.
@@ -481,9 +480,14 @@ bool PlanRunner::advance(std::int64_t plan_id, double wall_time) {
                   {"reason", "the run completed but its analysis was never stored (the daemon stopped)"}});
       spdlog::warn("plan {}: run {} of step {} completed without its analysis stored: analysing it again", plan_id,
                    run_id, step_index + 1);
-      station_.analyse_units(run_id, detail->run.purpose, serials, missing);
+      runs_.analyse_units(run_id, detail->run.purpose, serials, missing);
     }
-    progress["waiting"] = "analysis";
+    // Saved (once, when it changes), so that status, also after a restart, shows what the plan
+    // waits for; not saved every tick while it stays the same.
+    if (progress.value("waiting", json()) != "analysis") {
+      progress["waiting"] = "analysis";
+      save(plan_id, "running", "", progress);
+    }
     return false;
   }
   judge(plan_id, progress, *plan, notes, run_id);
@@ -515,7 +519,7 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
   const auto step_index = progress["step"].get<std::size_t>();
   const plans::Step& step = plan.steps[step_index];
   const bool retest_attempt = progress["attempt"].get<int>() > 0;
-  auto& store = station_.store();
+  auto& store = store_;
   for (const auto& note : notes) {
     const int unit_index = note["unit"].get<int>();
     const std::string serial = note.value("serial", "");
@@ -643,7 +647,7 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
 // ------------------------------------------------------------------ the queue
 
 ApiResult<json> PlanRunner::queue_list() const {
-  auto q = const_cast<Station&>(station_).store().list_plans("queued");
+  auto q = store_.list_plans("queued");
   if (!q) return std::unexpected(from_store(q.error()));
   json arr = json::array();
   std::int64_t pos = 1;
@@ -666,7 +670,7 @@ ApiResult<json> PlanRunner::queue_add(const std::string& text, const std::string
   storage::NewPlan np{p->name, source, text, units, "queued", trace.op.name, trace.op.source, trace.lots, trace.slots};
   json detail = command;
   detail.update(plan_trace_json(trace.op.name, trace.op.source, trace.lots));
-  auto id = station_.store().create_plan(np, "queue.add", detail.dump());
+  auto id = store_.create_plan(np, "queue.add", detail.dump());
   if (!id) return std::unexpected(from_store(id.error()));
   auto q = queue_list();
   if (!q) return q;
@@ -693,16 +697,16 @@ ApiResult<std::vector<std::int64_t>> queued_ids(storage::Store& store, std::int6
 }  // namespace
 
 ApiResult<json> PlanRunner::queue_remove(std::int64_t plan_id, const json& command) {
-  auto ids = queued_ids(station_.store(), plan_id, "queue.remove takes out");
+  auto ids = queued_ids(store_, plan_id, "queue.remove takes out");
   if (!ids) return std::unexpected(ids.error());
   std::erase(*ids, plan_id);
-  if (auto ok = station_.store().set_queue(*ids, plan_id, "queue.remove", command.dump()); !ok)
+  if (auto ok = store_.set_queue(*ids, plan_id, "queue.remove", command.dump()); !ok)
     return std::unexpected(from_store(ok.error()));
   return json{{"plan_id", plan_id}, {"state", "aborted"}, {"reason", "removed from the queue"}};
 }
 
 ApiResult<json> PlanRunner::queue_move(std::int64_t plan_id, std::int64_t position, const json& command) {
-  auto ids = queued_ids(station_.store(), plan_id, "queue.move moves");
+  auto ids = queued_ids(store_, plan_id, "queue.move moves");
   if (!ids) return std::unexpected(ids.error());
   if (position < 1 || position > static_cast<std::int64_t>(ids->size()))
     return api_error(ErrorCode::bad_request, "position: expected 1.." + std::to_string(ids->size()) + ", found " +
@@ -710,7 +714,7 @@ ApiResult<json> PlanRunner::queue_move(std::int64_t plan_id, std::int64_t positi
   std::erase(*ids, plan_id);
   ids->insert(ids->begin() + (position - 1), plan_id);
   json detail = command;
-  if (auto ok = station_.store().set_queue(*ids, std::nullopt, "queue.move", detail.dump()); !ok)
+  if (auto ok = store_.set_queue(*ids, std::nullopt, "queue.move", detail.dump()); !ok)
     return std::unexpected(from_store(ok.error()));
   return json{{"plan_id", plan_id}, {"position", position}, {"queue", *ids}};
 }

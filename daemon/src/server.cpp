@@ -571,7 +571,7 @@ std::expected<void, Server::StartError> Server::start() {
     m.web = std::make_unique<web::WebServer>(m.io, *m.handler, *m.config.web, token, std::move(hooks));
     if (auto ok = m.web->bind(); !ok) return fail(ok.error());
   }
-  m.plans = std::make_unique<PlanRunner>(*m.station);
+  m.plans = std::make_unique<PlanRunner>(*m.station, m.station->store());
   m.station->set_plan_runner(m.plans.get());  // where the handler finds it
   m.station->add_tick_listener(m.plans.get());  // the runner listens to the ticks
   // The analysis worker reads through its own connection (WAL: beside the loop's writes). A

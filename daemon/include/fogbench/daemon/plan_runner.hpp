@@ -18,13 +18,13 @@
 
 #include "fogbench/daemon/api.hpp"
 #include "fogbench/daemon/bench_slots.hpp"
+#include "fogbench/daemon/run_control.hpp"
 #include "fogbench/daemon/run_identity.hpp"
 #include "fogbench/daemon/tick_input.hpp"
 #include "fogbench/plans/plan.hpp"
+#include "fogbench/storage/store.hpp"
 
 namespace fogbench::daemon {
-
-class Station;
 
 // Who starts a plan and the lot of each of its units (issue 24): stored with the plan and given
 // to every run it starts (each run's identity names the operator, each unit of it its lot).
@@ -41,7 +41,9 @@ nlohmann::json plan_trace_json(const std::string& operator_name, const std::stri
 
 class PlanRunner final : public TickListener {
  public:
-  explicit PlanRunner(Station& station) : station_(station) {}
+  // `runs`: the station's runs (run_control.hpp); `store`: the station's store, where the plans
+  // and their progress are kept (and the runs read). Neither owned: both outlive the runner.
+  PlanRunner(RunControl& runs, storage::Store& store) : runs_(runs), store_(store) {}
 
   // Parses the plan and checks it against the station: every step's profile exists and is
   // within the chamber's limits, the units are configured, and a verify step that no fit step
@@ -99,7 +101,8 @@ class PlanRunner final : public TickListener {
             const nlohmann::json& progress);
   void plan_event(std::optional<std::int64_t> plan_id, const std::string& kind, const nlohmann::json& detail);
 
-  Station& station_;
+  RunControl& runs_;
+  storage::Store& store_;
   double last_queue_look_s_ = -1e300;
 };
 

@@ -30,6 +30,7 @@
 #include "fogbench/daemon/live_compensation.hpp"
 #include "fogbench/daemon/offload.hpp"
 #include "fogbench/daemon/power_on.hpp"
+#include "fogbench/daemon/run_control.hpp"
 #include "fogbench/daemon/run_identity.hpp"
 #include "fogbench/daemon/sample_writer.hpp"
 #include "fogbench/daemon/tick_input.hpp"
@@ -48,7 +49,8 @@ struct TickOutput {
   double setpoint_c = 0.0;  // the setpoint the chamber should hold now
 };
 
-class Station {
+// The plan runner sees it through RunControl (run_control.hpp) only.
+class Station final : public RunControl {
  public:
   // Called with each "sample" and "event" message as it happens (subscribers).
   using Publish = std::function<void(const nlohmann::json&)>;
@@ -76,7 +78,7 @@ class Station {
   // `units`: each unit's slot and serial (bench_slots.hpp), stored with the run.
   ApiResult<std::int64_t> start_run_in_slots(const std::string& profile_name, const std::vector<SlotUnit>& units,
                                     storage::Purpose purpose, const nlohmann::json& command,
-                                    const OperatorId& op = {});
+                                    const OperatorId& op = {}) override;
   // The same with serials alone, each in the slot whose configured default serial it is
   // (unknown_serial when none is).
   ApiResult<std::int64_t> start_run(const std::string& profile_name,
@@ -98,13 +100,12 @@ class Station {
   // answer at once through `done`; the rest is decided back on the loop once replayed: the run
   // taken up with the gap measured at that moment (`now_wall_time` plus the steady time the
   // replay took). While one is replayed, run.start and another resume are refused `busy`.
-  using ResumeDone = std::function<void(ApiResult<std::int64_t>)>;
   void resume_run_async(std::int64_t run_id, double now_wall_time, const nlohmann::json& command, JobOrigin origin,
-                        ResumeDone done);
+                        ResumeDone done) override;
   // The run whose stored seconds are being replayed for a resume, if any.
-  std::optional<std::int64_t> resuming_run_id() const { return resuming_; }
+  std::optional<std::int64_t> resuming_run_id() const override { return resuming_; }
   // Ends the active run as aborted; the chamber goes back to the safe setpoint at the next tick.
-  ApiResult<std::int64_t> abort_run(const std::string& reason, const nlohmann::json& command);
+  ApiResult<std::int64_t> abort_run(const std::string& reason, const nlohmann::json& command) override;
 
   // One acquisition period: clock_s is the daemon's time in daemon seconds (k * 1 s at tick k).
   TickOutput tick(double clock_s, const TickInput& in);
@@ -112,8 +113,8 @@ class Station {
   // The daemon is stopping: an active run ends as aborted with this reason.
   void shutdown(const std::string& reason);
 
-  nlohmann::json status() const;
-  std::optional<std::int64_t> active_run_id() const;
+  nlohmann::json status() const override;
+  std::optional<std::int64_t> active_run_id() const override;
   // A run whose end the store could not take yet (a full disk): its state and reason as the
   // daemon knows them, {state, reason, recorded: false}; null for any other run.
   nlohmann::json unrecorded_end(std::int64_t run_id) const;
@@ -121,7 +122,7 @@ class Station {
   nlohmann::json live_quality(std::int64_t run_id) const;
 
   // Profiles: by name from the profile directory, or from text; limits checked.
-  ApiResult<profiles::Profile> load_profile(const std::string& name, std::string* text = nullptr) const;
+  ApiResult<profiles::Profile> load_profile(const std::string& name, std::string* text = nullptr) const override;
   ApiResult<profiles::Profile> check_profile_text(const std::string& text,
                                                   const std::string& source) const;
   std::vector<std::string> profile_names() const;
@@ -152,6 +153,7 @@ class Station {
 
   storage::Store& store() { return store_; }
   const DaemonConfig& config() const { return config_; }
+  const std::vector<drivers::UnitConfig>& bench_units() const override { return config_.drivers.units; }
   // A configuration reload (config_reload.hpp) puts `next` in force: the server has kept every
   // key that needs a restart at its old value. The active run keeps its units' slots and the
   // analysis settings it started with; runs started afterwards take the new ones.
@@ -184,21 +186,21 @@ class Station {
   PlanRunner* plan_runner() const { return plans_; }
   // The run (active, or resumed at the next tick) ends without the automatic fit or
   // verification: a plan's soak and custom steps (docs/plans.md). Forgotten at a restart.
-  void skip_analysis(std::int64_t run_id) { skip_analysis_.insert(run_id); }
+  void skip_analysis(std::int64_t run_id) override { skip_analysis_.insert(run_id); }
   // Whether this process has submitted the automatic analysis of the run (in hand or done; its
   // notes may still wait in the journal). A completed run a plan waits on without it: the
   // daemon was killed between the run's end and its analysis, and the plan runner asks for it
   // again (analyse_units). One id per analysed run, kept for the process's life.
-  bool analysing(std::int64_t run_id) const { return analysing_.contains(run_id); }
+  bool analysing(std::int64_t run_id) const override { return analysing_.contains(run_id); }
   // The automatic analysis of a completed run's `units` only (indices into `serials`).
   void analyse_units(std::int64_t run_id, storage::Purpose purpose, const std::vector<std::string>& serials,
-                     const std::vector<int>& units);
+                     const std::vector<int>& units) override;
   // A serial's verdict decided (issue 24, one verdict: daemon/src/verdict.hpp): stored, the
   // serial's certificate issued again from it, then (queue_run) the deciding run queued for the
   // plant, so that it travels with its verdict and certificate. Returns the certificate's
   // sha256; an error when the verdict could not be stored, or the certificate not issued (a
   // serial without a model has none: not_found; the verdict stays).
-  ApiResult<std::string> decide(const storage::NewVerdict& v, bool queue_run);
+  ApiResult<std::string> decide(const storage::NewVerdict& v, bool queue_run) override;
 
   // The units' lots from run.start's (or plan.start's, queue.add's) "lot" (every unit) or
   // "lots" ({serial: lot}), checked (station_plant.cpp); a unit without a lot is empty.
