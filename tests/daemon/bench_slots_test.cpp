@@ -180,7 +180,7 @@ TEST_CASE("bench slots: a resumed run reads the slot it was stored in, not the d
 TEST_CASE("bench slots: plan.start and queue.add take slots, and the plan's runs use them") {
   auto store = memory_store();
   Station st(golden_config(), store);
-  PlanRunner runner(st);
+  PlanRunner runner(st, st.store());
   const std::string text = "plan one-step\nstep short fit\n";
   json req = {{"cmd", "plan.start"}, {"text", text}, {"source", "one.plan"}, {"slots", {{"C", "FOG-0042"}}}};
   auto bad = plan_start(&runner, "plan.start", req, "");
@@ -213,7 +213,7 @@ TEST_CASE("bench slots: plan.start and queue.add take slots, and the plan's runs
 TEST_CASE("bench slots: a reload may not rename or remove the slot of a unit of a plan not yet done, and may change default serials") {
   auto store = memory_store();
   Station st(golden_config(), store);
-  PlanRunner runner(st);
+  PlanRunner runner(st, st.store());
   const std::string text = "plan one-step\nstep short fit\n";
   // A running plan with FOG-0042 given slot B, a queued one with FOG-0001 in its default slot A
   // (a plan stores every unit's slot by name when it is accepted).
