@@ -78,10 +78,12 @@ th{background:#f1f3f6}.sub{color:#5a6472}.hash{font-family:monospace;font-size:8
 @media print{body{margin:0;max-width:none}h2{break-after:avoid}tr{break-inside:avoid}}
 )css";
 
-std::string table(const std::vector<std::string>& head, const std::vector<std::vector<std::string>>& rows) {
-  std::string s = "<table><tr>";
+// `thead`: the header row in <thead>, which a printed page repeats on every sheet the table runs
+// onto (page 4); pages 2 and 3 drew it as a plain first row.
+std::string table(const std::vector<std::string>& head, const std::vector<std::vector<std::string>>& rows, bool thead = false) {
+  std::string s = thead ? "<table><thead><tr>" : "<table><tr>";
   for (const auto& h : head) s += "<th>" + html_escape(h) + "</th>";
-  s += "</tr>";
+  s += thead ? "</tr></thead>" : "</tr>";
   for (const auto& r : rows) {
     s += "<tr>";
     for (const auto& c : r) s += "<td>" + html_escape(c) + "</td>";
@@ -176,33 +178,13 @@ std::string css_string(std::string_view text) {
   return s + "\"";
 }
 
-// Page 4's print furniture around page 3's body: sections kept whole, table headers in <thead>.
-std::string page4_body(const std::string& b) {
-  std::string out = "<section>";
-  for (std::size_t at = 0;;) {
-    const auto h2 = b.find("<h2>", at);
-    out += b.substr(at, h2 == std::string::npos ? std::string::npos : h2 - at);
-    if (h2 == std::string::npos) break;
-    out += "</section><section>";
-    at = h2 + 4;
-    out += "<h2>";
-  }
-  out += "</section>";
-  std::string with_thead;
-  for (std::size_t at = 0;;) {
-    const auto t = out.find("<table><tr>", at);
-    if (t == std::string::npos) {
-      with_thead += out.substr(at);
-      break;
-    }
-    const auto head_end = out.find("</tr>", t);
-    with_thead += out.substr(at, t - at) + "<table><thead><tr>" + out.substr(t + 11, head_end - (t + 11)) + "</tr></thead>";
-    at = head_end + 5;
-  }
-  return with_thead;
-}
-
 std::string render_certificate(const json& cert, int page) {
+  // Page 4 keeps each section on one sheet when it fits (a <section> per heading) and repeats
+  // each table's header row on the sheets it runs onto.
+  const std::string h2 = page >= 4 ? "</section><section><h2>" : "<h2>";
+  auto tbl = [page](const std::vector<std::string>& head, const std::vector<std::vector<std::string>>& rows) {
+    return table(head, rows, page >= 4);
+  };
   const json& m = cert["model"];
   const std::string verdict = field_text(cert, "verdict");
   std::string b;
@@ -215,23 +197,23 @@ std::string render_certificate(const json& cert, int page) {
        " by station " + html_escape(field_text(cert, "station_id")) + " with fogbench " + html_escape(field_text(cert["software"], "version")) + " (" +
        html_escape(field_text(cert["software"], "git_hash")) + ")</div>";
   b += "<p>Verdict: <span class=\"" + std::string(verdict == "pass" ? "pass" : "fail") + "\">" + html_escape(verdict) + "</span></p>";
-  b += "<h2>Model coefficients (1 sigma)</h2><p class=\"sub\">" + html_escape(field_text(m, "terms")) + " (" + html_escape(field_text(m, "method")) +
+  b += h2 + "Model coefficients (1 sigma)</h2><p class=\"sub\">" + html_escape(field_text(m, "terms")) + " (" + html_escape(field_text(m, "method")) +
        " method), noise std sigma_a " + html_escape(text_of(m["sigma_a_dph"])) + " deg/h</p>";
   std::vector<std::vector<std::string>> rows;
   for (const auto& t : m["coefficients"])
     rows.push_back({field_text(t, "term"), text_of(t["value"], 6), text_of(t["sigma"], 3), field_text(t, "unit"), text_of(t["lag_s"])});
-  b += table({"term", "value", "1 sigma", "unit", "lag, s"}, rows);
+  b += tbl({"term", "value", "1 sigma", "unit", "lag, s"}, rows);
   if (!v3) {
-    b += "<h2>Verdicts</h2>";
+    b += h2 + "Verdicts</h2>";
     rows.clear();
     for (const auto& x : cert.value("verdicts", json::array()))
       for (const auto& k : x["checks"])
         rows.push_back({field_text(x, "run_id"), field_text(k, "check"), text_of(k["value"]), cert_limit_text(k), field_text(k, "rule"), text_of(k["pass"]), field_text(x, "verdict")});
-    b += rows.empty() ? "<p>No verification of this model.</p>" : table({"run", "check", "value", "limit", "rule", "pass", "verdict"}, rows);
+    b += rows.empty() ? "<p>No verification of this model.</p>" : tbl({"run", "check", "value", "limit", "rule", "pass", "verdict"}, rows);
   } else {
     // The one verdict: who decided it, by which limits, on what; then the evidence.
     const json& q = cert["qualification"];
-    b += "<h2>How the verdict was decided</h2>";
+    b += h2 + "How the verdict was decided</h2>";
     if (!q.is_object()) {
       b += "<p>No verdict was decided on this model: it has not been verified.</p>";
     } else {
@@ -242,26 +224,26 @@ std::string render_certificate(const json& cert, int page) {
       for (const auto& x : q.value("limits", json::array()))
         rows.push_back({limit_text(x), field_text(x, "line"), text_of(x["value"]), text_of(x.value("met", json(nullptr))),
                         field_text(x, "on_fail"), field_text(x, "run_id")});
-      b += table({"limit", "plan line", "value", "met", "on fail", "run"}, rows);
+      b += tbl({"limit", "plan line", "value", "met", "on fail", "run"}, rows);
       std::string reasons;
       for (const auto& r : q.value("reasons", json::array())) reasons += "<li>" + html_escape(text_of(r)) + "</li>";
       if (!reasons.empty()) b += "<ul>" + reasons + "</ul>";
     }
-    b += "<h2>Verifications of this model (evidence)</h2>";
+    b += h2 + "Verifications of this model (evidence)</h2>";
     rows.clear();
     for (const auto& x : cert.value("verifications", json::array()))
       for (const auto& k : x["checks"])
         rows.push_back({field_text(x, "run_id"), field_text(k, "check"), text_of(k["value"]), cert_limit_text(k), field_text(k, "rule"), text_of(k["met"])});
-    b += rows.empty() ? "<p>No verification of this model.</p>" : table({"run", "check", "value", "limit", "rule", "met"}, rows);
+    b += rows.empty() ? "<p>No verification of this model.</p>" : tbl({"run", "check", "value", "limit", "rule", "met"}, rows);
   }
-  b += "<h2>Allan deviation of the compensated output (IEEE Std 952 Annex C)</h2>";
+  b += h2 + "Allan deviation of the compensated output (IEEE Std 952 Annex C)</h2>";
   rows.clear();
   for (const auto& a : cert["allan"])
     rows.push_back({field_text(a, "run_id"), a.contains("error") ? field_text(a, "error") : estimate_text(a["arw_deg_per_sqrt_h"]),
                     a.contains("error") ? "" : estimate_text(a["bias_instability_dph"]),
                     a.contains("error") ? "" : estimate_text(a["rrw_dph_per_sqrt_h"])});
-  b += rows.empty() ? "<p>None (no verification run).</p>" : table({"run", "ARW, deg/sqrt(h)", "bias instability, deg/h", "RRW, deg/h/sqrt(h)"}, rows);
-  b += "<h2>Runs</h2>";
+  b += rows.empty() ? "<p>None (no verification run).</p>" : tbl({"run", "ARW, deg/sqrt(h)", "bias instability, deg/h", "RRW, deg/h/sqrt(h)"}, rows);
+  b += h2 + "Runs</h2>";
   rows.clear();
   for (const auto& r : cert["runs"]) {
     const json& id = r["identity"];
@@ -277,9 +259,9 @@ std::string render_certificate(const json& cert, int page) {
     row.push_back(id.is_object() ? field_text(id, "software_version") + " " + field_text(id, "git_hash").substr(0, 12) : "-");
     rows.push_back(std::move(row));
   }
-  b += v3 ? table({"run", "role", "profile", "ended", "station", "operator", "lot", "software"}, rows)
-          : table({"run", "role", "profile", "ended", "station", "operator", "software"}, rows);
-  b += "<h2>Integrity</h2><p class=\"hash\">SHA-256 " + html_escape(field_text(cert, "sha256")) + "</p>";
+  b += v3 ? tbl({"run", "role", "profile", "ended", "station", "operator", "lot", "software"}, rows)
+          : tbl({"run", "role", "profile", "ended", "station", "operator", "software"}, rows);
+  b += h2 + "Integrity</h2><p class=\"hash\">SHA-256 " + html_escape(field_text(cert, "sha256")) + "</p>";
   if (cert.contains("signed_by") && cert["signed_by"].is_object())
     b += "<p class=\"hash\">Signed (Ed25519) by station " + html_escape(field_text(cert["signed_by"], "station_id")) + " with key " +
          html_escape(field_text(cert["signed_by"], "key_id")) + "</p><p class=\"sub\">Check with <code>fogctl cert --check FILE --key station.pub</code>" +
@@ -304,7 +286,7 @@ std::string render_certificate(const json& cert, int page) {
                               ";font:8pt monospace;color:#5a6472}" +
                               "@bottom-right{content:\"page \" counter(page) \" of \" counter(pages);font:9pt system-ui,sans-serif}}"
                               "section{break-inside:avoid}thead{display:table-header-group}p,li{orphans:3;widows:3}";
-  return head + "<title>" + html_escape(title) + "</title><style>" + kStyle + margins + "</style></head><body>" + page4_body(b) + kScriptOpen +
+  return head + "<title>" + html_escape(title) + "</title><style>" + kStyle + margins + "</style></head><body>" + "<section>" + b + "</section>" + kScriptOpen +
          safe + "</script></body></html>\n";
 }
 
