@@ -47,6 +47,14 @@ std::expected<std::vector<std::string>, std::string> figure_list(plant::Connecti
   return out;
 }
 
+// The plant store of --db or --service. One that does not answer is reported after 10 s, not
+// after the kernel's two minutes of retries; a connect_timeout written in --db wins. `migrate`:
+// create or upgrade the schema (a writer: fleet generate).
+plant::PlantResult<plant::Connection> open_plant(const FleetOptions& o, bool migrate) {
+  constexpr int kFleetConnectTimeoutS = 10;
+  return plant::Connection::open(o.db.empty() ? "service=" + o.service : o.db, migrate, kFleetConnectTimeoutS);
+}
+
 // fogctl fleet generate: a demonstration plant (plant/generate.hpp), each option checked by name
 // before anything is written; progress on stderr while samples are copied.
 int run_generate(const FleetOptions& o, std::ostream& out, std::ostream& err) {
@@ -87,8 +95,7 @@ int run_generate(const FleetOptions& o, std::ostream& out, std::ostream& err) {
                                            std::to_string(samples) + " rows)");
   };
   progress.update("writing runs", "writing " + std::to_string(o.gen_runs) + " runs, their units, models and verdicts");
-  constexpr int kFleetConnectTimeoutS = 10;
-  auto c = plant::Connection::open(o.db.empty() ? "service=" + o.service : o.db, true, kFleetConnectTimeoutS);
+  auto c = open_plant(o, true);
   if (!c) return bad(c.error().message);
   auto r = plant::generate_fleet(*c, g);
   progress.finish();
@@ -149,10 +156,7 @@ int run_fleet(const std::string& command, const FleetOptions& o, std::ostream& o
     return kExitError;
   }
   if (command == "generate") return run_generate(o, out, err);
-  // A plant that does not answer is reported after 10 s (kFleetConnectTimeoutS), not after the
-  // kernel's two minutes of retries; a connect_timeout written in --db wins.
-  constexpr int kFleetConnectTimeoutS = 10;
-  auto c = plant::Connection::open(o.db.empty() ? "service=" + o.service : o.db, false, kFleetConnectTimeoutS);
+  auto c = open_plant(o, false);
   if (!c) {
     err << where << c.error().message << "\n";
     return kExitError;
