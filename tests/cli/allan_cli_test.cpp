@@ -9,11 +9,14 @@
 #include <sstream>
 
 #include "allan.hpp"
+#include "temp_dir.hpp"
 
 using namespace fogbench::cli;
 namespace fs = std::filesystem;
 
 namespace {
+
+using fogbench::cli::testing::Dir;
 
 struct Result {
   int code;
@@ -42,12 +45,6 @@ std::string write_run(const fs::path& dir, double s_w_dph) {
   }
   return path;
 }
-
-struct Dir {
-  fs::path path = fs::temp_directory_path() / ("fogctl-allan-" + std::to_string(::getpid()));
-  Dir() { fs::create_directories(path); }
-  ~Dir() { fs::remove_all(path); }
-};
 
 }  // namespace
 

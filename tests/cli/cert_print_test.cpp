@@ -15,6 +15,7 @@
 
 #include "cert.hpp"
 #include "cert_fixture.hpp"
+#include "temp_dir.hpp"
 
 using namespace fogbench::cli;
 using namespace fogbench::cli::test;
@@ -22,19 +23,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct PrintDir {
-  fs::path path = fs::temp_directory_path() / ("fogctl-cert-print-" + std::to_string(::getpid()));
-  PrintDir() { fs::create_directories(path); }
-  ~PrintDir() { fs::remove_all(path); }
-  std::string file(const std::string& name) const { return (path / name).string(); }
-};
-
-std::string slurp(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
+using fogbench::cli::testing::Dir;
+using fogbench::cli::testing::slurp;
 
 bool has_program(const std::string& name) { return std::system(("command -v " + name + " >/dev/null 2>&1").c_str()) == 0; }
 
@@ -59,7 +49,7 @@ TEST_CASE("fogctl cert: page 4 printed by Chromium carries serial, verdict and p
   if (!has_program("chromium")) FAIL("chromium not found (Debian package: chromium): the printed certificate cannot be checked");
   if (!has_program("pdftotext") || !has_program("pdfinfo"))
     FAIL("pdftotext/pdfinfo not found (Debian package: poppler-utils): the printed certificate cannot be checked");
-  PrintDir dir;
+  Dir dir;
   // 70 verifications: their table runs over more than one A4 sheet.
   const auto c = one_verdict_cert("FOG-4242", "pass", 70);
   const std::string html = dir.file("c.html"), pdf = dir.file("c.pdf");

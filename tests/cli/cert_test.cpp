@@ -15,6 +15,7 @@
 #include "cert_fixture.hpp"
 #include "fogbench/signing/certificate.hpp"
 #include "fogbench/signing/signing.hpp"
+#include "temp_dir.hpp"
 
 using namespace fogbench;
 using namespace fogbench::cli;
@@ -24,15 +25,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Dir {
-  fs::path path = fs::temp_directory_path() / ("fogctl-cert-" + std::to_string(::getpid()));
-  Dir() { fs::create_directories(path); }
-  ~Dir() { fs::remove_all(path); }
-  std::string write(const std::string& name, const std::string& text) const {
-    std::ofstream(path / name, std::ios::binary) << text;
-    return (path / name).string();
-  }
-};
+using fogbench::cli::testing::Dir;
 
 const signing::SigningKey& other_key() {
   static const signing::SigningKey k = *signing::SigningKey::generate();

@@ -13,6 +13,7 @@
 #include "coefficients.hpp"
 #include "fogbench/model/firmware.hpp"
 #include "offline.hpp"
+#include "temp_dir.hpp"
 
 using namespace fogbench;
 using namespace fogbench::cli;
@@ -20,12 +21,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Dir {
-  fs::path path = fs::temp_directory_path() / ("fogctl-coef-" + std::to_string(::getpid()));
-  Dir() { fs::create_directories(path); }
-  ~Dir() { fs::remove_all(path); }
-  std::string file(const std::string& n) const { return (path / n).string(); }
-};
+using fogbench::cli::testing::Dir;
 
 struct Result {
   int code;

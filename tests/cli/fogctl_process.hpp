@@ -1,9 +1,10 @@
-// What the tests that run the built fogctl (and its peers) share: a temporary directory per
-// test case, a file's bytes, and a program run with its exit code, stdout and stderr (to files:
+// What the tests that run the built fogctl (and its peers) share: temp_dir.hpp's directory per
+// test case and a file's bytes, and a program run with its exit code, stdout and stderr (to files:
 // not a terminal). Including this header makes a test a `process` test (tests/CMakeLists.txt).
 #pragma once
 
 #include <catch2/catch.hpp>
+#include "temp_dir.hpp"
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -15,32 +16,6 @@
 #include <string>
 
 namespace fogbench::cli::testing {
-
-// A fresh directory per test case (its name says which test made it), removed at the end.
-struct Dir {
-  std::filesystem::path path;
-  explicit Dir(const std::string& what = "fogctl") {
-    static std::atomic<int> counter{0};
-    path = std::filesystem::temp_directory_path() /
-           (what + "-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    std::filesystem::remove_all(path);
-    std::filesystem::create_directories(path);
-  }
-  ~Dir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path, ec);
-  }
-  Dir(const Dir&) = delete;
-  Dir& operator=(const Dir&) = delete;
-  std::string file(const std::string& name) const { return (path / name).string(); }
-};
-
-inline std::string slurp(const std::string& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
 
 struct Ran {
   int code = -1;

@@ -8,25 +8,14 @@
 #include <sstream>
 
 #include "offline.hpp"
+#include "temp_dir.hpp"
 
 using namespace fogbench::cli;
 namespace fs = std::filesystem;
 
 namespace {
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    path = fs::temp_directory_path() / ("fogctl-test-" + std::to_string(::getpid()) + "-" + std::to_string(counter()++));
-    fs::create_directories(path);
-  }
-  ~TempDir() { fs::remove_all(path); }
-  static int& counter() {
-    static int c = 0;
-    return c;
-  }
-  std::string file(const std::string& name) const { return (path / name).string(); }
-};
+using fogbench::cli::testing::Dir;
 
 void write(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
 
@@ -74,7 +63,7 @@ std::string csv(std::size_t n) {
 }  // namespace
 
 TEST_CASE("fogctl: simulate, fit and verify the paper's runs end to end") {
-  TempDir d;
+  Dir d;
   REQUIRE(simulate("exp1", 1, d.file("e1.csv")).code == kExitOk);
   REQUIRE(simulate("exp2", 2, d.file("e2.csv")).code == kExitOk);
   FitCommandOptions f;
@@ -111,7 +100,7 @@ TEST_CASE("fogctl: simulate, fit and verify the paper's runs end to end") {
 }
 
 TEST_CASE("fogctl verify: a run that fails its threshold exits 1") {
-  TempDir d;
+  Dir d;
   REQUIRE(simulate("exp1", 3, d.file("e1.csv")).code == kExitOk);
   // A gyro with a strong absolute-temperature sensitivity the paper's model lacks.
   REQUIRE(simulate("exp3", 4, d.file("e3.csv"), {"0.5*T1"}).code == kExitOk);
@@ -128,7 +117,7 @@ TEST_CASE("fogctl verify: a run that fails its threshold exits 1") {
 }
 
 TEST_CASE("fogctl: bad input gets one clear message and exit 2") {
-  TempDir d;
+  Dir d;
   FitCommandOptions f;
   SECTION("a missing column is named") {
     write(d.file("a.csv"), "time_s,gyro_dph,t1_c\n0,1,2\n");
@@ -219,7 +208,7 @@ TEST_CASE("fogctl: bad input gets one clear message and exit 2") {
 }
 
 TEST_CASE("fogctl fit: columns of other names with --map, and uneven time only with --resample") {
-  TempDir d;
+  Dir d;
   std::string text = csv(3000);
   text.replace(0, text.find('\n'), "t,Rate,Tc,Tw,comment");
   // every data row gets a fifth, ignored column
@@ -238,7 +227,7 @@ TEST_CASE("fogctl fit: columns of other names with --map, and uneven time only w
 }
 
 TEST_CASE("fogctl fit: a CSV of a million rows imports and fits") {
-  TempDir d;
+  Dir d;
   {
     std::ofstream o(d.file("big.csv"));
     o << "# a million seconds of a slow thermal cycle\ntime_s,gyro_dph,t1_c,t2_c\n";

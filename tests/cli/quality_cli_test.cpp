@@ -12,6 +12,7 @@
 #include "fogbench/storage/csv.hpp"
 #include "offline.hpp"
 #include "workbench.hpp"
+#include "temp_dir.hpp"
 
 using namespace fogbench;
 using namespace fogbench::cli;
@@ -20,23 +21,14 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    static int counter = 0;
-    path = fs::temp_directory_path() / ("fogctl-quality-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    fs::create_directories(path);
-  }
-  ~TempDir() { fs::remove_all(path); }
-  std::string file(const std::string& name) const { return (path / name).string(); }
-};
+using fogbench::cli::testing::Dir;
 
 struct Result {
   int code;
   std::string out, err;
 };
 
-model::RunData simulated(const TempDir& d, const std::string& profile, std::uint64_t seed, const std::string& coil) {
+model::RunData simulated(const Dir& d, const std::string& profile, std::uint64_t seed, const std::string& coil) {
   SimulateOptions o;
   o.profile = profile;
   o.seed = seed;
@@ -50,7 +42,7 @@ model::RunData simulated(const TempDir& d, const std::string& profile, std::uint
   return *r;
 }
 
-std::string save(const TempDir& d, const std::string& name, const model::RunData& r) {
+std::string save(const Dir& d, const std::string& name, const model::RunData& r) {
   const std::string p = d.file(name);
   REQUIRE(storage::write_csv_file(p, r));
   return p;
@@ -79,7 +71,7 @@ void delay(std::vector<double>& x, std::size_t by) {
 }  // namespace
 
 TEST_CASE("fogctl fit: a clean simulated run passes the check silently", "[quality]") {
-  TempDir d;
+  Dir d;
   const auto run = simulated(d, "exp1", 21, "distributed");
   const auto r = fit(save(d, "clean.csv", run), "check", true);
   INFO(r.err);
@@ -91,7 +83,7 @@ TEST_CASE("fogctl fit: a clean simulated run passes the check silently", "[quali
 
 TEST_CASE("fogctl fit: a thermistor at -273.15 degC for 100 s is refused, or cleaned when asked", "[quality]") {
   for (const std::string sensor : {"t1_c", "t2_c"}) {
-    TempDir d;
+    Dir d;
     auto run = simulated(d, "exp1", 22, "lumped");
     auto& x = sensor == "t1_c" ? run.t1_c : run.t2_c;
     for (std::size_t i = 2000; i < 2100; ++i) x[i] = -273.15;
@@ -125,7 +117,7 @@ TEST_CASE("fogctl fit: a thermistor at -273.15 degC for 100 s is refused, or cle
 }
 
 TEST_CASE("fogctl fit: a 1e6 gyro spike is cleaned with a warning, and the fit is the clean one", "[quality]") {
-  TempDir d;
+  Dir d;
   auto run = simulated(d, "exp1", 23, "distributed");
   const auto base = nlohmann::json::parse(fit(save(d, "ref.csv", run), "check", true).out);
   run.gyro_dph[3000] = 1e6;
@@ -144,7 +136,7 @@ TEST_CASE("fogctl fit: a 1e6 gyro spike is cleaned with a warning, and the fit i
 }
 
 TEST_CASE("fogctl fit: time in milliseconds is refused with a command that works, and read with --time-unit ms", "[quality]") {
-  TempDir d;
+  Dir d;
   auto run = simulated(d, "exp1", 24, "distributed");
   const auto base = fit(save(d, "s.csv", run), "check", true);
   REQUIRE(base.code == 0);
@@ -167,7 +159,7 @@ TEST_CASE("fogctl fit: time in milliseconds is refused with a command that works
 }
 
 TEST_CASE("fogctl fit and diagnose: a thermistor lagging a minute is a sensor problem, not physics", "[quality]") {
-  TempDir d;
+  Dir d;
   auto run = simulated(d, "exp1", 25, "distributed");
   const std::string clean = save(d, "clean.csv", run), model = d.file("m.json");
   REQUIRE(fit(clean, "check", false, model).code == 0);
@@ -198,7 +190,7 @@ TEST_CASE("fogctl fit and diagnose: a thermistor lagging a minute is a sensor pr
 }
 
 TEST_CASE("fogctl verify: a stuck thermistor is refused naming it and its interval", "[quality]") {
-  TempDir d;
+  Dir d;
   auto run = simulated(d, "exp2", 26, "distributed");
   const std::string model = d.file("m.json");
   REQUIRE(fit(save(d, "clean.csv", run), "check", false, model).code == 0);
@@ -216,7 +208,7 @@ TEST_CASE("fogctl verify: a stuck thermistor is refused naming it and its interv
 }
 
 TEST_CASE("fogctl fit: a hold-only run says its coefficients are not identified", "[quality]") {
-  TempDir d;
+  Dir d;
   const std::string profile = d.file("hold.profile");
   std::ofstream(profile) << "setpoint 20 C\nhold 25 min\n";
   auto run = simulated(d, profile, 27, "distributed");
@@ -231,7 +223,7 @@ TEST_CASE("fogctl fit: a hold-only run says its coefficients are not identified"
 }
 
 TEST_CASE("fogctl diagnose and lineage: runs of two gyros given as one are refused, naming each serial", "[quality]") {
-  TempDir d;
+  Dir d;
   const auto a = simulated(d, "exp1", 28, "distributed"), b = simulated(d, "exp2", 29, "distributed");
   const std::string model = d.file("m.json");
   const std::string pa = save(d, "a.csv", a);

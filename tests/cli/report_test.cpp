@@ -15,29 +15,15 @@
 #include "offline.hpp"
 #include "table.hpp"
 #include "workbench.hpp"
+#include "temp_dir.hpp"
 
 using namespace fogbench::cli;
 namespace fs = std::filesystem;
 
 namespace {
 
-struct ReportDir {
-  fs::path path;
-  ReportDir() {
-    static int counter = 0;
-    path = fs::temp_directory_path() / ("fogctl-report-test-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    fs::create_directories(path);
-  }
-  ~ReportDir() { fs::remove_all(path); }
-  std::string file(const std::string& name) const { return (path / name).string(); }
-};
-
-std::string slurp(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  std::stringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
+using fogbench::cli::testing::Dir;
+using fogbench::cli::testing::slurp;
 
 std::string chromium() {
   for (const char* c : {"chromium", "chromium-browser", "google-chrome"}) {
@@ -48,7 +34,7 @@ std::string chromium() {
 }
 
 // Runs headless Chromium on a file with a fresh profile; returns its exit status.
-int run_chromium(const std::string& exe, const ReportDir& dir, const std::string& args, const std::string& html,
+int run_chromium(const std::string& exe, const Dir& dir, const std::string& args, const std::string& html,
                  const std::string& out, const std::string& err) {
   const std::string profile = dir.file("chrome-profile-" + std::to_string(std::rand()));
   const std::string cmd = "timeout 120 " + exe +
@@ -67,7 +53,7 @@ std::size_t count(const std::string& s, const std::string& what) {
 }  // namespace
 
 TEST_CASE("fogctl report: self-contained HTML that renders its figures in headless Chromium") {
-  ReportDir dir;
+  Dir dir;
   const std::string e1 = dir.file("e1.csv"), e2 = dir.file("e2.csv"), m = dir.file("m.json"), m2 = dir.file("m2.json");
   for (auto [profile, path, seed] : {std::tuple{"exp1", e1, 5}, std::tuple{"exp2", e2, 6}}) {
     SimulateOptions s;
@@ -176,7 +162,7 @@ TEST_CASE("fogctl report: self-contained HTML that renders its figures in headle
 }
 
 TEST_CASE("fogctl report: the Allan section of each run has model::allan's figures for each hold and the compensated output") {
-  ReportDir dir;
+  Dir dir;
   const std::string e1 = dir.file("e1.csv"), m = dir.file("m.json");
   {
     SimulateOptions s;

@@ -11,22 +11,14 @@
 #include "fogbench/storage/csv.hpp"
 #include "offline.hpp"
 #include "workbench.hpp"
+#include "temp_dir.hpp"
 
 using namespace fogbench::cli;
 namespace fs = std::filesystem;
 
 namespace {
 
-struct WbDir {
-  fs::path path;
-  WbDir() {
-    static int counter = 0;
-    path = fs::temp_directory_path() / ("fogctl-wb-test-" + std::to_string(::getpid()) + "-" + std::to_string(counter++));
-    fs::create_directories(path);
-  }
-  ~WbDir() { fs::remove_all(path); }
-  std::string file(const std::string& name) const { return (path / name).string(); }
-};
+using fogbench::cli::testing::Dir;
 
 struct Out {
   int code;
@@ -55,7 +47,7 @@ void sim(const std::string& profile, std::uint64_t seed, const std::string& path
 // exp1 (fit) and exp2 (held out) with a hidden 0.05 deg/h per degC of T1 (docs/workbench.md),
 // and the paper's model fitted on exp1.
 struct Bench {
-  WbDir dir;
+  Dir dir;
   std::string e1 = dir.file("e1.csv"), e2 = dir.file("e2.csv"), m = dir.file("m.json");
   Bench() {
     sim("exp1", 3, e1, "0.05*T1");
