@@ -219,6 +219,10 @@ class Assessor {
     return true;
   }
 
+  // A reading inside a coil's physical range (min_temp_c..max_temp_c, degC, bounds included):
+  // what the range check accepts is what the stuck check may use as evidence, one rule for both.
+  bool in_coil_range(double t_c) const { return std::isfinite(t_c) && t_c >= o_.min_temp_c && t_c <= o_.max_temp_c; }
+
   // A witness of a thermistor's stuck check: a temperature that leads it (or the setpoint) and
   // the thermistor's lag behind it, s.
   struct Witness {
@@ -244,7 +248,7 @@ class Assessor {
     auto add_witness = [&](const std::string& name, const std::vector<double>& y, double bound_s) {
       if (y.empty() || &y == s.x) return;
       std::vector<char> yok(n_, 0);
-      for (std::size_t i = 0; i < n_; ++i) yok[i] = std::isfinite(y[i]) && y[i] > o_.min_temp_c && y[i] < o_.max_temp_c;
+      for (std::size_t i = 0; i < n_; ++i) yok[i] = in_coil_range(y[i]);
       const auto yb = bridged(y, yok);
       if (yb.empty() || !std::isfinite(yb[0])) return;
       std::optional<double> lag;
@@ -290,7 +294,7 @@ class Assessor {
       double lo = std::numeric_limits<double>::infinity(), hi = -lo;
       for (long i = std::max(0L, a); i <= std::min(b, end); ++i) {
         const double v = y[static_cast<std::size_t>(i)];
-        if (std::isfinite(v) && v > o_.min_temp_c && v < o_.max_temp_c) lo = std::min(lo, v), hi = std::max(hi, v);
+        if (in_coil_range(v)) lo = std::min(lo, v), hi = std::max(hi, v);
       }
       return hi > lo ? hi - lo : 0.0;
     };
@@ -303,7 +307,7 @@ class Assessor {
     std::vector<char> nan(n_, 0), out(n_, 0);
     for (std::size_t i = 0; i < n_; ++i) {
       if (!std::isfinite(x[i])) nan[i] = 1;  // flagged missing or not: the fits bridge it either way
-      else if (!known_bad(i) && (x[i] < o_.min_temp_c || x[i] > o_.max_temp_c)) out[i] = 1;
+      else if (!known_bad(i) && !in_coil_range(x[i])) out[i] = 1;
     }
     // A gap the recording flagged missing is the recording's own business up to max_bridge_s;
     // beyond it the fits would bridge a long stretch by a straight line, silently.
