@@ -229,6 +229,7 @@ class Assessor {
     std::string name;
     const std::vector<double>* x;
     double lag_s;
+    bool lags = false;  // the witness follows the sensor (the coil's thermistors witnessing the air)
   };
 
   // The witnesses of s: the setpoint, the air and the coil's twin (T1 centre, T2 outer wall),
@@ -256,7 +257,7 @@ class Assessor {
       // A witness leads s (lag >= 0), except the coil's thermistors witnessing the air (<= 0).
       const double lo = bound_s < 0 ? -o_.max_lag_scan_s : 0.0, hi = bound_s < 0 ? 0.0 : o_.max_lag_scan_s;
       const double l = lag ? std::clamp(*lag, lo, hi) : bound_s;
-      out.push_back({name, &y, l + o_.stuck_lag_margin_s});
+      out.push_back({name, &y, l + o_.stuck_lag_margin_s, bound_s < 0});
     };
     const double core = o_.max_core_lag_s, wall = o_.max_wall_lag_s, air = o_.max_air_lag_s;
     if (s.name == "T1") {
@@ -299,6 +300,33 @@ class Assessor {
       return hi > lo ? hi - lo : 0.0;
     };
     return std::min(move_at(lag_s), move_at(lag_s - o_.stuck_lag_margin_s));
+  }
+
+  // A witness that follows the sensor (the coil's thermistors witnessing the air when no
+  // setpoint is recorded, T1 witnessing T2 when neither is): its move is no evidence, since a
+  // coil keeps settling for many minutes after the air holds still. Its evidence is how far it
+  // moves away from the repeated value v (degC): the largest rise of its distance from v above
+  // the smallest distance before it, over the interval looked at later by the lag and by the lag
+  // less the margin, the smaller counting. A coil settling towards the air's held value only
+  // closes on it; a sensor frozen on a ramp is crossed and left behind by the coil that follows
+  // the true temperature.
+  double shifted_departure(const std::vector<double>& y, Interval iv, double lag_s, double v_c) const {
+    auto departure_at = [&](double shift_s) {
+      const auto sh = static_cast<long>(std::lround(shift_s));
+      const long a = static_cast<long>(iv.first) - sh, b = static_cast<long>(iv.last) - sh;
+      const long end = static_cast<long>(n_) - 1;
+      if (b < 0 || a > end) return 0.0;
+      double closest = std::numeric_limits<double>::infinity(), rise = 0.0;
+      for (long i = std::max(0L, a); i <= std::min(b, end); ++i) {
+        const double w = y[static_cast<std::size_t>(i)];
+        if (!in_coil_range(w)) continue;
+        const double d = std::abs(w - v_c);
+        closest = std::min(closest, d);
+        rise = std::max(rise, d - closest);
+      }
+      return rise;
+    };
+    return std::min(departure_at(lag_s), departure_at(lag_s - o_.stuck_lag_margin_s));
   }
 
   // Dropouts, values out of the coil's range and stuck readings of one thermistor.
@@ -365,18 +393,23 @@ class Assessor {
       // back by s's lag behind it (a coil's centre follows the air minutes late, so at a ramp's
       // start it legitimately stays put), the largest over the witnesses (docs/data-quality.md).
       double move = 0.0;
-      std::string mover;
+      const Witness* mover = nullptr;
       for (const auto& w : witnesses) {
-        const double m = shifted_move(*w.x, iv, w.lag_s);
-        if (m > move) move = m, mover = w.name + " (" + num(std::abs(w.lag_s), 0) + " s " + (w.lag_s >= 0 ? "earlier" : "later") +
-                                      ", its lead on " + s.name + " with a margin)";
+        const double m = w.lags ? shifted_departure(*w.x, iv, w.lag_s, x[iv.first]) : shifted_move(*w.x, iv, w.lag_s);
+        if (m > move) move = m, mover = &w;
       }
-      if (move <= o_.stuck_move_c) continue;
+      if (move <= o_.stuck_move_c || !mover) continue;
       for (std::size_t i = iv.first; i <= iv.last; ++i) bad[i] = 1;
       const bool whole = 2 * iv.size() > n_;
+      // A leading witness is named by its shift with the margin, a following one by its lag.
+      const std::string evidence =
+          mover->lags ? mover->name + " (" + num(std::abs(mover->lag_s - o_.stuck_lag_margin_s), 0) + " s later, its lag behind " +
+                            s.name + ") moves away from it by "
+                      : mover->name + " (" + num(std::abs(mover->lag_s), 0) + " s " + (mover->lag_s >= 0 ? "earlier" : "later") +
+                            ", its lead on " + s.name + " with a margin) moves by ";
       add(s.name, QualityKind::stuck, iv, dur, "s",
           s.name + " (" + s.column + ") repeats " + num(x[iv.first]) + " degC exactly for " + num(dur, 0) + " s while " +
-              mover + " moves by " + num(move) + " degC",
+              evidence + num(move) + " degC",
           whole ? "check the thermistor and its converter: " + s.name + " is stuck over most of the run"
                 : "skip the interval (--quality clean: its samples flagged, temperatures bridged) or re-record it",
           !whole, false);

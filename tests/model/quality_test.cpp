@@ -267,3 +267,45 @@ TEST_CASE("quality: a thermistor truly stuck is still named, mid-ramp, over a wh
   INFO(all_messages(q));
   REQUIRE(stuck_flags(q, "T1").size() == 1);
 }
+
+TEST_CASE("quality: without a recorded setpoint, or without the air too, lagging coils raise no stuck flag and a frozen one is named",
+          "[quality][stuck]") {
+  // The stuck check's witnesses when the run has no setpoint: T1 is judged against T2 and the
+  // air, T2 against the air, the air against the coil's thermistors looked at later; with
+  // neither setpoint nor air, T1 against T2 and T2 against T1 looked at later
+  // (docs/data-quality.md, "The stuck check").
+  enum class Recorded { air, neither };
+  for (const auto recorded : {Recorded::air, Recorded::neither})
+    for (const auto& coil : kLaggedCoils) {
+      const char* what = recorded == Recorded::air ? "no setpoint" : "no setpoint, no air";
+      auto strip = [&](RunData r) {
+        r.setpoint_c.clear();
+        if (recorded == Recorded::neither) r.chamber_c.clear();
+        return r;
+      };
+      for (double rate : {2.0, 1.0, 0.2}) {
+        const auto r = strip(lagged_bench(rate, coil.tau_wall_s, coil.tau_core_s, 0.01));
+        INFO(what << ", " << coil.name << " coil, " << rate << " degC/min");
+        const auto q = assess_quality(r);
+        INFO(all_messages(q));
+        CHECK(stuck_flags(q, "T1").empty());
+        CHECK(stuck_flags(q, "T2").empty());
+        CHECK(stuck_flags(q, "Ta").empty());
+      }
+      std::vector<std::string> sensors{"T1", "T2"};
+      if (recorded == Recorded::air) sensors.push_back("Ta");
+      for (const auto& sensor : sensors) {
+        // Frozen 5 min in the middle of the 10 min ramp at 1 degC/min (600..1200 s).
+        auto r = strip(lagged_bench(1.0, coil.tau_wall_s, coil.tau_core_s, 0.01));
+        auto& x = sensor == "T1" ? r.t1_c : sensor == "T2" ? r.t2_c : r.chamber_c;
+        for (std::size_t i = 900; i < 1200; ++i) x[i] = x[900];
+        INFO(what << ", " << coil.name << " coil, " << sensor << " frozen mid-ramp");
+        const auto q = assess_quality(r);
+        INFO(all_messages(q));
+        const auto f = stuck_flags(q, sensor);
+        REQUIRE(f.size() == 1);
+        CHECK(f[0].start_s <= 900);
+        CHECK(f[0].end_s >= 1199);
+      }
+    }
+}
