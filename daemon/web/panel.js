@@ -3,6 +3,9 @@
 // every 2 s, loads the last hour of the active run with `run.samples`, and plots with uPlot.
 // Control requests (run.start, run.abort) carry the token typed in; the daemon decides. When the
 // connection drops (the daemon restarts) it reconnects by itself, waiting 0.5 s to 5 s.
+// For the operator (docs/web.md, "The operator's screen"): a large verdict per slot and serial
+// (#board), the wall-clock time (the header's clock, the run's start and expected end, the
+// events' times), and plots that follow the window's width and the printed page's.
 "use strict";
 (function () {
   const HOUR_S = 3600;
@@ -29,6 +32,22 @@
     return (h ? h + " h " : "") + (h || m ? m + " min " : "") + r + " s";
   }
   function fmtC(v) { return v === null || v === undefined ? "-" : v.toFixed(2) + " degC"; }
+  // Wall-clock times in the browser's local time zone, 24 h: "2026-11-28 16:50:03", "16:50".
+  const pad2 = (n) => (n < 10 ? "0" : "") + n;
+  function fmtDate(d) { return d.getFullYear() + "-" + pad2(d.getMonth() + 1) + "-" + pad2(d.getDate()); }
+  function fmtTime(d, seconds) { return pad2(d.getHours()) + ":" + pad2(d.getMinutes()) + (seconds ? ":" + pad2(d.getSeconds()) : ""); }
+  function fmtWall(d) {
+    if (!d || isNaN(d.getTime())) return "";
+    const today = fmtDate(new Date()) === fmtDate(d);
+    return (today ? "" : fmtDate(d) + " ") + fmtTime(d, false);
+  }
+  function parseIso(t) { if (!t) return null; const d = new Date(t); return isNaN(d.getTime()) ? null : d; }
+  function tickClock() {
+    const now = new Date();
+    const c = $("clock");
+    c.textContent = fmtDate(now) + " " + fmtTime(now, true);
+    c.dataset.epochMs = String(now.getTime());
+  }
 
   function call(req) {
     return new Promise((resolve, reject) => {
@@ -43,7 +62,7 @@
   function palette(i) { return ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#8c564b", "#e377c2", "#17becf", "#7f7f7f"][i % 8]; }
   function makePlot(el, ylabel, series) {
     el.innerHTML = "";
-    const width = Math.max(400, (el.clientWidth || 900) - 10);
+    const width = plotWidth(el);
     return new uPlot({
       width: width, height: 220,
       scales: { x: { time: false } },
@@ -51,6 +70,24 @@
       axes: [{ label: "run time, s" }, { label: ylabel }],
       legend: { live: true },
     }, [[]].concat(series.map(() => [])), el);
+  }
+  // The plot's width: its box's (the window's or, printing, the page's), at least 280 px.
+  function plotWidth(el) { return Math.max(280, (el.clientWidth || 900) - 10); }
+  function fitPlots() {
+    if (!plots) return;
+    [["chamber", "plot-chamber"], ["coil", "plot-coil"], ["drift", "plot-drift"]].forEach(([k, id]) => {
+      const w = plotWidth($(id));
+      if (plots[k].width !== w) plots[k].setSize({ width: w, height: 220 });
+    });
+  }
+  let fitTimer = null;
+  window.addEventListener("resize", () => { clearTimeout(fitTimer); fitTimer = setTimeout(fitPlots, 150); });
+  // Printing: the plots take the page's width before it is laid out, and the window's after.
+  window.addEventListener("beforeprint", fitPlots);
+  window.addEventListener("afterprint", fitPlots);
+  if (window.matchMedia) {
+    const mq = window.matchMedia("print");
+    if (mq.addEventListener) mq.addEventListener("change", fitPlots);
   }
   function buildPlots() {
     const coil = [], drift = [];
@@ -143,6 +180,19 @@
     $("run-step").textContent = r ? String(r.step) + (r.phase ? " (" + r.phase + ")" : "") : "";
     $("run-elapsed").textContent = r ? fmtS(r.elapsed_s) : "";
     $("run-remaining").textContent = r ? fmtS(r.remaining_s) : "";
+    // Wall-clock: the run's start (run.list's started_at, else the elapsed run seconds back from
+    // now) and its expected end (the remaining profile seconds at the daemon's time scale).
+    const scale = st.time_scale > 0 ? st.time_scale : 1;
+    const listed = r ? recentRuns.find((x) => x.id === r.id) : null;
+    const started = r ? (parseIso(listed && listed.started_at) ||
+                         (r.elapsed_s !== null && r.elapsed_s !== undefined ? new Date(Date.now() - 1000 * r.elapsed_s / scale) : null)) : null;
+    const ends = r && r.remaining_s !== null && r.remaining_s !== undefined ? new Date(Date.now() + 1000 * r.remaining_s / scale) : null;
+    $("run-started").textContent = started ? fmtWall(started) : "";
+    $("run-ends").textContent = ends ? "about " + fmtWall(ends) : "";
+    $("run-ends").dataset.epochMs = ends ? String(ends.getTime()) : "";
+    const was = activeRun ? activeRun.id + " " + activeRun.state : "";
+    activeRun = r || null;
+    if (was !== (r ? r.id + " " + r.state : "")) showBoard();
     // One serial entry per bench slot (docs/web.md): typed, or a barcode scanner's input and its
     // Enter, which moves on to the next slot (from the last, to Start). Prefilled with the slot's
     // configured default serial; an empty slot takes no part in the run.
@@ -195,44 +245,138 @@
     if (keep) sel.value = keep;
   }
 
-  async function refreshVerdicts() {
+  // The last five runs and their verdicts. One refresh at a time: a refresh asked for while one
+  // is under way (a run's end and the next run's start, a reconnect) runs once more after it,
+  // and the table is replaced whole when a refresh has every row, so no run is listed twice
+  // and the rows stay newest first.
+  let verdictsRunning = null;
+  let verdictsAgain = false;
+  let recentRuns = [];  // run.list's runs, newest first, each with its run.get `verdicts`, `models`
+  function refreshVerdicts() {
+    if (verdictsRunning) { verdictsAgain = true; return verdictsRunning; }
+    verdictsRunning = (async () => {
+      try {
+        do { verdictsAgain = false; await loadVerdicts(); } while (verdictsAgain);
+      } finally { verdictsRunning = null; }
+    })();
+    return verdictsRunning;
+  }
+  async function loadVerdicts() {
     let list;
     try { list = await call({ cmd: "run.list", limit: 5 }); } catch (e) { return; }
     if (!list.result) return;
-    const body = $("verdicts").querySelector("tbody");
-    body.innerHTML = "";
-    for (const run of list.result.runs) {
+    const seen = new Set();
+    const runs = list.result.runs.filter((r) => !seen.has(r.id) && seen.add(r.id)).sort((a, b) => b.id - a.id);
+    for (const run of runs) {
+      if (run.state !== "completed") continue;
+      try {
+        const g = await call({ cmd: "run.get", run_id: run.id });
+        if (g.result) { run.verdicts = g.result.verdicts || []; run.models = g.result.models || []; }
+      } catch (e) { return; }  // disconnected: the reconnect refreshes
+    }
+    const body = document.createElement("tbody");
+    for (const run of runs) {
       const tr = document.createElement("tr");
-      for (const text of [run.id, run.profile, run.purpose, run.state + (run.reason ? ": " + run.reason : "")]) {
+      tr.dataset.runId = String(run.id);
+      const started = parseIso(run.started_at);
+      for (const text of [run.id, started ? fmtWall(started) : "", run.profile, run.purpose,
+                          run.state + (run.reason ? ": " + run.reason : "")]) {
         const td = document.createElement("td");
         td.textContent = String(text);
         tr.appendChild(td);
       }
       const v = document.createElement("td");
+      const parts = [];
+      // Each unit's one verdict (issue 24): the station decided it once; the panel only shows it.
+      (run.verdicts || []).forEach((x) => {
+        if (!x) return;
+        const span = document.createElement("span");
+        if (x.verdict) {
+          span.className = x.verdict;
+          span.textContent = x.serial + " " + x.verdict.toUpperCase() + " (" +
+            (x.plan ? "plan " + (x.plan.name || x.plan.id) : "analysis settings") + ")";
+        } else {
+          span.textContent = x.serial + ": " + (x.pending || "no verdict");
+        }
+        parts.push(span.outerHTML);
+      });
+      (run.models || []).forEach((m) => parts.push(m.serial + " model v" + m.version));
+      v.innerHTML = parts.join(", ");
       tr.appendChild(v);
       body.appendChild(tr);
-      if (run.state !== "completed") continue;
-      try {
-        const g = await call({ cmd: "run.get", run_id: run.id });
-        if (!g.result) continue;
-        const parts = [];
-        // Each unit's one verdict (issue 24): the station decided it once; the panel only shows it.
-        (g.result.verdicts || []).forEach((x) => {
-          if (!x) return;
-          const span = document.createElement("span");
-          if (x.verdict) {
-            span.className = x.verdict;
-            span.textContent = x.serial + " " + x.verdict.toUpperCase() + " (" +
-              (x.plan ? "plan " + (x.plan.name || x.plan.id) : "analysis settings") + ")";
-          } else {
-            span.textContent = x.serial + ": " + (x.pending || "no verdict");
-          }
-          parts.push(span.outerHTML);
-        });
-        (g.result.models || []).forEach((m) => parts.push(m.serial + " model v" + m.version));
-        v.innerHTML = parts.join(", ");
-      } catch (e) { return; }
     }
+    const table = $("verdicts");
+    table.replaceChild(body, table.querySelector("tbody"));
+    recentRuns = runs;
+    showBoard();
+  }
+
+  // --- the board: each unit of what ran last, its slot, serial and verdict, large (docs/web.md).
+  let activeRun = null;  // status.run
+  let shownPlan = null;  // plan.js's plan.status (the running plan, else the last one)
+  const WORDS = { pass: "PASS", marginal: "MARGINAL", fail: "FAIL", incomplete: "INCOMPLETE", testing: "IN TEST",
+                  pending: "PENDING", none: "NO VERDICT", aborted: "ABORTED", failed: "RUN FAILED" };
+  function boardUnits() {
+    const p = shownPlan, pr = p && p.progress && typeof p.progress === "object" ? p.progress : null;
+    const newest = recentRuns[0] || null;
+    const planTiles = () => (pr.units || []).map((u) => {
+      const inRun = activeRun && (activeRun.units || []).includes(u.serial);
+      const verdict = u.verdict || (p.state === "running" ? (inRun ? "testing" : "pending") : "pending");
+      return { slot: (p.slots || {})[u.serial] || "", serial: u.serial, verdict: verdict,
+               note: "plan " + p.plan_id + " " + p.name + (u.verdict ? "" : (u.marginal ? ", marginal so far" : "")) +
+                     (inRun ? ", run " + activeRun.id : "") };
+    });
+    if (p && pr && p.state === "running") return planTiles();
+    if (activeRun) {
+      return (activeRun.units || []).map((serial, i) => ({
+        slot: (activeRun.slots || [])[i] || "", serial: serial, verdict: "testing",
+        note: "run " + activeRun.id + " " + activeRun.profile + " (" + activeRun.purpose + ")" }));
+    }
+    if (p && pr && newest && (pr.runs || []).some((r) => r.run_id === newest.id)) return planTiles();
+    if (!newest) return [];
+    return (newest.units || []).map((serial, i) => {
+      const x = (newest.verdicts || []).find((v) => v && v.serial === serial);
+      let verdict;
+      if (newest.state !== "completed") verdict = newest.state === "aborted" || newest.state === "interrupted" ? "aborted" : "failed";
+      else if (x && x.verdict) verdict = x.verdict;
+      else if (x && x.pending) verdict = "pending";
+      else verdict = "none";
+      return { slot: (newest.slots || [])[i] || "", serial: serial, verdict: verdict,
+               note: "run " + newest.id + " " + newest.profile + " (" + newest.purpose + ")" +
+                     (x && x.plan ? ", plan " + (x.plan.name || x.plan.id) : "") };
+    });
+  }
+  function showBoard() {
+    const board = $("board-units");
+    const units = boardUnits();
+    board.innerHTML = "";
+    units.forEach((u) => {
+      const tile = document.createElement("div");
+      tile.className = "tile v-" + u.verdict;
+      tile.dataset.slot = u.slot;
+      tile.dataset.serial = u.serial;
+      tile.dataset.verdict = u.verdict;
+      const head = document.createElement("div");
+      head.className = "who";
+      head.textContent = (u.slot ? "slot " + u.slot + "  " : "") + u.serial;
+      const big = document.createElement("div");
+      big.className = "big";
+      big.textContent = WORDS[u.verdict] || u.verdict.toUpperCase();
+      const note = document.createElement("div");
+      note.className = "what";
+      note.textContent = u.note;
+      tile.appendChild(head); tile.appendChild(big); tile.appendChild(note);
+      board.appendChild(tile);
+    });
+    $("board-empty").style.display = units.length ? "none" : "";
+    board.dataset.count = String(units.length);
+  }
+  function planShown(p) {
+    const before = shownPlan ? shownPlan.plan_id + " " + shownPlan.state : "";
+    shownPlan = p;
+    showBoard();
+    // A plan that has just ended decided its units' verdicts: the runs' table shows them.
+    if (before && p && before !== p.plan_id + " " + p.state) refreshVerdicts();
   }
 
   // --- events
@@ -240,7 +384,12 @@
     const li = document.createElement("li");
     li.className = e.kind;
     const t = e.t_s === null || e.t_s === undefined ? "" : "t=" + e.t_s + " s ";
+    const at = document.createElement("time");
+    const now = new Date();
+    at.dateTime = now.toISOString();
+    at.textContent = fmtTime(now, true) + " ";
     li.textContent = t + "run " + e.run_id + " " + e.kind + ": " + JSON.stringify(e.detail);
+    li.insertBefore(at, li.firstChild);
     const ul = $("events");
     ul.insertBefore(li, ul.firstChild);
     while (ul.childElementCount > 200) ul.removeChild(ul.lastChild);
@@ -344,6 +493,9 @@
     };
   }
   statusTimer = setInterval(refreshStatus, 2000);
-  window.fogPanel = { call: call, start: start, abort: abort, refreshStatus: refreshStatus };
+  tickClock();
+  setInterval(tickClock, 1000);
+  window.fogPanel = { call: call, start: start, abort: abort, refreshStatus: refreshStatus,
+                      refreshVerdicts: refreshVerdicts, planShown: planShown, fitPlots: fitPlots };
   connect();
 })();

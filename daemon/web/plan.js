@@ -1,7 +1,8 @@
 // The live panel's plans (docs/web.md, "Plans"): the current plan (plan.status: the running one,
 // else the last one) with its step, its units (dropped ones marked) and each unit's measurements
 // per step against the plan's limits, and the queue (queue.list). Over panel.js's WebSocket
-// (fogPanel.call), refreshed every 2 s and when a run ends.
+// (fogPanel.call), refreshed every 2 s and when a run ends. The plan goes to panel.js's board
+// (fogPanel.planShown: its units' verdicts, large), and the queue's first plan to "Next".
 "use strict";
 (function () {
   const $ = (id) => document.getElementById(id);
@@ -122,6 +123,29 @@
       body.appendChild(tr);
     });
     $("queue-empty").style.display = items.length ? "none" : "";
+    showNext(items[0] || null);
+  }
+
+  // The queue's next plan, under the board: which units go into which slots, who runs it.
+  function showNext(x) {
+    const next = $("next");
+    next.dataset.planId = x ? String(x.plan_id) : "";
+    next.innerHTML = "";
+    next.appendChild(el("strong", "Next: "));
+    if (!x) {
+      next.appendChild(document.createTextNode("nothing queued"));
+      return;
+    }
+    next.appendChild(document.createTextNode("plan " + x.plan_id + " " + x.name + " (" + x.source + "): "));
+    (x.units || []).forEach((serial, i) => {
+      if (i) next.appendChild(document.createTextNode(", "));
+      const slot = (x.slots || {})[serial];
+      const u = el("span", (slot ? "slot " + slot + " " : "") + serial, "next-unit");
+      u.dataset.serial = serial;
+      u.dataset.slot = slot || "";
+      next.appendChild(u);
+    });
+    next.appendChild(document.createTextNode("; operator " + traceText(x)));
   }
 
   async function refreshPlan() {
@@ -131,6 +155,9 @@
       const st = await fogPanel.call({ cmd: "plan.status" });
       if (st.result) showPlan(st.result);
       else if (st.error && st.error.code === "not_found") showPlan(null);
+      if (st.result || (st.error && st.error.code === "not_found")) {
+        if (fogPanel.planShown) fogPanel.planShown(st.result || null);
+      }
       const q = await fogPanel.call({ cmd: "queue.list" });
       if (q.result) showQueue(q.result);
     } catch (e) { /* reconnecting: panel.js reconnects, the next round refreshes */ }

@@ -67,11 +67,24 @@ class Browser {
     if (!r.is_object() || !r.contains("result") || r["result"].contains("exceptionDetails")) return nullptr;
     return r["result"]["result"].value("value", json(nullptr));
   }
+  // A DevTools command's result (an object; null when it failed), e.g.
+  // cdp("Emulation.setEmulatedMedia", {{"media", "print"}}).
+  json cdp(const std::string& method, json params = json::object()) {
+    auto r = page_->call({{"method", method}, {"params", std::move(params)}});
+    if (!r.is_object() || !r.contains("result")) return nullptr;
+    return r["result"];
+  }
   // A PNG of the page (Page.captureScreenshot), empty when it failed.
   std::string screenshot() {
-    auto r = page_->call({{"method", "Page.captureScreenshot"}, {"params", {{"format", "png"}}}});
-    if (!r.is_object() || !r.contains("result")) return {};
-    const std::string b64 = r["result"].value("data", "");
+    auto r = cdp("Page.captureScreenshot", {{"format", "png"}});
+    return r.is_object() ? decode_base64(r.value("data", "")) : std::string();
+  }
+  // The page printed to a PDF (Page.printToPDF, A4 portrait), empty when it failed.
+  std::string pdf() {
+    auto r = cdp("Page.printToPDF", {{"paperWidth", 8.27}, {"paperHeight", 11.69}, {"printBackground", true}});
+    return r.is_object() ? decode_base64(r.value("data", "")) : std::string();
+  }
+  static std::string decode_base64(const std::string& b64) {
     std::string out;
     int val = 0, bits = -8;
     for (unsigned char ch : b64) {
