@@ -278,49 +278,70 @@ ApiResult<Station::ResumeReplay> Station::begin_resume(std::int64_t run_id) {
 ApiResult<void> Station::replay_stored(storage::Store& store, ResumeReplay& r) {
   ActiveRun& run = r.run;
   const std::int64_t run_id = run.id;
-  // Replay the stored seconds through the executor exactly as tick() fed them, gaps held.
-  std::vector<std::vector<storage::SampleRow>> rows(run.serials.size());
-  for (std::size_t u = 0; u < rows.size(); ++u) {
-    for (std::int64_t off = 0;; off += 10000) {
-      auto page = store.get_samples(run_id, static_cast<int>(u), off, 10000);
-      if (!page) return std::unexpected(from_store(page.error()));
-      rows[u].insert(rows[u].end(), page->begin(), page->end());
-      if (page->size() < 10000) break;
+  // Replay the stored seconds through the executor exactly as tick() fed them, gaps held. Page
+  // by page (every unit's rows at the same offset), so that memory holds one page per unit
+  // whatever the run's length: a 10-day run of 8 units would otherwise hold 7 million rows
+  // (about 700 MB) for the length of the replay.
+  constexpr int kPageRows = 10000;
+  const std::size_t units = run.serials.size();
+  std::vector<std::vector<storage::SampleRow>> page(units);
+  std::vector<char> ended(units, 0);  // a unit whose stored rows are all read
+  bool common = true;                 // every unit still has rows at this offset
+  r.n = 0;
+  r.last_t_s = -1.0;
+  r.flagged.assign(units, 0);
+  for (std::int64_t off = 0;; off += kPageRows) {
+    bool any = false;
+    for (std::size_t u = 0; u < units; ++u) {
+      page[u].clear();
+      if (ended[u]) continue;
+      auto got = store.get_samples(run_id, static_cast<int>(u), off, kPageRows);
+      if (!got) return std::unexpected(from_store(got.error()));
+      page[u] = std::move(*got);
+      if (page[u].size() < static_cast<std::size_t>(kPageRows)) ended[u] = 1;
+      any = any || !page[u].empty();
     }
+    if (!any) break;
+    // The seconds stored for every unit go through the executor; a unit's seconds past the
+    // others' (a store cut mid-second) feed only its own live compensation.
+    std::size_t m = 0;
+    if (common) {
+      m = page[0].size();
+      for (const auto& v : page) m = std::min(m, v.size());
+      if (m < static_cast<std::size_t>(kPageRows)) common = false;
+    }
+    for (std::size_t i = 0; i < m; ++i) {
+      const storage::SampleRow& r0 = page[0][i];
+      const double t_s = r0.t_s;
+      const bool gap = (r0.flags & model::flag::link_gap) != 0;
+      // An earlier resume's gap (no wall time: nothing was read) held the profile clock whatever
+      // the policy, as the resume that wrote it did.
+      const bool away = gap && !std::isfinite(r0.wall_time) && (r0.flags & model::flag::missing) != 0;
+      if (((gap && r.policy == LinkLossConfig::Policy::hold) || away) && run.updated) {
+        run.held_s += t_s - run.prev_t_s;
+      } else {
+        profiles::Readings readings;
+        readings.chamber_c = r0.chamber_c;
+        for (std::size_t u = 0; u < units; ++u) readings.coils.push_back({page[u][i].t1_c, page[u][i].t2_c});
+        run.last = run.executor->update(t_s - run.held_s, readings);
+        run.updated = true;
+      }
+      run.prev_t_s = t_s;
+      run.phase = run.last.phase;
+      run.step = run.last.step_index;
+      if (std::isfinite(r0.wall_time)) {
+        r.wall_last = r0.wall_time;
+        r.wall_last_t_s = t_s;
+      }
+      for (std::size_t u = 0; u < units; ++u) r.flagged[u] += page[u][i].flags != 0;
+    }
+    if (m > 0) {
+      r.n += m;
+      r.last_t_s = page[0][m - 1].t_s;
+    }
+    for (std::size_t u = 0; u < units; ++u)
+      for (const auto& row : page[u]) run.live.step(u, row);
   }
-  std::size_t n = rows.empty() ? 0 : rows[0].size();
-  for (const auto& v : rows) n = std::min(n, v.size());
-  for (std::size_t i = 0; i < n; ++i) {
-    const storage::SampleRow& r0 = rows[0][i];
-    const double t_s = r0.t_s;
-    const bool gap = (r0.flags & model::flag::link_gap) != 0;
-    // An earlier resume's gap (no wall time: nothing was read) held the profile clock whatever
-    // the policy, as the resume that wrote it did.
-    const bool away = gap && !std::isfinite(r0.wall_time) && (r0.flags & model::flag::missing) != 0;
-    if (((gap && r.policy == LinkLossConfig::Policy::hold) || away) && run.updated) {
-      run.held_s += t_s - run.prev_t_s;
-    } else {
-      profiles::Readings readings;
-      readings.chamber_c = r0.chamber_c;
-      for (std::size_t u = 0; u < rows.size(); ++u) readings.coils.push_back({rows[u][i].t1_c, rows[u][i].t2_c});
-      run.last = run.executor->update(t_s - run.held_s, readings);
-      run.updated = true;
-    }
-    run.prev_t_s = t_s;
-    run.phase = run.last.phase;
-    run.step = run.last.step_index;
-    if (std::isfinite(r0.wall_time)) {
-      r.wall_last = r0.wall_time;
-      r.wall_last_t_s = t_s;
-    }
-  }
-  for (std::size_t u = 0; u < rows.size(); ++u)
-    for (const auto& row : rows[u]) run.live.step(u, row);
-  r.n = n;
-  r.last_t_s = n == 0 ? -1.0 : rows[0][n - 1].t_s;
-  r.flagged.assign(rows.size(), 0);
-  for (std::size_t u = 0; u < rows.size(); ++u)
-    for (std::size_t i = 0; i < n; ++i) r.flagged[u] += rows[u][i].flags != 0;
   return {};
 }
 
