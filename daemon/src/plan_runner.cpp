@@ -246,9 +246,10 @@ ApiResult<json> PlanRunner::status(std::optional<std::int64_t> plan_id) const {
     const storage::PlanRecord* pick = nullptr;
     for (const auto& r : *all)
       if (r.state == "running") pick = &r;
-    if (!pick)  // the last one that ran
+    if (!pick)  // the last one that ran: a queued plan removed before it started (aborted, never
+                // started) did not, and the panel's plan view would show it in place of the last
       for (const auto& r : *all)
-        if (r.state != "queued" && (!pick || r.id > pick->id)) pick = &r;
+        if (r.state != "queued" && r.started_at && (!pick || r.id > pick->id)) pick = &r;
     if (!pick) return api_error(ErrorCode::not_found, "no plan has run yet");
     rec = *pick;
   }

@@ -194,3 +194,40 @@ TEST_CASE("plan runner with a fake RunControl: a completed run nobody analyses i
   runner.after_tick(3.0, 1002.0);
   CHECK(runs.reanalysed.size() == 1);
 }
+
+TEST_CASE("plan runner: plan.status without an id gives the running plan, else the last one that ran, never one removed from the queue") {
+  auto store = test::memory_store();
+  FakeRuns runs(store);
+  PlanRunner runner(runs, store);
+  {
+    auto none = runner.status(std::nullopt);
+    REQUIRE_FALSE(none);
+    CHECK(none.error().code == ErrorCode::not_found);
+  }
+  auto started = runner.start("plan first\nstep pshort soak\n", "t.plan", {"FOG-0001"}, PlanTrace{}, json{{"cmd", "plan.start"}});
+  REQUIRE(started);
+  const auto first = (*started)["plan_id"].get<std::int64_t>();
+  runner.after_tick(1.0, 1000.0);
+  REQUIRE(runs.active);
+  auto queued = runner.queue_add("plan second\nstep pshort soak\n", "q.plan", {"FOG-0002"}, PlanTrace{}, json{{"cmd", "queue.add"}});
+  REQUIRE(queued);
+  const auto second = (*queued)["plan_id"].get<std::int64_t>();
+  REQUIRE(second > first);
+  {
+    auto s = runner.status(std::nullopt);
+    REQUIRE(s);
+    CHECK((*s)["plan_id"] == first);  // the running one
+  }
+  REQUIRE(runner.abort("stop", json{{"cmd", "plan.abort"}}));
+  REQUIRE(runner.queue_remove(second, json{{"cmd", "queue.remove"}}));
+  auto removed = store.get_plan(second);
+  REQUIRE(removed);
+  CHECK(removed->state != "queued");  // it ended without starting
+  CHECK_FALSE(removed->started_at);
+  auto s = runner.status(std::nullopt);
+  REQUIRE(s);
+  CHECK((*s)["plan_id"] == first);  // the last one that ran, not the removed one
+  auto by_id = runner.status(second);  // asked by its id, the removed plan is still shown
+  REQUIRE(by_id);
+  CHECK((*by_id)["plan_id"] == second);
+}

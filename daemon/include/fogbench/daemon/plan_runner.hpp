@@ -62,7 +62,7 @@ class PlanRunner final : public TickListener {
   ApiResult<nlohmann::json> start(const std::string& text, const std::string& source,
                                   const std::vector<std::string>& units, const PlanTrace& trace,
                                   const nlohmann::json& command);
-  // plan.status: the plan (the running one, else the last one, when id is empty).
+  // plan.status: the plan (the running one, else the last one that started, when id is empty).
   ApiResult<nlohmann::json> status(std::optional<std::int64_t> plan_id) const;
   // plan.abort: the running plan ends aborted, its active run too.
   ApiResult<nlohmann::json> abort(const std::string& reason, const nlohmann::json& command);
