@@ -57,6 +57,7 @@ Result<void> GyroBus::reopen(const GyroBusConfig& config, MonotonicClock clock) 
     }
     auto transport = open_serial_gyro(spec->target, spec->baud, *config.frame, accumulators_[0].config());
     if (!transport) return std::unexpected(transport.error());
+    (*transport)->take_over(*transport_);
     transport_ = std::move(*transport);
     return {};
   }

@@ -55,6 +55,12 @@ class SerialGyroTransport final : public CanTransport {
   std::uint64_t malformed() const noexcept override { return garbage_runs_; }
   std::string describe() const override { return name_; }
   std::vector<Event> take_events() override { return std::exchange(events_, {}); }
+  void take_over(const CanTransport& previous) noexcept override {
+    if (const auto* old = dynamic_cast<const SerialGyroTransport*>(&previous)) {
+      if (old->decoder_.format().sequence_modulo == decoder_.format().sequence_modulo) sequence_ = old->sequence_;
+      next_sequence_ = old->next_sequence_;
+    }
+  }
 
   Result<std::size_t> read(std::vector<::can_frame>& out) override {
     std::uint8_t buf[4096];

@@ -201,3 +201,37 @@ TEST_CASE("a serial gyro bus refuses a missing frame, two units and a device tha
   CHECK(missing.error().code == ErrorCode::connection);
   CHECK(missing.error().message.find("/dev/nonexistent-fogbench-tty") != std::string::npos);
 }
+
+TEST_CASE("a reopened serial line carries the 7-bit counter on: the frames missed meanwhile are lost, no more", "[serial][transport]") {
+  Pty first;
+  const auto format = kvh();
+  GyroBusConfig cfg;
+  cfg.transport = "serial:" + first.slave;
+  cfg.frame = format;
+  auto bus = GyroBus::open(cfg, {unit()});
+  REQUIRE(bus.has_value());
+  const auto frame = [&](std::uint32_t seq) {
+    return serial::encode(format, {.rate_dph = 1.0, .sequence = seq, .status = 1, .valid = true});
+  };
+  std::vector<std::uint8_t> stream;
+  for (std::uint32_t s : {125u, 126u, 127u}) {
+    const auto f = frame(s);
+    stream.insert(stream.end(), f.begin(), f.end());
+  }
+  first.write(stream);
+  CHECK(read_frames(*bus, 3).size() == 3);
+
+  Pty second;  // the line comes back on another device (a USB adapter re-enumerated)
+  cfg.transport = "serial:" + second.slave;
+  REQUIRE(bus->reopen(cfg).has_value());
+  stream.clear();
+  for (std::uint32_t s : {2u, 3u}) {  // 0 and 1 were sent while the line was down
+    const auto f = frame(s);
+    stream.insert(stream.end(), f.begin(), f.end());
+  }
+  second.write(stream);
+  CHECK(read_frames(*bus, 2).size() == 2);
+  const auto sample = bus->close_samples();
+  CHECK(sample.units[0].frames == 5);
+  CHECK(sample.units[0].frames_lost == 2);
+}

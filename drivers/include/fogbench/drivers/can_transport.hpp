@@ -49,6 +49,11 @@ class CanTransport {
     std::string message;
   };
   virtual std::vector<Event> take_events() { return {}; }
+
+  // Called by GyroBus::reopen on the new transport with the one it replaces: a transport that
+  // numbers frames itself (the serial one maps its counter onto 8 bits) carries its numbering
+  // on, so a frame missed while the line was down is counted lost, not a jump of the counter.
+  virtual void take_over(const CanTransport& previous) noexcept { (void)previous; }
 };
 
 struct TransportSpec {
