@@ -511,4 +511,6 @@ std::uint8_t SequenceMapper::map(std::uint32_t sequence) noexcept {
   return out_;
 }
 
+#undef SERIAL_TRY
+
 }  // namespace fogbench::drivers::serial
