@@ -177,7 +177,7 @@ bool crc_matches(const FrameFormat& f, const std::uint8_t* frame) noexcept {
 Frame decode_frame(const FrameFormat& f, const std::uint8_t* p) noexcept {
   Frame out;
   out.rate_dph = read_value(p, f.rate) * f.rate_scale_dph;
-  if (f.sequence) out.sequence = static_cast<std::uint32_t>(read_value(p, *f.sequence)) % f.sequence_modulo;
+  if (f.sequence) out.sequence = static_cast<std::uint32_t>(static_cast<std::uint64_t>(read_value(p, *f.sequence)) % f.sequence_modulo);
   if (f.status) {
     out.status = static_cast<std::uint32_t>(read_value(p, *f.status));
     out.valid = (out.status & f.status_valid_mask) == f.status_valid_mask;
@@ -292,7 +292,7 @@ Result<FrameFormat> parse_frame_format(const json& value, const std::string& pat
     f.sequence = *seq;
     const auto max_mod = std::int64_t{1} << (8 * size_of(seq->type));
     SERIAL_TRY(mod, detail::get_int_or(value["sequence"], sp, "modulo", 2, max_mod, max_mod));
-    f.sequence_modulo = static_cast<std::uint32_t>(*mod);
+    f.sequence_modulo = static_cast<std::uint64_t>(*mod);
   }
   if (value.contains("status")) {
     const auto sp = join_path(path, "status");
@@ -357,7 +357,7 @@ std::vector<std::uint8_t> encode(const FrameFormat& format, const Frame& frame) 
   std::vector<std::uint8_t> out(format.length, 0);
   std::copy(format.sync.begin(), format.sync.end(), out.begin());
   write_value(out.data(), format.rate, frame.rate_dph / format.rate_scale_dph);
-  if (format.sequence) write_value(out.data(), *format.sequence, frame.sequence % format.sequence_modulo);
+  if (format.sequence) write_value(out.data(), *format.sequence, static_cast<double>(frame.sequence % format.sequence_modulo));
   if (format.status) write_value(out.data(), *format.status, frame.status);
   if (format.crc != CrcKind::none) {
     write_raw(out.data() + format.crc_offset, size_of(format.crc), format.crc_order, compute_crc(format, out.data()));
@@ -499,15 +499,15 @@ void Decoder::feed(std::span<const std::uint8_t> bytes, std::vector<Event>& out)
 }
 
 std::uint8_t SequenceMapper::map(std::uint32_t sequence) noexcept {
-  sequence %= modulo_;
+  const std::uint64_t seq = sequence % modulo_;
   if (!have_) {
     have_ = true;
-    out_ = static_cast<std::uint8_t>(sequence);
+    out_ = static_cast<std::uint8_t>(seq);
   } else {
-    const std::uint32_t step = (sequence + modulo_ - last_) % modulo_;
+    const std::uint64_t step = (seq + modulo_ - last_) % modulo_;
     out_ = static_cast<std::uint8_t>(out_ + step);
   }
-  last_ = sequence;
+  last_ = seq;
   return out_;
 }
 

@@ -241,6 +241,26 @@ TEST_CASE("the sequence mapper carries gaps of a 7-bit counter onto 8 bits", "[s
   CHECK(m.map(2) == 2);      // backwards by one: a step of 127 (131 + 127 wraps to 2)
 }
 
+TEST_CASE("a whole uint32 counter wraps as one step, in the format and the mapper", "[serial][sequence]") {
+  auto f = parse_frame_format(json::parse(R"({
+    "sync": "AA", "length": 11,
+    "rate": {"offset": 1, "type": "int16", "scale_dph": 1},
+    "sequence": {"offset": 3, "type": "uint32"},
+    "crc": {"kind": "crc32"}})"), "frame");
+  REQUIRE(f.has_value());
+  CHECK(f->sequence_modulo == 4294967296ull);
+  Decoder d(*f);
+  std::vector<Event> events;
+  d.feed(encode(*f, {.rate_dph = 7, .sequence = 0xFFFFFFFFu}), events);
+  d.feed(encode(*f, {.rate_dph = 7, .sequence = 0}), events);
+  REQUIRE(events.size() == 2);
+  CHECK(events[0].frame.sequence == 0xFFFFFFFFu);
+  CHECK(events[1].frame.sequence == 0);
+  SequenceMapper m(f->sequence_modulo);
+  const auto a = m.map(events[0].frame.sequence);
+  CHECK(m.map(events[1].frame.sequence) == static_cast<std::uint8_t>(a + 1));
+}
+
 TEST_CASE("bad frame layouts are refused naming the key", "[serial][format]") {
   const auto refuse = [](const std::string& patch_json) {
     json j = kvh_json();

@@ -47,7 +47,7 @@ struct FrameFormat {
   Field rate;
   double rate_scale_dph = 1;       // deg/h per unit of the rate field
   std::optional<Field> sequence;   // an unsigned counter, +1 per frame, wrapping at sequence_modulo
-  std::uint32_t sequence_modulo = 256;
+  std::uint64_t sequence_modulo = 256;  // 2..2^bits of the field (2^32 for a whole uint32)
   std::optional<Field> status;     // an unsigned field; a frame is valid when all valid_mask bits are set
   std::uint32_t status_valid_mask = 0;
   CrcKind crc = CrcKind::none;
@@ -137,13 +137,13 @@ class Decoder {
 // its own wrap) advances the 8-bit one by the same step.
 class SequenceMapper {
  public:
-  explicit SequenceMapper(std::uint32_t modulo) noexcept : modulo_(modulo) {}
+  explicit SequenceMapper(std::uint64_t modulo) noexcept : modulo_(modulo) {}
   std::uint8_t map(std::uint32_t sequence) noexcept;
 
  private:
-  std::uint32_t modulo_;
+  std::uint64_t modulo_;
   bool have_ = false;
-  std::uint32_t last_ = 0;
+  std::uint64_t last_ = 0;
   std::uint8_t out_ = 0;
 };
 
