@@ -3,6 +3,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <fstream>
 #include <map>
 
 #include "fogbench/drivers/chamber_registry.hpp"
@@ -371,9 +372,34 @@ Result<DriversConfig> parse_drivers_config(const json& value, const std::filesys
     const auto bp = join_path(path, "gyro_bus");
     const json& b = value["gyro_bus"];
     if (auto ok = detail::expect_object(b, bp); !ok) return std::unexpected(ok.error());
-    if (auto ok = detail::expect_known_keys(b, bp, {"transport"}); !ok) return std::unexpected(ok.error());
+    if (auto ok = detail::expect_known_keys(b, bp, {"transport", "frame"}); !ok) return std::unexpected(ok.error());
     FOGBENCH_TRY(transport, detail::get_string(b, bp, "transport"));
     cfg.gyro_bus.transport = *transport;
+    const auto fp = join_path(bp, "frame");
+    const bool is_serial = transport->starts_with("serial:");
+    if (!is_serial && b.contains("frame")) {
+      return config_error(fp, "only a serial: transport has a frame layout");
+    }
+    if (is_serial) {
+      auto frame_it = b.find("frame");
+      if (frame_it == b.end()) {
+        return config_error(fp, "missing (a serial: transport needs the gyro's frame layout: a file name or an object)");
+      }
+      if (frame_it->is_string()) {
+        std::filesystem::path file = frame_it->get<std::string>();
+        if (file.is_relative()) file = map_dir / file;
+        std::ifstream in(file);
+        if (!in) return config_error(fp, "cannot open '" + file.string() + "'");
+        const json doc = json::parse(in, nullptr, false);
+        if (doc.is_discarded()) return config_error(fp, "'" + file.string() + "' is not valid JSON");
+        FOGBENCH_TRY(frame, serial::parse_frame_format(doc, file.filename().string()));
+        cfg.gyro_bus.frame = *frame;
+        cfg.gyro_bus.frame_file = file.string();
+      } else {
+        FOGBENCH_TRY(frame, serial::parse_frame_format(*frame_it, fp));
+        cfg.gyro_bus.frame = *frame;
+      }
+    }
   }
 
   const auto up = join_path(path, "units");
@@ -417,6 +443,15 @@ Result<DriversConfig> parse_drivers_config(const json& value, const std::filesys
       channels.push_back({cp, ch->reg});
     }
     cfg.units.push_back(std::move(*unit));
+  }
+  if (cfg.gyro_bus.frame && cfg.units.size() != 1) {
+    return config_error(join_path(join_path(path, "gyro_bus"), "transport"),
+                        "a serial line carries one gyro's frames, but there are " +
+                            std::to_string(cfg.units.size()) + " units (one bench per serial gyro for now)");
+  }
+  if (cfg.gyro_bus.frame && cfg.units[0].gyro.mode != GyroMode::rate) {
+    return config_error(join_path(index_path(up, 0), "gyro.mode"),
+                        "a serial gyro's frames carry a rate: expected \"rate\"");
   }
   return cfg;
 }

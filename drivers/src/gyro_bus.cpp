@@ -33,6 +33,14 @@ Result<GyroBus> GyroBus::open(const GyroBusConfig& config, std::vector<GyroChann
   auto spec = parse_transport_spec(config.transport);
   if (!spec) return std::unexpected(spec.error());
   const auto ids = ids_of(units);
+  if (spec->kind == TransportSpec::Kind::serial) {
+    if (!config.frame || units.size() != 1) {
+      return fail(ErrorCode::config, "gyro_bus: a serial: transport needs a frame layout and exactly one unit");
+    }
+    auto transport = open_serial_gyro(spec->target, spec->baud, *config.frame, units[0]);
+    if (!transport) return std::unexpected(transport.error());
+    return GyroBus(std::move(*transport), std::move(units));
+  }
   auto transport = open_transport(*spec, ids, std::move(clock));
   if (!transport) return std::unexpected(transport.error());
   return GyroBus(std::move(*transport), std::move(units));
@@ -43,6 +51,16 @@ Result<void> GyroBus::reopen(const GyroBusConfig& config, MonotonicClock clock) 
   if (!spec) return std::unexpected(spec.error());
   std::vector<std::uint16_t> ids;
   for (const auto& a : accumulators_) ids.push_back(a.config().node_id);
+  if (spec->kind == TransportSpec::Kind::serial) {
+    if (!config.frame || accumulators_.size() != 1) {
+      return fail(ErrorCode::config, "gyro_bus: a serial: transport needs a frame layout and exactly one unit");
+    }
+    auto transport = open_serial_gyro(spec->target, spec->baud, *config.frame, accumulators_[0].config());
+    if (!transport) return std::unexpected(transport.error());
+    (*transport)->take_over(*transport_);
+    transport_ = std::move(*transport);
+    return {};
+  }
   auto transport = open_transport(*spec, ids, std::move(clock));
   if (!transport) return std::unexpected(transport.error());
   transport_ = std::move(*transport);

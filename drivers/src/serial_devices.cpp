@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cctype>
 
+#include "fogbench/drivers/can_transport.hpp"
+
 namespace fogbench::drivers {
 
 std::vector<SerialDevice> serial_devices(const DriversConfig& c, const std::string& path) {
@@ -20,6 +22,8 @@ std::vector<SerialDevice> serial_devices(const DriversConfig& c, const std::stri
     add(ch.line.device, "chamber.line.device");
   if (c.thermistors.modbus.transport == ModbusEndpoint::Transport::rtu)
     add(c.thermistors.modbus.device, "thermistors.modbus.device");
+  if (auto spec = parse_transport_spec(c.gyro_bus.transport); spec && spec->kind == TransportSpec::Kind::serial)
+    add(spec->target, "gyro_bus.transport");
   return out;
 }
 

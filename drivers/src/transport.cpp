@@ -17,7 +17,7 @@ Result<TransportSpec> parse_transport_spec(std::string_view spec) {
   const auto bad = [&](const std::string& why) {
     return fail(ErrorCode::config,
                 "gyro_bus.transport: " + why + " in '" + std::string(spec) +
-                    "' (expected can:IFACE, unix:PATH or replay:FILE[?speed=N])");
+                    "' (expected can:IFACE, unix:PATH, replay:FILE[?speed=N] or serial:DEVICE[?baud=N])");
   };
   const auto colon = spec.find(':');
   if (colon == std::string_view::npos) return bad("no transport kind");
@@ -46,6 +46,21 @@ Result<TransportSpec> parse_transport_spec(std::string_view spec) {
       out.speed = speed;
     }
     if (target.empty()) return bad("no log file");
+  } else if (kind == "serial") {
+    out.kind = TransportSpec::Kind::serial;
+    if (const auto q = target.find('?'); q != std::string_view::npos) {
+      const auto option = target.substr(q + 1);
+      target = target.substr(0, q);
+      if (!option.starts_with("baud=")) return bad("unknown serial option");
+      const auto num = option.substr(5);
+      int baud = 0;
+      auto [end, ec] = std::from_chars(num.data(), num.data() + num.size(), baud);
+      if (ec != std::errc{} || end != num.data() + num.size() || !serial_baud_supported(baud)) {
+        return bad("a baud rate of 1200..4000000 that termios knows (e.g. 115200, 460800, 921600)");
+      }
+      out.baud = baud;
+    }
+    if (target.empty()) return bad("no serial device");
   } else {
     return bad("unknown transport kind '" + std::string(kind) + "'");
   }
@@ -60,6 +75,9 @@ Result<std::unique_ptr<CanTransport>> open_transport(const TransportSpec& spec,
     case TransportSpec::Kind::socketcan: return open_socketcan(spec.target, node_ids);
     case TransportSpec::Kind::unix_seqpacket: return open_unix_seqpacket(spec.target);
     case TransportSpec::Kind::replay: return open_replay(spec.target, spec.speed, std::move(clock));
+    case TransportSpec::Kind::serial:
+      return fail(ErrorCode::config, "serial:" + spec.target +
+                                         ": a serial gyro needs its frame format and unit (GyroBus::open, open_serial_gyro)");
   }
   return fail(ErrorCode::config, "unknown transport");
 }

@@ -22,6 +22,7 @@
 #include "faults.hpp"
 #include "modbus_server.hpp"
 #include "poll_set.hpp"
+#include "serial_gyro.hpp"
 #include "shared_state.hpp"
 #include "unix_socket.hpp"
 
@@ -35,6 +36,7 @@ struct Bench::Impl final : ControlHandler {
   std::vector<std::string> serials;
   SharedState shared;
   CanBus can;
+  SerialGyroPeer serial_gyro;  // before the clock: the clock thread writes to it
   std::optional<ModbusServer> modbus;
   std::optional<AsciiChamberServer> ascii;  // the chamber, when its dialect is not Modbus
   std::optional<BenchClock> clock;
@@ -105,6 +107,16 @@ struct Bench::Impl final : ControlHandler {
     cfg.where.thermistor_port = modbus->thermistor_port();
 
     if (auto ok = can.listen(cfg.where.can_socket); !ok) return std::unexpected("CAN socket " + ok.error());
+    if (!cfg.serial_gyro_link.empty()) {
+      const auto& gyro = cfg.units.at(0).gyro;
+      if (gyro.mode != drivers::GyroMode::rate) {
+        return std::unexpected(std::string("--serial-gyro: the first unit's gyro must be in rate mode"));
+      }
+      if (auto ok = serial_gyro.open(cfg.serial_gyro_link, *cfg.serial_frame, gyro.node_id, gyro.scale_dph_per_count); !ok) {
+        return std::unexpected("--serial-gyro: " + ok.error());
+      }
+      can.tap(&serial_gyro);
+    }
     if (!cfg.control_path.empty()) {
       auto ctl = listen_unix(cfg.control_path, SOCK_STREAM);
       if (!ctl) return std::unexpected("control socket " + ctl.error());
@@ -131,6 +143,8 @@ struct Bench::Impl final : ControlHandler {
     }
     control_clients.clear();
     can.close();
+    can.tap(nullptr);
+    serial_gyro.close();
     if (control_fd >= 0) {
       ::close(control_fd);
       ::unlink(cfg.control_path.c_str());
@@ -360,6 +374,7 @@ json Bench::ready_line() const {
                        {"map", c.map.map.name}, {"dialect", to_string(c.dialect)}}},
           {"thermistors", {{"host", c.where.host}, {"port", c.where.thermistor_port}, {"unit_id", c.where.thermistor_unit}}},
           {"can_socket", c.where.can_socket},
+          {"serial_gyro", c.serial_gyro_link.empty() ? json(nullptr) : json(c.serial_gyro_link)},
           {"control", c.control_path.empty() ? json(nullptr) : json(c.control_path)},
           {"units", units},
           {"drivers_config", served_drivers_config(c)}};

@@ -13,9 +13,11 @@
 
 #include <expected>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "fogbench/drivers/serial_frame.hpp"
 #include "fogbench/sim/sim.hpp"
 #include "ascii_chamber.hpp"
 #include "layout.hpp"
@@ -51,6 +53,10 @@ struct BenchConfig {
   std::vector<UnitLayout> units;
   ServedMap map;
   std::vector<nlohmann::json> start_faults;  // fault commands applied before serving
+  // The first unit's frames also as binary serial frames on a pty linked here (serial_gyro.hpp);
+  // empty: none.
+  std::string serial_gyro_link;
+  std::optional<drivers::serial::FrameFormat> serial_frame;
 };
 
 class Bench {

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cerrno>
 
+#include "serial_gyro.hpp"
 #include "unix_socket.hpp"
 
 namespace fogbench::mock {
@@ -41,6 +42,7 @@ void CanBus::accept() {
 
 void CanBus::send(std::span<const ::can_frame> frames) {
   if (frames.empty()) return;
+  if (tap_ != nullptr) tap_->send(frames);
   std::lock_guard lock(mutex_);
   for (auto it = readers_.begin(); it != readers_.end();) {
     std::size_t done = 0;

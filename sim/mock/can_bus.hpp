@@ -16,6 +16,8 @@
 
 namespace fogbench::mock {
 
+class SerialGyroPeer;
+
 class CanBus {
  public:
   CanBus() = default;
@@ -32,6 +34,9 @@ class CanBus {
   void send(std::span<const ::can_frame> frames);
   std::size_t readers() const;
   std::uint64_t dropped() const;  // frames a slow reader's full socket could not take
+  // Every frame sent is also handed to this serial gyro (serial_gyro.hpp); null: none. Set
+  // before the clock starts.
+  void tap(SerialGyroPeer* peer) noexcept { tap_ = peer; }
   // Closes the readers and the listener and removes the socket file.
   void close();
 
@@ -43,6 +48,7 @@ class CanBus {
   mutable std::mutex mutex_;
   std::vector<int> readers_;
   std::uint64_t dropped_ = 0;
+  SerialGyroPeer* tap_ = nullptr;
   std::chrono::steady_clock::time_point last_slow_warning_{};
 };
 

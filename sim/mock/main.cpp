@@ -32,6 +32,10 @@ int main(int argc, char** argv) {
   app.add_option("--thermistor-unit", o.thermistor_unit, "thermistor module's Modbus unit id")->capture_default_str();
   app.add_option("--can-socket", o.can_socket, "path of the AF_UNIX SOCK_SEQPACKET socket the gyro frames are served on")
       ->capture_default_str();
+  app.add_option("--serial-gyro", o.serial_gyro,
+                 "path of a link to a pty on which the first unit's frames are also served as binary serial frames "
+                 "(with --serial-frame; docs/mock-bench.md)");
+  app.add_option("--serial-frame", o.serial_frame, "JSON file of the serial frame layout, e.g. drivers/examples/kvh-1775-format-a.json");
   app.add_option("--control", o.control, "path of the control socket (newline-delimited JSON); none if not given");
   app.add_option("--units", units, "number of units under test, serials SIM-0001.. (default 2, or the --config file's)")
       ->check(CLI::Range(1, static_cast<int>(max_units)));

@@ -196,6 +196,19 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
   cfg.where.chamber_unit = o.chamber_unit;
   cfg.where.thermistor_unit = o.thermistor_unit;
   cfg.where.can_socket = o.can_socket;
+  if (o.serial_gyro.empty() != o.serial_frame.empty()) {
+    return std::unexpected(std::string("--serial-gyro and --serial-frame go together (the link's path and the frame layout's file)"));
+  }
+  if (!o.serial_gyro.empty()) {
+    std::ifstream frame_in(o.serial_frame);
+    if (!frame_in) return std::unexpected("--serial-frame: " + o.serial_frame + ": cannot open");
+    const auto doc = nlohmann::json::parse(frame_in, nullptr, false);
+    if (doc.is_discarded()) return std::unexpected("--serial-frame: " + o.serial_frame + ": not valid JSON");
+    auto frame = drivers::serial::parse_frame_format(doc, "--serial-frame");
+    if (!frame) return std::unexpected(frame.error().message);
+    cfg.serial_gyro_link = o.serial_gyro;
+    cfg.serial_frame = *frame;
+  }
   cfg.gateway = o.gateway;
   cfg.dialect = *dialect;
   cfg.control_path = o.control;

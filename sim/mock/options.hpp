@@ -42,6 +42,8 @@ struct Options {
   double duration_s = 0;
   bool paced = false;                // the clock moves only on {"cmd":"advance"} (docs/mock-bench.md)
   std::string chamber_dialect = "modbus";  // modbus, espec or simserv (ascii_chamber.hpp)
+  std::string serial_gyro;   // path of a link to a pty serving unit 1's frames serially; empty: none
+  std::string serial_frame;  // the serial frame layout's JSON file (drivers/examples/kvh-1775-format-a.json)
 };
 
 // Joins effects in the term language with '+' (or '-' when one starts with a minus).

@@ -205,3 +205,43 @@ TEST_CASE("a gyro's startup_flag: true unless configured false, anything else na
   j["units"][0]["gyro"]["startup_flag"] = "no";
   CHECK(error_of(j).starts_with("units[0].gyro.startup_flag: expected true or false"));
 }
+
+TEST_CASE("a serial gyro bus: frame by file or inline, refused where it does not belong", "[serial]") {
+  const std::filesystem::path examples = FOGBENCH_SOURCE_DIR "/drivers/examples";
+  json j = example();
+  j["units"].erase(1);  // a serial line carries one gyro
+  j["gyro_bus"] = {{"transport", "serial:/dev/ttyUSB0?baud=921600"}, {"frame", (examples / "kvh-1775-format-a.json").string()}};
+  auto cfg = parse_drivers_config(j, map_dir);
+  REQUIRE(cfg.has_value());
+  REQUIRE(cfg->gyro_bus.frame.has_value());
+  CHECK(cfg->gyro_bus.frame->length == 36);
+  CHECK(cfg->gyro_bus.frame_file == (examples / "kvh-1775-format-a.json").string());
+
+  std::ifstream in(examples / "kvh-1775-format-a.json");
+  j["gyro_bus"]["frame"] = json::parse(in);
+  REQUIRE(parse_drivers_config(j, map_dir).has_value());
+  j["gyro_bus"]["frame"]["crc"]["kind"] = "crc7";
+  CHECK(error_of(j).starts_with("gyro_bus.frame.crc.kind: unknown CRC 'crc7'"));
+
+  j["gyro_bus"].erase("frame");
+  CHECK(error_of(j).starts_with("gyro_bus.frame: missing"));
+  j["gyro_bus"]["frame"] = "no-such-frame.json";
+  CHECK(error_of(j).starts_with("gyro_bus.frame: cannot open"));
+
+  json can = example();
+  can["gyro_bus"]["frame"] = (examples / "kvh-1775-format-a.json").string();
+  CHECK(error_of(can) == "gyro_bus.frame: only a serial: transport has a frame layout");
+
+  json two = example();
+  two["gyro_bus"] = {{"transport", "serial:/dev/ttyUSB0"}, {"frame", (examples / "kvh-1775-format-a.json").string()}};
+  auto r = parse_drivers_config(two, map_dir);
+  REQUIRE_FALSE(r.has_value());
+  CHECK(r.error().message.starts_with("gyro_bus.transport: a serial line carries one gyro's frames, but there are 2 units"));
+
+  json inc = example();
+  inc["units"].erase(0);  // the increment-mode unit remains
+  inc["gyro_bus"] = two["gyro_bus"];
+  r = parse_drivers_config(inc, map_dir);
+  REQUIRE_FALSE(r.has_value());
+  CHECK(r.error().message.starts_with("units[0].gyro.mode:"));
+}

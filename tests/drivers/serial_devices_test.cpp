@@ -30,6 +30,12 @@ TEST_CASE("serial devices: the RTU and serial endpoints a configuration opens, e
   CHECK(d[0].key == "drivers.chamber.line.device");
   c.chamber.line.transport = LineEndpoint::Transport::tcp;
   CHECK(serial_devices(c).size() == 1);
+  // A serial gyro's line.
+  c.gyro_bus.transport = "serial:/dev/ttyUSB3?baud=921600";
+  d = serial_devices(c);
+  REQUIRE(d.size() == 2);
+  CHECK(d[1].path == "/dev/ttyUSB3");
+  CHECK(d[1].key == "drivers.gyro_bus.transport");
 }
 
 TEST_CASE("serial devices: what the shipped unit's DeviceAllow=char-ttyUSB covers, and the drop-in for the rest", "[drivers][devices]") {

@@ -5,6 +5,9 @@
 //                        driver connects, the mock bench listens
 //   replay:file.log      a candump -l log, replayed at the pace of its timestamps;
 //                        replay:file.log?speed=10 ten times faster, ?speed=0 as fast as read
+//   serial:/dev/ttyUSB0?baud=921600
+//                        one gyro's binary frames on a termios serial line, in the layout of
+//                        gyro_bus.frame (serial_frame.hpp), handed on as that unit's CAN frames
 #pragma once
 
 #include <linux/can.h>
@@ -19,6 +22,8 @@
 #include <vector>
 
 #include "fogbench/drivers/error.hpp"
+#include "fogbench/drivers/sample_accumulator.hpp"
+#include "fogbench/drivers/serial_frame.hpp"
 
 namespace fogbench::drivers {
 
@@ -35,16 +40,32 @@ class CanTransport {
   // Datagrams of the wrong size or log lines that were not a frame, since opening.
   virtual std::uint64_t malformed() const noexcept = 0;
   virtual std::string describe() const = 0;
+
+  // What the transport found wrong in the stream since the last call (a serial line's garbage,
+  // CRC errors, cut frames, a silence that looks like a wrong baud rate), oldest first; each
+  // message names the device. Empty for the transports whose frames carry no such news.
+  struct Event {
+    std::chrono::system_clock::time_point time;
+    std::string message;
+  };
+  virtual std::vector<Event> take_events() { return {}; }
+
+  // Called by GyroBus::reopen on the new transport with the one it replaces: a transport that
+  // numbers frames itself (the serial one maps its counter onto 8 bits) carries its numbering
+  // on, so a frame missed while the line was down is counted lost, not a jump of the counter.
+  virtual void take_over(const CanTransport& previous) noexcept { (void)previous; }
 };
 
 struct TransportSpec {
-  enum class Kind { socketcan, unix_seqpacket, replay };
+  enum class Kind { socketcan, unix_seqpacket, replay, serial };
   Kind kind = Kind::unix_seqpacket;
-  std::string target;  // interface name, socket path, or log file
+  std::string target;  // interface name, socket path, log file or serial device
   double speed = 1.0;  // replay only: 1 as recorded, 0 as fast as read
+  int baud = 115200;   // serial only
 };
 
-// Parses "can:IFACE", "unix:PATH", "replay:FILE[?speed=N]"; a `config` error otherwise.
+// Parses "can:IFACE", "unix:PATH", "replay:FILE[?speed=N]", "serial:DEVICE[?baud=N]"; a
+// `config` error otherwise.
 Result<TransportSpec> parse_transport_spec(std::string_view spec);
 
 // Monotonic time for replay pacing; empty means std::chrono::steady_clock.
@@ -59,5 +80,18 @@ Result<std::unique_ptr<CanTransport>> open_replay(const std::string& file, doubl
 Result<std::unique_ptr<CanTransport>> open_transport(const TransportSpec& spec,
                                                      std::span<const std::uint16_t> node_ids,
                                                      MonotonicClock clock = {});
+
+// Whether termios has a speed constant for this baud rate (1200..4000000).
+bool serial_baud_supported(int baud) noexcept;
+
+// One gyro on a serial line (raw 8N1 at `baud`): its bytes go through serial::Decoder and each
+// good frame becomes a CAN frame of `unit.node_id` (counts = rate / unit.scale_dph_per_count,
+// the sequence mapped onto 8 bits, status `valid` from the frame's valid mask), each corrupt
+// frame (CRC, cut, non-finite or out-of-range rate) a frame of that id with DLC 0, so
+// SampleAccumulator counts lost, corrupt and repeated frames exactly as for CAN. `unit` must be
+// in rate mode (a `config` error otherwise). Problems come out of take_events().
+Result<std::unique_ptr<CanTransport>> open_serial_gyro(const std::string& device, int baud,
+                                                       serial::FrameFormat format,
+                                                       const GyroChannelConfig& unit);
 
 }  // namespace fogbench::drivers

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -15,6 +16,7 @@
 #include "fogbench/drivers/error.hpp"
 #include "fogbench/drivers/register_map.hpp"
 #include "fogbench/drivers/sample_accumulator.hpp"
+#include "fogbench/drivers/serial_frame.hpp"
 #include "fogbench/drivers/thermistor_conversion.hpp"
 
 namespace fogbench::drivers {
@@ -90,7 +92,13 @@ struct UnitConfig {
 };
 
 struct GyroBusConfig {
-  std::string transport;  // "can:can0", "unix:/run/fogbench/can.sock", "replay:file.log[?speed=N]"
+  // "can:can0", "unix:/run/fogbench/can.sock", "replay:file.log[?speed=N]",
+  // "serial:/dev/ttyUSB0?baud=921600"
+  std::string transport;
+  // serial only (required there, refused elsewhere): the gyro's binary frame layout, inline or
+  // from a file named relative to the configuration's directory (docs/drivers.md "Serial gyros").
+  std::optional<serial::FrameFormat> frame = std::nullopt;
+  std::string frame_file = {};  // where the frame came from ("" when inline)
 };
 
 struct DriversConfig {

@@ -50,6 +50,10 @@ class GyroBus {
   // sequence tracking: the frames missed meanwhile are counted as lost).
   Result<void> reopen(const GyroBusConfig& config, MonotonicClock clock = {});
 
+  // The transport's news about its stream since the last call (CanTransport::take_events: a
+  // serial line's garbage, CRC errors, cut frames, wrong-baud silence), each naming the device.
+  std::vector<CanTransport::Event> take_events() { return transport_->take_events(); }
+
   std::size_t unit_count() const noexcept { return accumulators_.size(); }
   const CanTransport& transport() const noexcept { return *transport_; }
 

@@ -1,0 +1,175 @@
+// One gyro's binary frames on a termios serial line, decoded by serial::Decoder and handed on as
+// the unit's CAN frames, so the same SampleAccumulator accounting applies.
+#include <fcntl.h>
+#include <termios.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <utility>
+
+#include "fogbench/drivers/can_frame.hpp"
+#include "fogbench/drivers/can_transport.hpp"
+
+namespace fogbench::drivers {
+
+namespace {
+
+std::optional<speed_t> baud_constant(int baud) noexcept {
+  switch (baud) {
+    case 1200: return B1200;
+    case 2400: return B2400;
+    case 4800: return B4800;
+    case 9600: return B9600;
+    case 19200: return B19200;
+    case 38400: return B38400;
+    case 57600: return B57600;
+    case 115200: return B115200;
+    case 230400: return B230400;
+    case 460800: return B460800;
+    case 500000: return B500000;
+    case 921600: return B921600;
+    case 1000000: return B1000000;
+    case 2000000: return B2000000;
+    case 3000000: return B3000000;
+    case 4000000: return B4000000;
+    default: return std::nullopt;
+  }
+}
+
+class SerialGyroTransport final : public CanTransport {
+ public:
+  SerialGyroTransport(int fd, std::string name, serial::FrameFormat format, GyroChannelConfig unit)
+      : fd_(fd),
+        name_(std::move(name)),
+        decoder_(std::move(format)),
+        sequence_(decoder_.format().sequence_modulo),
+        unit_(unit) {}
+  ~SerialGyroTransport() override { ::close(fd_); }
+
+  int fd() const noexcept override { return fd_; }
+  std::uint64_t malformed() const noexcept override { return garbage_runs_; }
+  std::string describe() const override { return name_; }
+  std::vector<Event> take_events() override { return std::exchange(events_, {}); }
+  void take_over(const CanTransport& previous) noexcept override {
+    if (const auto* old = dynamic_cast<const SerialGyroTransport*>(&previous)) {
+      if (old->decoder_.format().sequence_modulo == decoder_.format().sequence_modulo) sequence_ = old->sequence_;
+      next_sequence_ = old->next_sequence_;
+    }
+  }
+
+  Result<std::size_t> read(std::vector<::can_frame>& out) override {
+    std::uint8_t buf[4096];
+    std::size_t got = 0;
+    for (;;) {
+      const ssize_t n = ::read(fd_, buf, sizeof buf);
+      if (n > 0) {
+        got += handle(std::span<const std::uint8_t>(buf, static_cast<std::size_t>(n)), out);
+        continue;
+      }
+      if (n < 0 && errno == EINTR) continue;
+      if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) break;
+      // 0 (hang-up) or EIO (the other end of a pty closed, a USB adapter unplugged).
+      const std::string why = n == 0 ? "hang-up" : std::strerror(errno);
+      if (got > 0) break;  // hand over what arrived; the error repeats on the next call
+      return fail(ErrorCode::connection, name_ + ": read: " + why);
+    }
+    return got;
+  }
+
+ private:
+  std::size_t handle(std::span<const std::uint8_t> bytes, std::vector<::can_frame>& out) {
+    scratch_.clear();
+    decoder_.feed(bytes, scratch_);
+    std::size_t got = 0;
+    const auto now = std::chrono::system_clock::now();
+    for (const auto& e : scratch_) {
+      if (e.kind == serial::Event::Kind::frame) {
+        const double counts = std::nearbyint(e.frame.rate_dph / unit_.scale_dph_per_count);
+        if (!(std::abs(counts) <= std::numeric_limits<std::int32_t>::max())) {
+          events_.push_back({now, name_ + ": frame at byte " + std::to_string(e.offset) + ": rate " +
+                                      format_number(e.frame.rate_dph) +
+                                      " deg/h beyond the int32 counts of the unit's scale_dph_per_count " +
+                                      format_number(unit_.scale_dph_per_count) + " (counted corrupt)"});
+          out.push_back(corrupt_frame());
+          ++got;
+          continue;
+        }
+        can::GyroFrame f;
+        f.node_id = unit_.node_id;
+        f.counts = static_cast<std::int32_t>(counts);
+        f.sequence = decoder_.format().sequence ? sequence_.map(e.frame.sequence) : next_sequence_++;
+        f.status = e.frame.valid ? can::status::valid : std::uint8_t{0};
+        out.push_back(can::encode(f));
+        ++got;
+        continue;
+      }
+      if (e.kind == serial::Event::Kind::garbage) ++garbage_runs_;
+      if (e.kind == serial::Event::Kind::bad_crc || e.kind == serial::Event::Kind::cut ||
+          e.kind == serial::Event::Kind::bad_value) {
+        out.push_back(corrupt_frame());
+        ++got;
+      }
+      events_.push_back({now, name_ + ": " + serial::describe(e)});
+    }
+    return got;
+  }
+
+  ::can_frame corrupt_frame() const noexcept {
+    ::can_frame f{};
+    f.can_id = unit_.node_id;
+    f.len = 0;  // a gyro frame always has 8 bytes: SampleAccumulator counts this one corrupt
+    return f;
+  }
+
+  int fd_;
+  std::string name_;
+  serial::Decoder decoder_;
+  serial::SequenceMapper sequence_;
+  GyroChannelConfig unit_;
+  std::uint8_t next_sequence_ = 0;  // a format without a counter: no loss can be seen
+  std::uint64_t garbage_runs_ = 0;
+  std::vector<serial::Event> scratch_;
+  std::vector<Event> events_;
+};
+
+}  // namespace
+
+bool serial_baud_supported(int baud) noexcept { return baud_constant(baud).has_value(); }
+
+Result<std::unique_ptr<CanTransport>> open_serial_gyro(const std::string& device, int baud,
+                                                       serial::FrameFormat format,
+                                                       const GyroChannelConfig& unit) {
+  const std::string name = "serial:" + device + " (" + std::to_string(baud) + " baud, node " +
+                           std::to_string(unit.node_id) + ")";
+  if (unit.mode != GyroMode::rate || !(unit.scale_dph_per_count > 0)) {
+    return fail(ErrorCode::config, name + ": a serial gyro's unit must be in rate mode with scale_dph_per_count > 0");
+  }
+  const auto speed = baud_constant(baud);
+  if (!speed) return fail(ErrorCode::config, name + ": baud rate not supported");
+  const int fd = ::open(device.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) return fail(ErrorCode::connection, name + ": open: " + std::strerror(errno));
+  termios t{};
+  if (::tcgetattr(fd, &t) != 0) {
+    const std::string why = std::strerror(errno);
+    ::close(fd);
+    return fail(ErrorCode::io, name + ": tcgetattr (not a serial device?): " + why);
+  }
+  ::cfmakeraw(&t);
+  ::cfsetispeed(&t, *speed);
+  ::cfsetospeed(&t, *speed);
+  t.c_cflag &= ~static_cast<tcflag_t>(CSIZE | PARENB | PARODD | CSTOPB);
+  t.c_cflag |= CS8 | CLOCAL | CREAD;
+  if (::tcsetattr(fd, TCSANOW, &t) != 0) {
+    const std::string why = std::strerror(errno);
+    ::close(fd);
+    return fail(ErrorCode::io, name + ": tcsetattr: " + why);
+  }
+  return std::make_unique<SerialGyroTransport>(fd, name, std::move(format), unit);
+}
+
+}  // namespace fogbench::drivers

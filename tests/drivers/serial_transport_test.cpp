@@ -1,0 +1,237 @@
+// The serial gyro transport on a pseudo-terminal pair: the test writes frames (and garbage, a CRC
+// error, a cut frame, noise) on the master side, GyroBus reads the slave as a termios serial
+// device and accounts the frames exactly as CAN ones.
+#include <catch2/catch.hpp>
+
+#include <fcntl.h>
+#include <poll.h>
+#include <stdlib.h>
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "fogbench/drivers/gyro_bus.hpp"
+#include "fogbench/drivers/serial_frame.hpp"
+
+using namespace fogbench::drivers;
+using nlohmann::json;
+
+namespace {
+
+struct Pty {
+  int master = -1;
+  std::string slave;
+  Pty() {
+    master = ::posix_openpt(O_RDWR | O_NOCTTY);
+    REQUIRE(master >= 0);
+    REQUIRE(::grantpt(master) == 0);
+    REQUIRE(::unlockpt(master) == 0);
+    slave = ::ptsname(master);
+  }
+  ~Pty() { close(); }
+  void close() {
+    if (master >= 0) ::close(master);
+    master = -1;
+  }
+  void write(const std::vector<std::uint8_t>& bytes) const {
+    std::size_t done = 0;
+    while (done < bytes.size()) {
+      const auto n = ::write(master, bytes.data() + done, bytes.size() - done);
+      REQUIRE(n > 0);
+      done += static_cast<std::size_t>(n);
+    }
+  }
+};
+
+serial::FrameFormat kvh() {
+  std::ifstream in(FOGBENCH_SOURCE_DIR "/drivers/examples/kvh-1775-format-a.json");
+  REQUIRE(in);
+  auto f = serial::parse_frame_format(json::parse(in), "frame");
+  REQUIRE(f.has_value());
+  return *f;
+}
+
+GyroChannelConfig unit() {
+  GyroChannelConfig u;
+  u.node_id = 0x101;
+  u.mode = GyroMode::rate;
+  u.scale_dph_per_count = 0.001;
+  u.startup_flag = false;
+  return u;
+}
+
+// Reads until `want` frames came or the line stays quiet for 2 s (a failure, not a timing
+// assertion: the bytes are already written).
+std::vector<::can_frame> read_frames(GyroBus& bus, std::size_t want) {
+  std::vector<::can_frame> all, batch;
+  while (all.size() < want) {
+    pollfd p{bus.fd(), POLLIN, 0};
+    if (::poll(&p, 1, 2000) <= 0) break;
+    auto n = bus.read_frames(batch);
+    REQUIRE(n.has_value());
+    all.insert(all.end(), batch.begin(), batch.end());
+  }
+  return all;
+}
+
+}  // namespace
+
+TEST_CASE("serial transport strings parse with a baud rate and refuse bad ones", "[serial][transport]") {
+  auto s = parse_transport_spec("serial:/dev/ttyUSB0?baud=921600");
+  REQUIRE(s.has_value());
+  CHECK(s->kind == TransportSpec::Kind::serial);
+  CHECK(s->target == "/dev/ttyUSB0");
+  CHECK(s->baud == 921600);
+  CHECK(parse_transport_spec("serial:/dev/ttyUSB0")->baud == 115200);
+  CHECK_FALSE(parse_transport_spec("serial:/dev/ttyUSB0?baud=12345").has_value());
+  CHECK_FALSE(parse_transport_spec("serial:/dev/ttyUSB0?parity=even").has_value());
+  CHECK_FALSE(parse_transport_spec("serial:").has_value());
+}
+
+TEST_CASE("a serial gyro on a pty feeds the CAN accounting: lost, corrupt, garbage and reasons", "[serial][transport]") {
+  Pty pty;
+  const auto format = kvh();
+  GyroBusConfig cfg;
+  cfg.transport = "serial:" + pty.slave + "?baud=921600";
+  cfg.frame = format;
+  auto bus = GyroBus::open(cfg, {unit()});
+  REQUIRE(bus.has_value());
+
+  std::vector<std::uint8_t> stream;
+  const auto frame = [&](std::uint32_t seq) {
+    return serial::encode(format, {.rate_dph = 36.0, .sequence = seq, .status = 1, .valid = true});
+  };
+  const auto add = [&](const std::vector<std::uint8_t>& b) { stream.insert(stream.end(), b.begin(), b.end()); };
+  add(frame(0));
+  add(frame(1));
+  add({0x11, 0x22, 0x33});  // garbage between frames
+  add(frame(2));
+  auto bad = frame(3);
+  bad[20] ^= 0x40;           // CRC error
+  add(bad);
+  add(frame(5));             // 4 missing: lost
+  auto cut = frame(6);
+  cut.resize(17);            // cut in half
+  add(cut);
+  add(frame(7));
+  pty.write(stream);
+
+  const auto frames = read_frames(*bus, 7);  // 5 good, 2 corrupt
+  CHECK(frames.size() == 7);
+  const auto sample = bus->close_samples();
+  REQUIRE(sample.units.size() == 1);
+  const auto& u = sample.units[0];
+  CHECK(u.frames == 5);
+  CHECK(u.frames_used == 5);
+  CHECK(u.frames_corrupt == 2);
+  CHECK(u.frames_lost == 1);
+  REQUIRE(u.rate_dph.has_value());
+  CHECK(*u.rate_dph == Approx(36.0));
+  CHECK(sample.malformed_total == 1);  // one garbage run
+
+  auto events = bus->take_events();
+  REQUIRE(events.size() == 3);
+  CHECK(events[0].message.find(pty.slave) != std::string::npos);
+  CHECK(events[0].message.find("garbage at byte 72: 3 bytes") != std::string::npos);
+  CHECK(events[1].message.find("bad_crc at byte 111") != std::string::npos);
+  CHECK(events[2].message.find("cut at byte 183") != std::string::npos);
+  CHECK(events[0].time.time_since_epoch().count() > 0);
+}
+
+TEST_CASE("bytes at a wrong baud rate are a reported reason, and a closed line a connection error", "[serial][transport]") {
+  Pty pty;
+  GyroBusConfig cfg;
+  cfg.transport = "serial:" + pty.slave + "?baud=115200";
+  cfg.frame = kvh();
+  auto bus = GyroBus::open(cfg, {unit()});
+  REQUIRE(bus.has_value());
+  // What a 921600-baud frame stream looks like read at 115200: bytes, never the sync word.
+  std::vector<std::uint8_t> noise;
+  std::uint32_t x = 99;
+  for (int i = 0; i < 600; ++i) {
+    x = x * 1103515245u + 12345u;
+    noise.push_back(static_cast<std::uint8_t>((x >> 16) & 0x7F));  // no 0xFE: never a sync
+  }
+  pty.write(noise);
+  std::vector<::can_frame> batch;
+  std::size_t seen = 0;
+  std::vector<CanTransport::Event> events;
+  while (events.empty()) {
+    pollfd p{bus->fd(), POLLIN, 0};
+    if (::poll(&p, 1, 2000) <= 0) break;
+    auto n = bus->read_frames(batch);
+    REQUIRE(n.has_value());
+    seen += batch.size();
+    for (auto& e : bus->take_events()) events.push_back(e);
+  }
+  CHECK(seen == 0);
+  REQUIRE_FALSE(events.empty());
+  bool no_frame = false;
+  for (const auto& e : events) {
+    if (e.message.find("no_frame") != std::string::npos && e.message.find("wrong baud rate") != std::string::npos &&
+        e.message.find(pty.slave) != std::string::npos) {
+      no_frame = true;
+    }
+  }
+  CHECK(no_frame);
+  const auto sample = bus->close_samples();
+  CHECK(sample.units[0].frames == 0);
+  CHECK_FALSE(sample.units[0].rate_dph.has_value());
+
+  pty.close();
+  auto gone = bus->read_frames(batch);
+  REQUIRE_FALSE(gone.has_value());
+  CHECK(gone.error().code == ErrorCode::connection);
+}
+
+TEST_CASE("a serial gyro bus refuses a missing frame, two units and a device that is not there", "[serial][transport]") {
+  GyroBusConfig cfg;
+  cfg.transport = "serial:/dev/nonexistent-fogbench-tty";
+  CHECK(GyroBus::open(cfg, {unit()}).error().code == ErrorCode::config);
+  cfg.frame = kvh();
+  auto u2 = unit();
+  u2.node_id = 0x102;
+  CHECK(GyroBus::open(cfg, {unit(), u2}).error().code == ErrorCode::config);
+  auto missing = GyroBus::open(cfg, {unit()});
+  REQUIRE_FALSE(missing.has_value());
+  CHECK(missing.error().code == ErrorCode::connection);
+  CHECK(missing.error().message.find("/dev/nonexistent-fogbench-tty") != std::string::npos);
+}
+
+TEST_CASE("a reopened serial line carries the 7-bit counter on: the frames missed meanwhile are lost, no more", "[serial][transport]") {
+  Pty first;
+  const auto format = kvh();
+  GyroBusConfig cfg;
+  cfg.transport = "serial:" + first.slave;
+  cfg.frame = format;
+  auto bus = GyroBus::open(cfg, {unit()});
+  REQUIRE(bus.has_value());
+  const auto frame = [&](std::uint32_t seq) {
+    return serial::encode(format, {.rate_dph = 1.0, .sequence = seq, .status = 1, .valid = true});
+  };
+  std::vector<std::uint8_t> stream;
+  for (std::uint32_t s : {125u, 126u, 127u}) {
+    const auto f = frame(s);
+    stream.insert(stream.end(), f.begin(), f.end());
+  }
+  first.write(stream);
+  CHECK(read_frames(*bus, 3).size() == 3);
+
+  Pty second;  // the line comes back on another device (a USB adapter re-enumerated)
+  cfg.transport = "serial:" + second.slave;
+  REQUIRE(bus->reopen(cfg).has_value());
+  stream.clear();
+  for (std::uint32_t s : {2u, 3u}) {  // 0 and 1 were sent while the line was down
+    const auto f = frame(s);
+    stream.insert(stream.end(), f.begin(), f.end());
+  }
+  second.write(stream);
+  CHECK(read_frames(*bus, 2).size() == 2);
+  const auto sample = bus->close_samples();
+  CHECK(sample.units[0].frames == 5);
+  CHECK(sample.units[0].frames_lost == 2);
+}
