@@ -468,7 +468,6 @@ std::expected<Diagnosis, FitError> diagnose_once(const Model& m, const RunData& 
   CandidateScan scan(fit_run.gyro_dph, fr->base_cols, fr->w, fo.max_lag_s);
   if (o.progress && cands.size() > list->n_fixed) o.progress(DiagnoseProgress{"screening", 0, 0, cands.size() - list->n_fixed});
   screen_generated(cands, list->n_fixed, scan, fit_run, *fr, o, stats);
-  if (stats) stats->refitted += cands.size();
   const double ln_n = std::log(static_cast<double>(std::max<std::size_t>(base->fit.n_used, 2)));
   // The gyro's slow noise on each run, read off its settled holds under the base model.
   // The unit's floor (diagnose reads it over every run at once; a step's own base reads it
@@ -487,6 +486,7 @@ std::expected<Diagnosis, FitError> diagnose_once(const Model& m, const RunData& 
   const StepContext ctx{*base, fit_run, held_out, o, fo, *fr, scan, d.rms_fit_dph, held_before, ln_n, slow_of(fit_run), &slow_held};
   std::vector<std::vector<double>> partial_cols;
   for (auto& r : evaluate_all(ctx, cands, fit_scorer, held_scorers)) {
+    if (stats) ++(r.pruned ? stats->pruned : stats->refitted);
     d.candidates.push_back(std::move(r.c));
     partial_cols.push_back(std::move(r.partial));
   }

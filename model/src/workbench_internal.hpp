@@ -85,6 +85,7 @@ std::vector<Generated> search_expressions(const DiagnoseOptions& o, bool has_ta,
 struct SearchStats {
   std::size_t scanned = 0;   // generated candidates lag-scanned
   std::size_t refitted = 0;  // candidates refitted and scored (library and generated)
+  std::size_t pruned = 0;    // candidates not refitted: their one-column update falls short (prune_fraction)
 };
 
 // One step: the model's terms refitted on the fit run, every library candidate (and the

@@ -397,6 +397,7 @@ std::expected<void, std::string> DiagnoseOptions::validate() const {
   if (!(min_mean_fall > 0.0 && min_mean_fall < 1.0)) return std::unexpected("min_mean_fall must be in (0, 1)");
   if (!(min_fit_fall_pooled > 0.0 && min_fit_fall_pooled < 1.0)) return std::unexpected("min_fit_fall_pooled must be in (0, 1)");
   if (!(max_held_out_rise >= 0.0 && max_held_out_rise < 1.0)) return std::unexpected("max_held_out_rise must be in [0, 1)");
+  if (!(prune_fraction >= 0.0 && prune_fraction <= 0.25)) return std::unexpected("prune_fraction must be in [0, 0.25] (0: refit every candidate)");
   if (refit_top < 1 || refit_top > 50) return std::unexpected("refit_top must be 1 to 50, got " + std::to_string(refit_top));
   if (tau_points < 2 || tau_points > 24) return std::unexpected("tau_points must be 2 to 24, got " + std::to_string(tau_points));
   if (max_candidates < 1 || max_candidates > 2000) return std::unexpected("the candidate limit must be 1 to 2000");
@@ -723,6 +724,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   }
   space.j["scanned"] = stats.scanned;
   space.j["refitted"] = stats.refitted;
+  space.j["not_refitted"] = stats.pruned;
   d->search_space = space.j;
 
   // The verdict: adequate only when nothing is detected, no jump is found and every run's

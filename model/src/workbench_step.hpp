@@ -299,6 +299,7 @@ struct StepContext {
 
 struct EvaluatedCandidate {
   Candidate c;
+  bool pruned = false;          // not refitted: its one-column update falls short (prune_fraction)
   std::vector<double> partial;  // its column with the model's terms regressed out (empty if not evaluated)
 };
 

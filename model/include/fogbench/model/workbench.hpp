@@ -118,6 +118,14 @@ struct DiagnoseOptions {
   // safe: the core's gamma_q (stats.cpp) uses lgamma_r, not std::lgamma's global signgam.
   int threads = 1;
   int lag_iterations = 4;              // rescans of a candidate's lag after the model's lags move
+  // Pruning (docs/performance.md, 2026-11-28): a candidate whose one-column update of the base
+  // model (the model's lags held) lowers the fit run's compensated std by less than this
+  // fraction of the rule's smallest fit-run fall (min_fit_fall_pooled with held-out runs,
+  // min_fit_fall_alone without) is not refitted: a refit's fall was at most 3.8 x its update's
+  // on the workbench tests (3,535 refits) and 11.6 x on the 3-day run; 0.05 leaves 1.7 x headroom
+  // over the worst. 0: refit every candidate. Second paths (a model term again, whose refit
+  // moves the model's lags: up to 6.4 x) and trun (judged by the time-drift test) are always refitted.
+  double prune_fraction = 0.05;
   bool second_lags = true;             // also try each model term again at a second lag
   std::vector<std::string> extra_terms;  // further candidates beyond the library (term language)
 
