@@ -19,7 +19,8 @@
 #include "fogbench/daemon/run_identity.hpp"
 #include "fogbench/drivers/config.hpp"
 #include "fogbench/profiles/profile.hpp"
-#include "fogbench/storage/store.hpp"
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/verdict.hpp"
 
 namespace fogbench::daemon {
 
