@@ -27,6 +27,9 @@ namespace fogbench::daemon {
 class RunControl {
  public:
   virtual ~RunControl() = default;
+  // Default arguments are declared here only: a caller gets the defaults of the type it calls
+  // through, so an override (Station's) declares none, and one called through Station passes
+  // every argument.
 
   // A profile by name from the profile directory, its limits checked against the chamber's.
   virtual ApiResult<profiles::Profile> load_profile(const std::string& name, std::string* text = nullptr) const = 0;
