@@ -21,6 +21,8 @@
 #include "fogbench/model/model.hpp"
 #include "fogbench/model/terms.hpp"
 #include "fogbench/signing/certificate.hpp"
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
 #include "cert.hpp"
 #include <openssl/opensslv.h>

@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "daemon_bench.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
 
 using namespace fogbench::bench;

@@ -15,6 +15,8 @@
 #include <string>
 
 #include "fogbench/plant/plant.hpp"
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
 
 using namespace fogbench;

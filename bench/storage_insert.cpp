@@ -10,6 +10,8 @@
 #include <unistd.h>
 #include <vector>
 
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
 
 using namespace fogbench;

@@ -8,6 +8,7 @@
 
 #include "client.hpp"
 #include "common.hpp"
+#include "fogbench/storage/prune.hpp"
 #include "fogbench/storage/store.hpp"
 #include "table.hpp"
 

@@ -241,7 +241,7 @@ struct CommandHandlers {
     Station& st = station(c);
     json arr = json::array();
     for (const auto& name : st.profile_names()) {
-      auto p = st.load_profile(name);
+      auto p = st.load_profile(name, nullptr);
       json e = {{"name", name}};
       if (p) {
         e["valid"] = true;
@@ -262,7 +262,7 @@ struct CommandHandlers {
     auto name = opt_string(c.req, "name");
     if (!name) return std::unexpected(name.error());
     if (!!*text == !!*name) return api_error(ErrorCode::bad_request, "expected either text or name");
-    auto p = *text ? station(c).check_profile_text(**text, "<text>") : station(c).load_profile(**name);
+    auto p = *text ? station(c).check_profile_text(**text, "<text>") : station(c).load_profile(**name, nullptr);
     if (!p) return std::unexpected(p.error());
     return json{{"valid", true}, {"nominal_duration_s", p->nominal_duration_s()}, {"steps", p->steps.size()}};
   }

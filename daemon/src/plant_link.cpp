@@ -13,6 +13,7 @@
 #include <spdlog/spdlog.h>
 
 #include "fogbench/plant/plant.hpp"
+#include "fogbench/storage/outbox.hpp"
 #include "fogbench/storage/store.hpp"
 
 namespace fogbench::daemon {

@@ -10,6 +10,9 @@
 #include <nlohmann/json.hpp>
 
 #include "fogbench/daemon/api.hpp"
+#include "fogbench/storage/models.hpp"
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
 
 namespace fogbench::daemon {

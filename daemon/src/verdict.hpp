@@ -17,7 +17,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "fogbench/storage/store.hpp"
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/verdict.hpp"
 
 namespace fogbench::daemon::verdict {
 

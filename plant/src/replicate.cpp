@@ -13,7 +13,13 @@
 #include "sample_stream.hpp"
 #include "fogbench/plant/plant.hpp"
 #include "fogbench/signing/signing.hpp"
+#include "fogbench/storage/errors.hpp"
+#include "fogbench/storage/identity.hpp"
+#include "fogbench/storage/models.hpp"
+#include "fogbench/storage/outbox.hpp"
+#include "fogbench/storage/runs.hpp"
 #include "fogbench/storage/store.hpp"
+#include "fogbench/storage/verdict.hpp"
 
 namespace fogbench::plant {
 namespace {

@@ -161,7 +161,7 @@ TEST_CASE("bench slots: a resumed run reads the slot it was stored in, not the d
   std::int64_t id = 0;
   {
     Station st(golden_config(), store);  // crashes: never shut down
-    auto started = st.start_run_in_slots("short", {{1, "FOG-0042"}}, storage::Purpose::fit, {{"cmd", "run.start"}});
+    auto started = st.start_run_in_slots("short", {{1, "FOG-0042"}}, storage::Purpose::fit, {{"cmd", "run.start"}}, OperatorId{});
     REQUIRE(started.has_value());
     id = *started;
     for (int i = 0; i < 5; ++i) st.tick(i, bench.step(20));

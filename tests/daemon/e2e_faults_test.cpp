@@ -5,6 +5,7 @@
 // deadlines allow a loaded machine several times the nominal wall time.
 #include "live_bench.hpp"
 
+#include "fogbench/storage/runs.hpp"
 #include "fogbench/storage/store.hpp"
 
 using namespace fogbench;

@@ -10,6 +10,8 @@
 #include <csignal>
 
 #include "../plant/pg_server.hpp"
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
 
 using namespace fogbench;

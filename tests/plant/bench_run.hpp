@@ -14,7 +14,12 @@
 #include "fogbench/model/terms.hpp"
 #include "fogbench/profiles/profile.hpp"
 #include "fogbench/sim/sim.hpp"
+#include "fogbench/storage/identity.hpp"
+#include "fogbench/storage/models.hpp"
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
+#include "fogbench/storage/verdict.hpp"
 
 namespace fogbench::test {
 

@@ -4,6 +4,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include "fogbench/storage/errors.hpp"
+#include "fogbench/storage/plans.hpp"
+#include "fogbench/storage/runs.hpp"
 #include "fogbench/storage/store.hpp"
 
 using namespace fogbench::storage;

@@ -15,6 +15,9 @@
 #include <nlohmann/json.hpp>
 
 #include "fogbench/storage/csv.hpp"
+#include "fogbench/storage/errors.hpp"
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
 #include "store_fixture.hpp"
 

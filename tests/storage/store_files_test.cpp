@@ -11,6 +11,9 @@
 #include <optional>
 #include <vector>
 
+#include "fogbench/storage/errors.hpp"
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
 
 using namespace fogbench;

@@ -11,6 +11,8 @@
 #include <filesystem>
 #include <string>
 
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
 
 namespace fogbench::storage::testing {

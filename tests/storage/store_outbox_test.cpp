@@ -1,6 +1,8 @@
 // The plant outbox and the units' lots (storage migration 4, issue 14).
 #include <catch2/catch.hpp>
 
+#include "fogbench/storage/errors.hpp"
+#include "fogbench/storage/runs.hpp"
 #include "fogbench/storage/store.hpp"
 
 using namespace fogbench::storage;

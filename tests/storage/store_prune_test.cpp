@@ -5,6 +5,10 @@
 #include <chrono>
 #include <vector>
 
+#include "fogbench/storage/errors.hpp"
+#include "fogbench/storage/prune.hpp"
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
 #include "store_fixture.hpp"
 

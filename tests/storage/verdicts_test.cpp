@@ -2,7 +2,13 @@
 // verdict its latest, and every row checked before it is kept.
 #include <catch2/catch.hpp>
 
+#include "fogbench/storage/errors.hpp"
+#include "fogbench/storage/models.hpp"
+#include "fogbench/storage/plans.hpp"
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
+#include "fogbench/storage/verdict.hpp"
 
 using namespace fogbench;
 using namespace fogbench::storage;

@@ -11,7 +11,7 @@
 
 #include "fogbench/model/model.hpp"
 #include "fogbench/protocol/protocol.hpp"
-#include "fogbench/storage/store.hpp"
+#include "fogbench/storage/errors.hpp"
 
 namespace fogbench::daemon {
 

@@ -26,6 +26,8 @@
 #include <nlohmann/json.hpp>
 
 #include "fogbench/model/firmware.hpp"
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
 
 namespace fogbench::daemon {

@@ -19,13 +19,17 @@
 #include "fogbench/daemon/run_identity.hpp"
 #include "fogbench/drivers/config.hpp"
 #include "fogbench/profiles/profile.hpp"
-#include "fogbench/storage/store.hpp"
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/verdict.hpp"
 
 namespace fogbench::daemon {
 
 class RunControl {
  public:
   virtual ~RunControl() = default;
+  // Default arguments are declared here only: a caller gets the defaults of the type it calls
+  // through, so an override (Station's) declares none, and one called through Station passes
+  // every argument.
 
   // A profile by name from the profile directory, its limits checked against the chamber's.
   virtual ApiResult<profiles::Profile> load_profile(const std::string& name, std::string* text = nullptr) const = 0;

@@ -11,7 +11,8 @@
 
 #include "fogbench/profiles/executor.hpp"
 #include "fogbench/protocol/protocol.hpp"
-#include "fogbench/storage/store.hpp"
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/samples.hpp"
 
 namespace fogbench::daemon {
 

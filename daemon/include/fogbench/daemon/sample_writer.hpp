@@ -29,6 +29,8 @@
 #include <utility>
 #include <vector>
 
+#include "fogbench/storage/errors.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
 
 namespace fogbench::daemon {

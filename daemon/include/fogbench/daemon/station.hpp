@@ -39,7 +39,9 @@
 #include "fogbench/profiles/profile.hpp"
 #include "fogbench/protocol/protocol.hpp"
 #include "fogbench/signing/signing.hpp"
+#include "fogbench/storage/runs.hpp"
 #include "fogbench/storage/store.hpp"
+#include "fogbench/storage/verdict.hpp"
 
 namespace fogbench::daemon {
 
@@ -78,7 +80,7 @@ class Station final : public RunControl {
   // `units`: each unit's slot and serial (bench_slots.hpp), stored with the run.
   ApiResult<std::int64_t> start_run_in_slots(const std::string& profile_name, const std::vector<SlotUnit>& units,
                                     storage::Purpose purpose, const nlohmann::json& command,
-                                    const OperatorId& op = {}) override;
+                                    const OperatorId& op) override;
   // The same with serials alone, each in the slot whose configured default serial it is
   // (unknown_serial when none is).
   ApiResult<std::int64_t> start_run(const std::string& profile_name,
@@ -122,7 +124,7 @@ class Station final : public RunControl {
   nlohmann::json live_quality(std::int64_t run_id) const;
 
   // Profiles: by name from the profile directory, or from text; limits checked.
-  ApiResult<profiles::Profile> load_profile(const std::string& name, std::string* text = nullptr) const override;
+  ApiResult<profiles::Profile> load_profile(const std::string& name, std::string* text) const override;
   ApiResult<profiles::Profile> check_profile_text(const std::string& text,
                                                   const std::string& source) const;
   std::vector<std::string> profile_names() const;

@@ -11,6 +11,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "fogbench/storage/errors.hpp"
+#include "fogbench/storage/runs.hpp"
 #include "fogbench/storage/store.hpp"
 
 namespace fogbench::daemon {

@@ -1,5 +1,7 @@
 // The SQLite store of a fogbench station: runs, their units, samples and audit events, fitted
-// models and verifications. Schema, migrations and durability are described in docs/storage.md.
+// models and verifications: the Store class. Each table's records have their own header
+// (runs.hpp, samples.hpp, models.hpp, plans.hpp, outbox.hpp, prune.hpp, identity.hpp, verdict.hpp;
+// errors.hpp for StoreResult). Schema, migrations and durability are described in docs/storage.md.
 //
 // Thread safety: a Store is one SQLite connection opened without SQLite's mutexes; use it
 // from one thread at a time (one Store per thread is fine: several Stores, in one or several
@@ -9,20 +11,23 @@
 
 #include <chrono>
 #include <cstdint>
-#include <expected>
 #include <filesystem>
 #include <functional>
-#include <limits>
-#include <map>
 #include <memory>
 #include <optional>
 #include <span>
-#include <string>
 #include <string_view>
 #include <vector>
 
 #include "fogbench/model/run.hpp"
+#include "fogbench/storage/errors.hpp"
 #include "fogbench/storage/identity.hpp"
+#include "fogbench/storage/models.hpp"
+#include "fogbench/storage/outbox.hpp"
+#include "fogbench/storage/plans.hpp"
+#include "fogbench/storage/prune.hpp"
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/verdict.hpp"
 
 namespace fogbench::storage {
@@ -30,49 +35,6 @@ namespace fogbench::storage {
 namespace detail {
 class Database;  // the connection and its statement cache (storage/src/sqlite.hpp)
 }
-
-enum class StoreErrc {
-  open_failed,       // the file cannot be opened or created
-  not_fogbench,      // a SQLite database that is not a fogbench store
-  schema_too_new,    // written by a newer fogbench: refused, never modified
-  schema_too_old,    // opened read-only but it needs a migration
-  migration_failed,  // a migration script failed; the database keeps its old version
-  not_found,         // no such run, unit, model
-  invalid_argument,  // a caller's value is unusable: bad JSON, unequal column lengths, NaN time
-  constraint,        // a uniqueness or reference violated, e.g. a sample time stored twice
-  read_only,         // SQLITE_READONLY: a read-only file, directory or connection
-  disk_full,         // SQLITE_FULL: the disk (or OpenOptions::size_limit_bytes) is full
-  io,                // SQLITE_IOERR
-  busy,              // SQLITE_BUSY or SQLITE_LOCKED after the busy timeout
-  corrupt,           // SQLITE_CORRUPT or SQLITE_NOTADB
-  sqlite,            // any other SQLite failure
-  pruned,            // the run's samples were deleted by Store::prune (its record stays)
-};
-std::string_view to_string(StoreErrc code);
-
-struct StoreError {
-  StoreErrc code = StoreErrc::sqlite;
-  int sqlite_code = 0;  // SQLite's extended result code; 0 when the error is not SQLite's
-  std::string message;  // what was being done, in which file, and SQLite's own message
-};
-
-template <class T>
-using StoreResult = std::expected<T, StoreError>;
-
-enum class RunState { pending, settling, running, completed, aborted, failed, interrupted };
-std::string_view to_string(RunState s);
-std::optional<RunState> run_state_from_string(std::string_view s);
-// completed, aborted, failed and interrupted: the run has ended.
-bool is_terminal(RunState s);
-
-// Why a run was recorded: to fit a model, or to verify one.
-enum class Purpose { fit, verify };
-std::string_view to_string(Purpose p);
-std::optional<Purpose> purpose_from_string(std::string_view s);
-
-enum class EventKind { state, phase, command, alarm, fault, note };
-std::string_view to_string(EventKind k);
-std::optional<EventKind> event_kind_from_string(std::string_view s);
 
 struct OpenOptions {
   // Open without any write (no migration, no journal-mode change); every write fails with
@@ -101,239 +63,6 @@ struct OpenOptions {
   bool backup_before_migration = true;
   // The source of created_at and event times (ISO 8601 UTC); system_clock::now when empty.
   std::function<std::chrono::system_clock::time_point()> clock;
-};
-
-struct NewRun {
-  std::string profile_name;
-  std::string profile_text;              // the profile source, as run
-  Purpose purpose = Purpose::fit;
-  std::string config_json = "{}";        // the configuration in force (JSON object text)
-  double time_scale = 1.0;               // profile seconds per wall second (1 on hardware)
-  std::vector<std::string> unit_serials; // unit_index = position in this list
-  std::optional<RunIdentity> identity;   // stored in the same transaction (identity.hpp)
-  // Each unit's lot id (same positions; shorter or empty: no lot), 1..64 characters.
-  std::vector<std::optional<std::string>> unit_lots;
-  // Each unit's bench slot (same positions; shorter or empty: none), 1..16 characters.
-  std::vector<std::string> unit_slots;
-};
-
-struct RunUnit {
-  int unit_index = 0;
-  std::string serial;
-  std::optional<std::string> lot;  // the production lot the unit came from, when given
-  std::optional<std::string> slot; // the bench slot it sat in; empty for runs stored before slots
-};
-
-struct RunRecord {
-  std::int64_t id = 0;
-  std::string created_at;                 // ISO 8601 UTC
-  std::string profile_name;
-  std::string profile_text;
-  Purpose purpose = Purpose::fit;
-  RunState state = RunState::pending;
-  std::string state_reason;
-  std::string config_json;
-  std::optional<std::string> started_at;  // first entry into settling or running
-  std::optional<std::string> ended_at;    // entry into a terminal state
-  double time_scale = 1.0;
-  std::vector<RunUnit> units;             // by unit_index
-  std::optional<std::string> pruned_at;   // when Store::prune deleted its samples (ISO 8601 UTC)
-  std::int64_t pruned_samples = 0;        // how many it deleted
-};
-
-struct RunEvent {
-  std::int64_t id = 0;
-  std::int64_t run_id = 0;
-  std::optional<double> t_s;  // s since the run's start; empty for events outside the run clock
-  std::string at;             // ISO 8601 UTC
-  EventKind kind = EventKind::note;
-  std::string detail_json;
-};
-
-struct RunDetail {
-  RunRecord run;
-  std::vector<RunEvent> events;  // in the order they were added
-};
-
-struct RunFilter {
-  std::optional<RunState> state;
-  std::optional<Purpose> purpose;
-  std::optional<std::string> serial;        // runs that recorded this unit
-  std::optional<std::string> profile_name;
-  std::int64_t limit = 100;                 // newest first
-  std::int64_t offset = 0;
-};
-
-inline constexpr double kNoValue = std::numeric_limits<double>::quiet_NaN();
-
-// One second of one unit, as the daemon records it. A NaN double is stored as NULL (a signal
-// not read) and read back as NaN.
-struct SampleRow {
-  int unit_index = 0;
-  double t_s = 0;                      // s since the run's start; unique per unit
-  double wall_time = kNoValue;         // unix time, s
-  double setpoint_c = kNoValue;        // chamber setpoint, degC
-  double chamber_c = kNoValue;         // chamber air, degC
-  double gyro_dph = kNoValue;          // gyro output, deg/h
-  std::optional<std::int64_t> frames;  // gyro frames received for this sample
-  double t1_c = kNoValue;              // coil-centre thermistor, degC
-  double t2_c = kNoValue;              // coil outer-wall thermistor, degC
-  model::Phase phase = model::Phase::unknown;
-  std::optional<int> step;             // profile step index
-  std::uint8_t flags = 0;              // model::flag bits
-  double since_power_on_s = kNoValue;  // time since the gyro's last power-on as the daemon saw
-                                       // it, s; kNoValue when it did not see one
-  // The daemon's live compensation of this second: gyro_dph minus the drift the unit's model
-  // computed in its firmware form (model/firmware.hpp), deg/h; kNoValue when there was none
-  // (no model, warming up, inputs missing; docs/daemon.md "Live compensation").
-  double compensated_dph = kNoValue;
-};
-
-struct ExportOptions {
-  // By default the leading settle samples are left out: the run proper starts after them.
-  bool include_settle = false;
-};
-
-struct ImportOptions {
-  std::string serial;                 // the unit's serial (required)
-  std::string profile_name = "import";
-  Purpose purpose = Purpose::fit;
-  std::string config_json = "{}";
-  std::string profile_text;                // the profile as run, when known
-  std::optional<RunIdentity> identity;     // e.g. read back from the CSV's comments
-  // The unit's production lot (a CSV export's `# lot:` line, lot_from_fields), 1..64 bytes of
-  // printable text; none: the run has no lot, as a run started without one.
-  std::optional<std::string> lot;
-};
-
-struct NewModel {
-  std::string serial;
-  std::optional<std::int64_t> run_id;     // the run it was fitted on
-  std::optional<std::int64_t> parent_id;  // the model it refines
-  std::string model_json;                 // opaque to storage, but must be JSON
-  std::string method;
-  std::string terms;
-};
-
-struct ModelRef {
-  std::int64_t id = 0;
-  int version = 0;  // 1, 2, 3... per serial
-};
-
-struct ModelRecord {
-  std::int64_t id = 0;
-  std::string serial;
-  int version = 0;
-  std::optional<std::int64_t> run_id;
-  std::optional<std::int64_t> parent_id;
-  std::string created_at;
-  std::string model_json;
-  std::string method;
-  std::string terms;
-};
-
-struct NewVerification {
-  std::int64_t run_id = 0;
-  int unit_index = 0;
-  std::int64_t model_id = 0;
-  std::string result_json;
-  bool pass = false;
-};
-
-struct VerificationRecord {
-  std::int64_t id = 0;
-  std::int64_t run_id = 0;
-  int unit_index = 0;
-  std::int64_t model_id = 0;
-  std::string created_at;
-  std::string result_json;
-  bool pass = false;
-};
-
-// A qualification plan as stored (docs/plans.md): its text, units and the daemon's progress.
-struct PlanRecord {
-  std::int64_t id = 0;
-  std::string name, source, plan_text;
-  std::vector<std::string> units;  // serials
-  std::string state;               // queued, running, completed, aborted, failed
-  std::optional<std::int64_t> queue_pos;
-  std::string created_at;
-  std::optional<std::string> started_at, ended_at;
-  std::string reason;
-  std::string progress_json;
-  // Who started it (operator_source: client, peer or none, as a run's identity) and each
-  // unit's lot, given to every run of the plan (schema version 8).
-  std::string operator_name = {}, operator_source = "none";
-  std::map<std::string, std::string> lots = {};  // serial -> lot; a unit without a lot is absent
-  // Each unit's bench slot (schema version 10); absent for plans stored before slots.
-  std::map<std::string, std::string> slots = {};  // serial -> slot
-};
-struct NewPlan {
-  std::string name, source, plan_text;
-  std::vector<std::string> units;
-  std::string state = "queued";  // or running
-  std::string operator_name = {}, operator_source = "none";
-  std::map<std::string, std::string> lots = {};  // serial -> lot
-  std::map<std::string, std::string> slots = {};  // serial -> slot
-};
-// An entry of the plans' audit trail (queue edits, plan starts, steps, verdicts).
-struct PlanEvent {
-  std::int64_t id = 0;
-  std::string at;
-  std::optional<std::int64_t> plan_id;
-  std::string kind, detail_json;
-};
-
-// One run waiting in the plant outbox.
-struct OutboxEntry {
-  std::int64_t id = 0;
-  std::int64_t run_id = 0;
-  std::string queued_at;    // ISO 8601 UTC
-  int attempts = 0;         // failed attempts so far
-  std::string last_error;   // the last attempt's error, "" when none failed
-};
-
-// Store::prune: the samples (every unit's seconds, the bulk of a store) of the runs that ended
-// before a date are deleted; everything else a run has stays (its record, units, events,
-// models, verifications, verdicts, certificates), and the run is marked pruned (RunRecord's
-// pruned_at). By default only runs the plant store has received are pruned (docs/storage.md,
-// "Retention").
-struct PruneOptions {
-  std::string before;                 // YYYY-MM-DD (midnight UTC) or YYYY-MM-DDTHH:MM:SSZ
-  bool include_unreplicated = false;  // prune runs the plant store has not received too
-  bool dry_run = false;               // say what would be pruned, change nothing
-};
-
-struct PrunedRun {
-  std::int64_t run_id = 0;
-  std::string ended_at;
-  std::string state;                  // completed, aborted or failed
-  std::vector<std::string> serials;   // by unit_index
-  std::int64_t samples = 0;           // deleted (or, on a dry run, that would be)
-  std::optional<std::string> sent_at; // when the plant store received it; empty: never
-};
-
-struct KeptRun {
-  std::int64_t run_id = 0;
-  std::string ended_at;
-  std::string reason;                 // why it was not pruned
-};
-
-struct PruneReport {
-  std::string before;                 // the cut-off as compared: YYYY-MM-DDTHH:MM:SS.000Z
-  std::vector<PrunedRun> pruned;
-  std::vector<KeptRun> kept;
-  std::int64_t samples = 0;           // deleted in all
-  bool dry_run = false;
-};
-
-struct OutboxStatus {
-  std::int64_t depth = 0;                     // entries waiting
-  std::optional<std::string> oldest_queued_at;
-  int attempts = 0;                           // failed attempts of the oldest entry
-  std::string last_error;                     // and its last error
-  std::optional<std::string> last_sent_at;    // the last entry the plant committed
-  std::int64_t sent = 0;                      // entries sent, ever
 };
 
 class Store {
