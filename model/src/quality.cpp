@@ -282,51 +282,51 @@ class Assessor {
     return out;
   }
 
-  // The smallest of y's moves (max - min over its in-range readings, degC) over the interval
-  // shifted back by lag_s and by lag_s - stuck_lag_margin_s (forward when negative): the margin
-  // only ever lowers the evidence, at a ramp's start and at its end alike. 0 when the window is
-  // outside the run.
-  double shifted_move(const std::vector<double>& y, Interval iv, double lag_s) const {
-    auto move_at = [&](double shift_s) {
+  // The smaller of `measure` (degC) over two windows of the run: the interval shifted back by
+  // lag_s and by lag_s - stuck_lag_margin_s (forward when negative), each clipped to the run,
+  // 0 for a window outside it. The margin only ever lowers the evidence, at a ramp's start and
+  // at its end alike. measure(first, last) takes the window's sample indices, inclusive.
+  template <class Measure>
+  double over_shifted_windows(Interval iv, double lag_s, Measure measure) const {
+    auto at = [&](double shift_s) {
       const auto sh = static_cast<long>(std::lround(shift_s));
       const long a = static_cast<long>(iv.first) - sh, b = static_cast<long>(iv.last) - sh;
       const long end = static_cast<long>(n_) - 1;
       if (b < 0 || a > end) return 0.0;
-      double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-      for (long i = std::max(0L, a); i <= std::min(b, end); ++i) {
-        const double v = y[static_cast<std::size_t>(i)];
-        if (in_coil_range(v)) lo = std::min(lo, v), hi = std::max(hi, v);
-      }
-      return hi > lo ? hi - lo : 0.0;
+      return measure(static_cast<std::size_t>(std::max(0L, a)), static_cast<std::size_t>(std::min(b, end)));
     };
-    return std::min(move_at(lag_s), move_at(lag_s - o_.stuck_lag_margin_s));
+    return std::min(at(lag_s), at(lag_s - o_.stuck_lag_margin_s));
+  }
+
+  // A witness that leads the sensor: its move (max - min over its in-range readings, degC)
+  // over the shifted windows.
+  double shifted_move(const std::vector<double>& y, Interval iv, double lag_s) const {
+    return over_shifted_windows(iv, lag_s, [&](std::size_t first, std::size_t last) {
+      double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+      for (std::size_t i = first; i <= last; ++i)
+        if (in_coil_range(y[i])) lo = std::min(lo, y[i]), hi = std::max(hi, y[i]);
+      return hi > lo ? hi - lo : 0.0;
+    });
   }
 
   // A witness that follows the sensor (the coil's thermistors witnessing the air when no
   // setpoint is recorded, T1 witnessing T2 when neither is): its move is no evidence, since a
   // coil keeps settling for many minutes after the air holds still. Its evidence is how far it
-  // moves away from the repeated value v (degC): the largest rise of its distance from v above
-  // the smallest distance before it, over the interval looked at later by the lag and by the lag
-  // less the margin, the smaller counting. A coil settling towards the air's held value only
-  // closes on it; a sensor frozen on a ramp is crossed and left behind by the coil that follows
-  // the true temperature.
+  // moves away from the repeated value v_c (degC): the largest rise of its distance from v_c
+  // above the smallest distance before it, over the shifted windows (looked at later: its lag
+  // is negative). A coil settling towards the air's held value only closes on it; a sensor
+  // frozen on a ramp is crossed and left behind by the coil that follows the true temperature.
   double shifted_departure(const std::vector<double>& y, Interval iv, double lag_s, double v_c) const {
-    auto departure_at = [&](double shift_s) {
-      const auto sh = static_cast<long>(std::lround(shift_s));
-      const long a = static_cast<long>(iv.first) - sh, b = static_cast<long>(iv.last) - sh;
-      const long end = static_cast<long>(n_) - 1;
-      if (b < 0 || a > end) return 0.0;
+    return over_shifted_windows(iv, lag_s, [&](std::size_t first, std::size_t last) {
       double closest = std::numeric_limits<double>::infinity(), rise = 0.0;
-      for (long i = std::max(0L, a); i <= std::min(b, end); ++i) {
-        const double w = y[static_cast<std::size_t>(i)];
-        if (!in_coil_range(w)) continue;
-        const double d = std::abs(w - v_c);
+      for (std::size_t i = first; i <= last; ++i) {
+        if (!in_coil_range(y[i])) continue;
+        const double d = std::abs(y[i] - v_c);
         closest = std::min(closest, d);
         rise = std::max(rise, d - closest);
       }
       return rise;
-    };
-    return std::min(departure_at(lag_s), departure_at(lag_s - o_.stuck_lag_margin_s));
+    });
   }
 
   // Dropouts, values out of the coil's range and stuck readings of one thermistor.
