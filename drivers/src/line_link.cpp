@@ -15,6 +15,7 @@
 #include <cstring>
 
 #include "fogbench/drivers/chamber_dialects.hpp"
+#include "termios_baud.hpp"
 
 namespace fogbench::drivers {
 
@@ -25,20 +26,6 @@ using SteadyClock = std::chrono::steady_clock;
 int ms_until(SteadyClock::time_point deadline) {
   const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - SteadyClock::now()).count();
   return left <= 0 ? 0 : static_cast<int>(left);
-}
-
-std::optional<speed_t> to_speed(int baud) {
-  switch (baud) {
-    case 1200: return B1200;
-    case 2400: return B2400;
-    case 4800: return B4800;
-    case 9600: return B9600;
-    case 19200: return B19200;
-    case 38400: return B38400;
-    case 57600: return B57600;
-    case 115200: return B115200;
-    default: return std::nullopt;
-  }
 }
 
 }  // namespace
@@ -134,7 +121,7 @@ Result<void> LineLink::open_serial() {
     return link_failed(ErrorCode::io, "tcgetattr: " + why);
   }
   ::cfmakeraw(&t);
-  const auto speed = to_speed(endpoint_.baud);
+  const auto speed = detail::termios_baud(endpoint_.baud);
   if (!speed) {
     ::close(fd);
     return link_failed(ErrorCode::config, "baud " + std::to_string(endpoint_.baud) + " not supported");

@@ -14,32 +14,11 @@
 
 #include "fogbench/drivers/can_frame.hpp"
 #include "fogbench/drivers/can_transport.hpp"
+#include "termios_baud.hpp"
 
 namespace fogbench::drivers {
 
 namespace {
-
-std::optional<speed_t> baud_constant(int baud) noexcept {
-  switch (baud) {
-    case 1200: return B1200;
-    case 2400: return B2400;
-    case 4800: return B4800;
-    case 9600: return B9600;
-    case 19200: return B19200;
-    case 38400: return B38400;
-    case 57600: return B57600;
-    case 115200: return B115200;
-    case 230400: return B230400;
-    case 460800: return B460800;
-    case 500000: return B500000;
-    case 921600: return B921600;
-    case 1000000: return B1000000;
-    case 2000000: return B2000000;
-    case 3000000: return B3000000;
-    case 4000000: return B4000000;
-    default: return std::nullopt;
-  }
-}
 
 class SerialGyroTransport final : public CanTransport {
  public:
@@ -139,7 +118,7 @@ class SerialGyroTransport final : public CanTransport {
 
 }  // namespace
 
-bool serial_baud_supported(int baud) noexcept { return baud_constant(baud).has_value(); }
+bool serial_baud_supported(int baud) noexcept { return detail::termios_baud(baud).has_value(); }
 
 Result<std::unique_ptr<CanTransport>> open_serial_gyro(const std::string& device, int baud,
                                                        serial::FrameFormat format,
@@ -149,7 +128,7 @@ Result<std::unique_ptr<CanTransport>> open_serial_gyro(const std::string& device
   if (unit.mode != GyroMode::rate || !(unit.scale_dph_per_count > 0)) {
     return fail(ErrorCode::config, name + ": a serial gyro's unit must be in rate mode with scale_dph_per_count > 0");
   }
-  const auto speed = baud_constant(baud);
+  const auto speed = detail::termios_baud(baud);
   if (!speed) return fail(ErrorCode::config, name + ": baud rate not supported");
   const int fd = ::open(device.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
   if (fd < 0) return fail(ErrorCode::connection, name + ": open: " + std::strerror(errno));
