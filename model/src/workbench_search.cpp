@@ -2,6 +2,13 @@
 // the greedy forward selection over it and the adequacy checks that decide `adequate`. The
 // drift that is not thermal (bias jumps, a trend in time, a periodic disturbance) is found in
 // workbench_nonthermal.cpp.
+//
+// Why this file is longer than 800 lines: its one job is diagnose's search, and most of it is
+// one function, diagnose(), whose steps (the library and the generated candidates scored, the
+// greedy steps, the checks that stop them, the answer's one headline) share the step's state
+// and the options. The generated space (tau_grid .. generate, about 150 lines) is the seam to
+// cut first if it grows: diagnose() would then reach `Space` and `generate` through
+// workbench_internal.hpp.
 #include <algorithm>
 #include <cmath>
 #include <cctype>
