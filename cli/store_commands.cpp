@@ -1,13 +1,18 @@
-// fogctl store prune: retention for the bench's store (issue 28). Opens the store file itself
-// (SQLite lets it share the file with a running fogbenchd: each delete is a short transaction),
-// so an admin prunes with the daemon running or stopped. docs/storage.md, "Retention".
+// fogctl store prune and vacuum: retention for the bench's store (issue 28). prune opens the
+// store file itself (SQLite lets it share the file with a running fogbenchd: each delete is a
+// short transaction), so an admin prunes with the daemon running or stopped; vacuum rewrites
+// the file and takes the store's lock first, so it runs only with the daemon stopped.
+// docs/storage.md, "Retention".
 #include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
 #include "client.hpp"
 #include "common.hpp"
+#include "fogbench/storage/lock.hpp"
 #include "fogbench/storage/prune.hpp"
 #include "fogbench/storage/store.hpp"
 #include "table.hpp"
@@ -86,15 +91,69 @@ int run_store_prune(const PruneCliOptions& o, std::ostream& out, std::ostream& e
       << ", " << r->samples << " samples " << verb
       << "; records, events, models, verdicts and certificates kept";
   if (!r->dry_run && !r->pruned.empty())
-    out << ". The file does not shrink: SQLite reuses the freed pages for new runs";
+    out << ". The file does not shrink: SQLite reuses the freed pages for new runs (`fogctl store vacuum`, with "
+           "fogbenchd stopped, gives them back)";
   out << "\n";
+  return kExitOk;
+}
+
+struct VacuumCliOptions {
+  std::string store;
+  bool json_out = false;
+};
+
+std::string megabytes(std::int64_t bytes) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.1f MB", static_cast<double>(bytes) / 1e6);
+  return buf;
+}
+
+// VACUUM rewrites the whole file: done only while this process holds the store's lock, so no
+// fogbenchd records meanwhile (its every write would wait for the rewrite) or starts during it.
+int run_store_vacuum(const VacuumCliOptions& o, std::ostream& out, std::ostream& err) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(o.store, ec)) {
+    err << "fogctl store vacuum: --store " << o.store << ": no such store file (fogbenchd's storage.path)\n";
+    return kExitError;
+  }
+  auto lock = storage::StoreLock::acquire(o.store);
+  if (!lock) {
+    err << "fogctl store vacuum: " << lock.error().message
+        << (lock.error().held_by_other ? "; stop fogbenchd first (systemctl stop fogbenchd): VACUUM rewrites the whole "
+                                         "file and a recording daemon would wait for it"
+                                       : "")
+        << "\n";
+    return kExitError;
+  }
+  storage::OpenOptions so;
+  so.create = false;
+  auto store = storage::Store::open(o.store, so);
+  if (!store) {
+    err << "fogctl store vacuum: " << store.error().message << "\n";
+    return kExitError;
+  }
+  if (!o.json_out) err << "fogctl store vacuum: rewriting " << o.store << " (it holds the store until done)...\n";
+  auto r = store->vacuum();
+  if (!r) {
+    err << "fogctl store vacuum: " << r.error().message << "\n";
+    return kExitError;
+  }
+  if (o.json_out) {
+    out << json{{"store", o.store},          {"bytes_before", r->bytes_before}, {"bytes_after", r->bytes_after},
+                {"live_bytes", r->live_bytes}, {"free_bytes", r->free_bytes}}
+               .dump()
+        << "\n";
+    return kExitOk;
+  }
+  out << o.store << ": " << megabytes(r->bytes_before) << " -> " << megabytes(r->bytes_after) << " ("
+      << megabytes(std::max<std::int64_t>(0, r->bytes_before - r->bytes_after)) << " given back to the filesystem)\n";
   return kExitOk;
 }
 
 }  // namespace
 
 void add_store_commands(CLI::App& app, int& code) {
-  auto* s = app.add_subcommand("store", "The bench's store (the SQLite file fogbenchd records in): retention");
+  auto* s = app.add_subcommand("store", "The bench's store (the SQLite file fogbenchd records in): retention and its space");
   s->require_subcommand(1);
   static PruneCliOptions po;
   auto* p = s->add_subcommand(
@@ -108,6 +167,13 @@ void add_store_commands(CLI::App& app, int& code) {
   p->add_flag("--dry-run", po.dry_run, "Say what would be pruned; change nothing");
   p->add_flag("--json", po.json_out, "Print JSON for machines");
   p->callback([&] { code = run_store_prune(po, std::cout, std::cerr); });
+
+  static VacuumCliOptions vo;
+  auto* v = s->add_subcommand(
+      "vacuum", "Give the space pruned runs freed back to the filesystem (rewrites the file; fogbenchd must be stopped)");
+  v->add_option("--store", vo.store, "The store file (fogbenchd's storage.path)")->required();
+  v->add_flag("--json", vo.json_out, "Print JSON for machines");
+  v->callback([&] { code = run_store_vacuum(vo, std::cout, std::cerr); });
 }
 
 }  // namespace fogbench::cli

@@ -1,7 +1,14 @@
 // The Store's retention (issue 28): `fogctl store prune --before DATE` deletes the samples of
 // old runs, the bulk of a store, and keeps everything else a run has (docs/storage.md,
 // "Retention"). The other rooms: store.cpp (opening, runs), store_samples.cpp, store_outbox.cpp.
+#include <sys/stat.h>
+#include <sys/statvfs.h>
+#include <unistd.h>
+
 #include <cctype>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
 #include <nlohmann/json.hpp>
 
 #include "fogbench/storage/store.hpp"
@@ -146,6 +153,98 @@ StoreResult<PruneReport> Store::prune(const PruneOptions& options) {
     report.samples += p.samples;
     report.pruned.push_back(std::move(p));
   }
+  return report;
+}
+
+namespace {
+
+std::int64_t file_size_or_0(const std::filesystem::path& p) {
+  std::error_code ec;
+  const auto n = std::filesystem::file_size(p, ec);
+  return ec ? 0 : static_cast<std::int64_t>(n);
+}
+
+// SQLite's unix VFS puts its temporary files in the first of these that is a writable folder
+// (os_unix.c, unixTempFileDir).
+std::filesystem::path sqlite_temp_dir() {
+  std::vector<std::string> candidates;
+  for (const char* var : {"SQLITE_TMPDIR", "TMPDIR"})
+    if (const char* v = std::getenv(var); v && *v) candidates.emplace_back(v);
+  for (const char* d : {"/var/tmp", "/usr/tmp", "/tmp"}) candidates.emplace_back(d);
+  for (const auto& d : candidates) {
+    struct stat st{};
+    if (::stat(d.c_str(), &st) == 0 && S_ISDIR(st.st_mode) && ::access(d.c_str(), W_OK | X_OK) == 0) return d;
+  }
+  return ".";
+}
+
+struct FreeSpace {
+  std::int64_t bytes = 0;
+  unsigned long fsid = 0;
+  bool known = false;
+};
+FreeSpace free_space(const std::filesystem::path& dir) {
+  struct statvfs v{};
+  if (::statvfs(dir.c_str(), &v) != 0) return {};
+  return {static_cast<std::int64_t>(v.f_bavail) * static_cast<std::int64_t>(v.f_frsize), v.f_fsid, true};
+}
+
+std::string mb(std::int64_t bytes) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.1f MB", static_cast<double>(bytes) / 1e6);
+  return buf;
+}
+
+}  // namespace
+
+StoreResult<VacuumReport> Store::vacuum() {
+  assert(db_);
+  Database& db = *db_;
+  const std::filesystem::path path = db.path();
+  const std::string what = "vacuum " + path.string();
+  if (path == ":memory:") return VacuumReport{};
+  VacuumReport report;
+  const std::filesystem::path wal = path.string() + "-wal";
+  report.bytes_before = file_size_or_0(path) + file_size_or_0(wal);
+
+  std::int64_t page_size = 0, pages = 0, free_pages = 0;
+  for (auto [sql, out] : {std::pair<const char*, std::int64_t*>{"PRAGMA page_size", &page_size},
+                          {"PRAGMA page_count", &pages},
+                          {"PRAGMA freelist_count", &free_pages}}) {
+    auto stmt = db.statement(sql);
+    if (!stmt) return std::unexpected(stmt.error());
+    Query q(db, *stmt);
+    auto got = row(db, q, what);
+    if (!got) return std::unexpected(got.error());
+    *out = q.int64(0);
+  }
+  report.live_bytes = (pages - free_pages) * page_size;
+
+  // Checked before anything is written: SQLite would stop with SQLITE_FULL part way, after
+  // filling the disk the daemon also writes to.
+  const auto dir = path.has_parent_path() ? path.parent_path() : std::filesystem::path(".");
+  const FreeSpace store_fs = free_space(dir);
+  const auto temp_dir = sqlite_temp_dir();
+  const FreeSpace temp_fs = free_space(temp_dir);
+  report.free_bytes = store_fs.bytes;
+  if (store_fs.known && temp_fs.known) {
+    const bool one_fs = store_fs.fsid == temp_fs.fsid;
+    const std::int64_t need_store = one_fs ? 2 * report.live_bytes : report.live_bytes;
+    if (store_fs.bytes < need_store)
+      return std::unexpected(db.error(StoreErrc::disk_full,
+          what + ": needs " + mb(need_store) + " free in " + dir.string() + " (the " + mb(report.live_bytes) +
+              " in use, copied " + (one_fs ? "twice: SQLite's temporary copy in " + temp_dir.string() + " and the WAL" : "once, into the WAL") +
+              "), " + mb(store_fs.bytes) + " free; nothing changed"));
+    if (!one_fs && temp_fs.bytes < report.live_bytes)
+      return std::unexpected(db.error(StoreErrc::disk_full,
+          what + ": needs " + mb(report.live_bytes) + " free in SQLite's temporary folder " + temp_dir.string() +
+              " (set SQLITE_TMPDIR to a folder with room), " + mb(temp_fs.bytes) + " free; nothing changed"));
+  }
+
+  if (auto ok = db.exec("VACUUM", what); !ok) return std::unexpected(ok.error());
+  // The rewritten pages are in the WAL until a checkpoint copies them back and truncates both.
+  if (auto ok = db.exec("PRAGMA wal_checkpoint(TRUNCATE)", what + ": checkpoint"); !ok) return std::unexpected(ok.error());
+  report.bytes_after = file_size_or_0(path) + file_size_or_0(wal);
   return report;
 }
 

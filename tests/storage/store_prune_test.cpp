@@ -185,3 +185,29 @@ TEST_CASE("store prune: a malformed date is refused naming what is wrong, nothin
   ok.before = "2026-01-01T00:00:01Z";  // the run ended at 00:00:00.000
   REQUIRE(c.store.prune(ok)->pruned.size() == 1);
 }
+
+TEST_CASE("store vacuum: the pages a prune freed go back to the filesystem, the kept runs read as before",
+          "[store][prune]") {
+  ClockedStore c;
+  const auto old_sent = c.run(40000, RunState::completed);  // 80,000 rows, some MB
+  c.sent(old_sent);
+  const auto kept_run = c.run(300, RunState::completed);
+  PruneOptions o;
+  o.before = "2026-01-02";
+  REQUIRE(c.store.prune(o)->samples == 80000);
+  auto v = c.store.vacuum();
+  REQUIRE(v);
+  INFO("before " << v->bytes_before << " after " << v->bytes_after << " live " << v->live_bytes);
+  // The file held the deleted rows' pages; after, it is about its live pages (a few hundred kB).
+  CHECK(v->bytes_after < v->bytes_before / 4);
+  CHECK(v->live_bytes <= v->bytes_before);
+  CHECK(v->bytes_after <= v->live_bytes + 64 * 1024);
+  CHECK(v->free_bytes > 0);
+  CHECK(c.store.count_samples(kept_run).value() == 600);
+  CHECK(c.store.get_run(old_sent)->run.pruned_samples == 80000);
+  // A second vacuum has nothing to give back.
+  auto again = c.store.vacuum();
+  REQUIRE(again);
+  CHECK(again->bytes_after <= again->bytes_before);
+  CHECK(again->bytes_before - again->bytes_after < 64 * 1024);
+}

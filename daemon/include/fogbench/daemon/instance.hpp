@@ -1,8 +1,8 @@
 // One fogbenchd per store and per socket path (docs/daemon.md, "One daemon per store"). The
-// store is claimed by an exclusive flock on `<store>.lock`, held for the process's lifetime, with
-// the holder's pid written in it; a socket path is taken over only when nothing answers on it,
-// and on exit removed only if it is still the socket this process bound. No Asio here: plain
-// POSIX calls, tested in tests/daemon/instance_test.cpp.
+// store is claimed by storage's StoreLock (an exclusive flock on `<store>.lock`, held for the
+// process's lifetime, with the holder's pid written in it); a socket path is taken over only
+// when nothing answers on it, and on exit removed only if it is still the socket this process
+// bound. No Asio here: plain POSIX calls, tested in tests/daemon/instance_test.cpp.
 #pragma once
 
 #include <sys/types.h>
@@ -11,37 +11,20 @@
 #include <filesystem>
 #include <string>
 
+#include "fogbench/storage/lock.hpp"
+
 namespace fogbench::daemon {
 
-// The files the daemon creates: the store and its lock (storage's OpenOptions::file_mode is the
-// same), and the folders it makes for the socket. Set with fchmod/chmod, never from the umask.
-inline constexpr ::mode_t kStoreFileMode = 0640;
+// The store's lock and the store file's mode live in storage (lock.hpp): `fogctl store vacuum`
+// takes the same lock. The folders the daemon makes for the socket get kSocketDirMode, set with
+// chmod, never from the umask.
+using storage::kStoreFileMode;
+using storage::StoreLock;
 inline constexpr ::mode_t kSocketDirMode = 0750;
 
 struct ClaimError {
   std::string message;
   bool held_by_other = false;  // another live daemon: fogbenchd exits 2 (else 1)
-};
-
-// An exclusive lock on `<store>.lock`: released when the object (its descriptor) goes.
-class StoreLock {
- public:
-  // Takes the lock without waiting; a lock held by another process is refused with its pid.
-  static std::expected<StoreLock, ClaimError> acquire(const std::filesystem::path& store_path);
-  static std::filesystem::path lock_path(const std::filesystem::path& store_path);
-
-  StoreLock(StoreLock&& o) noexcept : fd_(o.fd_), path_(std::move(o.path_)) { o.fd_ = -1; }
-  StoreLock& operator=(StoreLock&& o) noexcept;
-  StoreLock(const StoreLock&) = delete;
-  StoreLock& operator=(const StoreLock&) = delete;
-  ~StoreLock();
-
-  const std::filesystem::path& path() const { return path_; }
-
- private:
-  StoreLock(int fd, std::filesystem::path path) : fd_(fd), path_(std::move(path)) {}
-  int fd_ = -1;
-  std::filesystem::path path_;
 };
 
 // Creates the missing folders of `dir` with mode kSocketDirMode (each one made here is chmod-ed,

@@ -1,4 +1,5 @@
-// Retention (store_prune.cpp, docs/storage.md "Retention"): Store::prune's options and report.
+// Retention (store_prune.cpp, docs/storage.md "Retention"): Store::prune's options and report,
+// Store::vacuum's report.
 #pragma once
 
 #include <cstdint>
@@ -40,6 +41,14 @@ struct PruneReport {
   std::vector<KeptRun> kept;
   std::int64_t samples = 0;           // deleted in all
   bool dry_run = false;
+};
+
+// Store::vacuum: the file's size before and after, and the free space it was checked against.
+struct VacuumReport {
+  std::int64_t bytes_before = 0;  // the store file with its -wal
+  std::int64_t bytes_after = 0;
+  std::int64_t live_bytes = 0;    // the pages in use: what VACUUM copies, twice (temporary copy, WAL)
+  std::int64_t free_bytes = 0;    // free on the store's filesystem before it ran
 };
 
 }  // namespace fogbench::storage

@@ -198,6 +198,13 @@ class Store {
   // chunk); a prune cut short leaves a run marked with part of its samples, and the next prune
   // finishes it. invalid_argument for a malformed date.
   StoreResult<PruneReport> prune(const PruneOptions& options);
+  // Gives the pages freed by prune back to the filesystem: SQLite's VACUUM, which copies the
+  // pages in use to a temporary database and back through the WAL (the file keeps its inode,
+  // owner and mode; a crash leaves it as it was). The caller holds the store's lock (lock.hpp):
+  // a daemon writing meanwhile would wait for the whole rewrite. disk_full, naming the sizes,
+  // when the store's filesystem or SQLite's temporary folder has less free space than the pages
+  // in use (twice that when they are one filesystem), before anything is written.
+  StoreResult<VacuumReport> vacuum();
 
   // SQLite's integrity check and foreign-key check: an empty list when all is well, or the
   // problems found.
