@@ -163,7 +163,7 @@ std::expected<Plateau, std::string> fit_plateau(const RateRecord& r, const Plate
     sxx += (x[i] - mx) * (x[i] - mx);
     max_abs_in = std::max(max_abs_in, std::abs(x[i]));
     max_res = std::max(max_res, std::abs(res));
-    const double w = (x[i] - mx) * (x[i] - mx);
+    const double w = (x[i] - mx) * x[i];
     wsum += w;
     wc += w * p.steps[i].mean_coil_c;
   }
@@ -175,6 +175,9 @@ std::expected<Plateau, std::string> fit_plateau(const RateRecord& r, const Plate
   for (std::size_t i = 0; i < x.size(); ++i)
     p.steps[i].residual_ppm_fso = kPpm * (y[i] - (intercept + p.scale_factor * x[i])) / p.full_scale_out_dps;
   p.coil_c = wc / wsum;
+  double c_lo = p.steps[0].mean_coil_c, c_hi = c_lo;
+  for (const auto& s : p.steps) c_lo = std::min(c_lo, s.mean_coil_c), c_hi = std::max(c_hi, s.mean_coil_c);
+  p.coil_span_c = c_hi - c_lo;
   p.temp_rate_c_per_min = 60.0 * slope(used_t, used_c);
   // The bias: the output at zero input, measured where the sequence has zero-rate steps, else
   // the line's intercept. The two half scale factors are slopes through it (least squares

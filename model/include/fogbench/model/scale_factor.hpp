@@ -55,8 +55,13 @@ struct Plateau {
   int id = 0;
   std::vector<Step> steps;
   // The temperature the fitted scale factor refers to: the steps' mean coil temperatures
-  // weighted as the slope weights them, (r_i - mean r)^2, degC (on a hold, the plateau's mean).
+  // weighted as the slope weights a scale factor that varies from step to step,
+  // (r_i - mean r) r_i (their sum is sum (r_i - mean r)^2), degC. Exact for a scale factor
+  // linear in temperature; on a hold, the plateau's temperature.
   double coil_c = 0.0;
+  // How far the steps' mean coil temperatures spread, degC: on a ramp or an unsettled hold the
+  // scale factor changes over the sequence, and the nonlinearity and asymmetry include that.
+  double coil_span_c = 0.0;
   double temp_rate_c_per_min = 0.0; // least-squares slope of the coil temperature over the used samples, degC/min
   // The bias: the mean output of the zero-rate steps where the sequence has some, else the
   // line's intercept (bias_from_zero_rate false), deg/h.
