@@ -62,7 +62,7 @@ int main() {
       last = *res;
     }
     std::nth_element(times.begin(), times.begin() + 10, times.end());
-    std::printf("%d Hz, %zu samples, 10 plateaus: median %.3f ms CPU; TC %.3f +- %.3f ppm/degC (true 15), NL of plateau 0 %.3f ppm\n", hz,
+    std::printf("%d Hz, %zu samples, 10 plateaus: median %.3f ms CPU; TC %.4f +- %.4f ppm/degC (true 15), NL of plateau 0 %.3f ppm\n", hz,
                 rec.size(), 1e3 * times[10], last.tc_ppm_per_c.value.value_or(-1), last.tc_ppm_per_c.se, last.plateaus[0].nonlinearity_ppm);
   }
 }

@@ -44,6 +44,8 @@ nlohmann::json coefficient_json(const model::sf::Coefficient& c) {
 
 std::string coefficient_text(const model::sf::Coefficient& c, int digits, const std::string& unit) {
   if (!c.value) return "not identified: " + c.not_identified;
+  // Two significant digits of the standard error at least: never "+- 0.000".
+  if (c.se > 0.0) digits = std::clamp(1 - static_cast<int>(std::floor(std::log10(c.se))), digits, 9);
   return fixed(*c.value, digits) + " +- " + fixed(c.se, digits) + " " + unit + " (1 sigma)";
 }
 
