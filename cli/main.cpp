@@ -17,6 +17,7 @@
 #include "fleet.hpp"
 #include "offline.hpp"
 #include "plan.hpp"
+#include "scale_factor.hpp"
 #include "table.hpp"
 #include "workbench.hpp"
 
@@ -52,6 +53,7 @@ int main(int argc, char** argv) {
   fogbench::cli::add_workbench_commands(app, code);
   fogbench::cli::add_allan_command(app, code);
   fogbench::cli::add_coefficients_command(app, code);
+  fogbench::cli::add_scale_factor_command(app, code);
   fogbench::cli::add_cert_command(app, code);
   fogbench::cli::add_plan_commands(app, code);
   // The fleet commands run in fogctl-fleet, which links libpq: fogctl never loads it (fleet.hpp).

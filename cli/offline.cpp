@@ -10,6 +10,7 @@
 #include "options.hpp"
 #include "progress.hpp"
 #include "quality.hpp"
+#include "scale_factor.hpp"
 #include "simulate_profile.hpp"
 #include "table.hpp"
 #include "workbench.hpp"
@@ -38,6 +39,15 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
   coil.model = *coil_model;
   coil.distributed.t1_at = *t1_at;
   coil.distributed.t2_at = *t2_at;
+  std::optional<sim::RateSequence> rates;
+  if (!o.rate_sequence.empty()) {
+    auto seq = sim::parse_rate_sequence(o.rate_sequence, o.rate_step_s);
+    if (!seq) {
+      err << "fogctl simulate: --rate-sequence: " << seq.error() << "\n";
+      return kExitError;
+    }
+    rates = *seq;
+  }
   auto& gyro = cfg.units[0].gyro;
   // ARW N deg/sqrt(h) is a white rate noise of N x 60 deg/h in a 1 s sample (sigma(tau) = N / sqrt(tau_h)).
   if (o.arw_deg_per_sqrt_h) gyro.sigma_a_dph = 60.0 * *o.arw_deg_per_sqrt_h;
@@ -74,7 +84,17 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
     return kExitError;
   }
   const model::RunData& run = r->units.front();
-  if (!o.output.empty()) {
+  if (rates) {
+    const std::string csv = rate_sequence_csv(*r, o.sf_truth, *rates);
+    if (o.output.empty()) {
+      out << csv;
+      return kExitOk;
+    }
+    if (auto w = write_text(o.output, csv); !w) {
+      err << "fogctl simulate: " << w.error() << "\n";
+      return kExitError;
+    }
+  } else if (!o.output.empty()) {
     if (auto w = storage::write_csv_file(o.output, run); !w) {
       err << "fogctl simulate: " << w.error().message << "\n";
       return kExitError;
@@ -85,12 +105,13 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
   }
   if (o.json) {
     out << nlohmann::json{{"profile", profile->source_name}, {"seed", o.seed}, {"samples", run.size()},
-                          {"settle_s", r->settle_s}, {"effects", cfg.units[0].effects}, {"coil", o.coil}, {"output", o.output}}
+                          {"settle_s", r->settle_s}, {"effects", cfg.units[0].effects}, {"coil", o.coil}, {"output", o.output},
+                          {"rate_sequence", o.rate_sequence}}
                .dump()
         << "\n";
   } else {
     out << "simulated " << profile->source_name << " (" << o.coil << " coil, seed " << o.seed << (cfg.units[0].effects.empty() ? "" : ", effect " + cfg.units[0].effects)
-        << "): " << run.size() << " samples after a " << static_cast<long>(r->settle_s) << " s settle -> " << o.output << "\n";
+        << (rates ? ", rate sequence " + o.rate_sequence + " deg/s, " + fixed(o.rate_step_s, 0) + " s each" : "") << "): " << run.size() << " samples after a " << static_cast<long>(r->settle_s) << " s settle -> " << o.output << "\n";
   }
   return kExitOk;
 }
@@ -310,6 +331,23 @@ void add_offline_commands(CLI::App& app, int& code) {
       ->check(CLI::Range(2.0, 1e6));
   s->add_option("--periodic-amplitude", sim.periodic_amplitude_dph, "The periodic disturbance's amplitude, deg/h (with --periodic-period)")
       ->check(CLI::Range(0.0, 1000.0));
+  auto* seq = s->add_option("--rate-sequence", sim.rate_sequence,
+                            "Rates commanded in turn, deg/s, e.g. \"0,10,-10,100,-100,300,-300\", cycled through every profile step: "
+                            "writes the rate-sequence CSV (rate_in_dps, rate_out_dps) for fogctl scale-factor; docs/scale-factor.md");
+  s->add_option("--rate-step", sim.rate_step_s, "With --rate-sequence: how long each rate is held, s (default 30)")
+      ->check(CLI::Range(1.0, 86400.0))->needs(seq);
+  s->add_option("--sf-tc", sim.sf_truth.tc_ppm_per_c, "With --rate-sequence: the true scale factor's temperature coefficient, ppm/degC (default 15)")
+      ->check(CLI::Range(-1e4, 1e4))->needs(seq);
+  s->add_option("--sf-tc2", sim.sf_truth.tc2_ppm_per_c2, "With --rate-sequence: its second-order coefficient, ppm/degC^2 (default 0)")
+      ->check(CLI::Range(-100.0, 100.0))->needs(seq);
+  s->add_option("--sf-temp-rate", sim.sf_truth.temp_rate_ppm_per_c_per_min,
+                "With --rate-sequence: its dependence on the coil's temperature rate, ppm per degC/min (default 0)")
+      ->check(CLI::Range(-1e4, 1e4))->needs(seq);
+  s->add_option("--sf-nl", sim.sf_truth.nl_ppm,
+                "With --rate-sequence: cubic nonlinearity, the local scale factor's change at 300 deg/s, ppm (default 0)")
+      ->check(CLI::Range(-1e5, 1e5))->needs(seq);
+  s->add_option("--sf-asym", sim.sf_truth.asymmetry_ppm, "With --rate-sequence: the asymmetry of positive and negative inputs, ppm (default 0)")
+      ->check(CLI::Range(-1e5, 1e5))->needs(seq);
   s->add_option("-o,--output", sim.output, "Write the run's CSV here (default: standard output)");
   s->add_flag("--json", sim.json, "Print a JSON summary");
   s->add_flag("-q,--quiet", sim.quiet, "No progress line");

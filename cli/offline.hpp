@@ -9,6 +9,7 @@
 
 #include "common.hpp"
 #include "fogbench/model/noise.hpp"
+#include "fogbench/sim/scale_factor.hpp"
 
 namespace CLI {
 class App;
@@ -32,6 +33,12 @@ struct SimulateOptions {
   // periodic disturbance (both of period_s and amplitude_dph, or neither).
   double ageing_dph_per_h = 0.0;
   std::optional<double> periodic_period_s, periodic_amplitude_dph;
+  // A rate sequence (deg/s, "0,10,-10,100,-100"), each rate for rate_step_s s, cycled through
+  // every profile step: the output is then the rate-sequence CSV (scale_factor.hpp) of a gyro
+  // with the true scale factor sf_truth (docs/scale-factor.md). Empty: the ordinary run CSV.
+  std::string rate_sequence;
+  double rate_step_s = 30.0;
+  sim::ScaleFactorTruth sf_truth;
   bool json = false;
   bool quiet = false;
 };

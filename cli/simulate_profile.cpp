@@ -17,7 +17,7 @@ std::expected<SimulatedRun, std::string> simulate_profile(const profiles::Profil
   // Each second: the executor decides the setpoint from what the bench reads now, then the
   // world advances one second under it and the second's sample is recorded.
   std::vector<sim::SetpointSample> program;
-  std::vector<std::vector<double>> t1(nu), t2(nu), gyro(nu);
+  std::vector<std::vector<double>> t1(nu), t2(nu), gyro(nu), true_t1(nu);
   std::vector<double> chamber;
   profiles::Readings readings;
   readings.chamber_c = world->chamber_reading_c();
@@ -52,11 +52,13 @@ std::expected<SimulatedRun, std::string> simulate_profile(const profiles::Profil
     for (std::size_t u = 0; u < nu; ++u) {
       const auto s = world->sample(u);
       t1[u].push_back(s.t1_c);
+      true_t1[u].push_back(world->true_t1_c(u));
       t2[u].push_back(s.t2_c);
       gyro[u].push_back(s.gyro_dph);
     }
     if (progress && static_cast<long>(t) % 600 == 0) progress(t, total);
   }
+  out.true_t1_c = std::move(true_t1);
   for (std::size_t u = 0; u < nu; ++u) {
     model::RunData r;
     r.name = cfg.units[u].serial;

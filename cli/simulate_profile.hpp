@@ -17,6 +17,7 @@ namespace fogbench::cli {
 struct SimulatedRun {
   std::vector<model::RunData> units;  // one run per simulated unit
   double settle_s = 0.0;              // time spent in the opening settle, s (not in the runs)
+  std::vector<std::vector<double>> true_t1_c;  // each unit's true (noiseless) T1 at each sample, degC
 };
 
 // Runs the profile to its end (or its failure) and returns each unit's run. The opening

@@ -1,0 +1,45 @@
+// fogctl scale-factor RUN.csv: the scale factor over temperature of a rate-sequence run
+// (model::sf::fit; docs/scale-factor.md), and the rate-sequence CSV `fogctl simulate
+// --rate-sequence` writes. Functions of their options writing to the given streams, so tests
+// call them directly.
+#pragma once
+
+#include <expected>
+#include <iosfwd>
+#include <string>
+#include <string_view>
+
+#include "fogbench/model/scale_factor.hpp"
+#include "fogbench/sim/scale_factor.hpp"
+#include "simulate_profile.hpp"
+
+namespace CLI {
+class App;
+}
+
+namespace fogbench::cli {
+
+// The rate-sequence CSV of a simulated run's first unit: time_s, plateau (the profile's step),
+// setpoint_c, chamber_c, t1_c, t2_c, rate_in_dps (commanded), rate_out_dps (the gyro's output:
+// its bias and noise plus the true scale factor applied to the input, at the true coil
+// temperature T1 and its rate).
+std::string rate_sequence_csv(const SimulatedRun& run, const sim::ScaleFactorTruth& truth, const sim::RateSequence& seq);
+
+// Reads a rate-sequence CSV (columns time_s, plateau, rate_in_dps, rate_out_dps and the coil
+// temperature column `coil_column`, any others ignored; '#' lines are comments). Errors name
+// the source, line and column: "run.csv:12: column 3 'rate_in_dps': not a number: 'x'".
+std::expected<model::sf::RateRecord, std::string> parse_rate_csv(std::string_view text, const std::string& source,
+                                                                 const std::string& coil_column = "t1_c");
+
+struct ScaleFactorOptions {
+  std::string run;                 // RUN.csv
+  double settle_s = 5.0;           // dropped at the start of each rate step, s
+  double t0_c = 20.0;              // the model form's reference temperature, degC
+  std::string coil_column = "t1_c";
+  bool json = false;
+};
+int run_scale_factor(const ScaleFactorOptions& o, std::ostream& out, std::ostream& err);
+
+void add_scale_factor_command(CLI::App& app, int& code);
+
+}  // namespace fogbench::cli

@@ -1,0 +1,183 @@
+// fogctl simulate --rate-sequence and fogctl scale-factor called as functions: the mock gyro's
+// true scale factor (temperature coefficient, nonlinearity, asymmetry) recovered from a
+// simulated run through its CSV, the table and JSON, and bad input named by line and column.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+#include "fogbench/model/scale_factor.hpp"
+#include "fogbench/sim/scale_factor.hpp"
+#include "offline.hpp"
+#include "scale_factor.hpp"
+#include "temp_dir.hpp"
+
+using namespace fogbench::cli;
+using Catch::Matchers::Contains;
+
+namespace {
+
+using fogbench::cli::testing::Dir;
+
+struct Result {
+  int code;
+  std::string out, err;
+};
+
+// Settled holds at 20, 50 and -10 degC with ramps between: plateaus at three temperatures
+// (each settle step is a plateau too), and ramps at +1, -2 and +1 degC/min for the
+// temperature-rate term.
+constexpr const char* kProfile =
+    "setpoint 20 C\n"
+    "hold 15 min\n"
+    "ramp to 50 C at 1 C/min\n"
+    "settle within 1 C on coil slope 0.01 C/min for 10 min timeout 3 h\n"
+    "hold 15 min\n"
+    "ramp to -10 C at 2 C/min\n"
+    "settle within 1 C on coil slope 0.01 C/min for 10 min timeout 3 h\n"
+    "hold 15 min\n"
+    "ramp to 20 C at 1 C/min\n"
+    "hold 15 min\n";
+constexpr const char* kRates = "0,10,-10,100,-100,300,-300";
+
+Result simulate(const Dir& d, const fogbench::sim::ScaleFactorTruth& truth, const std::string& rates = kRates) {
+  SimulateOptions o;
+  o.profile = d.write("sf.profile", kProfile);
+  o.output = d.file("run.csv");
+  o.rate_sequence = rates;
+  o.rate_step_s = 20.0;
+  o.sf_truth = truth;
+  o.quiet = true;
+  std::ostringstream out, err;
+  const int c = run_simulate(o, out, err);
+  return {c, out.str(), err.str()};
+}
+
+Result scale_factor(const std::string& run, bool json, double settle_s = 5.0) {
+  ScaleFactorOptions o;
+  o.run = run;
+  o.json = json;
+  o.settle_s = settle_s;
+  std::ostringstream out, err;
+  const int c = run_scale_factor(o, out, err);
+  return {c, out.str(), err.str()};
+}
+
+}  // namespace
+
+TEST_CASE("fogctl scale-factor recovers the mock gyro's temperature coefficient, nonlinearity and asymmetry", "[scale_factor]") {
+  Dir d("sf");
+  fogbench::sim::ScaleFactorTruth truth;
+  truth.tc_ppm_per_c = 15.0;
+  truth.nl_ppm = 50.0;
+  truth.asymmetry_ppm = 100.0;
+  auto s = simulate(d, truth);
+  REQUIRE(s.code == kExitOk);
+  CHECK_THAT(s.out, Contains("rate sequence"));
+  auto r = scale_factor(d.file("run.csv"), true);
+  INFO(r.err);
+  REQUIRE(r.code == kExitOk);
+  const auto j = nlohmann::json::parse(r.out);
+  REQUIRE(j["plateaus"].size() == 9);  // the 4 holds, 2 settles and 3 ramps
+
+  // The noiseless truth on a plateau's steps (the same rates in the same numbers: a plateau
+  // holds a whole number of steps, not of sequences) at one temperature: what its nonlinearity
+  // and asymmetry should be. The asymmetry is 100 ppm exactly: the cubic term is even in the
+  // local scale factor, so both half slopes carry it alike.
+  auto ideal_of = [&](const nlohmann::json& plateau) {
+    fogbench::model::sf::RateRecord ideal;
+    double t = 0.0;
+    for (const auto& step : plateau["steps"]) {
+      const double rate = step["rate_in_dps"].get<double>();
+      for (int i = 0; i < 10; ++i, t += 1.0) {
+        ideal.time_s.push_back(t);
+        ideal.plateau.push_back(0);
+        ideal.rate_in_dps.push_back(rate);
+        ideal.rate_out_dps.push_back(fogbench::sim::indicated_rate_dps(truth, rate, 20.0, 0.0));
+        ideal.coil_c.push_back(20.0);
+      }
+    }
+    auto want = fogbench::model::sf::fit(ideal, {});
+    REQUIRE(want);
+    CHECK(want->plateaus[0].asymmetry_ppm == Approx(100.0).epsilon(1e-6));
+    return want->plateaus[0].nonlinearity_ppm;
+  };
+  // On the settled plateaus (steps' coil temperatures within 0.1 degC: the scale factor moves
+  // 1.5 ppm at most over the sequence). The noise: 0.146 deg/h white per sample over ~ 15
+  // samples a step is 1e-5 deg/s, 0.04 ppm of the 300 deg/s full scale; the rare 2.5 deg/h
+  // spikes add some: 1 ppm on the nonlinearity, 2 ppm on the asymmetry.
+  int settled = 0;
+  for (const auto& p : j["plateaus"]) {
+    if (p["coil_span_c"].get<double>() > 0.1) continue;
+    ++settled;
+    INFO("plateau " << p["plateau"] << " at " << p["coil_c"] << " degC");
+    const double nl_true = ideal_of(p);
+    CHECK(nl_true > 10.0);  // the cubic term and the asymmetry's kink: not a trivial 0
+    CHECK(p["nonlinearity_ppm"].get<double>() == Approx(nl_true).margin(1.0));
+    CHECK(p["asymmetry_ppm"].get<double>() == Approx(100.0).margin(2.0));
+  }
+  CHECK(settled >= 3);
+  // The temperature coefficient within three of its stated standard errors.
+  const auto& tc = j["tc_ppm_per_c"];
+  REQUIRE(tc["value"].is_number());
+  INFO("tc " << tc["value"] << " +- " << tc["se"]);
+  CHECK(tc["se"].get<double>() > 0.0);
+  CHECK(std::abs(tc["value"].get<double>() - 15.0) < 3.0 * tc["se"].get<double>());
+  CHECK(j["model"]["k1_ppm_per_c"]["value"].is_number());
+  CHECK(j["samples_dropped"].get<int>() > 0);
+}
+
+TEST_CASE("fogctl scale-factor prints a table per plateau, the temperature sensitivity and the model form", "[scale_factor]") {
+  Dir d("sf");
+  fogbench::sim::ScaleFactorTruth truth;
+  REQUIRE(simulate(d, truth).code == kExitOk);
+  auto r = scale_factor(d.file("run.csv"), false);
+  REQUIRE(r.code == kExitOk);
+  CHECK_THAT(r.out, Contains("NL ppm FSO") && Contains("asym ppm") && Contains("temperature sensitivity:") &&
+                        Contains("ppm/degC") && Contains("SF(T) = SF0 (1 + k1 (T - T0) + k2 (T - T0)^2)") &&
+                        Contains("first 5.0 s of each rate step dropped"));
+}
+
+TEST_CASE("fogctl scale-factor and simulate --rate-sequence: bad input named by line, column, plateau or item", "[scale_factor]") {
+  Dir d("sf");
+  SECTION("a rate sequence item that is not a number") {
+    auto s = simulate(d, {}, "0,10,ten,-10");
+    CHECK(s.code == kExitError);
+    CHECK_THAT(s.err, Contains("--rate-sequence: rate 3: 'ten'"));
+  }
+  SECTION("a cell that is not a number") {
+    const auto path = d.write("bad.csv", "time_s,plateau,rate_in_dps,rate_out_dps,t1_c\n0,1,0,0,20\n1,1,x,0,20\n");
+    auto r = scale_factor(path, false);
+    CHECK(r.code == kExitError);
+    CHECK_THAT(r.err, Contains("bad.csv:3: column 3 'rate_in_dps': not a number: 'x'"));
+  }
+  SECTION("a missing column") {
+    const auto path = d.write("bad.csv", "time_s,plateau,rate_in_dps,t1_c\n0,1,0,20\n");
+    auto r = scale_factor(path, false);
+    CHECK(r.code == kExitError);
+    CHECK_THAT(r.err, Contains("bad.csv:1: the header has no column 'rate_out_dps'"));
+  }
+  SECTION("a nan and a short row") {
+    CHECK_THAT(scale_factor(d.write("n.csv", "time_s,plateau,rate_in_dps,rate_out_dps,t1_c\n0,1,0,nan,20\n"), false).err,
+               Contains("n.csv:2: column 4 'rate_out_dps': not a finite number"));
+    CHECK_THAT(scale_factor(d.write("s.csv", "time_s,plateau,rate_in_dps,rate_out_dps,t1_c\n0,1,0,20\n"), false).err,
+               Contains("s.csv:2: 4 fields, the header has 5"));
+  }
+  SECTION("a plateau with positive rates only") {
+    std::string csv = "time_s,plateau,rate_in_dps,rate_out_dps,t1_c\n";
+    for (int i = 0; i < 40; ++i) csv += std::to_string(i) + ",3," + (i < 20 ? "10" : "20") + "," + (i < 20 ? "10" : "20") + ",20\n";
+    auto r = scale_factor(d.write("pos.csv", csv), false);
+    CHECK(r.code == kExitError);
+    CHECK_THAT(r.err, Contains("pos.csv: plateau 3: no negative input rate"));
+  }
+  SECTION("a settle longer than the steps") {
+    REQUIRE(simulate(d, {}).code == kExitOk);
+    auto r = scale_factor(d.file("run.csv"), false, 25.0);
+    CHECK(r.code == kExitError);
+    CHECK_THAT(r.err, Contains("plateau 1, step 0 (0 deg/s from t = 0 s)") && Contains("no sample left after dropping the first 25 s"));
+  }
+  SECTION("a missing file") {
+    CHECK_THAT(scale_factor(d.file("none.csv"), false).err, Contains("none.csv: cannot be read"));
+  }
+}
