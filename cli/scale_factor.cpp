@@ -195,9 +195,21 @@ int run_scale_factor(const ScaleFactorOptions& o, std::ostream& out, std::ostrea
         << "\n";
     return kExitOk;
   }
-  out << "scale factor over temperature of " << o.run << " (IEEE Std 952 least squares; output and input in deg/s; the first "
-      << fixed(o.settle_s, 1) << " s of each rate step dropped: " << r->n_samples_dropped << " samples)\n\n";
-  Table t({"plateau", "T1 degC", "dT/dt degC/min", "bias deg/h", "SF", "SF - SF0 ppm", "NL ppm FSO", "asym ppm", "steps", "samples"});
+  // Prose wrapped to the terminal's width (whole lines when piped), as the tables are.
+  const auto say = [&](const std::string& prose) {
+    const std::size_t width = output_width();
+    if (width == 0) {
+      out << prose << "\n";
+      return;
+    }
+    for (const auto& line : wrap_text(prose, width)) out << line << "\n";
+  };
+  say("scale factor over temperature of " + o.run + " (IEEE Std 952 least squares; output and input in deg/s; the first " +
+      fixed(o.settle_s, 1) + " s of each rate step dropped: " + std::to_string(r->n_samples_dropped) +
+      " samples). " + o.coil_column + ": the coil temperature; degC/min: its rate; dSF: the scale factor against SF0, " +
+      "ppm; NL: nonlinearity, ppm of full-scale output; asym: asymmetry, ppm");
+  out << "\n";
+  Table t({"plateau", o.coil_column + " degC", "degC/min", "bias deg/h", "SF", "dSF ppm", "NL ppm", "asym ppm", "steps", "samples"});
   for (const auto& p : r->plateaus)
     t.add({std::to_string(p.id), fixed(p.coil_c, 2), fixed(p.temp_rate_c_per_min, 3), fixed(p.bias_dph, 3) + (p.bias_from_zero_rate ? "" : " (line)"),
            fixed(p.scale_factor, 9), fixed(1e6 * (p.scale_factor / r->sf0 - 1.0), 2), fixed(p.nonlinearity_ppm, 2), fixed(p.asymmetry_ppm, 2),
@@ -207,8 +219,8 @@ int run_scale_factor(const ScaleFactorOptions& o, std::ostream& out, std::ostrea
   // that is in the nonlinearity and asymmetry (0.1 degC is 1.5 ppm at 15 ppm/degC).
   for (const auto& p : r->plateaus)
     if (p.coil_span_c > 0.1)
-      out << "note: plateau " << p.id << ": the coil temperature moved " << fixed(p.coil_span_c, 2)
-          << " degC over its steps: its NL and asymmetry include the scale factor's change with temperature over the sequence\n";
+      say("note: plateau " + std::to_string(p.id) + ": the coil temperature moved " + fixed(p.coil_span_c, 2) +
+          " degC over its steps: its NL and asymmetry include the scale factor's change with temperature over the sequence");
   out << "\n";
   out << "temperature sensitivity:  " << coefficient_text(r->tc_ppm_per_c, 3, "ppm/degC") << "\n";
   out << "temperature rate:         " << coefficient_text(r->temp_rate_ppm_per_c_per_min, 3, "ppm per degC/min") << "\n";

@@ -1,6 +1,7 @@
 // fogctl simulate --rate-sequence and fogctl scale-factor called as functions: the mock gyro's
 // true scale factor (temperature coefficient, nonlinearity, asymmetry) recovered from a
 // simulated run through its CSV, the table and JSON, and bad input named by line and column.
+#include <algorithm>
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <nlohmann/json.hpp>
@@ -11,6 +12,7 @@
 #include "fogbench/sim/scale_factor.hpp"
 #include "offline.hpp"
 #include "scale_factor.hpp"
+#include "table.hpp"
 #include "temp_dir.hpp"
 
 using namespace fogbench::cli;
@@ -134,9 +136,19 @@ TEST_CASE("fogctl scale-factor prints a table per plateau, the temperature sensi
   REQUIRE(simulate(d, truth).code == kExitOk);
   auto r = scale_factor(d.file("run.csv"), false);
   REQUIRE(r.code == kExitOk);
-  CHECK_THAT(r.out, Contains("NL ppm FSO") && Contains("asym ppm") && Contains("temperature sensitivity:") &&
+  CHECK_THAT(r.out, Contains("NL ppm") && Contains("asym ppm") && Contains("temperature sensitivity:") &&
                         Contains("ppm/degC") && Contains("SF(T) = SF0 (1 + k1 (T - T0) + k2 (T - T0)^2)") &&
-                        Contains("first 5.0 s of each rate step dropped"));
+                        Contains("first 5.0 s of each rate step dropped") && Contains("ppm of full-scale output"));
+  // In a 100-column terminal every line fits (issue 28: output within 100 columns by default).
+  set_output_width(100);
+  auto narrow = scale_factor(d.file("run.csv"), false);
+  set_output_width(0);
+  REQUIRE(narrow.code == kExitOk);
+  std::istringstream lines(narrow.out);
+  std::size_t longest = 0;
+  for (std::string line; std::getline(lines, line);) longest = std::max(longest, display_width(line));
+  CHECK(longest <= 100);
+  CHECK_THAT(narrow.out, Contains("note: plateau"));
 }
 
 TEST_CASE("fogctl scale-factor and simulate --rate-sequence: bad input named by line, column, plateau or item", "[scale_factor]") {
