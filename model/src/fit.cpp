@@ -172,6 +172,12 @@ std::expected<const std::vector<double>*, FitError> FitCache::column(const Term&
   return &it->second.x;
 }
 
+void FitCache::put(const Term& t, const std::vector<double>& x) {
+  auto [it, added] = cols_.try_emplace(term_key(t), Entry{{}, {}, 0});
+  if (added) it->second.x = x;
+  it->second.used = ++clock_;
+}
+
 const Lagged& FitCache::lagged(const Term& t, const std::vector<double>& x, int max_lag) {
   // x is the term's column (column() gave it this fit, or a copy of it): the entry exists
   // unless the caller evaluated it elsewhere, then x is kept.

@@ -144,6 +144,10 @@ class FitCache {
   std::expected<const RunSignals*, FitError> signals();
   // The term's column, unlagged (evaluate on the run's signals); the error names the term.
   std::expected<const std::vector<double>*, FitError> column(const Term& t);
+  // The term's column as the caller evaluated it on this run's signals (the same numbers
+  // column() would make), kept unless the cache has it: a candidate's refits then do not
+  // evaluate it again.
+  void put(const Term& t, const std::vector<double>& x);
   // The column extended for lags up to max_lag (make_lagged), its spectrum kept with it.
   const Lagged& lagged(const Term& t, const std::vector<double>& x, int max_lag);
   // The paper method's first step for these options (w: good_weights of the run).
