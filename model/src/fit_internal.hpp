@@ -49,7 +49,7 @@ struct ScanMemo {
   std::map<std::pair<std::string, std::string>, std::vector<double>> cvf, gvv;  // (varying, fixed) and (varying, varying)
   // Entries of cvf beyond this are dropped all at once (each is max_lag + 1 sums; the
   // candidates' fixed columns at their lags are many, the base's few).
-  static constexpr std::size_t max_pairs = 4096;
+  static constexpr std::size_t max_pairs = 1024;  // about 5 MB with the default 600 s lags
 };
 
 // Least squares of y on [fixed columns, varying regressors all delayed by one shared lag i],
@@ -83,7 +83,7 @@ std::expected<void, FitError> check_terms(std::size_t n_samples, const std::vect
 struct CollinearMemo {
   std::map<std::string, double> mean;
   std::map<std::pair<std::string, std::string>, double> cross;  // in the order the pair was summed
-  static constexpr std::size_t max_entries = 1 << 16;           // dropped all at once beyond
+  static constexpr std::size_t max_entries = 1 << 14;           // dropped all at once beyond
 };
 std::expected<void, FitError> check_collinear(const std::vector<std::vector<double>>& cols,
                                               const std::vector<std::string>& names, std::span<const double> w,
