@@ -172,6 +172,12 @@ std::expected<const std::vector<double>*, FitError> FitCache::column(const Term&
   return &it->second.x;
 }
 
+void FitCache::put(const Term& t, const std::vector<double>& x) {
+  auto [it, added] = cols_.try_emplace(term_key(t), Entry{{}, {}, 0});
+  if (added) it->second.x = x;
+  it->second.used = ++clock_;
+}
+
 const Lagged& FitCache::lagged(const Term& t, const std::vector<double>& x, int max_lag) {
   // x is the term's column (column() gave it this fit, or a copy of it): the entry exists
   // unless the caller evaluated it elsewhere, then x is kept.
@@ -253,14 +259,17 @@ void finish_stats(Model& m, const Evaluated& ev, std::span<const double> y, std:
     bool ok = true;
     for (std::size_t j = 0; j <= p && ok; ++j) ok = w0[t - j] != 0.0;
     if (!ok) continue;
-    for (std::size_t j = 0; j < nt; ++j) {
-      double f = x_at(j, t, 0);
-      for (std::size_t i = 0; i < p; ++i) f -= m.ar[i] * x_at(j, t, i + 1);
-      row[j + 1] = f;
+    // The design row only for the standard errors (a refit scored by BIC needs the RSS alone).
+    if (se) {
+      for (std::size_t j = 0; j < nt; ++j) {
+        double f = x_at(j, t, 0);
+        for (std::size_t i = 0; i < p; ++i) f -= m.ar[i] * x_at(j, t, i + 1);
+        row[j + 1] = f;
+      }
+      ls.add(row, 0.0);
     }
     double a = e_recent[0];
     for (std::size_t i = 0; i < p; ++i) a -= m.ar[i] * e_recent[i + 1];
-    if (se) ls.add(row, 0.0);
     rss += a * a;
     nw += 1.0;
   }
@@ -326,7 +335,7 @@ std::expected<Model, FitError> fit_run(const RunData& run, const TermList& tl, c
   // delayed: a fixed copy is checked at its lag (and named with it), an @auto copy only at its
   // fitted lag below. The columns are copied only when a copy is left out.
   {
-    std::vector<std::string> keys, names;
+    std::vector<std::string> keys, names, memo_keys;
     for (const auto& t : terms) keys.push_back(term_key(t));
     std::vector<std::size_t> keep, lags;
     for (std::size_t j = 0; j < terms.size(); ++j) {
@@ -337,12 +346,14 @@ std::expected<Model, FitError> fit_run(const RunData& run, const TermList& tl, c
       keep.push_back(j);
       lags.push_back(static_cast<std::size_t>(lag_s));
       names.push_back(copies > 1 && !terms[j].lag.automatic ? ev->names[j] + "@" + std::to_string(lag_s) : ev->names[j]);
+      memo_keys.push_back(keys[j] + "@" + std::to_string(lag_s));
     }
     std::vector<std::vector<double>> subset;
     if (keep.size() < terms.size())
       for (std::size_t j : keep) subset.push_back(ev->x[j]);
     const auto& cols = keep.size() < terms.size() ? subset : ev->x;
-    if (auto c = detail::check_collinear(cols, names, w, lags); !c) return std::unexpected(c.error());
+    if (auto c = detail::check_collinear(cols, names, w, lags, cache ? &cache->collinear : nullptr, memo_keys); !c)
+      return std::unexpected(c.error());
   }
   // A reading not taken (NaN) has weight 0, but 0 * NaN is NaN: give it a finite value that
   // no sum will see.
@@ -362,12 +373,14 @@ std::expected<Model, FitError> fit_run(const RunData& run, const TermList& tl, c
   // A pair of @auto terms that are collinear only at their fitted lags is caught here.
   {
     std::vector<std::size_t> lags;
-    std::vector<std::string> lagged_names;
+    std::vector<std::string> lagged_names, memo_keys;
     for (std::size_t j = 0; j < terms.size(); ++j) {
       lags.push_back(static_cast<std::size_t>(m->terms[j].term.lag.seconds));
       lagged_names.push_back(ev->names[j] + "@" + std::to_string(m->terms[j].term.lag.seconds));
+      memo_keys.push_back(term_key(terms[j]) + "@" + std::to_string(m->terms[j].term.lag.seconds));
     }
-    if (auto c = detail::check_collinear(ev->x, lagged_names, w, lags); !c) return std::unexpected(c.error());
+    if (auto c = detail::check_collinear(ev->x, lagged_names, w, lags, cache ? &cache->collinear : nullptr, memo_keys); !c)
+      return std::unexpected(c.error());
   }
   m->fit.n_flagged = n_flagged;
   m->tref_c = o.tref_c;

@@ -50,9 +50,15 @@ std::expected<void, FitError> check_terms(std::size_t n, const std::vector<Term>
 // delay.
 std::expected<void, FitError> check_collinear(const std::vector<std::vector<double>>& cols,
                                               const std::vector<std::string>& names, std::span<const double> w,
-                                              std::span<const std::size_t> lags) {
+                                              std::span<const std::size_t> lags, CollinearMemo* memo,
+                                              std::span<const std::string> keys) {
   const std::size_t m = cols.size();
   if (m == 0) return {};
+  if (keys.size() != m) memo = nullptr;
+  if (memo && memo->mean.size() + memo->cross.size() > CollinearMemo::max_entries) {
+    memo->mean.clear();
+    memo->cross.clear();
+  }
   const std::size_t n = w.size();
   // Column j at sample t is cols[j][t - lag_j], its first value before that; the sums below
   // take the few samples before the longest lag one by one, the rest as plain loops.
@@ -62,7 +68,14 @@ std::expected<void, FitError> check_collinear(const std::vector<std::vector<doub
   auto at = [&](std::size_t j, std::size_t t) { return cols[j][t >= lag[j] ? t - lag[j] : 0]; };
   const double sw = std::accumulate(w.begin(), w.end(), 0.0);
   std::vector<double> mean(m, 0.0), sd(m, 0.0);
+  // A sum is the same whatever the head (the samples before it are summed one by one, in the
+  // same order, the skipped ones adding 0), so a memo's sums are the ones computed here.
   for (std::size_t j = 0; j < m; ++j) {
+    if (memo)
+      if (auto it = memo->mean.find(keys[j]); it != memo->mean.end()) {
+        mean[j] = it->second;
+        continue;
+      }
     double s = 0.0;
     for (std::size_t t = 0; t < head; ++t)
       if (w[t] != 0.0) s += w[t] * at(j, t);
@@ -70,12 +83,18 @@ std::expected<void, FitError> check_collinear(const std::vector<std::vector<doub
     const std::size_t l = lag[j];
     for (std::size_t t = head; t < n; ++t) s += w[t] != 0.0 ? w[t] * x[t - l] : 0.0;
     mean[j] = s / sw;
+    if (memo) memo->mean.emplace(keys[j], mean[j]);
   }
   // The centred cross products (two passes for accuracy: a term of large mean and small
   // spread loses nothing to cancellation); a weight of zero skips a sample, NaN and all.
   Eigen::MatrixXd C(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(m));
   for (std::size_t a = 0; a < m; ++a)
     for (std::size_t b = a; b < m; ++b) {
+      if (memo)
+        if (auto it = memo->cross.find({keys[a], keys[b]}); it != memo->cross.end()) {
+          C(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) = it->second;
+          continue;
+        }
       double c = 0.0;
       for (std::size_t t = 0; t < head; ++t)
         if (w[t] != 0.0) c += w[t] * (at(a, t) - mean[a]) * (at(b, t) - mean[b]);
@@ -85,6 +104,7 @@ std::expected<void, FitError> check_collinear(const std::vector<std::vector<doub
       const double ma = mean[a], mb = mean[b];
       for (std::size_t t = head; t < n; ++t) c += w[t] != 0.0 ? w[t] * (xa[t - la] - ma) * (xb[t - lb] - mb) : 0.0;
       C(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) = c;
+      if (memo) memo->cross.emplace(std::make_pair(keys[a], keys[b]), c);
     }
   for (std::size_t j = 0; j < m; ++j) {
     sd[j] = std::sqrt(C(static_cast<Eigen::Index>(j), static_cast<Eigen::Index>(j)) / sw);

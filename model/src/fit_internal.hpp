@@ -12,6 +12,7 @@
 #include <span>
 #include <string>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 #include "fogbench/model/model.hpp"
@@ -38,11 +39,28 @@ struct ScanResult {
   bool ok = false;
 };
 
+// The lag-dependent sums scan() made for named columns against one target (PaperPrep's z, one
+// scanner): a refit of the same run with other terms beside them needs the same sums again (a
+// diagnose step refits the base's terms beside each candidate), so they are kept by the columns'
+// keys and reused as computed (the same numbers). Keys: a varying column's term key; a fixed
+// column's term key with "@" and its lag.
+struct ScanMemo {
+  std::map<std::string, std::vector<double>> cvy, ones;                       // by the varying column
+  std::map<std::pair<std::string, std::string>, std::vector<double>> cvf, gvv;  // (varying, fixed) and (varying, varying)
+  // Entries of cvf beyond this are dropped all at once (each is max_lag + 1 sums; the
+  // candidates' fixed columns at their lags are many, the base's few).
+  static constexpr std::size_t max_pairs = 1024;  // about 5 MB with the default 600 s lags
+};
+
 // Least squares of y on [fixed columns, varying regressors all delayed by one shared lag i],
 // for every i in [lo, hi], from normal equations whose sums come from the FFT; returns the lag
 // of least SSE. wy_spec: the spectrum of w*y when the caller has it (else computed here).
+// memo: the sums of named columns against this y and scanner (fixed_keys and varying_keys name
+// the columns, an empty key is not kept); null: nothing kept.
 ScanResult scan(const LagScanner& sc, std::span<const double> y, const Spectrum* wy_spec,
-                const std::vector<Column>& fixed, const std::vector<const Lagged*>& varying, int lo, int hi);
+                const std::vector<Column>& fixed, const std::vector<const Lagged*>& varying, int lo, int hi,
+                ScanMemo* memo = nullptr, std::span<const std::string> fixed_keys = {},
+                std::span<const std::string> varying_keys = {});
 
 // Least squares of y on fixed columns by the QR kernel (lsq.hpp): the coefficients and SSE the
 // models report, at the lags the scan chose. lag is copied into the result.
@@ -59,9 +77,18 @@ std::expected<void, FitError> check_time(const RunData& run);
 std::expected<void, FitError> check_terms(std::size_t n_samples, const std::vector<Term>& terms, const FitOptions& o);
 // Names the terms that make the regression singular. Column j is read delayed by lags[j]
 // samples (the first sample standing in before the start); no lags, no delay.
+// memo, with keys naming each column at its lag (the term's key, "@", the lag): the weighted
+// means and centred cross products already summed for these columns on this run and weights
+// (a diagnose step checks the base's terms beside every candidate), reused as computed.
+struct CollinearMemo {
+  std::map<std::string, double> mean;
+  std::map<std::pair<std::string, std::string>, double> cross;  // in the order the pair was summed
+  static constexpr std::size_t max_entries = 1 << 14;           // dropped all at once beyond
+};
 std::expected<void, FitError> check_collinear(const std::vector<std::vector<double>>& cols,
                                               const std::vector<std::string>& names, std::span<const double> w,
-                                              std::span<const std::size_t> lags = {});
+                                              std::span<const std::size_t> lags = {}, CollinearMemo* memo = nullptr,
+                                              std::span<const std::string> keys = {});
 
 // ---- shared by the two methods (fit.cpp) ----
 
@@ -93,6 +120,8 @@ struct PaperPrep {
   std::vector<double> z;
   std::unique_ptr<LagScanner> sc;
   Spectrum wz_spec;
+  // scan()'s sums against z of the columns refitted so far (fit_paper with a FitCache).
+  mutable ScanMemo memo;
 };
 
 // One run's refits with many term lists (diagnose refits the model with each candidate): the
@@ -115,6 +144,10 @@ class FitCache {
   std::expected<const RunSignals*, FitError> signals();
   // The term's column, unlagged (evaluate on the run's signals); the error names the term.
   std::expected<const std::vector<double>*, FitError> column(const Term& t);
+  // The term's column as the caller evaluated it on this run's signals (the same numbers
+  // column() would make), kept unless the cache has it: a candidate's refits then do not
+  // evaluate it again.
+  void put(const Term& t, const std::vector<double>& x);
   // The column extended for lags up to max_lag (make_lagged), its spectrum kept with it.
   const Lagged& lagged(const Term& t, const std::vector<double>& x, int max_lag);
   // The paper method's first step for these options (w: good_weights of the run).
@@ -122,6 +155,8 @@ class FitCache {
   // Drops the columns used least recently beyond keep_columns (called between fits only: the
   // references handed out stay valid within one fit).
   void trim();
+  // check_collinear's sums of this run's columns (fit() checks every refit twice).
+  CollinearMemo collinear;
 
  private:
   struct Entry {

@@ -2,17 +2,32 @@
 // FFT), the solve at chosen lags (lsq.hpp's QR) and AR(p) on the rows with weight.
 #include <Eigen/Dense>
 #include <limits>
+#include <optional>
+#include <string>
 
 #include "fit_internal.hpp"
 #include "lsq.hpp"
 
 namespace fogbench::model::detail {
+namespace {
+
+// make(), or the copy kept in map under key (made on first use) when map is given and keep.
+template <class Map, class Key, class Make>
+std::vector<double> memoized(Map* map, const Key& key, bool keep, Make make) {
+  if (!map || !keep) return make();
+  auto it = map->find(key);
+  if (it == map->end()) it = map->emplace(key, make()).first;
+  return it->second;
+}
+
+}  // namespace
 
 // Normal equations, one solve per lag: all lags' sums cost a few FFTs, and only the lag of
 // least SSE is kept (its coefficients come from solve_at), so their squared condition costs
 // at most the choice between lags of nearly equal SSE.
 ScanResult scan(const LagScanner& sc, std::span<const double> y, const Spectrum* wy_spec,
-                const std::vector<Column>& fixed, const std::vector<const Lagged*>& varying, int lo, int hi) {
+                const std::vector<Column>& fixed, const std::vector<const Lagged*>& varying, int lo, int hi,
+                ScanMemo* memo, std::span<const std::string> fixed_keys, std::span<const std::string> varying_keys) {
   const std::size_t n = sc.n();
   const auto& w = sc.weights();
   const std::size_t nf = fixed.size(), nv = varying.size(), k = nf + nv;
@@ -57,34 +72,49 @@ ScanResult scan(const LagScanner& sc, std::span<const double> y, const Spectrum*
   std::vector<std::vector<double>> cvy(nv), gvv(nv * nv);
   std::vector<std::vector<std::vector<double>>> cvf(nv, std::vector<std::vector<double>>(nf));
   if (nv > 0) {
+    // The key of a column when memo keeps it (empty: not kept).
+    auto vkey = [&](std::size_t v) { return memo && v < varying_keys.size() ? varying_keys[v] : std::string(); };
+    auto fkey = [&](std::size_t a) { return memo && a < fixed_keys.size() ? fixed_keys[a] : std::string(); };
+    if (memo && memo->cvf.size() > ScanMemo::max_pairs) memo->cvf.clear();
     Spectrum own;
-    if (!wy_spec) {
-      own = sc.spectrum_of_target(wy);
-      wy_spec = &own;
-    }
-    std::vector<Spectrum> f_spec(nf);
-    for (std::size_t a = 0; a < nf; ++a) {
-      if (fixed[a].constant()) continue;
-      std::vector<double> wf(n);
-      for (std::size_t t = 0; t < n; ++t) wf[t] = w[t] * fixed[a].v[t];
-      f_spec[a] = sc.spectrum_of_target(wf);
-    }
+    auto wy_spectrum = [&]() -> const Spectrum& {
+      if (!wy_spec) {
+        own = sc.spectrum_of_target(wy);
+        wy_spec = &own;
+      }
+      return *wy_spec;
+    };
+    std::vector<std::optional<Spectrum>> f_spec(nf);
+    auto fixed_spectrum = [&](std::size_t a) -> const Spectrum& {
+      if (!f_spec[a]) {
+        std::vector<double> wf(n);
+        for (std::size_t t = 0; t < n; ++t) wf[t] = w[t] * fixed[a].v[t];
+        f_spec[a] = sc.spectrum_of_target(wf);
+      }
+      return *f_spec[a];
+    };
     for (std::size_t v = 0; v < nv; ++v) {
-      cvy[v] = sc.corr(*varying[v], *wy_spec);
-      std::vector<double> ones_sum;
+      const std::string kv = vkey(v);
+      cvy[v] = memoized(memo ? &memo->cvy : nullptr, kv, !kv.empty(), [&] { return sc.corr(*varying[v], wy_spectrum()); });
+      std::optional<std::vector<double>> ones_sum;
       for (std::size_t a = 0; a < nf; ++a) {
         if (fixed[a].constant()) {
-          if (ones_sum.empty()) ones_sum = sc.wsum(varying[v]->ext);
-          cvf[v][a] = ones_sum;
+          if (!ones_sum) ones_sum = memoized(memo ? &memo->ones : nullptr, kv, !kv.empty(), [&] { return sc.wsum(varying[v]->ext); });
+          cvf[v][a] = *ones_sum;
           for (double& s : cvf[v][a]) s *= fixed[a].c;
         } else {
-          cvf[v][a] = sc.corr(*varying[v], f_spec[a]);
+          const std::string ka = fkey(a);
+          cvf[v][a] = memoized(memo ? &memo->cvf : nullptr, std::make_pair(kv, ka), !kv.empty() && !ka.empty(),
+                           [&] { return sc.corr(*varying[v], fixed_spectrum(a)); });
         }
       }
       for (std::size_t u = v; u < nv; ++u) {
-        std::vector<double> prod(varying[v]->ext.size());
-        for (std::size_t j = 0; j < prod.size(); ++j) prod[j] = varying[v]->ext[j] * varying[u]->ext[j];
-        gvv[v * nv + u] = sc.wsum(prod);
+        const std::string ku = vkey(u);
+        gvv[v * nv + u] = memoized(memo ? &memo->gvv : nullptr, std::make_pair(kv, ku), !kv.empty() && !ku.empty(), [&] {
+          std::vector<double> prod(varying[v]->ext.size());
+          for (std::size_t j = 0; j < prod.size(); ++j) prod[j] = varying[v]->ext[j] * varying[u]->ext[j];
+          return sc.wsum(prod);
+        });
       }
     }
   }

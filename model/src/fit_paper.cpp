@@ -127,16 +127,23 @@ std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<T
   std::vector<Column> fixed;
   std::vector<const Lagged*> varying;
   std::vector<std::size_t> fixed_idx, var_idx;
+  // With the cache, the scans' sums of each column against z are kept by the columns' keys
+  // (PaperPrep::memo): the candidates' refits share the base's terms.
+  ScanMemo* memo = cache ? &pp.memo : nullptr;
+  auto key_at = [&](std::size_t j, int lag) { return memo ? term_key(terms[j]) + "@" + std::to_string(lag) : std::string(); };
+  std::vector<std::string> fixed_keys, var_keys;
   for (std::size_t j = 0; j < terms.size(); ++j) {
     if (terms[j].lag.automatic) {
       varying.push_back(lagged[j]);
       var_idx.push_back(j);
+      var_keys.push_back(memo ? term_key(terms[j]) : std::string());
     } else {
       if (terms[j].lag.seconds > L)
         return fail(FitError::Code::bad_options, "term '" + ev.names[j] + "' has lag " + std::to_string(terms[j].lag.seconds) +
                                                      " s, beyond the maximum lag of " + std::to_string(L) + " s");
       fixed.push_back(lagged_view(*lagged[j], L, terms[j].lag.seconds));
       fixed_idx.push_back(j);
+      fixed_keys.push_back(key_at(j, terms[j].lag.seconds));
     }
   }
   // With causal_lags, a varying term's lag is max(shared, its causal least): the shared lag is
@@ -153,7 +160,7 @@ std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<T
     for (std::size_t v = 0; v < varying.size(); ++v) all.push_back(lagged_view(*varying[v], L, std::max(shared, least[v])));
     return all;
   };
-  ScanResult best = scan(*pp.sc, z, &pp.wz_spec, fixed, varying, Lc, L);
+  ScanResult best = scan(*pp.sc, z, &pp.wz_spec, fixed, varying, Lc, L, memo, fixed_keys, var_keys);
   // Below Lc the shared lags fall into segments [a, b) between the terms' distinct leasts: in
   // each, the terms whose least is above a stay at their least (fixed columns) and the others
   // move with the shared lag, so a segment is one more scan (sums by FFT, not one QR of the
@@ -169,11 +176,18 @@ std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<T
       const int a = bounds[s], b = bounds[s + 1];
       std::vector<Column> seg_fixed = fixed;
       std::vector<const Lagged*> seg_varying;
+      std::vector<std::string> seg_fixed_keys = fixed_keys, seg_var_keys;
       for (std::size_t v = 0; v < varying.size(); ++v) {
-        if (least[v] <= a) seg_varying.push_back(varying[v]);
-        else seg_fixed.push_back(lagged_view(*varying[v], L, least[v]));
+        if (least[v] <= a) {
+          seg_varying.push_back(varying[v]);
+          seg_var_keys.push_back(var_keys[v]);
+        } else {
+          seg_fixed.push_back(lagged_view(*varying[v], L, least[v]));
+          seg_fixed_keys.push_back(key_at(var_idx[v], least[v]));
+        }
       }
-      ScanResult r = seg_varying.empty() ? solve_at(z, w, columns_at(a), a) : scan(*pp.sc, z, &pp.wz_spec, seg_fixed, seg_varying, a, b - 1);
+      ScanResult r = seg_varying.empty() ? solve_at(z, w, columns_at(a), a)
+                                         : scan(*pp.sc, z, &pp.wz_spec, seg_fixed, seg_varying, a, b - 1, memo, seg_fixed_keys, seg_var_keys);
       if (r.ok && (!best.ok || r.sse < best.sse)) best = std::move(r);
     }
   }

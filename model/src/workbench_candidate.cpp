@@ -271,6 +271,11 @@ EvaluatedCandidate evaluate_candidate(const StepContext& ctx, const Cand& cd, Sc
   // The refits are compared by BIC; the standard errors only for the one kept (score's p).
   detail::FitCache& fc = fs.fit_cache();
   fc.standard_errors = false;
+  // x is the candidate's column on the fit run's signals (ctx.fr.sig: run_signals of the fit run
+  // at the base's tref, as the cache's and the scorer's): handed to both (the scorer's below), so
+  // that its refits and its score do not evaluate it again. A second path's refit is another
+  // expression: not put.
+  if (!cd.repeat) fc.put(cd.term, *x);
   Refit r = cd.repeat ? refit_second_path(ctx, cd, *x, gain->lag, fc) : refit_at_best_lag(ctx, cd, *x, gain->lag, fc);
   if (r.model) detail::add_standard_errors(*r.model, fc);
   c.lag_s = r.term.lag.seconds;
@@ -282,6 +287,7 @@ EvaluatedCandidate evaluate_candidate(const StepContext& ctx, const Cand& cd, Sc
     c.skipped = (cd.repeat ? "the same term at a second lag cannot be separated on this run: " : "refit failed: ") + r.model.error().message;
     return out;
   }
+  if (!cd.repeat) fs.put(cd.term, *x);  // dropped below with the other columns the base lacks
   score(ctx, cd, *r.model, r.extra_params, fs, held_sc, c);
   // x is r.term's column unlagged (the same expression, evaluated on the same signals).
   out.partial = ctx.scan.partial(lagged(*x, r.term.lag.seconds));

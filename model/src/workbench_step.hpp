@@ -216,6 +216,11 @@ class Scorer {
 
   // Drops the cached column of the expression key (a candidate's, once it is scored).
   void forget(const std::string& key) { cols_.erase(key); }
+  // The term's column evaluated by the caller on this run's signals (run_signals of the run at
+  // this tref: the same numbers column() would make), kept unless it is there.
+  void put(const Term& t, const std::vector<double>& x) {
+    if (error_.empty()) cols_.try_emplace(to_string(*t.expr), x);
+  }
 
   // What the refits on this run share (the candidates' refits on the fit run: detail::fit_with),
   // made on first use; the refits' whole-run Ljung-Box is not computed (they are only scored).

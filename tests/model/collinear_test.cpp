@@ -65,3 +65,29 @@ TEST_CASE("check_collinear at lags: independent columns pass, a delayed combinat
     }
   }
 }
+
+TEST_CASE("check_collinear with a memo: sums kept by column and lag give the verdict computed afresh") {
+  // diagnose's refits check the base's columns beside each candidate with one memo (the
+  // FitCache's): a column's sums at one lag must never stand in for another lag's.
+  const std::size_t n = 1005;
+  const std::vector<double> a = noise(n, 1), b = noise(n, 2);
+  std::vector<double> c(n);
+  for (std::size_t t = 0; t < n; ++t) c[t] = 2.0 * a[t] - b[t >= 5 ? t - 5 : 0];
+  const std::vector<double> w(n, 1.0);
+  const std::vector<std::string> names{"a", "b", "c"};
+  const std::vector<std::size_t> at_5{0, 5, 0}, at_6{0, 6, 0};
+  const std::vector<std::string> keys_5{"a@0", "b@5", "c@0"}, keys_6{"a@0", "b@6", "c@0"};
+  CollinearMemo memo;
+  // Two columns first (another head: the longest lag is the same, the set is not).
+  CHECK(check_collinear({a, b}, {"a", "b"}, w, std::vector<std::size_t>{0, 5}, &memo, std::vector<std::string>{"a@0", "b@5"}));
+  CHECK(memo.mean.size() == 2);
+  auto r5 = check_collinear({a, b, c}, names, w, at_5, &memo, keys_5);
+  REQUIRE_FALSE(r5);
+  CHECK(r5.error().code == FitError::Code::collinear);
+  CHECK(check_collinear({a, b, c}, names, w, at_6, &memo, keys_6));
+  CHECK_FALSE(check_collinear({a, b, c}, names, w, at_5, &memo, keys_5));
+  // Keys that do not name every column: no memo (and no new entries).
+  const std::size_t kept = memo.mean.size() + memo.cross.size();
+  CHECK(check_collinear({a, b, c}, names, w, at_6, &memo, std::vector<std::string>{"a@0"}));
+  CHECK(memo.mean.size() + memo.cross.size() == kept);
+}

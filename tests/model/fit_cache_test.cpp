@@ -1,0 +1,112 @@
+// The refits diagnose makes through one FitCache (model/src/fit_internal.hpp): the cache keeps
+// the columns, the paper step's lag scans' sums (PaperPrep::memo), the collinearity checks'
+// sums and columns handed to it (put); a refit through a cache warmed by other term lists must
+// give exactly the numbers fit() computes alone.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "../../model/src/fit_internal.hpp"
+
+using namespace fogbench::model;
+using namespace fogbench::model::detail;
+
+namespace {
+
+// 8000 s: a 600 s hold at 20 degC, then T1 and T2 on two sines (T2 ahead), the gyro
+// mu0 + 0.03 T1(t - 40) + 0.01 T2 + white noise; no chamber or power-on column.
+RunData run_of(std::size_t n, unsigned seed) {
+  RunData r;
+  r.name = "cache";
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> e(0.0, 0.1);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double t = static_cast<double>(i);
+    const double u = t < 600 ? 0.0 : t - 600;
+    r.time_s.push_back(t);
+    r.t1_c.push_back(20.0 + 8.0 * std::sin(2 * M_PI * u / 3000.0) + 2.0 * std::sin(2 * M_PI * u / 1100.0));
+    r.t2_c.push_back(20.0 + 8.0 * std::sin(2 * M_PI * (u + 60) / 3000.0) + 1.5 * std::sin(2 * M_PI * (u + 40) / 700.0) * (u > 0));
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t j = i >= 40 ? i - 40 : 0;
+    r.gyro_dph.push_back(-8.0 + 0.03 * (r.t1_c[j] - 20.0) + 0.01 * (r.t2_c[i] - 20.0) + e(rng));
+  }
+  return r;
+}
+
+void same_model(const Model& got, const Model& want) {
+  REQUIRE(got.terms.size() == want.terms.size());
+  CHECK(got.mu0_dph == want.mu0_dph);
+  CHECK(got.fit.bic == want.fit.bic);
+  CHECK(got.fit.rss == want.fit.rss);
+  for (std::size_t j = 0; j < want.terms.size(); ++j) {
+    INFO("term " << j);
+    CHECK(got.terms[j].term.lag.seconds == want.terms[j].term.lag.seconds);
+    CHECK(got.terms[j].coef == want.terms[j].coef);
+    CHECK(got.terms[j].se_dph_per_unit == want.terms[j].se_dph_per_unit);
+  }
+}
+
+}  // namespace
+
+TEST_CASE("fit_with through a warmed FitCache gives fit()'s numbers exactly (paper method)") {
+  const RunData run = run_of(8000, 3);
+  FitOptions fo;
+  fo.method = Method::paper;
+  fo.max_lag_s = 300;
+  FitCache cache(run, fo.tref_c);
+  cache.whole_run_whiteness = false;
+  // The base's terms beside one candidate after another, some at two lags, as diagnose's step
+  // refits them: every sum the memos keep is used again by a later list.
+  const std::vector<std::string> lists{"d(T1)@auto + grad@auto + T2@0",       "d(T1)@auto + grad@auto + T2@120",     "d(T1)@auto + grad@auto + lp(T2,300)@10", "d(T1)@auto + grad@auto + T2@0",
+                                       "d(T1)@auto + grad@auto + d(T2)@0",    "d(T1)@auto + grad@auto + lp(T2,300)@10", "d(T1)@auto + grad@auto + T2@120"};
+  for (const auto& text : lists) {
+    INFO(text);
+    auto tl = parse_terms(text);
+    REQUIRE(tl);
+    const Term cand = tl->terms.back();
+    // The candidate's column handed in as diagnose does (evaluated on the run's signals).
+    auto sig = run_signals(run, fo.tref_c);
+    REQUIRE(sig);
+    auto x = evaluate(*cand.expr, sig->view());
+    REQUIRE(x);
+    cache.put(cand, *x);
+    auto want = fit(run, *tl, fo);
+    auto got = fit_with(run, *tl, fo, cache);
+    REQUIRE(want);
+    REQUIRE(got);
+    same_model(*got, *want);
+  }
+  CHECK_FALSE(cache.collinear.mean.empty());
+}
+
+TEST_CASE("fit_with through a warmed FitCache refuses collinear terms as fit() does") {
+  const RunData run = run_of(6000, 4);
+  FitOptions fo;
+  fo.method = Method::paper;
+  fo.max_lag_s = 200;
+  FitCache cache(run, fo.tref_c);
+  cache.whole_run_whiteness = false;
+  auto ok = parse_terms("d(T1)@auto + grad@auto + T2@30");
+  REQUIRE(ok);
+  REQUIRE(fit_with(run, *ok, fo, cache));
+  // grad = T1 - T2: with T1 and T2 beside it at the same lag, the three are one combination.
+  auto bad = parse_terms("T1@30 + T2@30 + grad@30");
+  REQUIRE(bad);
+  auto want = fit(run, *bad, fo);
+  auto got = fit_with(run, *bad, fo, cache);
+  REQUIRE_FALSE(want);
+  REQUIRE_FALSE(got);
+  CHECK(got.error().code == want.error().code);
+  CHECK(got.error().message == want.error().message);
+  // And at different lags they are independent again, through the same cache.
+  auto apart = parse_terms("T1@30 + T2@30 + grad@90");
+  REQUIRE(apart);
+  auto want2 = fit(run, *apart, fo);
+  auto got2 = fit_with(run, *apart, fo, cache);
+  REQUIRE(want2.has_value() == got2.has_value());
+  if (want2) same_model(*got2, *want2);
+}
