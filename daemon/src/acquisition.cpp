@@ -103,6 +103,10 @@ struct Acquisition::Impl {
   std::optional<double> written_setpoint_c;
   bool write_in_flight = false;
   RepeatLog setpoint_log;  // "setpoint not written", at most once a minute
+  // The gyro transport's news about its stream (GyroBus::take_events), a line a minute per kind,
+  // logged and handed to the next second (TickInput::gyro_stream_events).
+  RepeatLogSet gyro_stream_log;
+  std::vector<std::string> gyro_stream_pending;
 
   // The paced clock. Second k is acquired once a worker job has written the setpoint of tick
   // k-1, asked the world to step one second (so its frames are in the gyro socket) and polled the
@@ -339,8 +343,20 @@ struct Acquisition::Impl {
         }
         if (*n == 0) break;
       }
+      take_gyro_events();
       wait_gyro();
     });
+  }
+
+  void take_gyro_events() {
+    // Bounded: a second holds at most this many lines (each already a kind's first or its
+    // minute's line, so more only comes from many kinds at once).
+    constexpr std::size_t kMaxLinesPerSecond = 64;
+    for (const auto& e : bus->take_events())
+      for (auto& line : gyro_stream_log.occurred(e.message, Clock::now())) {
+        spdlog::warn("gyro stream: {}", line);
+        if (gyro_stream_pending.size() < kMaxLinesPerSecond) gyro_stream_pending.push_back(std::move(line));
+      }
   }
 
   // --- the schedule
@@ -398,6 +414,7 @@ struct Acquisition::Impl {
   // The gyro's averages since the last tick.
   void fill_gyro(TickInput& in) {
     in.gyro_read = in.gyro_link_up = bus && gyro_sd.is_open();
+    in.gyro_stream_events = std::exchange(gyro_stream_pending, {});
     if (!bus) return;
     auto s = bus->close_samples();
     for (std::size_t i = 0; i < s.units.size() && i < in.units.size(); ++i) {

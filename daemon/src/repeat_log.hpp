@@ -9,6 +9,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <map>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -99,6 +100,37 @@ class RepeatLog {
   std::string last_line_;
   std::int64_t held_ = 0;      // repeats since the last line logged
   Clock::time_point since_{};  // when the last line was logged
+};
+
+// Several repeating conditions at once, each by its shape (repeat_key) on its own RepeatLog: a
+// serial gyro's line that alternates garbage and CRC errors is two conditions each limited to
+// a line per interval, not a change of condition every second (which RepeatLog would log each
+// time). At most `max_conditions` shapes are told apart; the rest share one "other" condition,
+// so a stream of ever-new messages is still limited.
+class RepeatLogSet {
+ public:
+  using Clock = RepeatLog::Clock;
+
+  explicit RepeatLogSet(std::chrono::seconds interval = std::chrono::seconds(60), std::size_t max_conditions = 32)
+      : interval_(interval), max_conditions_(max_conditions) {}
+
+  // `line` happened now: the lines to log (and to record) now, as RepeatLog::occurred.
+  std::vector<std::string> occurred(const std::string& line, Clock::time_point now) {
+    std::string key = repeat_key(line);
+    auto it = logs_.find(key);
+    if (it == logs_.end()) {
+      if (logs_.size() >= max_conditions_) key = "(other)";
+      it = logs_.try_emplace(key, interval_).first;
+    }
+    return it->second.occurred(key, line, now);
+  }
+
+  std::size_t conditions() const { return logs_.size(); }
+
+ private:
+  std::chrono::seconds interval_;
+  std::size_t max_conditions_;
+  std::map<std::string, RepeatLog> logs_;
 };
 
 }  // namespace fogbench::daemon

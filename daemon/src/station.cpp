@@ -580,6 +580,11 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
     if (ci < power_edges.size() && power_edges[ci] != PowerWatch::Edge::none) power_event(i, to_string(power_edges[ci]), t_s);
   }
 
+  // The gyro transport's problems with its stream (a serial line's garbage, CRC errors, cut
+  // frames, a wrong-baud silence), each naming the device: already a line a minute per kind.
+  for (const auto& line : in.gyro_stream_events)
+    event(run.id, storage::EventKind::fault, {{"gyro_stream", line}}, t_s);
+
   // Alarms and link faults are recorded on their edges, not every second.
   if (in.chamber_alarm != run.alarm) {
     run.alarm = in.chamber_alarm;

@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <mutex>
+#include <map>
 #include <set>
 #include <utility>
 #include <vector>
@@ -30,11 +31,17 @@ class FakeTransport final : public drivers::CanTransport {
  public:
   FakeTransport() : fd_(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC)) {}
   ~FakeTransport() override { ::close(fd_); }
-  void push(const std::vector<::can_frame>& frames) {
+  // Frames, and what the transport found wrong in the stream beside them (a serial line's news).
+  void push(const std::vector<::can_frame>& frames, std::vector<std::string> news = {}) {
     std::lock_guard lock(m_);
     queue_.insert(queue_.end(), frames.begin(), frames.end());
+    for (auto& message : news) events_.push_back({std::chrono::system_clock::now(), std::move(message)});
     const std::uint64_t one = 1;
     (void)!::write(fd_, &one, sizeof one);
+  }
+  std::vector<Event> take_events() override {
+    std::lock_guard lock(m_);
+    return std::exchange(events_, {});
   }
   int fd() const noexcept override { return fd_; }
   drivers::Result<std::size_t> read(std::vector<::can_frame>& out) override {
@@ -53,6 +60,7 @@ class FakeTransport final : public drivers::CanTransport {
   int fd_;
   std::mutex m_;
   std::vector<::can_frame> queue_;
+  std::vector<Event> events_;
 };
 
 // The fake bench: every device numbers its polls from 1 and answers with values of that number.
@@ -67,6 +75,7 @@ struct Bench {
   std::set<int> unit1_t2_open;     // thermistor reads where unit 1's T2 reads open
   std::set<int> unit1_gyro_silent; // chamber polls after which unit 1 sends no frame
   std::set<int> step_fails;        // paced world steps (numbered from 1) that fail
+  std::map<int, std::vector<std::string>> stream_news;  // chamber polls after which the transport reports these
   bool link_down = false;
   double setpoint_c = 0.0;
   std::vector<double> written;     // setpoints written, in order
@@ -104,7 +113,8 @@ class FakeChamber final : public drivers::Chamber {
   drivers::Result<drivers::ChamberReading> poll() override {
     std::lock_guard lock(b_.m);
     const int n = ++b_.chamber_polls;
-    b_.transport->push(b_.frames_of(n, !b_.unit1_gyro_silent.contains(n)));  // the gyros' own bus
+    b_.transport->push(b_.frames_of(n, !b_.unit1_gyro_silent.contains(n)),  // the gyros' own bus
+                       b_.stream_news.contains(n) ? b_.stream_news[n] : std::vector<std::string>{});
     b_.link_down = b_.chamber_down.contains(n);
     if (b_.link_down) return drivers::fail(drivers::ErrorCode::timeout, "fake chamber: no answer");
     drivers::ChamberReading r;
@@ -361,4 +371,21 @@ TEST_CASE("acquisition: a paced world that does not step leaves its second missi
   }
   check_values(ticks[1]);
   check_values(ticks[3]);
+}
+
+TEST_CASE("acquisition: the gyro transport's stream problems reach the seconds, each kind once, not every second") {
+  Bench bench;
+  // Garbage reported with every second's frames, a CRC error once: within a minute each kind is
+  // handed on (and logged) once; the numbers in a message do not make it another kind.
+  for (int n = 1; n <= 6; ++n) bench.stream_news[n] = {"fake0: " + std::to_string(n * 3) + " bytes of garbage before a sync word"};
+  bench.stream_news[3].push_back("fake0: frame at byte 900: bad CRC");
+  const auto ticks = acquire(bench, false, 6);
+  REQUIRE(ticks.size() == 6);
+  std::vector<std::string> handed;
+  for (const auto& t : ticks) handed.insert(handed.end(), t.in.gyro_stream_events.begin(), t.in.gyro_stream_events.end());
+  REQUIRE(handed.size() == 2);
+  CHECK(handed[0] == "fake0: 3 bytes of garbage before a sync word");
+  CHECK(handed[1] == "fake0: frame at byte 900: bad CRC");
+  // The frames themselves are unaffected.
+  for (const auto& t : ticks) check_values(t);
 }

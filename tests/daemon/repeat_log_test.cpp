@@ -68,3 +68,33 @@ TEST_CASE("an error's numbers do not make it another condition, its words do", "
   CHECK(repeat_key("register 300") == "register #");
   CHECK(repeat_key("") == "");
 }
+
+TEST_CASE("a set of repeating conditions: two alternating warnings are limited each, not logged at every change", "[repeat_log]") {
+  using fogbench::daemon::RepeatLogSet;
+  const std::string garbage = "/dev/ttyUSB0: 17 bytes of garbage before a sync word at byte 4096";
+  const std::string crc = "/dev/ttyUSB0: frame at byte 8192: CRC 0x1a2b, computed 0x3c4d";
+  RepeatLogSet set(60s);
+  const auto t0 = RepeatLogSet::Clock::time_point{} + 1000s;
+  std::vector<std::string> logged;
+  // Ten minutes of a garbage run and a CRC error every second, alternating.
+  for (int s = 0; s < 600; ++s)
+    for (const auto& l : set.occurred(s % 2 ? crc : garbage, t0 + std::chrono::seconds(s))) logged.push_back(l);
+  // Each condition: its first line, then one line a minute with its count (at 60, 120, ... 540
+  // s of its own clock): 10 each. A single RepeatLog would have logged all 600 (a change of
+  // condition every second).
+  CHECK(logged.size() == 20);
+  CHECK(set.conditions() == 2);
+  CHECK(logged[0] == garbage);
+  CHECK(logged[1] == crc);
+  CHECK(logged[2].find("(repeated 30 times in the last 60 s)") != std::string::npos);
+
+  // Ever-new shapes beyond the limit share one condition, so they are limited too.
+  RepeatLogSet few(60s, 4);
+  std::size_t lines = 0;
+  for (int s = 0; s < 100; ++s)
+    lines += few.occurred("message kind " + std::string(1, static_cast<char>('a' + s % 26)) + std::string(static_cast<std::size_t>(s / 26), '!'),
+                          t0 + std::chrono::seconds(s))
+                 .size();
+  CHECK(few.conditions() == 5);  // 4 told apart, and "other"
+  CHECK(lines <= 4 + 2 * 2);     // the 4 first lines; "other": its first and one a minute
+}

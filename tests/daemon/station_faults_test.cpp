@@ -556,3 +556,27 @@ TEST_CASE("station faults: a chamber link lost as the loop falls behind is named
   CHECK_THAT(d->run.state_reason, Catch::Contains("s were not read in time"));
   CHECK_THAT(d->run.state_reason, !Catch::Contains("too busy"));
 }
+
+TEST_CASE("station faults: the gyro stream's problems are recorded as fault events of the run, at their second") {
+  Rig r(golden_config());
+  for (int i = 0; i < 10; ++i) r.tick();
+  r.tick([](TickInput& in) { in.gyro_stream_events = {"/dev/ttyUSB0: 12 bytes of garbage before a sync word"}; });
+  r.tick();
+  r.tick([](TickInput& in) {
+    in.gyro_stream_events = {"/dev/ttyUSB0: frame at byte 4096: bad CRC", "/dev/ttyUSB0: frame cut at byte 5000"};
+  });
+  auto d = r.store.get_run(r.run);
+  REQUIRE(d.has_value());
+  std::vector<std::pair<double, std::string>> faults;
+  for (const auto& e : d->events) {
+    const auto detail = json::parse(e.detail_json);
+    if (e.kind == storage::EventKind::fault && detail.contains("gyro_stream"))
+      faults.emplace_back(e.t_s.value_or(-1.0), detail["gyro_stream"].get<std::string>());
+  }
+  REQUIRE(faults.size() == 3);
+  CHECK(faults[0] == std::pair<double, std::string>{10.0, "/dev/ttyUSB0: 12 bytes of garbage before a sync word"});
+  CHECK(faults[1].first == 12.0);
+  CHECK(faults[2].second == "/dev/ttyUSB0: frame cut at byte 5000");
+  // Nothing else about the seconds changes: every one stored.
+  CHECK(*r.store.count_samples(r.run, 0) == 13);
+}

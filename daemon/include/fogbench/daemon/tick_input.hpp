@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <string>
 #include <vector>
 
 namespace fogbench::daemon {
@@ -40,6 +41,11 @@ struct TickInput {
   // in the socket and are read later, their counter intact); a link down does, and a gyro's whole
   // start-up could be among them (PowerWatch, power_on.hpp).
   bool gyro_link_up = true;
+  // What the gyro's transport found wrong in its stream since the last period (a serial line's
+  // garbage, CRC errors, cut frames, a silence that looks like a wrong baud rate), each line
+  // naming the device, already limited to a line a minute per kind of problem (RepeatLogSet):
+  // the station records each as a `fault` event of the run.
+  std::vector<std::string> gyro_stream_events;
 };
 
 // Told after every second the station has ticked (the plan runner, plan_runner.hpp): the station
