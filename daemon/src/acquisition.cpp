@@ -12,6 +12,7 @@
 
 #include "fogbench/daemon/config.hpp"
 #include "repeat_log.hpp"
+#include "schedule.hpp"
 
 namespace fogbench::daemon {
 
@@ -87,8 +88,7 @@ struct Acquisition::Impl {
   // half-period slots between (slot 2k-1 polls for second k), so the temperatures are read mid-way
   // through the gyro's averaging window and are fresh at the tick.
   asio::steady_timer timer{io};
-  Clock::time_point t0;
-  std::chrono::nanoseconds half_period{}, period{};
+  Schedule sched{};  // t0 and the half period; its timing decisions (schedule.hpp)
   std::int64_t slot = 0;  // the real clock: the next half-period slot
   bool stopped = false;
 
@@ -122,8 +122,7 @@ struct Acquisition::Impl {
   Impl(asio::io_context& i, AcquisitionOptions o, AcquisitionDevices d, TickSink s)
       : io(i), options(o), sink(std::move(s)), chamber(std::move(d.chamber)),
         thermistors(std::move(d.thermistors)), paced(std::move(d.paced)), open_bus(std::move(d.open_gyro)) {
-    half_period = std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(0.5e9 / options.time_scale)));
-    period = 2 * half_period;
+    sched.half_period = std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(0.5e9 / options.time_scale)));
   }
 
   void note_lateness(Clock::time_point due) {
@@ -155,13 +154,12 @@ struct Acquisition::Impl {
       });
     });
     open_gyro();
+    sched.t0 = Clock::now() + sched.period();
     if (paced) {
-      t0 = Clock::now() + period;
       paced_k = 0;
       commanded_setpoint_c = options.safe_setpoint_c;
       paced_post_job(false, std::nullopt);
     } else {
-      t0 = Clock::now() + period;
       slot = -1;  // the first poll comes half a period before the first tick
     }
     arm();
@@ -362,7 +360,7 @@ struct Acquisition::Impl {
   // --- the schedule
   // The next due point: the real clock's next half-period slot, the paced clock's next second.
   // Absolute deadlines from t0: a late wake-up never shifts the next one.
-  Clock::time_point next_due() const { return paced ? t0 + paced_k * period : t0 + slot * half_period; }
+  Clock::time_point next_due() const { return paced ? sched.tick_due(paced_k) : sched.slot_due(slot); }
 
   void arm() {
     timer.expires_at(next_due());
@@ -375,16 +373,14 @@ struct Acquisition::Impl {
 
   // The real clock's slot: a poll (odd) or a tick (even).
   void on_slot() {
-    const auto now = Clock::now();
     // Far behind (the loop was blocked, e.g. by a long fit): skip ahead rather than replay a
     // burst of empty seconds.
-    const auto behind = (now - (t0 + slot * half_period)) / half_period;
-    if (behind > 20) {
-      spdlog::warn("acquisition {} half-periods late; skipping ahead", behind);
+    const auto now = Clock::now();
+    if (const std::int64_t to = sched.real_resume_slot(slot, now); to != slot) {
+      spdlog::warn("acquisition {} half-periods late; skipping ahead", (now - sched.slot_due(slot)) / sched.half_period);
       // The seconds skipped are still seconds of the run: they are stored as not read
       // (flagged missing), so a run has every second of its clock and the count of its samples
       // says how long it ran. Measured by scripts/soak: holes appeared here at 500x.
-      const std::int64_t to = slot + (behind & ~std::int64_t{1});
       for (std::int64_t s = slot; s < to; ++s)
         if (s % 2 == 0) tick_unread(s / 2);
       slot = to;
@@ -392,7 +388,7 @@ struct Acquisition::Impl {
     if (slot % 2 != 0) {  // odd, including the first slot, -1
       post_poll();
     } else {
-      note_lateness(t0 + slot * half_period);
+      note_lateness(sched.slot_due(slot));
       tick_real(slot / 2);
     }
     ++slot;
@@ -535,7 +531,7 @@ struct Acquisition::Impl {
   void paced_tick() {
     PacedResult r = std::move(*paced_result);
     paced_result.reset();
-    note_lateness(t0 + paced_k * period);
+    note_lateness(sched.tick_due(paced_k));
     const std::int64_t k = paced_k++;
     // Every frame of the second the world stepped is in the socket: read them all now.
     if (bus && gyro_sd.is_open())
@@ -565,9 +561,8 @@ struct Acquisition::Impl {
     // rather than catching up in a burst. The run goes on slower than the time scale, and every
     // second is acquired as it would be on an idle host.
     const auto now = Clock::now();
-    const auto due = t0 + paced_k * period;
-    if (now - due > 2 * period) {
-      t0 += now - due;
+    if (const auto shift = sched.paced_shift(paced_k, now); shift.count() > 0) {
+      sched.t0 += shift;
       ++stats.paced_slowed;
       if (now - paced_logged > std::chrono::seconds(10)) {
         paced_logged = now;
