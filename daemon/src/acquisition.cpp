@@ -1,5 +1,5 @@
-// The acquisition: the device threads, the gyro bus on the loop, and the one schedule of seconds
-// (acquisition.hpp). Moved out of server.cpp (issue 26) with its behaviour unchanged.
+// The acquisition: the device threads, the gyro bus on the loop, and the one loop of seconds for
+// both clocks, each a ReadingClock (acquisition.hpp). Moved out of server.cpp (issue 26).
 #include "acquisition.hpp"
 
 #include <boost/asio.hpp>
