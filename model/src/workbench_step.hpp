@@ -95,17 +95,46 @@ class CandidateScan {
     double best = 0.0, at_zero = 0.0;  // fall of the weighted SSE, (deg/h)^2
     double sse = 0.0;                  // weighted SSE of the residual before, (deg/h)^2
   };
+  // A candidate's column prepared for its scans on this run: its lag extension with the spectrum
+  // of its blocks (made on the first scan) and its weighted sums, which depend on the column,
+  // the run's weights and the lag range only. Made once for a candidate and handed to each of
+  // its scans (the rescans beside the refitted model's columns: other scans of the same run),
+  // it gives the numbers scan(x) computes. The scan that made it must outlive it.
+  struct Prepared {
+    detail::Lagged lx;
+    std::vector<double> s1, sxx;           // sum_t w(t) x(t - i) and sum_t w(t) x(t - i)^2, i = 0..L
+    const std::vector<double>* w = nullptr;  // the weights of s1 and sxx (the preparing scan's)
+    int max_lag = 0;                         // L, s; lx.ext is L copies of x(0), then x
+  };
+  Prepared prepare(std::span<const double> x) const {
+    Prepared p;
+    p.lx = detail::make_lagged(x, L_);
+    p.s1 = sc_.wsum(p.lx.ext);
+    std::vector<double> sq(p.lx.ext.size());
+    for (std::size_t j = 0; j < sq.size(); ++j) sq[j] = p.lx.ext[j] * p.lx.ext[j];
+    p.sxx = sc_.wsum(sq);
+    p.w = &w_;
+    p.max_lag = L_;
+    return p;
+  }
   std::optional<Gain> scan(std::span<const double> x, std::optional<int> avoid = {}, int avoid_half_width = 0) const {
     if (!ok_) return std::nullopt;
-    const detail::Lagged lx = detail::make_lagged(x, L_);
+    return scan(prepare(x), avoid, avoid_half_width);
+  }
+  // The same scan of a prepared column (prepare(): this scan's, or another's on the same run;
+  // with other weights or lags its sums are made again here).
+  std::optional<Gain> scan(const Prepared& px, std::optional<int> avoid = {}, int avoid_half_width = 0) const {
+    if (!ok_) return std::nullopt;
+    const bool same = px.max_lag == L_ && px.lx.ext.size() == w_.size() + static_cast<std::size_t>(L_) && px.w != nullptr &&
+                      (px.w == &w_ || *px.w == w_);
+    if (!same) return scan(std::span<const double>(px.lx.ext).subspan(static_cast<std::size_t>(px.max_lag)), avoid, avoid_half_width);
+    const detail::Lagged& lx = px.lx;
     const std::size_t k = cols_.size();
     std::vector<std::vector<double>> cxb(k);
-    cxb[0] = sc_.wsum(lx.ext);
+    cxb[0] = px.s1;
     for (std::size_t a = 1; a < k; ++a) cxb[a] = sc_.corr(lx, col_spec_[a - 1]);
     const std::vector<double> cxu = sc_.corr(lx, u_spec_);
-    std::vector<double> sq(lx.ext.size());
-    for (std::size_t j = 0; j < sq.size(); ++j) sq[j] = lx.ext[j] * lx.ext[j];
-    const std::vector<double> cxx = sc_.wsum(sq);
+    const std::vector<double>& cxx = px.sxx;
     std::optional<int> best;
     double best_gain = -1.0, g0 = 0.0;
     Eigen::VectorXd v(static_cast<Eigen::Index>(k));
@@ -280,6 +309,12 @@ struct Cand {
   std::string expr, effect, explanation;
   bool repeat = false;
   bool generated = false;  // from the language search: screened by its lag scan's gain
+  // What the screen found for a generated candidate it kept (the scan beside the base model,
+  // the step's CandidateScan), handed on so that its evaluation does not scan and evaluate it
+  // again: the gain at its best lag, and its column on the fit run's signals (moved out by
+  // evaluate_candidate).
+  std::optional<CandidateScan::Gain> screened;
+  std::vector<double> x;
 };
 
 // What every candidate's evaluation reads (shared by the threads, read only).
@@ -311,6 +346,7 @@ struct EvaluatedCandidate {
 // One candidate: its lag (scan, rescans as the refit moves the model's lags, lag 0 tried),
 // the refit, its score on the fit run and every held-out run, and the verdict. fs and held_sc
 // are this thread's scorers.
-EvaluatedCandidate evaluate_candidate(const StepContext& ctx, const Cand& cd, Scorer& fs, std::vector<Scorer>& held_sc);
+// cd.x, when the screen left it there, is moved out.
+EvaluatedCandidate evaluate_candidate(const StepContext& ctx, Cand& cd, Scorer& fs, std::vector<Scorer>& held_sc);
 
 }  // namespace fogbench::model::workbench::wbi
