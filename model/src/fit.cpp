@@ -209,6 +209,13 @@ void add_standard_errors(Model& m, FitCache& cache) {
   finish_stats(m, *ev, cache.run().gyro_dph, good_weights(cache.run()), any_auto ? 1 : 0, true);
 }
 
+std::shared_ptr<const Spectrum> FitCache::spectrum(const std::string& key, const std::function<Spectrum()>& make) {
+  auto it = spectra_.find(key);
+  if (it != spectra_.end()) return it->second;
+  if (spectra_.size() >= max_spectra) spectra_.clear();
+  return spectra_.emplace(key, std::make_shared<const Spectrum>(make())).first->second;
+}
+
 void FitCache::trim() {
   while (cols_.size() > keep_) {
     auto oldest = cols_.begin();

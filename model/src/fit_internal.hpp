@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <expected>
+#include <functional>
 #include <map>
 #include <memory>
 #include <limits>
@@ -157,6 +158,11 @@ class FitCache {
   void trim();
   // check_collinear's sums of this run's columns (fit() checks every refit twice).
   CollinearMemo collinear;
+  // A spectrum made from this run's columns, kept by the caller's key (diagnose's rescans: the
+  // weighted column of a term at its lag, CandidateScan), made by make() on first use; at most
+  // max_spectra are kept (dropped all at once beyond: each is about 9 bytes a sample).
+  std::shared_ptr<const Spectrum> spectrum(const std::string& key, const std::function<Spectrum()>& make);
+  static constexpr std::size_t max_spectra = 8;
 
  private:
   struct Entry {
@@ -171,6 +177,7 @@ class FitCache {
   std::unique_ptr<std::expected<RunSignals, FitError>> sig_;
   std::map<std::string, Entry> cols_;
   std::map<std::tuple<int, int, double, int, int>, std::expected<PaperPrep, FitError>> paper_;
+  std::map<std::string, std::shared_ptr<const Spectrum>> spectra_;
 };
 
 // fit() with the run's shared parts from cache (cache.run() must be run).

@@ -330,7 +330,12 @@ std::expected<CandidateScan, FitError> scan_beside(const Model& m, detail::FitCa
   auto cols = detail::regressors_with(m, cache);
   if (!cols) return std::unexpected(cols.error());
   if (without_last_term && !cols->empty()) cols->pop_back();
-  return CandidateScan(cache.run().gyro_dph, *cols, detail::good_weights(cache.run()), max_lag_s);
+  // The columns are the cache's (its run and reference): their spectra are kept there by key.
+  std::vector<std::string> keys;
+  if (cache.tref_c() == m.tref_c)
+    for (std::size_t j = 0; j < cols->size(); ++j) keys.push_back(term_key(m.terms[j].term) + "@" + std::to_string(m.terms[j].term.lag.seconds));
+  return CandidateScan(cache.run().gyro_dph, *cols, detail::good_weights(cache.run()), max_lag_s, keys,
+                       keys.empty() ? nullptr : &cache);
 }
 
 std::vector<Term> frozen_terms(const Model& m) {

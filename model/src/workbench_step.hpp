@@ -40,7 +40,11 @@ inline std::vector<double> lagged(std::span<const double> x, int lag) {
 // and every sum over t is, for all lags at once, a cross-correlation by FFT (lagscan.hpp).
 class CandidateScan {
  public:
-  CandidateScan(std::span<const double> y_in, const std::vector<std::vector<double>>& base_cols, std::vector<double> w, int max_lag)
+  // keys and spectra (both or neither): each base column's key (its term's key at its lag) and
+  // the run's cache of the weighted columns' spectra (FitCache::spectrum; w must be the run's
+  // good_weights), so that the rescans beside models at the same lags transform them once.
+  CandidateScan(std::span<const double> y_in, const std::vector<std::vector<double>>& base_cols, std::vector<double> w, int max_lag,
+                std::span<const std::string> keys = {}, detail::FitCache* spectra = nullptr)
       : sc_(y_in.size(), max_lag, w), w_(std::move(w)), L_(max_lag) {
     const std::size_t n = y_in.size();
     // Samples of weight 0 may hold NaN (a missing gyro reading): 0 * NaN is NaN, so zero them.
@@ -76,9 +80,15 @@ class CandidateScan {
     }
     u_spec_ = sc_.spectrum_of_target(wu);
     for (std::size_t a = 1; a < cols_.size(); ++a) {
-      std::vector<double> wc(n);
-      for (std::size_t t = 0; t < n; ++t) wc[t] = w_[t] * cols_[a][t];
-      col_spec_.push_back(sc_.spectrum_of_target(wc));
+      auto make = [&] {
+        std::vector<double> wc(n);
+        for (std::size_t t = 0; t < n; ++t) wc[t] = w_[t] * cols_[a][t];
+        return sc_.spectrum_of_target(wc);
+      };
+      if (spectra && keys.size() == base_cols.size())
+        col_spec_.push_back(spectra->spectrum(keys[a - 1] + "/L" + std::to_string(L_), make));
+      else
+        col_spec_.push_back(std::make_shared<const detail::Spectrum>(make()));
     }
   }
   bool ok() const { return ok_; }
@@ -132,7 +142,7 @@ class CandidateScan {
     const std::size_t k = cols_.size();
     std::vector<std::vector<double>> cxb(k);
     cxb[0] = px.s1;
-    for (std::size_t a = 1; a < k; ++a) cxb[a] = sc_.corr(lx, col_spec_[a - 1]);
+    for (std::size_t a = 1; a < k; ++a) cxb[a] = sc_.corr(lx, *col_spec_[a - 1]);
     const std::vector<double> cxu = sc_.corr(lx, u_spec_);
     const std::vector<double>& cxx = px.sxx;
     std::optional<int> best;
@@ -182,7 +192,7 @@ class CandidateScan {
   double sse_ = 0.0;
   std::vector<double> u_;
   detail::Spectrum u_spec_;
-  std::vector<detail::Spectrum> col_spec_;
+  std::vector<std::shared_ptr<const detail::Spectrum>> col_spec_;
 };
 
 
