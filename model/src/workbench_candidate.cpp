@@ -235,7 +235,7 @@ static double prune_floor(const StepContext& ctx) {
   return ctx.held_out.empty() ? o.min_fit_fall_alone : std::min(o.min_fit_fall, o.min_fit_fall_pooled);
 }
 
-EvaluatedCandidate evaluate_candidate(const StepContext& ctx, Cand& cd, Scorer& fs, std::vector<Scorer>& held_sc) {
+EvaluatedCandidate evaluate_candidate(const StepContext& ctx, Cand& cd, Scorer& fs, std::vector<Scorer>& held_sc, detail::FitCache& fc) {
   EvaluatedCandidate out;
   Candidate& c = out.c;
   c.expr = cd.expr;
@@ -286,9 +286,8 @@ EvaluatedCandidate evaluate_candidate(const StepContext& ctx, Cand& cd, Scorer& 
       return out;
     }
   }
-  // The refits are compared by BIC; the standard errors only for the one kept (score's p).
-  detail::FitCache& fc = fs.fit_cache();
-  fc.standard_errors = false;
+  // The refits are compared by BIC (fc.standard_errors is off); the standard errors only for
+  // the one kept (score's p).
   // x is the candidate's column on the fit run's signals (ctx.fr.sig: run_signals of the fit run
   // at the base's tref, as the cache's and the scorer's): handed to both (the scorer's below), so
   // that its refits and its score do not evaluate it again. A second path's refit is another

@@ -274,7 +274,8 @@ void screen_generated(std::vector<Cand>& cands, std::size_t n_fixed, const Candi
 }
 
 // Every candidate evaluated, on o.threads threads (each with its own scorers: their column
-// caches are not shared); fit_scorer and held_scorers serve the calling thread.
+// caches are not shared; the refits' FitCache is, fit_scorer's); fit_scorer and held_scorers
+// serve the calling thread.
 std::vector<EvaluatedCandidate> evaluate_all(const StepContext& ctx, std::vector<Cand>& cands, Scorer& fit_scorer,
                                              std::vector<Scorer>& held_scorers) {
   std::vector<EvaluatedCandidate> results(cands.size());
@@ -286,9 +287,12 @@ std::vector<EvaluatedCandidate> evaluate_all(const StepContext& ctx, std::vector
     if (ctx.o.progress) ctx.o.progress(DiagnoseProgress{"refitting", 0, n, cands.size()});
   };
   report(0);
+  // One cache of the fit run's refits for all the threads (made here, before they start): each
+  // uses what the others computed (the base's columns, sums and first step), the same numbers.
+  detail::FitCache& fc = fit_scorer.fit_cache();
   auto worker = [&](Scorer& fs, std::vector<Scorer>& hs, bool caller) {
     for (std::size_t ci = next++; ci < cands.size(); ci = next++) {
-      results[ci] = evaluate_candidate(ctx, cands[ci], fs, hs);
+      results[ci] = evaluate_candidate(ctx, cands[ci], fs, hs, fc);
       const std::size_t n = ++done;
       if (caller) report(n);
     }

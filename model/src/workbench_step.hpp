@@ -262,11 +262,14 @@ class Scorer {
   }
 
   // What the refits on this run share (the candidates' refits on the fit run: detail::fit_with),
-  // made on first use; the refits' whole-run Ljung-Box is not computed (they are only scored).
+  // made on first use, by the thread that then shares it (thread-safe once made); the refits'
+  // whole-run Ljung-Box is not computed (they are only scored) and they are compared by BIC,
+  // without standard errors (add_standard_errors for the one kept).
   detail::FitCache& fit_cache() {
     if (!fit_cache_) {
       fit_cache_ = std::make_unique<detail::FitCache>(run_, tref_c_);
       fit_cache_->whole_run_whiteness = false;
+      fit_cache_->standard_errors = false;
     }
     return *fit_cache_;
   }
@@ -356,7 +359,8 @@ struct EvaluatedCandidate {
 // One candidate: its lag (scan, rescans as the refit moves the model's lags, lag 0 tried),
 // the refit, its score on the fit run and every held-out run, and the verdict. fs and held_sc
 // are this thread's scorers.
-// cd.x, when the screen left it there, is moved out.
-EvaluatedCandidate evaluate_candidate(const StepContext& ctx, Cand& cd, Scorer& fs, std::vector<Scorer>& held_sc);
+// cd.x, when the screen left it there, is moved out. fc: the fit run's refits' cache (the fit
+// run's scorer's fit_cache(), shared by the step's threads).
+EvaluatedCandidate evaluate_candidate(const StepContext& ctx, Cand& cd, Scorer& fs, std::vector<Scorer>& held_sc, detail::FitCache& fc);
 
 }  // namespace fogbench::model::workbench::wbi
