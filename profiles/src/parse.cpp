@@ -369,6 +369,7 @@ std::expected<Profile, ProfileError> parse_profile(std::string_view text,
   Profile profile;
   profile.source_name = std::string(source_name);
   double setpoint_c = 0.0;  // tracked so that a ramp that goes nowhere can be refused
+  double plateau_used_s = 0.0;  // the rate steps' time so far in the last temperature step, s
   int line_no = 0;
   std::string_view first_line;
   std::size_t from = 0;
@@ -399,10 +400,7 @@ std::expected<Profile, ProfileError> parse_profile(std::string_view text,
                                       std::to_string(last.line) + " is a '" + std::string(to_string(last.kind())) +
                                       "')"));
       }
-      double used_s = 0.0;
-      for (const auto& q : profile.rate_steps) {
-        if (q.plateau == plateau) used_s += q.duration_s;
-      }
+      const double used_s = plateau_used_s;
       if (used_s + r->duration_s > hold->duration_s) {
         return Unexpected(p.error(
             p.first().column, "the rate sequence does not fit in its plateau: " + detail::format_number(used_s) +
@@ -411,6 +409,7 @@ std::expected<Profile, ProfileError> parse_profile(std::string_view text,
                                   " s on line " + std::to_string(last.line)));
       }
       r->plateau = plateau;
+      plateau_used_s += r->duration_s;
       profile.rate_steps.push_back(std::move(*r));
       continue;
     }
@@ -425,6 +424,7 @@ std::expected<Profile, ProfileError> parse_profile(std::string_view text,
     if (const auto* s = std::get_if<SetpointStep>(&step->action)) setpoint_c = s->temp_c;
     if (const auto* r = std::get_if<RampStep>(&step->action)) setpoint_c = r->target_c;
     profile.steps.push_back(std::move(*step));
+    plateau_used_s = 0.0;  // a new temperature step: a new plateau for the rate lines after it
   }
   if (profile.steps.empty()) {
     return Unexpected(ProfileError{std::string(source_name), 1, 1,
