@@ -49,7 +49,7 @@ Result<std::string> AcutrolRateTable::command(const std::string& text) {
         link_down_ = true;
         std::string why = reply.error().message;
         if (const auto p = link_.prefix() + ": "; why.starts_with(p)) why.erase(0, p.size());
-        record(RateTableEvent::Kind::link_lost, "link lost at '" + text + "': " + why);
+        record(RateTableEvent::Kind::link_lost, "link lost: " + why);  // `why` names the command
       }
     }
     return reply;

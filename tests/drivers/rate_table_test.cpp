@@ -7,6 +7,8 @@
 #include <nlohmann/json.hpp>
 
 #include <atomic>
+#include <fstream>
+#include <sstream>
 
 #include "fogbench/drivers/acutrol_dialect.hpp"
 #include "fogbench/drivers/rate_table.hpp"
@@ -84,6 +86,19 @@ TEST_CASE("rate table config: defaults, limits and unknown fields refused by nam
   bad = parse_rate_table_config(nlohmann::json::parse(R"({"max_rate_dps": 5})"), "rate_table");
   REQUIRE_FALSE(bad);
   CHECK(bad.error().message == "rate_table.link: missing (expected an object)");
+}
+
+TEST_CASE("rate table config: the shipped example parses") {
+  std::ifstream in(FOGBENCH_SOURCE_DIR "/drivers/examples/rate-table-acutrol.json");
+  REQUIRE(in);
+  std::stringstream text;
+  text << in.rdbuf();
+  auto cfg = parse_rate_table_config(nlohmann::json::parse(text.str()), "rate_table");
+  INFO((cfg ? std::string() : cfg.error().to_string()));
+  REQUIRE(cfg);
+  CHECK(cfg->line.describe() == "tcp 192.168.1.53:9888");
+  CHECK(cfg->limits.max_rate_dps == 500);
+  CHECK(cfg->limits.max_accel_dps2 == 100);
 }
 
 TEST_CASE("acutrol table: a rate beyond the configured limit is refused before any I/O, with an event") {
@@ -175,4 +190,24 @@ TEST_CASE("acutrol table: a fault in the status word is read with its text and r
   events = (*table)->take_events();
   REQUIRE(events.size() == 1);
   CHECK(events[0].kind == RateTableEvent::Kind::fault_cleared);
+}
+
+TEST_CASE("acutrol table: a controller that stops answering mid-step is a timeout and one link_lost event") {
+  std::atomic<bool> silent{false};
+  LinePeer peer([&silent](const std::string&) { return silent ? std::string() : std::string("OK\r\n"); });
+  auto cfg = table_config(peer.port());
+  cfg.line.response_timeout_ms = 200;
+  auto table = open_rate_table(cfg);
+  REQUIRE(table);
+  REQUIRE((*table)->set_rate_dps(100));
+  silent = true;
+  auto r = (*table)->set_rate_dps(-100);
+  REQUIRE_FALSE(r);
+  CHECK(r.error().code == ErrorCode::timeout);
+  CHECK_THAT(r.error().message,
+             Catch::EndsWith("): ':demand:rate 1, -100.000000': no whole reply within 200 ms (received nothing)"));
+  auto events = (*table)->take_events();
+  REQUIRE(events.size() == 1);
+  CHECK(events[0].kind == RateTableEvent::Kind::link_lost);
+  CHECK(events[0].reason == "link lost: ':demand:rate 1, -100.000000': no whole reply within 200 ms (received nothing)");
 }

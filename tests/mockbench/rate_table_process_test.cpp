@@ -4,6 +4,8 @@
 // waits have deadlines.
 #include <catch2/catch.hpp>
 
+#include <cmath>
+
 #include "fogbench/drivers/rate_table_registry.hpp"
 #include "mock_process.hpp"
 

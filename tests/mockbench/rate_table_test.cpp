@@ -324,7 +324,7 @@ TEST_CASE("rate table driver against the mock peer: a link lost mid-step is repo
   auto events = (*table)->take_events();
   REQUIRE(events.size() == 1);
   CHECK(events[0].kind == RateTableEvent::Kind::link_lost);
-  CHECK_THAT(events[0].reason, Catch::StartsWith("link lost at ':read:status 1': "));
+  CHECK_THAT(events[0].reason, Catch::StartsWith("link lost: ':read:status 1': "));
   // Within the backoff: refused at once, and no second event.
   s = (*table)->read_status();
   REQUIRE_FALSE(s);
