@@ -173,6 +173,9 @@ struct Bench::Impl final : ControlHandler {
   std::expected<void, std::string> fault(const json& command) override {
     auto cmd = parse_fault_command(command, serials);
     if (!cmd) return std::unexpected(cmd.error());
+    if (!table && (cmd->kind == FaultKind::table_fault || cmd->kind == FaultKind::drop_table)) {
+      return std::unexpected(std::string(to_string(cmd->kind)) + ": no rate table is served (--rate-table-port)");
+    }
     {
       std::lock_guard lock(shared.mutex);
       auto& faults = shared.faults;

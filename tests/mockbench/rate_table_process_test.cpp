@@ -55,3 +55,11 @@ TEST_CASE("fogbench-sim --rate-table-port: the driver spins the served table, se
   REQUIRE_FALSE(events.empty());
   CHECK(events.back().kind == RateTableEvent::Kind::link_restored);
 }
+
+TEST_CASE("fogbench-sim without --rate-table-port: the table's faults are refused, not ignored") {
+  MockProcess mock;
+  CHECK(mock.ready()["rate_table_config"].is_null());
+  const auto reply = mock.control({{"cmd", "fault"}, {"name", "table_fault"}, {"text", "OVERSPEED TRIP"}});
+  CHECK(reply["ok"] == false);
+  CHECK(reply["error"] == "table_fault: no rate table is served (--rate-table-port)");
+}
