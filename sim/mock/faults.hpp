@@ -31,14 +31,16 @@ enum class FaultKind {
   power_off,        // a unit has no power (no frames); for `duration_s` if given, else until off
   power_cycle,      // action: a unit loses power for `off_s` simulated seconds, then restarts
   refuse_setpoint,  // the chamber controller refuses every setpoint written (exception, NA:, -6)
+  table_fault,      // the rate table's controller reports a fault (`text`), latched until reset
+  drop_table,       // action: close the rate table's connected clients now
 };
 
-inline constexpr std::array<FaultKind, 13> all_fault_kinds = {
+inline constexpr std::array<FaultKind, 15> all_fault_kinds = {
     FaultKind::refuse_modbus, FaultKind::drop_modbus, FaultKind::stall_modbus,
     FaultKind::freeze_pv,     FaultKind::alarm,       FaultKind::lose_frames,
     FaultKind::lose_burst,    FaultKind::corrupt_frames, FaultKind::open_thermistor,
     FaultKind::gyro_spike,    FaultKind::power_off,   FaultKind::power_cycle,
-    FaultKind::refuse_setpoint};
+    FaultKind::refuse_setpoint, FaultKind::table_fault, FaultKind::drop_table};
 
 // A power cycle without `off_s` keeps the unit off this long, simulated s.
 inline constexpr double default_power_cycle_off_s = 3.0;
@@ -59,6 +61,7 @@ struct FaultCommand {
   double value = 0;                 // ms, fraction, count, dph or off_s, by kind; power_off:
                                     // duration_s (infinity when not given)
   double duration_s = 10.0;         // gyro_spike, simulated seconds
+  std::string text;                 // table_fault: the controller's fault text ("" for its default)
 };
 
 // Parses {"cmd":"fault","name":"stall_modbus","on":true,"ms":800,"device":"chamber"}: the
@@ -91,6 +94,10 @@ struct FaultState {
   bool freeze_pv = false;
   bool alarm = false;
   bool refuse_setpoint = false;
+  bool table_fault = false;        // the rate table's fault condition
+  std::string table_fault_text;
+  std::uint64_t table_drops = 0;   // drop_table actions so far (the table's server closes its
+                                   // clients when this moves)
   std::vector<UnitFaults> units;
 };
 
