@@ -32,6 +32,15 @@ ApiResult<profiles::Profile> Station::check_profile_text(const std::string& text
                                                          const std::string& source) const {
   auto p = profiles::parse_profile(text, source);
   if (!p) return api_error(ErrorCode::invalid_profile, p.error().to_string());
+  // Rate steps are parsed but nothing here drives a rate table: running the profile would run
+  // its temperatures without its rates, a run other than the one written. Refused by line.
+  if (!p->rate_steps.empty()) {
+    const auto& r = p->rate_steps.front();
+    return api_error(ErrorCode::invalid_profile,
+                     source + ":" + std::to_string(r.line) + ":" + std::to_string(r.rate_column) + ": '" + r.text +
+                         "': rate steps need a rate table, and fogbenchd drives none yet (docs/profiles.md); remove the " +
+                         std::to_string(p->rate_steps.size()) + " rate line(s) to run the temperatures alone");
+  }
   if (auto ok = profiles::check_limits(*p, config_.limits); !ok)
     return api_error(ErrorCode::limits, ok.error().to_string());
   return std::move(*p);

@@ -106,6 +106,13 @@ TEST_CASE("handler: error codes of queries") {
   CHECK(r.code(R"({"id":1,"cmd":"profile.validate","name":"hot"})") == "limits");
   CHECK(r.code(R"({"id":1,"cmd":"profile.validate","text":"setpoint 20 C\nhold 1 min\n"})") == "ok");
   CHECK(r.code(R"({"id":1,"cmd":"profile.validate","text":"hold\n"})") == "invalid_profile");
+  // Rate steps parse, but no rate table is driven: refused by line and column, not run as
+  // temperatures alone.
+  const json rate = r.send(R"({"id":1,"cmd":"profile.validate","text":"setpoint 20 C\nhold 5 min\nrate 100 dps for 60 s\n"})");
+  INFO(rate.dump());
+  CHECK(r.code(R"({"id":1,"cmd":"profile.validate","text":"setpoint 20 C\nhold 5 min\nrate 100 dps for 60 s\n"})") == "invalid_profile");
+  CHECK(rate.dump().find("<text>:3:") != std::string::npos);
+  CHECK(rate.dump().find("rate table") != std::string::npos);
 }
 
 TEST_CASE("handler: samples page through a stored run, by unit index or serial") {
