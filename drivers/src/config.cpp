@@ -6,6 +6,7 @@
 #include <fstream>
 #include <map>
 
+#include "fogbench/drivers/can_transport.hpp"
 #include "fogbench/drivers/chamber_registry.hpp"
 #include "json_fields.hpp"
 
@@ -398,6 +399,17 @@ Result<DriversConfig> parse_drivers_config(const json& value, const std::filesys
       } else {
         FOGBENCH_TRY(frame, serial::parse_frame_format(*frame_it, fp));
         cfg.gyro_bus.frame = *frame;
+      }
+      auto spec = parse_transport_spec(*transport);
+      if (!spec) return std::unexpected(spec.error());
+      if (spec->framing.data_bits == 7) {
+        for (const auto byte : cfg.gyro_bus.frame->sync) {
+          if (byte >= 0x80) {
+            return config_error(join_path(bp, "transport"),
+                                "framing " + spec->framing.to_string() +
+                                    ": 7 data bits cannot carry the frame's sync word (a byte >= 0x80); a binary frame needs 8");
+          }
+        }
       }
     }
   }

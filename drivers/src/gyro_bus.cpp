@@ -37,7 +37,7 @@ Result<GyroBus> GyroBus::open(const GyroBusConfig& config, std::vector<GyroChann
     if (!config.frame || units.size() != 1) {
       return fail(ErrorCode::config, "gyro_bus: a serial: transport needs a frame layout and exactly one unit");
     }
-    auto transport = open_serial_gyro(spec->target, spec->baud, *config.frame, units[0]);
+    auto transport = open_serial_gyro(spec->target, spec->baud, spec->framing, *config.frame, units[0]);
     if (!transport) return std::unexpected(transport.error());
     return GyroBus(std::move(*transport), std::move(units));
   }
@@ -55,7 +55,7 @@ Result<void> GyroBus::reopen(const GyroBusConfig& config, MonotonicClock clock) 
     if (!config.frame || accumulators_.size() != 1) {
       return fail(ErrorCode::config, "gyro_bus: a serial: transport needs a frame layout and exactly one unit");
     }
-    auto transport = open_serial_gyro(spec->target, spec->baud, *config.frame, accumulators_[0].config());
+    auto transport = open_serial_gyro(spec->target, spec->baud, spec->framing, *config.frame, accumulators_[0].config());
     if (!transport) return std::unexpected(transport.error());
     (*transport)->take_over(*transport_);
     transport_ = std::move(*transport);

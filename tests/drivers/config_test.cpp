@@ -228,6 +228,15 @@ TEST_CASE("a serial gyro bus: frame by file or inline, refused where it does not
   j["gyro_bus"]["frame"] = "no-such-frame.json";
   CHECK(error_of(j).starts_with("gyro_bus.frame: cannot open"));
 
+  j["gyro_bus"]["frame"] = (examples / "kvh-1775-format-a.json").string();
+  j["gyro_bus"]["transport"] = "serial:/dev/ttyUSB0?baud=921600&framing=8O2";
+  REQUIRE(parse_drivers_config(j, map_dir).has_value());
+  j["gyro_bus"]["transport"] = "serial:/dev/ttyUSB0?framing=8X1";
+  CHECK(error_of(j).starts_with("gyro_bus.transport: framing: '8X1': parity 'X' is not N (none), E (even) or O (odd)"));
+  // The KVH's sync word 0xFE81FF55 cannot cross a 7-bit line.
+  j["gyro_bus"]["transport"] = "serial:/dev/ttyUSB0?framing=7E1";
+  CHECK(error_of(j).starts_with("gyro_bus.transport: framing 7E1: 7 data bits cannot carry the frame's sync word"));
+
   json can = example();
   can["gyro_bus"]["frame"] = (examples / "kvh-1775-format-a.json").string();
   CHECK(error_of(can) == "gyro_bus.frame: only a serial: transport has a frame layout");

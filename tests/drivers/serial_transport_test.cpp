@@ -6,6 +6,7 @@
 #include <fcntl.h>
 #include <poll.h>
 #include <stdlib.h>
+#include <termios.h>
 #include <unistd.h>
 
 #include <nlohmann/json.hpp>
@@ -90,6 +91,107 @@ TEST_CASE("serial transport strings parse with a baud rate and refuse bad ones",
   CHECK_FALSE(parse_transport_spec("serial:/dev/ttyUSB0?baud=12345").has_value());
   CHECK_FALSE(parse_transport_spec("serial:/dev/ttyUSB0?parity=even").has_value());
   CHECK_FALSE(parse_transport_spec("serial:").has_value());
+}
+
+TEST_CASE("serial framing: 8N1 by default, 8E1 7O2 and the like parsed, each bad character named", "[serial][transport]") {
+  auto s = parse_transport_spec("serial:/dev/ttyUSB0?baud=921600");
+  REQUIRE(s.has_value());
+  CHECK(s->framing == SerialFraming{8, 'N', 1});
+  CHECK(s->framing.to_string() == "8N1");
+  s = parse_transport_spec("serial:/dev/ttyUSB0?baud=460800&framing=8E1");
+  REQUIRE(s.has_value());
+  CHECK(s->baud == 460800);
+  CHECK(s->framing == SerialFraming{8, 'E', 1});
+  s = parse_transport_spec("serial:/dev/ttyUSB0?framing=7o2&baud=9600");
+  REQUIRE(s.has_value());
+  CHECK(s->baud == 9600);
+  CHECK(s->framing.to_string() == "7O2");
+  CHECK(s->target == "/dev/ttyUSB0");
+
+  const auto error_of = [](std::string_view spec) {
+    auto r = parse_transport_spec(spec);
+    REQUIRE_FALSE(r.has_value());
+    CHECK(r.error().code == ErrorCode::config);
+    return r.error().message;
+  };
+  CHECK(error_of("serial:/dev/ttyUSB0?framing=9N1").starts_with("gyro_bus.transport: framing: '9N1': data bits '9' is not 7 or 8"));
+  CHECK(error_of("serial:/dev/ttyUSB0?framing=8M1").starts_with("gyro_bus.transport: framing: '8M1': parity 'M' is not N (none), E (even) or O (odd)"));
+  CHECK(error_of("serial:/dev/ttyUSB0?framing=8N3").starts_with("gyro_bus.transport: framing: '8N3': stop bits '3' is not 1 or 2"));
+  CHECK(error_of("serial:/dev/ttyUSB0?framing=8N1.5").starts_with("gyro_bus.transport: framing: '8N1.5': expected 3 characters"));
+  CHECK(error_of("serial:/dev/ttyUSB0?framing=8N1&framing=8E1").starts_with("gyro_bus.transport: framing given twice"));
+  CHECK(error_of("serial:/dev/ttyUSB0?baud=9600&baud=9600").starts_with("gyro_bus.transport: baud given twice"));
+  CHECK(error_of("serial:/dev/ttyUSB0?baud=9600&parity=E").starts_with("gyro_bus.transport: unknown serial option 'parity=E'"));
+  CHECK(error_of("serial:/dev/ttyUSB0?framing=8X1").find("in 'serial:/dev/ttyUSB0?framing=8X1'") != std::string::npos);
+}
+
+TEST_CASE("a framing's termios bits, set and read back", "[serial][transport]") {
+  struct Case {
+    const char* framing;
+    tcflag_t size, parity, stop;
+  };
+  const Case cases[] = {{"8N1", CS8, 0, 0}, {"8E1", CS8, PARENB, 0}, {"8O2", CS8, PARENB | PARODD, CSTOPB},
+                        {"7E1", CS7, PARENB, 0}, {"7O2", CS7, PARENB | PARODD, CSTOPB}, {"8N2", CS8, 0, CSTOPB}};
+  for (const auto& c : cases) {
+    INFO(c.framing);
+    auto f = parse_serial_framing(c.framing, "framing");
+    REQUIRE(f.has_value());
+    termios t{};
+    ::cfmakeraw(&t);
+    t.c_cflag |= CS5 | PARODD | CSTOPB;  // whatever was there before is replaced
+    apply_serial_framing(t, *f);
+    CHECK((t.c_cflag & CSIZE) == c.size);
+    CHECK((t.c_cflag & (PARENB | PARODD)) == c.parity);
+    CHECK((t.c_cflag & CSTOPB) == c.stop);
+    CHECK((t.c_cflag & (CREAD | CLOCAL)) == (CREAD | CLOCAL));
+    CHECK(((t.c_iflag & INPCK) != 0) == (c.parity != 0));
+    CHECK((t.c_iflag & (IGNPAR | PARMRK)) == 0);
+    CHECK(serial_framing_of(t) == *f);
+  }
+}
+
+TEST_CASE("the framing on a pty pair: stop bits and baud held, what the pty drops reported as an event", "[serial][transport]") {
+  struct Case {
+    const char* framing;
+    const char* held;  // Linux's pty forces CS8 and clears PARENB (drivers/tty/pty.c, pty_set_termios)
+    tcflag_t stop;
+  };
+  const Case cases[] = {{"8N1", "8N1", 0}, {"8N2", "8N2", CSTOPB}, {"8E1", "8N1", 0}, {"7O2", "8N2", CSTOPB}};
+  for (const auto& c : cases) {
+    INFO(c.framing);
+    Pty pty;
+    auto format = kvh();
+    format.sync = {0x7E, 0x55};  // 7 data bits carry no byte >= 0x80
+    GyroBusConfig cfg;
+    cfg.transport = "serial:" + pty.slave + "?baud=57600&framing=" + c.framing;
+    cfg.frame = format;
+    auto bus = GyroBus::open(cfg, {unit()});
+    INFO((bus ? std::string() : bus.error().message));
+    REQUIRE(bus.has_value());
+    // A pty master reads its slave's termios (Linux): what the driver set, as the pty kept it.
+    termios t{};
+    REQUIRE(::tcgetattr(pty.master, &t) == 0);
+    CHECK((t.c_cflag & CSTOPB) == c.stop);
+    CHECK(::cfgetispeed(&t) == B57600);
+    CHECK(serial_framing_of(t).to_string() == c.held);
+    CHECK(bus->transport().describe().find(std::string("57600 baud ") + c.framing) != std::string::npos);
+    const auto events = bus->take_events();
+    if (std::string(c.framing) == c.held) {
+      CHECK(events.empty());
+    } else {
+      REQUIRE(events.size() == 1);
+      CHECK(events[0].message.find(pty.slave) != std::string::npos);
+      CHECK(events[0].message.find(std::string("the device holds ") + c.held + ", not the configured " + c.framing) !=
+            std::string::npos);
+    }
+  }
+  Pty pty;
+  GyroBusConfig cfg;
+  cfg.transport = "serial:" + pty.slave + "?framing=7E1";
+  cfg.frame = kvh();  // sync 0xFE81FF55
+  auto refused = GyroBus::open(cfg, {unit()});
+  REQUIRE_FALSE(refused.has_value());
+  CHECK(refused.error().code == ErrorCode::config);
+  CHECK(refused.error().message.find("framing 7E1: 7 data bits cannot carry the frame's sync word") != std::string::npos);
 }
 
 TEST_CASE("a serial gyro on a pty feeds the CAN accounting: lost, corrupt, garbage and reasons", "[serial][transport]") {
