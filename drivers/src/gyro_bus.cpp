@@ -97,6 +97,7 @@ BusSample GyroBus::close_samples() {
   out.frames_foreign = foreign_;
   foreign_ = 0;
   out.malformed_total = transport_->malformed();
+  transport_->sample_closed();
   return out;
 }
 

@@ -24,9 +24,12 @@ namespace {
 
 class SerialGyroTransport final : public CanTransport {
  public:
-  SerialGyroTransport(int fd, std::string name, serial::FrameFormat format, GyroChannelConfig unit)
+  SerialGyroTransport(int fd, std::string name, std::string line, serial::FrameFormat format,
+                      GyroChannelConfig unit, int dead_line_samples)
       : fd_(fd),
         name_(std::move(name)),
+        line_(std::move(line)),
+        dead_line_samples_(dead_line_samples),
         decoder_(std::move(format)),
         sequence_(decoder_.format().sequence_modulo),
         unit_(unit) {}
@@ -36,6 +39,26 @@ class SerialGyroTransport final : public CanTransport {
   std::uint64_t malformed() const noexcept override { return garbage_runs_; }
   std::string describe() const override { return name_; }
   std::vector<Event> take_events() override { return std::exchange(events_, {}); }
+  void sample_closed() noexcept override {
+    if (bytes_since_close_ > 0) {
+      bytes_since_close_ = 0;
+      quiet_samples_ = 0;
+      dead_reported_ = false;
+      return;
+    }
+    if (++quiet_samples_ < dead_line_samples_ || dead_reported_) return;
+    dead_reported_ = true;
+    try {
+      events_.push_back({std::chrono::system_clock::now(),
+                         name_ + ": dead_line: no byte received in " + std::to_string(quiet_samples_) +
+                             " sample periods in a row (" + std::to_string(bytes_total_) +
+                             " bytes since the line was opened; configured " + line_ +
+                             "): a silent line (cable, the gyro's power or its TX/RX wiring, the wrong device), not "
+                             "a baud rate: a wrong baud rate still delivers bytes, reported as no_frame"});
+    } catch (...) {
+      // Out of memory for a message: the samples without frames say it all the same.
+    }
+  }
   void add_events(std::vector<Event> events) {
     for (auto& e : events) events_.push_back(std::move(e));
   }
@@ -52,6 +75,8 @@ class SerialGyroTransport final : public CanTransport {
     for (;;) {
       const ssize_t n = ::read(fd_, buf, sizeof buf);
       if (n > 0) {
+        bytes_since_close_ += static_cast<std::size_t>(n);
+        bytes_total_ += static_cast<std::uint64_t>(n);
         got += handle(std::span<const std::uint8_t>(buf, static_cast<std::size_t>(n)), out);
         continue;
       }
@@ -98,7 +123,11 @@ class SerialGyroTransport final : public CanTransport {
         out.push_back(corrupt_frame());
         ++got;
       }
-      events_.push_back({now, name_ + ": " + serial::describe(e)});
+      if (e.kind == serial::Event::Kind::no_frame) {
+        events_.push_back({now, name_ + ": " + serial::describe(e) + "; configured " + line_});
+      } else {
+        events_.push_back({now, name_ + ": " + serial::describe(e)});
+      }
     }
     return got;
   }
@@ -112,9 +141,15 @@ class SerialGyroTransport final : public CanTransport {
 
   int fd_;
   std::string name_;
+  std::string line_;  // "921600 baud 8N1"
+  int dead_line_samples_;
   serial::Decoder decoder_;
   serial::SequenceMapper sequence_;
   GyroChannelConfig unit_;
+  std::size_t bytes_since_close_ = 0;
+  std::uint64_t bytes_total_ = 0;
+  int quiet_samples_ = 0;
+  bool dead_reported_ = false;
   std::uint8_t next_sequence_ = 0;  // a format without a counter: no loss can be seen
   std::uint64_t garbage_runs_ = 0;
   std::vector<serial::Event> scratch_;
@@ -153,9 +188,10 @@ bool serial_baud_supported(int baud) noexcept { return detail::termios_baud(baud
 Result<std::unique_ptr<CanTransport>> open_serial_gyro(const std::string& device, int baud,
                                                        const SerialFraming& framing,
                                                        serial::FrameFormat format,
-                                                       const GyroChannelConfig& unit) {
-  const std::string name = "serial:" + device + " (" + std::to_string(baud) + " baud " + framing.to_string() +
-                           ", node " + std::to_string(unit.node_id) + ")";
+                                                       const GyroChannelConfig& unit, int dead_line_samples) {
+  const std::string line = std::to_string(baud) + " baud " + framing.to_string();
+  const std::string name = "serial:" + device + " (" + line + ", node " + std::to_string(unit.node_id) + ")";
+  if (dead_line_samples < 1) return fail(ErrorCode::config, name + ": dead_line_samples must be at least 1");
   if (unit.mode != GyroMode::rate || !(unit.scale_dph_per_count > 0)) {
     return fail(ErrorCode::config, name + ": a serial gyro's unit must be in rate mode with scale_dph_per_count > 0");
   }
@@ -203,7 +239,7 @@ Result<std::unique_ptr<CanTransport>> open_serial_gyro(const std::string& device
                             " (a pseudo-terminal keeps no parity or data bits; a UART that does not is misconfigured)"});
     }
   }
-  auto transport = std::make_unique<SerialGyroTransport>(fd, name, std::move(format), unit);
+  auto transport = std::make_unique<SerialGyroTransport>(fd, name, line, std::move(format), unit, dead_line_samples);
   transport->add_events(std::move(opened));
   return transport;
 }

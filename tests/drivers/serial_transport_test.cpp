@@ -275,7 +275,8 @@ TEST_CASE("bytes at a wrong baud rate are a reported reason, and a closed line a
   bool no_frame = false;
   for (const auto& e : events) {
     if (e.message.find("no_frame") != std::string::npos && e.message.find("wrong baud rate") != std::string::npos &&
-        e.message.find(pty.slave) != std::string::npos) {
+        e.message.find(pty.slave) != std::string::npos && e.message.find("0 sync words seen") != std::string::npos &&
+        e.message.find("; configured 115200 baud 8N1") != std::string::npos) {
       no_frame = true;
     }
   }
@@ -336,4 +337,44 @@ TEST_CASE("a reopened serial line carries the 7-bit counter on: the frames misse
   const auto sample = bus->close_samples();
   CHECK(sample.units[0].frames == 5);
   CHECK(sample.units[0].frames_lost == 2);
+}
+
+TEST_CASE("a line that sends no byte is a dead_line after 5 sample periods, told from a wrong baud rate", "[serial][transport]") {
+  Pty pty;
+  const auto format = kvh();
+  GyroBusConfig cfg;
+  cfg.transport = "serial:" + pty.slave + "?baud=460800&framing=8E1";
+  cfg.frame = format;
+  auto bus = GyroBus::open(cfg, {unit()});
+  REQUIRE(bus.has_value());
+  (void)bus->take_events();  // the pty holds 8N1, not 8E1: reported at open
+  const auto dead_lines = [&] {
+    std::size_t n = 0;
+    for (const auto& e : bus->take_events()) {
+      if (e.message.find("dead_line") == std::string::npos) continue;
+      ++n;
+      CHECK(e.message.find(pty.slave) != std::string::npos);
+      CHECK(e.message.find("no byte received in 5 sample periods in a row") != std::string::npos);
+      CHECK(e.message.find("configured 460800 baud 8E1") != std::string::npos);
+    }
+    return n;
+  };
+  for (int i = 0; i < 4; ++i) bus->close_samples();
+  CHECK(dead_lines() == 0);
+  bus->close_samples();
+  CHECK(dead_lines() == 1);
+  for (int i = 0; i < 10; ++i) bus->close_samples();
+  CHECK(dead_lines() == 0);  // once per silence
+
+  // Bytes, even without a frame, end the silence: the next one is reported again.
+  pty.write({0x01, 0x02});
+  std::vector<::can_frame> batch;
+  pollfd p{bus->fd(), POLLIN, 0};
+  REQUIRE(::poll(&p, 1, 2000) == 1);
+  REQUIRE(bus->read_frames(batch).has_value());
+  bus->close_samples();
+  for (int i = 0; i < 4; ++i) bus->close_samples();
+  CHECK(dead_lines() == 0);
+  bus->close_samples();
+  CHECK(dead_lines() == 1);
 }

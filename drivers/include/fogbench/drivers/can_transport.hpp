@@ -51,6 +51,11 @@ class CanTransport {
   };
   virtual std::vector<Event> take_events() { return {}; }
 
+  // Called by GyroBus::close_samples once per sample period (the daemon's 1 s): a transport
+  // that judges silence by samples rather than bytes (the serial one's dead line) counts here,
+  // so no clock is read.
+  virtual void sample_closed() noexcept {}
+
   // Called by GyroBus::reopen on the new transport with the one it replaces: a transport that
   // numbers frames itself (the serial one maps its counter onto 8 bits) carries its numbering
   // on, so a frame missed while the line was down is counted lost, not a jump of the counter.
@@ -112,10 +117,14 @@ bool serial_baud_supported(int baud) noexcept;
 // frame (CRC, cut, non-finite or out-of-range rate) a frame of that id with DLC 0, so
 // SampleAccumulator counts lost, corrupt and repeated frames exactly as for CAN. `unit` must be
 // in rate mode, and 7 data bits need a sync word of bytes below 0x80 (a `config` error
-// otherwise). Problems come out of take_events().
+// otherwise). Problems come out of take_events(); a line that delivers no byte at all over
+// `dead_line_samples` sample periods in a row (sample_closed()) raises a dead_line event, once
+// per silence, so a dead line is told from a wrong baud rate (bytes, but no frame: no_frame).
+inline constexpr int kDeadLineSamples = 5;
 Result<std::unique_ptr<CanTransport>> open_serial_gyro(const std::string& device, int baud,
                                                        const SerialFraming& framing,
                                                        serial::FrameFormat format,
-                                                       const GyroChannelConfig& unit);
+                                                       const GyroChannelConfig& unit,
+                                                       int dead_line_samples = kDeadLineSamples);
 
 }  // namespace fogbench::drivers
