@@ -161,10 +161,17 @@ struct Bench::Impl final : ControlHandler {
   std::expected<void, std::string> fault(const json& command) override {
     auto cmd = parse_fault_command(command, serials);
     if (!cmd) return std::unexpected(cmd.error());
+    const bool serial_fault = cmd->kind == FaultKind::serial_garbage || cmd->kind == FaultKind::serial_cut ||
+                              cmd->kind == FaultKind::serial_bad_crc || cmd->kind == FaultKind::serial_baud;
+    if (serial_fault && cfg.serial_gyro_link.empty()) {
+      return std::unexpected(std::string(to_string(cmd->kind)) + ": the bench serves no serial gyro (start it with --serial-gyro)");
+    }
+    SerialLineFaults serial_faults;
     {
       std::lock_guard lock(shared.mutex);
       auto& faults = shared.faults;
       apply_fault(faults, *cmd, shared.snap.time_s);
+      serial_faults = faults.serial;
       // Register-level faults show at once, so a client reading right after the reply sees them.
       shared.chamber->show_alarm(faults.alarm);
       for (std::size_t u = 0; u < faults.units.size(); ++u) {
@@ -172,6 +179,8 @@ struct Bench::Impl final : ControlHandler {
         shared.thermistors->show(u, 2, shared.snap.units[u].t2_c, faults.units[u].open_t2);
       }
     }
+    // Outside the shared lock: the clock thread writes frames to the peer (its own lock).
+    if (serial_fault) serial_gyro.set_faults(serial_faults);
     if (cmd->kind == FaultKind::refuse_modbus) modbus->update_listeners();
     if (cmd->kind == FaultKind::drop_modbus && cmd->on) modbus->drop_clients(cmd->device);
     if (ascii && cmd->kind == FaultKind::refuse_modbus) ascii->update_listener();
