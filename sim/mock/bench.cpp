@@ -353,6 +353,15 @@ json served_drivers_config(const BenchConfig& c) {
   json out = drivers_config(c.where, c.map, c.units);
   if (!c.startup_flag)
     for (auto& u : out["units"]) u["gyro"]["startup_flag"] = false;
+  if (!c.serial_gyro_link.empty()) {
+    // The first unit read on its serial line (the bus's copy of its frames is not taken from the
+    // CAN socket: GyroBus leaves a unit with a line of its own out of the bus), the others on CAN.
+    // Serial frames carry no power-on evidence.
+    auto& u0 = out["units"][0];
+    u0["gyro_line"] = {{"transport", "serial:" + c.serial_gyro_link + "?baud=" + std::to_string(default_serial_line_baud)},
+                       {"frame", c.serial_frame_json}};
+    u0["gyro"]["startup_flag"] = false;
+  }
   if (c.dialect == ChamberDialect::modbus) return out;
   json chamber = {{"kind", to_string(c.dialect)},
                   {"link", {{"transport", "tcp"}, {"host", c.where.host}, {"port", c.where.chamber_port}}}};

@@ -57,6 +57,7 @@ struct BenchConfig {
   // empty: none.
   std::string serial_gyro_link;
   std::optional<drivers::serial::FrameFormat> serial_frame;
+  nlohmann::json serial_frame_json;  // the layout as given, for the served drivers_config
 };
 
 class Bench {

@@ -5,16 +5,21 @@
 
 #include <fcntl.h>
 #include <poll.h>
+#include <sys/socket.h>
+#include <sys/un.h>
 #include <stdlib.h>
 #include <termios.h>
 #include <unistd.h>
 
 #include <nlohmann/json.hpp>
 
+#include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <string>
 #include <vector>
 
+#include "fogbench/drivers/can_frame.hpp"
 #include "fogbench/drivers/gyro_bus.hpp"
 #include "fogbench/drivers/serial_frame.hpp"
 
@@ -377,4 +382,135 @@ TEST_CASE("a line that sends no byte is a dead_line after 5 sample periods, told
   CHECK(dead_lines() == 0);
   bus->close_samples();
   CHECK(dead_lines() == 1);
+}
+
+TEST_CASE("two serial gyros and a CAN bus in one GyroBus: each unit from its own line, the bus's copy left out", "[serial][transport]") {
+  char tmpl[] = "/tmp/fogbench-lines-XXXXXX";
+  REQUIRE(::mkdtemp(tmpl) != nullptr);
+  const std::filesystem::path dir = tmpl;
+  const auto sock = (dir / "can.sock").string();
+  // The bus's side: a SEQPACKET listener, as the mock bench's CAN socket.
+  const int listener = ::socket(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0);
+  REQUIRE(listener >= 0);
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  std::strncpy(addr.sun_path, sock.c_str(), sizeof addr.sun_path - 1);
+  REQUIRE(::bind(listener, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0);
+  REQUIRE(::listen(listener, 1) == 0);
+
+  Pty a, b;
+  const auto format = kvh();
+  GyroBusConfig cfg;
+  cfg.transport = "unix:" + sock;
+  cfg.lines.push_back({0x101, "serial:" + a.slave + "?baud=921600", format, "", "units[0].gyro_line"});
+  cfg.lines.push_back({0x102, "serial:" + b.slave + "?baud=460800&framing=8N2", format, "", "units[1].gyro_line"});
+  auto u1 = unit();
+  auto u2 = unit();
+  u2.node_id = 0x102;
+  auto u3 = unit();
+  u3.node_id = 0x103;
+  auto bus = GyroBus::open(cfg, {u1, u2, u3});
+  REQUIRE(bus.has_value());
+  const int peer = ::accept(listener, nullptr, nullptr);
+  REQUIRE(peer >= 0);
+  CHECK(bus->transport().describe() == "unix:" + sock + " + serial:" + a.slave + " (921600 baud 8N1, node 257) + serial:" +
+                                           b.slave + " (460800 baud 8N2, node 258)");
+
+  const auto frame = [&](double dph, std::uint32_t seq) {
+    return serial::encode(format, {.rate_dph = dph, .sequence = seq, .status = 1, .valid = true});
+  };
+  // Line A: 3 frames, garbage before the third. Line B: 3 frames, the second with a bad CRC.
+  std::vector<std::uint8_t> sa, sb;
+  for (std::uint32_t i = 0; i < 3; ++i) {
+    if (i == 2) sa.insert(sa.end(), {0x01, 0x02});
+    const auto fa = frame(10.0, i);
+    sa.insert(sa.end(), fa.begin(), fa.end());
+    auto fb = frame(20.0, i);
+    if (i == 1) fb[35] ^= 0x01;
+    sb.insert(sb.end(), fb.begin(), fb.end());
+  }
+  a.write(sa);
+  b.write(sb);
+  // The bus: unit 0x103's frames, a copy of unit 0x101's (read on its line: left out), a stranger.
+  const auto send = [&](const can_frame& f) { REQUIRE(::send(peer, &f, sizeof f, 0) == static_cast<ssize_t>(sizeof f)); };
+  send(can::encode({0x103, 30000, 0, can::status::valid}));
+  send(can::encode({0x103, 30000, 1, can::status::valid}));
+  send(can::encode({0x101, 999999, 7, can::status::valid}));
+  send(can::encode({0x200, 1, 0, can::status::valid}));
+
+  std::vector<::can_frame> all, batch;
+  while (all.size() < 9) {  // 3 + 3 (one corrupt) from the lines, 2 + the stranger from the bus
+    pollfd p{bus->fd(), POLLIN, 0};
+    if (::poll(&p, 1, 2000) <= 0) break;
+    auto n = bus->read_frames(batch);
+    REQUIRE(n.has_value());
+    all.insert(all.end(), batch.begin(), batch.end());
+  }
+  CHECK(all.size() == 9);
+  const auto s = bus->close_samples();
+  REQUIRE(s.units.size() == 3);
+  CHECK(s.units[0].frames == 3);
+  CHECK(s.units[0].frames_lost == 0);
+  REQUIRE(s.units[0].rate_dph.has_value());
+  CHECK(*s.units[0].rate_dph == Approx(10.0));  // the bus's copy (999999 counts) never reached it
+  CHECK(s.units[1].frames == 2);
+  CHECK(s.units[1].frames_corrupt == 1);
+  CHECK(*s.units[1].rate_dph == Approx(20.0));
+  CHECK(s.units[2].frames == 2);
+  CHECK(*s.units[2].rate_dph == Approx(30.0));
+  CHECK(s.frames_foreign == 1);
+  CHECK(s.malformed_total == 1);  // line A's garbage run
+  const auto events = bus->take_events();
+  REQUIRE(events.size() == 2);
+  CHECK(events[0].message.find("serial:" + a.slave) != std::string::npos);
+  CHECK(events[0].message.find("garbage at byte 72: 2 bytes") != std::string::npos);
+  CHECK(events[1].message.find("serial:" + b.slave) != std::string::npos);
+  CHECK(events[1].message.find("bad_crc at byte 36") != std::string::npos);
+
+  // A line unplugged: the read fails naming it; reopen() reopens every part and each line's
+  // counter carries on (the frame sent while it was down counts lost).
+  Pty a2;
+  a.close();
+  auto gone = bus->read_frames(batch);
+  REQUIRE_FALSE(gone.has_value());
+  CHECK(gone.error().message.find(a.slave) != std::string::npos);
+  ::close(peer);
+  cfg.lines[0].transport = "serial:" + a2.slave;
+  REQUIRE(bus->reopen(cfg).has_value());
+  const int peer2 = ::accept(listener, nullptr, nullptr);
+  REQUIRE(peer2 >= 0);
+  a2.write(frame(10.0, 4));  // 3 was sent while the line was down
+  std::size_t got = 0;
+  while (got < 1) {
+    pollfd p{bus->fd(), POLLIN, 0};
+    if (::poll(&p, 1, 2000) <= 0) break;
+    auto n = bus->read_frames(batch);
+    REQUIRE(n.has_value());
+    got += *n;
+  }
+  CHECK(got == 1);
+  const auto after = bus->close_samples();
+  CHECK(after.units[0].frames == 1);
+  CHECK(after.units[0].frames_lost == 1);
+  ::close(peer2);
+  ::close(listener);
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("a bus of serial lines refuses a unit with neither line nor bus, and a serial bus beside lines", "[serial][transport]") {
+  Pty a;
+  GyroBusConfig cfg;
+  cfg.lines.push_back({0x101, "serial:" + a.slave, kvh(), "", "units[0].gyro_line"});
+  auto u2 = unit();
+  u2.node_id = 0x102;
+  auto r = GyroBus::open(cfg, {unit(), u2});
+  REQUIRE_FALSE(r.has_value());
+  CHECK(r.error().message == "gyro_bus: node 258 has no serial line of its own and gyro_bus.transport is empty");
+  cfg.transport = "serial:/dev/ttyUSB9";
+  r = GyroBus::open(cfg, {unit(), u2});
+  REQUIRE_FALSE(r.has_value());
+  CHECK(r.error().message.starts_with("gyro_bus: a serial: gyro_bus.transport carries one unit"));
+  cfg.transport.clear();
+  auto alone = GyroBus::open(cfg, {unit()});  // every unit on a line: no bus needed
+  REQUIRE(alone.has_value());
 }

@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <set>
 #include <span>
 #include <string>
 #include <string_view>
@@ -106,6 +107,21 @@ Result<std::unique_ptr<CanTransport>> open_replay(const std::string& file, doubl
 Result<std::unique_ptr<CanTransport>> open_transport(const TransportSpec& spec,
                                                      std::span<const std::uint16_t> node_ids,
                                                      MonotonicClock clock = {});
+
+// One part of a combined transport (combine_transports): its frames, limited to `only` (a serial
+// line's unit), or, with `only` empty, every frame whose id no other part owns (the CAN bus
+// beside serial gyros: a unit read on its own line is not also taken from the bus).
+struct TransportPart {
+  std::unique_ptr<CanTransport> transport;
+  std::set<std::uint16_t> only;
+};
+
+// Several transports read as one: fd() is an epoll descriptor readable while any part is;
+// read() reads every part (the first part's error fails the read, naming it); malformed(),
+// take_events() and sample_closed() sum, join and forward in the parts' order; take_over()
+// hands each part on to the part at the same place. GyroBus::open makes one for a bench whose
+// units have serial lines of their own (GyroBusConfig::lines).
+Result<std::unique_ptr<CanTransport>> combine_transports(std::vector<TransportPart> parts);
 
 // Whether termios has a speed constant for this baud rate (1200..4000000).
 bool serial_baud_supported(int baud) noexcept;
