@@ -3,10 +3,13 @@
 // the term language (the default; target under 1 s on one core, issue 10), the library alone
 // (target under 100 ms, issue 5), and its parts (one fit, compare); then a 3-day run alone
 // (262,200 samples; target under 5 s on both cores, issue 25 point 6) and its ratio to the 3-run case.
+// `bench_diagnose --long REPS [THREADS]`: the 3-day case alone (see long_only).
 #include <algorithm>
 #include <chrono>
 #include <ctime>
 #include <cstdio>
+#include <cstdlib>
+#include <string>
 #include <fstream>
 #include <sstream>
 #include <vector>
@@ -85,7 +88,40 @@ std::pair<double, double> time_ms(int reps, Fn fn) {
 
 }  // namespace
 
-int main() {
+// --long REPS [THREADS]: the 3-day case only, REPS calls on THREADS threads (default 1; 0: as
+// fogctl, the machine's cores), each call's CPU time (the process's, std::clock) and wall time,
+// then min and median of each: the figures docs/performance.md compares before and after.
+int long_only(int reps, int threads) {
+  const model::RunData long_run = simulate("long3d", 11, "0.05*T1");
+  auto ml = model::fit(long_run, *model::parse_terms("paper"));
+  if (!ml) {
+    std::fprintf(stderr, "fit long3d: %s\n", ml.error().message.c_str());
+    return 2;
+  }
+  model::workbench::DiagnoseOptions o;
+  o.threads = threads;
+  std::vector<double> cpu, wall;
+  std::size_t refitted = 0;
+  for (int i = 0; i < reps; ++i) {
+    const std::clock_t c0 = std::clock();
+    const auto a = Clock::now();
+    auto d = model::workbench::diagnose(*ml, long_run, {}, o);
+    if (!d) return 2;
+    refitted = d->search_space.value("refitted", 0u);
+    wall.push_back(std::chrono::duration<double>(Clock::now() - a).count());
+    cpu.push_back(static_cast<double>(std::clock() - c0) / CLOCKS_PER_SEC);
+    std::printf("  call %d: cpu %.2f s, wall %.2f s\n", i + 1, cpu.back(), wall.back());
+    std::fflush(stdout);
+  }
+  std::sort(cpu.begin(), cpu.end());
+  std::sort(wall.begin(), wall.end());
+  std::printf("3-day run (%zu samples), language search, threads %d, %zu refitted, %d calls: cpu min %.2f s median %.2f s; wall min %.2f s median %.2f s\n",
+              long_run.size(), threads, refitted, reps, cpu.front(), cpu[cpu.size() / 2], wall.front(), wall[wall.size() / 2]);
+  return 0;
+}
+
+int main(int argc, char** argv) {
+  if (argc >= 3 && std::string(argv[1]) == "--long") return long_only(std::max(1, std::atoi(argv[2])), argc >= 4 ? std::atoi(argv[3]) : 1);
   const std::string effect = "0.05*T1";
   std::vector<model::RunData> runs{simulate("exp1", 7, effect), simulate("exp2", 8, effect), simulate("exp3", 9, effect)};
   const std::span<const model::RunData> held = std::span<const model::RunData>(runs).subspan(1);

@@ -1,5 +1,5 @@
-// The acquisition: the device threads, the gyro bus on the loop, and the one schedule of seconds
-// (acquisition.hpp). Moved out of server.cpp (issue 26) with its behaviour unchanged.
+// The acquisition: the device threads, the gyro bus on the loop, and the one loop of seconds for
+// both clocks, each a ReadingClock (acquisition.hpp). Moved out of server.cpp (issue 26).
 #include "acquisition.hpp"
 
 #include <boost/asio.hpp>
@@ -31,13 +31,6 @@ struct DeviceReading {
   bool thermistors_ok = false;
   std::string thermistor_error;
   std::vector<UnitReading> coils;  // t1_c, t2_c and out_of_range only
-};
-
-// The job of one paced second, once done.
-struct PacedResult {
-  DeviceReading reading;
-  bool asked = false;     // the job asked the world to step (a run was active)
-  bool advanced = false;  // and it did: the world stepped one second for this tick
 };
 
 // A worker thread: an io_context used as a job queue.
@@ -74,7 +67,6 @@ struct Acquisition::Impl {
   // The thermistor module's own worker (polls only; with the paced clock the module is read on
   // the device worker, in the job of each second, and this one stays idle).
   Worker therm;
-  std::unique_ptr<PacedWorld> paced;  // none: the real clock
 
   // The gyro bus: read on the loop through its fd.
   GyroOpener open_bus;
@@ -84,21 +76,43 @@ struct Acquisition::Impl {
   std::vector<::can_frame> frames;
   bool gyro_logged_down = false;
 
-  // The schedule: second k is closed at t0 + k * period. The real clock polls in the odd
-  // half-period slots between (slot 2k-1 polls for second k), so the temperatures are read mid-way
-  // through the gyro's averaging window and are fresh at the tick.
+  // The one loop: second k is closed at t0 + k periods by one timer, once the clock has its
+  // readings (the real clock's never wait; the paced clock's tick waits for its job).
   asio::steady_timer timer{io};
-  Schedule sched{};  // t0 and the half period; its timing decisions (schedule.hpp)
-  std::int64_t slot = 0;  // the real clock: the next half-period slot
+  Schedule sched{};       // t0 and the half period; its timing decisions (schedule.hpp)
+  std::int64_t k = 0;     // the second the next tick closes
+  bool waiting = false;   // tick k was due before its readings were in
   bool stopped = false;
 
-  // The real clock's latest reading: its chamber part and its thermistor part arrive separately
-  // (a stalled module does not hold up the chamber's value), each with its own freshness.
-  bool chamber_in_flight = false, coils_in_flight = false;  // a poll of the device is under way
+  // How a second's readings are made: asked for after the previous tick, waited for (or not),
+  // and what a late loop does. acquisition.hpp, "One schedule, two clocks".
+  struct ReadingClock {
+    virtual ~ReadingClock() = default;
+    // After tick k - 1 (k = 0: at the start): asks for second k's readings, then arms the loop's
+    // timer (Impl::arm_tick), having skipped the seconds it was too late for (Impl::skip_to).
+    virtual void ask(std::int64_t k) = 0;
+    // Tick k is due, woken at `now`: the second to close now (> k: the ones before it skipped).
+    virtual std::int64_t resume(std::int64_t k, Clock::time_point now) = 0;
+    // Whether second k's readings are in; until they are, the tick waits (Impl::readings_in).
+    virtual bool ready() const = 0;
+    // Before the second's gyro sample is closed.
+    virtual void close_gyro() {}
+    // Second k's chamber and coils into `in` (its gyro part already in): false when the second
+    // is not handed to the sink.
+    virtual bool fill(TickInput& in) = 0;
+    // The sink's answer for second k: the setpoint the chamber should hold, degC.
+    virtual void commanded(double setpoint_c) = 0;
+    virtual void stop() {}
+  };
+  struct RealClock;
+  struct PacedClock;
+  std::unique_ptr<ReadingClock> clock;
+
+  // The latest reading: its chamber part and its thermistor part arrive separately on the real
+  // clock (a stalled module does not hold up the chamber's value), each with its own freshness.
   std::optional<DeviceReading> reading;
   bool have_chamber = false, have_coils = false;  // each part arrived at least once
   bool new_chamber = false, new_coils = false;    // arrived since the last tick
-  int stale_chamber = 0, stale_coils = 0;         // ticks since a new part was used
 
   std::optional<double> written_setpoint_c;
   bool write_in_flight = false;
@@ -108,22 +122,7 @@ struct Acquisition::Impl {
   RepeatLogSet gyro_stream_log;
   std::vector<std::string> gyro_stream_pending;
 
-  // The paced clock. Second k is acquired once a worker job has written the setpoint of tick
-  // k-1, asked the world to step one second (so its frames are in the gyro socket) and polled the
-  // devices; tick k waits for that job rather than its wall time alone. The world moves only for
-  // seconds of a run.
-  std::optional<PacedResult> paced_result;  // the job of second paced_k, once done
-  std::int64_t paced_k = 0;                 // the second the next tick closes
-  bool paced_waiting = false;               // the tick was due before its job was done
-  Clock::time_point paced_logged{};
-  bool clock_logged_down = false;
-  double commanded_setpoint_c = 0.0;  // the sink's last answer
-
-  Impl(asio::io_context& i, AcquisitionOptions o, AcquisitionDevices d, TickSink s)
-      : io(i), options(o), sink(std::move(s)), chamber(std::move(d.chamber)),
-        thermistors(std::move(d.thermistors)), paced(std::move(d.paced)), open_bus(std::move(d.open_gyro)) {
-    sched.half_period = std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(0.5e9 / options.time_scale)));
-  }
+  Impl(asio::io_context& i, AcquisitionOptions o, AcquisitionDevices d, TickSink s);  // after the clocks
 
   void note_lateness(Clock::time_point due) {
     ++stats.ticks;
@@ -155,19 +154,14 @@ struct Acquisition::Impl {
     });
     open_gyro();
     sched.t0 = Clock::now() + sched.period();
-    if (paced) {
-      paced_k = 0;
-      commanded_setpoint_c = options.safe_setpoint_c;
-      paced_post_job(false, std::nullopt);
-    } else {
-      slot = -1;  // the first poll comes half a period before the first tick
-    }
-    arm();
+    k = 0;
+    clock->ask(k);
   }
 
   void stop(std::function<void(const std::string&)> done) {
     stopped = true;
     timer.cancel();
+    clock->stop();
     gyro_retry.cancel();
     if (gyro_sd.is_open()) (void)gyro_sd.release();  // the bus owns and closes the fd
     const double safe = options.safe_setpoint_c;
@@ -207,35 +201,7 @@ struct Acquisition::Impl {
   }
   bool setpoint_unwritten(double sp_c) const { return !written_setpoint_c || *written_setpoint_c != sp_c; }
 
-  // --- the devices' polls
-  // The chamber on the device worker, the module on its own thread: a stalled module (or
-  // chamber) must not make the other's readings late. A device whose last poll is still blocked
-  // in its call is not asked again.
-  void post_poll() {
-    if (!chamber_in_flight) {
-      chamber_in_flight = true;
-      asio::post(dev.io, [this] {
-        DeviceReading c;
-        read_chamber(c);
-        asio::post(io, [this, c = std::move(c)] {
-          chamber_in_flight = false;
-          take_chamber(c);
-        });
-      });
-    }
-    if (!coils_in_flight) {
-      coils_in_flight = true;
-      asio::post(therm.io, [this] {
-        DeviceReading t;
-        read_thermistors(t);
-        asio::post(io, [this, t = std::move(t)] {
-          coils_in_flight = false;
-          take_thermistors(t);
-        });
-      });
-    }
-  }
-
+  // --- the devices' readings
   // On a worker: one poll of the chamber and the thermistor module.
   DeviceReading read_devices() {
     DeviceReading d;
@@ -357,48 +323,49 @@ struct Acquisition::Impl {
       }
   }
 
-  // --- the schedule
-  // The next due point: the real clock's next half-period slot, the paced clock's next second.
-  // Absolute deadlines from t0: a late wake-up never shifts the next one.
-  Clock::time_point next_due() const { return paced ? sched.tick_due(paced_k) : sched.slot_due(slot); }
 
-  void arm() {
-    timer.expires_at(next_due());
+  // --- the one loop
+  // After the clock asked for second k's readings: tick k is due at t0 + k periods (an absolute
+  // deadline from t0: a late wake-up never shifts the next one).
+  void arm_tick() {
+    timer.expires_at(sched.tick_due(k));
     timer.async_wait([this](boost::system::error_code ec) {
       if (ec || stopped) return;
-      if (paced) on_paced_due();
-      else on_slot();
+      on_due();
     });
   }
 
-  // The real clock's slot: a poll (odd) or a tick (even).
-  void on_slot() {
-    // Far behind (the loop was blocked, e.g. by a long fit): skip ahead rather than replay a
-    // burst of empty seconds.
-    const auto now = Clock::now();
-    if (const std::int64_t to = sched.real_resume_slot(slot, now); to != slot) {
-      spdlog::warn("acquisition {} half-periods late; skipping ahead", (now - sched.slot_due(slot)) / sched.half_period);
-      // The seconds skipped are still seconds of the run: they are stored as not read
-      // (flagged missing), so a run has every second of its clock and the count of its samples
-      // says how long it ran. Measured by scripts/soak: holes appeared here at 500x.
-      for (std::int64_t s = slot; s < to; ++s)
-        if (s % 2 == 0) tick_unread(s / 2);
-      slot = to;
-    }
-    if (slot % 2 != 0) {  // odd, including the first slot, -1
-      post_poll();
-    } else {
-      note_lateness(sched.slot_due(slot));
-      tick_real(slot / 2);
-    }
-    ++slot;
-    arm();
+  void on_due() {
+    if (const std::int64_t to = clock->resume(k, Clock::now()); to != k) skip_to(to);
+    if (clock->ready()) tick();
+    else waiting = true;  // the readings' arrival ticks (readings_in)
   }
 
-  // The paced clock's second is due: it ticks once its job is done.
-  void on_paced_due() {
-    if (paced_result) paced_tick();
-    else paced_waiting = true;  // the job's completion ticks
+  // The clock: second k's readings are in.
+  void readings_in() {
+    if (waiting && !stopped) {
+      waiting = false;
+      tick();
+    }
+  }
+
+  // The clock was too late for seconds k..to-1: they are still seconds of the run, stored as not
+  // read (flagged missing), so a run has every second of its clock and the count of its samples
+  // says how long it ran. Measured by scripts/soak: holes appeared here at 500x.
+  void skip_to(std::int64_t to) {
+    for (; k < to; ++k) tick_unread(k);
+  }
+
+  // Second k is closed: its TickInput to the sink, the setpoint back to the clock, then the clock
+  // is asked for the next second.
+  void tick() {
+    note_lateness(sched.tick_due(k));
+    const std::int64_t s = k++;
+    clock->close_gyro();
+    TickInput in = new_input();
+    fill_gyro(in);
+    if (clock->fill(in)) clock->commanded(sink.on_tick(s, in));
+    clock->ask(k);
   }
 
   TickInput new_input() const {
@@ -441,27 +408,81 @@ struct Acquisition::Impl {
     }
   }
 
-  // Second k to the sink; the setpoint it answers is written when it is not the chamber's yet
-  // (the real clock; the paced clock writes it in the next second's job).
-  double emit(std::int64_t k, const TickInput& in) {
-    commanded_setpoint_c = sink.on_tick(k, in);
-    return commanded_setpoint_c;
-  }
-
   // A second the loop was too late to acquire: nothing read, the profile steps on.
-  void tick_unread(std::int64_t k) {
+  void tick_unread(std::int64_t s) {
     ++stats.ticks_skipped;
     TickInput in = new_input();
     in.late = true;
     in.gyro_read = false;  // its frames go into the next period's sample
     in.gyro_link_up = bus && gyro_sd.is_open();
-    const double sp = emit(k, in);
-    if (setpoint_unwritten(sp)) post_write_setpoint(sp);
+    clock->commanded(sink.on_tick(s, in));
+  }
+};
+
+// The real clock: second k's devices are polled at t0 + (k - 1/2) periods (its own timer, armed
+// between tick k - 1 and that poll only, so the loop's events keep the order of the half-period
+// slots: poll, tick, poll, ...), the temperatures read mid-way through the gyro's averaging
+// window and fresh at the tick. A tick never waits: a part that did not arrive stands in once
+// from the period before, then is missing. A loop far behind skips ahead (Schedule).
+struct Acquisition::Impl::RealClock final : Acquisition::Impl::ReadingClock {
+  Impl& a;
+  asio::steady_timer poll_timer;
+  bool chamber_in_flight = false, coils_in_flight = false;  // a poll of the device is under way
+  int stale_chamber = 0, stale_coils = 0;                   // ticks since a new part was used
+
+  explicit RealClock(Impl& impl) : a(impl), poll_timer(impl.io) {}
+
+  void ask(std::int64_t k) override {
+    poll_timer.expires_at(a.sched.slot_due(2 * k - 1));  // the first, k = 0: slot -1
+    poll_timer.async_wait([this](boost::system::error_code ec) {
+      if (ec || a.stopped) return;
+      const std::int64_t slot = resume_slot(2 * a.k - 1, Clock::now());
+      a.skip_to((slot + 1) / 2);
+      post_poll();
+      a.arm_tick();
+    });
+  }
+  std::int64_t resume(std::int64_t k, Clock::time_point now) override { return resume_slot(2 * k, now) / 2; }
+  // Far behind (the loop was blocked, e.g. by a long fit): skip ahead rather than replay a burst
+  // of empty seconds; from a poll's slot to a poll's, from a tick's to a tick's.
+  std::int64_t resume_slot(std::int64_t slot, Clock::time_point now) const {
+    const std::int64_t to = a.sched.real_resume_slot(slot, now);
+    if (to != slot)
+      spdlog::warn("acquisition {} half-periods late; skipping ahead", (now - a.sched.slot_due(slot)) / a.sched.half_period);
+    return to;
+  }
+  bool ready() const override { return true; }
+  void stop() override { poll_timer.cancel(); }
+
+  // The chamber on the device worker, the module on its own thread: a stalled module (or
+  // chamber) must not make the other's readings late. A device whose last poll is still blocked
+  // in its call is not asked again.
+  void post_poll() {
+    if (!chamber_in_flight) {
+      chamber_in_flight = true;
+      asio::post(a.dev.io, [this] {
+        DeviceReading c;
+        a.read_chamber(c);
+        asio::post(a.io, [this, c = std::move(c)] {
+          chamber_in_flight = false;
+          a.take_chamber(c);
+        });
+      });
+    }
+    if (!coils_in_flight) {
+      coils_in_flight = true;
+      asio::post(a.therm.io, [this] {
+        DeviceReading t;
+        a.read_thermistors(t);
+        asio::post(a.io, [this, t = std::move(t)] {
+          coils_in_flight = false;
+          a.take_thermistors(t);
+        });
+      });
+    }
   }
 
-  void tick_real(std::int64_t k) {
-    TickInput in = new_input();
-    fill_gyro(in);
+  bool fill(TickInput& in) override {
     // The poll of this period normally arrived half a period ago. When a part of it is late (a
     // loaded machine at a high time scale, a stalled device), the previous one, one period old,
     // stands in once: a settle judged on "every reading in band" would otherwise restart at
@@ -475,110 +496,147 @@ struct Acquisition::Impl {
         return true;
       }
       if (stale++ < 1) {
-        ++stats.polls_late;
+        ++a.stats.polls_late;
         return true;
       }
       return false;
     };
-    if (usable(have_chamber, new_chamber, stale_chamber)) {
-      fill_chamber(in, *reading);
-    } else if (have_chamber) {
-      in.chamber_link_down = !reading->chamber_ok;
+    if (usable(a.have_chamber, a.new_chamber, stale_chamber)) {
+      fill_chamber(in, *a.reading);
+    } else if (a.have_chamber) {
+      in.chamber_link_down = !a.reading->chamber_ok;
       in.late = true;
     }
-    if (usable(have_coils, new_coils, stale_coils)) fill_coils(in, *reading);
-    else if (have_coils) in.late = true;
-    const double sp = emit(k, in);
-    if (setpoint_unwritten(sp)) post_write_setpoint(sp);
+    if (usable(a.have_coils, a.new_coils, stale_coils)) fill_coils(in, *a.reading);
+    else if (a.have_coils) in.late = true;
+    return true;
   }
+  // Written when it is not the chamber's yet.
+  void commanded(double setpoint_c) override {
+    if (a.setpoint_unwritten(setpoint_c)) a.post_write_setpoint(setpoint_c);
+  }
+};
 
-  // The paced clock's job of second paced_k: the setpoint of the last tick, one simulated second
-  // (in a run), then the poll. In this order on the worker, so the world steps under the setpoint
-  // the sink commanded and the poll reads the end of that second.
-  void paced_post_job(bool advance, std::optional<double> setpoint_c) {
-    asio::post(dev.io, [this, advance, setpoint_c] {
-      PacedResult r;
+// The paced clock (the mock bench's): second k is acquired once a job on the device worker has
+// written the setpoint of tick k - 1, asked the world to step one second (in a run: its frames
+// are then in the gyro socket) and polled the devices; tick k waits for that job rather than its
+// wall time alone. A busy host moves t0 forward (Schedule) instead of skipping seconds.
+struct Acquisition::Impl::PacedClock final : Acquisition::Impl::ReadingClock {
+  // The job of one paced second, once done.
+  struct Result {
+    DeviceReading reading;
+    bool asked = false;     // the job asked the world to step (a run was active)
+    bool advanced = false;  // and it did: the world stepped one second for this tick
+  };
+
+  Impl& a;
+  std::unique_ptr<PacedWorld> world;
+  std::optional<Result> result;  // the job of second a.k, once done
+  double commanded_setpoint_c;   // the sink's last answer, degC
+  Clock::time_point slowed_logged{};
+  bool logged_down = false;
+
+  PacedClock(Impl& impl, std::unique_ptr<PacedWorld> w)
+      : a(impl), world(std::move(w)), commanded_setpoint_c(impl.options.safe_setpoint_c) {}
+
+  void ask(std::int64_t k) override {
+    if (k == 0) {  // the start: no setpoint of a tick yet, and no run
+      post_job(false, std::nullopt);
+    } else {
+      std::optional<double> sp;
+      if (a.setpoint_unwritten(commanded_setpoint_c)) sp = commanded_setpoint_c;
+      post_job(a.sink.run_active(), sp);
+      // Behind the schedule by more than two periods (the host is busy): the schedule moves back
+      // rather than catching up in a burst. The run goes on slower than the time scale, and
+      // every second is acquired as it would be on an idle host.
+      const auto now = Clock::now();
+      if (const auto shift = a.sched.paced_shift(k, now); shift.count() > 0) {
+        a.sched.t0 += shift;
+        ++a.stats.paced_slowed;
+        if (now - slowed_logged > std::chrono::seconds(10)) {
+          slowed_logged = now;
+          spdlog::info("simulated clock: slower than time scale {} (a busy host); {} tick(s) waited so far",
+                       a.options.time_scale, a.stats.paced_slowed);
+        }
+      }
+    }
+    a.arm_tick();
+  }
+  std::int64_t resume(std::int64_t k, Clock::time_point) override { return k; }  // never skips
+  bool ready() const override { return result.has_value(); }
+
+  // The job: the setpoint of the last tick, one simulated second (in a run), then the poll. In
+  // this order on the worker, so the world steps under the setpoint the sink commanded and the
+  // poll reads the end of that second.
+  void post_job(bool advance, std::optional<double> setpoint_c) {
+    asio::post(a.dev.io, [this, advance, setpoint_c] {
+      Result r;
       r.asked = advance;
       std::string write_error, clock_error;
       if (setpoint_c)
-        if (auto w = chamber->write_setpoint_c(*setpoint_c); !w) write_error = w.error().to_string();
+        if (auto w = a.chamber->write_setpoint_c(*setpoint_c); !w) write_error = w.error().to_string();
       if (advance) {
-        if (auto t = paced->step_second()) r.advanced = true;
+        if (auto t = world->step_second()) r.advanced = true;
         else clock_error = t.error();
       }
-      r.reading = read_devices();
+      r.reading = a.read_devices();
       if (!clock_error.empty()) {
         // The world did not move: nothing of this second was read. As a bench that does not
         // answer, the chamber counts as unreachable (link_loss decides).
         r.reading = DeviceReading{};
-        r.reading.coils.resize(options.units);
+        r.reading.coils.resize(a.options.units);
         r.reading.chamber_error = r.reading.thermistor_error = "simulated clock: " + clock_error;
       }
-      asio::post(io, [this, setpoint_c, write_error, clock_error, r = std::move(r)]() mutable {
-        if (setpoint_c) {
-          setpoint_written(*setpoint_c, write_error);
-        }
+      asio::post(a.io, [this, setpoint_c, write_error, clock_error, r = std::move(r)]() mutable {
+        if (setpoint_c) a.setpoint_written(*setpoint_c, write_error);
         if (!clock_error.empty()) {
-          if (!clock_logged_down) spdlog::error("simulated clock: {}", clock_error);
-          clock_logged_down = true;
-        } else if (r.advanced && clock_logged_down) {
+          if (!logged_down) spdlog::error("simulated clock: {}", clock_error);
+          logged_down = true;
+        } else if (r.advanced && logged_down) {
           spdlog::info("simulated clock: stepping again");
-          clock_logged_down = false;
+          logged_down = false;
         }
-        paced_result = std::move(r);
-        if (paced_waiting && !stopped) {
-          paced_waiting = false;
-          paced_tick();
-        }
+        result = std::move(r);
+        a.readings_in();
       });
     });
   }
 
-  void paced_tick() {
-    PacedResult r = std::move(*paced_result);
-    paced_result.reset();
-    note_lateness(sched.tick_due(paced_k));
-    const std::int64_t k = paced_k++;
-    // Every frame of the second the world stepped is in the socket: read them all now.
-    if (bus && gyro_sd.is_open())
+  // Every frame of the second the world stepped is in the socket: read them all now.
+  void close_gyro() override {
+    if (a.bus && a.gyro_sd.is_open())
       for (int i = 0; i < 1000; ++i) {
-        auto n = bus->read_frames(frames);
+        auto n = a.bus->read_frames(a.frames);
         if (!n || *n == 0) break;
       }
-    TickInput in = new_input();
-    fill_gyro(in);
-    in.gyro_read = in.gyro_read && r.advanced;  // a world that did not step sent nothing
-    if (!r.asked && sink.run_active()) {
-      // A run was asked for after this second's job was sent, so the world did not move for
-      // it: its first second is the next, one the world steps through. A run's samples then
-      // depend on the seed and the runs before it, not on when it was started.
-    } else {
-      take_chamber(r.reading);
-      take_thermistors(r.reading);
-      new_chamber = new_coils = false;
-      fill_chamber(in, r.reading);
-      fill_coils(in, r.reading);
-      emit(k, in);
-    }
-    std::optional<double> sp;
-    if (setpoint_unwritten(commanded_setpoint_c)) sp = commanded_setpoint_c;
-    paced_post_job(sink.run_active(), sp);
-    // Behind the schedule by more than two periods (the host is busy): the schedule moves back
-    // rather than catching up in a burst. The run goes on slower than the time scale, and every
-    // second is acquired as it would be on an idle host.
-    const auto now = Clock::now();
-    if (const auto shift = sched.paced_shift(paced_k, now); shift.count() > 0) {
-      sched.t0 += shift;
-      ++stats.paced_slowed;
-      if (now - paced_logged > std::chrono::seconds(10)) {
-        paced_logged = now;
-        spdlog::info("simulated clock: slower than time scale {} (a busy host); {} tick(s) waited so far",
-                     options.time_scale, stats.paced_slowed);
-      }
-    }
-    arm();
   }
+
+  bool fill(TickInput& in) override {
+    Result r = std::move(*result);
+    result.reset();
+    in.gyro_read = in.gyro_read && r.advanced;  // a world that did not step sent nothing
+    // A run was asked for after this second's job was sent, so the world did not move for it:
+    // its first second is the next, one the world steps through. A run's samples then depend on
+    // the seed and the runs before it, not on when it was started.
+    if (!r.asked && a.sink.run_active()) return false;
+    a.take_chamber(r.reading);
+    a.take_thermistors(r.reading);
+    a.new_chamber = a.new_coils = false;
+    fill_chamber(in, r.reading);
+    fill_coils(in, r.reading);
+    return true;
+  }
+  // Written in the next second's job.
+  void commanded(double setpoint_c) override { commanded_setpoint_c = setpoint_c; }
 };
+
+Acquisition::Impl::Impl(asio::io_context& i, AcquisitionOptions o, AcquisitionDevices d, TickSink s)
+    : io(i), options(o), sink(std::move(s)), chamber(std::move(d.chamber)), thermistors(std::move(d.thermistors)),
+      open_bus(std::move(d.open_gyro)) {
+  sched.half_period = std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(0.5e9 / options.time_scale)));
+  if (d.paced) clock = std::make_unique<PacedClock>(*this, std::move(d.paced));
+  else clock = std::make_unique<RealClock>(*this);
+}
 
 Acquisition::Acquisition(asio::io_context& io, AcquisitionOptions options, AcquisitionDevices devices, TickSink sink)
     : impl_(std::make_unique<Impl>(io, options, std::move(devices), std::move(sink))) {}

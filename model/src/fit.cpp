@@ -153,43 +153,75 @@ std::expected<Evaluated, FitError> evaluate_terms(const RunData& run, const std:
 FitCache::FitCache(const RunData& run, double tref_c, std::size_t keep_columns) : run_(run), tref_c_(tref_c), keep_(keep_columns) {}
 
 std::expected<const RunSignals*, FitError> FitCache::signals() {
+  std::lock_guard lock(mu_);
   if (!sig_) sig_ = std::make_unique<std::expected<RunSignals, FitError>>(run_signals(run_, tref_c_));
   if (!*sig_) return std::unexpected(sig_->error());
   return &**sig_;
 }
 
-std::expected<const std::vector<double>*, FitError> FitCache::column(const Term& t) {
+std::expected<FitCache::Entry*, FitError> FitCache::entry_locked(const Term& t, const std::vector<double>* x,
+                                                                 std::unique_lock<std::mutex>& lock) {
   const std::string key = term_key(t);
   auto it = cols_.find(key);
   if (it == cols_.end()) {
-    auto s = signals();
-    if (!s) return std::unexpected(s.error());
-    auto v = evaluate(*t.expr, (*s)->view());
-    if (!v) return fail(FitError::Code::missing_signal, "term '" + to_string(t, false) + "': " + v.error());
-    it = cols_.emplace(key, Entry{std::move(*v), {}, 0}).first;
+    // Made without the lock (another thread may make the same column meanwhile: the first kept).
+    lock.unlock();
+    auto e = std::make_shared<Entry>();
+    if (x) {
+      e->x = *x;
+    } else {
+      auto s = signals();
+      if (!s) {
+        lock.lock();
+        return std::unexpected(s.error());
+      }
+      auto v = evaluate(*t.expr, (*s)->view());
+      if (!v) {
+        lock.lock();
+        return fail(FitError::Code::missing_signal, "term '" + to_string(t, false) + "': " + v.error());
+      }
+      e->x = std::move(*v);
+    }
+    lock.lock();
+    it = cols_.try_emplace(key, std::move(e)).first;
   }
-  it->second.used = ++clock_;
-  return &it->second.x;
+  it->second->used = ++clock_;
+  pins_[std::this_thread::get_id()].push_back(it->second);
+  return it->second.get();
+}
+
+std::expected<const std::vector<double>*, FitError> FitCache::column(const Term& t) {
+  std::unique_lock lock(mu_);
+  auto e = entry_locked(t, nullptr, lock);
+  if (!e) return std::unexpected(e.error());
+  return &(*e)->x;
 }
 
 void FitCache::put(const Term& t, const std::vector<double>& x) {
-  auto [it, added] = cols_.try_emplace(term_key(t), Entry{{}, {}, 0});
-  if (added) it->second.x = x;
-  it->second.used = ++clock_;
+  std::unique_lock lock(mu_);
+  (void)entry_locked(t, &x, lock);
 }
 
-const Lagged& FitCache::lagged(const Term& t, const std::vector<double>& x, int max_lag) {
+const Lagged& FitCache::lagged(const Term& t, const std::vector<double>& x, int max_lag, const LagScanner& sc) {
   // x is the term's column (column() gave it this fit, or a copy of it): the entry exists
   // unless the caller evaluated it elsewhere, then x is kept.
-  auto it = cols_.find(term_key(t));
-  if (it == cols_.end()) it = cols_.emplace(term_key(t), Entry{x, {}, 0}).first;
-  it->second.used = ++clock_;
-  auto l = it->second.lagged.find(max_lag);
-  if (l == it->second.lagged.end()) l = it->second.lagged.emplace(max_lag, make_lagged(it->second.x, max_lag)).first;
-  return l->second;
+  std::unique_lock lock(mu_);
+  Entry* e = *entry_locked(t, &x, lock);  // with x given, no error
+  auto l = e->lagged.find(max_lag);
+  if (l == e->lagged.end()) {
+    // Extended and transformed without the lock, from the entry's column (pinned: it stays).
+    lock.unlock();
+    auto made = std::make_unique<const Lagged>(make_lagged(e->x, max_lag));
+    sc.ready(*made);
+    lock.lock();
+    l = e->lagged.try_emplace(max_lag, std::move(made)).first;
+  }
+  return *l->second;
 }
 
 const std::expected<PaperPrep, FitError>& FitCache::paper_prep(const FitOptions& o, const std::vector<double>& w) {
+  // Made under the lock: once per step, and a thread asking for it meanwhile needs it anyway.
+  std::lock_guard lock(mu_);
   const auto key = std::make_tuple(o.hold_s, o.ar_order, o.outlier_sigma, o.smooth_s, o.max_lag_s);
   auto it = paper_.find(key);
   if (it == paper_.end()) it = paper_.emplace(key, detail::paper_prep(run_, o, w)).first;
@@ -209,12 +241,26 @@ void add_standard_errors(Model& m, FitCache& cache) {
   finish_stats(m, *ev, cache.run().gyro_dph, good_weights(cache.run()), any_auto ? 1 : 0, true);
 }
 
+std::shared_ptr<const Spectrum> FitCache::spectrum(const std::string& key, const std::function<Spectrum()>& make) {
+  {
+    std::lock_guard lock(mu_);
+    auto it = spectra_.find(key);
+    if (it != spectra_.end()) return it->second;
+  }
+  auto made = std::make_shared<const Spectrum>(make());
+  std::lock_guard lock(mu_);
+  if (spectra_.size() >= max_spectra) spectra_.clear();
+  return spectra_.try_emplace(key, std::move(made)).first->second;
+}
+
 void FitCache::trim() {
+  std::lock_guard lock(mu_);
+  pins_.erase(std::this_thread::get_id());
   while (cols_.size() > keep_) {
     auto oldest = cols_.begin();
     for (auto it = cols_.begin(); it != cols_.end(); ++it)
-      if (it->second.used < oldest->second.used) oldest = it;
-    cols_.erase(oldest);
+      if (it->second->used < oldest->second->used) oldest = it;
+    cols_.erase(oldest);  // a thread still reading it holds it (pins_)
   }
 }
 

@@ -55,9 +55,13 @@ std::expected<void, FitError> check_collinear(const std::vector<std::vector<doub
   const std::size_t m = cols.size();
   if (m == 0) return {};
   if (keys.size() != m) memo = nullptr;
-  if (memo && memo->mean.size() + memo->cross.size() > CollinearMemo::max_entries) {
-    memo->mean.clear();
-    memo->cross.clear();
+  // The memo's maps are read and changed under its mutex (shared by a diagnose step's threads).
+  if (memo) {
+    std::lock_guard lock(memo->mu.m);
+    if (memo->mean.size() + memo->cross.size() > CollinearMemo::max_entries) {
+      memo->mean.clear();
+      memo->cross.clear();
+    }
   }
   const std::size_t n = w.size();
   // Column j at sample t is cols[j][t - lag_j], its first value before that; the sums below
@@ -71,11 +75,13 @@ std::expected<void, FitError> check_collinear(const std::vector<std::vector<doub
   // A sum is the same whatever the head (the samples before it are summed one by one, in the
   // same order, the skipped ones adding 0), so a memo's sums are the ones computed here.
   for (std::size_t j = 0; j < m; ++j) {
-    if (memo)
+    if (memo) {
+      std::lock_guard lock(memo->mu.m);
       if (auto it = memo->mean.find(keys[j]); it != memo->mean.end()) {
         mean[j] = it->second;
         continue;
       }
+    }
     double s = 0.0;
     for (std::size_t t = 0; t < head; ++t)
       if (w[t] != 0.0) s += w[t] * at(j, t);
@@ -83,18 +89,23 @@ std::expected<void, FitError> check_collinear(const std::vector<std::vector<doub
     const std::size_t l = lag[j];
     for (std::size_t t = head; t < n; ++t) s += w[t] != 0.0 ? w[t] * x[t - l] : 0.0;
     mean[j] = s / sw;
-    if (memo) memo->mean.emplace(keys[j], mean[j]);
+    if (memo) {
+      std::lock_guard lock(memo->mu.m);
+      memo->mean.emplace(keys[j], mean[j]);
+    }
   }
   // The centred cross products (two passes for accuracy: a term of large mean and small
   // spread loses nothing to cancellation); a weight of zero skips a sample, NaN and all.
   Eigen::MatrixXd C(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(m));
   for (std::size_t a = 0; a < m; ++a)
     for (std::size_t b = a; b < m; ++b) {
-      if (memo)
+      if (memo) {
+        std::lock_guard lock(memo->mu.m);
         if (auto it = memo->cross.find({keys[a], keys[b]}); it != memo->cross.end()) {
           C(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) = it->second;
           continue;
         }
+      }
       double c = 0.0;
       for (std::size_t t = 0; t < head; ++t)
         if (w[t] != 0.0) c += w[t] * (at(a, t) - mean[a]) * (at(b, t) - mean[b]);
@@ -104,7 +115,10 @@ std::expected<void, FitError> check_collinear(const std::vector<std::vector<doub
       const double ma = mean[a], mb = mean[b];
       for (std::size_t t = head; t < n; ++t) c += w[t] != 0.0 ? w[t] * (xa[t - la] - ma) * (xb[t - lb] - mb) : 0.0;
       C(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b)) = c;
-      if (memo) memo->cross.emplace(std::make_pair(keys[a], keys[b]), c);
+      if (memo) {
+        std::lock_guard lock(memo->mu.m);
+        memo->cross.emplace(std::make_pair(keys[a], keys[b]), c);
+      }
     }
   for (std::size_t j = 0; j < m; ++j) {
     sd[j] = std::sqrt(C(static_cast<Eigen::Index>(j), static_cast<Eigen::Index>(j)) / sw);

@@ -6,7 +6,10 @@
 #include <cstddef>
 #include <cstdint>
 #include <expected>
+#include <functional>
 #include <map>
+#include <mutex>
+#include <thread>
 #include <memory>
 #include <limits>
 #include <span>
@@ -39,6 +42,15 @@ struct ScanResult {
   bool ok = false;
 };
 
+// A mutex for a memo held in a movable struct: a move leaves it behind (the object moved to
+// has a fresh one). The memos of a FitCache are shared by the threads of a diagnose step.
+struct MemoMutex {
+  std::mutex m;
+  MemoMutex() = default;
+  MemoMutex(MemoMutex&&) noexcept {}
+  MemoMutex& operator=(MemoMutex&&) noexcept { return *this; }
+};
+
 // The lag-dependent sums scan() made for named columns against one target (PaperPrep's z, one
 // scanner): a refit of the same run with other terms beside them needs the same sums again (a
 // diagnose step refits the base's terms beside each candidate), so they are kept by the columns'
@@ -50,6 +62,7 @@ struct ScanMemo {
   // Entries of cvf beyond this are dropped all at once (each is max_lag + 1 sums; the
   // candidates' fixed columns at their lags are many, the base's few).
   static constexpr std::size_t max_pairs = 1024;  // about 5 MB with the default 600 s lags
+  MemoMutex mu;  // held while the maps are read or changed (never while a sum is made)
 };
 
 // Least squares of y on [fixed columns, varying regressors all delayed by one shared lag i],
@@ -84,6 +97,7 @@ struct CollinearMemo {
   std::map<std::string, double> mean;
   std::map<std::pair<std::string, std::string>, double> cross;  // in the order the pair was summed
   static constexpr std::size_t max_entries = 1 << 14;           // dropped all at once beyond
+  MemoMutex mu;  // held while the maps are read or changed (never while a sum is made)
 };
 std::expected<void, FitError> check_collinear(const std::vector<std::vector<double>>& cols,
                                               const std::vector<std::string>& names, std::span<const double> w,
@@ -127,8 +141,12 @@ struct PaperPrep {
 // One run's refits with many term lists (diagnose refits the model with each candidate): the
 // run's signals, each term's column (with its lag extension and spectrum) and the paper
 // method's PaperPrep are computed once and reused, so that a refit costs only what differs.
-// The numbers are the same as fit() computes. Not for sharing between threads (one per thread).
+// The numbers are the same as fit() computes, whatever the cache holds.
 // Columns are kept for the most recent terms only (keep_columns), so memory stays a few columns.
+// Thread-safe: the threads of a diagnose step share one (their refits then share what each
+// computes). What it hands a thread (a column, a lag extension) stays valid until that thread's
+// next trim(), whatever the other threads drop meanwhile; a value made by two threads at once
+// is kept once (they are the same numbers). Its two switches are set before it is shared.
 class FitCache {
  public:
   FitCache(const RunData& run, double tref_c, std::size_t keep_columns = 8);
@@ -148,29 +166,42 @@ class FitCache {
   // column() would make), kept unless the cache has it: a candidate's refits then do not
   // evaluate it again.
   void put(const Term& t, const std::vector<double>& x);
-  // The column extended for lags up to max_lag (make_lagged), its spectrum kept with it.
-  const Lagged& lagged(const Term& t, const std::vector<double>& x, int max_lag);
+  // The column extended for lags up to max_lag (make_lagged), its spectrum for sc (the
+  // scanner of this run and max_lag that reads it) made before it is handed out and kept with it.
+  const Lagged& lagged(const Term& t, const std::vector<double>& x, int max_lag, const LagScanner& sc);
   // The paper method's first step for these options (w: good_weights of the run).
   const std::expected<PaperPrep, FitError>& paper_prep(const FitOptions& o, const std::vector<double>& w);
-  // Drops the columns used least recently beyond keep_columns (called between fits only: the
-  // references handed out stay valid within one fit).
+  // Drops the columns used least recently beyond keep_columns, and what this thread was handed
+  // since its last trim (called by a thread between its fits only: the references handed out
+  // stay valid within one fit).
   void trim();
   // check_collinear's sums of this run's columns (fit() checks every refit twice).
   CollinearMemo collinear;
+  // A spectrum made from this run's columns, kept by the caller's key (diagnose's rescans: the
+  // weighted column of a term at its lag, CandidateScan), made by make() on first use; at most
+  // max_spectra are kept (dropped all at once beyond: each is about 9 bytes a sample).
+  std::shared_ptr<const Spectrum> spectrum(const std::string& key, const std::function<Spectrum()>& make);
+  static constexpr std::size_t max_spectra = 8;
 
  private:
   struct Entry {
     std::vector<double> x;
-    std::map<int, Lagged> lagged;  // by max lag
+    std::map<int, std::unique_ptr<const Lagged>> lagged;  // by max lag (added under mu_, never removed)
     std::uint64_t used = 0;
   };
+  // The entry of t (made from x, or evaluated when x is null), pinned for this thread; under mu_.
+  std::expected<Entry*, FitError> entry_locked(const Term& t, const std::vector<double>* x, std::unique_lock<std::mutex>& lock);
   const RunData& run_;
   double tref_c_;
   std::size_t keep_;
+  std::mutex mu_;  // guards every member below and the entries' maps
   std::uint64_t clock_ = 0;
   std::unique_ptr<std::expected<RunSignals, FitError>> sig_;
-  std::map<std::string, Entry> cols_;
+  std::map<std::string, std::shared_ptr<Entry>> cols_;
+  // The entries each thread was handed since its last trim(): kept alive for it if dropped.
+  std::map<std::thread::id, std::vector<std::shared_ptr<Entry>>> pins_;
   std::map<std::tuple<int, int, double, int, int>, std::expected<PaperPrep, FitError>> paper_;
+  std::map<std::string, std::shared_ptr<const Spectrum>> spectra_;
 };
 
 // fit() with the run's shared parts from cache (cache.run() must be run).

@@ -11,13 +11,20 @@
 namespace fogbench::model::detail {
 namespace {
 
-// make(), or the copy kept in map under key (made on first use) when map is given and keep.
+// make(), or the copy kept in map under key (made on first use) when map is given and keep;
+// the map is read and changed under mu (another thread's copy, the same numbers, may come first).
 template <class Map, class Key, class Make>
-std::vector<double> memoized(Map* map, const Key& key, bool keep, Make make) {
+std::vector<double> memoized(Map* map, MemoMutex* mu, const Key& key, bool keep, Make make) {
   if (!map || !keep) return make();
-  auto it = map->find(key);
-  if (it == map->end()) it = map->emplace(key, make()).first;
-  return it->second;
+  {
+    std::lock_guard lock(mu->m);
+    auto it = map->find(key);
+    if (it != map->end()) return it->second;
+  }
+  std::vector<double> v = make();
+  std::lock_guard lock(mu->m);
+  map->emplace(key, v);
+  return v;
 }
 
 }  // namespace
@@ -75,7 +82,11 @@ ScanResult scan(const LagScanner& sc, std::span<const double> y, const Spectrum*
     // The key of a column when memo keeps it (empty: not kept).
     auto vkey = [&](std::size_t v) { return memo && v < varying_keys.size() ? varying_keys[v] : std::string(); };
     auto fkey = [&](std::size_t a) { return memo && a < fixed_keys.size() ? fixed_keys[a] : std::string(); };
-    if (memo && memo->cvf.size() > ScanMemo::max_pairs) memo->cvf.clear();
+    if (memo) {
+      std::lock_guard lock(memo->mu.m);
+      if (memo->cvf.size() > ScanMemo::max_pairs) memo->cvf.clear();
+    }
+    MemoMutex* mu = memo ? &memo->mu : nullptr;
     Spectrum own;
     auto wy_spectrum = [&]() -> const Spectrum& {
       if (!wy_spec) {
@@ -95,22 +106,22 @@ ScanResult scan(const LagScanner& sc, std::span<const double> y, const Spectrum*
     };
     for (std::size_t v = 0; v < nv; ++v) {
       const std::string kv = vkey(v);
-      cvy[v] = memoized(memo ? &memo->cvy : nullptr, kv, !kv.empty(), [&] { return sc.corr(*varying[v], wy_spectrum()); });
+      cvy[v] = memoized(memo ? &memo->cvy : nullptr, mu, kv, !kv.empty(), [&] { return sc.corr(*varying[v], wy_spectrum()); });
       std::optional<std::vector<double>> ones_sum;
       for (std::size_t a = 0; a < nf; ++a) {
         if (fixed[a].constant()) {
-          if (!ones_sum) ones_sum = memoized(memo ? &memo->ones : nullptr, kv, !kv.empty(), [&] { return sc.wsum(varying[v]->ext); });
+          if (!ones_sum) ones_sum = memoized(memo ? &memo->ones : nullptr, mu, kv, !kv.empty(), [&] { return sc.wsum(varying[v]->ext); });
           cvf[v][a] = *ones_sum;
           for (double& s : cvf[v][a]) s *= fixed[a].c;
         } else {
           const std::string ka = fkey(a);
-          cvf[v][a] = memoized(memo ? &memo->cvf : nullptr, std::make_pair(kv, ka), !kv.empty() && !ka.empty(),
+          cvf[v][a] = memoized(memo ? &memo->cvf : nullptr, mu, std::make_pair(kv, ka), !kv.empty() && !ka.empty(),
                            [&] { return sc.corr(*varying[v], fixed_spectrum(a)); });
         }
       }
       for (std::size_t u = v; u < nv; ++u) {
         const std::string ku = vkey(u);
-        gvv[v * nv + u] = memoized(memo ? &memo->gvv : nullptr, std::make_pair(kv, ku), !kv.empty() && !ku.empty(), [&] {
+        gvv[v * nv + u] = memoized(memo ? &memo->gvv : nullptr, mu, std::make_pair(kv, ku), !kv.empty() && !ku.empty(), [&] {
           std::vector<double> prod(varying[v]->ext.size());
           for (std::size_t j = 0; j < prod.size(); ++j) prod[j] = varying[v]->ext[j] * varying[u]->ext[j];
           return sc.wsum(prod);

@@ -118,7 +118,7 @@ std::expected<Model, FitError> fit_paper(const RunData& run, const std::vector<T
   std::vector<Lagged> own_lagged;
   std::vector<const Lagged*> lagged;
   if (cache) {
-    for (std::size_t j = 0; j < terms.size(); ++j) lagged.push_back(&cache->lagged(terms[j], ev.x[j], L));
+    for (std::size_t j = 0; j < terms.size(); ++j) lagged.push_back(&cache->lagged(terms[j], ev.x[j], L, *pp.sc));
   } else {
     own_lagged.reserve(ev.x.size());
     for (const auto& x : ev.x) own_lagged.push_back(detail::make_lagged(x, L));

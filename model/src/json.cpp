@@ -268,6 +268,8 @@ json to_json(const NoiseFloor& f) {
           {"white_dph", std::sqrt(f.white_var_dph2)},
           {"bias_instability_dph", f.bias_instability_dph},
           {"rrw_dph_per_sqrt_h", f.rrw_dph_per_sqrt_h},
+          // When no walk is seen beside flicker: the largest the holds cannot exclude (0: none).
+          {"rrw_not_excluded_dph_per_sqrt_h", f.rrw_bound_dph_per_sqrt_h},
           {"hold_samples", f.hold_samples},
           {"longest_tau_s", f.longest_tau_s},
           {"note", f.note}};

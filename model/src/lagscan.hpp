@@ -37,6 +37,9 @@ class LagScanner {
   std::vector<double> corr(const Lagged& x, const Spectrum& u_spec) const;
   // S[i] = sum_t w(t) v(t - i) for an extended series v (length N + L).
   std::vector<double> wsum(std::span<const double> v_ext) const;
+  // Computes x's spectrum now (corr() would on first use): a Lagged read by several threads
+  // at once must have it before it is shared.
+  void ready(const Lagged& x) const { (void)spec_of(x); }
 
  private:
   const Spectrum& spec_of(const Lagged& x) const;

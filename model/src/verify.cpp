@@ -198,12 +198,12 @@ std::expected<Verification, FitError> verify(const Model& m, const RunData& run,
     if (!(v.noise_factor <= v.noise_limit_factor)) {
       second_ok = false;
       v.reasons.push_back("compensated std " + num(v.run.comp_std, 3) + " deg/h is " + num(v.noise_factor, 2) + " x the gyro's noise std " +
-                          num(v.noise_std, 3) + " deg/h (at most " + num(v.noise_limit_factor, 2) + " x)");
+                          num(v.noise_std, 3) + " deg/h (at most " + num(v.noise_limit_factor, 2) + " x" + allowance_note(v.floor) + ")");
     }
     if (v.longest_fail_s >= o.noise.max_fail_s) {
       second_ok = false;
       v.reasons.push_back("a failing interval of " + num(v.longest_fail_s, 0) + " s (the residual's " + std::to_string(o.noise.smooth_s) +
-                          " s average beyond " + num(v.threshold_dph, 3) + " deg/h; " + num(o.noise.max_fail_s, 0) + " s or more is not passed)");
+                          " s average beyond " + num(v.threshold_dph, 3) + " deg/h" + allowance_note(v.floor) + "; " + num(o.noise.max_fail_s, 0) + " s or more is not passed)");
     }
   }
   v.verdict = !v.ratio_pass ? Verdict::fail : second_ok ? Verdict::pass : Verdict::marginal;

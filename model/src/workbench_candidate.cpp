@@ -12,6 +12,18 @@ namespace fogbench::model::workbench::wbi {
 namespace {
 
 
+// A candidate's column prepared for its scans (CandidateScan::prepare by the step's scan) on
+// first use.
+struct LazyPrepared {
+  const CandidateScan& scan;
+  std::span<const double> x;
+  std::optional<CandidateScan::Prepared> p;
+  const CandidateScan::Prepared& get() {
+    if (!p) p = scan.prepare(x);
+    return *p;
+  }
+};
+
 // The candidate at its lag, and the model refitted with it.
 struct Refit {
   Term term;                               // the candidate, its lag fixed
@@ -32,7 +44,7 @@ Refit refit_at(const StepContext& ctx, const Cand& cd, int lag_s, detail::FitCac
 // The lag of x (the candidate evaluated on the fit run) starting at the scan's best, then
 // coordinate descent with the refit (as the joint fit does), then lag 0 if BIC prefers it.
 // fc: this thread's cache of the fit run's refits.
-Refit refit_at_best_lag(const StepContext& ctx, const Cand& cd, std::span<const double> x, int first_lag, detail::FitCache& fc) {
+Refit refit_at_best_lag(const StepContext& ctx, const Cand& cd, LazyPrepared& x, int first_lag, detail::FitCache& fc) {
   const Model& base = ctx.base;
   Refit r = refit_at(ctx, cd, first_lag, fc);
   // The candidate's lag was scanned with the model's terms at the lags they had without
@@ -48,7 +60,7 @@ Refit refit_at_best_lag(const StepContext& ctx, const Cand& cd, std::span<const 
     lags_before = lags_now;
     auto rescan = scan_beside(*r.model, fc, ctx.fo.max_lag_s, /*without_last_term=*/true);
     if (!rescan) break;
-    const auto g2 = rescan->scan(x);
+    const auto g2 = rescan->scan(x.get());
     if (!g2 || g2->lag == r.term.lag.seconds) break;
     Term t2 = r.term;
     t2.lag.seconds = g2->lag;
@@ -108,7 +120,7 @@ std::optional<int> own_lag(const Model& m, const std::string& key) {
 // that froze lag took 12% off the residual where the two paths take 60%). So the model's
 // @auto lags are refitted with the copy, and the copy's lag scanned again beside them, in
 // turn, while BIC falls (as the joint fit's coordinate descent does for its own lags).
-Refit refit_second_path(const StepContext& ctx, const Cand& cd, std::span<const double> x, int first_lag, detail::FitCache& fc) {
+Refit refit_second_path(const StepContext& ctx, const Cand& cd, LazyPrepared& x, int first_lag, detail::FitCache& fc) {
   const Model& base = ctx.base;
   Refit r = refit_at(ctx, cd, first_lag, fc);
   if (auto_lag_params(base) == 0) return r;  // nothing to free
@@ -127,7 +139,7 @@ Refit refit_second_path(const StepContext& ctx, const Cand& cd, std::span<const 
     r.inner_delay = true;
     auto rescan = scan_beside(*r.model, fc, ctx.fo.max_lag_s, /*without_last_term=*/true);
     if (!rescan) break;
-    const auto g = rescan->scan(x, own_lag(*r.model, cd.expr), kDerivativeHalfWidth);
+    const auto g = rescan->scan(x.get(), own_lag(*r.model, cd.expr), kDerivativeHalfWidth);
     if (!g || g->lag == lag) break;
     lag = g->lag;
   }
@@ -223,7 +235,7 @@ static double prune_floor(const StepContext& ctx) {
   return ctx.held_out.empty() ? o.min_fit_fall_alone : std::min(o.min_fit_fall, o.min_fit_fall_pooled);
 }
 
-EvaluatedCandidate evaluate_candidate(const StepContext& ctx, const Cand& cd, Scorer& fs, std::vector<Scorer>& held_sc) {
+EvaluatedCandidate evaluate_candidate(const StepContext& ctx, Cand& cd, Scorer& fs, std::vector<Scorer>& held_sc, detail::FitCache& fc) {
   EvaluatedCandidate out;
   Candidate& c = out.c;
   c.expr = cd.expr;
@@ -237,7 +249,9 @@ EvaluatedCandidate evaluate_candidate(const StepContext& ctx, const Cand& cd, Sc
     c.skipped = why + " (the fit run)";
     return out;
   }
-  auto x = evaluate(*cd.term.expr, ctx.fr.sig.view());
+  // The column on the fit run's signals: the screen's for a generated candidate it kept.
+  std::expected<std::vector<double>, std::string> x = std::move(cd.x);
+  if (!cd.screened || x->empty()) x = evaluate(*cd.term.expr, ctx.fr.sig.view());
   if (!x) {
     c.skipped = x.error();
     return out;
@@ -246,9 +260,13 @@ EvaluatedCandidate evaluate_candidate(const StepContext& ctx, const Cand& cd, Sc
   if (cd.repeat)
     for (const auto& ft : ctx.base.terms)
       if (term_key(ft.term) == cd.expr) avoid = ft.term.lag.seconds;
+  // Its scans (the first below, the rescans as the refit moves the model's lags) share its lag
+  // extension, spectrum and weighted sums, made once.
+  LazyPrepared px{ctx.scan, *x, std::nullopt};
   // Within the derivative window (30 s) of the model's own lag the same term is nearly
-  // the same column: a second path must be further away to mean anything.
-  const auto gain = ctx.scan.scan(*x, avoid, kDerivativeHalfWidth);
+  // the same column: a second path must be further away to mean anything. A generated
+  // candidate (never a second path: no window) was scanned so by the screen.
+  const auto gain = cd.screened ? cd.screened : ctx.scan.scan(px.get(), avoid, kDerivativeHalfWidth);
   if (!gain) {
     c.skipped = "no lag in 0.." + std::to_string(ctx.fo.max_lag_s) + " s adds anything the model's terms do not already hold";
     return out;
@@ -268,15 +286,14 @@ EvaluatedCandidate evaluate_candidate(const StepContext& ctx, const Cand& cd, Sc
       return out;
     }
   }
-  // The refits are compared by BIC; the standard errors only for the one kept (score's p).
-  detail::FitCache& fc = fs.fit_cache();
-  fc.standard_errors = false;
+  // The refits are compared by BIC (fc.standard_errors is off); the standard errors only for
+  // the one kept (score's p).
   // x is the candidate's column on the fit run's signals (ctx.fr.sig: run_signals of the fit run
   // at the base's tref, as the cache's and the scorer's): handed to both (the scorer's below), so
   // that its refits and its score do not evaluate it again. A second path's refit is another
   // expression: not put.
   if (!cd.repeat) fc.put(cd.term, *x);
-  Refit r = cd.repeat ? refit_second_path(ctx, cd, *x, gain->lag, fc) : refit_at_best_lag(ctx, cd, *x, gain->lag, fc);
+  Refit r = cd.repeat ? refit_second_path(ctx, cd, px, gain->lag, fc) : refit_at_best_lag(ctx, cd, px, gain->lag, fc);
   if (r.model) detail::add_standard_errors(*r.model, fc);
   c.lag_s = r.term.lag.seconds;
   // What add_term is given to build the same model: a second path with the model's lags
@@ -312,7 +329,12 @@ std::expected<CandidateScan, FitError> scan_beside(const Model& m, detail::FitCa
   auto cols = detail::regressors_with(m, cache);
   if (!cols) return std::unexpected(cols.error());
   if (without_last_term && !cols->empty()) cols->pop_back();
-  return CandidateScan(cache.run().gyro_dph, *cols, detail::good_weights(cache.run()), max_lag_s);
+  // The columns are the cache's (its run and reference): their spectra are kept there by key.
+  std::vector<std::string> keys;
+  if (cache.tref_c() == m.tref_c)
+    for (std::size_t j = 0; j < cols->size(); ++j) keys.push_back(term_key(m.terms[j].term) + "@" + std::to_string(m.terms[j].term.lag.seconds));
+  return CandidateScan(cache.run().gyro_dph, *cols, detail::good_weights(cache.run()), max_lag_s, keys,
+                       keys.empty() ? nullptr : &cache);
 }
 
 std::vector<Term> frozen_terms(const Model& m) {

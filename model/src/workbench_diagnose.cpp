@@ -161,7 +161,7 @@ std::expected<CandidateList, FitError> collect_candidates(const Model& base, con
   auto push = [&](const std::string& text, std::string effect, std::string expl, bool repeat) {
     auto t = parse_term(text);
     if (!t) return;
-    Cand c{*t, to_string(*t->expr), std::move(effect), std::move(expl), repeat, false};
+    Cand c{*t, to_string(*t->expr), std::move(effect), std::move(expl), repeat, false, {}, {}};
     c.term.coef = 1.0;
     c.term.coef_given = false;
     for (const auto& x : cands)
@@ -199,7 +199,7 @@ std::expected<CandidateList, FitError> collect_candidates(const Model& base, con
     bool dup = false;
     for (const auto& x : cands) dup = dup || (x.expr == k && !x.repeat);
     if (dup) continue;
-    Cand c{*t, k, g.effect, g.explanation, false, true};
+    Cand c{*t, k, g.effect, g.explanation, false, true, {}, {}};
     c.term.coef = 1.0;
     c.term.coef_given = false;
     cands.push_back(std::move(c));
@@ -221,8 +221,7 @@ void screen_generated(std::vector<Cand>& cands, std::size_t n_fixed, const Candi
     // from the best down, and kept for the chosen only (at most o.refit_top).
     struct Screened {
       std::size_t i;
-      double gain;
-      int lag;
+      CandidateScan::Gain g;
     };
     // The scans are independent: on o.threads threads (as evaluate_all), each into its own
     // slot, then gathered in the list's order (the same list as one thread makes).
@@ -236,7 +235,7 @@ void screen_generated(std::vector<Cand>& cands, std::size_t n_fixed, const Candi
           if (!x) continue;
           auto g = scan.scan(*x);
           if (!g) continue;
-          slot[i - n_fixed] = Screened{i, g->best, g->lag};
+          slot[i - n_fixed] = Screened{i, *g};
         }
       };
       unsigned threads = o.threads > 0 ? static_cast<unsigned>(o.threads) : std::max(1u, std::min(4u, std::thread::hardware_concurrency()));
@@ -250,30 +249,34 @@ void screen_generated(std::vector<Cand>& cands, std::size_t n_fixed, const Candi
     for (const auto& x : slot)
       if (x) sc.push_back(*x);
     if (stats) stats->scanned += sc.size();
-    std::sort(sc.begin(), sc.end(), [](const Screened& x1, const Screened& x2) { return x1.gain > x2.gain; });
+    std::sort(sc.begin(), sc.end(), [](const Screened& x1, const Screened& x2) { return x1.g.best > x2.g.best; });
     std::vector<std::size_t> keep;
     std::vector<std::vector<double>> kept_cols;
     for (const auto& x : sc) {
       if (keep.size() >= static_cast<std::size_t>(o.refit_top)) break;
       auto v = evaluate(*cands[x.i].term.expr, fr.sig.view());
       if (!v) continue;  // evaluated above: not reached
-      std::vector<double> partial = scan.partial(lagged(*v, x.lag));
+      std::vector<double> partial = scan.partial(lagged(*v, x.g.lag));
       bool alike = false;
       for (const auto& kc : kept_cols) alike = alike || std::abs(weighted_corr(partial, kc, fr.w)) > 0.99;
       if (alike) continue;
       keep.push_back(x.i);
       kept_cols.push_back(std::move(partial));
+      // Its evaluation starts from this scan and column (the same scan, the same signals).
+      cands[x.i].screened = x.g;
+      cands[x.i].x = std::move(*v);
     }
     std::sort(keep.begin(), keep.end());
     std::vector<Cand> kept(cands.begin(), cands.begin() + static_cast<std::ptrdiff_t>(n_fixed));
-    for (std::size_t i : keep) kept.push_back(cands[i]);
+    for (std::size_t i : keep) kept.push_back(std::move(cands[i]));
     cands = std::move(kept);
   }
 }
 
 // Every candidate evaluated, on o.threads threads (each with its own scorers: their column
-// caches are not shared); fit_scorer and held_scorers serve the calling thread.
-std::vector<EvaluatedCandidate> evaluate_all(const StepContext& ctx, const std::vector<Cand>& cands, Scorer& fit_scorer,
+// caches are not shared; the refits' FitCache is, fit_scorer's); fit_scorer and held_scorers
+// serve the calling thread.
+std::vector<EvaluatedCandidate> evaluate_all(const StepContext& ctx, std::vector<Cand>& cands, Scorer& fit_scorer,
                                              std::vector<Scorer>& held_scorers) {
   std::vector<EvaluatedCandidate> results(cands.size());
   unsigned threads = ctx.o.threads > 0 ? static_cast<unsigned>(ctx.o.threads) : std::max(1u, std::min(4u, std::thread::hardware_concurrency()));
@@ -284,9 +287,12 @@ std::vector<EvaluatedCandidate> evaluate_all(const StepContext& ctx, const std::
     if (ctx.o.progress) ctx.o.progress(DiagnoseProgress{"refitting", 0, n, cands.size()});
   };
   report(0);
+  // One cache of the fit run's refits for all the threads (made here, before they start): each
+  // uses what the others computed (the base's columns, sums and first step), the same numbers.
+  detail::FitCache& fc = fit_scorer.fit_cache();
   auto worker = [&](Scorer& fs, std::vector<Scorer>& hs, bool caller) {
     for (std::size_t ci = next++; ci < cands.size(); ci = next++) {
-      results[ci] = evaluate_candidate(ctx, cands[ci], fs, hs);
+      results[ci] = evaluate_candidate(ctx, cands[ci], fs, hs, fc);
       const std::size_t n = ++done;
       if (caller) report(n);
     }

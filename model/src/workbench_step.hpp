@@ -40,7 +40,11 @@ inline std::vector<double> lagged(std::span<const double> x, int lag) {
 // and every sum over t is, for all lags at once, a cross-correlation by FFT (lagscan.hpp).
 class CandidateScan {
  public:
-  CandidateScan(std::span<const double> y_in, const std::vector<std::vector<double>>& base_cols, std::vector<double> w, int max_lag)
+  // keys and spectra (both or neither): each base column's key (its term's key at its lag) and
+  // the run's cache of the weighted columns' spectra (FitCache::spectrum; w must be the run's
+  // good_weights), so that the rescans beside models at the same lags transform them once.
+  CandidateScan(std::span<const double> y_in, const std::vector<std::vector<double>>& base_cols, std::vector<double> w, int max_lag,
+                std::span<const std::string> keys = {}, detail::FitCache* spectra = nullptr)
       : sc_(y_in.size(), max_lag, w), w_(std::move(w)), L_(max_lag) {
     const std::size_t n = y_in.size();
     // Samples of weight 0 may hold NaN (a missing gyro reading): 0 * NaN is NaN, so zero them.
@@ -76,9 +80,15 @@ class CandidateScan {
     }
     u_spec_ = sc_.spectrum_of_target(wu);
     for (std::size_t a = 1; a < cols_.size(); ++a) {
-      std::vector<double> wc(n);
-      for (std::size_t t = 0; t < n; ++t) wc[t] = w_[t] * cols_[a][t];
-      col_spec_.push_back(sc_.spectrum_of_target(wc));
+      auto make = [&] {
+        std::vector<double> wc(n);
+        for (std::size_t t = 0; t < n; ++t) wc[t] = w_[t] * cols_[a][t];
+        return sc_.spectrum_of_target(wc);
+      };
+      if (spectra && keys.size() == base_cols.size())
+        col_spec_.push_back(spectra->spectrum(keys[a - 1] + "/L" + std::to_string(L_), make));
+      else
+        col_spec_.push_back(std::make_shared<const detail::Spectrum>(make()));
     }
   }
   bool ok() const { return ok_; }
@@ -95,17 +105,46 @@ class CandidateScan {
     double best = 0.0, at_zero = 0.0;  // fall of the weighted SSE, (deg/h)^2
     double sse = 0.0;                  // weighted SSE of the residual before, (deg/h)^2
   };
+  // A candidate's column prepared for its scans on this run: its lag extension with the spectrum
+  // of its blocks (made on the first scan) and its weighted sums, which depend on the column,
+  // the run's weights and the lag range only. Made once for a candidate and handed to each of
+  // its scans (the rescans beside the refitted model's columns: other scans of the same run),
+  // it gives the numbers scan(x) computes. The scan that made it must outlive it.
+  struct Prepared {
+    detail::Lagged lx;
+    std::vector<double> s1, sxx;           // sum_t w(t) x(t - i) and sum_t w(t) x(t - i)^2, i = 0..L
+    const std::vector<double>* w = nullptr;  // the weights of s1 and sxx (the preparing scan's)
+    int max_lag = 0;                         // L, s; lx.ext is L copies of x(0), then x
+  };
+  Prepared prepare(std::span<const double> x) const {
+    Prepared p;
+    p.lx = detail::make_lagged(x, L_);
+    p.s1 = sc_.wsum(p.lx.ext);
+    std::vector<double> sq(p.lx.ext.size());
+    for (std::size_t j = 0; j < sq.size(); ++j) sq[j] = p.lx.ext[j] * p.lx.ext[j];
+    p.sxx = sc_.wsum(sq);
+    p.w = &w_;
+    p.max_lag = L_;
+    return p;
+  }
   std::optional<Gain> scan(std::span<const double> x, std::optional<int> avoid = {}, int avoid_half_width = 0) const {
     if (!ok_) return std::nullopt;
-    const detail::Lagged lx = detail::make_lagged(x, L_);
+    return scan(prepare(x), avoid, avoid_half_width);
+  }
+  // The same scan of a prepared column (prepare(): this scan's, or another's on the same run;
+  // with other weights or lags its sums are made again here).
+  std::optional<Gain> scan(const Prepared& px, std::optional<int> avoid = {}, int avoid_half_width = 0) const {
+    if (!ok_) return std::nullopt;
+    const bool same = px.max_lag == L_ && px.lx.ext.size() == w_.size() + static_cast<std::size_t>(L_) && px.w != nullptr &&
+                      (px.w == &w_ || *px.w == w_);
+    if (!same) return scan(std::span<const double>(px.lx.ext).subspan(static_cast<std::size_t>(px.max_lag)), avoid, avoid_half_width);
+    const detail::Lagged& lx = px.lx;
     const std::size_t k = cols_.size();
     std::vector<std::vector<double>> cxb(k);
-    cxb[0] = sc_.wsum(lx.ext);
-    for (std::size_t a = 1; a < k; ++a) cxb[a] = sc_.corr(lx, col_spec_[a - 1]);
+    cxb[0] = px.s1;
+    for (std::size_t a = 1; a < k; ++a) cxb[a] = sc_.corr(lx, *col_spec_[a - 1]);
     const std::vector<double> cxu = sc_.corr(lx, u_spec_);
-    std::vector<double> sq(lx.ext.size());
-    for (std::size_t j = 0; j < sq.size(); ++j) sq[j] = lx.ext[j] * lx.ext[j];
-    const std::vector<double> cxx = sc_.wsum(sq);
+    const std::vector<double>& cxx = px.sxx;
     std::optional<int> best;
     double best_gain = -1.0, g0 = 0.0;
     Eigen::VectorXd v(static_cast<Eigen::Index>(k));
@@ -153,7 +192,7 @@ class CandidateScan {
   double sse_ = 0.0;
   std::vector<double> u_;
   detail::Spectrum u_spec_;
-  std::vector<detail::Spectrum> col_spec_;
+  std::vector<std::shared_ptr<const detail::Spectrum>> col_spec_;
 };
 
 
@@ -223,11 +262,14 @@ class Scorer {
   }
 
   // What the refits on this run share (the candidates' refits on the fit run: detail::fit_with),
-  // made on first use; the refits' whole-run Ljung-Box is not computed (they are only scored).
+  // made on first use, by the thread that then shares it (thread-safe once made); the refits'
+  // whole-run Ljung-Box is not computed (they are only scored) and they are compared by BIC,
+  // without standard errors (add_standard_errors for the one kept).
   detail::FitCache& fit_cache() {
     if (!fit_cache_) {
       fit_cache_ = std::make_unique<detail::FitCache>(run_, tref_c_);
       fit_cache_->whole_run_whiteness = false;
+      fit_cache_->standard_errors = false;
     }
     return *fit_cache_;
   }
@@ -280,6 +322,12 @@ struct Cand {
   std::string expr, effect, explanation;
   bool repeat = false;
   bool generated = false;  // from the language search: screened by its lag scan's gain
+  // What the screen found for a generated candidate it kept (the scan beside the base model,
+  // the step's CandidateScan), handed on so that its evaluation does not scan and evaluate it
+  // again: the gain at its best lag, and its column on the fit run's signals (moved out by
+  // evaluate_candidate).
+  std::optional<CandidateScan::Gain> screened;
+  std::vector<double> x;
 };
 
 // What every candidate's evaluation reads (shared by the threads, read only).
@@ -311,6 +359,8 @@ struct EvaluatedCandidate {
 // One candidate: its lag (scan, rescans as the refit moves the model's lags, lag 0 tried),
 // the refit, its score on the fit run and every held-out run, and the verdict. fs and held_sc
 // are this thread's scorers.
-EvaluatedCandidate evaluate_candidate(const StepContext& ctx, const Cand& cd, Scorer& fs, std::vector<Scorer>& held_sc);
+// cd.x, when the screen left it there, is moved out. fc: the fit run's refits' cache (the fit
+// run's scorer's fit_cache(), shared by the step's threads).
+EvaluatedCandidate evaluate_candidate(const StepContext& ctx, Cand& cd, Scorer& fs, std::vector<Scorer>& held_sc, detail::FitCache& fc);
 
 }  // namespace fogbench::model::workbench::wbi

@@ -109,7 +109,7 @@ class LineParser {
       step.action = *s;
     } else {
       return Unexpected(error(kw.column, "unknown statement " + quoted(kw.text) +
-                                             "; expected 'setpoint', 'hold', 'ramp' or 'settle'"));
+                                             "; expected 'setpoint', 'hold', 'ramp', 'settle' or 'rate'"));
     }
     if (pos_ < tokens_.size()) {
       return Unexpected(error(tokens_[pos_].column,
@@ -118,6 +118,12 @@ class LineParser {
                                   "' statement"));
     }
     return step;
+  }
+
+  // A `rate` line (its first word is "rate").
+  std::expected<RateStep, ProfileError> rate() {
+    const Token kw = next();
+    return rate_step(kw);
   }
 
  private:
@@ -217,6 +223,45 @@ class LineParser {
     }
     ++pos_;
     r->v /= min_per_unit;
+    return r;
+  }
+
+  // `rate <r> dps|deg/s for <d>`: the keyword already read. The rate may be negative (the
+  // other direction) or 0 (at rest); a leading '+' is taken.
+  std::expected<RateStep, ProfileError> rate_step(const Token& kw) {
+    RateStep r;
+    r.line = line_no_;
+    r.text = std::string(line_);
+    if (!at_end() && tokens_[pos_].text.size() > 1 && tokens_[pos_].text.front() == '+') {
+      Token& t = tokens_[pos_];
+      t.text.remove_prefix(1);
+      ++t.column;
+      // "+100dps" as typed: split the unit off as the tokenizer does for an unsigned number.
+      const std::size_t n = number_prefix(t.text);
+      if (n > 0 && n < t.text.size() && t.text.front() != '-') {
+        const Token unit{t.text.substr(n), t.column + static_cast<int>(n)};
+        t.text = t.text.substr(0, n);
+        tokens_.insert(tokens_.begin() + static_cast<std::ptrdiff_t>(pos_) + 1, unit);
+      }
+      if (!t.text.empty() && t.text.front() == '-') return Unexpected(expected_after("a rate in deg/s", kw));
+    }
+    auto v = number("a table rate in deg/s", kw);
+    if (!v) return Unexpected(v.error());
+    r.rate_dps = v->v;
+    r.rate_column = v->tok.column;
+    if (at_end() || (tokens_[pos_].text != "dps" && tokens_[pos_].text != "deg/s")) {
+      return Unexpected(expected_after("a table rate unit 'dps' or 'deg/s'", v->tok));
+    }
+    const Token unit = next();
+    auto f = keyword("for", unit);
+    if (!f) return Unexpected(f.error());
+    auto d = duration(*f);
+    if (!d) return Unexpected(d.error());
+    r.duration_s = d->v;
+    if (pos_ < tokens_.size()) {
+      return Unexpected(error(tokens_[pos_].column, "unexpected " + quoted(tokens_[pos_].text) +
+                                                        " after the end of the 'rate' statement"));
+    }
     return r;
   }
 
@@ -324,6 +369,7 @@ std::expected<Profile, ProfileError> parse_profile(std::string_view text,
   Profile profile;
   profile.source_name = std::string(source_name);
   double setpoint_c = 0.0;  // tracked so that a ramp that goes nowhere can be refused
+  double plateau_used_s = 0.0;  // the rate steps' time so far in the last temperature step, s
   int line_no = 0;
   std::string_view first_line;
   std::size_t from = 0;
@@ -338,6 +384,35 @@ std::expected<Profile, ProfileError> parse_profile(std::string_view text,
 
     LineParser p(source_name, line_no, line);
     if (p.empty()) continue;
+    if (p.first().text == "rate") {
+      auto r = p.rate();
+      if (!r) return Unexpected(r.error());
+      if (profile.steps.empty()) {
+        return Unexpected(p.error(p.first().column, "a profile must open with 'setpoint <T> C', found 'rate'"));
+      }
+      // The plateau: the hold this line follows, with only rate lines between.
+      const std::size_t plateau = profile.steps.size() - 1;
+      const Step& last = profile.steps.back();
+      const auto* hold = std::get_if<HoldStep>(&last.action);
+      if (hold == nullptr) {
+        return Unexpected(p.error(p.first().column,
+                                  "a rate step runs during a temperature plateau: put it after a 'hold' (line " +
+                                      std::to_string(last.line) + " is a '" + std::string(to_string(last.kind())) +
+                                      "')"));
+      }
+      const double used_s = plateau_used_s;
+      if (used_s + r->duration_s > hold->duration_s) {
+        return Unexpected(p.error(
+            p.first().column, "the rate sequence does not fit in its plateau: " + detail::format_number(used_s) +
+                                  " s before this step and its " + detail::format_number(r->duration_s) +
+                                  " s exceed the hold of " + detail::format_number(hold->duration_s) +
+                                  " s on line " + std::to_string(last.line)));
+      }
+      r->plateau = plateau;
+      plateau_used_s += r->duration_s;
+      profile.rate_steps.push_back(std::move(*r));
+      continue;
+    }
     auto step = p.statement(setpoint_c, !profile.steps.empty());
     if (!step) return Unexpected(step.error());
     // The executor commands a setpoint from the first moment; only a setpoint defines it.
@@ -349,6 +424,7 @@ std::expected<Profile, ProfileError> parse_profile(std::string_view text,
     if (const auto* s = std::get_if<SetpointStep>(&step->action)) setpoint_c = s->temp_c;
     if (const auto* r = std::get_if<RampStep>(&step->action)) setpoint_c = r->target_c;
     profile.steps.push_back(std::move(*step));
+    plateau_used_s = 0.0;  // a new temperature step: a new plateau for the rate lines after it
   }
   if (profile.steps.empty()) {
     return Unexpected(ProfileError{std::string(source_name), 1, 1,

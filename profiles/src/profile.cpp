@@ -117,6 +117,27 @@ double Profile::nominal_duration_s() const {
   return p.empty() ? 0.0 : p.back().start_s + p.back().duration_s;
 }
 
+std::expected<void, ProfileError> check_rate_limits(const Profile& profile, double max_rate_dps) {
+  using detail::format_number;
+  ProfileError e;
+  e.source = profile.source_name;
+  if (!std::isfinite(max_rate_dps) || max_rate_dps <= 0.0) {
+    e.message = "the rate table's limit must be a positive max_rate_dps, got " + format_number(max_rate_dps) + " deg/s";
+    return std::unexpected(std::move(e));
+  }
+  for (const auto& r : profile.rate_steps) {
+    if (std::fabs(r.rate_dps) > max_rate_dps) {
+      e.line = r.line;
+      e.column = r.rate_column;
+      e.line_text = r.text;
+      e.message = "table rate " + format_number(r.rate_dps) + " deg/s is beyond the rate table's limit +-" +
+                  format_number(max_rate_dps) + " deg/s";
+      return std::unexpected(std::move(e));
+    }
+  }
+  return {};
+}
+
 std::expected<void, ProfileError> check_limits(const Profile& profile,
                                                const ChamberLimits& limits) {
   using detail::format_number;

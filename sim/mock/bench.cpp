@@ -39,6 +39,8 @@ struct Bench::Impl final : ControlHandler {
   SerialGyroPeer serial_gyro;  // before the clock: the clock thread writes to it
   std::optional<ModbusServer> modbus;
   std::optional<AsciiChamberServer> ascii;  // the chamber, when its dialect is not Modbus
+  std::optional<RateTableServer> table;     // --rate-table-port
+  SteadyClock::time_point started = SteadyClock::now();
   std::optional<BenchClock> clock;
 
   // ---- the control socket and the loop's own descriptors (server loop only) ----
@@ -105,6 +107,15 @@ struct Bench::Impl final : ControlHandler {
       if (auto ok = modbus->open(false, false); !ok) return ok;
     }
     cfg.where.thermistor_port = modbus->thermistor_port();
+    if (cfg.rate_table_port) {
+      shared.rate_table.emplace();
+      // Called under the shared mutex: the wall clock only.
+      table.emplace(shared, cfg.where.host, *cfg.rate_table_port, [this] {
+        return cfg.time_scale * std::chrono::duration<double>(SteadyClock::now() - started).count();
+      });
+      if (auto ok = table->open(); !ok) return ok;
+      cfg.rate_table_port = table->port();
+    }
 
     if (auto ok = can.listen(cfg.where.can_socket); !ok) return std::unexpected("CAN socket " + ok.error());
     if (!cfg.serial_gyro_link.empty()) {
@@ -138,6 +149,7 @@ struct Bench::Impl final : ControlHandler {
   void close_all() {
     if (modbus) modbus->close();
     if (ascii) ascii->close();
+    if (table) table->close();
     for (auto& c : control_clients) {
       if (c.fd >= 0) ::close(c.fd);
     }
@@ -161,6 +173,9 @@ struct Bench::Impl final : ControlHandler {
   std::expected<void, std::string> fault(const json& command) override {
     auto cmd = parse_fault_command(command, serials);
     if (!cmd) return std::unexpected(cmd.error());
+    if (!table && (cmd->kind == FaultKind::table_fault || cmd->kind == FaultKind::drop_table)) {
+      return std::unexpected(std::string(to_string(cmd->kind)) + ": no rate table is served (--rate-table-port)");
+    }
     const bool serial_fault = cmd->kind == FaultKind::serial_garbage || cmd->kind == FaultKind::serial_cut ||
                               cmd->kind == FaultKind::serial_bad_crc || cmd->kind == FaultKind::serial_baud;
     if (serial_fault && cfg.serial_gyro_link.empty()) {
@@ -212,6 +227,12 @@ struct Bench::Impl final : ControlHandler {
     }
     out["modbus_clients"] = modbus->open_clients();
     if (ascii) out["chamber_clients"] = ascii->open_clients();
+    if (table) {
+      std::lock_guard lock(shared.mutex);
+      const auto& t = *shared.rate_table;
+      out["rate_table"] = {{"time_s", t.time_s()}, {"rate_dps", t.rate_dps()}, {"position_deg", t.position_deg()},
+                           {"fault", t.fault()}, {"clients", table->open_clients()}};
+    }
     out["can_clients"] = can.readers();
     out["can_frames_dropped"] = can.dropped();
     return out;
@@ -301,12 +322,14 @@ struct Bench::Impl final : ControlHandler {
 
   int run() {
     clock->start();
+    started = SteadyClock::now();  // the rate table's time 0
     PollSet set;
     while (!stop_requested) {
       set.clear();
       watch_own(set);
       auto due = modbus->watch(set);
       if (ascii) due = std::min(due, ascii->watch(set));
+      if (table) table->watch(set);
       int timeout_ms = 1000;
       if (due != SteadyClock::time_point::max()) {
         const auto left = std::chrono::ceil<std::chrono::milliseconds>(due - SteadyClock::now()).count();
@@ -395,7 +418,12 @@ json Bench::ready_line() const {
           {"serial_gyro", c.serial_gyro_link.empty() ? json(nullptr) : json(c.serial_gyro_link)},
           {"control", c.control_path.empty() ? json(nullptr) : json(c.control_path)},
           {"units", units},
-          {"drivers_config", served_drivers_config(c)}};
+          {"drivers_config", served_drivers_config(c)},
+          // Not in drivers_config: the daemon does not use a rate table yet.
+          {"rate_table_config", c.rate_table_port ? json{{"kind", "acutrol"},
+                                                         {"link", {{"transport", "tcp"}, {"host", c.where.host},
+                                                                   {"port", *c.rate_table_port}}}}
+                                                  : json(nullptr)}};
 }
 
 int Bench::run() { return impl_->run(); }

@@ -29,6 +29,7 @@ std::optional<std::string_view> main_parameter(FaultKind kind) {
     case FaultKind::open_thermistor: return "sensor";
     case FaultKind::power_off: return "duration_s";
     case FaultKind::power_cycle: return "off_s";
+    case FaultKind::table_fault: return "text";
     default: return std::nullopt;
   }
 }
@@ -41,7 +42,9 @@ std::set<std::string_view> fields_of(FaultKind kind) {
     case FaultKind::stall_modbus: f.insert({"device", "ms"}); break;
     case FaultKind::freeze_pv:
     case FaultKind::alarm:
-    case FaultKind::refuse_setpoint: break;
+    case FaultKind::refuse_setpoint:
+    case FaultKind::drop_table: break;
+    case FaultKind::table_fault: f.insert("text"); break;
     case FaultKind::lose_frames:
     case FaultKind::corrupt_frames: f.insert({"unit", "fraction"}); break;
     case FaultKind::lose_burst: f.insert({"unit", "count"}); break;
@@ -89,6 +92,8 @@ std::string_view to_string(FaultKind kind) noexcept {
     case FaultKind::serial_cut: return "serial_cut";
     case FaultKind::serial_bad_crc: return "serial_bad_crc";
     case FaultKind::serial_baud: return "serial_baud";
+    case FaultKind::table_fault: return "table_fault";
+    case FaultKind::drop_table: return "drop_table";
   }
   return "?";
 }
@@ -155,6 +160,13 @@ std::expected<FaultCommand, std::string> parse_fault_command(const json& c, cons
     if (s == "t1" || s == "T1") cmd.sensor = 1;
     else if (s == "t2" || s == "T2") cmd.sensor = 2;
     else if (s != "both") return std::unexpected(name + ": sensor: expected t1, t2 or both (got " + s.dump() + ")");
+  }
+  if (c.contains("text")) {
+    if (!c["text"].is_string()) return std::unexpected(name + ": text: expected a string (got " + c["text"].dump() + ")");
+    cmd.text = c["text"].get<std::string>();
+    if (cmd.text.size() > 80 || cmd.text.find_first_of("\r\n") != std::string::npos) {
+      return std::unexpected(name + ": text: expected one line of at most 80 characters");
+    }
   }
   // The main parameter is needed to switch a fault on; switching off needs none.
   auto need = [&](const char* key, double min, double max) -> std::expected<double, std::string> {
@@ -280,6 +292,13 @@ void apply_fault(FaultState& state, const FaultCommand& c, double next_second_s)
     case FaultKind::freeze_pv: state.freeze_pv = c.on; break;
     case FaultKind::alarm: state.alarm = c.on; break;
     case FaultKind::refuse_setpoint: state.refuse_setpoint = c.on; break;
+    case FaultKind::table_fault:
+      state.table_fault = c.on;
+      state.table_fault_text = c.on ? c.text : std::string();
+      break;
+    case FaultKind::drop_table:
+      if (c.on) ++state.table_drops;
+      break;
     case FaultKind::lose_frames: each_unit([&](UnitFaults& u) { u.lose_fraction = c.on ? c.value : 0.0; }); break;
     case FaultKind::lose_burst:
       each_unit([&](UnitFaults& u) { u.lose_burst = c.on ? u.lose_burst + static_cast<std::uint32_t>(c.value) : 0; });
@@ -347,6 +366,7 @@ json active_faults(const FaultState& s, const std::vector<std::string>& serials,
   if (s.serial.baud > 0) {
     out.push_back({{"name", "serial_baud"}, {"baud", s.serial.baud}, {"line_baud", s.serial.line_baud}});
   }
+  if (s.table_fault) out.push_back({{"name", "table_fault"}, {"text", s.table_fault_text}});
   for (std::size_t i = 0; i < s.units.size(); ++i) {
     const auto& u = s.units[i];
     const json unit = {{"unit", i}, {"serial", i < serials.size() ? serials[i] : ""}};

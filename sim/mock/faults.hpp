@@ -36,15 +36,17 @@ enum class FaultKind {
   serial_cut,       // the frame cut in half (its first half only, then the next frame)
   serial_bad_crc,   // one bit of its CRC flipped
   serial_baud,      // the gyro sends at `baud` while the line reads at `line_baud` (default 921600)
+  table_fault,      // the rate table's controller reports a fault (`text`), latched until reset
+  drop_table,       // action: close the rate table's connected clients now
 };
 
-inline constexpr std::array<FaultKind, 17> all_fault_kinds = {
+inline constexpr std::array<FaultKind, 19> all_fault_kinds = {
     FaultKind::refuse_modbus, FaultKind::drop_modbus, FaultKind::stall_modbus,
     FaultKind::freeze_pv,     FaultKind::alarm,       FaultKind::lose_frames,
     FaultKind::lose_burst,    FaultKind::corrupt_frames, FaultKind::open_thermistor,
     FaultKind::gyro_spike,    FaultKind::power_off,   FaultKind::power_cycle,
     FaultKind::refuse_setpoint, FaultKind::serial_garbage, FaultKind::serial_cut,
-    FaultKind::serial_bad_crc, FaultKind::serial_baud};
+    FaultKind::serial_bad_crc, FaultKind::serial_baud, FaultKind::table_fault, FaultKind::drop_table};
 
 // The line baud rate serial_baud assumes when not given (the KVH 1775's default), bits/s.
 inline constexpr int default_serial_line_baud = 921600;
@@ -70,6 +72,7 @@ struct FaultCommand {
   double duration_s = 10.0;         // gyro_spike, simulated seconds
   int bytes = 5;                    // serial_garbage: bytes per run
   int line_baud = default_serial_line_baud;  // serial_baud: the rate the line reads at, bits/s
+  std::string text;                 // table_fault: the controller's fault text ("" for its default)
 };
 
 // Parses {"cmd":"fault","name":"stall_modbus","on":true,"ms":800,"device":"chamber"}: the
@@ -113,6 +116,10 @@ struct FaultState {
   bool freeze_pv = false;
   bool alarm = false;
   bool refuse_setpoint = false;
+  bool table_fault = false;        // the rate table's fault condition
+  std::string table_fault_text;
+  std::uint64_t table_drops = 0;   // drop_table actions so far (the table's server closes its
+                                   // clients when this moves)
   std::vector<UnitFaults> units;
   SerialLineFaults serial;
 };

@@ -70,6 +70,9 @@ int main(int argc, char** argv) {
                  "the chamber controller's protocol on --modbus-port: modbus (the map), espec (Espec P300/SCP-220 "
                  "ASCII) or simserv (Weiss/Voetsch SIMSERV); the thermistor module stays on Modbus")
       ->capture_default_str();
+  app.add_option("--rate-table-port", o.rate_table_port,
+                 "serve a single-axis rate table answering the ACUTROL command set on this TCP port (0: "
+                 "ephemeral); the ready line's rate_table_config reads it");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, off")->capture_default_str();
   app.set_version_flag("--version", std::string(FOGBENCH_SIM_VERSION));
   try {

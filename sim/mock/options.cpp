@@ -180,6 +180,10 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
   if (o.gateway && *dialect != ChamberDialect::modbus) {
     return std::unexpected(std::string("--gateway needs --chamber-dialect modbus: an ASCII controller is no Modbus gateway"));
   }
+  if (o.rate_table_port && (*o.rate_table_port < 0 || *o.rate_table_port > 65535)) {
+    return std::unexpected("--rate-table-port: expected 0..65535 (got " + std::to_string(*o.rate_table_port) + ")");
+  }
+  cfg.rate_table_port = o.rate_table_port;
   if (o.paced && o.control.empty()) return std::unexpected(std::string("--paced needs --control: the clock is advanced through it"));
   if (!(o.frame_noise_dph >= 0)) return std::unexpected(std::string("--frame-noise-dph: expected a number >= 0"));
   if (!std::isfinite(o.warmup_dph)) return std::unexpected(std::string("--warmup-dph: expected a number"));

@@ -44,6 +44,7 @@ struct Options {
   std::string chamber_dialect = "modbus";  // modbus, espec or simserv (ascii_chamber.hpp)
   std::string serial_gyro;   // path of a link to a pty serving unit 1's frames serially; empty: none
   std::string serial_frame;  // the serial frame layout's JSON file (drivers/examples/kvh-1775-format-a.json)
+  std::optional<int> rate_table_port;  // serve a rate table (ACUTROL command set) here; 0: ephemeral
 };
 
 // Joins effects in the term language with '+' (or '-' when one starts with a minus).

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "faults.hpp"
+#include "rate_table.hpp"
 #include "registers.hpp"
 
 namespace fogbench::mock {
@@ -31,6 +32,7 @@ struct SharedState {
   std::mutex mutex;
   std::optional<ChamberRegisters> chamber;
   std::optional<ThermistorRegisters> thermistors;
+  std::optional<RateTableSim> rate_table;  // when the bench serves one (rate_table.hpp)
   FaultState faults;
   Snapshot snap;
 };

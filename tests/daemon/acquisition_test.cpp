@@ -8,6 +8,7 @@
 #include <mutex>
 #include <map>
 #include <set>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -178,9 +179,22 @@ struct Tick {
   TickInput in;
 };
 
-// Runs an acquisition on the fake bench until `count` seconds have been ticked; the sink answers
-// every second with a setpoint of 25 degC, and a run is on from the second tick.
-std::vector<Tick> acquire(Bench& bench, bool paced, std::size_t count) {
+// A loop made late: the sink's call for second `at` blocks the loop for `for_ms` (a long fit on a
+// busy daemon). Only a lower bound matters: a longer block skips (or slows) more, and the
+// assertions hold for any length past it.
+struct Block {
+  std::int64_t at = -1;  // none
+  std::chrono::milliseconds for_ms{0};
+};
+
+// A second the real clock skipped (Acquisition's tick_unread): late, its gyro not read.
+bool unread(const TickInput& in) { return in.late && !in.gyro_read && in.gyro_link_up; }
+
+// Runs an acquisition on the fake bench until `count` seconds have been read (the seconds skipped
+// by a late real clock do not count); the sink answers every second with a setpoint of 25 degC,
+// and a run is on from the second tick. The acquisition's counters into `stats` when given.
+std::vector<Tick> acquire(Bench& bench, bool paced, std::size_t count, Block block = {},
+                          AcquisitionStats* stats = nullptr) {
   asio::io_context io;
   auto transport = std::make_unique<FakeTransport>(bench.news_at_close);
   bench.transport = transport.get();
@@ -205,13 +219,15 @@ std::vector<Tick> acquire(Bench& bench, bool paced, std::size_t count) {
   o.units = kUnits;
   o.safe_setpoint_c = 20.0;
   std::vector<Tick> ticks;
+  std::size_t read = 0;
   std::unique_ptr<Acquisition> acq;
   TickSink sink;
   sink.on_tick = [&](std::int64_t k, const TickInput& in) {
-    if (ticks.size() < count) {
+    if (read < count) {
       ticks.push_back({k, in});
-      if (ticks.size() == count) asio::post(io, [&] { acq->stop([&](const std::string&) { io.stop(); }); });
+      if (!unread(in) && ++read == count) asio::post(io, [&] { acq->stop([&](const std::string&) { io.stop(); }); });
     }
+    if (k == block.at) std::this_thread::sleep_for(block.for_ms);
     return 25.0;
   };
   sink.run_active = [&] { return !ticks.empty(); };
@@ -224,6 +240,7 @@ std::vector<Tick> acquire(Bench& bench, bool paced, std::size_t count) {
   acq->start();
   io.run();
   acq->join();
+  if (stats) *stats = acq->stats();
   acq.reset();
   return ticks;
 }
@@ -232,9 +249,10 @@ void check_consecutive(const std::vector<Tick>& ticks) {
   for (std::size_t i = 0; i < ticks.size(); ++i) CHECK(ticks[i].k == static_cast<std::int64_t>(i));
 }
 
-// Tick k read chamber poll k + 1 and thermistor read k + 1, all present.
-void check_values(const Tick& t) {
-  const double n = static_cast<double>(t.k + 1);
+// Tick k read chamber poll n and thermistor read n (n = k + 1 when no second was skipped), all
+// present.
+void check_values(const Tick& t, std::int64_t n_poll = -1) {
+  const double n = static_cast<double>(n_poll >= 0 ? n_poll : t.k + 1);
   INFO("tick " << t.k);
   REQUIRE(t.in.units.size() == kUnits);
   REQUIRE(t.in.chamber_c);
@@ -416,4 +434,54 @@ TEST_CASE("acquisition: news the transport has at a sample's close reaches that 
       CHECK(ticks[i].in.gyro_stream_events.empty());
     }
   }
+}
+
+TEST_CASE("acquisition: both clocks late go through the one loop, one TickInput per second, the real clock's skipped seconds not read") {
+  // The real clock at 4x: the loop blocked 3 s in second 1 is more than 20 half-periods (2.5 s)
+  // behind at the poll for second 2, so it skips ahead; the skipped seconds reach the sink as
+  // not read, and the devices are polled again only for the seconds after them.
+  Bench real_bench;
+  AcquisitionStats real_stats;
+  const auto real = acquire(real_bench, false, 6, {1, std::chrono::milliseconds(3000)}, &real_stats);
+  REQUIRE(real.size() >= 6);
+  check_consecutive(real);
+  check_values(real[0]);
+  check_values(real[1]);
+  std::int64_t skipped = 0;
+  while (2 + skipped < static_cast<std::int64_t>(real.size()) && unread(real[2 + skipped].in)) {
+    const TickInput& in = real[2 + skipped].in;
+    INFO("skipped second " << 2 + skipped);
+    CHECK_FALSE(in.chamber_c);
+    CHECK_FALSE(in.chamber_link_down);
+    for (const auto& u : in.units) {
+      CHECK_FALSE(u.gyro_dph);
+      CHECK(u.frames == 0);
+      CHECK_FALSE(u.t1_c);
+      CHECK_FALSE(u.t2_c);
+    }
+    ++skipped;
+  }
+  // At least 23 half-periods behind at the poll for second 2 (3 s after tick 1, a half period
+  // before that poll): 22 of them skipped, seconds 2..12.
+  CHECK(skipped >= 11);
+  CHECK(real_stats.ticks_skipped == skipped);
+  REQUIRE(real.size() == static_cast<std::size_t>(2 + skipped + 4));
+  // The first second after the skip may have its poll arrive after its tick (the tick can be due
+  // at once): the one after the next reads its own poll again. Polls 1 and 2 were the seconds
+  // before the block, none for the skipped ones.
+  for (std::size_t i = real.size() - 2; i < real.size(); ++i) {
+    CHECK_FALSE(unread(real[i].in));
+    check_values(real[i], real[i].k + 1 - skipped);
+  }
+
+  // The paced clock at 50x: the same block is more than two periods late; it moves t0 forward
+  // instead, and every second is acquired as on an idle host.
+  Bench paced_bench;
+  AcquisitionStats paced_stats;
+  const auto paced = acquire(paced_bench, true, 6, {1, std::chrono::milliseconds(200)}, &paced_stats);
+  REQUIRE(paced.size() == 6);
+  check_consecutive(paced);
+  for (const auto& t : paced) check_values(t);
+  CHECK(paced_stats.ticks_skipped == 0);
+  CHECK(paced_stats.paced_slowed >= 1);
 }

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "../../model/src/fit_internal.hpp"
@@ -109,4 +110,49 @@ TEST_CASE("fit_with through a warmed FitCache refuses collinear terms as fit() d
   auto got2 = fit_with(run, *apart, fo, cache);
   REQUIRE(want2.has_value() == got2.has_value());
   if (want2) same_model(*got2, *want2);
+}
+
+TEST_CASE("fit_with through one FitCache shared by two threads gives fit()'s numbers exactly") {
+  // diagnose's threads refit their candidates through one cache: each thread's refits read the
+  // columns, sums and first step the other made, and a cache of 2 columns drops columns the
+  // other thread may still read. Every refit must still be fit()'s, on both threads.
+  const RunData run = run_of(6000, 5);
+  FitOptions fo;
+  fo.method = Method::paper;
+  fo.max_lag_s = 200;
+  FitCache cache(run, fo.tref_c, 2);
+  cache.whole_run_whiteness = false;
+  cache.standard_errors = false;
+  const std::vector<std::string> lists{"d(T1)@auto + grad@auto + T2@0", "d(T1)@auto + grad@auto + T2@120", "d(T1)@auto + grad@auto + lp(T2,300)@10",
+                                       "d(T1)@auto + grad@auto + d(T2)@0", "d(T1)@auto + grad@auto + T1@60", "d(T1)@auto + grad@auto + lp(T1,600)@0"};
+  std::vector<Model> want;
+  for (const auto& text : lists) {
+    auto w = fit(run, *parse_terms(text), fo);
+    REQUIRE(w);
+    want.push_back(*w);
+  }
+  // Each thread refits every list four times over, the two in opposite orders, and keeps what it got.
+  constexpr int rounds = 4;
+  std::vector<std::vector<std::expected<Model, FitError>>> got(2);
+  auto worker = [&](std::size_t k) {
+    for (int r = 0; r < rounds; ++r)
+      for (std::size_t i = 0; i < lists.size(); ++i) {
+        const std::size_t j = k == 0 ? i : lists.size() - 1 - i;
+        auto m = fit_with(run, *parse_terms(lists[j]), fo, cache);
+        if (m) add_standard_errors(*m, cache);
+        got[k].push_back(std::move(m));
+      }
+  };
+  std::thread other(worker, 1);
+  worker(0);
+  other.join();
+  for (std::size_t k = 0; k < 2; ++k) {
+    REQUIRE(got[k].size() == rounds * lists.size());
+    for (std::size_t g = 0; g < got[k].size(); ++g) {
+      const std::size_t i = g % lists.size(), j = k == 0 ? i : lists.size() - 1 - i;
+      INFO("thread " << k << ", " << lists[j]);
+      REQUIRE(got[k][g]);
+      same_model(*got[k][g], want[j]);
+    }
+  }
 }

@@ -179,6 +179,69 @@ TEST_CASE("noise rule: slow noise widens the limits it may stray over, and the o
   CHECK(bad.validate().error().find("smooth_s") != std::string::npos);
 }
 
+TEST_CASE("noise floor: a walk the short holds cannot exclude is bounded and allowed for in the rule's limits", "[noise]") {
+  // White 0.055 deg/h a second (ARW 0.001 deg/sqrt(h)), flicker B = 0.05 deg/h and a rate random
+  // walk of 0.1 deg/h/sqrt(h) on a 30 min hold: at its cluster times (up to ~200 s) the walk
+  // (0.013 deg/h at 181 s) is under the flicker's 0.033, so it is not seen; the bound on it must
+  // cover the true 0.1 in most records (2 units of deviance: about 95 %, one-sided).
+  int covered = 0, bounded = 0;
+  for (std::uint64_t seed = 31; seed <= 40; ++seed) {
+    const std::vector<double> y = noise(1800, 0.055, 0.05, 0.1, seed);
+    const NoiseFloor f = read_floor(y, 0.055);
+    INFO(f.note);
+    if (f.walk_h > 0.0) {
+      CHECK(f.walk_bound_h == 0.0);  // seen: read, not bounded
+      ++covered;
+      continue;
+    }
+    if (f.flicker_h <= 0.0) continue;
+    ++bounded;
+    CHECK(f.rrw_bound_dph_per_sqrt_h > 0.0);
+    CHECK(f.note.find("not excluded") != std::string::npos);
+    if (f.rrw_bound_dph_per_sqrt_h >= 0.1) ++covered;
+  }
+  CHECK(bounded >= 5);
+  CHECK(covered >= 8);
+
+  // The rule's limits grow by the bound's variance over the run; bounding off gives the limits
+  // as the floor was read, the same as the seen ones.
+  const std::vector<double> y = noise(1800, 0.055, 0.05, 0.0, 33);
+  RunData r = rest_run(y);
+  double m = 0.0;
+  for (double v : y) m += v;
+  m /= static_cast<double>(y.size());
+  std::vector<double> res(y.size()), w(y.size(), 1.0);
+  for (std::size_t i = 0; i < y.size(); ++i) res[i] = y[i] - m;
+  const std::vector<double> ar;
+  const std::size_t run_s = 9300;  // judged over a run of 2.6 h (exp3's length)
+  NoiseRule rule;
+  const Yardstick with = yardstick(r, res, w, ar, 0.055, run_s, rule);
+  INFO(with.floor.note);
+  REQUIRE(with.floor.flicker_h > 0.0);
+  REQUIRE(with.floor.walk_h == 0.0);
+  REQUIRE(with.walk_allowance);
+  CHECK(with.limit_factor > with.limit_factor_seen);
+  CHECK(with.threshold_dph > with.threshold_seen_dph);
+  // The allowance is the bound's mean variance over the run: K^2 T / 21600 (deg/h)^2.
+  const double k = with.floor.rrw_bound_dph_per_sqrt_h;
+  const double wv = k * k * static_cast<double>(run_s) / 21600.0;
+  const double nv = with.noise_std_dph * with.noise_std_dph;
+  CHECK(with.limit_factor == Approx(std::sqrt(with.limit_factor_seen * with.limit_factor_seen + wv / nv)).epsilon(0.05));
+  rule.floor.walk_bound_chi2 = 0.0;
+  const Yardstick without = yardstick(r, res, w, ar, 0.055, run_s, rule);
+  CHECK_FALSE(without.walk_allowance);
+  CHECK(without.floor.walk_bound_h == 0.0);
+  CHECK(without.limit_factor == Approx(with.limit_factor_seen));
+  CHECK(without.threshold_dph == Approx(with.threshold_seen_dph));
+  // A wider deviance allows a larger walk.
+  rule.floor.walk_bound_chi2 = 9.0;
+  const Yardstick wider = yardstick(r, res, w, ar, 0.055, run_s, rule);
+  CHECK(wider.floor.walk_bound_h > with.floor.walk_bound_h);
+  rule.floor.walk_bound_chi2 = -1.0;
+  REQUIRE_FALSE(rule.validate());
+  CHECK(rule.validate().error().find("walk_bound_chi2") != std::string::npos);
+}
+
 namespace {
 
 // Four ramp-and-hold cycles (600 s ramps of +-10 degC, 3600 s holds): in each hold the coil

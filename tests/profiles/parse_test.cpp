@@ -227,7 +227,7 @@ TEST_CASE("unknown statements and trailing words") {
     CHECK(e.line == 2);
     CHECK(e.column == 3);
     CHECK(e.message ==
-          "unknown statement 'wait'; expected 'setpoint', 'hold', 'ramp' or 'settle'");
+          "unknown statement 'wait'; expected 'setpoint', 'hold', 'ramp', 'settle' or 'rate'");
   }
   SECTION("extra words after a statement") {
     const auto e = parse_err("setpoint 20 C\nhold 10 min please\n");

@@ -38,6 +38,10 @@ struct NoiseFloorOptions {
   // yet reach the floor on the distributed coil's seed 71 and it read a creep (chi-square 23
   // against 18.5) into a false alarm of tests/sim/workbench_noise_test.cpp (2026-11-28).
   bool remove_creep = false;
+  // The rate random walk the holds cannot exclude, when none is seen: the largest walk whose
+  // profile chi-square rises by at most this above the best (0: not bounded). The rule allows
+  // for it in its limits (yardstick). docs/workbench.md "Real FOG noise: where the floor is blind".
+  double walk_bound_chi2 = 4.0;
 };
 
 // One-sided power spectral density of the floor at 1 s samples, (deg/h)^2/Hz:
@@ -54,6 +58,10 @@ struct NoiseFloor {
   double walk_h = 0.0;                  // (deg/h)^2/s: Allan variance (2 pi^2 / 3) h tau
   double bias_instability_dph = 0.0;    // B = sqrt(pi h_-1), deg/h (Allan floor 0.664 B)
   double rrw_dph_per_sqrt_h = 0.0;      // K = 60 sqrt(3 AVAR/tau), deg/h/sqrt(h)
+  // When no walk is seen: the largest the holds cannot exclude ((deg/h)^2/s, as walk_h; and as
+  // K, deg/h/sqrt(h)). Not part of the floor's laws (psd, variances): the rule's limits only.
+  double walk_bound_h = 0.0;
+  double rrw_bound_dph_per_sqrt_h = 0.0;
   std::size_t hold_samples = 0;         // settled hold samples the curve was read on
   std::size_t stretches = 0;
   double longest_tau_s = 0.0;           // the longest cluster time of the curve, s
@@ -105,6 +113,10 @@ double floor_psd(const NoiseFloor& f, double f_hz);
 // The Allan variance the floor gives at cluster time tau_s, (deg/h)^2.
 double floor_avar(const NoiseFloor& f, double tau_s);
 
+// What a limit of the rule allows for beyond the floor as read, for its message: ", allowing
+// for a rate random walk up to K deg/h/sqrt(h) that the holds cannot exclude", or "".
+std::string allowance_note(const NoiseFloor& f);
+
 // The one rule that asks whether what a model leaves on a run is the gyro's own noise, shared
 // by verify's second test, compare's failing intervals and diagnose's adequacy checks.
 struct NoiseRule {
@@ -136,6 +148,10 @@ struct Yardstick {
   double noise_std_dph = 0.0;        // the floor's std over the run, deg/h
   double limit_factor = 0.0;         // the compensated std allowed, over noise_std
   double threshold_dph = 0.0;        // a failing interval's threshold on the smoothed residual, deg/h
+  // When the floor shows slow noise but no walk: limit_factor and threshold_dph allow for the
+  // walk the holds cannot exclude (NoiseFloor::walk_bound_h); these are the limits without it.
+  bool walk_allowance = false;
+  double limit_factor_seen = 0.0, threshold_seen_dph = 0.0;
 };
 Yardstick yardstick(const RunData& run, std::span<const double> residual_dph, std::span<const double> weight,
                     std::span<const double> ar, double sigma_a_dph, std::size_t samples, const NoiseRule& rule = {});

@@ -75,9 +75,23 @@ struct Step {
   StepKind kind() const { return static_cast<StepKind>(action.index()); }
 };
 
+// `rate <r> dps for <d>`: the rate table at r deg/s (signed; 0 at rest) for d, during the
+// `hold` it follows: the rate steps written after a hold are that plateau's rate sequence, run
+// in order from the hold's start, and must fit in it. Parsed only: no executor runs them yet
+// (the rate table is not wired into the daemon).
+struct RateStep {
+  double rate_dps = 0.0;     // deg/s, signed
+  double duration_s = 0.0;   // s, > 0
+  std::size_t plateau = 0;   // index in Profile::steps of the hold it runs in
+  int line = 0;              // 1-based line in the source
+  int rate_column = 0;       // 1-based column of the rate, for limit messages
+  std::string text;          // that line as written
+};
+
 struct Profile {
   std::string source_name;  // e.g. "exp1.profile", as given to parse_profile
   std::vector<Step> steps;  // steps[0] is always a SetpointStep
+  std::vector<RateStep> rate_steps;  // in source order; each names the hold it runs in
   // The profile's length if every settle is met at its minimum (`for`) time, s.
   double nominal_duration_s() const;
 };
@@ -112,6 +126,10 @@ struct ChamberLimits {
 // Limits that are not finite, min_c > max_c or a rate <= 0 are refused (line 0).
 std::expected<void, ProfileError> check_limits(const Profile& profile,
                                                const ChamberLimits& limits);
+
+// Every rate step's |rate| at most max_rate_dps (deg/s); the first violation names its line,
+// the value and the limit. A max_rate_dps that is not a positive finite number is refused (line 0).
+std::expected<void, ProfileError> check_rate_limits(const Profile& profile, double max_rate_dps);
 
 struct NominalPoint {
   double time_s = 0.0;  // since the profile's start, s
