@@ -377,9 +377,15 @@ struct Acquisition::Impl {
   // The gyro's averages since the last tick.
   void fill_gyro(TickInput& in) {
     in.gyro_read = in.gyro_link_up = bus && gyro_sd.is_open();
-    in.gyro_stream_events = std::exchange(gyro_stream_pending, {});
-    if (!bus) return;
+    if (!bus) {
+      in.gyro_stream_events = std::exchange(gyro_stream_pending, {});
+      return;
+    }
     auto s = bus->close_samples();
+    // A silence is judged at the sample's close (a serial line's dead_line), when the bus has
+    // nothing to read: take its news here too, not only after a read.
+    take_gyro_events();
+    in.gyro_stream_events = std::exchange(gyro_stream_pending, {});
     for (std::size_t i = 0; i < s.units.size() && i < in.units.size(); ++i) {
       in.units[i].gyro_dph = s.units[i].rate_dph;
       in.units[i].frames = s.units[i].frames;

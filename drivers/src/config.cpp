@@ -6,6 +6,7 @@
 #include <fstream>
 #include <map>
 
+#include "fogbench/drivers/can_transport.hpp"
 #include "fogbench/drivers/chamber_registry.hpp"
 #include "json_fields.hpp"
 
@@ -308,7 +309,9 @@ std::string default_slot_name(std::size_t index) {
 
 Result<UnitConfig> parse_unit_config(const json& value, const std::string& path, std::size_t index) {
   if (auto ok = detail::expect_object(value, path); !ok) return std::unexpected(ok.error());
-  if (auto ok = detail::expect_known_keys(value, path, {"slot", "serial", "gyro", "thermistors"}); !ok) {
+  // "gyro_line" (a serial line of the unit's own) is read by parse_drivers_config, which knows
+  // the directory its frame file is named against.
+  if (auto ok = detail::expect_known_keys(value, path, {"slot", "serial", "gyro", "thermistors", "gyro_line"}); !ok) {
     return std::unexpected(ok.error());
   }
   UnitConfig unit;
@@ -344,6 +347,48 @@ Result<UnitConfig> parse_unit_config(const json& value, const std::string& path,
   return unit;
 }
 
+namespace {
+
+// A frame layout given inline or as a file named against `map_dir`: the layout and the file.
+Result<std::pair<serial::FrameFormat, std::string>> load_frame(const json& v, const std::string& fp,
+                                                               const std::filesystem::path& map_dir) {
+  if (v.is_string()) {
+    std::filesystem::path file = v.get<std::string>();
+    if (file.is_relative()) file = map_dir / file;
+    std::ifstream in(file);
+    if (!in) return config_error(fp, "cannot open '" + file.string() + "'");
+    const json doc = json::parse(in, nullptr, false);
+    if (doc.is_discarded()) return config_error(fp, "'" + file.string() + "' is not valid JSON");
+    FOGBENCH_TRY(frame, serial::parse_frame_format(doc, file.filename().string()));
+    return std::pair{*frame, file.string()};
+  }
+  FOGBENCH_TRY(frame, serial::parse_frame_format(v, fp));
+  return std::pair{*frame, std::string()};
+}
+
+// A serial transport string whose framing can carry the layout (7 data bits drop bit 7).
+Result<TransportSpec> check_line_framing(const std::string& transport, const serial::FrameFormat& frame,
+                                         const std::string& tp) {
+  auto spec = parse_transport_spec(transport);
+  if (!spec) {
+    // parse_transport_spec names gyro_bus.transport: say where this string is.
+    std::string why = spec.error().message;
+    if (why.starts_with("gyro_bus.transport: ")) why = why.substr(20);
+    return config_error(tp, why);
+  }
+  if (spec->framing.data_bits == 7) {
+    for (const auto byte : frame.sync) {
+      if (byte >= 0x80) {
+        return config_error(tp, "framing " + spec->framing.to_string() +
+                                    ": 7 data bits cannot carry the frame's sync word (a byte >= 0x80); a binary frame needs 8");
+      }
+    }
+  }
+  return *spec;
+}
+
+}  // namespace
+
 Result<DriversConfig> parse_drivers_config(const json& value, const std::filesystem::path& map_dir,
                                            const std::string& path) {
   if (auto ok = detail::expect_object(value, path); !ok) return std::unexpected(ok.error());
@@ -373,10 +418,14 @@ Result<DriversConfig> parse_drivers_config(const json& value, const std::filesys
     const json& b = value["gyro_bus"];
     if (auto ok = detail::expect_object(b, bp); !ok) return std::unexpected(ok.error());
     if (auto ok = detail::expect_known_keys(b, bp, {"transport", "frame"}); !ok) return std::unexpected(ok.error());
-    FOGBENCH_TRY(transport, detail::get_string(b, bp, "transport"));
-    cfg.gyro_bus.transport = *transport;
+    std::string transport;
+    if (b.contains("transport")) {
+      FOGBENCH_TRY(t, detail::get_string(b, bp, "transport"));
+      transport = *t;
+    }
+    cfg.gyro_bus.transport = transport;
     const auto fp = join_path(bp, "frame");
-    const bool is_serial = transport->starts_with("serial:");
+    const bool is_serial = transport.starts_with("serial:");
     if (!is_serial && b.contains("frame")) {
       return config_error(fp, "only a serial: transport has a frame layout");
     }
@@ -385,19 +434,11 @@ Result<DriversConfig> parse_drivers_config(const json& value, const std::filesys
       if (frame_it == b.end()) {
         return config_error(fp, "missing (a serial: transport needs the gyro's frame layout: a file name or an object)");
       }
-      if (frame_it->is_string()) {
-        std::filesystem::path file = frame_it->get<std::string>();
-        if (file.is_relative()) file = map_dir / file;
-        std::ifstream in(file);
-        if (!in) return config_error(fp, "cannot open '" + file.string() + "'");
-        const json doc = json::parse(in, nullptr, false);
-        if (doc.is_discarded()) return config_error(fp, "'" + file.string() + "' is not valid JSON");
-        FOGBENCH_TRY(frame, serial::parse_frame_format(doc, file.filename().string()));
-        cfg.gyro_bus.frame = *frame;
-        cfg.gyro_bus.frame_file = file.string();
-      } else {
-        FOGBENCH_TRY(frame, serial::parse_frame_format(*frame_it, fp));
-        cfg.gyro_bus.frame = *frame;
+      FOGBENCH_TRY(frame, load_frame(*frame_it, fp, map_dir));
+      cfg.gyro_bus.frame = frame->first;
+      cfg.gyro_bus.frame_file = frame->second;
+      if (auto ok = check_line_framing(transport, *cfg.gyro_bus.frame, join_path(bp, "transport")); !ok) {
+        return std::unexpected(ok.error());
       }
     }
   }
@@ -442,12 +483,51 @@ Result<DriversConfig> parse_drivers_config(const json& value, const std::filesys
       }
       channels.push_back({cp, ch->reg});
     }
+    if (units[i].contains("gyro_line")) {
+      const auto lp = join_path(p, "gyro_line");
+      const json& l = units[i]["gyro_line"];
+      if (auto ok = detail::expect_object(l, lp); !ok) return std::unexpected(ok.error());
+      if (auto ok = detail::expect_known_keys(l, lp, {"transport", "frame"}); !ok) return std::unexpected(ok.error());
+      FOGBENCH_TRY(line_transport, detail::get_string(l, lp, "transport"));
+      const auto ltp = join_path(lp, "transport");
+      if (!line_transport->starts_with("serial:")) {
+        return config_error(ltp, "expected serial:DEVICE[?baud=N][&framing=8N1] (a unit's own line is a serial one; "
+                                 "CAN units share gyro_bus.transport)");
+      }
+      if (!l.contains("frame")) {
+        return config_error(join_path(lp, "frame"), "missing (the gyro's frame layout: a file name or an object)");
+      }
+      FOGBENCH_TRY(frame, load_frame(l["frame"], join_path(lp, "frame"), map_dir));
+      FOGBENCH_TRY(spec, check_line_framing(*line_transport, frame->first, ltp));
+      if (unit->gyro.mode != GyroMode::rate) {
+        return config_error(join_path(join_path(p, "gyro"), "mode"), "a serial gyro's frames carry a rate: expected \"rate\"");
+      }
+      for (const auto& other : cfg.gyro_bus.lines) {
+        if (parse_transport_spec(other.transport)->target == spec->target) {
+          return config_error(ltp, "device '" + spec->target + "' is already the line of " + other.key);
+        }
+      }
+      if (auto bus_spec = parse_transport_spec(cfg.gyro_bus.transport);
+          bus_spec && bus_spec->kind == TransportSpec::Kind::serial) {
+        return config_error(lp, "gyro_bus.transport is already a serial line (one gyro): with units on lines of "
+                                "their own, gyro_bus.transport is the bus of the others (can:, unix:) or left out");
+      }
+      cfg.gyro_bus.lines.push_back({unit->gyro.node_id, *line_transport, frame->first, frame->second, lp});
+    }
     cfg.units.push_back(std::move(*unit));
+  }
+  if (cfg.gyro_bus.transport.empty() && cfg.gyro_bus.lines.size() != cfg.units.size()) {
+    for (std::size_t i = 0; i < cfg.units.size(); ++i) {
+      if (!units[i].contains("gyro_line")) {
+        return config_error(join_path(join_path(path, "gyro_bus"), "transport"),
+                            "missing (" + index_path(up, i) + " has no gyro_line: it is read on the bus)");
+      }
+    }
   }
   if (cfg.gyro_bus.frame && cfg.units.size() != 1) {
     return config_error(join_path(join_path(path, "gyro_bus"), "transport"),
                         "a serial line carries one gyro's frames, but there are " +
-                            std::to_string(cfg.units.size()) + " units (one bench per serial gyro for now)");
+                            std::to_string(cfg.units.size()) + " units (give each serial gyro a gyro_line of its own, and gyro_bus a CAN transport for the others)");
   }
   if (cfg.gyro_bus.frame && cfg.units[0].gyro.mode != GyroMode::rate) {
     return config_error(join_path(index_path(up, 0), "gyro.mode"),

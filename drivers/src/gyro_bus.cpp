@@ -1,6 +1,7 @@
 // Routing of CAN frames from any transport to the per-unit sample accumulators.
 #include "fogbench/drivers/gyro_bus.hpp"
 
+#include <algorithm>
 #include <cassert>
 
 namespace fogbench::drivers {
@@ -28,8 +29,60 @@ std::vector<std::uint16_t> ids_of(const std::vector<GyroChannelConfig>& units) {
 
 }  // namespace
 
+namespace {
+
+// The transport of a bench with serial lines of its own (config.lines): each line's transport
+// for its unit, and the shared one (when there is one, and units left for it) for the others.
+Result<std::unique_ptr<CanTransport>> open_lines(const GyroBusConfig& config,
+                                                 const std::vector<GyroChannelConfig>& units,
+                                                 MonotonicClock clock) {
+  std::vector<TransportPart> parts;
+  std::vector<std::uint16_t> shared_ids;
+  for (const auto& u : units) {
+    const bool own = std::any_of(config.lines.begin(), config.lines.end(),
+                                 [&](const SerialGyroLine& l) { return l.node_id == u.node_id; });
+    if (!own) shared_ids.push_back(u.node_id);
+  }
+  if (!shared_ids.empty()) {
+    if (config.transport.empty()) {
+      return fail(ErrorCode::config, "gyro_bus: node " + std::to_string(shared_ids.front()) +
+                                         " has no serial line of its own and gyro_bus.transport is empty");
+    }
+    auto spec = parse_transport_spec(config.transport);
+    if (!spec) return std::unexpected(spec.error());
+    if (spec->kind == TransportSpec::Kind::serial) {
+      return fail(ErrorCode::config, "gyro_bus: a serial: gyro_bus.transport carries one unit; beside units' gyro_line it must be a bus (can:, unix:, replay:)");
+    }
+    auto t = open_transport(*spec, shared_ids, std::move(clock));
+    if (!t) return std::unexpected(t.error());
+    parts.push_back({std::move(*t), {}});
+  }
+  for (const auto& line : config.lines) {
+    const auto unit = std::find_if(units.begin(), units.end(), [&](const GyroChannelConfig& u) { return u.node_id == line.node_id; });
+    if (unit == units.end()) {
+      return fail(ErrorCode::config, line.key + ": node " + std::to_string(line.node_id) + " is no unit of the bus");
+    }
+    auto spec = parse_transport_spec(line.transport);
+    if (!spec) return fail(ErrorCode::config, line.key + ": " + spec.error().message);
+    if (spec->kind != TransportSpec::Kind::serial) {
+      return fail(ErrorCode::config, line.key + ".transport: expected serial:DEVICE[?baud=N][&framing=8N1]");
+    }
+    auto t = open_serial_gyro(spec->target, spec->baud, spec->framing, line.frame, *unit);
+    if (!t) return std::unexpected(t.error());
+    parts.push_back({std::move(*t), {line.node_id}});
+  }
+  return combine_transports(std::move(parts));
+}
+
+}  // namespace
+
 Result<GyroBus> GyroBus::open(const GyroBusConfig& config, std::vector<GyroChannelConfig> units,
                               MonotonicClock clock) {
+  if (!config.lines.empty()) {
+    auto transport = open_lines(config, units, std::move(clock));
+    if (!transport) return std::unexpected(transport.error());
+    return GyroBus(std::move(*transport), std::move(units));
+  }
   auto spec = parse_transport_spec(config.transport);
   if (!spec) return std::unexpected(spec.error());
   const auto ids = ids_of(units);
@@ -37,7 +90,7 @@ Result<GyroBus> GyroBus::open(const GyroBusConfig& config, std::vector<GyroChann
     if (!config.frame || units.size() != 1) {
       return fail(ErrorCode::config, "gyro_bus: a serial: transport needs a frame layout and exactly one unit");
     }
-    auto transport = open_serial_gyro(spec->target, spec->baud, *config.frame, units[0]);
+    auto transport = open_serial_gyro(spec->target, spec->baud, spec->framing, *config.frame, units[0]);
     if (!transport) return std::unexpected(transport.error());
     return GyroBus(std::move(*transport), std::move(units));
   }
@@ -47,6 +100,15 @@ Result<GyroBus> GyroBus::open(const GyroBusConfig& config, std::vector<GyroChann
 }
 
 Result<void> GyroBus::reopen(const GyroBusConfig& config, MonotonicClock clock) {
+  std::vector<GyroChannelConfig> units;
+  for (const auto& a : accumulators_) units.push_back(a.config());
+  if (!config.lines.empty()) {
+    auto transport = open_lines(config, units, std::move(clock));
+    if (!transport) return std::unexpected(transport.error());
+    (*transport)->take_over(*transport_);
+    transport_ = std::move(*transport);
+    return {};
+  }
   auto spec = parse_transport_spec(config.transport);
   if (!spec) return std::unexpected(spec.error());
   std::vector<std::uint16_t> ids;
@@ -55,7 +117,7 @@ Result<void> GyroBus::reopen(const GyroBusConfig& config, MonotonicClock clock) 
     if (!config.frame || accumulators_.size() != 1) {
       return fail(ErrorCode::config, "gyro_bus: a serial: transport needs a frame layout and exactly one unit");
     }
-    auto transport = open_serial_gyro(spec->target, spec->baud, *config.frame, accumulators_[0].config());
+    auto transport = open_serial_gyro(spec->target, spec->baud, spec->framing, *config.frame, accumulators_[0].config());
     if (!transport) return std::unexpected(transport.error());
     (*transport)->take_over(*transport_);
     transport_ = std::move(*transport);
@@ -97,6 +159,7 @@ BusSample GyroBus::close_samples() {
   out.frames_foreign = foreign_;
   foreign_ = 0;
   out.malformed_total = transport_->malformed();
+  transport_->sample_closed();
   return out;
 }
 

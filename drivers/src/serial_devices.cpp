@@ -10,11 +10,12 @@ namespace fogbench::drivers {
 
 std::vector<SerialDevice> serial_devices(const DriversConfig& c, const std::string& path) {
   std::vector<SerialDevice> out;
-  const auto add = [&](const std::string& device, const std::string& key) {
+  const auto add_full = [&](const std::string& device, const std::string& full_key) {
     if (device.empty()) return;
     if (std::any_of(out.begin(), out.end(), [&](const SerialDevice& d) { return d.path == device; })) return;
-    out.push_back({device, path + "." + key});
+    out.push_back({device, full_key});
   };
+  const auto add = [&](const std::string& device, const std::string& key) { add_full(device, path + "." + key); };
   const auto& ch = c.chamber;
   if (ch.kind == "modbus" && ch.modbus.transport == ModbusEndpoint::Transport::rtu)
     add(ch.modbus.device, "chamber.modbus.device");
@@ -24,6 +25,10 @@ std::vector<SerialDevice> serial_devices(const DriversConfig& c, const std::stri
     add(c.thermistors.modbus.device, "thermistors.modbus.device");
   if (auto spec = parse_transport_spec(c.gyro_bus.transport); spec && spec->kind == TransportSpec::Kind::serial)
     add(spec->target, "gyro_bus.transport");
+  for (const auto& line : c.gyro_bus.lines) {
+    if (auto spec = parse_transport_spec(line.transport); spec && spec->kind == TransportSpec::Kind::serial)
+      add_full(spec->target, line.key + ".transport");  // the key as parsed: already under its path
+  }
   return out;
 }
 

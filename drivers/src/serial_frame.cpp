@@ -388,10 +388,22 @@ std::string describe(const Event& e) {
       out += ": frame cut short, the next sync word began " + std::to_string(e.bytes) + " bytes into it";
       break;
     case Event::Kind::bad_value: out += ": CRC matched but the rate is not a finite number"; break;
-    case Event::Kind::no_frame:
-      out += ": no valid frame in " + std::to_string(e.bytes) +
-             " bytes (wrong baud rate, wrong frame format, or noise on the line?)";
+    case Event::Kind::no_frame: {
+      const auto& s = e.seen;
+      out += ": no valid frame in " + std::to_string(e.bytes) + " bytes received: " + std::to_string(s.sync_words) +
+             " sync words seen, " + std::to_string(s.bad_crc) + " CRC failures, " + std::to_string(s.cut) +
+             " cut frames";
+      if (s.bad_value > 0) out += ", " + std::to_string(s.bad_value) + " non-finite rates";
+      if (s.sync_words == 0) {
+        out += " (bytes but never the sync word: a wrong baud rate or framing, or another frame format)";
+      } else if (s.bad_crc + s.bad_value > 0) {
+        out += " (sync words but no frame passing its checks: a wrong CRC or layout in the frame format, "
+               "a baud rate close to the gyro's, or noise on the line)";
+      } else {
+        out += " (frames cut short by the next sync word: a frame length longer than the gyro's, or bytes dropped)";
+      }
       break;
+    }
   }
   return out;
 }
@@ -418,6 +430,7 @@ void Decoder::skipped(std::size_t n, std::vector<Event>& out) {
     e.kind = Event::Kind::no_frame;
     e.offset = buf_offset_ + pos_;
     e.bytes = since_good_;
+    e.seen = seen_;
     out.push_back(e);
   }
 }
@@ -458,16 +471,21 @@ void Decoder::feed(std::span<const std::uint8_t> bytes, std::vector<Event>& out)
       e.offset = offset;
       e.bytes = len;
       e.frame = decode_frame(format_, p);
-      if (!std::isfinite(e.frame.rate_dph)) {
+      const bool bad = !std::isfinite(e.frame.rate_dph);
+      if (bad) {
         e.kind = Event::Kind::bad_value;
         ++counts_.corrupt;
+        ++seen_.sync_words;
+        ++seen_.bad_value;
       } else {
         ++counts_.frames;
         since_good_ = 0;
+        seen_ = {};
         silence_reported_ = false;
       }
       out.push_back(e);
       pos_ += len;
+      if (bad) skipped(len, out);
       continue;
     }
     flush_garbage(out);
@@ -481,9 +499,12 @@ void Decoder::feed(std::span<const std::uint8_t> bytes, std::vector<Event>& out)
     if (next != buf_.begin() + static_cast<std::ptrdiff_t>(pos_ + len)) {
       step = static_cast<std::size_t>(next - buf_.begin()) - pos_;
       e.kind = Event::Kind::cut;
+      ++seen_.cut;
     } else {
       e.kind = Event::Kind::bad_crc;
+      ++seen_.bad_crc;
     }
+    ++seen_.sync_words;
     e.bytes = step;
     ++counts_.corrupt;
     out.push_back(e);

@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cctype>
 #include <charconv>
 #include <cstring>
 
@@ -17,7 +18,7 @@ Result<TransportSpec> parse_transport_spec(std::string_view spec) {
   const auto bad = [&](const std::string& why) {
     return fail(ErrorCode::config,
                 "gyro_bus.transport: " + why + " in '" + std::string(spec) +
-                    "' (expected can:IFACE, unix:PATH, replay:FILE[?speed=N] or serial:DEVICE[?baud=N])");
+                    "' (expected can:IFACE, unix:PATH, replay:FILE[?speed=N] or serial:DEVICE[?baud=N][&framing=8N1])");
   };
   const auto colon = spec.find(':');
   if (colon == std::string_view::npos) return bad("no transport kind");
@@ -49,16 +50,36 @@ Result<TransportSpec> parse_transport_spec(std::string_view spec) {
   } else if (kind == "serial") {
     out.kind = TransportSpec::Kind::serial;
     if (const auto q = target.find('?'); q != std::string_view::npos) {
-      const auto option = target.substr(q + 1);
+      std::string_view options = target.substr(q + 1);
       target = target.substr(0, q);
-      if (!option.starts_with("baud=")) return bad("unknown serial option");
-      const auto num = option.substr(5);
-      int baud = 0;
-      auto [end, ec] = std::from_chars(num.data(), num.data() + num.size(), baud);
-      if (ec != std::errc{} || end != num.data() + num.size() || !serial_baud_supported(baud)) {
-        return bad("a baud rate of 1200..4000000 that termios knows (e.g. 115200, 460800, 921600)");
+      bool have_baud = false, have_framing = false;
+      while (true) {
+        const auto amp = options.find('&');
+        const auto option = options.substr(0, amp);
+        if (option.starts_with("baud=")) {
+          if (have_baud) return bad("baud given twice");
+          have_baud = true;
+          const auto num = option.substr(5);
+          int baud = 0;
+          auto [end, ec] = std::from_chars(num.data(), num.data() + num.size(), baud);
+          if (ec != std::errc{} || end != num.data() + num.size() || !serial_baud_supported(baud)) {
+            return bad("a baud rate of 1200..4000000 that termios knows (e.g. 115200, 460800, 921600)");
+          }
+          out.baud = baud;
+        } else if (option.starts_with("framing=")) {
+          if (have_framing) return bad("framing given twice");
+          have_framing = true;
+          auto framing = parse_serial_framing(option.substr(8), "gyro_bus.transport: framing");
+          if (!framing) {
+            return fail(ErrorCode::config, framing.error().message + " in '" + std::string(spec) + "'");
+          }
+          out.framing = *framing;
+        } else {
+          return bad("unknown serial option '" + std::string(option) + "' (baud=N, framing=8N1)");
+        }
+        if (amp == std::string_view::npos) break;
+        options = options.substr(amp + 1);
       }
-      out.baud = baud;
     }
     if (target.empty()) return bad("no serial device");
   } else {
@@ -66,6 +87,29 @@ Result<TransportSpec> parse_transport_spec(std::string_view spec) {
   }
   out.target = std::string(target);
   return out;
+}
+
+std::string SerialFraming::to_string() const {
+  return std::to_string(data_bits) + parity + std::to_string(stop_bits);
+}
+
+Result<SerialFraming> parse_serial_framing(std::string_view text, const std::string& field) {
+  const auto bad = [&](const std::string& why) {
+    return fail(ErrorCode::config, field + ": '" + std::string(text) + "': " + why +
+                                       " (expected data bits, parity, stop bits: 8N1, 8E1, 8O1, 7E1, 8N2, ...)");
+  };
+  if (text.size() != 3) return bad("expected 3 characters");
+  SerialFraming f;
+  if (text[0] != '7' && text[0] != '8') return bad("data bits '" + std::string(1, text[0]) + "' is not 7 or 8");
+  f.data_bits = text[0] - '0';
+  const char p = static_cast<char>(std::toupper(static_cast<unsigned char>(text[1])));
+  if (p != 'N' && p != 'E' && p != 'O') {
+    return bad("parity '" + std::string(1, text[1]) + "' is not N (none), E (even) or O (odd)");
+  }
+  f.parity = p;
+  if (text[2] != '1' && text[2] != '2') return bad("stop bits '" + std::string(1, text[2]) + "' is not 1 or 2");
+  f.stop_bits = text[2] - '0';
+  return f;
 }
 
 Result<std::unique_ptr<CanTransport>> open_transport(const TransportSpec& spec,

@@ -176,10 +176,17 @@ struct Bench::Impl final : ControlHandler {
     if (!table && (cmd->kind == FaultKind::table_fault || cmd->kind == FaultKind::drop_table)) {
       return std::unexpected(std::string(to_string(cmd->kind)) + ": no rate table is served (--rate-table-port)");
     }
+    const bool serial_fault = cmd->kind == FaultKind::serial_garbage || cmd->kind == FaultKind::serial_cut ||
+                              cmd->kind == FaultKind::serial_bad_crc || cmd->kind == FaultKind::serial_baud;
+    if (serial_fault && cfg.serial_gyro_link.empty()) {
+      return std::unexpected(std::string(to_string(cmd->kind)) + ": the bench serves no serial gyro (start it with --serial-gyro)");
+    }
+    SerialLineFaults serial_faults;
     {
       std::lock_guard lock(shared.mutex);
       auto& faults = shared.faults;
       apply_fault(faults, *cmd, shared.snap.time_s);
+      serial_faults = faults.serial;
       // Register-level faults show at once, so a client reading right after the reply sees them.
       shared.chamber->show_alarm(faults.alarm);
       for (std::size_t u = 0; u < faults.units.size(); ++u) {
@@ -187,6 +194,8 @@ struct Bench::Impl final : ControlHandler {
         shared.thermistors->show(u, 2, shared.snap.units[u].t2_c, faults.units[u].open_t2);
       }
     }
+    // Outside the shared lock: the clock thread writes frames to the peer (its own lock).
+    if (serial_fault) serial_gyro.set_faults(serial_faults);
     if (cmd->kind == FaultKind::refuse_modbus) modbus->update_listeners();
     if (cmd->kind == FaultKind::drop_modbus && cmd->on) modbus->drop_clients(cmd->device);
     if (ascii && cmd->kind == FaultKind::refuse_modbus) ascii->update_listener();
@@ -367,6 +376,15 @@ json served_drivers_config(const BenchConfig& c) {
   json out = drivers_config(c.where, c.map, c.units);
   if (!c.startup_flag)
     for (auto& u : out["units"]) u["gyro"]["startup_flag"] = false;
+  if (!c.serial_gyro_link.empty()) {
+    // The first unit read on its serial line (the bus's copy of its frames is not taken from the
+    // CAN socket: GyroBus leaves a unit with a line of its own out of the bus), the others on CAN.
+    // Serial frames carry no power-on evidence.
+    auto& u0 = out["units"][0];
+    u0["gyro_line"] = {{"transport", "serial:" + c.serial_gyro_link + "?baud=" + std::to_string(default_serial_line_baud)},
+                       {"frame", c.serial_frame_json}};
+    u0["gyro"]["startup_flag"] = false;
+  }
   if (c.dialect == ChamberDialect::modbus) return out;
   json chamber = {{"kind", to_string(c.dialect)},
                   {"link", {{"transport", "tcp"}, {"host", c.where.host}, {"port", c.where.chamber_port}}}};

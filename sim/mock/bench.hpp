@@ -57,6 +57,7 @@ struct BenchConfig {
   // empty: none.
   std::string serial_gyro_link;
   std::optional<drivers::serial::FrameFormat> serial_frame;
+  nlohmann::json serial_frame_json;  // the layout as given, for the served drivers_config
   // A rate table (rate_table.hpp) on this TCP port (0: ephemeral, resolved by create()); empty:
   // none. Its time is the wall clock since the start times time_scale (paced or not).
   std::optional<int> rate_table_port;

@@ -19,7 +19,11 @@ std::optional<std::string_view> main_parameter(FaultKind kind) {
   switch (kind) {
     case FaultKind::stall_modbus: return "ms";
     case FaultKind::lose_frames:
-    case FaultKind::corrupt_frames: return "fraction";
+    case FaultKind::corrupt_frames:
+    case FaultKind::serial_garbage:
+    case FaultKind::serial_cut:
+    case FaultKind::serial_bad_crc: return "fraction";
+    case FaultKind::serial_baud: return "baud";
     case FaultKind::lose_burst: return "count";
     case FaultKind::gyro_spike: return "dph";
     case FaultKind::open_thermistor: return "sensor";
@@ -48,6 +52,10 @@ std::set<std::string_view> fields_of(FaultKind kind) {
     case FaultKind::gyro_spike: f.insert({"unit", "dph", "duration_s"}); break;
     case FaultKind::power_off: f.insert({"unit", "duration_s"}); break;
     case FaultKind::power_cycle: f.insert({"unit", "off_s"}); break;
+    case FaultKind::serial_garbage: f.insert({"fraction", "bytes"}); break;
+    case FaultKind::serial_cut:
+    case FaultKind::serial_bad_crc: f.insert("fraction"); break;
+    case FaultKind::serial_baud: f.insert({"baud", "line_baud"}); break;
   }
   return f;
 }
@@ -80,6 +88,10 @@ std::string_view to_string(FaultKind kind) noexcept {
     case FaultKind::power_off: return "power_off";
     case FaultKind::power_cycle: return "power_cycle";
     case FaultKind::refuse_setpoint: return "refuse_setpoint";
+    case FaultKind::serial_garbage: return "serial_garbage";
+    case FaultKind::serial_cut: return "serial_cut";
+    case FaultKind::serial_bad_crc: return "serial_bad_crc";
+    case FaultKind::serial_baud: return "serial_baud";
     case FaultKind::table_fault: return "table_fault";
     case FaultKind::drop_table: return "drop_table";
   }
@@ -190,6 +202,28 @@ std::expected<FaultCommand, std::string> parse_fault_command(const json& c, cons
       if (c.contains("off_s")) v = number_field(c, "off_s", 1e-9, 1e9);
       if (!v) return std::unexpected(name + ": " + v.error());
       break;
+    case FaultKind::serial_garbage:
+      v = need("fraction", 0, 1);
+      if (v && c.contains("bytes")) {
+        auto b = number_field(c, "bytes", 1, 4096);
+        if (!b) return std::unexpected(name + ": " + b.error());
+        if (*b != std::floor(*b)) return std::unexpected(name + ": bytes: expected a whole number");
+        cmd.bytes = static_cast<int>(*b);
+      }
+      break;
+    case FaultKind::serial_cut:
+    case FaultKind::serial_bad_crc: v = need("fraction", 0, 1); break;
+    case FaultKind::serial_baud: {
+      v = need("baud", 50, 4000000);
+      if (v && *v != std::floor(*v)) return std::unexpected(name + ": baud: expected a whole number of bits/s");
+      if (v && c.contains("line_baud")) {
+        auto b = number_field(c, "line_baud", 50, 4000000);
+        if (!b) return std::unexpected(name + ": " + b.error());
+        if (*b != std::floor(*b)) return std::unexpected(name + ": line_baud: expected a whole number of bits/s");
+        cmd.line_baud = static_cast<int>(*b);
+      }
+      break;
+    }
     default: break;
   }
   if (!v) return std::unexpected(v.error());
@@ -301,6 +335,16 @@ void apply_fault(FaultState& state, const FaultCommand& c, double next_second_s)
         u.power_on_at_s = next_second_s + c.value;
       });
       break;
+    case FaultKind::serial_garbage:
+      state.serial.garbage_fraction = c.on ? c.value : 0.0;
+      state.serial.garbage_bytes = c.bytes;
+      break;
+    case FaultKind::serial_cut: state.serial.cut_fraction = c.on ? c.value : 0.0; break;
+    case FaultKind::serial_bad_crc: state.serial.bad_crc_fraction = c.on ? c.value : 0.0; break;
+    case FaultKind::serial_baud:
+      state.serial.baud = c.on ? static_cast<int>(c.value) : 0;
+      state.serial.line_baud = c.line_baud;
+      break;
   }
 }
 
@@ -314,6 +358,14 @@ json active_faults(const FaultState& s, const std::vector<std::string>& serials,
   if (s.freeze_pv) out.push_back({{"name", "freeze_pv"}});
   if (s.alarm) out.push_back({{"name", "alarm"}});
   if (s.refuse_setpoint) out.push_back({{"name", "refuse_setpoint"}});
+  if (s.serial.garbage_fraction > 0) {
+    out.push_back({{"name", "serial_garbage"}, {"fraction", s.serial.garbage_fraction}, {"bytes", s.serial.garbage_bytes}});
+  }
+  if (s.serial.cut_fraction > 0) out.push_back({{"name", "serial_cut"}, {"fraction", s.serial.cut_fraction}});
+  if (s.serial.bad_crc_fraction > 0) out.push_back({{"name", "serial_bad_crc"}, {"fraction", s.serial.bad_crc_fraction}});
+  if (s.serial.baud > 0) {
+    out.push_back({{"name", "serial_baud"}, {"baud", s.serial.baud}, {"line_baud", s.serial.line_baud}});
+  }
   if (s.table_fault) out.push_back({{"name", "table_fault"}, {"text", s.table_fault_text}});
   for (std::size_t i = 0; i < s.units.size(); ++i) {
     const auto& u = s.units[i];

@@ -31,16 +31,25 @@ enum class FaultKind {
   power_off,        // a unit has no power (no frames); for `duration_s` if given, else until off
   power_cycle,      // action: a unit loses power for `off_s` simulated seconds, then restarts
   refuse_setpoint,  // the chamber controller refuses every setpoint written (exception, NA:, -6)
+  // The serial gyro's line (--serial-gyro; serial_gyro.hpp), every 1/fraction-th serial frame:
+  serial_garbage,   // `bytes` (default 5) bytes of garbage before it
+  serial_cut,       // the frame cut in half (its first half only, then the next frame)
+  serial_bad_crc,   // one bit of its CRC flipped
+  serial_baud,      // the gyro sends at `baud` while the line reads at `line_baud` (default 921600)
   table_fault,      // the rate table's controller reports a fault (`text`), latched until reset
   drop_table,       // action: close the rate table's connected clients now
 };
 
-inline constexpr std::array<FaultKind, 15> all_fault_kinds = {
+inline constexpr std::array<FaultKind, 19> all_fault_kinds = {
     FaultKind::refuse_modbus, FaultKind::drop_modbus, FaultKind::stall_modbus,
     FaultKind::freeze_pv,     FaultKind::alarm,       FaultKind::lose_frames,
     FaultKind::lose_burst,    FaultKind::corrupt_frames, FaultKind::open_thermistor,
     FaultKind::gyro_spike,    FaultKind::power_off,   FaultKind::power_cycle,
-    FaultKind::refuse_setpoint, FaultKind::table_fault, FaultKind::drop_table};
+    FaultKind::refuse_setpoint, FaultKind::serial_garbage, FaultKind::serial_cut,
+    FaultKind::serial_bad_crc, FaultKind::serial_baud, FaultKind::table_fault, FaultKind::drop_table};
+
+// The line baud rate serial_baud assumes when not given (the KVH 1775's default), bits/s.
+inline constexpr int default_serial_line_baud = 921600;
 
 // A power cycle without `off_s` keeps the unit off this long, simulated s.
 inline constexpr double default_power_cycle_off_s = 3.0;
@@ -61,6 +70,8 @@ struct FaultCommand {
   double value = 0;                 // ms, fraction, count, dph or off_s, by kind; power_off:
                                     // duration_s (infinity when not given)
   double duration_s = 10.0;         // gyro_spike, simulated seconds
+  int bytes = 5;                    // serial_garbage: bytes per run
+  int line_baud = default_serial_line_baud;  // serial_baud: the rate the line reads at, bits/s
   std::string text;                 // table_fault: the controller's fault text ("" for its default)
 };
 
@@ -88,6 +99,17 @@ struct UnitFaults {
   double power_on_at_s = 0;
 };
 
+// The serial gyro's line faults (the first unit's frames on --serial-gyro's pty).
+struct SerialLineFaults {
+  double garbage_fraction = 0;  // of the frames with garbage before them
+  int garbage_bytes = 5;
+  double cut_fraction = 0;      // of the frames cut in half
+  double bad_crc_fraction = 0;  // of the frames with a CRC bit flipped
+  int baud = 0;                 // the gyro's sending rate, bits/s; 0: the line's own
+  int line_baud = default_serial_line_baud;
+  friend bool operator==(const SerialLineFaults&, const SerialLineFaults&) = default;
+};
+
 struct FaultState {
   std::array<bool, 2> refuse{};    // by Device
   std::array<int, 2> stall_ms{};   // by Device
@@ -99,6 +121,7 @@ struct FaultState {
   std::uint64_t table_drops = 0;   // drop_table actions so far (the table's server closes its
                                    // clients when this moves)
   std::vector<UnitFaults> units;
+  SerialLineFaults serial;
 };
 
 // Switches a fault on or off. `next_second_s` is the start of the next simulated second (where

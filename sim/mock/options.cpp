@@ -212,6 +212,7 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
     if (!frame) return std::unexpected(frame.error().message);
     cfg.serial_gyro_link = o.serial_gyro;
     cfg.serial_frame = *frame;
+    cfg.serial_frame_json = doc;
   }
   cfg.gateway = o.gateway;
   cfg.dialect = *dialect;

@@ -6,6 +6,7 @@
 #include <termios.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 
@@ -72,16 +73,78 @@ void SerialGyroPeer::send(std::span<const ::can_frame> frames) {
       frame.status = (decoded->status & drivers::can::status::valid) ? format_.status_valid_mask : 0;
     }
     auto bytes = drivers::serial::encode(format_, frame);
+    const bool has_crc = format_.crc != drivers::serial::CrcKind::none;
     if (!decoded) {
-      if (format_.crc != drivers::serial::CrcKind::none) {
+      if (has_crc) {
         bytes[format_.crc_offset] ^= 0x01;
       } else {
         bytes.resize(bytes.size() / 2);  // no CRC to break: a frame cut short instead
       }
+    } else if (has_crc && due(bad_crc_due_, faults_.bad_crc_fraction)) {
+      bytes[format_.crc_offset] ^= 0x01;
+    } else if (due(cut_due_, faults_.cut_fraction)) {
+      bytes.resize(bytes.size() / 2);
     }
-    out.insert(out.end(), bytes.begin(), bytes.end());
+    std::vector<std::uint8_t> chunk;
+    if (due(garbage_due_, faults_.garbage_fraction)) {
+      // Bytes that never begin the sync word: one run of garbage, whatever follows.
+      std::uint8_t b = 0x11;
+      for (int i = 0; i < faults_.garbage_bytes; ++i) {
+        while (b == format_.sync.front()) b = static_cast<std::uint8_t>(b + 0x11);
+        chunk.push_back(b);
+        b = static_cast<std::uint8_t>(b + 0x11);
+      }
+    }
+    chunk.insert(chunk.end(), bytes.begin(), bytes.end());
+    // At another baud rate each frame is mis-sampled on its own: the gyro's frames are apart in
+    // time (a 36-byte frame takes 0.4 ms of a 1 ms period at 921600 baud), the line idle between.
+    if (faults_.baud > 0 && faults_.baud != faults_.line_baud) chunk = uart_resample(chunk, faults_.baud, faults_.line_baud);
+    out.insert(out.end(), chunk.begin(), chunk.end());
   }
   write_locked(out);
+}
+
+void SerialGyroPeer::set_faults(const SerialLineFaults& faults) {
+  std::lock_guard lock(mutex_);
+  faults_ = faults;
+}
+
+bool SerialGyroPeer::due(double& accumulator, double fraction) noexcept {
+  if (!(fraction > 0)) return false;
+  accumulator += fraction;
+  if (accumulator < 1.0 - 1e-9) return false;
+  accumulator -= 1.0;
+  return true;
+}
+
+std::vector<std::uint8_t> uart_resample(std::span<const std::uint8_t> bytes, int tx_baud, int rx_baud) {
+  // Time unit 1 / (2 tx rx) s: a sent bit lasts 2 rx units, a received bit 2 tx, half of one tx.
+  const std::int64_t tx_bit = 2 * static_cast<std::int64_t>(rx_baud);
+  const std::int64_t rx_half = tx_baud;
+  const std::int64_t bits = 10 * static_cast<std::int64_t>(bytes.size());
+  const auto bit = [&](std::int64_t j) -> int {  // the sent level of bit slot j (idle outside)
+    if (j < 0 || j >= bits) return 1;
+    const auto pos = j % 10;
+    if (pos == 0) return 0;
+    if (pos == 9) return 1;
+    return (bytes[static_cast<std::size_t>(j / 10)] >> (pos - 1)) & 1;
+  };
+  const auto level = [&](std::int64_t t) { return bit(t / tx_bit); };
+  std::vector<std::uint8_t> out;
+  std::int64_t ready = 0;  // the receiver looks for a start bit from here
+  for (std::int64_t j = 0; j < bits;) {
+    // The next falling edge at or after `ready`: a slot boundary from 1 to 0.
+    j = std::max(j, (ready + tx_bit - 1) / tx_bit);
+    while (j < bits && !(bit(j) == 0 && bit(j - 1) == 1)) ++j;
+    if (j >= bits) break;
+    const std::int64_t edge = j * tx_bit;
+    int byte = 0;
+    for (int i = 0; i < 8; ++i) byte |= level(edge + (3 + 2 * i) * rx_half) << i;
+    out.push_back(static_cast<std::uint8_t>(byte));
+    ready = edge + 19 * rx_half;  // the stop bit's sample
+    ++j;
+  }
+  return out;
 }
 
 void SerialGyroPeer::send_raw(std::span<const std::uint8_t> bytes) {

@@ -30,7 +30,10 @@ constexpr int kFramesPerSecond = 10;
 // A gyro bus transport fed by the test: frames pushed are readable through an eventfd.
 class FakeTransport final : public drivers::CanTransport {
  public:
-  FakeTransport() : fd_(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC)) {}
+  // `news_at_close`: the sample close (GyroBus::close_samples, numbered from 1) at which the
+  // transport reports a silence of its own, with nothing to read (a serial line's dead_line).
+  explicit FakeTransport(int news_at_close = 0)
+      : fd_(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC)), news_at_close_(news_at_close) {}
   ~FakeTransport() override { ::close(fd_); }
   // Frames, and what the transport found wrong in the stream beside them (a serial line's news).
   void push(const std::vector<::can_frame>& frames, std::vector<std::string> news = {}) {
@@ -43,6 +46,12 @@ class FakeTransport final : public drivers::CanTransport {
   std::vector<Event> take_events() override {
     std::lock_guard lock(m_);
     return std::exchange(events_, {});
+  }
+  void sample_closed() noexcept override {
+    std::lock_guard lock(m_);
+    if (++closes_ == news_at_close_) {
+      events_.push_back({std::chrono::system_clock::now(), "fake0: dead_line: no byte received in 3 sample periods"});
+    }
   }
   int fd() const noexcept override { return fd_; }
   drivers::Result<std::size_t> read(std::vector<::can_frame>& out) override {
@@ -59,6 +68,8 @@ class FakeTransport final : public drivers::CanTransport {
 
  private:
   int fd_;
+  int news_at_close_;
+  int closes_ = 0;
   std::mutex m_;
   std::vector<::can_frame> queue_;
   std::vector<Event> events_;
@@ -77,6 +88,7 @@ struct Bench {
   std::set<int> unit1_gyro_silent; // chamber polls after which unit 1 sends no frame
   std::set<int> step_fails;        // paced world steps (numbered from 1) that fail
   std::map<int, std::vector<std::string>> stream_news;  // chamber polls after which the transport reports these
+  int news_at_close = 0;           // the sample close at which the transport reports a silence
   bool link_down = false;
   double setpoint_c = 0.0;
   std::vector<double> written;     // setpoints written, in order
@@ -184,7 +196,7 @@ bool unread(const TickInput& in) { return in.late && !in.gyro_read && in.gyro_li
 std::vector<Tick> acquire(Bench& bench, bool paced, std::size_t count, Block block = {},
                           AcquisitionStats* stats = nullptr) {
   asio::io_context io;
-  auto transport = std::make_unique<FakeTransport>();
+  auto transport = std::make_unique<FakeTransport>(bench.news_at_close);
   bench.transport = transport.get();
   AcquisitionDevices d;
   d.chamber = std::make_unique<FakeChamber>(bench);
@@ -406,6 +418,22 @@ TEST_CASE("acquisition: the gyro transport's stream problems reach the seconds, 
   CHECK(handed[1] == "fake0: frame at byte 900: bad CRC");
   // The frames themselves are unaffected.
   for (const auto& t : ticks) check_values(t);
+}
+
+TEST_CASE("acquisition: news the transport has at a sample's close reaches that very second, with nothing to read") {
+  Bench bench;
+  bench.news_at_close = 3;  // the third close: tick 2's
+  const auto ticks = acquire(bench, false, 6);
+  REQUIRE(ticks.size() == 6);
+  for (std::size_t i = 0; i < ticks.size(); ++i) {
+    INFO("tick " << i);
+    if (i == 2) {
+      REQUIRE(ticks[i].in.gyro_stream_events.size() == 1);
+      CHECK(ticks[i].in.gyro_stream_events[0] == "fake0: dead_line: no byte received in 3 sample periods");
+    } else {
+      CHECK(ticks[i].in.gyro_stream_events.empty());
+    }
+  }
 }
 
 TEST_CASE("acquisition: both clocks late go through the one loop, one TickInput per second, the real clock's skipped seconds not read") {

@@ -228,6 +228,15 @@ TEST_CASE("a serial gyro bus: frame by file or inline, refused where it does not
   j["gyro_bus"]["frame"] = "no-such-frame.json";
   CHECK(error_of(j).starts_with("gyro_bus.frame: cannot open"));
 
+  j["gyro_bus"]["frame"] = (examples / "kvh-1775-format-a.json").string();
+  j["gyro_bus"]["transport"] = "serial:/dev/ttyUSB0?baud=921600&framing=8O2";
+  REQUIRE(parse_drivers_config(j, map_dir).has_value());
+  j["gyro_bus"]["transport"] = "serial:/dev/ttyUSB0?framing=8X1";
+  CHECK(error_of(j).starts_with("gyro_bus.transport: framing: '8X1': parity 'X' is not N (none), E (even) or O (odd)"));
+  // The KVH's sync word 0xFE81FF55 cannot cross a 7-bit line.
+  j["gyro_bus"]["transport"] = "serial:/dev/ttyUSB0?framing=7E1";
+  CHECK(error_of(j).starts_with("gyro_bus.transport: framing 7E1: 7 data bits cannot carry the frame's sync word"));
+
   json can = example();
   can["gyro_bus"]["frame"] = (examples / "kvh-1775-format-a.json").string();
   CHECK(error_of(can) == "gyro_bus.frame: only a serial: transport has a frame layout");
@@ -244,4 +253,64 @@ TEST_CASE("a serial gyro bus: frame by file or inline, refused where it does not
   r = parse_drivers_config(inc, map_dir);
   REQUIRE_FALSE(r.has_value());
   CHECK(r.error().message.starts_with("units[0].gyro.mode:"));
+}
+
+TEST_CASE("units on serial lines of their own beside the CAN bus: gyro_line parsed and refused by field", "[serial]") {
+  const std::string kvh = FOGBENCH_SOURCE_DIR "/drivers/examples/kvh-1775-format-a.json";
+  json j = example();  // two units on gyro_bus.transport (unix:), the second in increment mode
+  j["units"][0]["gyro_line"] = {{"transport", "serial:/dev/ttyUSB0?baud=921600&framing=8N1"}, {"frame", kvh}};
+  auto cfg = parse_drivers_config(j, map_dir);
+  REQUIRE(cfg.has_value());
+  REQUIRE(cfg->gyro_bus.lines.size() == 1);
+  const auto& line = cfg->gyro_bus.lines[0];
+  CHECK(line.node_id == cfg->units[0].gyro.node_id);
+  CHECK(line.transport == "serial:/dev/ttyUSB0?baud=921600&framing=8N1");
+  CHECK(line.frame.length == 36);
+  CHECK(line.frame_file == kvh);
+  CHECK(line.key == "units[0].gyro_line");
+  CHECK(cfg->gyro_bus.transport.starts_with("unix:"));
+  CHECK_FALSE(cfg->gyro_bus.frame.has_value());
+
+  // Every unit on a line: gyro_bus.transport may be left out.
+  json all = j;
+  all["units"].erase(1);
+  all["gyro_bus"].erase("transport");
+  cfg = parse_drivers_config(all, map_dir);
+  REQUIRE(cfg.has_value());
+  CHECK(cfg->gyro_bus.transport.empty());
+  json none = j;
+  none["gyro_bus"].erase("transport");
+  CHECK(error_of(none) == "gyro_bus.transport: missing (units[1] has no gyro_line: it is read on the bus)");
+
+  json bad = j;
+  bad["units"][0]["gyro_line"]["transport"] = "can:can1";
+  CHECK(error_of(bad).starts_with("units[0].gyro_line.transport: expected serial:DEVICE"));
+  bad = j;
+  bad["units"][0]["gyro_line"]["transport"] = "serial:/dev/ttyUSB0?framing=8Q1";
+  CHECK(error_of(bad).starts_with("units[0].gyro_line.transport: framing: '8Q1': parity 'Q' is not N"));
+  bad = j;
+  bad["units"][0]["gyro_line"]["transport"] = "serial:/dev/ttyUSB0?framing=7E1";
+  CHECK(error_of(bad).starts_with("units[0].gyro_line.transport: framing 7E1: 7 data bits cannot carry"));
+  bad = j;
+  bad["units"][0]["gyro_line"].erase("frame");
+  CHECK(error_of(bad).starts_with("units[0].gyro_line.frame: missing"));
+  bad = j;
+  bad["units"][0]["gyro_line"]["frame"] = "no-such-frame.json";
+  CHECK(error_of(bad).starts_with("units[0].gyro_line.frame: cannot open"));
+  bad = j;
+  bad["units"][0]["gyro_line"]["baud"] = 9600;
+  CHECK(error_of(bad).starts_with("units[0].gyro_line.baud: unknown field"));
+  bad = j;
+  bad["units"][1]["gyro_line"] = j["units"][0]["gyro_line"];  // unit 1 is in increment mode
+  CHECK(error_of(bad).starts_with("units[1].gyro.mode: a serial gyro's frames carry a rate"));
+  bad["units"][1]["gyro"] = j["units"][0]["gyro"];
+  bad["units"][1]["gyro"]["node_id"] = 300;
+  CHECK(error_of(bad) == "units[1].gyro_line.transport: device '/dev/ttyUSB0' is already the line of units[0].gyro_line");
+  bad["units"][1]["gyro_line"]["transport"] = "serial:/dev/ttyUSB1";
+  REQUIRE(parse_drivers_config(bad, map_dir).has_value());  // two serial gyros and no CAN unit left
+  CHECK(parse_drivers_config(bad, map_dir)->gyro_bus.lines.size() == 2);
+  bad = j;
+  bad["units"].erase(1);
+  bad["gyro_bus"] = {{"transport", "serial:/dev/ttyUSB7"}, {"frame", kvh}};
+  CHECK(error_of(bad).starts_with("units[0].gyro_line: gyro_bus.transport is already a serial line"));
 }

@@ -36,6 +36,16 @@ TEST_CASE("serial devices: the RTU and serial endpoints a configuration opens, e
   REQUIRE(d.size() == 2);
   CHECK(d[1].path == "/dev/ttyUSB3");
   CHECK(d[1].key == "drivers.gyro_bus.transport");
+  // Units on serial lines of their own, keyed as parsed (parse_drivers_config's path).
+  c.gyro_bus.transport = "unix:/run/fogbench/can.sock";
+  c.gyro_bus.lines.push_back({257, "serial:/dev/ttyUSB4?baud=921600", {}, "", "drivers.units[0].gyro_line"});
+  c.gyro_bus.lines.push_back({258, "serial:/dev/ttyUSB5", {}, "", "drivers.units[1].gyro_line"});
+  d = serial_devices(c);
+  REQUIRE(d.size() == 3);
+  CHECK(d[1].path == "/dev/ttyUSB4");
+  CHECK(d[1].key == "drivers.units[0].gyro_line.transport");
+  CHECK(d[2].path == "/dev/ttyUSB5");
+  CHECK(d[2].key == "drivers.units[1].gyro_line.transport");
 }
 
 TEST_CASE("serial devices: what the shipped unit's DeviceAllow=char-ttyUSB covers, and the drop-in for the rest", "[drivers][devices]") {

@@ -222,6 +222,71 @@ TEST_CASE("noise without a frame, as at a wrong baud rate, is reported once as n
   CHECK(only(more, Event::Kind::no_frame).size() == 1);
 }
 
+TEST_CASE("no_frame says what the silence held: never a sync word, CRC failures, cut frames", "[serial][decoder]") {
+  const auto f = kvh();
+  SECTION("bytes without the sync word: a wrong baud rate or framing") {
+    Decoder d(f);
+    const std::vector<std::uint8_t> noise(200, 0x5A);
+    const auto silent = only(decode_all(d, noise), Event::Kind::no_frame);
+    REQUIRE(silent.size() == 1);
+    CHECK(silent[0].bytes == 200);  // the run of garbage in one feed
+    CHECK(silent[0].seen.sync_words == 0);
+    CHECK(describe(silent[0]) ==
+          "no_frame at byte 200: no valid frame in 200 bytes received: 0 sync words seen, 0 CRC failures, 0 cut "
+          "frames (bytes but never the sync word: a wrong baud rate or framing, or another frame format)");
+  }
+  SECTION("sync words whose frames fail their CRC: a wrong layout, a near baud rate or noise") {
+    Decoder d(f);
+    std::vector<std::uint8_t> stream;
+    for (std::uint32_t i = 0; i < 5; ++i) {
+      auto frame = encode(f, {.rate_dph = 1, .sequence = i});
+      frame[35] ^= 0x01;
+      stream.insert(stream.end(), frame.begin(), frame.end());
+    }
+    const auto events = decode_all(d, stream);
+    CHECK(only(events, Event::Kind::bad_crc).size() == 5);
+    const auto silent = only(events, Event::Kind::no_frame);
+    REQUIRE(silent.size() == 1);
+    CHECK(silent[0].bytes == 144);  // raised after the 4th frame's 36 bytes
+    CHECK(silent[0].seen.sync_words == 4);
+    CHECK(silent[0].seen.bad_crc == 4);
+    CHECK(silent[0].seen.cut == 0);
+    CHECK(describe(silent[0]).find("4 sync words seen, 4 CRC failures, 0 cut frames (sync words but no frame passing its checks") !=
+          std::string::npos);
+  }
+  SECTION("frames cut short: a frame length longer than the gyro's") {
+    auto longer = f;
+    longer.length = 40;  // the gyro sends 36 bytes, the format says 40 (CRC at 36)
+    longer.crc_offset = 36;
+    Decoder d(longer);
+    std::vector<std::uint8_t> stream;
+    for (std::uint32_t i = 0; i < 6; ++i) {
+      const auto frame = encode(f, {.rate_dph = 1, .sequence = i});
+      stream.insert(stream.end(), frame.begin(), frame.end());
+    }
+    const auto silent = only(decode_all(d, stream), Event::Kind::no_frame);
+    REQUIRE(silent.size() == 1);
+    CHECK(silent[0].bytes == 180);  // 4 lengths of 40 bytes: raised at the 5th 36-byte cut
+    CHECK(silent[0].seen.cut == 5);
+    CHECK(silent[0].seen.bad_crc == 0);
+    CHECK(describe(silent[0]).find("(frames cut short by the next sync word") != std::string::npos);
+  }
+  SECTION("a good frame clears what was seen") {
+    Decoder d(f);
+    std::vector<std::uint8_t> stream;
+    auto bad = encode(f, {.rate_dph = 1, .sequence = 0});
+    bad[35] ^= 0x01;
+    stream.insert(stream.end(), bad.begin(), bad.end());
+    const auto good = encode(f, {.rate_dph = 1, .sequence = 1});
+    stream.insert(stream.end(), good.begin(), good.end());
+    stream.insert(stream.end(), 200, 0x5A);
+    const auto silent = only(decode_all(d, stream), Event::Kind::no_frame);
+    REQUIRE(silent.size() == 1);
+    CHECK(silent[0].seen.sync_words == 0);
+    CHECK(silent[0].seen.bad_crc == 0);
+  }
+}
+
 TEST_CASE("a NaN rate with a good CRC is corrupt, not a number", "[serial][decoder]") {
   const auto f = kvh();
   Decoder d(f);

@@ -91,14 +91,27 @@ struct UnitConfig {
   ThermistorChannelConfig t2;  // coil outer wall
 };
 
+// A unit's gyro on a serial line of its own (a unit's "gyro_line"), beside the bus the others
+// share (docs/drivers.md "Several serial gyros, and serial with CAN").
+struct SerialGyroLine {
+  std::uint16_t node_id = 0;  // the unit it carries: its samples, as on the bus
+  std::string transport;      // "serial:/dev/ttyUSB1?baud=921600&framing=8N1"
+  serial::FrameFormat frame;
+  std::string frame_file = {};  // where the frame came from ("" when inline)
+  std::string key = {};         // "units[1].gyro_line", for messages
+};
+
 struct GyroBusConfig {
   // "can:can0", "unix:/run/fogbench/can.sock", "replay:file.log[?speed=N]",
-  // "serial:/dev/ttyUSB0?baud=921600"
+  // "serial:/dev/ttyUSB0?baud=921600"; empty when every unit has a line of its own
   std::string transport;
   // serial only (required there, refused elsewhere): the gyro's binary frame layout, inline or
   // from a file named relative to the configuration's directory (docs/drivers.md "Serial gyros").
   std::optional<serial::FrameFormat> frame = std::nullopt;
   std::string frame_file = {};  // where the frame came from ("" when inline)
+  // The units read on serial lines of their own (units[i].gyro_line), in the units' order; the
+  // other units are read on `transport`.
+  std::vector<SerialGyroLine> lines = {};
 };
 
 struct DriversConfig {

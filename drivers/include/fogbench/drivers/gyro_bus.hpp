@@ -29,7 +29,9 @@ class GyroBus {
   // 1..2047 (parse_drivers_config guarantees it; asserted here).
   GyroBus(std::unique_ptr<CanTransport> transport, std::vector<GyroChannelConfig> units);
 
-  // Opens the configured transport for these units.
+  // Opens the configured transport for these units; with `config.lines`, each unit that has a
+  // serial line of its own is read there and the others on `config.transport`, all through one
+  // combined transport (combine_transports).
   static Result<GyroBus> open(const GyroBusConfig& config, std::vector<GyroChannelConfig> units,
                               MonotonicClock clock = {});
 

@@ -16,7 +16,8 @@ struct SerialDevice {
   std::string key;   // the configuration key that names it, e.g. drivers.chamber.line.device
 };
 
-// In the order chamber, thermistor module, serial gyro (gyro_bus.transport serial:DEVICE); a device named twice is listed once (its first key).
+// In the order chamber, thermistor module, serial gyro (gyro_bus.transport serial:DEVICE), the
+// units' own lines (units[i].gyro_line.transport); a device named twice is listed once (its first key).
 std::vector<SerialDevice> serial_devices(const DriversConfig& c, const std::string& path = "drivers");
 
 // Whether the shipped unit's `DeviceAllow=char-ttyUSB rw` covers a device path: /dev/ttyUSB<N>

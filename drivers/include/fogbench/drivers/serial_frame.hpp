@@ -90,10 +90,20 @@ struct Event {
   std::uint64_t offset = 0;
   std::size_t bytes = 0;
   Frame frame;
+  // no_frame only: what the `bytes` since the last good frame held, so a wrong baud rate
+  // (bytes, never a sync word) is told from a wrong layout or a noisy line (sync words whose
+  // frames fail their CRC) and from frames cut short.
+  struct Seen {
+    std::size_t sync_words = 0;  // frame starts examined: each one a bad_crc, cut or bad_value
+    std::size_t bad_crc = 0;
+    std::size_t cut = 0;
+    std::size_t bad_value = 0;
+  } seen;
 };
 
 std::string_view to_string(Event::Kind kind) noexcept;
-// "bad_crc at byte 1234 (36 bytes)", for logs.
+// "bad_crc at byte 1234: CRC of a 36-byte frame does not match", for logs; a no_frame event
+// names what was seen and what it suggests.
 std::string describe(const Event& event);
 
 // Running totals since the decoder was made.
@@ -128,6 +138,7 @@ class Decoder {
   std::uint64_t garbage_from_ = 0;    // stream offset where the pending garbage run began
   std::size_t garbage_run_ = 0;
   std::size_t since_good_ = 0;        // bytes since the last good frame
+  Event::Seen seen_;                  // what those bytes held
   bool silence_reported_ = false;
   DecoderCounts counts_;
 };
