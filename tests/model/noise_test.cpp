@@ -52,13 +52,19 @@ std::vector<double> noise(std::size_t n, double sigma, double b_dph, double k, s
   return y;
 }
 
-NoiseFloor read_floor(const std::vector<double>& y, double sigma) {
-  const RunData r = rest_run(y);
+// The residual of a model that is the series' mean alone, deg/h.
+std::vector<double> demeaned(const std::vector<double>& y) {
   double m = 0.0;
   for (double v : y) m += v;
   m /= static_cast<double>(y.size());
-  std::vector<double> res(y.size()), w(y.size(), 1.0);
+  std::vector<double> res(y.size());
   for (std::size_t i = 0; i < y.size(); ++i) res[i] = y[i] - m;
+  return res;
+}
+
+NoiseFloor read_floor(const std::vector<double>& y, double sigma) {
+  const RunData r = rest_run(y);
+  const std::vector<double> res = demeaned(y), w(y.size(), 1.0);
   const std::vector<double> ar;  // white: AR(0)
   return estimate_noise_floor(r, res, w, ar, sigma);
 }
@@ -149,11 +155,7 @@ TEST_CASE("noise floor: flicker and rate random walk are read off the holds with
 TEST_CASE("noise rule: slow noise widens the limits it may stray over, and the options name what is wrong", "[noise]") {
   const std::vector<double> y = noise(10800, 0.06, 0.0, 0.1, 5);
   RunData r = rest_run(y);
-  double m = 0.0;
-  for (double v : y) m += v;
-  m /= static_cast<double>(y.size());
-  std::vector<double> res(y.size()), w(y.size(), 1.0);
-  for (std::size_t i = 0; i < y.size(); ++i) res[i] = y[i] - m;
+  const std::vector<double> res = demeaned(y), w(y.size(), 1.0);
   const std::vector<double> ar;
   const Yardstick ys = yardstick(r, res, w, ar, 0.06, y.size());
   REQUIRE(ys.floor.slow());
@@ -207,11 +209,7 @@ TEST_CASE("noise floor: a walk the short holds cannot exclude is bounded and all
   // as the floor was read, the same as the seen ones.
   const std::vector<double> y = noise(1800, 0.055, 0.05, 0.0, 33);
   RunData r = rest_run(y);
-  double m = 0.0;
-  for (double v : y) m += v;
-  m /= static_cast<double>(y.size());
-  std::vector<double> res(y.size()), w(y.size(), 1.0);
-  for (std::size_t i = 0; i < y.size(); ++i) res[i] = y[i] - m;
+  const std::vector<double> res = demeaned(y), w(y.size(), 1.0);
   const std::vector<double> ar;
   const std::size_t run_s = 9300;  // judged over a run of 2.6 h (exp3's length)
   NoiseRule rule;
