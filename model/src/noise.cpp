@@ -462,14 +462,13 @@ NoiseFloor estimate_noise_floor(std::span<const FloorRun> runs, std::span<const 
   // The rate random walk the holds cannot exclude. A walk shows at long cluster times, and the
   // holds' stretches end at tau of a few minutes, where a walk that adds a run's worth of error
   // over hours (K sqrt(T / 6)) is still under the flicker or white level: undetected is not
-  // absent. The bound is the largest walk whose profile chi-square (the other laws refitted at
-  // each value) rises by at most walk_bound_chi2 above the best (in deviance: below); the rule (yardstick) allows
-  // for it in its limits, the floor's own laws stay as read.
+  // absent. The bound is the largest walk whose profile deviance (below; the other laws
+  // refitted at each value) rises by at most walk_bound_chi2 above its least; the rule
+  // (yardstick) allows for it in its limits, the floor's own laws stay as read.
   // Read when flicker is seen and no walk (the case the holds leave ambiguous); with white noise
   // alone the AR rule stands (the bound is small there: 0.075 deg/h/sqrt(h) on exp1-3 at the
   // default noise, docs/workbench.md).
   if (best.cw <= 0.0 && best.cf > 0.0 && o.walk_bound_chi2 > 0.0) {
-    const bool uf = best.cf > 0.0;
     // The deviance of the curve's estimates under a law, each a chi-square of edf degrees of
     // freedom about the law's value m (half its edf: half-octave points overlap):
     // sum edf/2 (y/m - 1 - ln(y/m)). The weighted misfit the laws are fitted by saturates as m
@@ -485,29 +484,29 @@ NoiseFloor estimate_noise_floor(std::span<const FloorRun> runs, std::span<const 
       }
       return d;
     };
-    auto chi2_at = [&](double cw) {
+    // At a walk of cw, (deg/h)^2/s: the flicker refitted, or dropped where the walk takes its place.
+    auto deviance_at = [&](double cw) {
       double c = std::numeric_limits<double>::infinity();
-      for (bool f : {uf, false}) {
-        const Sol s = solve(f, false, cw);
-        if (s.ok) c = std::min(c, deviance(s));
-        if (!uf) break;
-      }
+      for (bool f : {true, false})
+        if (const Sol s = solve(f, false, cw); s.ok) c = std::min(c, deviance(s));
       return c;
     };
-    double lo = 0.0, chi2_min = deviance(best);
-    if (const Sol free = solve(uf, true); free.ok && deviance(free) < chi2_min) {
-      lo = free.cw;
-      chi2_min = deviance(free);
+    double lo = 0.0, least = deviance(best);
+    if (const Sol free = solve(true, true); free.ok) {
+      if (const double d = deviance(free); d < least) {
+        lo = free.cw;
+        least = d;
+      }
     }
-    const double limit = chi2_min + o.walk_bound_chi2;
+    const double limit = least + o.walk_bound_chi2;
     // A start from the longest cluster's variance read as walk alone, doubled until excluded.
     double hi = std::max(lo * 2.0, avar[pts.back()] / static_cast<double>(sizes[pts.back()]));
     int grow = 0;
-    while (chi2_at(hi) <= limit && grow++ < 60) hi *= 2.0;
+    while (deviance_at(hi) <= limit && grow++ < 60) hi *= 2.0;
     if (grow <= 60) {
       for (int it = 0; it < 50 && hi - lo > 1e-6 * hi; ++it) {
         const double mid = 0.5 * (lo + hi);
-        (chi2_at(mid) <= limit ? lo : hi) = mid;
+        (deviance_at(mid) <= limit ? lo : hi) = mid;
       }
       fl.walk_bound_h = lo * 3.0 / (2.0 * kPi * kPi);
       fl.rrw_bound_dph_per_sqrt_h = 60.0 * std::sqrt(3.0 * lo);

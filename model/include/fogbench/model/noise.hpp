@@ -38,8 +38,9 @@ struct NoiseFloorOptions {
   // yet reach the floor on the distributed coil's seed 71 and it read a creep (chi-square 23
   // against 18.5) into a false alarm of tests/sim/workbench_noise_test.cpp (2026-11-28).
   bool remove_creep = false;
-  // The rate random walk the holds cannot exclude, when none is seen: the largest walk whose
-  // profile chi-square rises by at most this above the best (0: not bounded). The rule allows
+  // The rate random walk the holds cannot exclude, when flicker and no walk is seen: the largest
+  // walk whose profile deviance of the Allan curve rises by at most this above its least (0: not
+  // bounded; 4 is about a 2 sigma one-sided bound). The rule allows
   // for it in its limits (yardstick). docs/workbench.md "Real FOG noise: where the floor is blind".
   double walk_bound_chi2 = 4.0;
 };
