@@ -6,25 +6,12 @@
 #include <variant>
 
 #include "fogbench/profiles/profile.hpp"
+#include "parse_helpers.hpp"
 
 using namespace fogbench::profiles;
 
-namespace {
-
-Profile parse_ok(std::string_view text) {
-  auto p = parse_profile(text, "t.profile");
-  INFO((p ? std::string() : p.error().to_string()));
-  REQUIRE(p.has_value());
-  return *p;
-}
-
-ProfileError parse_err(std::string_view text) {
-  auto p = parse_profile(text, "t.profile");
-  REQUIRE_FALSE(p.has_value());
-  return p.error();
-}
-
-}  // namespace
+using fogbench::profiles::test::parse_err;
+using fogbench::profiles::test::parse_ok;
 
 TEST_CASE("setpoint takes a temperature in C or degC, with decimals and a minus") {
   const auto p = parse_ok("setpoint 20 C\nsetpoint -12.5 degC\nsetpoint 7C\n");

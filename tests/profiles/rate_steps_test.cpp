@@ -5,25 +5,12 @@
 #include <string>
 
 #include "fogbench/profiles/profile.hpp"
+#include "parse_helpers.hpp"
 
 using namespace fogbench::profiles;
 
-namespace {
-
-Profile parse_ok(std::string_view text) {
-  auto p = parse_profile(text, "t.profile");
-  INFO((p ? std::string() : p.error().to_string()));
-  REQUIRE(p.has_value());
-  return *p;
-}
-
-ProfileError parse_err(std::string_view text) {
-  auto p = parse_profile(text, "t.profile");
-  REQUIRE_FALSE(p.has_value());
-  return p.error();
-}
-
-}  // namespace
+using fogbench::profiles::test::parse_err;
+using fogbench::profiles::test::parse_ok;
 
 TEST_CASE("rate steps: a sequence of +-rates at each hold, in order, with their plateau") {
   const auto p = parse_ok(
