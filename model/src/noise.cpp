@@ -551,6 +551,11 @@ std::string allowance_note(const NoiseFloor& f) {
   return ", allowing for a rate random walk up to " + fmt(f.rrw_bound_dph_per_sqrt_h, 3) + " deg/h/sqrt(h) that the holds cannot exclude";
 }
 
+std::string noise_factor_reason(double comp_std_dph, double noise_std_dph, double factor, double limit_factor, const NoiseFloor& f) {
+  return "compensated std " + fmt(comp_std_dph, 3) + " deg/h is " + fmt(factor, 2) + " x the gyro's noise std " + fmt(noise_std_dph, 3) +
+         " deg/h (at most " + fmt(limit_factor, 2) + " x" + allowance_note(f) + ")";
+}
+
 std::expected<void, std::string> NoiseRule::validate() const {
   if (!(max_noise_factor >= 1.0 && max_noise_factor <= 100.0))
     return std::unexpected("the noise factor must be 1 to 100, got " + fmt(max_noise_factor, 3));

@@ -197,8 +197,7 @@ std::expected<Verification, FitError> verify(const Model& m, const RunData& run,
   if (o.noise_test) {
     if (!(v.noise_factor <= v.noise_limit_factor)) {
       second_ok = false;
-      v.reasons.push_back("compensated std " + num(v.run.comp_std, 3) + " deg/h is " + num(v.noise_factor, 2) + " x the gyro's noise std " +
-                          num(v.noise_std, 3) + " deg/h (at most " + num(v.noise_limit_factor, 2) + " x" + allowance_note(v.floor) + ")");
+      v.reasons.push_back(noise_factor_reason(v.run.comp_std, v.noise_std, v.noise_factor, v.noise_limit_factor, v.floor));
     }
     if (v.longest_fail_s >= o.noise.max_fail_s) {
       second_ok = false;

@@ -245,8 +245,7 @@ RunCheck check_run(const Model& m, const RunData& run, bool held_out, const Diag
                         fmt(c.ljung_box_q, 1) + ", p " + (c.ljung_box_p < 1e-4 ? std::string("< 0.0001") : fmt(c.ljung_box_p, 4)) +
                         " < " + fmt(o.adequacy_alpha, 3) + ", RMS of the ACF " + fmt(c.acf_rms, 3) + " >= " + fmt(c.acf_allowed, 2) + ")");
   if (!(c.noise_factor <= c.noise_limit_factor))
-    c.reasons.push_back("compensated std " + fmt(c.comp_std_dph, 3) + " deg/h is " + fmt(c.noise_factor, 2) + " x the gyro's noise std " +
-                        fmt(c.noise_std_dph, 3) + " deg/h (at most " + fmt(c.noise_limit_factor, 2) + " x" + allowance_note(ver.floor) + ")");
+    c.reasons.push_back(noise_factor_reason(c.comp_std_dph, c.noise_std_dph, c.noise_factor, c.noise_limit_factor, ver.floor));
   if (!c.failures.empty()) {
     std::string where;
     for (std::size_t i = 0; i < c.failures.size() && i < 4; ++i)

@@ -118,6 +118,11 @@ double floor_avar(const NoiseFloor& f, double tau_s);
 // for a rate random walk up to K deg/h/sqrt(h) that the holds cannot exclude", or "".
 std::string allowance_note(const NoiseFloor& f);
 
+// The noise factor's reason, one sentence for every place that judges it (verify, diagnose's
+// checks): "compensated std C deg/h is F x the gyro's noise std N deg/h (at most L x[, allowing
+// for ...])"; C and N in deg/h, F and L ratios.
+std::string noise_factor_reason(double comp_std_dph, double noise_std_dph, double factor, double limit_factor, const NoiseFloor& f);
+
 // The one rule that asks whether what a model leaves on a run is the gyro's own noise, shared
 // by verify's second test, compare's failing intervals and diagnose's adequacy checks.
 struct NoiseRule {
