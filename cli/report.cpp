@@ -6,6 +6,7 @@
 #include <map>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <ostream>
 #include <sstream>
 
@@ -14,6 +15,8 @@
 #include "report_plots.hpp"
 #include "report_allan.hpp"
 #include "report_runs.hpp"
+#include "report_scale_factor.hpp"
+#include "scale_factor.hpp"
 #include "run_identity.hpp"
 #include "table.hpp"
 #include "workbench.hpp"
@@ -47,24 +50,6 @@ std::string script_json(const json& j) {
 const char* const kColours[] = {"#3d6fb6", "#d9822b", "#2e7d32", "#8e44ad", "#b3261e", "#16a085"};
 
 
-struct HtmlTable {
-  std::string s = "<table>";
-  explicit HtmlTable(const std::vector<std::string>& head) {
-    s += "<tr>";
-    for (const auto& h : head) s += "<th>" + html_escape(h) + "</th>";
-    s += "</tr>";
-  }
-  void row(const std::vector<std::string>& cells, const std::string& cls = "") {
-    s += cls.empty() ? "<tr>" : "<tr class=\"" + cls + "\">";
-    // Words align left, numbers right (so that digits line up).
-    for (const auto& c : cells) {
-      const bool num = !c.empty() && c.find_first_not_of("0123456789+-.e%<> →") == std::string::npos;
-      s += num ? "<td>" + html_escape(c) + "</td>" : "<td class=\"w\">" + html_escape(c) + "</td>";
-    }
-    s += "</tr>";
-  }
-  std::string str() const { return s + "</table>"; }
-};
 
 // The candidate's fitted contribution to the drift on a run: coef * term(t - lag), demeaned.
 std::vector<double> contribution(const wb::Candidate& c, const model::RunData& run, double tref_c) {
@@ -166,6 +151,16 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
     }
     runs.push_back(std::move(*r));
   }
+  // The scale factor's rate sequence is read before the long analysis, so a bad file fails at once.
+  std::optional<model::sf::Result> sfr;
+  if (!o.scale_factor.empty()) {
+    auto f = fit_rate_file(o.scale_factor, model::sf::Options{});
+    if (!f) {
+      err << "fogctl report: --scale-factor " << f.error() << "\n";
+      return kExitError;
+    }
+    sfr = std::move(*f);
+  }
   const std::span<const model::RunData> held = std::span<const model::RunData>(runs).subspan(1);
   wb::DiagnoseOptions dopt;
   dopt.threads = 0;  // the candidates on both cores: the same answer, sooner
@@ -258,6 +253,8 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
             "(at least 30 s each), weighted by the fewer samples. Peak excursion: largest |61 s average of the output - mu0| "
             "during ramps. Sensitivities: the model's coefficients with their standard errors from the prewhitened regression.</p>";
   }
+
+  if (sfr) body += report::scale_factor_section(*sfr, o.scale_factor, "t1_c", specs, o.max_points);
 
   // Diagnosis.
   body += "<h2>Diagnosis</h2><div class=\"summary\">" + html_escape(d->summary) + "</div>";
@@ -567,7 +564,8 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
     return kExitError;
   }
   out << "report written to " << o.output << " (" << html.size() / 1024 << " KiB; " << (d->adequate ? "model adequate" : d->reasons.empty() ? std::string("model not adequate") : d->reasons.front())
-      << "; qualification " << (q.pass ? "PASS" : q.marginal ? "MARGINAL" : "FAIL") << ")\n";
+      << "; qualification " << (q.pass ? "PASS" : q.marginal ? "MARGINAL" : "FAIL")
+      << (sfr ? "; scale factor temperature sensitivity " + coefficient_text(sfr->tc_ppm_per_c, 3, "ppm/degC") : std::string()) << ")\n";
   // The report is written either way; its exit code is the qualification's, as verify's is.
   return q.pass ? kExitOk : q.marginal ? kExitMarginal : kExitFailed;
 }

@@ -42,14 +42,14 @@ nlohmann::json coefficient_json(const model::sf::Coefficient& c) {
   return {{"value", nullptr}, {"not_identified", c.not_identified}};
 }
 
+}  // namespace
+
 std::string coefficient_text(const model::sf::Coefficient& c, int digits, const std::string& unit) {
   if (!c.value) return "not identified: " + c.not_identified;
   // Two significant digits of the standard error at least: never "+- 0.000".
   if (c.se > 0.0) digits = std::clamp(1 - static_cast<int>(std::floor(std::log10(c.se))), digits, 9);
   return fixed(*c.value, digits) + " +- " + fixed(c.se, digits) + " " + unit + " (1 sigma)";
 }
-
-}  // namespace
 
 std::string rate_sequence_csv(const SimulatedRun& run, const sim::ScaleFactorTruth& truth, const sim::RateSequence& seq) {
   const model::RunData& r = run.units.front();
@@ -144,31 +144,27 @@ std::expected<model::sf::RateRecord, std::string> parse_rate_csv(std::string_vie
   return rec;
 }
 
-int run_scale_factor(const ScaleFactorOptions& o, std::ostream& out, std::ostream& err) {
-  const std::string me = "fogctl scale-factor: ";
-  std::ifstream in(o.run, std::ios::binary);
-  if (!in) {
-    err << me << o.run << ": cannot be read\n";
-    return kExitError;
-  }
+std::expected<model::sf::Result, std::string> fit_rate_file(const std::string& path, const model::sf::Options& fo, const std::string& coil_column) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return std::unexpected(path + ": cannot be read");
   std::stringstream buf;
   buf << in.rdbuf();
-  const std::string text = buf.str();
-  auto rec = parse_rate_csv(text, o.run, o.coil_column);
-  if (!rec) {
-    err << me << rec.error() << "\n";
-    return kExitError;
-  }
+  auto rec = parse_rate_csv(buf.str(), path, coil_column);
+  if (!rec) return std::unexpected(rec.error());
+  if (auto bad = fo.validate(); !bad.empty()) return std::unexpected(bad);
+  auto r = model::sf::fit(*rec, fo);
+  if (!r) return std::unexpected(path + ": " + r.error());
+  return r;
+}
+
+int run_scale_factor(const ScaleFactorOptions& o, std::ostream& out, std::ostream& err) {
+  const std::string me = "fogctl scale-factor: ";
   model::sf::Options fo;
   fo.settle_s = o.settle_s;
   fo.t0_c = o.t0_c;
-  if (auto bad = fo.validate(); !bad.empty()) {
-    err << me << bad << "\n";
-    return kExitError;
-  }
-  auto r = model::sf::fit(*rec, fo);
+  auto r = fit_rate_file(o.run, fo, o.coil_column);
   if (!r) {
-    err << me << o.run << ": " << r.error() << "\n";
+    err << me << r.error() << "\n";
     return kExitError;
   }
   if (o.json) {

@@ -31,6 +31,14 @@ std::string rate_sequence_csv(const SimulatedRun& run, const sim::ScaleFactorTru
 std::expected<model::sf::RateRecord, std::string> parse_rate_csv(std::string_view text, const std::string& source,
                                                                  const std::string& coil_column = "t1_c");
 
+// Reads a rate-sequence CSV and fits it (options validated first); the error names the file,
+// and the line and column or the plateau and step.
+std::expected<model::sf::Result, std::string> fit_rate_file(const std::string& path, const model::sf::Options& fo,
+                                                            const std::string& coil_column = "t1_c");
+
+// "v +- se unit (1 sigma)" with at least two significant digits of se, or "not identified: why".
+std::string coefficient_text(const model::sf::Coefficient& c, int digits, const std::string& unit);
+
 struct ScaleFactorOptions {
   std::string run;                 // RUN.csv
   double settle_s = 5.0;           // dropped at the start of each rate step, s

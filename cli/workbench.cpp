@@ -471,6 +471,8 @@ void add_workbench_commands(CLI::App& app, int& code) {
   r->add_option("-o,--output", rep.output, "The HTML file to write")->required();
   r->add_option("--threshold", rep.threshold, "Pass when compensated std / raw std is under this (default 0.2)");
   r->add_option("--max-points", rep.max_points, "Plotted samples per series at most (default 3000)");
+  r->add_option("--scale-factor", rep.scale_factor,
+                "A rate-sequence CSV of the unit (fogctl scale-factor's input): adds its scale factor over temperature, with plots");
   add_run_input(r, rep.input);
   r->callback([&] { code = run_report(rep, std::cout, std::cerr); });
 }

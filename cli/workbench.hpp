@@ -67,6 +67,9 @@ struct ReportOptions {
   std::string output;             // report.html
   double threshold = 0.2;         // pass when compensated std / raw std is under this
   std::size_t max_points = 3000;  // plotted samples per series at most
+  // A rate-sequence CSV (fogctl scale-factor's input): its scale factor over temperature as a
+  // section of the page (report_scale_factor.hpp); "" for none.
+  std::string scale_factor;
   RunInput input;
 };
 int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err);

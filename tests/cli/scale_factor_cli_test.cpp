@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
@@ -14,6 +15,7 @@
 #include "scale_factor.hpp"
 #include "table.hpp"
 #include "temp_dir.hpp"
+#include "workbench.hpp"
 
 using namespace fogbench::cli;
 using Catch::Matchers::Contains;
@@ -191,5 +193,84 @@ TEST_CASE("fogctl scale-factor and simulate --rate-sequence: bad input named by 
   }
   SECTION("a missing file") {
     CHECK_THAT(scale_factor(d.file("none.csv"), false).err, Contains("none.csv: cannot be read"));
+  }
+}
+
+// fogctl report --scale-factor: the page carries the rate sequence's figures as fogctl
+// scale-factor computes them (the same fit, the same numbers), its plateaus' table, and two
+// plots (the scale factor against the coil temperature with the model form, and the steps'
+// residuals against the input rate); a bad file fails before any analysis, writing nothing.
+TEST_CASE("fogctl report --scale-factor: the scale factor section, its figures and plots", "[scale_factor][report]") {
+  Dir d("sf");
+  fogbench::sim::ScaleFactorTruth truth;
+  truth.tc_ppm_per_c = 15.0;
+  REQUIRE(simulate(d, truth).code == kExitOk);
+  const std::string e1 = d.file("e1.csv"), m = d.file("m.json");
+  {
+    SimulateOptions s;
+    s.profile = "exp1";
+    s.output = e1;
+    s.seed = 5;
+    s.coil = "lumped";
+    s.quiet = true;
+    std::ostringstream o, e;
+    REQUIRE(run_simulate(s, o, e) == kExitOk);
+    FitCommandOptions f;
+    f.run = e1;
+    f.output = m;
+    REQUIRE(run_fit(f, o, e) == kExitOk);
+  }
+  auto sfj = scale_factor(d.file("run.csv"), true);
+  REQUIRE(sfj.code == kExitOk);
+  const auto j = nlohmann::json::parse(sfj.out);
+
+  ReportOptions r;
+  r.model = m;
+  r.runs = {e1};
+  r.output = d.file("report.html");
+  r.scale_factor = d.file("run.csv");
+  std::ostringstream out, err;
+  const int code = run_report(r, out, err);
+  INFO(err.str());
+  REQUIRE((code == kExitOk || code == kExitMarginal || code == kExitFailed));
+  std::ifstream in(r.output);
+  std::stringstream buf;
+  buf << in.rdbuf();
+  const std::string html = buf.str();
+  REQUIRE(html.find("Scale factor over temperature (IEEE Std 952)") != std::string::npos);
+  // The same temperature sensitivity as fogctl scale-factor's, in the page and in the summary line.
+  const std::string tc = coefficient_text(
+      fogbench::model::sf::Coefficient{j["tc_ppm_per_c"]["value"].get<double>(), j["tc_ppm_per_c"]["se"].get<double>(), ""}, 3, "ppm/degC");
+  CHECK(html.find(tc) != std::string::npos);
+  CHECK_THAT(out.str(), Contains("scale factor temperature sensitivity " + tc));
+  // A table row per plateau, and the two plots: one point per plateau, one series per plateau.
+  const std::size_t n_plateaus = j["plateaus"].size();
+  for (const auto& p : j["plateaus"]) CHECK(html.find("<td>" + fixed(p["coil_c"].get<double>(), 2) + "</td>") != std::string::npos);
+  const auto a = html.find("const DATA=");
+  REQUIRE(a != std::string::npos);
+  const auto end = html.find(";</script>", a);
+  const auto data = nlohmann::json::parse(html.substr(a + 11, end - a - 11));
+  const nlohmann::json* temp = nullptr;
+  const nlohmann::json* nl = nullptr;
+  for (const auto& p : data["plots"]) {
+    if (p["id"] == "sf_temp") temp = &p;
+    if (p["id"] == "sf_nl") nl = &p;
+  }
+  REQUIRE(temp);
+  REQUIRE(nl);
+  CHECK((*temp)["kind"] == "xy");
+  CHECK((*nl)["series"].size() == n_plateaus);
+  INFO(temp->dump().substr(0, 600));
+  CHECK((*temp)["series"].size() == 2);
+
+  SECTION("a bad rate-sequence file: exit 2 before the analysis, its line and column named, no page written") {
+    std::ofstream(d.file("bad.csv")) << "time_s,plateau,t1_c,rate_in_dps,rate_out_dps\n0,1,20,10,x\n";
+    ReportOptions b = r;
+    b.scale_factor = d.file("bad.csv");
+    b.output = d.file("bad.html");
+    std::ostringstream o2, e2;
+    CHECK(run_report(b, o2, e2) == kExitError);
+    CHECK_THAT(e2.str(), Contains("--scale-factor") && Contains("bad.csv:2: column 5 'rate_out_dps': not a number: 'x'"));
+    CHECK_FALSE(std::ifstream(b.output).good());
   }
 }
