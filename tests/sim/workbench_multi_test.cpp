@@ -158,7 +158,8 @@ TEST_CASE("workbench on the distributed coil with effects beside its own: every 
 }
 
 // A tool, hidden: MULTI_CASES="effect|D:effect" (D: the distributed coil) and MULTI_SEEDS="7 21" print
-// where the search stops on each and why (steps, final ratios, the next round's candidates).
+// where the search stops on each and why (steps, final ratios, the next round's candidates, the
+// noise floor each model reads); MULTI_CREEP=1 reads the floor with the thermistors' creep out.
 TEST_CASE("workbench multi explore", "[.explore]") {
   const char* env = std::getenv("MULTI_CASES");
   std::vector<std::string> cases;
@@ -187,6 +188,7 @@ TEST_CASE("workbench multi explore", "[.explore]") {
       REQUIRE(m);
       wb::DiagnoseOptions o;
       o.threads = 2;
+      if (const char* c = std::getenv("MULTI_CREEP"); c && *c == '1') o.failing.noise.floor.remove_creep = true;  // the floor with the thermistors' creep taken out
       auto t0 = std::chrono::steady_clock::now();
       auto d = wb::diagnose(*m, r[0], std::span<const model::RunData>(r).subspan(1), o);
       const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -210,6 +212,23 @@ TEST_CASE("workbench multi explore", "[.explore]") {
         out << "   cand " << c.term << " det " << c.detected << " fall " << c.fall << " held " << c.held_out_fall << " dbic " << c.delta_bic << " p " << c.p_value << " | " << c.verdict << "\n";
       }
       out << "  summary: " << d->summary.substr(0, 400) << "\n";
+      // The unit's noise floor as each model reads it (a wrong term's misfit in the holds reads
+      // as slow noise), and on the lumped coil's clean runs under the paper's model (the truth).
+      {
+        auto pf = [&](const char* tag, const model::Model& mm, const std::vector<model::RunData>& on) {
+          auto f = model::unit_noise_floor(mm, on, o.failing.noise.floor);
+          if (!f) {
+            out << "  floor " << tag << ": error\n";
+            return;
+          }
+          const auto fv = model::floor_variance(*f, r[0].size(), 1);
+          out << "  floor " << tag << " [" << mm.terms_string() << "]: white " << f->white_var_dph2 << " flick B " << f->bias_instability_dph << " rrw " << f->rrw_dph_per_sqrt_h << " bound " << f->rrw_bound_dph_per_sqrt_h << " total " << fv.total << " slow " << fv.slow << " sigma_a " << mm.sigma_a_dph << " creep chi2 " << f->creep_chi2 << (f->creep_removed ? " removed" : "") << "\n";
+        };
+        pf("base", *m, r);
+        if (!d->steps.empty())
+          if (auto a = wb::add_term(*m, r[0], d->steps[0].added)) pf("step1", a->model, r);
+        pf("clean-truth", *truth, clean);
+      }
       // The loop's next round: the final model, diagnosed again.
       model::Model fm = *m;
       for (const auto& st : d->steps) {
