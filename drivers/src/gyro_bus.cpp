@@ -11,8 +11,9 @@ GyroBus::GyroBus(std::unique_ptr<CanTransport> transport, std::vector<GyroChanne
   assert(transport_);
   accumulator_of_id_.fill(-1);
   first_of_unit_.reserve(units_.size());
-  for (const auto& u : units_) {
+  for (auto& u : units_) {
     assert(u.axes == 1 || u.axes == 3);
+    if (u.axes != 3) u.axes = 1;  // a release build without the check: never an unread axis or none
     first_of_unit_.push_back(accumulators_.size());
     for (std::uint8_t k = 0; k < u.axes; ++k) {
       const std::uint16_t id = u.axis_id(k);
