@@ -123,6 +123,7 @@ TEST_CASE("a three-axis unit: each axis routed by node_id + axis to its own samp
   CHECK(s.units[0].axis == 0);
   CHECK(s.units[0].frames == 2);
   CHECK(s.units[0].frames_lost == 0);
+  CHECK(s.units[0].frames_repeated == 0);  // x's 7, 8 after y's and z's 7: no repeat, no gap
   REQUIRE(s.units[0].rate_dph.has_value());
   CHECK(*s.units[0].rate_dph == Approx(2.0));
   REQUIRE(s.extra_axes[0].size() == 2);
@@ -131,6 +132,7 @@ TEST_CASE("a three-axis unit: each axis routed by node_id + axis to its own samp
   CHECK(y.node_id == 0x101);
   CHECK(y.axis == 1);
   CHECK(y.frames == 1);
+  CHECK(y.frames_repeated == 0);
   REQUIRE(y.rate_dph.has_value());
   CHECK(*y.rate_dph == Approx(-0.5));
   CHECK(z.axis == 2);
