@@ -244,13 +244,22 @@ Result<GyroChannelConfig> parse_gyro_channel(const json& value, const std::strin
   if (auto ok = detail::expect_object(value, path); !ok) return std::unexpected(ok.error());
   if (auto ok = detail::expect_known_keys(
           value, path,
-          {"node_id", "mode", "scale_dph_per_count", "scale_deg_per_count", "frame_rate_hz", "startup_flag"});
+          {"node_id", "axes", "mode", "scale_dph_per_count", "scale_deg_per_count", "frame_rate_hz", "startup_flag"});
       !ok) {
     return std::unexpected(ok.error());
   }
   GyroChannelConfig g;
   FOGBENCH_TRY(node, detail::get_int(value, path, "node_id", 1, 2047));
   g.node_id = static_cast<std::uint16_t>(*node);
+  // A three-axis unit's axis k sends on node_id + k (docs/drivers.md "Three-axis units").
+  FOGBENCH_TRY(axes, detail::get_int_or(value, path, "axes", 1, 3, 1));
+  if (*axes == 2) return config_error(join_path(path, "axes"), "expected 1 or 3 (a gyro unit has one axis or three)");
+  g.axes = static_cast<std::uint8_t>(*axes);
+  if (g.node_id + g.axes - 1 > 2047) {
+    return config_error(join_path(path, "node_id"), std::to_string(g.node_id) + " with " + std::to_string(g.axes) +
+                                                        " axes needs ids up to " + std::to_string(g.node_id + g.axes - 1) +
+                                                        " (axis k sends on node_id + k; standard ids end at 2047)");
+  }
   if (value.contains("startup_flag")) {
     if (!value["startup_flag"].is_boolean()) return config_error(join_path(path, "startup_flag"), "expected true or false");
     g.startup_flag = value["startup_flag"].get<bool>();
@@ -447,7 +456,7 @@ Result<DriversConfig> parse_drivers_config(const json& value, const std::filesys
   const json& units = value["units"];
   if (!units.is_array() || units.empty()) return config_error(up, "expected a non-empty array");
   std::map<std::string, std::size_t> serials, slots;
-  std::map<int, std::size_t> node_ids;
+  std::map<int, std::pair<std::size_t, std::uint8_t>> node_ids;  // CAN id -> unit index, axis
   struct Placed {
     std::string path;
     RegisterSpec reg;
@@ -465,10 +474,22 @@ Result<DriversConfig> parse_drivers_config(const json& value, const std::filesys
       return config_error(join_path(p, "serial"), "'" + unit->serial + "' is already used by " +
                                                       index_path(up, it->second));
     }
-    if (auto [it, fresh] = node_ids.emplace(unit->gyro.node_id, i); !fresh) {
-      return config_error(join_path(join_path(p, "gyro"), "node_id"),
-                          std::to_string(unit->gyro.node_id) + " is already used by " +
-                              index_path(up, it->second));
+    // Every axis's id (node_id + axis) belongs to one unit's axis only.
+    for (std::uint8_t k = 0; k < unit->gyro.axes; ++k) {
+      const int id = unit->gyro.axis_id(k);
+      if (auto [it, fresh] = node_ids.emplace(id, std::pair{i, k}); !fresh) {
+        const auto [other, other_axis] = it->second;
+        const auto& o = cfg.units[other].gyro;
+        if (unit->gyro.axes == 1 && o.axes == 1) {
+          return config_error(join_path(join_path(p, "gyro"), "node_id"),
+                              std::to_string(id) + " is already used by " + index_path(up, other));
+        }
+        return config_error(join_path(join_path(p, "gyro"), "node_id"),
+                            std::to_string(unit->gyro.node_id) + ": the id " + std::to_string(id) + " of its axis " +
+                                std::to_string(k) + " is already the id of " + index_path(up, other) + "'s axis " +
+                                std::to_string(other_axis) +
+                                " (a three-axis unit sends on node_id, node_id + 1 and node_id + 2)");
+      }
     }
     for (auto [key, ch] : {std::pair{"t1", &unit->t1}, std::pair{"t2", &unit->t2}}) {
       const auto cp = join_path(join_path(p, "thermistors"), key);
@@ -502,6 +523,9 @@ Result<DriversConfig> parse_drivers_config(const json& value, const std::filesys
       if (unit->gyro.mode != GyroMode::rate) {
         return config_error(join_path(join_path(p, "gyro"), "mode"), "a serial gyro's frames carry a rate: expected \"rate\"");
       }
+      if (unit->gyro.axes != 1) {
+        return config_error(join_path(join_path(p, "gyro"), "axes"), "a serial gyro's frame carries one axis: expected 1 (three-axis units are read on CAN)");
+      }
       for (const auto& other : cfg.gyro_bus.lines) {
         if (parse_transport_spec(other.transport)->target == spec->target) {
           return config_error(ltp, "device '" + spec->target + "' is already the line of " + other.key);
@@ -532,6 +556,10 @@ Result<DriversConfig> parse_drivers_config(const json& value, const std::filesys
   if (cfg.gyro_bus.frame && cfg.units[0].gyro.mode != GyroMode::rate) {
     return config_error(join_path(index_path(up, 0), "gyro.mode"),
                         "a serial gyro's frames carry a rate: expected \"rate\"");
+  }
+  if (cfg.gyro_bus.frame && cfg.units[0].gyro.axes != 1) {
+    return config_error(join_path(index_path(up, 0), "gyro.axes"),
+                        "a serial gyro's frame carries one axis: expected 1 (three-axis units are read on CAN)");
   }
   return cfg;
 }

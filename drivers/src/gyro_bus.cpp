@@ -7,24 +7,40 @@
 namespace fogbench::drivers {
 
 GyroBus::GyroBus(std::unique_ptr<CanTransport> transport, std::vector<GyroChannelConfig> units)
-    : transport_(std::move(transport)) {
+    : transport_(std::move(transport)), units_(std::move(units)) {
   assert(transport_);
-  unit_of_id_.fill(-1);
-  accumulators_.reserve(units.size());
-  for (const auto& u : units) {
-    assert(u.node_id >= 1 && u.node_id <= CAN_SFF_MASK);
-    assert(unit_of_id_[u.node_id] < 0);
-    unit_of_id_[u.node_id] = static_cast<std::int16_t>(accumulators_.size());
-    accumulators_.emplace_back(u);
+  accumulator_of_id_.fill(-1);
+  first_of_unit_.reserve(units_.size());
+  for (auto& u : units_) {
+    assert(u.axes == 1 || u.axes == 3);
+    if (u.axes != 3) u.axes = 1;  // a release build without the check: never an unread axis or none
+    first_of_unit_.push_back(accumulators_.size());
+    for (std::uint8_t k = 0; k < u.axes; ++k) {
+      const std::uint16_t id = u.axis_id(k);
+      assert(id >= 1 && id <= CAN_SFF_MASK);
+      assert(accumulator_of_id_[id] < 0);
+      accumulator_of_id_[id] = static_cast<std::int16_t>(accumulators_.size());
+      accumulators_.emplace_back(u, k);
+    }
   }
 }
 
 namespace {
 
+// The CAN ids of every axis of these units (the kernel filter of a SocketCAN transport).
 std::vector<std::uint16_t> ids_of(const std::vector<GyroChannelConfig>& units) {
   std::vector<std::uint16_t> ids;
-  for (const auto& u : units) ids.push_back(u.node_id);
+  for (const auto& u : units) {
+    for (std::uint8_t k = 0; k < u.axes; ++k) ids.push_back(u.axis_id(k));
+  }
   return ids;
+}
+
+// A serial gyro's frame layout carries one rate: a three-axis unit cannot be read there.
+Result<void> one_axis_on_serial(const GyroChannelConfig& unit) {
+  if (unit.axes == 1) return {};
+  return fail(ErrorCode::config, "gyro_bus: node " + std::to_string(unit.node_id) + " has " +
+                                     std::to_string(unit.axes) + " axes, but a serial gyro's frame carries one axis");
 }
 
 }  // namespace
@@ -41,7 +57,9 @@ Result<std::unique_ptr<CanTransport>> open_lines(const GyroBusConfig& config,
   for (const auto& u : units) {
     const bool own = std::any_of(config.lines.begin(), config.lines.end(),
                                  [&](const SerialGyroLine& l) { return l.node_id == u.node_id; });
-    if (!own) shared_ids.push_back(u.node_id);
+    if (!own) {
+      for (std::uint8_t k = 0; k < u.axes; ++k) shared_ids.push_back(u.axis_id(k));
+    }
   }
   if (!shared_ids.empty()) {
     if (config.transport.empty()) {
@@ -67,6 +85,7 @@ Result<std::unique_ptr<CanTransport>> open_lines(const GyroBusConfig& config,
     if (spec->kind != TransportSpec::Kind::serial) {
       return fail(ErrorCode::config, line.key + ".transport: expected serial:DEVICE[?baud=N][&framing=8N1]");
     }
+    if (auto ok = one_axis_on_serial(*unit); !ok) return std::unexpected(ok.error());
     auto t = open_serial_gyro(spec->target, spec->baud, spec->framing, line.frame, *unit);
     if (!t) return std::unexpected(t.error());
     parts.push_back({std::move(*t), {line.node_id}});
@@ -90,6 +109,7 @@ Result<GyroBus> GyroBus::open(const GyroBusConfig& config, std::vector<GyroChann
     if (!config.frame || units.size() != 1) {
       return fail(ErrorCode::config, "gyro_bus: a serial: transport needs a frame layout and exactly one unit");
     }
+    if (auto ok = one_axis_on_serial(units[0]); !ok) return std::unexpected(ok.error());
     auto transport = open_serial_gyro(spec->target, spec->baud, spec->framing, *config.frame, units[0]);
     if (!transport) return std::unexpected(transport.error());
     return GyroBus(std::move(*transport), std::move(units));
@@ -100,10 +120,8 @@ Result<GyroBus> GyroBus::open(const GyroBusConfig& config, std::vector<GyroChann
 }
 
 Result<void> GyroBus::reopen(const GyroBusConfig& config, MonotonicClock clock) {
-  std::vector<GyroChannelConfig> units;
-  for (const auto& a : accumulators_) units.push_back(a.config());
   if (!config.lines.empty()) {
-    auto transport = open_lines(config, units, std::move(clock));
+    auto transport = open_lines(config, units_, std::move(clock));
     if (!transport) return std::unexpected(transport.error());
     (*transport)->take_over(*transport_);
     transport_ = std::move(*transport);
@@ -111,13 +129,13 @@ Result<void> GyroBus::reopen(const GyroBusConfig& config, MonotonicClock clock) 
   }
   auto spec = parse_transport_spec(config.transport);
   if (!spec) return std::unexpected(spec.error());
-  std::vector<std::uint16_t> ids;
-  for (const auto& a : accumulators_) ids.push_back(a.config().node_id);
+  const auto ids = ids_of(units_);
   if (spec->kind == TransportSpec::Kind::serial) {
-    if (!config.frame || accumulators_.size() != 1) {
+    if (!config.frame || units_.size() != 1) {
       return fail(ErrorCode::config, "gyro_bus: a serial: transport needs a frame layout and exactly one unit");
     }
-    auto transport = open_serial_gyro(spec->target, spec->baud, spec->framing, *config.frame, accumulators_[0].config());
+    if (auto ok = one_axis_on_serial(units_[0]); !ok) return std::unexpected(ok.error());
+    auto transport = open_serial_gyro(spec->target, spec->baud, spec->framing, *config.frame, units_[0]);
     if (!transport) return std::unexpected(transport.error());
     (*transport)->take_over(*transport_);
     transport_ = std::move(*transport);
@@ -144,18 +162,23 @@ void GyroBus::route(const ::can_frame& frame) noexcept {
     ++foreign_;
     return;
   }
-  const std::int16_t unit = unit_of_id_[frame.can_id & CAN_SFF_MASK];
-  if (unit < 0) {
+  const std::int16_t acc = accumulator_of_id_[frame.can_id & CAN_SFF_MASK];
+  if (acc < 0) {
     ++foreign_;
     return;
   }
-  accumulators_[static_cast<std::size_t>(unit)].add(frame);
+  accumulators_[static_cast<std::size_t>(acc)].add(frame);
 }
 
 BusSample GyroBus::close_samples() {
   BusSample out;
-  out.units.reserve(accumulators_.size());
-  for (auto& a : accumulators_) out.units.push_back(a.close());
+  out.units.reserve(units_.size());
+  out.extra_axes.resize(units_.size());
+  for (std::size_t i = 0; i < units_.size(); ++i) {
+    const std::size_t first = first_of_unit_[i];
+    out.units.push_back(accumulators_[first].close());
+    for (std::uint8_t k = 1; k < units_[i].axes; ++k) out.extra_axes[i].push_back(accumulators_[first + k].close());
+  }
   out.frames_foreign = foreign_;
   foreign_ = 0;
   out.malformed_total = transport_->malformed();

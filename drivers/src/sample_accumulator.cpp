@@ -12,13 +12,15 @@ double GyroChannelConfig::mean_counts_to_rate_dph(double mean_counts) const noex
   return mean_counts * scale_deg_per_count * frame_rate_hz * 3600.0;
 }
 
-SampleAccumulator::SampleAccumulator(GyroChannelConfig config) noexcept : config_(config) {
+SampleAccumulator::SampleAccumulator(GyroChannelConfig config, std::uint8_t axis) noexcept
+    : config_(config), axis_(axis), frame_id_(config.axis_id(axis)) {
   current_.node_id = config_.node_id;
+  current_.axis = axis_;
 }
 
 void SampleAccumulator::add(const ::can_frame& frame) noexcept {
   if ((frame.can_id & (CAN_EFF_FLAG | CAN_RTR_FLAG | CAN_ERR_FLAG)) != 0 ||
-      (frame.can_id & CAN_SFF_MASK) != config_.node_id) {
+      (frame.can_id & CAN_SFF_MASK) != frame_id_) {
     ++current_.frames_foreign;
     return;
   }
@@ -66,6 +68,7 @@ GyroSample SampleAccumulator::close() noexcept {
   }
   current_ = GyroSample{};
   current_.node_id = config_.node_id;
+  current_.axis = axis_;
   return out;
 }
 

@@ -221,6 +221,12 @@ struct Bench::Impl final : ControlHandler {
                          {"gyro_dph", u.powered ? json(u.gyro_dph) : json(nullptr)}, {"frames_sent", u.frames_sent},
                          {"powered", u.powered}, {"powered_on_at_s", u.powered_on_at_s},
                          {"frames_lost", u.frames_lost}, {"frames_corrupted", u.frames_corrupted}});
+        if (cfg.units[i].gyro.axes != 1) {
+          units.back()["axes"] = cfg.units[i].gyro.axes;
+          units.back()["axis_gyro_dph"] = u.axis_gyro_dph;  // axes 1, 2
+          units.back()["axes_frames"] = {{"sent", u.axes_frames_sent}, {"lost", u.axes_frames_lost},
+                                         {"corrupted", u.axes_frames_corrupted}};
+        }
       }
       out["units"] = std::move(units);
       out["faults"] = active_faults(shared.faults, serials, snap.time_s);
@@ -405,6 +411,10 @@ json Bench::ready_line() const {
                      {"node_id", u.gyro.node_id},
                      {"mode", u.gyro.mode == drivers::GyroMode::rate ? "rate" : "increment"},
                      {"frame_rate_hz", u.frame_rate_hz}});
+    if (u.gyro.axes != 1) {
+      units.back()["axes"] = u.gyro.axes;
+      units.back()["axis_bias_dph"] = u.axis_bias_dph;  // per axis, added to the unit's drift
+    }
   }
   return {{"event", "ready"},
           {"version", control_protocol_version},

@@ -25,20 +25,27 @@ std::expected<void, std::string> BenchClock::init() {
   auto w = sim::World::create(cfg_.sim);
   if (!w) return std::unexpected(w.error());
   world_.emplace(std::move(*w));
+  axis_streams_.resize(cfg_.units.size());
+  axis_rngs_.resize(cfg_.units.size());
   for (std::size_t u = 0; u < cfg_.units.size(); ++u) {
     const auto& g = cfg_.sim.units[u].gyro;
     const Warmup wu = u < cfg_.warmup.size() ? cfg_.warmup[u] : Warmup{};
     if (!(wu.tau_s > 0)) return std::unexpected("unit " + cfg_.units[u].serial + ": warm-up tau_s must be positive");
-    streams_.emplace_back(StreamParams{.frame_rate_hz = cfg_.units[u].frame_rate_hz,
-                                       .counts_per_dph = cfg_.units[u].counts_per_dph(),
-                                       .ar = g.ar,
-                                       .sigma_a_dph = g.sigma_a_dph,
-                                       .outlier_rate_per_s = g.outlier_rate_per_s,
-                                       .outlier_dph = g.outlier_dph,
-                                       .white_dph = cfg_.frame_noise_dph,
-                                       .warmup_dph = wu.dph,
-                                       .warmup_tau_s = wu.tau_s,
-                                       .startup_flag_s = cfg_.startup_flag ? 1.0 : 0.0});
+    const StreamParams params{.frame_rate_hz = cfg_.units[u].frame_rate_hz,
+                              .counts_per_dph = cfg_.units[u].counts_per_dph(),
+                              .ar = g.ar,
+                              .sigma_a_dph = g.sigma_a_dph,
+                              .outlier_rate_per_s = g.outlier_rate_per_s,
+                              .outlier_dph = g.outlier_dph,
+                              .white_dph = cfg_.frame_noise_dph,
+                              .warmup_dph = wu.dph,
+                              .warmup_tau_s = wu.tau_s,
+                              .startup_flag_s = cfg_.startup_flag ? 1.0 : 0.0};
+    streams_.emplace_back(params);
+    for (std::uint8_t k = 1; k < cfg_.units[u].gyro.axes; ++k) {
+      axis_streams_[u].emplace_back(params);
+      axis_rngs_[u].emplace_back(cfg_.sim.seed ^ (0x2545F4914F6CDD1Dull * (4 * u + k + 1)));
+    }
   }
   return {};
 }
@@ -76,6 +83,8 @@ void BenchClock::loop() {
   const std::size_t nu = cfg_.units.size();
   Batch b;
   b.frames.resize(nu);
+  b.axis_frames.resize(nu);
+  for (std::size_t u = 0; u < nu; ++u) b.axis_frames[u].resize(axis_streams_[u].size());
   b.next.assign(nu, 0);
   std::mt19937_64 rng(cfg_.sim.seed ^ 0x9E3779B97F4A7C15ull);  // its own stream: the world's is untouched
   std::vector<::can_frame> out;
@@ -161,6 +170,11 @@ void BenchClock::step(Batch& b, std::int64_t second, double& last_setpoint_c, st
     const auto s = world_->sample(u);
     streams_[u].second(second, s.gyro_dph - s.noise_dph + spike, {f.power_off_from_s, f.power_on_at_s}, rng, b.frames[u]);
     gyro_dph[u] = streams_[u].last_mean_dph();
+    // The other axes: the same housing's drift plus each axis's own bias and its own noise.
+    for (std::size_t k = 0; k < axis_streams_[u].size(); ++k) {
+      axis_streams_[u][k].second(second, s.gyro_dph - s.noise_dph + spike + cfg_.units[u].axis_bias_dph[k + 1],
+                                 {f.power_off_from_s, f.power_on_at_s}, axis_rngs_[u][k], b.axis_frames[u][k]);
+    }
     b.next[u] = 0;
   }
   const double air_c = world_->air_c();
@@ -190,6 +204,8 @@ void BenchClock::step(Batch& b, std::int64_t second, double& last_setpoint_c, st
     us.gyro_dph = gyro_dph[u];
     us.powered = streams_[u].powered();
     us.powered_on_at_s = streams_[u].powered_on_at_s();
+    us.axis_gyro_dph.clear();
+    for (const auto& a : axis_streams_[u]) us.axis_gyro_dph.push_back(a.last_mean_dph());
   }
 }
 
@@ -207,12 +223,37 @@ void BenchClock::emit(Batch& b, Clock::time_point until, Clock::time_point t0, s
       auto& f = shared_.faults.units[u];
       auto& st = shared_.snap.units[u];
       while (b.next[u] < b.frames[u].size() && (until == Clock::time_point::max() || due(u, b.next[u]) <= until)) {
+        const std::size_t j = b.next[u];
         const StreamFrame slot = b.frames[u][b.next[u]++];
+        // Axes 1 and 2 of the slot, after axis 0 (the order the bus arbitrates them in): lost and
+        // corrupted at the unit's fractions by their own draws; a burst loss is axis 0's alone.
+        auto other_axes = [&] {
+          for (std::size_t k = 0; k < b.axis_frames[u].size(); ++k) {
+            const StreamFrame a = b.axis_frames[u][k][j];
+            if (!a.powered) continue;
+            auto& arng = axis_rngs_[u][k];
+            ++st.axes_frames_sent;
+            if (f.lose_fraction > 0 && uniform(arng) < f.lose_fraction) {
+              ++st.axes_frames_lost;
+              continue;
+            }
+            const std::uint8_t astatus = drivers::can::status::valid | (a.warming_up ? drivers::can::status::warming_up : 0);
+            const auto axis = static_cast<std::uint8_t>(k + 1);
+            ::can_frame frame = drivers::can::encode({cfg_.units[u].gyro.axis_id(axis), a.counts, a.sequence, astatus});
+            if (f.corrupt_fraction > 0 && uniform(arng) < f.corrupt_fraction) {
+              const auto bit = std::uniform_int_distribution<int>(0, 55)(arng);
+              frame.data[bit / 8] ^= static_cast<std::uint8_t>(1u << (bit % 8));
+              ++st.axes_frames_corrupted;
+            }
+            out.push_back(frame);
+          }
+        };
         if (!slot.powered) continue;  // no power, no frame
         ++st.frames_sent;
         if (f.lose_burst > 0 || (f.lose_fraction > 0 && uniform(rng) < f.lose_fraction)) {
           if (f.lose_burst > 0) --f.lose_burst;
           ++st.frames_lost;
+          other_axes();
           continue;
         }
         const std::uint8_t status = drivers::can::status::valid | (slot.warming_up ? drivers::can::status::warming_up : 0);
@@ -224,6 +265,7 @@ void BenchClock::emit(Batch& b, Clock::time_point until, Clock::time_point t0, s
           ++st.frames_corrupted;
         }
         out.push_back(frame);
+        other_axes();
       }
     }
   }

@@ -51,7 +51,9 @@ class BenchClock {
  private:
   struct Batch {  // the frame slots of the current simulated second, per unit
     std::vector<std::vector<StreamFrame>> frames;
-    std::vector<std::size_t> next;  // next slot to send
+    // A three-axis unit's axes 1 and 2: axis_frames[u][k - 1], slot for slot with frames[u].
+    std::vector<std::vector<std::vector<StreamFrame>>> axis_frames;
+    std::vector<std::size_t> next;  // next slot to send (of every axis of the unit)
     std::int64_t second = -1;       // its start, simulated seconds
   };
 
@@ -66,7 +68,12 @@ class BenchClock {
   CanBus& can_;
   std::function<void()> on_end_;
   std::optional<sim::World> world_;
-  std::vector<GyroStream> streams_;  // each unit's gyro at its frame rate
+  std::vector<GyroStream> streams_;  // each unit's gyro at its frame rate (axis 0)
+  // A three-axis unit's axes 1 and 2: axis_streams_[u][k - 1], each with its own noise from its
+  // own random stream (axis_rngs_, also its frame faults' draws), so axis 0 and every one-axis
+  // unit draw exactly what they drew before axes existed.
+  std::vector<std::vector<GyroStream>> axis_streams_;
+  std::vector<std::vector<std::mt19937_64>> axis_rngs_;
   std::thread thread_;
   std::mutex cv_mutex_;
   std::condition_variable cv_;

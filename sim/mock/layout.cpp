@@ -26,7 +26,8 @@ std::expected<drivers::ThermistorChannelConfig, std::string> parse_channel(const
 
 }  // namespace
 
-std::expected<UnitLayout, std::string> default_unit_layout(std::size_t i, int frame_rate_hz) {
+std::expected<UnitLayout, std::string> default_unit_layout(std::size_t i, int frame_rate_hz, int axes) {
+  if (axes != 1 && axes != 3) return std::unexpected("axes must be 1 or 3 (got " + std::to_string(axes) + ")");
   if (i >= max_units) return std::unexpected("at most " + std::to_string(max_units) + " units");
   if (frame_rate_hz < 1 || frame_rate_hz > max_frame_rate_hz) {
     return std::unexpected("frame rate must be 1.." + std::to_string(max_frame_rate_hz) + " Hz");
@@ -36,7 +37,9 @@ std::expected<UnitLayout, std::string> default_unit_layout(std::size_t i, int fr
   std::snprintf(serial, sizeof serial, "SIM-%04zu", i + 1);
   u.serial = serial;
   u.frame_rate_hz = frame_rate_hz;
-  u.gyro.node_id = static_cast<std::uint16_t>(257 + i);
+  u.gyro.node_id = static_cast<std::uint16_t>(axes == 1 ? 257 + i : 257 + 4 * i);
+  u.gyro.axes = static_cast<std::uint8_t>(axes);
+  u.axis_bias_dph.assign(static_cast<std::size_t>(axes), 0.0);
   const auto a = static_cast<int>(i);
   if (i % 2 == 0) {
     u.gyro.mode = drivers::GyroMode::rate;
@@ -99,6 +102,7 @@ json drivers_config(const Endpoints& where, const ServedMap& map, const std::vec
   out["units"] = json::array();
   for (const auto& u : units) {
     json gyro = {{"node_id", u.gyro.node_id}};
+    if (u.gyro.axes != 1) gyro["axes"] = u.gyro.axes;
     if (u.gyro.mode == drivers::GyroMode::rate) {
       gyro["mode"] = "rate";
       gyro["scale_dph_per_count"] = u.gyro.scale_dph_per_count;

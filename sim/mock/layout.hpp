@@ -29,6 +29,10 @@ struct UnitLayout {
   // nominal frame rate the daemon multiplies the mean increment by.
   drivers::GyroChannelConfig gyro;
   int frame_rate_hz = 100;  // frames actually sent per simulated second
+  // Per axis (gyro.axes of them), the constant bias the axis adds to the unit's drift, deg/h:
+  // axis 0's is 0 (it is the one-axis gyro), axes 1 and 2 of a three-axis unit have their own
+  // (drawn from the seed by make_bench_config, served in the ready line).
+  std::vector<double> axis_bias_dph = {0.0};
   nlohmann::json t1_json, t2_json;  // the channels as a drivers configuration spells them
   drivers::ThermistorChannelConfig t1, t2;
 
@@ -40,8 +44,9 @@ struct UnitLayout {
 // Unit i (0-based), serial SIM-000(i+1). Even units: rate counts of 1e-4 deg/h, thermistors as
 // int16 centi-degC at input i and i+1 (open circuit 32767). Odd units: increment counts of
 // 1e-7 deg at a nominal 8000 frames/s, NTC resistances as float32 at input 100+2(i-1) and
-// 102+2(i-1). Node id 257 + i.
-std::expected<UnitLayout, std::string> default_unit_layout(std::size_t i, int frame_rate_hz);
+// 102+2(i-1). Node id 257 + i; with `axes` 3, 257 + 4i (axis k on 257 + 4i + k: the units'
+// ids never meet).
+std::expected<UnitLayout, std::string> default_unit_layout(std::size_t i, int frame_rate_hz, int axes = 1);
 
 // The built-in chamber map: drivers/maps/mock.json as it was when fogbench-sim was built.
 const char* builtin_map_json() noexcept;

@@ -52,6 +52,9 @@ int main(int argc, char** argv) {
   app.add_option("--fault", o.faults, "fault active from the start: NAME[=VALUE][,KEY=VALUE...]; repeatable")
       ->allow_extra_args(false);
   app.add_option("--frame-rate-hz", o.frame_rate_hz, "gyro frames per simulated second, per unit")->capture_default_str();
+  app.add_option("--axes", o.axes, "gyro axes per unit: 1, or 3 (axis k on node id + k, node ids 257 + 4i)")->capture_default_str();
+  app.add_option("--axis-bias-dph", o.axis_bias_dph, "with --axes 3: 1 sigma of each y and z axis's own bias (seeded), deg/h")
+      ->capture_default_str();
   app.add_option("--frame-noise-dph", o.frame_noise_dph,
                  "extra white noise per frame (1 sigma, deg/h), on top of the gyro's own noise made at the frame rate")
       ->capture_default_str();

@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <random>
 #include <set>
 
 #include "faults.hpp"
@@ -186,6 +187,10 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
   cfg.rate_table_port = o.rate_table_port;
   if (o.paced && o.control.empty()) return std::unexpected(std::string("--paced needs --control: the clock is advanced through it"));
   if (!(o.frame_noise_dph >= 0)) return std::unexpected(std::string("--frame-noise-dph: expected a number >= 0"));
+  if (o.axes != 1 && o.axes != 3) return std::unexpected("--axes: expected 1 or 3 (got " + std::to_string(o.axes) + ")");
+  if (!(o.axis_bias_dph >= 0) || !std::isfinite(o.axis_bias_dph)) {
+    return std::unexpected(std::string("--axis-bias-dph: expected a number >= 0"));
+  }
   if (!std::isfinite(o.warmup_dph)) return std::unexpected(std::string("--warmup-dph: expected a number"));
   if (!(o.warmup_tau_s > 0) || !std::isfinite(o.warmup_tau_s)) return std::unexpected(std::string("--warmup-tau-s: expected a positive number"));
   if (!std::isfinite(o.start_c) || o.start_c < min_start_c || o.start_c > max_start_c) {
@@ -202,6 +207,9 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
   cfg.where.can_socket = o.can_socket;
   if (o.serial_gyro.empty() != o.serial_frame.empty()) {
     return std::unexpected(std::string("--serial-gyro and --serial-frame go together (the link's path and the frame layout's file)"));
+  }
+  if (!o.serial_gyro.empty() && o.axes != 1) {
+    return std::unexpected(std::string("--serial-gyro needs --axes 1: a serial gyro's frame carries one axis"));
   }
   if (!o.serial_gyro.empty()) {
     std::ifstream frame_in(o.serial_frame);
@@ -256,10 +264,14 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
 
   cfg.sim.units.clear();
   std::set<std::string> serials;
+  // The y and z axes' biases: their own stream of the seed, so one-axis benches draw nothing.
+  std::mt19937_64 bias_rng(o.seed ^ 0xA5A5F00DC0FFEE11ull);
+  std::normal_distribution<double> bias(0.0, 1.0);
   for (std::size_t i = 0; i < n; ++i) {
     int rate = o.frame_rate_hz;
-    auto layout = default_unit_layout(i, rate);
+    auto layout = default_unit_layout(i, rate, o.axes);
     if (!layout) return std::unexpected("--frame-rate-hz: " + layout.error());
+    for (std::size_t k = 1; k < layout->axis_bias_dph.size(); ++k) layout->axis_bias_dph[k] = o.axis_bias_dph * bias(bias_rng);
     sim::UnitParams p;
     p.serial = layout->serial;
     p.coil.model = *coil_model;

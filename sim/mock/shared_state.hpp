@@ -19,6 +19,10 @@ struct UnitStatus {
   std::uint64_t frames_sent = 0, frames_lost = 0, frames_corrupted = 0;
   bool powered = true;
   double powered_on_at_s = 0;  // simulated time of the gyro's last power-on, s
+  // A three-axis unit's axes 1 and 2 (the fields above are axis 0's): the mean output of the
+  // last second, deg/h, and their frames, both axes together.
+  std::vector<double> axis_gyro_dph;
+  std::uint64_t axes_frames_sent = 0, axes_frames_lost = 0, axes_frames_corrupted = 0;
 };
 
 // The bench as the last simulated second left it, for the status reply.

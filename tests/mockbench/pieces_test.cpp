@@ -349,3 +349,26 @@ TEST_CASE("power faults: power_off for a while or until switched off, power_cycl
   CHECK(parse_fault_command({{"name", "power_off"}, {"ms", 5}}, serials).error() ==
         "power_off: unknown field 'ms' (known: duration_s, on, unit)");
 }
+
+TEST_CASE("mock bench options --axes: 1 or 3, and not with a serial gyro", "[three_axis]") {
+  fogbench::mock::Options o;
+  o.axes = 2;
+  auto cfg = fogbench::mock::make_bench_config(o);
+  REQUIRE_FALSE(cfg.has_value());
+  CHECK(cfg.error() == "--axes: expected 1 or 3 (got 2)");
+  o.axes = 1;
+  cfg = fogbench::mock::make_bench_config(o);
+  REQUIRE(cfg.has_value());
+  CHECK(cfg->units[1].gyro.node_id == 258);  // one-axis units: ids and biases as before
+  CHECK(cfg->units[1].axis_bias_dph == std::vector<double>{0.0});
+  o.axes = 3;
+  cfg = fogbench::mock::make_bench_config(o);
+  REQUIRE(cfg.has_value());
+  CHECK(cfg->units[1].gyro.node_id == 261);
+  CHECK(cfg->units[1].gyro.axes == 3);
+  o.serial_gyro = "/tmp/x";
+  o.serial_frame = "/tmp/y.json";
+  cfg = fogbench::mock::make_bench_config(o);
+  REQUIRE_FALSE(cfg.has_value());
+  CHECK(cfg.error() == "--serial-gyro needs --axes 1: a serial gyro's frame carries one axis");
+}

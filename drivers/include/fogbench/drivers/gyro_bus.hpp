@@ -18,15 +18,19 @@
 namespace fogbench::drivers {
 
 struct BusSample {
-  std::vector<GyroSample> units;     // in the order of the unit configs
+  std::vector<GyroSample> units;     // in the order of the unit configs; axis 0 of each unit
+  // Per unit (same order), the samples of its axes 1..axes-1: empty for a one-axis unit, axes
+  // 1 and 2 (y, z) for a three-axis one. Every axis has its own sequence tracking and counts.
+  std::vector<std::vector<GyroSample>> extra_axes;
   std::uint32_t frames_foreign = 0;  // ids of no unit, extended, remote or error frames
   std::uint64_t malformed_total = 0; // transport-level: datagrams or log lines not a frame
 };
 
 class GyroBus {
  public:
-  // Takes an open transport (tests and benchmarks inject one). Node ids must be distinct and
-  // 1..2047 (parse_drivers_config guarantees it; asserted here).
+  // Takes an open transport (tests and benchmarks inject one). The ids of all units' axes
+  // (node_id .. node_id + axes - 1) must be distinct and 1..2047, and axes 1 or 3
+  // (parse_drivers_config guarantees it; asserted here).
   GyroBus(std::unique_ptr<CanTransport> transport, std::vector<GyroChannelConfig> units);
 
   // Opens the configured transport for these units; with `config.lines`, each unit that has a
@@ -56,13 +60,16 @@ class GyroBus {
   // serial line's garbage, CRC errors, cut frames, wrong-baud silence), each naming the device.
   std::vector<CanTransport::Event> take_events() { return transport_->take_events(); }
 
-  std::size_t unit_count() const noexcept { return accumulators_.size(); }
+  std::size_t unit_count() const noexcept { return units_.size(); }
   const CanTransport& transport() const noexcept { return *transport_; }
 
  private:
   std::unique_ptr<CanTransport> transport_;
+  std::vector<GyroChannelConfig> units_;
+  // Every axis of every unit, unit by unit: unit i's axis k at first_of_unit_[i] + k.
   std::vector<SampleAccumulator> accumulators_;
-  std::array<std::int16_t, CAN_SFF_MASK + 1> unit_of_id_;  // -1: no unit has this id
+  std::vector<std::size_t> first_of_unit_;
+  std::array<std::int16_t, CAN_SFF_MASK + 1> accumulator_of_id_;  // -1: no unit's axis has this id
   std::uint32_t foreign_ = 0;
 };
 

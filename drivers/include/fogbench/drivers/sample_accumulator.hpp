@@ -25,6 +25,14 @@ struct GyroChannelConfig {
   // "Power-on"), the evidence a power-on is known by. False ("startup_flag": false): a gyro kind
   // without it, whose power-on cannot be known from its frames (its runs say so in a note).
   bool startup_flag = true;
+  // 1, or 3 for a three-axis unit: its axis k (0, 1, 2 = x, y, z) sends on the standard id
+  // node_id + k, each axis with its own sequence counter (docs/drivers.md "Three-axis units").
+  std::uint8_t axes = 1;
+
+  // The CAN id of axis k's frames.
+  std::uint16_t axis_id(std::uint8_t axis) const noexcept {
+    return static_cast<std::uint16_t>(node_id + axis);
+  }
 
   // The mean of the counts of a sample's frames as a rate in deg/h. In increment mode the mean
   // increment per frame times the nominal frame rate: a lost frame then leaves the rate unbiased,
@@ -50,11 +58,16 @@ struct GyroSample {
   // A late reader, a paused one or lost frames of a running gyro never make one.
   std::uint32_t starts = 0;
   std::int64_t sum_counts = 0;       // of the frames used (exact; the mean is this / frames_used)
+  // The axis this sample is of (0 for a one-axis unit); node_id stays the unit's (base) id, the
+  // frames' id is node_id + axis.
+  std::uint8_t axis = 0;
 };
 
 class SampleAccumulator {
  public:
-  explicit SampleAccumulator(GyroChannelConfig config) noexcept;
+  // Accumulates axis `axis` of the unit (0..config.axes-1): the frames of id
+  // config.axis_id(axis), all others counted foreign.
+  explicit SampleAccumulator(GyroChannelConfig config, std::uint8_t axis = 0) noexcept;
 
   // Accounts one frame. Never fails: a frame that cannot be used is counted, not returned.
   void add(const ::can_frame& frame) noexcept;
@@ -64,9 +77,12 @@ class SampleAccumulator {
   GyroSample close() noexcept;
 
   const GyroChannelConfig& config() const noexcept { return config_; }
+  std::uint8_t axis() const noexcept { return axis_; }
 
  private:
   GyroChannelConfig config_;
+  std::uint8_t axis_ = 0;
+  std::uint16_t frame_id_ = 0;  // config_.axis_id(axis_)
   GyroSample current_;
   bool have_sequence_ = false;
   std::uint8_t last_sequence_ = 0;
