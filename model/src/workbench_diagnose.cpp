@@ -226,12 +226,15 @@ void screen_generated(std::vector<Cand>& cands, std::size_t n_fixed, const Candi
     // The scans are independent: on o.threads threads (as evaluate_all), each into its own
     // slot, then gathered in the list's order (the same list as one thread makes).
     std::vector<std::optional<Screened>> slot(cands.size() - n_fixed);
+    // The bare signals' rates, which about 40 of the 90 derivatives here are (products, up/down,
+    // dd), computed once for the screen (the same numbers: RateMemo).
+    RateMemo rates(fr.sig.view());
     {
       std::atomic<std::size_t> next{n_fixed};
       auto worker = [&] {
         for (std::size_t i = next++; i < cands.size(); i = next++) {
           if (!missing_signal_of(*cands[i].term.expr, fit_run).empty()) continue;
-          auto x = evaluate(*cands[i].term.expr, fr.sig.view());
+          auto x = evaluate(*cands[i].term.expr, fr.sig.view(), &rates);
           if (!x) continue;
           auto g = scan.scan(*x);
           if (!g) continue;
@@ -254,7 +257,7 @@ void screen_generated(std::vector<Cand>& cands, std::size_t n_fixed, const Candi
     std::vector<std::vector<double>> kept_cols;
     for (const auto& x : sc) {
       if (keep.size() >= static_cast<std::size_t>(o.refit_top)) break;
-      auto v = evaluate(*cands[x.i].term.expr, fr.sig.view());
+      auto v = evaluate(*cands[x.i].term.expr, fr.sig.view(), &rates);
       if (!v) continue;  // evaluated above: not reached
       std::vector<double> partial = scan.partial(lagged(*v, x.g.lag));
       bool alike = false;
