@@ -9,6 +9,7 @@
 #include <numeric>
 #include <optional>
 #include <thread>
+#include <tuple>
 
 #include "workbench_step.hpp"
 
@@ -320,13 +321,24 @@ void mark_look_alikes(Diagnosis& d, const std::vector<std::vector<double>>& part
                       const DiagnoseOptions& o) {
   // Collinear look-alikes among the detected: their columns, with the model's terms regressed
   // out, correlate so that these profiles cannot tell one from the other.
+  // Each pair's two correlations (r(i, j) and r(j, i), rounded apart) in one pass over the two
+  // columns, each column's mean and sum of squares once: weighted_corr's numbers exactly.
+  const std::size_t nc = d.candidates.size();
+  auto used = [&](std::size_t i) { return d.candidates[i].detected && !partial_cols[i].empty(); };
+  std::vector<CorrStats> st(nc);
+  for (std::size_t i = 0; i < nc; ++i)
+    if (used(i)) st[i] = corr_stats(partial_cols[i], fr.w);
+  std::vector<double> rr(nc * nc, 0.0);
+  for (std::size_t i = 0; i < nc; ++i)
+    for (std::size_t j = i + 1; j < nc; ++j)
+      if (used(i) && used(j)) std::tie(rr[i * nc + j], rr[j * nc + i]) = weighted_corr_pair(partial_cols[i], st[i], partial_cols[j], st[j], fr.w);
   for (std::size_t i = 0; i < d.candidates.size(); ++i) {
     auto& ci = d.candidates[i];
     if (!ci.detected || partial_cols[i].empty()) continue;
     for (std::size_t j = 0; j < d.candidates.size(); ++j) {
       const auto& cj = d.candidates[j];
       if (i == j || !cj.detected || partial_cols[j].empty()) continue;
-      const double r = weighted_corr(partial_cols[i], partial_cols[j], fr.w);
+      const double r = rr[i * nc + j];  // weighted_corr(partial_cols[i], partial_cols[j], fr.w)
       if (std::abs(r) < o.collinear_r) continue;
       ci.collinear_with.push_back(cj.term);
       // up(x) + down(x) = x: with x in the model the two are one effect written two ways.
