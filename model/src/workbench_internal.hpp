@@ -55,6 +55,11 @@ inline double weighted_corr(std::span<const double> a, std::span<const double> b
   return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 0.0;
 }
 
+// find_jumps' thermal mask: marked[k] set where rt (a rate, degC/min) spans more than spread
+// over the window [k - half, k + half] cut at the run's ends (marked[k] already set stays set);
+// rt.size() == marked.size(). O(n) (workbench_nonthermal.cpp).
+void mark_rate_changes(const std::vector<double>& rt, std::size_t half, double spread, std::vector<bool>& marked);
+
 // A column's weighted sum of weights, mean and centred sum of squares, as weighted_corr
 // computes them (the same additions in the same order), for weighted_corr_pair.
 struct CorrStats {

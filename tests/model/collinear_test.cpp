@@ -4,6 +4,7 @@
 // by column, and samples of weight zero holding NaN must give the verdict the columns call for.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <random>
@@ -130,4 +131,52 @@ TEST_CASE("weighted_corr_pair gives weighted_corr in both orders exactly") {
   // would fail above.
   CHECK(differ > 0);
   CHECK(pairs == 6 * 4 * 2 * 9);
+}
+
+// find_jumps' thermal mask (mark_rate_changes, workbench_nonthermal.cpp) slides its window's
+// minimum and maximum in O(n): the mask must be the one of the window scanned in full, as it
+// was, on ramps and holds, noise near the threshold, windows cut at both ends, a run shorter
+// than the window, marks already set, and NaN samples.
+TEST_CASE("mark_rate_changes gives the full window scan's mask") {
+  using fogbench::model::workbench::wbi::mark_rate_changes;
+  auto reference = [](const std::vector<double>& rt, std::size_t half, double spread, std::vector<bool>& marked) {
+    const std::size_t n = rt.size();
+    for (std::size_t k = 0; k < n; ++k) {
+      if (marked[k]) continue;
+      const std::size_t lo = k >= half ? k - half : 0, hi = std::min(n - 1, k + half);
+      double mn = rt[lo], mx = rt[lo];
+      for (std::size_t u = lo; u <= hi; ++u) {
+        mn = std::min(mn, rt[u]);
+        mx = std::max(mx, rt[u]);
+      }
+      marked[k] = mx - mn > spread;
+    }
+  };
+  int cases = 0, set_a = 0;
+  for (std::size_t n : {1u, 2u, 5u, 150u, 301u, 302u, 1000u, 5000u}) {
+    for (unsigned seed = 1; seed <= 3; ++seed) {
+      auto rt = noise(n, seed);
+      for (std::size_t t = 0; t < n; ++t) {
+        rt[t] *= 0.04;                                     // noise of 0.04 degC/min about a rate
+        if ((t / 400) % 3 == 1) rt[t] += 1.0;              // ramps of 1 degC/min between holds
+        if (t % 97 == 3) rt[t] = rt[t > 0 ? t - 1 : 0];    // repeated values (ties in the queues)
+      }
+      for (int variant = 0; variant < 3; ++variant) {
+        std::vector<double> x = rt;
+        if (variant == 2 && n > 3) x[n / 2] = std::nan("");  // a gap
+        for (std::size_t half : {1u, 10u, 150u}) {
+          std::vector<bool> a(n, false), b(n, false);
+          if (variant == 1)
+            for (std::size_t t = 0; t < n; t += 7) a[t] = b[t] = true;  // marked by an earlier signal
+          mark_rate_changes(x, half, 0.15, a);
+          reference(x, half, 0.15, b);
+          CHECK(a == b);
+          for (bool v : a) set_a += v;
+          ++cases;
+        }
+      }
+    }
+  }
+  CHECK(cases == 8 * 3 * 3 * 3);
+  CHECK(set_a > 0);
 }
