@@ -586,9 +586,41 @@ std::vector<double> derivative_per_min(std::span<const double> x, double dt_s, i
   return out;
 }
 
-std::expected<std::vector<double>, std::string> evaluate(const Expr& e, const Signals& s) {
+namespace {
+bool same_signals(const Signals& a, const Signals& b) {
+  auto same = [](std::span<const double> x, std::span<const double> y) { return x.data() == y.data() && x.size() == y.size(); };
+  return same(a.t1, b.t1) && same(a.t2, b.t2) && same(a.ta, b.ta) && same(a.ton, b.ton) && a.dt_s == b.dt_s;
+}
+}  // namespace
+
+const std::expected<std::vector<double>, std::string>* RateMemo::rate(Signal sig, const Signals& s) {
+  if (!same_signals(s, s_)) return nullptr;
+  const auto k = static_cast<std::size_t>(sig);
+  // Made once, outside the lock (two threads asking for two signals compute them together);
+  // call_once publishes the value to every thread that waits on it.
+  std::call_once(once_[k], [&] {
+    Expr leaf;
+    leaf.kind = Expr::Kind::signal;
+    leaf.signal = sig;
+    auto v = evaluate(leaf, s_);
+    if (v) *v = derivative_per_min(*v, s_.dt_s);
+    rate_[k] = std::move(v);
+    const std::lock_guard<std::mutex> lock(mu_);
+    ++computed_;
+  });
+  return &*rate_[k];
+}
+
+std::size_t RateMemo::computed() const {
+  const std::lock_guard<std::mutex> lock(mu_);
+  return computed_;
+}
+
+std::expected<std::vector<double>, std::string> evaluate(const Expr& e, const Signals& s) { return evaluate(e, s, nullptr); }
+
+std::expected<std::vector<double>, std::string> evaluate(const Expr& e, const Signals& s, RateMemo* memo) {
   const std::size_t n = s.size();
-  auto sub = [&](const Expr& x) { return evaluate(x, s); };
+  auto sub = [&](const Expr& x) { return evaluate(x, s, memo); };
   switch (e.kind) {
     case K::number: return std::vector<double>(n, e.value);
     case K::signal: {
@@ -612,6 +644,14 @@ std::expected<std::vector<double>, std::string> evaluate(const Expr& e, const Si
       return g;
     }
     case K::d: case K::dd: {
+      // A bare signal's first derivative from the memo: the same calls as below, made once.
+      if (memo && e.a->kind == K::signal)
+        if (const auto* r = memo->rate(e.a->signal, s)) {
+          if (!*r) return std::unexpected((*r).error());
+          std::vector<double> v = **r;
+          for (int k = 1; k < term_op(e.kind).derivatives; ++k) v = derivative_per_min(v, s.dt_s);
+          return v;
+        }
       auto v = sub(*e.a);
       if (!v) return v;
       for (int k = 0; k < term_op(e.kind).derivatives; ++k) *v = derivative_per_min(*v, s.dt_s);

@@ -9,6 +9,7 @@
 #include <numeric>
 #include <optional>
 #include <thread>
+#include <tuple>
 
 #include "workbench_step.hpp"
 
@@ -226,12 +227,15 @@ void screen_generated(std::vector<Cand>& cands, std::size_t n_fixed, const Candi
     // The scans are independent: on o.threads threads (as evaluate_all), each into its own
     // slot, then gathered in the list's order (the same list as one thread makes).
     std::vector<std::optional<Screened>> slot(cands.size() - n_fixed);
+    // The bare signals' rates, which about 40 of the 90 derivatives here are (products, up/down,
+    // dd), computed once for the screen (the same numbers: RateMemo).
+    RateMemo rates(fr.sig.view());
     {
       std::atomic<std::size_t> next{n_fixed};
       auto worker = [&] {
         for (std::size_t i = next++; i < cands.size(); i = next++) {
           if (!missing_signal_of(*cands[i].term.expr, fit_run).empty()) continue;
-          auto x = evaluate(*cands[i].term.expr, fr.sig.view());
+          auto x = evaluate(*cands[i].term.expr, fr.sig.view(), &rates);
           if (!x) continue;
           auto g = scan.scan(*x);
           if (!g) continue;
@@ -254,7 +258,7 @@ void screen_generated(std::vector<Cand>& cands, std::size_t n_fixed, const Candi
     std::vector<std::vector<double>> kept_cols;
     for (const auto& x : sc) {
       if (keep.size() >= static_cast<std::size_t>(o.refit_top)) break;
-      auto v = evaluate(*cands[x.i].term.expr, fr.sig.view());
+      auto v = evaluate(*cands[x.i].term.expr, fr.sig.view(), &rates);
       if (!v) continue;  // evaluated above: not reached
       std::vector<double> partial = scan.partial(lagged(*v, x.g.lag));
       bool alike = false;
@@ -317,13 +321,24 @@ void mark_look_alikes(Diagnosis& d, const std::vector<std::vector<double>>& part
                       const DiagnoseOptions& o) {
   // Collinear look-alikes among the detected: their columns, with the model's terms regressed
   // out, correlate so that these profiles cannot tell one from the other.
+  // Each pair's two correlations (r(i, j) and r(j, i), rounded apart) in one pass over the two
+  // columns, each column's mean and sum of squares once: weighted_corr's numbers exactly.
+  const std::size_t nc = d.candidates.size();
+  auto used = [&](std::size_t i) { return d.candidates[i].detected && !partial_cols[i].empty(); };
+  std::vector<CorrStats> st(nc);
+  for (std::size_t i = 0; i < nc; ++i)
+    if (used(i)) st[i] = corr_stats(partial_cols[i], fr.w);
+  std::vector<double> rr(nc * nc, 0.0);
+  for (std::size_t i = 0; i < nc; ++i)
+    for (std::size_t j = i + 1; j < nc; ++j)
+      if (used(i) && used(j)) std::tie(rr[i * nc + j], rr[j * nc + i]) = weighted_corr_pair(partial_cols[i], st[i], partial_cols[j], st[j], fr.w);
   for (std::size_t i = 0; i < d.candidates.size(); ++i) {
     auto& ci = d.candidates[i];
     if (!ci.detected || partial_cols[i].empty()) continue;
     for (std::size_t j = 0; j < d.candidates.size(); ++j) {
       const auto& cj = d.candidates[j];
       if (i == j || !cj.detected || partial_cols[j].empty()) continue;
-      const double r = weighted_corr(partial_cols[i], partial_cols[j], fr.w);
+      const double r = rr[i * nc + j];  // weighted_corr(partial_cols[i], partial_cols[j], fr.w)
       if (std::abs(r) < o.collinear_r) continue;
       ci.collinear_with.push_back(cj.term);
       // up(x) + down(x) = x: with x in the model the two are one effect written two ways.

@@ -9,6 +9,7 @@
 #include <limits>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "fogbench/model/workbench.hpp"
@@ -52,6 +53,43 @@ inline double weighted_corr(std::span<const double> a, std::span<const double> b
     sbb += w[t] * (b[t] - mb) * (b[t] - mb);
   }
   return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 0.0;
+}
+
+// find_jumps' thermal mask: marked[k] set where rt (a rate, degC/min) spans more than spread
+// over the window [k - half, k + half] cut at the run's ends (marked[k] already set stays set);
+// rt.size() == marked.size(). O(n) (workbench_nonthermal.cpp).
+void mark_rate_changes(const std::vector<double>& rt, std::size_t half, double spread, std::vector<bool>& marked);
+
+// A column's weighted sum of weights, mean and centred sum of squares, as weighted_corr
+// computes them (the same additions in the same order), for weighted_corr_pair.
+struct CorrStats {
+  double sw = 0, m = 0, ss = 0;
+};
+inline CorrStats corr_stats(std::span<const double> a, std::span<const double> w) {
+  CorrStats c;
+  for (std::size_t t = 0; t < a.size(); ++t) {
+    c.sw += w[t];
+    c.m += w[t] * a[t];
+  }
+  if (!(c.sw > 0)) return c;
+  c.m /= c.sw;
+  for (std::size_t t = 0; t < a.size(); ++t) c.ss += w[t] * (a[t] - c.m) * (a[t] - c.m);
+  return c;
+}
+
+// weighted_corr(a, b, w) and weighted_corr(b, a, w), bit for bit (the products rounded in each
+// order), in one pass over the columns: sa and sb are corr_stats of a and b with the same w.
+inline std::pair<double, double> weighted_corr_pair(std::span<const double> a, const CorrStats& sa, std::span<const double> b,
+                                                    const CorrStats& sb, std::span<const double> w) {
+  if (!(sa.sw > 0)) return {0.0, 0.0};
+  double sab = 0, sba = 0;
+  for (std::size_t t = 0; t < a.size(); ++t) {
+    const double da = a[t] - sa.m, db = b[t] - sb.m;
+    sab += w[t] * da * db;
+    sba += w[t] * db * da;
+  }
+  if (!(sa.ss > 0 && sb.ss > 0)) return {0.0, 0.0};
+  return {sab / std::sqrt(sa.ss * sb.ss), sba / std::sqrt(sb.ss * sa.ss)};
 }
 
 // The residual of a model on a run, with the weights of compare (flagged, non-finite and

@@ -1,6 +1,9 @@
 // The term language: parsing, errors with positions, canonical spelling, evaluation.
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <string>
+#include <thread>
+#include <vector>
 
 #include "fogbench/model/terms.hpp"
 
@@ -190,4 +193,72 @@ TEST_CASE("one spelling per term: what fuzzing found") {
   auto inf_tau = parse_terms("lp(T1, inf)");
   REQUIRE_FALSE(inf_tau);
   CHECK_THAT(inf_tau.error().message, Catch::Contains("finite number"));
+}
+
+// RateMemo (diagnose's language search): evaluate with the memo must give evaluate's numbers bit
+// for bit, for every form that contains a bare signal's rate, from several threads at once; an
+// expression it cannot serve (a missing signal, another run's signals) behaves as without it.
+TEST_CASE("evaluate with the rates memo gives evaluate's numbers exactly, shared by threads") {
+  const std::size_t n = 3000;
+  std::vector<double> t1(n), t2(n), ta(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double u = static_cast<double>(i);
+    t1[i] = 5.0 * std::sin(u / 300.0) + 1e-3 * std::cos(u * 1.7);
+    t2[i] = 4.0 * std::sin(u / 330.0 - 0.2) + 1e-3 * std::sin(u * 2.3);
+    ta[i] = 6.0 * std::sin(u / 250.0 + 0.1);
+  }
+  const Signals s{t1, t2, ta, 0.5};
+  const std::vector<std::string> exprs = {"d(T1)",       "d(T2)",         "d(grad)",      "d(Ta)",          "dd(T1)",      "dd(T2)",
+                                          "up(d(T1))",   "down(d(grad))", "T1*d(T2)",     "d(T1)*d(Ta)",    "d(lp(T1,300))", "lp(d(T2),300)",
+                                          "d(T1)^2",     "T1",            "d(T1)*d(T1)",  "grad*d(grad)"};
+  RateMemo memo(s);
+  auto check_all = [&](int& mismatches) {
+    for (const auto& e : exprs) {
+      const auto t = parse_term(e);
+      const auto a = evaluate(*t->expr, s);
+      const auto b = evaluate(*t->expr, s, &memo);
+      if (!a || !b || *a != *b) ++mismatches;  // operator== on doubles: exact
+    }
+  };
+  int m0 = 0, m1 = 0, m2 = 0;
+  std::thread th1([&] { check_all(m1); });
+  std::thread th2([&] { check_all(m2); });
+  th1.join();
+  th2.join();
+  check_all(m0);  // every rate kept now: served from the memo
+  CHECK(m0 == 0);
+  CHECK(m1 == 0);
+  CHECK(m2 == 0);
+  CHECK(memo.computed() == 4);  // T1, T2, grad, Ta: each once
+
+  // The memo's rate is d(T1) itself, not T1 or another signal's.
+  const auto d1 = evaluate(*parse_term("d(T1)")->expr, s, &memo);
+  const auto d2 = evaluate(*parse_term("d(T2)")->expr, s, &memo);
+  REQUIRE(d1);
+  REQUIRE(d2);
+  CHECK((*d1)[1500] == derivative_per_min(t1, 0.5)[1500]);
+  CHECK((*d1)[1500] != (*d2)[1500]);
+
+  // A signal the run lacks: evaluate's error, with or without the memo.
+  const Signals no_ta{t1, t2, {}, 0.5};
+  RateMemo memo2(no_ta);
+  const auto ea = evaluate(*parse_term("T1*d(Ta)")->expr, no_ta);
+  const auto eb = evaluate(*parse_term("T1*d(Ta)")->expr, no_ta, &memo2);
+  REQUIRE_FALSE(ea);
+  REQUIRE_FALSE(eb);
+  CHECK(ea.error() == eb.error());
+
+  // Other signals than the memo's (another dt, other data): not served from it.
+  std::vector<double> t1b = t1;
+  t1b[1500] += 1.0;
+  const Signals other{t1b, t2, ta, 0.5};
+  const auto oa = evaluate(*parse_term("d(T1)")->expr, other);
+  const auto ob = evaluate(*parse_term("d(T1)")->expr, other, &memo);
+  REQUIRE(oa);
+  REQUIRE(ob);
+  CHECK(*oa == *ob);
+  CHECK(*ob != *d1);
+  const Signals other_dt{t1, t2, ta, 1.0};
+  CHECK(*evaluate(*parse_term("d(T1)")->expr, other_dt, &memo) == *evaluate(*parse_term("d(T1)")->expr, other_dt));
+  CHECK(memo.computed() == 4);
 }

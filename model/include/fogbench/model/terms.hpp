@@ -6,7 +6,9 @@
 
 #include <cstddef>
 #include <expected>
+#include <array>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <span>
 #include <string>
@@ -103,5 +105,32 @@ std::vector<double> derivative_per_min(std::span<const double> x, double dt_s, i
 
 // Evaluates an expression (without the term's own lag) at every sample.
 std::expected<std::vector<double>, std::string> evaluate(const Expr& e, const Signals& s);
+
+// The rates of a run's bare signals (d(T1), d(T2), d(Ta), d(grad), ...), each computed once for
+// the many expressions that contain them (diagnose's language search evaluates about 90
+// derivatives per step, 41 of them of a bare signal: 4 distinct). Tied to the Signals it was made
+// for (the same spans, the same dt_s); evaluate with it returns exactly what evaluate without it
+// returns (the same calls in the same order for each rate; tests/model/terms_test.cpp). Safe to
+// share between threads. Holds one column per signal used (8 B per sample each, at most 6).
+class RateMemo {
+ public:
+  explicit RateMemo(const Signals& s) : s_(s) {}
+  RateMemo(const RateMemo&) = delete;
+  RateMemo& operator=(const RateMemo&) = delete;
+  // d(signal) on s, as evaluate computes it; nullptr when s is not the memo's signals.
+  const std::expected<std::vector<double>, std::string>* rate(Signal sig, const Signals& s);
+  std::size_t computed() const;  // how many rates were computed (not found kept)
+
+ private:
+  Signals s_;
+  mutable std::mutex mu_;
+  std::array<std::once_flag, kSignals> once_;
+  std::array<std::optional<std::expected<std::vector<double>, std::string>>, kSignals> rate_;
+  std::size_t computed_ = 0;
+};
+
+// evaluate, with the bare signals' rates taken from memo (when memo is null or made for other
+// signals: evaluate(e, s)).
+std::expected<std::vector<double>, std::string> evaluate(const Expr& e, const Signals& s, RateMemo* memo);
 
 }  // namespace fogbench::model
