@@ -562,26 +562,54 @@ std::vector<double> derivative_per_min(std::span<const double> x, double dt_s, i
   const std::size_t n = x.size();
   std::vector<double> out(n, 0.0);
   if (n < 2) return out;
-  // Prefix sums of x and i*x give each window's least-squares slope in O(1).
-  std::vector<double> sx(n + 1, 0.0), six(n + 1, 0.0);
-  for (std::size_t i = 0; i < n; ++i) {
-    sx[i + 1] = sx[i] + x[i];
-    six[i + 1] = six[i] + static_cast<double>(i) * x[i];
-  }
+  // Each window's least-squares slope is sum (k - c) x_k / sum (k - c)^2 over its samples, c
+  // its centre. The weights are centred on the window, so no sum grows with the index: prefix
+  // sums of k x_k over a run (as this was once written) lose digits as n^2 x grows (a relative
+  // error of 1e-4 at 262,200 samples, 3e-3 at 864,000). The denominator of a contiguous window
+  // of m samples is m (m^2 - 1) / 12 exactly.
   const auto h = static_cast<std::size_t>(std::max(1, half_width));
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::size_t lo = i >= h ? i - h : 0;
-    const std::size_t hi = std::min(n - 1, i + h);
+  const double to_per_min = 60.0 / dt_s;
+  auto direct = [&](std::size_t lo, std::size_t hi) {  // the slope over [lo, hi], per sample
     const double m = static_cast<double>(hi - lo + 1);
-    const double st = 0.5 * (static_cast<double>(lo) + static_cast<double>(hi)) * m;  // sum of indices
-    // sum of squared indices over [lo, hi]
-    auto sq = [](double k) { return k * (k + 1.0) * (2.0 * k + 1.0) / 6.0; };
-    const double stt = sq(static_cast<double>(hi)) - (lo ? sq(static_cast<double>(lo) - 1.0) : 0.0);
-    const double sxw = sx[hi + 1] - sx[lo];
-    const double sixw = six[hi + 1] - six[lo];
-    const double den = stt - st * st / m;
-    const double slope_per_sample = den > 0.0 ? (sixw - st * sxw / m) / den : 0.0;
-    out[i] = slope_per_sample * 60.0 / dt_s;
+    const double c = 0.5 * (static_cast<double>(lo) + static_cast<double>(hi));
+    double num = 0.0;
+    for (std::size_t k = lo; k <= hi; ++k) num += (static_cast<double>(k) - c) * x[k];
+    const double den = m * (m * m - 1.0) / 12.0;
+    return den > 0.0 ? num / den : 0.0;
+  };
+  bool finite = true;
+  for (double v : x) finite = finite && std::isfinite(v);
+  if (n <= 2 * h + 1 || !finite) {
+    // Short runs, and runs with a value that is not finite (NaN only where a window holds one):
+    // every window summed directly.
+    for (std::size_t i = 0; i < n; ++i) out[i] = direct(i >= h ? i - h : 0, std::min(n - 1, i + h)) * to_per_min;
+    return out;
+  }
+  // The windows cut at the run's ends, directly; the full ones slide: with M_i = sum_{j=-h..h}
+  // j x_{i+j} and W_i = sum_{j=-h..h} x_{i+j}, W_{i+1} = W_i - x_{i-h} + x_{i+h+1} and
+  // M_{i+1} = M_i + h x_{i-h} + (h + 1) x_{i+h+1} - W_{i+1}. Summed afresh every kReset
+  // samples, so rounding cannot build up along a long run.
+  for (std::size_t i = 0; i < h; ++i) {
+    out[i] = direct(0, i + h) * to_per_min;
+    out[n - 1 - i] = direct(n - 1 - i - h, n - 1) * to_per_min;
+  }
+  constexpr std::size_t kReset = 256;
+  const double hd = static_cast<double>(h);
+  const double den = (2.0 * hd + 1.0) * ((2.0 * hd + 1.0) * (2.0 * hd + 1.0) - 1.0) / 12.0;
+  double mom = 0.0, win = 0.0;
+  for (std::size_t i = h; i + h < n; ++i) {
+    if ((i - h) % kReset == 0) {
+      mom = 0.0;
+      win = 0.0;
+      for (std::size_t k = i - h; k <= i + h; ++k) {
+        mom += (static_cast<double>(k) - static_cast<double>(i)) * x[k];
+        win += x[k];
+      }
+    } else {
+      win += x[i + h] - x[i - h - 1];
+      mom += hd * x[i - h - 1] + (hd + 1.0) * x[i + h] - win;
+    }
+    out[i] = mom / den * to_per_min;
   }
   return out;
 }
