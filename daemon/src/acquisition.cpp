@@ -486,28 +486,22 @@ struct Acquisition::Impl::RealClock final : Acquisition::Impl::ReadingClock {
   // chamber) must not make the other's readings late. A device whose last poll is still blocked
   // in its call is not asked again.
   void post_poll() {
-    if (!chamber_in_flight) {
-      chamber_in_flight = true;
-      asio::post(a.dev.jobs(), [this] {
-        DeviceReading c;
-        a.read_chamber(c);
-        asio::post(a.io, [this, c = std::move(c)] {
-          chamber_in_flight = false;
-          a.take_chamber(c);
-        });
+    post_read(chamber_in_flight, a.dev, &Impl::read_chamber, &Impl::take_chamber);
+    post_read(coils_in_flight, a.therm, &Impl::read_thermistors, &Impl::take_thermistors);
+  }
+  // One device's read on `worker` unless the last one is in flight; its result taken on the loop.
+  void post_read(bool& in_flight, Worker& worker, void (Impl::*read)(DeviceReading&),
+                 void (Impl::*take)(const DeviceReading&)) {
+    if (in_flight) return;
+    in_flight = true;
+    asio::post(worker.jobs(), [this, &in_flight, read, take] {
+      DeviceReading d;
+      (a.*read)(d);
+      asio::post(a.io, [this, &in_flight, take, d = std::move(d)] {
+        in_flight = false;
+        (a.*take)(d);
       });
-    }
-    if (!coils_in_flight) {
-      coils_in_flight = true;
-      asio::post(a.therm.jobs(), [this] {
-        DeviceReading t;
-        a.read_thermistors(t);
-        asio::post(a.io, [this, t = std::move(t)] {
-          coils_in_flight = false;
-          a.take_thermistors(t);
-        });
-      });
-    }
+    });
   }
 
   bool fill(TickInput& in) override {
