@@ -33,13 +33,17 @@ struct DeviceReading {
   std::vector<UnitReading> coils;  // t1_c, t2_c and out_of_range only
 };
 
-// A worker thread: an io_context used as a job queue.
+// A worker thread: an io_context used as a job queue. With a test's time (LoopTime) its jobs go
+// to the loop instead (`on`), and no thread is started.
 struct Worker {
   asio::io_context io;
+  asio::io_context* on = nullptr;
   std::optional<asio::executor_work_guard<asio::io_context::executor_type>> guard;
   std::thread thread;
 
+  asio::io_context::executor_type jobs() { return on ? on->get_executor() : io.get_executor(); }
   void start() {
+    if (on) return;
     guard.emplace(io.get_executor());
     thread = std::thread([this] { io.run(); });
   }
@@ -52,11 +56,38 @@ struct Worker {
   }
 };
 
+// The daemon's time: the steady clock and the loop's timers.
+class SteadyTime final : public LoopTime {
+ public:
+  explicit SteadyTime(asio::io_context& io) : io_(io) {}
+  Clock::time_point now() const override { return Clock::now(); }
+  std::unique_ptr<Alarm> alarm() override { return std::make_unique<SteadyAlarm>(io_); }
+
+ private:
+  class SteadyAlarm final : public Alarm {
+   public:
+    explicit SteadyAlarm(asio::io_context& io) : timer_(io) {}
+    void set(Clock::time_point at, std::function<void()> fire) override {
+      timer_.expires_at(at);
+      timer_.async_wait([fire = std::move(fire)](boost::system::error_code ec) {
+        if (!ec) fire();
+      });
+    }
+    void cancel() override { timer_.cancel(); }
+
+   private:
+    asio::steady_timer timer_;
+  };
+  asio::io_context& io_;
+};
+
 }  // namespace
 
 struct Acquisition::Impl {
   asio::io_context& io;
   AcquisitionOptions options;
+  std::unique_ptr<LoopTime> steady_time;  // the daemon's, when no test holds time
+  LoopTime& time;
   TickSink sink;
   AcquisitionStats stats;
 
@@ -78,7 +109,7 @@ struct Acquisition::Impl {
 
   // The one loop: second k is closed at t0 + k periods by one timer, once the clock has its
   // readings (the real clock's never wait; the paced clock's tick waits for its job).
-  asio::steady_timer timer{io};
+  std::unique_ptr<LoopTime::Alarm> timer;
   Schedule sched{};       // t0 and the half period; its timing decisions (schedule.hpp)
   std::int64_t k = 0;     // the second the next tick closes
   bool waiting = false;   // tick k was due before its readings were in
@@ -126,7 +157,7 @@ struct Acquisition::Impl {
 
   void note_lateness(Clock::time_point due) {
     ++stats.ticks;
-    stats.tick_late_s = std::max(0.0, std::chrono::duration<double>(Clock::now() - due).count());
+    stats.tick_late_s = std::max(0.0, std::chrono::duration<double>(time.now() - due).count());
     stats.tick_late_max_s = std::max(stats.tick_late_max_s, stats.tick_late_s);
   }
 
@@ -136,7 +167,7 @@ struct Acquisition::Impl {
     therm.start();
     // The chamber goes to its safe setpoint and runs, before anything else is asked.
     const double safe = options.safe_setpoint_c;
-    asio::post(dev.io, [this, safe] {
+    asio::post(dev.jobs(), [this, safe] {
       auto report = chamber->bring_up();
       std::string msg = report ? report->to_string() : report.error().to_string();
       auto w = chamber->write_setpoint_c(safe);
@@ -153,19 +184,19 @@ struct Acquisition::Impl {
       });
     });
     open_gyro();
-    sched.t0 = Clock::now() + sched.period();
+    sched.t0 = time.now() + sched.period();
     k = 0;
     clock->ask(k);
   }
 
   void stop(std::function<void(const std::string&)> done) {
     stopped = true;
-    timer.cancel();
+    timer->cancel();
     clock->stop();
     gyro_retry.cancel();
     if (gyro_sd.is_open()) (void)gyro_sd.release();  // the bus owns and closes the fd
     const double safe = options.safe_setpoint_c;
-    asio::post(dev.io, [this, safe, done = std::move(done)] {
+    asio::post(dev.jobs(), [this, safe, done = std::move(done)] {
       auto r = chamber->write_setpoint_c(safe);
       std::string err = r ? "" : r.error().to_string();
       asio::post(io, [done, err] { done(err); });
@@ -176,7 +207,7 @@ struct Acquisition::Impl {
   void post_write_setpoint(double sp_c) {
     if (write_in_flight) return;  // the next tick retries with the then-current setpoint
     write_in_flight = true;
-    asio::post(dev.io, [this, sp_c] {
+    asio::post(dev.jobs(), [this, sp_c] {
       auto r = chamber->write_setpoint_c(sp_c);
       std::string err = r ? "" : r.error().to_string();
       asio::post(io, [this, sp_c, err] {
@@ -196,7 +227,7 @@ struct Acquisition::Impl {
       }
       return;
     }
-    for (const auto& line : setpoint_log.occurred(repeat_key(err), fmt::format("setpoint {} C not written: {}", sp_c, err), Clock::now()))
+    for (const auto& line : setpoint_log.occurred(repeat_key(err), fmt::format("setpoint {} C not written: {}", sp_c, err), time.now()))
       spdlog::warn("{}", line);
   }
   bool setpoint_unwritten(double sp_c) const { return !written_setpoint_c || *written_setpoint_c != sp_c; }
@@ -317,7 +348,7 @@ struct Acquisition::Impl {
     // minute's line, so more only comes from many kinds at once).
     constexpr std::size_t kMaxLinesPerSecond = 64;
     for (const auto& e : bus->take_events())
-      for (auto& line : gyro_stream_log.occurred(e.message, Clock::now())) {
+      for (auto& line : gyro_stream_log.occurred(e.message, time.now())) {
         spdlog::warn("gyro stream: {}", line);
         if (gyro_stream_pending.size() < kMaxLinesPerSecond) gyro_stream_pending.push_back(std::move(line));
       }
@@ -328,15 +359,13 @@ struct Acquisition::Impl {
   // After the clock asked for second k's readings: tick k is due at t0 + k periods (an absolute
   // deadline from t0: a late wake-up never shifts the next one).
   void arm_tick() {
-    timer.expires_at(sched.tick_due(k));
-    timer.async_wait([this](boost::system::error_code ec) {
-      if (ec || stopped) return;
-      on_due();
+    timer->set(sched.tick_due(k), [this] {
+      if (!stopped) on_due();
     });
   }
 
   void on_due() {
-    if (const std::int64_t to = clock->resume(k, Clock::now()); to != k) skip_to(to);
+    if (const std::int64_t to = clock->resume(k, time.now()); to != k) skip_to(to);
     if (clock->ready()) tick();
     else waiting = true;  // the readings' arrival ticks (readings_in)
   }
@@ -426,17 +455,16 @@ struct Acquisition::Impl {
 // from the period before, then is missing. A loop far behind skips ahead (Schedule).
 struct Acquisition::Impl::RealClock final : Acquisition::Impl::ReadingClock {
   Impl& a;
-  asio::steady_timer poll_timer;
+  std::unique_ptr<LoopTime::Alarm> poll_timer;
   bool chamber_in_flight = false, coils_in_flight = false;  // a poll of the device is under way
   int stale_chamber = 0, stale_coils = 0;                   // ticks since a new part was used
 
-  explicit RealClock(Impl& impl) : a(impl), poll_timer(impl.io) {}
+  explicit RealClock(Impl& impl) : a(impl), poll_timer(impl.time.alarm()) {}
 
   void ask(std::int64_t k) override {
-    poll_timer.expires_at(a.sched.slot_due(2 * k - 1));  // the first, k = 0: slot -1
-    poll_timer.async_wait([this](boost::system::error_code ec) {
-      if (ec || a.stopped) return;
-      const std::int64_t slot = resume_slot(2 * a.k - 1, Clock::now());
+    poll_timer->set(a.sched.slot_due(2 * k - 1), [this] {  // the first, k = 0: slot -1
+      if (a.stopped) return;
+      const std::int64_t slot = resume_slot(2 * a.k - 1, a.time.now());
       a.skip_to((slot + 1) / 2);
       post_poll();
       a.arm_tick();
@@ -452,34 +480,28 @@ struct Acquisition::Impl::RealClock final : Acquisition::Impl::ReadingClock {
     return to;
   }
   bool ready() const override { return true; }
-  void stop() override { poll_timer.cancel(); }
+  void stop() override { poll_timer->cancel(); }
 
   // The chamber on the device worker, the module on its own thread: a stalled module (or
   // chamber) must not make the other's readings late. A device whose last poll is still blocked
   // in its call is not asked again.
   void post_poll() {
-    if (!chamber_in_flight) {
-      chamber_in_flight = true;
-      asio::post(a.dev.io, [this] {
-        DeviceReading c;
-        a.read_chamber(c);
-        asio::post(a.io, [this, c = std::move(c)] {
-          chamber_in_flight = false;
-          a.take_chamber(c);
-        });
+    post_read(chamber_in_flight, a.dev, &Impl::read_chamber, &Impl::take_chamber);
+    post_read(coils_in_flight, a.therm, &Impl::read_thermistors, &Impl::take_thermistors);
+  }
+  // One device's read on `worker` unless the last one is in flight; its result taken on the loop.
+  void post_read(bool& in_flight, Worker& worker, void (Impl::*read)(DeviceReading&),
+                 void (Impl::*take)(const DeviceReading&)) {
+    if (in_flight) return;
+    in_flight = true;
+    asio::post(worker.jobs(), [this, &in_flight, read, take] {
+      DeviceReading d;
+      (a.*read)(d);
+      asio::post(a.io, [this, &in_flight, take, d = std::move(d)] {
+        in_flight = false;
+        (a.*take)(d);
       });
-    }
-    if (!coils_in_flight) {
-      coils_in_flight = true;
-      asio::post(a.therm.io, [this] {
-        DeviceReading t;
-        a.read_thermistors(t);
-        asio::post(a.io, [this, t = std::move(t)] {
-          coils_in_flight = false;
-          a.take_thermistors(t);
-        });
-      });
-    }
+    });
   }
 
   bool fill(TickInput& in) override {
@@ -549,7 +571,7 @@ struct Acquisition::Impl::PacedClock final : Acquisition::Impl::ReadingClock {
       // Behind the schedule by more than two periods (the host is busy): the schedule moves back
       // rather than catching up in a burst. The run goes on slower than the time scale, and
       // every second is acquired as it would be on an idle host.
-      const auto now = Clock::now();
+      const auto now = a.time.now();
       if (const auto shift = a.sched.paced_shift(k, now); shift.count() > 0) {
         a.sched.t0 += shift;
         ++a.stats.paced_slowed;
@@ -569,7 +591,7 @@ struct Acquisition::Impl::PacedClock final : Acquisition::Impl::ReadingClock {
   // this order on the worker, so the world steps under the setpoint the sink commanded and the
   // poll reads the end of that second.
   void post_job(bool advance, std::optional<double> setpoint_c) {
-    asio::post(a.dev.io, [this, advance, setpoint_c] {
+    asio::post(a.dev.jobs(), [this, advance, setpoint_c] {
       Result r;
       r.asked = advance;
       std::string write_error, clock_error;
@@ -631,8 +653,10 @@ struct Acquisition::Impl::PacedClock final : Acquisition::Impl::ReadingClock {
 };
 
 Acquisition::Impl::Impl(asio::io_context& i, AcquisitionOptions o, AcquisitionDevices d, TickSink s)
-    : io(i), options(o), sink(std::move(s)), chamber(std::move(d.chamber)), thermistors(std::move(d.thermistors)),
-      open_bus(std::move(d.open_gyro)) {
+    : io(i), options(o), steady_time(o.time ? nullptr : std::make_unique<SteadyTime>(i)),
+      time(o.time ? *o.time : *steady_time), sink(std::move(s)), chamber(std::move(d.chamber)),
+      thermistors(std::move(d.thermistors)), open_bus(std::move(d.open_gyro)), timer(time.alarm()) {
+  if (o.time) dev.on = therm.on = &io;
   sched.half_period = std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(0.5e9 / options.time_scale)));
   if (d.paced) clock = std::make_unique<PacedClock>(*this, std::move(d.paced));
   else clock = std::make_unique<RealClock>(*this);

@@ -21,6 +21,7 @@
 // docs/daemon.md, "Threads" and "Time scale"; docs/architecture.md, "The path of one sample".
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <expected>
 #include <functional>
@@ -50,6 +51,26 @@ class PacedWorld {
 // Opens the gyro bus into `bus` when it is empty, reopens it otherwise (after a link loss).
 using GyroOpener = std::function<drivers::Result<void>(std::optional<drivers::GyroBus>& bus)>;
 
+// The acquisition's time, for a test to hold by hand (tests/daemon/acquisition_test.cpp, "by
+// hand"): the schedule's clock and wake-ups on it. None given (the daemon): the steady clock, the
+// loop's timers, and the devices' jobs on their worker threads. Given, the devices' jobs are
+// posted to the loop too, so between a test's steps nothing runs beside the loop.
+class LoopTime {
+ public:
+  using Clock = std::chrono::steady_clock;
+  // One wake-up: `fire` runs on the loop once the clock has reached `at`. Setting it again or
+  // cancelling drops the pending one (its `fire` never runs).
+  class Alarm {
+   public:
+    virtual ~Alarm() = default;
+    virtual void set(Clock::time_point at, std::function<void()> fire) = 0;
+    virtual void cancel() = 0;
+  };
+  virtual ~LoopTime() = default;
+  virtual Clock::time_point now() const = 0;
+  virtual std::unique_ptr<Alarm> alarm() = 0;
+};
+
 struct AcquisitionDevices {
   std::unique_ptr<drivers::Chamber> chamber;
   std::unique_ptr<drivers::ThermistorSource> thermistors;
@@ -61,6 +82,7 @@ struct AcquisitionOptions {
   double time_scale = 1.0;        // daemon seconds per wall second
   std::size_t units = 0;          // configured units: the size of TickInput::units
   double safe_setpoint_c = 20.0;  // written at start-up and on the way out, degC
+  LoopTime* time = nullptr;       // a test's hand on time (outlives the acquisition); none: real
 };
 
 // Where the seconds go. on_tick answers second k's readings with the setpoint the chamber should

@@ -1,18 +1,8 @@
 // See ascii_chamber.hpp.
 #include "ascii_chamber.hpp"
 
-#include <arpa/inet.h>
-#include <netinet/in.h>
-#include <netinet/tcp.h>
-#include <spdlog/spdlog.h>
-#include <sys/socket.h>
-#include <unistd.h>
-
-#include <algorithm>
-#include <cerrno>
 #include <charconv>
 #include <cmath>
-#include <cstring>
 
 #include "fogbench/drivers/chamber_dialects.hpp"
 
@@ -142,145 +132,21 @@ std::string answer_simserv(std::string_view line, ChamberRegisters& chamber, boo
 
 // ---- the listener --------------------------------------------------------------------------
 
-std::expected<void, std::string> AsciiChamberServer::open() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
-  if (fd < 0) return std::unexpected(std::string("socket: ") + std::strerror(errno));
-  int one = 1;
-  ::setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(static_cast<std::uint16_t>(port_));
-  if (::inet_pton(AF_INET, host_.c_str(), &addr.sin_addr) != 1) {
-    ::close(fd);
-    return std::unexpected("chamber listener: '" + host_ + "' is not an IPv4 address");
-  }
-  if (::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0 || ::listen(fd, 16) != 0) {
-    const std::string why = std::strerror(errno);
-    ::close(fd);
-    return std::unexpected("chamber listener " + host_ + ":" + std::to_string(port_) + ": " + why);
-  }
-  if (port_ == 0) {
-    socklen_t len = sizeof addr;
-    ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len);
-    port_ = ntohs(addr.sin_port);  // kept, so a refused listener reopens on the same port
-  }
-  listen_fd_ = fd;
-  return {};
-}
+AsciiChamberServer::AsciiChamberServer(SharedState& shared, ChamberDialect dialect, std::string host, int port)
+    : shared_(shared), dialect_(dialect),
+      lines_("chamber", std::move(host), port, [this](const std::string& line) { return answer(line); }) {}
 
 void AsciiChamberServer::update_listener() {
-  bool refuse = false;
-  {
-    std::lock_guard lock(shared_.mutex);
-    refuse = shared_.faults.refuse[static_cast<std::size_t>(Device::chamber)];
-  }
-  if (refuse && listen_fd_ >= 0) {
-    ::close(listen_fd_);
-    listen_fd_ = -1;
-  } else if (!refuse && listen_fd_ < 0) {
-    if (auto ok = open(); !ok) spdlog::error("reopening the refused chamber listener: {}", ok.error());
-  }
+  std::lock_guard lock(shared_.mutex);
+  lines_.refuse(shared_.faults.refuse[static_cast<std::size_t>(Device::chamber)]);
 }
 
-void AsciiChamberServer::accept() {
-  const int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
-  if (fd < 0) return;
-  int one = 1;
-  ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-  spdlog::debug("{} chamber client connected", to_string(dialect_));
-  clients_.push_back({fd, {}, {}});
-}
-
-void AsciiChamberServer::send(Client& c, const std::string& reply) {
-  if (::send(c.fd, reply.data(), reply.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(reply.size())) {
-    ::close(c.fd);
-    c.fd = -1;
-  }
-}
-
-void AsciiChamberServer::read(Client& c) {
-  char buf[1024];
-  const auto n = ::recv(c.fd, buf, sizeof buf, 0);
-  if (n == 0 || (n < 0 && errno != EAGAIN && errno != EINTR)) {
-    ::close(c.fd);
-    c.fd = -1;
-    return;
-  }
-  if (n < 0) return;
-  c.in.append(buf, static_cast<std::size_t>(n));
-  // Espec commands end in CR LF, SIMSERV's in CR: a CR ends a command in both.
-  while (c.fd >= 0) {
-    const auto at = c.in.find_first_of("\r\n");
-    if (at == std::string::npos) break;
-    std::string line = c.in.substr(0, at);
-    c.in.erase(0, at + 1);
-    if (line.empty()) continue;
-    std::string reply;
-    int stall_ms = 0;
-    {
-      std::lock_guard lock(shared_.mutex);
-      const bool refuse = shared_.faults.refuse_setpoint;
-      reply = dialect_ == ChamberDialect::espec ? answer_espec(line, *shared_.chamber, refuse)
-                                                : answer_simserv(line, *shared_.chamber, refuse);
-      stall_ms = shared_.faults.stall_ms[static_cast<std::size_t>(Device::chamber)];
-    }
-    spdlog::debug("{} chamber: '{}' -> '{}'", to_string(dialect_), drivers::printable(line), drivers::printable(reply));
-    if (stall_ms > 0 || !c.replies.empty()) {
-      c.replies.emplace_back(Clock::now() + std::chrono::milliseconds(stall_ms), std::move(reply));
-    } else {
-      send(c, reply);
-    }
-  }
-  if (c.fd >= 0 && c.in.size() > 4096) {
-    ::close(c.fd);
-    c.fd = -1;
-  }
-}
-
-AsciiChamberServer::Clock::time_point AsciiChamberServer::watch(PollSet& set) {
-  if (listen_fd_ >= 0) {
-    set.add(listen_fd_, POLLIN, [this, fd = listen_fd_](short) {
-      if (listen_fd_ == fd) accept();
-    });
-  }
-  auto next_due = Clock::time_point::max();
-  for (std::size_t i = 0; i < clients_.size(); ++i) {
-    const auto& c = clients_[i];
-    if (c.fd < 0) continue;
-    if (!c.replies.empty()) next_due = std::min(next_due, c.replies.front().first);
-    set.add(c.fd, POLLIN, [this, i, fd = c.fd](short) {
-      if (clients_[i].fd == fd) read(clients_[i]);
-    });
-  }
-  return next_due;
-}
-
-void AsciiChamberServer::after_round(Clock::time_point now) {
-  for (auto& c : clients_) {
-    while (c.fd >= 0 && !c.replies.empty() && c.replies.front().first <= now) {
-      send(c, c.replies.front().second);
-      c.replies.erase(c.replies.begin());
-    }
-  }
-  std::erase_if(clients_, [](const Client& c) { return c.fd < 0; });
-}
-
-void AsciiChamberServer::drop_clients() {
-  for (auto& c : clients_) {
-    if (c.fd >= 0) ::close(c.fd);
-    c.fd = -1;
-  }
-}
-
-std::size_t AsciiChamberServer::open_clients() const {
-  return static_cast<std::size_t>(std::ranges::count_if(clients_, [](const Client& c) { return c.fd >= 0; }));
-}
-
-void AsciiChamberServer::close() {
-  drop_clients();
-  clients_.clear();
-  if (listen_fd_ >= 0) ::close(listen_fd_);
-  listen_fd_ = -1;
+LineServer::Reply AsciiChamberServer::answer(const std::string& line) {
+  std::lock_guard lock(shared_.mutex);
+  const bool refuse = shared_.faults.refuse_setpoint;
+  return {dialect_ == ChamberDialect::espec ? answer_espec(line, *shared_.chamber, refuse)
+                                            : answer_simserv(line, *shared_.chamber, refuse),
+          shared_.faults.stall_ms[static_cast<std::size_t>(Device::chamber)]};
 }
 
 }  // namespace fogbench::mock

@@ -10,8 +10,8 @@
 #include <optional>
 #include <string>
 #include <string_view>
-#include <vector>
 
+#include "line_server.hpp"
 #include "poll_set.hpp"
 #include "registers.hpp"
 #include "shared_state.hpp"
@@ -31,45 +31,32 @@ inline constexpr double ascii_setpoint_min_c = -100.0, ascii_setpoint_max_c = 25
 std::string answer_espec(std::string_view line, ChamberRegisters& chamber, bool refuse_setpoint);
 std::string answer_simserv(std::string_view line, ChamberRegisters& chamber, bool refuse_setpoint);
 
-// The listener and its clients, on the bench's poll() loop. The chamber's link faults apply as
-// to the Modbus controller: refuse_modbus closes the listener, drop_modbus the clients,
-// stall_modbus delays each reply.
+// The listener and its clients, on the bench's poll() loop (a LineServer, line_server.hpp). The
+// chamber's link faults apply as to the Modbus controller: refuse_modbus closes the listener,
+// drop_modbus the clients, stall_modbus delays each reply.
 class AsciiChamberServer {
  public:
-  using Clock = std::chrono::steady_clock;
+  using Clock = LineServer::Clock;
 
-  AsciiChamberServer(SharedState& shared, ChamberDialect dialect, std::string host, int port)
-      : shared_(shared), dialect_(dialect), host_(std::move(host)), port_(port) {}
-  ~AsciiChamberServer() { close(); }
-  AsciiChamberServer(const AsciiChamberServer&) = delete;
-  AsciiChamberServer& operator=(const AsciiChamberServer&) = delete;
+  AsciiChamberServer(SharedState& shared, ChamberDialect dialect, std::string host, int port);
 
   // Port 0 becomes an ephemeral one, read back with port().
-  std::expected<void, std::string> open();
-  int port() const { return port_; }
-  Clock::time_point watch(PollSet& set);
-  void after_round(Clock::time_point now);
+  std::expected<void, std::string> open() { return lines_.open(); }
+  int port() const { return lines_.port(); }
+  Clock::time_point watch(PollSet& set) { return lines_.watch(set); }
+  void after_round(Clock::time_point now) { lines_.after_round(now); }
+  // Follows the refuse_modbus fault: the listener closed while it is on.
   void update_listener();
-  void drop_clients();
-  std::size_t open_clients() const;
-  void close();
+  void drop_clients() { lines_.drop_clients(); }
+  std::size_t open_clients() const { return lines_.open_clients(); }
+  void close() { lines_.close(); }
 
  private:
-  struct Client {
-    int fd = -1;
-    std::string in;
-    std::vector<std::pair<Clock::time_point, std::string>> replies;  // stalled, in order
-  };
-  void accept();
-  void read(Client& c);
-  void send(Client& c, const std::string& reply);
+  LineServer::Reply answer(const std::string& line);
 
   SharedState& shared_;
   ChamberDialect dialect_;
-  std::string host_;
-  int port_;
-  int listen_fd_ = -1;
-  std::vector<Client> clients_;
+  LineServer lines_;
 };
 
 }  // namespace fogbench::mock

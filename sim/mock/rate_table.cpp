@@ -1,21 +1,11 @@
 // See rate_table.hpp.
 #include "rate_table.hpp"
 
-#include <arpa/inet.h>
-#include <netinet/in.h>
-#include <netinet/tcp.h>
-#include <spdlog/spdlog.h>
-#include <sys/socket.h>
-#include <unistd.h>
-
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
-#include <cstring>
 #include <numbers>
 
 #include "fogbench/drivers/acutrol_dialect.hpp"
-#include "fogbench/drivers/chamber_dialects.hpp"
 #include "shared_state.hpp"
 
 namespace fogbench::mock {
@@ -227,75 +217,16 @@ std::string RateTableSim::answer(std::string_view text) {
 
 // ---- the listener ---------------------------------------------------------------------------
 
-std::expected<void, std::string> RateTableServer::open() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
-  if (fd < 0) return std::unexpected(std::string("socket: ") + std::strerror(errno));
-  int one = 1;
-  ::setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(static_cast<std::uint16_t>(port_));
-  if (::inet_pton(AF_INET, host_.c_str(), &addr.sin_addr) != 1) {
-    ::close(fd);
-    return std::unexpected("rate table listener: '" + host_ + "' is not an IPv4 address");
-  }
-  if (::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0 || ::listen(fd, 16) != 0) {
-    const std::string why = std::strerror(errno);
-    ::close(fd);
-    return std::unexpected("rate table listener " + host_ + ":" + std::to_string(port_) + ": " + why);
-  }
-  if (port_ == 0) {
-    socklen_t len = sizeof addr;
-    ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len);
-    port_ = ntohs(addr.sin_port);
-  }
-  listen_fd_ = fd;
-  return {};
-}
+RateTableServer::RateTableServer(SharedState& shared, std::string host, int port, std::function<double()> now_s)
+    : shared_(shared), now_s_(std::move(now_s)),
+      lines_("rate table", std::move(host), port, [this](const std::string& line) { return answer(line); }) {}
 
-void RateTableServer::accept() {
-  const int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
-  if (fd < 0) return;
-  int one = 1;
-  ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
-  spdlog::debug("rate table client connected");
-  clients_.push_back({fd, {}});
-}
-
-void RateTableServer::read(Client& c) {
-  char buf[1024];
-  const auto n = ::recv(c.fd, buf, sizeof buf, 0);
-  if (n == 0 || (n < 0 && errno != EAGAIN && errno != EINTR)) {
-    ::close(c.fd);
-    c.fd = -1;
-    return;
-  }
-  if (n < 0) return;
-  c.in.append(buf, static_cast<std::size_t>(n));
-  while (c.fd >= 0) {
-    const auto at = c.in.find_first_of("\r\n");
-    if (at == std::string::npos) break;
-    std::string text = c.in.substr(0, at);
-    c.in.erase(0, at + 1);
-    if (text.empty()) continue;
-    std::string reply;
-    {
-      std::lock_guard lock(shared_.mutex);
-      auto& table = *shared_.rate_table;
-      table.advance_to(now_s_());
-      table.set_fault_condition(shared_.faults.table_fault, shared_.faults.table_fault_text);
-      reply = table.answer(text);
-    }
-    spdlog::debug("rate table: '{}' -> '{}'", drivers::printable(text), drivers::printable(reply));
-    if (::send(c.fd, reply.data(), reply.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(reply.size())) {
-      ::close(c.fd);
-      c.fd = -1;
-    }
-  }
-  if (c.fd >= 0 && c.in.size() > 4096) {
-    ::close(c.fd);
-    c.fd = -1;
-  }
+LineServer::Reply RateTableServer::answer(const std::string& line) {
+  std::lock_guard lock(shared_.mutex);
+  auto& table = *shared_.rate_table;
+  table.advance_to(now_s_());
+  table.set_fault_condition(shared_.faults.table_fault, shared_.faults.table_fault_text);
+  return {table.answer(line), 0};
 }
 
 void RateTableServer::watch(PollSet& set) {
@@ -306,37 +237,9 @@ void RateTableServer::watch(PollSet& set) {
   }
   if (drops != drops_seen_) {
     drops_seen_ = drops;
-    drop_clients();
+    lines_.drop_clients();
   }
-  std::erase_if(clients_, [](const Client& c) { return c.fd < 0; });
-  if (listen_fd_ >= 0) {
-    set.add(listen_fd_, POLLIN, [this, fd = listen_fd_](short) {
-      if (listen_fd_ == fd) accept();
-    });
-  }
-  for (std::size_t i = 0; i < clients_.size(); ++i) {
-    set.add(clients_[i].fd, POLLIN, [this, i, fd = clients_[i].fd](short) {
-      if (i < clients_.size() && clients_[i].fd == fd) read(clients_[i]);
-    });
-  }
-}
-
-void RateTableServer::drop_clients() {
-  for (auto& c : clients_) {
-    if (c.fd >= 0) ::close(c.fd);
-    c.fd = -1;
-  }
-}
-
-std::size_t RateTableServer::open_clients() const {
-  return static_cast<std::size_t>(std::ranges::count_if(clients_, [](const Client& c) { return c.fd >= 0; }));
-}
-
-void RateTableServer::close() {
-  drop_clients();
-  clients_.clear();
-  if (listen_fd_ >= 0) ::close(listen_fd_);
-  listen_fd_ = -1;
+  (void)lines_.watch(set);  // its replies are never held back (no stall fault on the table)
 }
 
 }  // namespace fogbench::mock

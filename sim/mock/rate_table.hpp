@@ -16,6 +16,7 @@
 #include <string_view>
 #include <vector>
 
+#include "line_server.hpp"
 #include "poll_set.hpp"
 
 namespace fogbench::mock {
@@ -74,43 +75,30 @@ class RateTableSim {
   std::string fault_text_;
 };
 
-// The listener and its clients, on the bench's poll() loop; the table lives in the shared state
-// (SharedState::rate_table). `now_s` gives the simulated time each command is answered at.
+// The listener and its clients, on the bench's poll() loop (a LineServer, line_server.hpp); the
+// table lives in the shared state (SharedState::rate_table). `now_s` gives the simulated time
+// each command is answered at.
 class RateTableServer {
  public:
-  using Clock = std::chrono::steady_clock;
-
-  RateTableServer(SharedState& shared, std::string host, int port, std::function<double()> now_s)
-      : shared_(shared), host_(std::move(host)), port_(port), now_s_(std::move(now_s)) {}
-  ~RateTableServer() { close(); }
-  RateTableServer(const RateTableServer&) = delete;
-  RateTableServer& operator=(const RateTableServer&) = delete;
+  RateTableServer(SharedState& shared, std::string host, int port, std::function<double()> now_s);
 
   // Port 0 becomes an ephemeral one, read back with port().
-  std::expected<void, std::string> open();
-  int port() const { return port_; }
+  std::expected<void, std::string> open() { return lines_.open(); }
+  int port() const { return lines_.port(); }
   // Adds the listener and clients to `set`; first closes the clients when a drop_table fault
   // has been applied since the last round.
   void watch(PollSet& set);
-  void drop_clients();
-  std::size_t open_clients() const;
-  void close();
+  void drop_clients() { lines_.drop_clients(); }
+  std::size_t open_clients() const { return lines_.open_clients(); }
+  void close() { lines_.close(); }
 
  private:
-  struct Client {
-    int fd = -1;
-    std::string in;
-  };
-  void accept();
-  void read(Client& c);
+  LineServer::Reply answer(const std::string& line);
 
   SharedState& shared_;
-  std::string host_;
-  int port_;
   std::function<double()> now_s_;
-  int listen_fd_ = -1;
   std::uint64_t drops_seen_ = 0;
-  std::vector<Client> clients_;
+  LineServer lines_;
 };
 
 }  // namespace fogbench::mock

@@ -2,13 +2,16 @@
 // thermistor module and a gyro bus transport whose values are numbered by their poll, on the
 // real clock (at a time scale of 4) and on the paced clock (a fake world). No process, no
 // socket to a mock bench; nothing here asserts a duration: the watchdog only ends a stuck loop.
+// A late loop (its catch-up, its skipped seconds, the paced clock slowed) is driven by hand: a
+// LoopTime the test moves, the devices' jobs on the loop, every second asserted exactly, no sleep.
 #include <sys/eventfd.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <mutex>
 #include <map>
 #include <set>
-#include <thread>
 #include <utility>
 #include <vector>
 
@@ -179,39 +182,36 @@ struct Tick {
   TickInput in;
 };
 
-// A loop made late: the sink's call for second `at` blocks the loop for `for_ms` (a long fit on a
-// busy daemon). Only a lower bound matters: a longer block skips (or slows) more, and the
-// assertions hold for any length past it.
-struct Block {
-  std::int64_t at = -1;  // none
-  std::chrono::milliseconds for_ms{0};
-};
-
 // A second the real clock skipped (Acquisition's tick_unread): late, its gyro not read.
 bool unread(const TickInput& in) { return in.late && !in.gyro_read && in.gyro_link_up; }
 
-// Runs an acquisition on the fake bench until `count` seconds have been read (the seconds skipped
-// by a late real clock do not count); the sink answers every second with a setpoint of 25 degC,
-// and a run is on from the second tick. The acquisition's counters into `stats` when given.
-std::vector<Tick> acquire(Bench& bench, bool paced, std::size_t count, Block block = {},
-                          AcquisitionStats* stats = nullptr) {
-  asio::io_context io;
-  auto transport = std::make_unique<FakeTransport>(bench.news_at_close);
-  bench.transport = transport.get();
+// The fake bench's devices, and its gyro bus opened on a fake transport.
+AcquisitionDevices fake_devices(Bench& bench, bool paced) {
+  auto transport = std::make_shared<std::unique_ptr<FakeTransport>>(std::make_unique<FakeTransport>(bench.news_at_close));
+  bench.transport = transport->get();
   AcquisitionDevices d;
   d.chamber = std::make_unique<FakeChamber>(bench);
   d.thermistors = std::make_unique<FakeModule>(bench);
   if (paced) d.paced = std::make_unique<FakeWorld>(bench);
-  d.open_gyro = [&transport](std::optional<drivers::GyroBus>& bus) -> drivers::Result<void> {
+  d.open_gyro = [transport](std::optional<drivers::GyroBus>& bus) -> drivers::Result<void> {
     if (bus) return {};
     std::vector<drivers::GyroChannelConfig> ch(kUnits);
     for (std::size_t u = 0; u < kUnits; ++u) {
       ch[u].node_id = static_cast<std::uint16_t>(u + 1);
       ch[u].scale_dph_per_count = 0.001;
     }
-    bus.emplace(std::move(transport), std::move(ch));
+    bus.emplace(std::move(*transport), std::move(ch));
     return {};
   };
+  return d;
+}
+
+// Runs an acquisition on the fake bench until `count` seconds have been read (the seconds skipped
+// by a late real clock do not count); the sink answers every second with a setpoint of 25 degC,
+// and a run is on from the second tick.
+std::vector<Tick> acquire(Bench& bench, bool paced, std::size_t count) {
+  asio::io_context io;
+  AcquisitionDevices d = fake_devices(bench, paced);
   AcquisitionOptions o;
   // The real clock's tick does not wait for a poll (a late one is stood in for, then missing):
   // 4x leaves the device workers 125 ms to answer. The paced clock's tick waits for its job.
@@ -227,7 +227,6 @@ std::vector<Tick> acquire(Bench& bench, bool paced, std::size_t count, Block blo
       ticks.push_back({k, in});
       if (!unread(in) && ++read == count) asio::post(io, [&] { acq->stop([&](const std::string&) { io.stop(); }); });
     }
-    if (k == block.at) std::this_thread::sleep_for(block.for_ms);
     return 25.0;
   };
   sink.run_active = [&] { return !ticks.empty(); };
@@ -240,7 +239,6 @@ std::vector<Tick> acquire(Bench& bench, bool paced, std::size_t count, Block blo
   acq->start();
   io.run();
   acq->join();
-  if (stats) *stats = acq->stats();
   acq.reset();
   return ticks;
 }
@@ -273,6 +271,115 @@ void check_values(const Tick& t, std::int64_t n_poll = -1) {
 
 bool same(const std::optional<double>& a, const std::optional<double>& b) {
   return a.has_value() == b.has_value() && (!a || *a == Approx(*b));
+}
+
+// Time by hand (acquisition.hpp, LoopTime): the test moves the clock; the wake-ups it reaches fire
+// in the order of their times (each at its own time when the loop is free by then, else at once:
+// late), and the loop runs what is ready after each (the devices' jobs are posted to the loop).
+class HandTime final : public LoopTime {
+ public:
+  explicit HandTime(asio::io_context& io) : io_(io), work_(io.get_executor()) {}
+  Clock::time_point now() const override { return now_; }
+  std::unique_ptr<Alarm> alarm() override { return std::make_unique<HandAlarm>(*this); }
+
+  // A handler that takes this long (a long fit on a busy daemon): the clock moves on, and what
+  // came due meanwhile fires only once the handler is done.
+  void pass(Clock::duration d) { now_ += d; }
+  // The loop until `to`.
+  void run_until(Clock::time_point to) {
+    for (;;) {
+      settle();
+      HandAlarm* next = nullptr;
+      for (HandAlarm* a : alarms_)
+        if (a->fire && a->at <= to && (!next || a->at < next->at)) next = a;
+      if (!next) break;
+      now_ = std::max(now_, next->at);
+      auto fire = std::exchange(next->fire, nullptr);
+      fire();
+    }
+    now_ = std::max(now_, to);
+    settle();
+  }
+  // Runs the loop's ready handlers (the devices' jobs, their results, the gyro bus's reads).
+  void settle() {
+    while (io_.poll() > 0) {
+    }
+  }
+
+ private:
+  struct HandAlarm final : Alarm {
+    HandTime& t;
+    Clock::time_point at{};
+    std::function<void()> fire;
+    explicit HandAlarm(HandTime& time) : t(time) { t.alarms_.insert(this); }
+    ~HandAlarm() override { t.alarms_.erase(this); }
+    void set(Clock::time_point when, std::function<void()> f) override {
+      at = when;
+      fire = std::move(f);
+    }
+    void cancel() override { fire = nullptr; }
+  };
+  asio::io_context& io_;
+  asio::executor_work_guard<asio::io_context::executor_type> work_;
+  Clock::time_point now_ = Clock::time_point{} + std::chrono::hours(1);
+  std::set<HandAlarm*> alarms_;
+};
+
+// An acquisition at a time scale of 1 (a period of 1 s, polls at t0 + k - 0.5 s) on the fake
+// bench, on time by hand. The sink answers 25 degC, a run is on from the second tick, and the
+// sink's call for second k takes busy[k] (the loop blocked).
+struct ByHand {
+  Bench bench;
+  asio::io_context io;
+  HandTime time{io};
+  std::map<std::int64_t, std::chrono::milliseconds> busy;
+  std::vector<Tick> ticks;
+  std::unique_ptr<Acquisition> acq;
+  LoopTime::Clock::time_point t0;
+
+  explicit ByHand(bool paced) {
+    AcquisitionOptions o;
+    o.time_scale = 1.0;
+    o.units = kUnits;
+    o.safe_setpoint_c = 20.0;
+    o.time = &time;
+    TickSink sink;
+    sink.on_tick = [this](std::int64_t k, const TickInput& in) {
+      ticks.push_back({k, in});
+      if (busy.contains(k)) time.pass(busy[k]);
+      return 25.0;
+    };
+    sink.run_active = [this] { return !ticks.empty(); };
+    acq = std::make_unique<Acquisition>(io, o, fake_devices(bench, paced), std::move(sink));
+    t0 = time.now() + std::chrono::seconds(1);
+    acq->start();
+    time.settle();
+  }
+  ~ByHand() {
+    acq->stop([](const std::string&) {});
+    time.settle();
+    acq->join();
+  }
+  // The loop until t0 + s seconds.
+  void run_until(double s) { time.run_until(t0 + std::chrono::milliseconds(std::llround(s * 1000))); }
+  const Tick& tick(std::int64_t k) const {
+    REQUIRE(static_cast<std::size_t>(k) < ticks.size());
+    return ticks[static_cast<std::size_t>(k)];
+  }
+};
+
+// Second `k` was skipped: handed on as not read, nothing of a device in it.
+void check_unread(const Tick& t) {
+  INFO("skipped second " << t.k);
+  CHECK(unread(t.in));
+  CHECK_FALSE(t.in.chamber_c);
+  CHECK_FALSE(t.in.chamber_link_down);
+  for (const auto& u : t.in.units) {
+    CHECK_FALSE(u.gyro_dph);
+    CHECK(u.frames == 0);
+    CHECK_FALSE(u.t1_c);
+    CHECK_FALSE(u.t2_c);
+  }
 }
 
 }  // namespace
@@ -436,52 +543,59 @@ TEST_CASE("acquisition: news the transport has at a sample's close reaches that 
   }
 }
 
-TEST_CASE("acquisition: both clocks late go through the one loop, one TickInput per second, the real clock's skipped seconds not read") {
-  // The real clock at 4x: the loop blocked 3 s in second 1 is more than 20 half-periods (2.5 s)
-  // behind at the poll for second 2, so it skips ahead; the skipped seconds reach the sink as
-  // not read, and the devices are polled again only for the seconds after them.
-  Bench real_bench;
-  AcquisitionStats real_stats;
-  const auto real = acquire(real_bench, false, 6, {1, std::chrono::milliseconds(3000)}, &real_stats);
-  REQUIRE(real.size() >= 6);
-  check_consecutive(real);
-  check_values(real[0]);
-  check_values(real[1]);
-  std::int64_t skipped = 0;
-  while (2 + skipped < static_cast<std::int64_t>(real.size()) && unread(real[2 + skipped].in)) {
-    const TickInput& in = real[2 + skipped].in;
-    INFO("skipped second " << 2 + skipped);
-    CHECK_FALSE(in.chamber_c);
-    CHECK_FALSE(in.chamber_link_down);
-    for (const auto& u : in.units) {
-      CHECK_FALSE(u.gyro_dph);
-      CHECK(u.frames == 0);
-      CHECK_FALSE(u.t1_c);
-      CHECK_FALSE(u.t2_c);
-    }
-    ++skipped;
-  }
-  // At least 23 half-periods behind at the poll for second 2 (3 s after tick 1, a half period
-  // before that poll): 22 of them skipped, seconds 2..12.
-  CHECK(skipped >= 11);
-  CHECK(real_stats.ticks_skipped == skipped);
-  REQUIRE(real.size() == static_cast<std::size_t>(2 + skipped + 4));
-  // The first second after the skip may have its poll arrive after its tick (the tick can be due
-  // at once): the one after the next reads its own poll again. Polls 1 and 2 were the seconds
-  // before the block, none for the skipped ones.
-  for (std::size_t i = real.size() - 2; i < real.size(); ++i) {
-    CHECK_FALSE(unread(real[i].in));
-    check_values(real[i], real[i].k + 1 - skipped);
-  }
+TEST_CASE("acquisition by hand: the real clock late catches up, far behind skips ahead, each second exact") {
+  ByHand h(false);
+  h.busy[1] = std::chrono::seconds(3);   // the loop back at t0 + 4 s: 5 half-periods behind
+  h.busy[5] = std::chrono::seconds(12);  // the loop back at t0 + 17 s: 23 half-periods behind
+  h.run_until(20.5);                     // up to the poll for second 21 (poll 11)
+  // A loop blocked between a poll and its tick: tick 21, due at t0 + 21 s, is woken 10.5 s late.
+  h.time.pass(std::chrono::milliseconds(11000));
+  h.run_until(32.0);
 
-  // The paced clock at 50x: the same block is more than two periods late; it moves t0 forward
-  // instead, and every second is acquired as on an idle host.
-  Bench paced_bench;
-  AcquisitionStats paced_stats;
-  const auto paced = acquire(paced_bench, true, 6, {1, std::chrono::milliseconds(200)}, &paced_stats);
-  REQUIRE(paced.size() == 6);
-  check_consecutive(paced);
-  for (const auto& t : paced) check_values(t);
-  CHECK(paced_stats.ticks_skipped == 0);
-  CHECK(paced_stats.paced_slowed >= 1);
+  REQUIRE(h.ticks.size() == 33);
+  check_consecutive(h.ticks);
+  // Seconds 0 and 1 on time; 2, 3 and 4 caught up at t0 + 4 s, each polled late but before its
+  // tick, with its own poll (3, 4, 5); 5 on time.
+  for (std::int64_t k = 0; k <= 5; ++k) check_values(h.tick(k), k + 1);
+  // The poll for second 6 (due t0 + 5.5 s) woke at t0 + 17 s, 23 half-periods behind: 22 skipped,
+  // seconds 6..16 not read and no device polled for them; second 17 read poll 7, on time.
+  for (std::int64_t k = 6; k <= 16; ++k) check_unread(h.tick(k));
+  for (std::int64_t k = 17; k <= 20; ++k) check_values(h.tick(k), k - 10);
+  // Tick 21 woke 21 half-periods behind: 20 skipped, seconds 21..30 not read; second 31 closes
+  // with the poll made for second 21 (poll 11), then second 32 is polled and read on time.
+  for (std::int64_t k = 21; k <= 30; ++k) check_unread(h.tick(k));
+  check_values(h.tick(31), 11);
+  check_values(h.tick(32), 12);
+  {
+    std::lock_guard lock(h.bench.m);
+    CHECK(h.bench.chamber_polls == 12);
+    CHECK(h.bench.coil_reads == 12);
+  }
+  const AcquisitionStats st = h.acq->stats();
+  CHECK(st.ticks == 12);
+  CHECK(st.ticks_skipped == 21);
+  CHECK(st.polls_late == 0);
+  CHECK(st.tick_late_max_s == Approx(2.0));  // tick 2, due t0 + 2 s, closed at t0 + 4 s
+  CHECK(st.tick_late_s == Approx(0.0));      // tick 32 on time
+}
+
+TEST_CASE("acquisition by hand: the paced clock late moves its schedule back, no second skipped") {
+  ByHand h(true);
+  h.busy[1] = std::chrono::seconds(5);  // the loop back at t0 + 6 s: tick 2 four seconds late
+  h.run_until(4.0);
+  // Not yet at t0 + 6 s: seconds 0 and 1 only.
+  REQUIRE(h.ticks.size() == 2);
+  h.run_until(10.0);
+  // t0 moved 4 s forward at tick 2's asking: ticks 2..6 at old t0 + 6..10 s, each on time.
+  REQUIRE(h.ticks.size() == 7);
+  check_consecutive(h.ticks);
+  for (const auto& t : h.ticks) check_values(t);
+  for (std::size_t k = 0; k < h.ticks.size(); ++k) CHECK(h.ticks[k].in.gyro_read == (k > 0));
+  const AcquisitionStats st = h.acq->stats();
+  CHECK(st.ticks_skipped == 0);
+  CHECK(st.paced_slowed == 1);
+  CHECK(st.tick_late_max_s == Approx(0.0));
+  std::lock_guard lock(h.bench.m);
+  CHECK(h.bench.steps == 7);          // the jobs of seconds 1..7 (a run from the second tick)
+  CHECK(h.bench.chamber_polls == 8);  // seconds 0..6, and the job of second 7 already done
 }
