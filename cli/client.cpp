@@ -282,6 +282,7 @@ std::expected<model::RunData, ClientError> fetch_run(Client& c, std::int64_t run
   constexpr std::int64_t page = 10000;
   bool any_compensated = false;  // the daemon's live compensation: a column only if any
   bool any_power_on = false;     // since_power_on_s (the term language's ton): a column only if any
+  bool any_rate_in = false;      // the commanded table rate: a column only if any
   for (;;) {
     auto r = c.call("run.samples", {{"run_id", run_id}, {"unit", unit}, {"offset", offset}, {"limit", page}});
     if (!r) return std::unexpected(r.error());
@@ -305,6 +306,8 @@ std::expected<model::RunData, ClientError> fetch_run(Client& c, std::int64_t run
       any_compensated |= s->compensated_dph.has_value();
       d.since_power_on_s.push_back(val(s->since_power_on_s));
       any_power_on |= s->since_power_on_s.has_value();
+      d.rate_in_dps.push_back(val(s->rate_in_dps));
+      any_rate_in |= s->rate_in_dps.has_value();
     }
     offset += static_cast<std::int64_t>(rows.size());
     if (rows.size() < static_cast<std::size_t>(page) || offset >= (*r)["total"].get<std::int64_t>()) break;
@@ -314,6 +317,7 @@ std::expected<model::RunData, ClientError> fetch_run(Client& c, std::int64_t run
                                                                            std::to_string(unit) + " has no samples"));
   if (!any_compensated) d.compensated_dph.clear();
   if (!any_power_on) d.since_power_on_s.clear();
+  if (!any_rate_in) d.rate_in_dps.clear();
   if (gaps == Gaps::bridge) {
     // A value not read takes its neighbour's, and the sample keeps (or gets) the missing flag
     // so that no fit trusts it.

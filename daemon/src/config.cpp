@@ -67,6 +67,13 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
     // The connection string may hold a password: it is not copied into every run.
     c.source["plant"].erase("conninfo");
   }
+  if (j.contains("rate_table")) {
+    // The drivers' own parser: an unknown kind or a bad field is refused naming it
+    // ("rate_table.kind: unknown rate table kind 'x' (known: acutrol)").
+    auto t = drivers::parse_rate_table_config(j["rate_table"], "rate_table");
+    if (!t) return Err(t.error().message);
+    c.rate_table = std::move(*t);
+  }
   if (j.contains("simulated")) {
     if (!j["simulated"].is_boolean()) return Err("simulated: expected true or false");
     c.simulated = j["simulated"].get<bool>();

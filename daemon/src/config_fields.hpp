@@ -22,7 +22,7 @@ inline std::string join(const std::string& path, const std::string& key) {
 inline constexpr std::string_view kTopKeys[] = {"simulated", "storage", "socket", "chamber_limits",
                                                 "safe_setpoint_c", "profile_dir", "map_dir", "analysis",
                                                 "link_loss", "tracking", "drivers", "sim_clock", "web",
-                                                "station", "plant", "signing"};
+                                                "station", "plant", "signing", "rate_table"};
 inline constexpr std::string_view kStationKeys[] = {"id"};
 inline constexpr std::string_view kStorageKeys[] = {"path", "synchronous", "size_limit_bytes"};
 inline constexpr std::string_view kSigningKeys[] = {"key_path"};

@@ -59,6 +59,7 @@ constexpr ReloadRule kRules[] = {
     {"station", ReloadClass::restart, "restart (the station's identity)"},
     {"web", ReloadClass::restart, "restart (the web listener is bound at start)"},
     {"plant", ReloadClass::restart, "restart (the plant connection is opened at start)"},
+    {"rate_table", ReloadClass::restart, "restart (the rate table is opened at start)"},
 };
 
 // "drivers.units[2].serial" -> "drivers.units[].serial".

@@ -63,6 +63,7 @@ json sample_json(const storage::SampleRow& r) {
   s.flags = r.flags;
   s.since_power_on_s = finite(r.since_power_on_s);
   s.compensated_dph = finite(r.compensated_dph);
+  s.rate_in_dps = finite(r.rate_in_dps);
   return protocol::to_json(s);
 }
 

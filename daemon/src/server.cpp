@@ -26,6 +26,8 @@
 
 #include <boost/asio.hpp>
 #include <chrono>
+#include <cmath>
+#include <memory>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
@@ -51,6 +53,8 @@
 #include "analysis_worker.hpp"
 #include "notify_status.hpp"
 #include "plant_link.hpp"
+#include "rate_table_link.hpp"
+#include "fogbench/drivers/rate_table_registry.hpp"
 #include "session.hpp"
 #include "sim_clock.hpp"
 #include "stop_budget.hpp"
@@ -145,6 +149,9 @@ struct Server::Impl {
   // The devices and the schedule (acquisition.hpp); declared after the station, so its workers
   // are joined before the station goes.
   std::unique_ptr<Acquisition> acquisition;
+  // The rate table (rate_table_link.hpp), when configured: commanded each second from the
+  // station's answer, on a worker of its own.
+  std::unique_ptr<RateTableLink> table;
   // The web panel and metrics (web.hpp), when configured.
   std::unique_ptr<web::WebServer> web;
 
@@ -329,14 +336,26 @@ struct Server::Impl {
         io.stop();
       }
     });
-    acquisition->stop([this, safe](const std::string& err) {
+    // The rate table stopped beside it (its own worker): the loop ends once both are done.
+    auto pending = std::make_shared<int>(table ? 2 : 1);
+    auto one_done = [this, pending] {
+      if (--*pending > 0) return;
+      shutdown_timer.cancel();
+      io.stop();
+    };
+    if (table)
+      table->stop_table([one_done](const std::string& err) {
+        if (err.empty()) spdlog::info("rate table left stopped (0 deg/s)");
+        else spdlog::error("rate table not stopped: {}", err);
+        one_done();
+      });
+    acquisition->stop([this, safe, one_done](const std::string& err) {
       if (err.empty()) spdlog::info("chamber left at the safe setpoint {} C", safe);
       else {
         spdlog::error("safe setpoint {} C not written: {}", safe, err);
         exit_code = 1;
       }
-      shutdown_timer.cancel();
-      io.stop();
+      one_done();
     });
   }
 
@@ -500,8 +519,31 @@ std::expected<void, std::string> Server::Impl::open_acquisition() {
   o.time_scale = options.time_scale;
   o.units = config.drivers.units.size();
   o.safe_setpoint_c = config.safe_setpoint_c;
+  if (config.rate_table) {
+    drivers::RateTableConfig tc = *config.rate_table;
+    if (options.time_scale > 1.0) {  // reconnection delays in run time, as the chamber's
+      auto scale = [&](std::int64_t ms) {
+        return std::max<std::int64_t>(1, std::llround(static_cast<double>(ms) / options.time_scale));
+      };
+      tc.line.backoff.initial_ms = scale(tc.line.backoff.initial_ms);
+      tc.line.backoff.max_ms = scale(tc.line.backoff.max_ms);
+    }
+    auto t = drivers::open_rate_table(tc);
+    if (!t) return std::unexpected(t.error().message);
+    table = std::make_unique<RateTableLink>(io, std::move(*t));
+    spdlog::info("rate table {} {} ({})", tc.name, tc.kind, tc.line.describe());
+  }
   TickSink sink;
-  sink.on_tick = [this](std::int64_t k, const TickInput& in) { return station->tick(static_cast<double>(k), in).setpoint_c; };
+  sink.on_tick = [this](std::int64_t k, const TickInput& in) {
+    if (!table) return station->tick(static_cast<double>(k), in).setpoint_c;
+    // The table's state as its worker last saw it joins the second; the station's rate goes
+    // back to the table (0 deg/s with no run, and from the second a run ends).
+    TickInput with_table = in;
+    with_table.rate_table = table->reading();
+    const TickOutput out = station->tick(static_cast<double>(k), with_table);
+    if (!stopping) table->command(out.rate_dps);
+    return out.setpoint_c;
+  };
   sink.run_active = [this] { return station->active_run_id().has_value(); };
   acquisition = std::make_unique<Acquisition>(io, o, std::move(d), std::move(sink));
   return {};

@@ -195,6 +195,7 @@ ApiResult<std::int64_t> Station::start_run_in_slots(const std::string& profile_n
   run.config_index = std::move(index);
   run.slots = nr.unit_slots;
   run.executor = std::make_unique<profiles::Executor>(std::move(*profile));
+  if (!run.executor->profile().rate_steps.empty()) run.rates.emplace(run.executor->profile());
   run.live = LiveCompensation::load(store_, serials);
   run_analysis_[*id] = config_.analysis;
   run_ = std::move(run);
@@ -267,6 +268,7 @@ ApiResult<Station::ResumeReplay> Station::begin_resume(std::int64_t run_id) {
   auto profile = check_profile_text(rec.profile_text, rec.profile_name + ".profile");
   if (!profile) return std::unexpected(profile.error());
   run.executor = std::make_unique<profiles::Executor>(std::move(*profile));
+  if (!run.executor->profile().rate_steps.empty()) run.rates.emplace(run.executor->profile());
   // The live compensation with the models the run started with; its state is rebuilt from the
   // stored seconds by the replay (the gap's below restart it).
   const auto recorded = LiveCompensation::recorded_models(*detail);
@@ -497,6 +499,7 @@ void Station::finish(RunState to, const std::string& reason_in, EndCause cause) 
   const auto serials = run.serials;
   run_.reset();
   setpoint_c_ = config_.safe_setpoint_c;
+  rate_dps_ = 0.0;
   if (to == RunState::completed && !skip_analysis_.erase(id)) analyse(id, purpose, serials);
 }
 
@@ -532,7 +535,7 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
                              .starts = in.units[i].gyro_starts,
                              .read = in.gyro_read};
   const auto power_edges = power_.update(clock_s, sent);
-  if (!run_) return {setpoint_c_};
+  if (!run_) return {setpoint_c_, 0.0};
   ActiveRun& run = *run_;
 
   // A gyro's power-on, restart or lost power-on is an event of the run (and a unit's power-on
@@ -599,6 +602,14 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
   // The chamber's faults are judged on what was commanded up to now (setpoint_c_), before
   // this second's profile step.
   std::optional<std::string> abort_reason = chamber_fault(run, in, t_s);
+  // The rate table's, for a run that drives it: a fault or a lost link ends the run at once
+  // (the table is then commanded to 0 deg/s, as the chamber to its safe setpoint).
+  if (run.rates && !abort_reason) {
+    if (auto why = table_fault(in)) {
+      event(run.id, storage::EventKind::fault, {{"rate_table", *why}}, t_s);
+      abort_reason = std::move(why);
+    }
+  }
 
   const bool gap = in.chamber_link_down;
   const bool hold = gap && config_.link_loss.policy == LinkLossConfig::Policy::hold && run.updated;
@@ -631,6 +642,8 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
           t_s);
   }
 
+  // The table's command this second, stored with every unit's row (rate_in_dps).
+  const double rate_dps = run.rates ? run.rates->at(st).rate_dps : 0.0;
   std::vector<storage::SampleRow> rows;
   rows.reserve(run.config_index.size());
   if (run.quality.size() < run.config_index.size()) run.quality.resize(run.config_index.size());
@@ -639,6 +652,7 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
     const UnitReading u = ci < in.units.size() ? in.units[ci] : UnitReading{};
     rows.push_back(sample_row(static_cast<int>(i), u, in, t_s, st, run.pv_frozen, power_.since_power_on_s(ci, clock_s)));
     rows.back().compensated_dph = run.live.step(i, rows.back());
+    if (run.rates) rows.back().rate_in_dps = rate_dps;
     run.quality[i].frames_lost += u.frames_lost;
     run.quality[i].frames_corrupt += u.frames_corrupt;
     run.quality[i].samples_flagged += rows.back().flags != 0;
@@ -681,8 +695,16 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
     finish(RunState::completed, "profile finished");
   } else {
     setpoint_c_ = st.setpoint_c;
+    rate_dps_ = rate_dps;
   }
-  return {setpoint_c_};
+  return {setpoint_c_, run_ ? rate_dps_ : 0.0};
+}
+
+std::optional<std::string> Station::table_fault(const TickInput& in) {
+  if (!in.rate_table) return std::string("rate table: none is connected to drive the profile's rate steps");
+  if (in.rate_table->fault) return "rate table fault: " + in.rate_table->reason;
+  if (in.rate_table->link_down) return "rate table link lost: " + in.rate_table->reason;
+  return std::nullopt;
 }
 
 std::optional<std::string> Station::chamber_fault(ActiveRun& run, const TickInput& in, double t_s) {

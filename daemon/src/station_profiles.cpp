@@ -32,15 +32,19 @@ ApiResult<profiles::Profile> Station::check_profile_text(const std::string& text
                                                          const std::string& source) const {
   auto p = profiles::parse_profile(text, source);
   if (!p) return api_error(ErrorCode::invalid_profile, p.error().to_string());
-  // Rate steps are parsed but nothing here drives a rate table: running the profile would run
-  // its temperatures without its rates, a run other than the one written. Refused by line.
-  if (!p->rate_steps.empty()) {
+  // Rate steps drive the configured rate table. Without one, running the profile would run its
+  // temperatures without its rates, a run other than the one written: refused by line.
+  if (!p->rate_steps.empty() && !config_.rate_table) {
     const auto& r = p->rate_steps.front();
     return api_error(ErrorCode::invalid_profile,
                      source + ":" + std::to_string(r.line) + ":" + std::to_string(r.rate_column) + ": '" + r.text +
-                         "': rate steps need a rate table, and fogbenchd drives none yet (docs/profiles.md); remove the " +
+                         "': rate steps need a rate table, and no rate table is configured (rate_table, "
+                         "docs/configuration.md); remove the " +
                          std::to_string(p->rate_steps.size()) + " rate line(s) to run the temperatures alone");
   }
+  if (config_.rate_table)
+    if (auto ok = profiles::check_rate_limits(*p, config_.rate_table->limits.max_rate_dps); !ok)
+      return api_error(ErrorCode::limits, ok.error().to_string() + " (rate_table.max_rate_dps)");
   if (auto ok = profiles::check_limits(*p, config_.limits); !ok)
     return api_error(ErrorCode::limits, ok.error().to_string());
   return std::move(*p);

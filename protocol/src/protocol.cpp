@@ -127,7 +127,7 @@ json to_json(const Sample& s) {
           {"frames", s.frames ? json(*s.frames) : json(nullptr)}, {"t1_c", number_or_null(s.t1_c)},
           {"t2_c", number_or_null(s.t2_c)}, {"phase", s.phase}, {"step", s.step ? json(*s.step) : json(nullptr)},
           {"flags", s.flags}, {"since_power_on_s", number_or_null(s.since_power_on_s)},
-          {"compensated_dph", number_or_null(s.compensated_dph)}};
+          {"compensated_dph", number_or_null(s.compensated_dph)}, {"rate_in_dps", number_or_null(s.rate_in_dps)}};
 }
 
 std::expected<Sample, std::string> sample_from_json(const json& j) {
@@ -147,6 +147,7 @@ std::expected<Sample, std::string> sample_from_json(const json& j) {
   s.flags = r.integer<std::uint8_t>("flags", 0);
   s.since_power_on_s = r.opt_number("since_power_on_s");
   s.compensated_dph = r.opt_number("compensated_dph");
+  s.rate_in_dps = r.opt_number("rate_in_dps");
   if (!r.ok()) return std::unexpected(r.error());
   return s;
 }

@@ -936,7 +936,8 @@ std::string to_csv(const model::RunData& run) {
   auto fits = [n](const auto& column) { return column.empty() || column.size() == n; };
   assert(run.gyro_dph.size() == n && run.t1_c.size() == n && run.t2_c.size() == n);
   assert(fits(run.setpoint_c) && fits(run.chamber_c) && fits(run.phase) && fits(run.step) &&
-         fits(run.flags) && fits(run.since_power_on_s) && fits(run.compensated_dph));
+         fits(run.flags) && fits(run.since_power_on_s) && fits(run.compensated_dph) &&
+         fits(run.rate_in_dps));
   (void)fits;
 
   std::string out = "time_s,gyro_dph,t1_c,t2_c";
@@ -947,6 +948,9 @@ std::string to_csv(const model::RunData& run) {
   if (run.has_flags()) out += ",flags";
   if (run.has_power_on()) out += ",since_power_on_s";
   if (run.has_compensated()) out += ",compensated_dph";
+  // A run that drove the rate table: the rate-sequence columns of `fogctl scale-factor`
+  // (cli/scale_factor.hpp), the plateau being the profile step. Not read back by parse_csv.
+  if (run.has_rate_in()) out += ",plateau,rate_in_dps,rate_out_dps";
   out += '\n';
   out.reserve(out.size() + n * 96);
 
@@ -995,6 +999,14 @@ std::string to_csv(const model::RunData& run) {
     if (run.has_compensated()) {
       out += ',';
       put(run.compensated_dph[i]);  // empty where the daemon computed none
+    }
+    if (run.has_rate_in()) {
+      out += ',';
+      if (run.has_step()) put(run.step[i]);
+      out += ',';
+      put(run.rate_in_dps[i]);
+      out += ',';
+      put(run.gyro_dph[i] / 3600.0);  // deg/h -> deg/s; empty where the gyro was not read
     }
     out += '\n';
   }

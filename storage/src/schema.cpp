@@ -268,6 +268,20 @@ ALTER TABLE runs ADD COLUMN pruned_at TEXT;
 ALTER TABLE runs ADD COLUMN pruned_samples INTEGER NOT NULL DEFAULT 0 CHECK (pruned_samples >= 0);
 )sql";
 
+// Version 12 (issue 29, the rate table): the rate the daemon commanded the rate table to at each
+// second, deg/s (NULL: the run drove no table; every sample recorded before version 12), so that
+// a run's export gives the rate-sequence columns `fogctl scale-factor` reads.
+constexpr const char* kTableRate = R"sql(
+ALTER TABLE samples ADD COLUMN rate_in_dps REAL;
+DROP VIEW sample_view;
+CREATE VIEW sample_view AS
+SELECT run_id, unit_index, t_s, wall_time, setpoint_c, chamber_c, gyro_dph, frames, t1_c, t2_c,
+       CASE phase WHEN 0 THEN 'unknown' WHEN 1 THEN 'settle' WHEN 2 THEN 'hold'
+                  WHEN 3 THEN 'heating' WHEN 4 THEN 'cooling' END AS phase,
+       step, flags, since_power_on_s, compensated_dph, rate_in_dps
+FROM samples;
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "recording tables", kRecording},
     {2, "models and verifications", kModels},
@@ -280,6 +294,7 @@ constexpr Migration kMigrations[] = {
     {9, "plan operator and unit lots", kPlanTraceability},
     {10, "unit slots", kUnitSlots},
     {11, "pruned runs", kPrunedRuns},
+    {12, "commanded table rate", kTableRate},
 };
 
 StoreResult<std::int64_t> query_int(Database& db, const std::string& sql, std::string_view what) {

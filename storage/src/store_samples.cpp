@@ -106,13 +106,14 @@ StoreResult<model::RunData> Store::export_run(std::int64_t run_id, int unit_inde
   d.step.reserve(n);
   d.flags.reserve(n);
   bool has_setpoint = false, has_chamber = false, has_phase = false, has_step = false,
-       has_flags = false, has_power_on = false, has_compensated = false;
+       has_flags = false, has_power_on = false, has_compensated = false,
+       has_rate_in = false;
   std::size_t settle_skipped = 0;
   bool in_leading_settle = !options.include_settle;
 
   auto stmt = db.statement(
       "SELECT t_s, gyro_dph, t1_c, t2_c, setpoint_c, chamber_c, phase, step, flags, since_power_on_s, "
-      "compensated_dph FROM samples WHERE run_id = ?1 AND unit_index = ?2 ORDER BY t_s");
+      "compensated_dph, rate_in_dps FROM samples WHERE run_id = ?1 AND unit_index = ?2 ORDER BY t_s");
   if (!stmt) return fail(std::move(stmt));
   Query q(db, *stmt);
   q.bind(1, run_id).bind(2, unit_index);
@@ -145,6 +146,8 @@ StoreResult<model::RunData> Store::export_run(std::int64_t run_id, int unit_inde
     d.since_power_on_s.push_back(q.real(9));
     has_compensated |= !q.is_null(10);
     d.compensated_dph.push_back(q.real(10));
+    has_rate_in |= !q.is_null(11);
+    d.rate_in_dps.push_back(q.real(11));
   }
   if (rc != SQLITE_DONE) return std::unexpected(db.error(rc, "export " + label));
   if (d.size() == 0) {
@@ -168,6 +171,7 @@ StoreResult<model::RunData> Store::export_run(std::int64_t run_id, int unit_inde
   drop(has_flags, d.flags);
   drop(has_power_on, d.since_power_on_s);
   drop(has_compensated, d.compensated_dph);
+  drop(has_rate_in, d.rate_in_dps);
   return d;
 }
 
@@ -191,7 +195,8 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
       {"t2_c", data.t2_c.size()},             {"setpoint_c", data.setpoint_c.size()},
       {"chamber_c", data.chamber_c.size()},   {"phase", data.phase.size()},
       {"step", data.step.size()},             {"flags", data.flags.size()},
-      {"since_power_on_s", data.since_power_on_s.size()}, {"compensated_dph", data.compensated_dph.size()}};
+      {"since_power_on_s", data.since_power_on_s.size()}, {"compensated_dph", data.compensated_dph.size()},
+      {"rate_in_dps", data.rate_in_dps.size()}};
   for (std::size_t c = 0; c < std::size(sizes); ++c) {
     const bool required = c < 3;
     const auto [name, size] = sizes[c];
@@ -246,6 +251,7 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
       if (data.has_flags()) q.bind(13, static_cast<int>(data.flags[i]));
       if (data.has_power_on()) q.bind(14, data.since_power_on_s[i]);
       if (data.has_compensated()) q.bind(15, data.compensated_dph[i]);
+      if (data.has_rate_in()) q.bind(16, data.rate_in_dps[i]);
       if (int rc = q.step(); rc != SQLITE_DONE)
         return std::unexpected(sample_error(db, rc, id, 0, data.time_s[i], what));
       q.reset();

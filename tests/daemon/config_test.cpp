@@ -216,3 +216,24 @@ TEST_CASE("config: sim_clock, the paced mock bench's control socket, only on a s
   j["sim_clock"] = 3;
   CHECK(parse_daemon_config(j, golden_dir()).error().starts_with("sim_clock: expected the path"));
 }
+
+TEST_CASE("config: rate_table, optional, its kind and fields refused by name") {
+  auto none = parse_daemon_config(golden_config_json(), golden_dir());
+  REQUIRE(none.has_value());
+  CHECK_FALSE(none->rate_table.has_value());
+  auto j = golden_config_json();
+  j["rate_table"] = {{"kind", "acutrol"}, {"link", {{"transport", "tcp"}, {"host", "127.0.0.1"}, {"port", 9888}}}, {"max_rate_dps", 300}};
+  auto c = parse_daemon_config(j, golden_dir());
+  INFO((c ? std::string() : c.error()));
+  REQUIRE(c.has_value());
+  REQUIRE(c->rate_table.has_value());
+  CHECK(c->rate_table->kind == "acutrol");
+  CHECK(c->rate_table->line.port == 9888);
+  CHECK(c->rate_table->limits.max_rate_dps == 300);
+  CHECK_THAT(refusal({{"rate_table", {{"kind", "spinny"}, {"link", {{"transport", "tcp"}, {"port", 1}}}}}}),
+             Catch::StartsWith("rate_table.kind") && Catch::Contains("acutrol"));
+  CHECK_THAT(refusal({{"rate_table", {{"kind", "acutrol"}, {"link", {{"transport", "tcp"}, {"port", 1}}}, {"speed", 3}}}}),
+             Catch::Contains("rate_table.speed"));
+  CHECK_THAT(refusal({{"rate_table", {{"kind", "acutrol"}}}}), Catch::StartsWith("rate_table.link"));
+  CHECK_THAT(refusal({{"rate_table", "acutrol"}}), Catch::StartsWith("rate_table"));
+}

@@ -106,13 +106,31 @@ TEST_CASE("handler: error codes of queries") {
   CHECK(r.code(R"({"id":1,"cmd":"profile.validate","name":"hot"})") == "limits");
   CHECK(r.code(R"({"id":1,"cmd":"profile.validate","text":"setpoint 20 C\nhold 1 min\n"})") == "ok");
   CHECK(r.code(R"({"id":1,"cmd":"profile.validate","text":"hold\n"})") == "invalid_profile");
-  // Rate steps parse, but no rate table is driven: refused by line and column, not run as
+  // Rate steps without a configured rate table: refused by line and column, not run as
   // temperatures alone.
   const json rate = r.send(R"({"id":1,"cmd":"profile.validate","text":"setpoint 20 C\nhold 5 min\nrate 100 dps for 60 s\n"})");
   INFO(rate.dump());
   CHECK(r.code(R"({"id":1,"cmd":"profile.validate","text":"setpoint 20 C\nhold 5 min\nrate 100 dps for 60 s\n"})") == "invalid_profile");
   CHECK(rate.dump().find("<text>:3:") != std::string::npos);
-  CHECK(rate.dump().find("rate table") != std::string::npos);
+  CHECK(rate.dump().find("no rate table is configured") != std::string::npos);
+}
+
+TEST_CASE("handler: a profile with rate steps is accepted once a rate table is configured, within its limit") {
+  storage::Store store = memory_store();
+  Station station{golden_config({{"rate_table", {{"kind", "acutrol"}, {"link", {{"transport", "tcp"}, {"host", "127.0.0.1"}, {"port", 9888}}},
+                                                 {"max_rate_dps", 200}}}}),
+                  store};
+  Handler handler{station};
+  SessionState session;
+  auto send = [&](const std::string& line) { return handler.handle_line(line, session); };
+  const json ok = send(R"({"id":1,"cmd":"profile.validate","text":"setpoint 20 C\nhold 5 min\nrate 100 dps for 60 s\n"})");
+  INFO(ok.dump());
+  CHECK_FALSE(ok.contains("error"));
+  const json over = send(R"({"id":2,"cmd":"profile.validate","text":"setpoint 20 C\nhold 5 min\nrate 300 dps for 60 s\n"})");
+  INFO(over.dump());
+  REQUIRE(over.contains("error"));
+  CHECK(over["error"]["code"] == "limits");
+  CHECK(over.dump().find("rate_table.max_rate_dps") != std::string::npos);
 }
 
 TEST_CASE("handler: samples page through a stored run, by unit index or serial") {

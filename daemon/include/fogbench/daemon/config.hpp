@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "fogbench/drivers/config.hpp"
+#include "fogbench/drivers/rate_table.hpp"
 #include "fogbench/model/noise.hpp"
 #include "fogbench/profiles/profile.hpp"
 
@@ -149,6 +150,9 @@ struct DaemonConfig {
   // memory (a key made for the process alone).
   std::filesystem::path signing_key_path;
   std::optional<PlantConfig> plant;        // replication to the plant store; none when absent
+  // The rate table (`rate_table`, drivers/rate_table.hpp: kind, name, link, axis, max_rate_dps,
+  // max_accel_dps2), driven by the profiles' rate steps; none: a profile with rate steps is refused.
+  std::optional<drivers::RateTableConfig> rate_table;
   nlohmann::json source;                   // the file as read, stored with every run (plant.conninfo left out)
   // The file as read, nothing left out: what a reload compares the new file with (never stored).
   nlohmann::json file_json;

@@ -37,6 +37,7 @@
 #include "fogbench/daemon/write_journal.hpp"
 #include "fogbench/profiles/executor.hpp"
 #include "fogbench/profiles/profile.hpp"
+#include "fogbench/profiles/rate_schedule.hpp"
 #include "fogbench/protocol/protocol.hpp"
 #include "fogbench/signing/signing.hpp"
 #include "fogbench/storage/runs.hpp"
@@ -49,6 +50,9 @@ class PlanRunner;
 
 struct TickOutput {
   double setpoint_c = 0.0;  // the setpoint the chamber should hold now
+  // The rate the rate table should turn at now, deg/s: the active run's rate step
+  // (profiles/rate_schedule.hpp), 0 (stopped) otherwise and from the second a run ends.
+  double rate_dps = 0.0;
 };
 
 // The plan runner sees it through RunControl (run_control.hpp) only.
@@ -246,6 +250,9 @@ class Station final : public RunControl {
     double sp_min_c = 0.0, sp_max_c = 0.0;      // the setpoints commanded meanwhile
     bool pv_frozen = false;                     // this second's PV is a frozen one (flag pv_frozen)
     LiveCompensation live;                      // each unit's compensated rate (live_compensation.hpp)
+    // The rate table's command over the run, from the profile's rate steps (set at the first
+    // tick); empty: the run drives no table and stores no commanded rate.
+    std::optional<profiles::RateSchedule> rates;
     bool live_noted = false;                    // its models are in the run's events
   };
 
@@ -274,6 +281,9 @@ class Station final : public RunControl {
   std::string behind_real_time(const ActiveRun& run, const std::string& why) const;
   // Why the chamber's state this second ends the run (alarm, link lost, not tracking), if it does.
   std::optional<std::string> chamber_fault(ActiveRun& run, const TickInput& in, double t_s);
+  // Why the rate table's state this second ends a run that drives it (a fault it reports, its
+  // link lost, none configured), if it does.
+  static std::optional<std::string> table_fault(const TickInput& in);
 
   void transition(ActiveRun& run, storage::RunState to, const std::string& reason,
                   std::optional<double> t_s);
@@ -321,6 +331,7 @@ class Station final : public RunControl {
   std::optional<ActiveRun> run_;
   std::optional<std::int64_t> resuming_;  // a resume's stored seconds being replayed (resume_run_async)
   double setpoint_c_ = 0.0;      // the setpoint commanded now
+  double rate_dps_ = 0.0;        // the rate table's rate commanded now, deg/s (0: stopped)
   double clock_s_ = 0.0;         // last tick's daemon time
   std::optional<TickInput> last_input_;
   // How the last run ended ({run_id, state, reason}), for status: a run ended by a fault is

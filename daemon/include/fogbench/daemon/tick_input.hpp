@@ -23,6 +23,14 @@ struct UnitReading {
   bool out_of_range = false;  // a sensor or the gyro reported a value outside its range
 };
 
+// The rate table as its worker last saw it (rate_table_link.hpp): at its last command or status
+// read, each naming the device.
+struct RateTableReading {
+  bool link_down = false;  // the table did not answer (reason says why)
+  bool fault = false;      // the table reports a fault (reason: its text)
+  std::string reason;
+};
+
 // Everything read in one acquisition period.
 struct TickInput {
   double wall_time = 0.0;                    // unix time, s
@@ -46,6 +54,9 @@ struct TickInput {
   // naming the device, already limited to a line a minute per kind of problem (RepeatLogSet):
   // the station records each as a `fault` event of the run.
   std::vector<std::string> gyro_stream_events;
+  // The rate table, when one is configured (the server's wiring adds it to each second; none:
+  // no table). A run with rate steps ends aborted on its fault or its link's loss.
+  std::optional<RateTableReading> rate_table;
 };
 
 // Told after every second the station has ticked (the plan runner, plan_runner.hpp): the station

@@ -43,6 +43,10 @@ struct RunData {
   // The daemon's live compensated rate, deg/h (optional: empty when the recording has none;
   // NaN where the daemon computed none). Never an input of a fit. CSV column `compensated_dph`.
   std::vector<double> compensated_dph;
+  // The rate the rate table was commanded to, deg/s (optional: empty when the run drove no
+  // table). Never an input of a drift fit. CSV: written as `rate_in_dps` with `plateau` (the
+  // step) and `rate_out_dps` (gyro_dph / 3600), the columns `fogctl scale-factor` reads.
+  std::vector<double> rate_in_dps;
 
   std::size_t size() const { return time_s.size(); }
   bool has_setpoint() const { return !setpoint_c.empty(); }
@@ -52,6 +56,7 @@ struct RunData {
   bool has_flags() const { return !flags.empty(); }
   bool has_power_on() const { return !since_power_on_s.empty(); }
   bool has_compensated() const { return !compensated_dph.empty(); }
+  bool has_rate_in() const { return !rate_in_dps.empty(); }
   // True when sample i carries any quality flag.
   bool flagged(std::size_t i) const { return !flags.empty() && flags[i] != 0; }
 };

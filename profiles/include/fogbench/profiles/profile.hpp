@@ -77,8 +77,8 @@ struct Step {
 
 // `rate <r> dps for <d>`: the rate table at r deg/s (signed; 0 at rest) for d, during the
 // `hold` it follows: the rate steps written after a hold are that plateau's rate sequence, run
-// in order from the hold's start, and must fit in it. Parsed only: no executor runs them yet
-// (the rate table is not wired into the daemon).
+// in order from the hold's start, and must fit in it. Laid out on the run's timeline by
+// RateSchedule (rate_schedule.hpp); fogbenchd drives its configured rate table with them.
 struct RateStep {
   double rate_dps = 0.0;     // deg/s, signed
   double duration_s = 0.0;   // s, > 0

@@ -80,6 +80,8 @@ struct Sample {
   std::optional<double> since_power_on_s;
   // The daemon's live compensated rate, deg/h: null when it computed none (docs/daemon.md).
   std::optional<double> compensated_dph;
+  // The rate the daemon commanded the rate table to, deg/s: null when the run drove no table.
+  std::optional<double> rate_in_dps;
 };
 nlohmann::json to_json(const Sample& s);
 // A row of run.samples as received; the error names the field.

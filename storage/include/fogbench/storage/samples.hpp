@@ -36,6 +36,9 @@ struct SampleRow {
   // computed in its firmware form (model/firmware.hpp), deg/h; kNoValue when there was none
   // (no model, warming up, inputs missing; docs/daemon.md "Live compensation").
   double compensated_dph = kNoValue;
+  // The rate the daemon commanded the rate table to this second, deg/s (the profile's rate
+  // steps, rate_schedule.hpp); kNoValue when the run drove no table.
+  double rate_in_dps = kNoValue;
 };
 
 struct ExportOptions {
