@@ -122,12 +122,16 @@ json number_or_null(std::optional<double> v) {
 }
 
 json to_json(const Sample& s) {
-  return {{"t_s", s.t_s}, {"wall_time", number_or_null(s.wall_time)}, {"setpoint_c", number_or_null(s.setpoint_c)},
+  json j = {{"t_s", s.t_s}, {"wall_time", number_or_null(s.wall_time)}, {"setpoint_c", number_or_null(s.setpoint_c)},
           {"chamber_c", number_or_null(s.chamber_c)}, {"gyro_dph", number_or_null(s.gyro_dph)},
           {"frames", s.frames ? json(*s.frames) : json(nullptr)}, {"t1_c", number_or_null(s.t1_c)},
           {"t2_c", number_or_null(s.t2_c)}, {"phase", s.phase}, {"step", s.step ? json(*s.step) : json(nullptr)},
           {"flags", s.flags}, {"since_power_on_s", number_or_null(s.since_power_on_s)},
-          {"compensated_dph", number_or_null(s.compensated_dph)}, {"rate_in_dps", number_or_null(s.rate_in_dps)}};
+          {"compensated_dph", number_or_null(s.compensated_dph)}};
+  // The table's commanded rate only where a rate table ran: a run without one keeps the
+  // sample's fields as before (the golden transcripts, clients that list fields).
+  if (s.rate_in_dps) j["rate_in_dps"] = *s.rate_in_dps;
+  return j;
 }
 
 std::expected<Sample, std::string> sample_from_json(const json& j) {
