@@ -3,6 +3,8 @@
 // coordinate descent), until the coefficients, AR and lags settle.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <optional>
 
 #include "common.hpp"
 #include "fogbench/model/firmware.hpp"
@@ -36,11 +38,13 @@ class JointSolver {
                                       double c, bool move_lags, int max_sweeps = 6) {
     const std::size_t n = sc.n(), nt = terms_.size();
     const int L = max_lag_s_;
-    Spectrum wy_spec;
+    Spectrum& wy_spec = wy_spec_;
+    wy_spec.clear();
     if (move_lags && n_auto_ > 0) {
-      std::vector<double> wy(n);
+      std::vector<double>& wy = wy_;
+      wy.resize(n);
       for (std::size_t t = 0; t < n; ++t) wy[t] = sc.weights()[t] * yf[t];
-      wy_spec = sc.spectrum_of_target(wy);
+      sc.spectrum_of_target(wy, wy_spec);
       if (first_pass_) {
         // One lag shared by the @auto terms; a term's second copy (a second thermal path)
         // would be the same column at that lag, so it waits for the shared scan and then
@@ -94,21 +98,24 @@ class JointSolver {
       bool moved_now = false;
       for (std::size_t j = 0; j < nt; ++j) {
         if (!terms_[j].lag.automatic) continue;
-        std::vector<Column> fixed{{nullptr, c}};
+        std::vector<Column>& fixed = columns_;
+        fixed.assign(1, Column{nullptr, c});
         for (std::size_t l = 0; l < nt; ++l)
           if (l != j) fixed.push_back(lagged_view(xf[l], L, lag_[l]));
-        const ScanResult r = scan_apart(sc, yf, &wy_spec, fixed, xf[j], j, lag_, std::vector<bool>(nt, true));
+        all_placed_.assign(nt, true);
+        const ScanResult r = scan_apart(sc, yf, &wy_spec, fixed, xf[j], j, lag_, all_placed_);
         if (!r.ok) return fail(FitError::Code::degenerate, "term '" + names_[j] + "': no lag gives a solvable regression");
         if (r.lag != lag_[j]) moved_now = moved = true;
         lag_[j] = r.lag;
       }
       if (!moved_now) break;
     }
-    std::vector<Column> all{{nullptr, c}};
+    std::vector<Column>& all = columns_;
+    all.assign(1, Column{nullptr, c});
     for (std::size_t l = 0; l < nt; ++l) all.push_back(lagged_view(xf[l], L, lag_[l]));
     const ScanResult r = solve_at(yf, sc.weights(), all);
     if (!r.ok) return fail(FitError::Code::degenerate, "the regression is singular at the chosen lags");
-    theta_ = r.theta;
+    theta_.assign(r.theta.begin(), r.theta.end());
     rss_ = r.sse;
     return moved;
   }
@@ -180,6 +187,11 @@ class JointSolver {
   double rss_ = 0.0;
   bool first_pass_ = true;
   std::vector<std::vector<std::size_t>> twins_;  // per term, the other terms of the same key
+  // solve()'s work space, kept between the fit's iterations (no allocation once sized).
+  std::vector<double> wy_;
+  Spectrum wy_spec_;
+  std::vector<Column> columns_;
+  std::vector<bool> all_placed_;
 };
 
 }  // namespace
@@ -244,12 +256,21 @@ std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<T
   std::vector<double> wf(n);
   double change = 0.0;
   bool lags_moved = false;
+  // The iterations' buffers, sized on the first and reused (issue 30: bench_fit_alloc counts
+  // each iteration's allocations): the prewhitened target and terms, the scanner, the whitened
+  // residual, the previous estimates.
+  std::vector<double> yf, innov, old;
+  std::vector<Lagged> xf(xl.size());
+  std::vector<int> old_lag;
+  std::optional<LagScanner> sc;
+  char stage[48];
   for (; it < o.max_iterations && !converged; ++it) {
     progress.iterations = it + 1;
-    progress.stage = "Cochrane-Orcutt iteration " + std::to_string(it + 1);
+    std::snprintf(stage, sizeof stage, "Cochrane-Orcutt iteration %d", it + 1);
+    progress.stage.assign(stage);
     auto ar = fit_ar_rows(e, w, p);
     if (!ar) return fail(FitError::Code::too_short, "joint fit: " + ar.error());
-    const std::vector<double> k_new = ar->k;
+    const std::vector<double>& k_new = ar->k;
     double ksum = 0.0;
     for (double v : k_new) ksum += v;
     for (std::size_t t = 0; t < n; ++t) {
@@ -257,15 +278,18 @@ std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<T
       for (int j = 0; j <= p && ok; ++j) ok = w[t - static_cast<std::size_t>(j)] != 0.0;
       wf[t] = ok ? 1.0 : 0.0;
     }
-    const std::vector<double> yf = ar_filter(y, k_new);
-    std::vector<Lagged> xf;
-    for (const auto& x : xl) xf.push_back(Lagged{ar_filter(x.ext, k_new), {}});
-    const std::vector<double> old = solver.theta();
-    const std::vector<int> old_lag = solver.lags();
-    LagScanner sc(n, L, wf);
+    ar_filter(y, k_new, yf);
+    for (std::size_t j = 0; j < xl.size(); ++j) {
+      ar_filter(xl[j].ext, k_new, xf[j].ext);
+      xf[j].spec.clear();  // made again from the new ext on first use, in the same buffer
+    }
+    old.assign(solver.theta().begin(), solver.theta().end());
+    old_lag.assign(solver.lags().begin(), solver.lags().end());
+    if (sc) sc->set_weights(wf);
+    else sc.emplace(n, L, wf);
     // Lags move little once the noise is whitened: search them on the first iteration and
     // whenever the coefficients have settled (to confirm), not on every iteration.
-    auto r = solver.solve(sc, yf, xf, 1.0 - ksum, search_lags);
+    auto r = solver.solve(*sc, yf, xf, 1.0 - ksum, search_lags);
     if (!r) return std::unexpected(r.error());
     m.fit.rss = solver.rss();
     const std::vector<double>& theta = solver.theta();
@@ -278,18 +302,18 @@ std::expected<Model, FitError> fit_joint(const RunData& run, const std::vector<T
     // less than the noise).
     double k_drift = 0.0;
     for (std::size_t j = 0; j < k_new.size(); ++j) k_drift = std::max(k_drift, std::abs(k_new[j] - k_at_search[j]));
-    if (search_lags) k_at_search = k_new;
-    k = k_new;
+    if (search_lags) k_at_search.assign(k_new.begin(), k_new.end());
+    k.assign(k_new.begin(), k_new.end());
     lags_moved = solver.lags() != old_lag;
     const bool settled = change < o.tolerance && !lags_moved;
     converged = settled && (search_lags || n_auto == 0 || k_drift < 0.01);
     search_lags = settled && !converged;
     solver.residual(y, ev.x, e);
     double rss = 0.0, cnt = 0.0;
-    const std::vector<double> a = ar_filter(e, k);
+    ar_filter(e, k, innov);
     for (std::size_t t = 0; t < n; ++t)
       if (wf[t] != 0.0) {
-        rss += a[t] * a[t];
+        rss += innov[t] * innov[t];
         cnt += 1.0;
       }
     m.sigma_a_dph = std::sqrt(rss / std::max(1.0, cnt));

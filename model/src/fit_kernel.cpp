@@ -1,6 +1,8 @@
 // The regression kernel of the fits: the lag scan (least squares for every lag at once, sums by
 // FFT), the solve at chosen lags (lsq.hpp's QR) and AR(p) on the rows with weight.
 #include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
 #include <limits>
 #include <optional>
 #include <string>
@@ -11,21 +13,93 @@
 namespace fogbench::model::detail {
 namespace {
 
-// make(), or the copy kept in map under key (made on first use) when map is given and keep;
+// make(out), or the copy kept in map under key (made on first use) when map is given and keep;
 // the map is read and changed under mu (another thread's copy, the same numbers, may come first).
+// out is the caller's buffer (its capacity reused when nothing is kept).
 template <class Map, class Key, class Make>
-std::vector<double> memoized(Map* map, MemoMutex* mu, const Key& key, bool keep, Make make) {
-  if (!map || !keep) return make();
+void memoized(Map* map, MemoMutex* mu, const Key& key, bool keep, std::vector<double>& out, Make make) {
+  if (!map || !keep) {
+    make(out);
+    return;
+  }
   {
     std::lock_guard lock(mu->m);
     auto it = map->find(key);
-    if (it != map->end()) return it->second;
+    if (it != map->end()) {
+      out.assign(it->second.begin(), it->second.end());
+      return;
+    }
   }
-  std::vector<double> v = make();
+  make(out);
   std::lock_guard lock(mu->m);
-  map->emplace(key, v);
-  return v;
+  map->emplace(key, out);
 }
+
+// LDLT's reciprocal condition number estimated as Eigen's rcond() does (Hager's ascent over the
+// simplices with Higham's alternating-sign check: at most 10 solves), into buffers kept per
+// thread: Eigen's own makes fresh vectors on every call, and the scan asks at every lag. Only
+// compared with a threshold. l1_norm: the factored matrix's largest absolute column sum.
+double rcond_estimate(const Eigen::LDLT<Eigen::MatrixXd>& dec, double l1_norm) {
+  const Eigen::Index n = dec.rows();
+  if (n == 0) return std::numeric_limits<double>::infinity();
+  if (l1_norm == 0.0) return 0.0;
+  if (n == 1) return 1.0;
+  thread_local Eigen::VectorXd v, sign, old_sign;
+  v.resize(n);
+  sign.resize(n);
+  old_sign.resize(n);
+  v.setConstant(1.0 / static_cast<double>(n));
+  v = dec.solve(v);
+  double lower = v.lpNorm<1>(), old_lower = lower;
+  Eigen::Index at = -1, old_at = -1;
+  for (int k = 0; k < 4; ++k) {
+    for (Eigen::Index i = 0; i < n; ++i) sign[i] = v[i] < 0.0 ? -1.0 : 1.0;
+    if (k > 0 && sign == old_sign) break;
+    v = dec.solve(sign);  // LDLT is self-adjoint: its adjoint's solve is its own
+    v.cwiseAbs().maxCoeff(&at);
+    if (at == old_at) break;
+    v.setZero();
+    v[at] = 1.0;
+    v = dec.solve(v);
+    lower = v.lpNorm<1>();
+    if (lower <= old_lower) break;
+    old_sign = sign;
+    old_at = at;
+    old_lower = lower;
+  }
+  double alternating = 1.0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    v[i] = alternating * (1.0 + static_cast<double>(i) / static_cast<double>(n - 1));
+    alternating = -alternating;
+  }
+  v = dec.solve(v);
+  const double inverse_norm = std::max(lower, 2.0 * v.lpNorm<1>() / (3.0 * static_cast<double>(n)));
+  return inverse_norm == 0.0 ? 0.0 : (1.0 / inverse_norm) / l1_norm;
+}
+
+// A symmetric matrix's largest absolute column sum.
+double l1_norm(const Eigen::MatrixXd& g) {
+  double best = 0.0;
+  for (Eigen::Index c = 0; c < g.cols(); ++c) {
+    double sum = 0.0;
+    for (Eigen::Index r = 0; r < g.rows(); ++r) sum += std::abs(g(r, c));
+    best = std::max(best, sum);
+  }
+  return best;
+}
+
+// scan()'s work space, one per thread, kept between calls: a fit's iterations scan the same
+// shapes again and again, and fresh run-length buffers cost their page faults and zeroing.
+struct ScanBuffers {
+  std::vector<double> wy, wf, prod, ones;
+  std::vector<std::vector<double>> cvy, cvf, gvv;  // [v], [v * nf + a], [v * nv + u]: all lags each
+  std::vector<Spectrum> f_spec;                    // w * fixed column a's spectrum, when f_ready[a]
+  std::vector<char> f_ready;
+  Spectrum own;                                    // w * y's spectrum when the caller has none
+  Eigen::MatrixXd Gff, G;
+  Eigen::VectorXd bf, b, th;
+  Eigen::LDLT<Eigen::MatrixXd> ldlt;
+};
 
 }  // namespace
 
@@ -38,15 +112,19 @@ ScanResult scan(const LagScanner& sc, std::span<const double> y, const Spectrum*
   const std::size_t n = sc.n();
   const auto& w = sc.weights();
   const std::size_t nf = fixed.size(), nv = varying.size(), k = nf + nv;
-  std::vector<double> wy(n);
+  thread_local ScanBuffers B;
+  std::vector<double>& wy = B.wy;
+  wy.resize(n);
   double ywy = 0.0;
   for (std::size_t t = 0; t < n; ++t) {
     wy[t] = w[t] * y[t];
     ywy += wy[t] * y[t];
   }
   // The fixed block, F' W F and F' W y, summed pair by pair over the columns in place.
-  Eigen::MatrixXd Gff(static_cast<Eigen::Index>(nf), static_cast<Eigen::Index>(nf));
-  Eigen::VectorXd bf(static_cast<Eigen::Index>(nf));
+  Eigen::MatrixXd& Gff = B.Gff;
+  Eigen::VectorXd& bf = B.bf;
+  Gff.resize(static_cast<Eigen::Index>(nf), static_cast<Eigen::Index>(nf));
+  bf.resize(static_cast<Eigen::Index>(nf));
   // sum_t w(t) u(t) v(t) for two columns (or w(t) v(t) with u constant, and so on).
   auto wdot = [&](const Column& u, const Column& v) {
     double sum = 0.0;
@@ -76,8 +154,12 @@ ScanResult scan(const LagScanner& sc, std::span<const double> y, const Spectrum*
           wdot(fixed[a], fixed[c]);
   }
   // Lag-dependent sums, each for all lags at once.
-  std::vector<std::vector<double>> cvy(nv), gvv(nv * nv);
-  std::vector<std::vector<std::vector<double>>> cvf(nv, std::vector<std::vector<double>>(nf));
+  auto& cvy = B.cvy;
+  auto& cvf = B.cvf;
+  auto& gvv = B.gvv;
+  if (cvy.size() < nv) cvy.resize(nv);
+  if (cvf.size() < nv * nf) cvf.resize(nv * nf);
+  if (gvv.size() < nv * nv) gvv.resize(nv * nv);
   if (nv > 0) {
     // The key of a column when memo keeps it (empty: not kept).
     auto vkey = [&](std::size_t v) { return memo && v < varying_keys.size() ? varying_keys[v] : std::string(); };
@@ -87,51 +169,62 @@ ScanResult scan(const LagScanner& sc, std::span<const double> y, const Spectrum*
       if (memo->cvf.size() > ScanMemo::max_pairs) memo->cvf.clear();
     }
     MemoMutex* mu = memo ? &memo->mu : nullptr;
-    Spectrum own;
     auto wy_spectrum = [&]() -> const Spectrum& {
       if (!wy_spec) {
-        own = sc.spectrum_of_target(wy);
-        wy_spec = &own;
+        sc.spectrum_of_target(wy, B.own);
+        wy_spec = &B.own;
       }
       return *wy_spec;
     };
-    std::vector<std::optional<Spectrum>> f_spec(nf);
+    if (B.f_spec.size() < nf) B.f_spec.resize(nf);
+    B.f_ready.assign(nf, 0);
     auto fixed_spectrum = [&](std::size_t a) -> const Spectrum& {
-      if (!f_spec[a]) {
-        std::vector<double> wf(n);
-        for (std::size_t t = 0; t < n; ++t) wf[t] = w[t] * fixed[a].v[t];
-        f_spec[a] = sc.spectrum_of_target(wf);
+      if (!B.f_ready[a]) {
+        B.wf.resize(n);
+        for (std::size_t t = 0; t < n; ++t) B.wf[t] = w[t] * fixed[a].v[t];
+        sc.spectrum_of_target(B.wf, B.f_spec[a]);
+        B.f_ready[a] = 1;
       }
-      return *f_spec[a];
+      return B.f_spec[a];
     };
     for (std::size_t v = 0; v < nv; ++v) {
       const std::string kv = vkey(v);
-      cvy[v] = memoized(memo ? &memo->cvy : nullptr, mu, kv, !kv.empty(), [&] { return sc.corr(*varying[v], wy_spectrum()); });
-      std::optional<std::vector<double>> ones_sum;
+      memoized(memo ? &memo->cvy : nullptr, mu, kv, !kv.empty(), cvy[v],
+               [&](std::vector<double>& out) { sc.corr(*varying[v], wy_spectrum(), out); });
+      bool have_ones = false;
       for (std::size_t a = 0; a < nf; ++a) {
+        std::vector<double>& c = cvf[v * nf + a];
         if (fixed[a].constant()) {
-          if (!ones_sum) ones_sum = memoized(memo ? &memo->ones : nullptr, mu, kv, !kv.empty(), [&] { return sc.wsum(varying[v]->ext); });
-          cvf[v][a] = *ones_sum;
-          for (double& s : cvf[v][a]) s *= fixed[a].c;
+          if (!have_ones) {
+            memoized(memo ? &memo->ones : nullptr, mu, kv, !kv.empty(), B.ones,
+                     [&](std::vector<double>& out) { sc.wsum(varying[v]->ext, out); });
+            have_ones = true;
+          }
+          c.assign(B.ones.begin(), B.ones.end());
+          for (double& s : c) s *= fixed[a].c;
         } else {
           const std::string ka = fkey(a);
-          cvf[v][a] = memoized(memo ? &memo->cvf : nullptr, mu, std::make_pair(kv, ka), !kv.empty() && !ka.empty(),
-                           [&] { return sc.corr(*varying[v], fixed_spectrum(a)); });
+          memoized(memo ? &memo->cvf : nullptr, mu, std::make_pair(kv, ka), !kv.empty() && !ka.empty(), c,
+                   [&](std::vector<double>& out) { sc.corr(*varying[v], fixed_spectrum(a), out); });
         }
       }
       for (std::size_t u = v; u < nv; ++u) {
         const std::string ku = vkey(u);
-        gvv[v * nv + u] = memoized(memo ? &memo->gvv : nullptr, mu, std::make_pair(kv, ku), !kv.empty() && !ku.empty(), [&] {
-          std::vector<double> prod(varying[v]->ext.size());
-          for (std::size_t j = 0; j < prod.size(); ++j) prod[j] = varying[v]->ext[j] * varying[u]->ext[j];
-          return sc.wsum(prod);
-        });
+        memoized(memo ? &memo->gvv : nullptr, mu, std::make_pair(kv, ku), !kv.empty() && !ku.empty(), gvv[v * nv + u],
+                 [&](std::vector<double>& out) {
+                   std::vector<double>& prod = B.prod;
+                   prod.resize(varying[v]->ext.size());
+                   for (std::size_t j = 0; j < prod.size(); ++j) prod[j] = varying[v]->ext[j] * varying[u]->ext[j];
+                   sc.wsum(prod, out);
+                 });
       }
     }
   }
   ScanResult best;
-  Eigen::MatrixXd G(k, k);
-  Eigen::VectorXd b(k);
+  Eigen::MatrixXd& G = B.G;
+  Eigen::VectorXd& b = B.b;
+  G.resize(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(k));
+  b.resize(static_cast<Eigen::Index>(k));
   if (nv == 0) lo = hi = 0;
   for (int i = lo; i <= hi; ++i) {
     const auto li = static_cast<std::size_t>(i);
@@ -139,12 +232,14 @@ ScanResult scan(const LagScanner& sc, std::span<const double> y, const Spectrum*
     b.head(nf) = bf;
     for (std::size_t v = 0; v < nv; ++v) {
       b(nf + v) = cvy[v][li];
-      for (std::size_t a = 0; a < nf; ++a) G(a, nf + v) = G(nf + v, a) = cvf[v][a][li];
+      for (std::size_t a = 0; a < nf; ++a) G(a, nf + v) = G(nf + v, a) = cvf[v * nf + a][li];
       for (std::size_t u = v; u < nv; ++u) G(nf + v, nf + u) = G(nf + u, nf + v) = gvv[v * nv + u][li];
     }
-    Eigen::LDLT<Eigen::MatrixXd> ldlt(G);
-    if (ldlt.info() != Eigen::Success || ldlt.rcond() < 1e-13) continue;
-    const Eigen::VectorXd th = ldlt.solve(b);
+    Eigen::LDLT<Eigen::MatrixXd>& ldlt = B.ldlt;
+    ldlt.compute(G);
+    if (ldlt.info() != Eigen::Success || rcond_estimate(ldlt, l1_norm(G)) < 1e-13) continue;
+    B.th = ldlt.solve(b);
+    const Eigen::VectorXd& th = B.th;
     const double sse = ywy - b.dot(th);
     if (sse < best.sse) {
       best.sse = sse;

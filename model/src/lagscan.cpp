@@ -89,13 +89,14 @@ Buffers& buffers_for(std::size_t m) {
 
 // The FFT of each block of a series, laid end to end: block b is x[b*step, b*step + take),
 // zero-padded to m.
-Spectrum forward_blocks(std::span<const double> x, std::size_t m, std::size_t step, std::size_t take,
-                        std::size_t blocks) {
+// s is resized (its capacity reused).
+void forward_blocks(std::span<const double> x, std::size_t m, std::size_t step, std::size_t take, std::size_t blocks,
+                    Spectrum& s) {
   assert(take <= m);
   Buffers& b = buffers_for(m);
   const Plans& plan = plans_for(m);
   const std::size_t half = m / 2, bins = half + 1;
-  Spectrum s(blocks * bins);
+  s.resize(blocks * bins);
   auto* packed = reinterpret_cast<fftw_complex*>(b.real);  // z[j] = x[2j] + i x[2j+1]
   for (std::size_t k = 0; k < blocks; ++k) {
     const std::size_t lo = std::min(k * step, x.size());
@@ -113,12 +114,12 @@ Spectrum forward_blocks(std::span<const double> x, std::size_t m, std::size_t st
       out[f] = even + plan.twiddle[f] * odd;
     }
   }
-  return s;
 }
 
 // c[k] = sum_t u(t) x(t + k) for k = 0..kmax, from the block spectra of x and u: the blocks'
 // products are summed before one inverse transform (the correlation is linear in them).
-std::vector<double> correlate(const Spectrum& x, const Spectrum& u, std::size_t m, std::size_t kmax) {
+// out[i] = c[kmax - i], i = 0..kmax (lag i of the scan is shift k = kmax - i); out is resized.
+void correlate_reversed(const Spectrum& x, const Spectrum& u, std::size_t m, std::size_t kmax, std::vector<double>& out) {
   assert(x.size() == u.size());
   assert(kmax < m);
   Buffers& b = buffers_for(m);
@@ -139,10 +140,9 @@ std::vector<double> correlate(const Spectrum& x, const Spectrum& u, std::size_t 
     packed[f][1] = z.imag();
   }
   fftw_execute_dft(plan.backward, packed, b.cplx);  // b.cplx[j] = m (x[2j] + i x[2j+1])
-  std::vector<double> c(kmax + 1);
+  out.resize(kmax + 1);
   const double scale = 1.0 / static_cast<double>(m);
-  for (std::size_t k = 0; k <= kmax; ++k) c[k] = b.cplx[k / 2][k % 2] * scale;
-  return c;
+  for (std::size_t k = 0; k <= kmax; ++k) out[kmax - k] = b.cplx[k / 2][k % 2] * scale;
 }
 
 }  // namespace
@@ -156,7 +156,6 @@ Lagged make_lagged(std::span<const double> x, int max_lag) {
 
 LagScanner::LagScanner(std::size_t n, int max_lag, std::vector<double> w)
     : n_(n), max_lag_(max_lag), w_(std::move(w)) {
-  assert(w_.size() == n_);
   // Overlap-save: a run longer than one block is cut into blocks of `step_` samples of the
   // target, each correlated with the next step_ + L samples of the regressor in a transform
   // of m_ points. Small fixed transforms are planned far faster than one of the run's length
@@ -174,28 +173,47 @@ LagScanner::LagScanner(std::size_t n, int max_lag, std::vector<double> w)
     step_ = block - L;
     blocks_ = (n_ + step_ - 1) / step_;
   }
+  weights_changed();
+}
+
+void LagScanner::set_weights(std::span<const double> w) {
+  w_.assign(w.begin(), w.end());
+  weights_changed();
+}
+
+void LagScanner::weights_changed() {
+  assert(w_.size() == n_);
+  zeros_.clear();
   for (std::size_t t = 0; t < n_; ++t)
     if (w_[t] == 0.0) zeros_.push_back(t);
   // Sparse corrections cost |zeros| * L; past N/(8 log N) or so an FFT is cheaper.
   sparse_zeros_ = zeros_.size() * static_cast<std::size_t>(max_lag_ + 1) < 4 * n_;
-  if (!sparse_zeros_) w_spec_ = spectrum_of_target(w_);
+  if (!sparse_zeros_) spectrum_of_target(w_, w_spec_);
 }
 
 const Spectrum& LagScanner::spec_of(const Lagged& x) const {
-  if (x.spec.empty()) x.spec = forward_blocks(x.ext, m_, step_, step_ + static_cast<std::size_t>(max_lag_), blocks_);
+  if (x.spec.empty()) forward_blocks(x.ext, m_, step_, step_ + static_cast<std::size_t>(max_lag_), blocks_, x.spec);
   return x.spec;
 }
 
-Spectrum LagScanner::spectrum_of_target(std::span<const double> u) const {
+void LagScanner::spectrum_of_target(std::span<const double> u, Spectrum& out) const {
   assert(u.size() == n_);
-  return forward_blocks(u, m_, step_, step_, blocks_);
+  forward_blocks(u, m_, step_, step_, blocks_, out);
+}
+
+Spectrum LagScanner::spectrum_of_target(std::span<const double> u) const {
+  Spectrum s;
+  spectrum_of_target(u, s);
+  return s;
+}
+
+void LagScanner::corr(const Lagged& x, const Spectrum& u_spec, std::vector<double>& out) const {
+  correlate_reversed(spec_of(x), u_spec, m_, static_cast<std::size_t>(max_lag_), out);
 }
 
 std::vector<double> LagScanner::corr(const Lagged& x, const Spectrum& u_spec) const {
-  const auto L = static_cast<std::size_t>(max_lag_);
-  const std::vector<double> c = correlate(spec_of(x), u_spec, m_, L);
-  std::vector<double> out(L + 1);
-  for (std::size_t i = 0; i <= L; ++i) out[i] = c[L - i];  // lag i is shift k = L - i
+  std::vector<double> out;
+  corr(x, u_spec, out);
   return out;
 }
 
@@ -204,15 +222,21 @@ std::vector<double> LagScanner::corr(const Lagged& x, std::span<const double> u)
 }
 
 std::vector<double> LagScanner::wsum(std::span<const double> v) const {
+  std::vector<double> out;
+  wsum(v, out);
+  return out;
+}
+
+void LagScanner::wsum(std::span<const double> v, std::vector<double>& out) const {
   const auto L = static_cast<std::size_t>(max_lag_);
   assert(v.size() == n_ + L);
-  std::vector<double> out(L + 1);
   if (!sparse_zeros_) {
-    const Spectrum vs = forward_blocks(v, m_, step_, step_ + L, blocks_);
-    const std::vector<double> c = correlate(vs, w_spec_, m_, L);
-    for (std::size_t i = 0; i <= L; ++i) out[i] = c[L - i];
-    return out;
+    thread_local Spectrum vs;
+    forward_blocks(v, m_, step_, step_ + L, blocks_, vs);
+    correlate_reversed(vs, w_spec_, m_, L, out);
+    return;
   }
+  out.resize(L + 1);
   // All-ones window sums from prefix sums, minus the samples of weight zero.
   thread_local std::vector<double> prefix;
   prefix.resize(v.size() + 1);
@@ -224,7 +248,6 @@ std::vector<double> LagScanner::wsum(std::span<const double> v) const {
     for (std::size_t t : zeros_) s -= v[t + k];
     out[i] = s;
   }
-  return out;
 }
 
 }  // namespace fogbench::model::detail

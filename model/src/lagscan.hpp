@@ -17,7 +17,8 @@ using Spectrum = std::vector<std::complex<double>>;
 // the run), so that x(t - i) = ext[t + L - i] exists for every t >= 0 and i <= L.
 struct Lagged {
   std::vector<double> ext;      // length N + L
-  mutable Spectrum spec;        // FFT of ext's blocks, computed on first use
+  mutable Spectrum spec;        // FFT of ext's blocks, computed on first use (while empty: clear() it
+                                // when ext changes, and its capacity is reused)
 };
 Lagged make_lagged(std::span<const double> x, int max_lag);
 
@@ -30,6 +31,9 @@ class LagScanner {
   int max_lag() const { return max_lag_; }
   const std::vector<double>& weights() const { return w_; }
 
+  // New weights for the same N and L (a fit's next iteration): the buffers are reused.
+  void set_weights(std::span<const double> w);
+
   // C[i] = sum_t u(t) x(t - i) for i = 0..L, u already weighted (length N).
   std::vector<double> corr(const Lagged& x, std::span<const double> u) const;
   // The same with u's spectrum computed once for several regressors.
@@ -37,12 +41,18 @@ class LagScanner {
   std::vector<double> corr(const Lagged& x, const Spectrum& u_spec) const;
   // S[i] = sum_t w(t) v(t - i) for an extended series v (length N + L).
   std::vector<double> wsum(std::span<const double> v_ext) const;
+  // The same three into the caller's buffers (resized, their capacity reused: a fit's
+  // iterations allocate nothing once the buffers have their size). The same numbers.
+  void spectrum_of_target(std::span<const double> u, Spectrum& out) const;
+  void corr(const Lagged& x, const Spectrum& u_spec, std::vector<double>& out) const;
+  void wsum(std::span<const double> v_ext, std::vector<double>& out) const;
   // Computes x's spectrum now (corr() would on first use): a Lagged read by several threads
   // at once must have it before it is shared.
   void ready(const Lagged& x) const { (void)spec_of(x); }
 
  private:
   const Spectrum& spec_of(const Lagged& x) const;
+  void weights_changed();  // zeros_, sparse_zeros_ and w_spec_ from w_
   std::size_t n_;
   int max_lag_;
   std::size_t m_;                    // FFT length of a block, >= step_ + L

@@ -85,8 +85,8 @@ std::expected<ArFit, std::string> fit_ar(std::span<const double> y, int p) {
   return r;
 }
 
-std::vector<double> ar_filter(std::span<const double> x, std::span<const double> k) {
-  std::vector<double> out(x.size());
+void ar_filter(std::span<const double> x, std::span<const double> k, std::vector<double>& out) {
+  out.resize(x.size());
   const std::size_t p = k.size(), n = x.size();
   const std::size_t head = std::min(p, n);
   for (std::size_t t = 0; t < head; ++t) {  // the start: earlier samples equal x[0]
@@ -97,13 +97,18 @@ std::vector<double> ar_filter(std::span<const double> x, std::span<const double>
   if (p == 2) {  // the common case, unrolled
     const double k1 = k[0], k2 = k[1];
     for (std::size_t t = head; t < n; ++t) out[t] = x[t] - k1 * x[t - 1] - k2 * x[t - 2];
-    return out;
+    return;
   }
   for (std::size_t t = head; t < n; ++t) {
     double v = x[t];
     for (std::size_t j = 0; j < p; ++j) v -= k[j] * x[t - j - 1];
     out[t] = v;
   }
+}
+
+std::vector<double> ar_filter(std::span<const double> x, std::span<const double> k) {
+  std::vector<double> out;
+  ar_filter(x, k, out);
   return out;
 }
 

@@ -52,6 +52,9 @@ std::expected<ArFit, std::string> fit_ar(std::span<const double> y_zero_mean, in
 // Applies the AR filter (1 - k1 q^-1 - ... - kp q^-p) to x; samples before the start are
 // taken equal to x[0] (the run starts from a steady hold).
 std::vector<double> ar_filter(std::span<const double> x, std::span<const double> k);
+// The same into out (resized; its capacity reused: no allocation once it has the size); out
+// must not be x.
+void ar_filter(std::span<const double> x, std::span<const double> k, std::vector<double>& out);
 
 // Sample autocorrelation r_1..r_max_lag (r_0 = 1 omitted) of a series about its mean.
 std::vector<double> acf(std::span<const double> x, int max_lag);
