@@ -22,10 +22,12 @@ using nlohmann::json;
 
 namespace {
 
-// A hold with the rate sequence (+-100, +-200 deg/s, 20 s each, then at rest), after a hold
-// long enough for the coil (tau 240 s) to reach the plateau.
+// A hold with the rate sequence (+-10, +-20 deg/s, 20 s each, then at rest), after a hold long
+// enough for the coil (tau 240 s) to reach the plateau. At most 20 deg/s: the station flags a
+// gyro reading beyond kGyroMaxAbsDph (1e5 deg/h, 27.8 deg/s) out of range, and the fit leaves
+// flagged samples out.
 std::string spin_plateau() {
-  return "hold 100 s\nrate 100 dps for 20 s\nrate -100 dps for 20 s\nrate 200 dps for 20 s\nrate -200 dps for 20 s\n";
+  return "hold 100 s\nrate 10 dps for 20 s\nrate -10 dps for 20 s\nrate 20 dps for 20 s\nrate -20 dps for 20 s\n";
 }
 
 struct Rig {
@@ -42,8 +44,9 @@ struct Rig {
   Rig() {
     dir = std::filesystem::temp_directory_path() / ("fogbench-plan-sf-" + std::to_string(::getpid()));
     std::filesystem::create_directories(dir);
-    std::ofstream(dir / "spin.profile") << "setpoint 20 C\n" + spin_plateau() + "ramp to 30 C at 5 C/min\nhold 15 min\n" +
-                                               spin_plateau() + "ramp to 40 C at 5 C/min\nhold 15 min\n" + spin_plateau();
+    // The drift fit (the fit step's analysis) needs an opening hold at rest.
+    std::ofstream(dir / "spin.profile") << "setpoint 20 C\nhold 2 min\n" + spin_plateau() + "ramp to 30 C at 2 C/min\nhold 15 min\n" +
+                                               spin_plateau() + "ramp to 40 C at 2 C/min\nhold 15 min\n" + spin_plateau();
     std::ofstream(dir / "still.profile") << "setpoint 20 C\nhold 10 min\nramp to 25 C at 1 C/min\nhold 5 min\n";
     auto c = golden_config({{"profile_dir", dir.string()},
                             {"rate_table", {{"kind", "acutrol"}, {"link", {{"transport", "tcp"}, {"host", "127.0.0.1"}, {"port", 9888}}}}}});
@@ -60,6 +63,7 @@ struct Rig {
   }
   void tick() {
     TickInput in = bench.step(sp_c);
+    in.rate_table = RateTableReading{};  // the table answers, no fault
     for (std::size_t i = 0; i < in.units.size(); ++i)
       *in.units[i].gyro_dph += 3600.0 * sim::indicated_rate_dps(truth[i], rate_dps, *in.units[i].t1_c, 0.0);
     const TickOutput out = st->tick(clock_s, in);
@@ -145,7 +149,7 @@ TEST_CASE("plan limit sf_tc_ppm_per_c on a plan whose fit and verify steps have 
 
 TEST_CASE("plan limit sf_tc_ppm_per_c: a step with rate steps whose fit fails (one plateau) fails the limit with the reason") {
   Rig r;
-  std::ofstream(r.dir / "one.profile") << "setpoint 20 C\n" + spin_plateau() + "hold 10 min\n";
+  std::ofstream(r.dir / "one.profile") << "setpoint 20 C\nhold 2 min\n" + spin_plateau() + "ramp to 25 C at 1 C/min\nhold 8 min\n";
   auto started = r.runner->start("plan one\nstep one fit\nlimit sf_tc_ppm_per_c < 1000 continue\n", "one.plan", {"FOG-0001"},
                                  PlanTrace{}, json{{"cmd", "plan.start"}});
   REQUIRE(started.has_value());
