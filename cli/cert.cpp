@@ -34,9 +34,15 @@ constexpr const char* kScriptOpen = "<script type=\"application/json\" id=\"fogb
 // (issue 28, point 3): page 3 as an incoming inspection prints it: the verdict in the title,
 // serial, verdict and "page x of y" in every page's margins, table headers repeated on a page
 // that continues a table, each section kept on one page when it fits (no heading or row alone).
-constexpr int kPageLatest = 4;
+// Page 5 (issue 29, point 2): page 4 with the scale factor over temperature, for a certificate
+// that has `scale_factor` (a run with rate steps); one without it is still drawn as page 4, so
+// its page is what it was.
+constexpr int kPageLatest = 5;
 bool one_verdict_layout(const json& cert) { return cert.contains("verifications") || cert.contains("qualification"); }
-int latest_page_of(const json& cert) { return one_verdict_layout(cert) ? kPageLatest : 2; }
+int latest_page_of(const json& cert) {
+  if (!one_verdict_layout(cert)) return 2;
+  return cert.contains("scale_factor") ? 5 : 4;
+}
 std::string renderer_name(int page) { return "fogbench-certificate-page " + std::to_string(page); }
 constexpr const char* kRendererMeta = "<meta name=\"generator\" content=\"";
 
@@ -103,6 +109,45 @@ std::string estimate_text(const json& e) {
   return s + ")";
 }
 
+// A scale-factor coefficient of the certificate: "12.3 +- 0.4" (1 sigma), or "not identified (why)".
+std::string sf_coefficient_text(const json& c) {
+  if (!c.is_object() || !c.contains("value") || c["value"].is_null())
+    return "not identified" + (c.is_object() && c.contains("note") ? " (" + text_of(c["note"]) + ")" : std::string());
+  return text_of(c["value"], 4) + " +- " + text_of(c["sigma"], 2);
+}
+
+// The rows of the scale-factor tables: per run, and per plateau.
+std::vector<std::vector<std::string>> sf_run_rows(const json& cert) {
+  std::vector<std::vector<std::string>> rows;
+  for (const auto& s : cert.value("scale_factor", json::array())) {
+    if (s.contains("error")) {
+      rows.push_back({field_text(s, "run_id"), field_text(s, "role"), "no fit: " + field_text(s, "error"), "", "", "", ""});
+      continue;
+    }
+    const json& f = s["model_form"];
+    rows.push_back({field_text(s, "run_id"), field_text(s, "role"), text_of(s["sf0"], 9), sf_coefficient_text(s["tc_ppm_per_c"]),
+                    sf_coefficient_text(s["temp_rate_ppm_per_c_per_min"]),
+                    "SF0 " + text_of(f["sf0"], 9) + ", k1 " + sf_coefficient_text(f["k1_ppm_per_c"]) + " ppm/degC, k2 " +
+                        sf_coefficient_text(f["k2_ppm_per_c2"]) + " ppm/degC^2, T0 " + field_text(s, "t0_c") + " degC",
+                    text_of(f["rms_ppm"], 3)});
+  }
+  return rows;
+}
+std::vector<std::vector<std::string>> sf_plateau_rows(const json& cert) {
+  std::vector<std::vector<std::string>> rows;
+  for (const auto& s : cert.value("scale_factor", json::array()))
+    for (const auto& p : s.value("plateaus", json::array()))
+      rows.push_back({field_text(s, "run_id"), field_text(p, "plateau"), text_of(p["coil_c"], 4), text_of(p["scale_factor"], 9),
+                      text_of(p["sigma"], 2), text_of(p["bias_dph"], 4), text_of(p["nonlinearity_ppm"], 3),
+                      text_of(p["asymmetry_ppm"], 3)});
+  return rows;
+}
+const std::vector<std::string> kSfRunHead = {"run", "role", "SF0", "temperature sensitivity, ppm/degC (1 sigma)",
+                                              "temperature rate, ppm per degC/min", "model form SF0 (1 + k1 (T - T0) + k2 (T - T0)^2)",
+                                              "model rms, ppm"};
+const std::vector<std::string> kSfPlateauHead = {"run", "plateau", "coil, degC", "scale factor", "1 sigma", "bias, deg/h",
+                                                 "nonlinearity, ppm", "asymmetry, ppm"};
+
 // Who decided the verdict: "plan NAME (plan 7, text sha256 ab12...)" or "the station's analysis
 // settings".
 std::string decided_by_text(const json& q) {
@@ -157,6 +202,15 @@ int print_summary(const json& cert, std::ostream& out) {
     for (const auto& r : q.value("reasons", json::array())) out << "  " << text_of(r) << "\n";
   } else {
     out << "  no verdict decided on this model\n";
+  }
+  if (cert.contains("scale_factor")) {
+    out << "  scale factor over temperature (IEEE Std 952)\n";
+    Table s(kSfRunHead);
+    for (auto& r : sf_run_rows(cert)) s.add(r);
+    out << s.str();
+    Table p(kSfPlateauHead);
+    for (auto& r : sf_plateau_rows(cert)) p.add(r);
+    out << p.str();
   }
   return kExitOk;
 }
@@ -243,6 +297,13 @@ std::string render_certificate(const json& cert, int page) {
                     a.contains("error") ? "" : estimate_text(a["bias_instability_dph"]),
                     a.contains("error") ? "" : estimate_text(a["rrw_dph_per_sqrt_h"])});
   b += rows.empty() ? "<p>None (no verification run).</p>" : tbl({"run", "ARW, deg/sqrt(h)", "bias instability, deg/h", "RRW, deg/h/sqrt(h)"}, rows);
+  if (page >= 5 && cert.contains("scale_factor")) {
+    // The runs with rate steps: the scale factor over temperature (model::sf::fit).
+    b += h2 + "Scale factor over temperature (IEEE Std 952)</h2><p class=\"sub\">Least squares over each plateau's rate "
+               "sequence; the temperature sensitivity relative to SF0 across the plateaus (coil temperature T1).</p>";
+    b += tbl(kSfRunHead, sf_run_rows(cert));
+    b += tbl(kSfPlateauHead, sf_plateau_rows(cert));
+  }
   b += h2 + "Runs</h2>";
   rows.clear();
   for (const auto& r : cert["runs"]) {

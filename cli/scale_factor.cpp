@@ -152,7 +152,13 @@ std::expected<model::sf::Result, std::string> fit_rate_file(const std::string& p
   auto rec = parse_rate_csv(buf.str(), path, coil_column);
   if (!rec) return std::unexpected(rec.error());
   if (auto bad = fo.validate(); !bad.empty()) return std::unexpected(bad);
-  auto r = model::sf::fit(*rec, fo);
+  // The plateaus in which the table turned, as the daemon selects them from a stored run
+  // (model::sf::turning_plateaus): a run's export (ramps at rest among its holds) fits as the
+  // daemon's plan limit and certificate measured it.
+  const model::sf::RateRecord turned = model::sf::turning_plateaus(*rec);
+  if (turned.size() == 0)
+    return std::unexpected(path + ": no plateau in which the table turned (every commanded rate_in_dps is 0)");
+  auto r = model::sf::fit(turned, fo);
   if (!r) return std::unexpected(path + ": " + r.error());
   return r;
 }

@@ -9,6 +9,8 @@
 #include "fogbench/model/allan.hpp"
 #include "fogbench/model/json.hpp"
 #include "fogbench/model/model.hpp"
+#include "fogbench/model/scale_factor.hpp"
+#include "fogbench/profiles/profile.hpp"
 #include "fogbench/protocol/build_info.hpp"
 #include "fogbench/signing/certificate.hpp"
 #include "fogbench/storage/run_data.hpp"
@@ -63,6 +65,54 @@ json allan_of(storage::Store& store, const model::Model& m, std::int64_t run_id,
           {"arw_deg_per_sqrt_h", estimate_json(t.arw_deg_per_sqrt_h, t.arw_note)},
           {"bias_instability_dph", estimate_json(t.bias_instability_dph, t.bias_instability_note)},
           {"rrw_dph_per_sqrt_h", estimate_json(t.rrw_dph_per_sqrt_h, t.rrw_note)}};
+}
+
+json coefficient_json(const model::sf::Coefficient& c) {
+  if (c.value) return {{"value", num_or_null(*c.value)}, {"sigma", num_or_null(c.se)}};
+  return {{"value", nullptr}, {"note", c.not_identified}};
+}
+
+// The scale factor over temperature (model::sf::fit, docs/scale-factor.md) of the serial's unit
+// in a run whose profile (as run) has rate steps; nullopt for a run without rate steps (then
+// the certificate has no scale-factor entry for it). A fit that fails gives its reason.
+std::optional<json> scale_factor_of(storage::Store& store, const storage::RunRecord& run, const std::string& serial) {
+  auto prof = profiles::parse_profile(run.profile_text, run.profile_name + ".profile");
+  if (!prof || prof->rate_steps.empty()) return std::nullopt;
+  json j = {{"run_id", run.id}};
+  int unit = -1;
+  for (const auto& u : run.units)
+    if (u.serial == serial) unit = u.unit_index;
+  if (unit < 0) return std::nullopt;
+  auto data = store.export_run(run.id, unit);
+  if (!data) {
+    j["error"] = data.error().message;
+    return j;
+  }
+  auto rec = model::sf::rate_record(*data);
+  if (!rec) {
+    j["error"] = rec.error();
+    return j;
+  }
+  const model::sf::Options options;
+  auto f = model::sf::fit(*rec, options);
+  if (!f) {
+    j["error"] = f.error();
+    return j;
+  }
+  json plateaus = json::array();
+  for (const auto& p : f->plateaus)
+    plateaus.push_back({{"plateau", p.id}, {"coil_c", num_or_null(p.coil_c)}, {"scale_factor", num_or_null(p.scale_factor)},
+                        {"sigma", num_or_null(p.scale_factor_se)}, {"bias_dph", num_or_null(p.bias_dph)},
+                        {"nonlinearity_ppm", num_or_null(p.nonlinearity_ppm)}, {"asymmetry_ppm", num_or_null(p.asymmetry_ppm)}});
+  j["settle_s"] = options.settle_s;
+  j["t0_c"] = options.t0_c;
+  j["sf0"] = num_or_null(f->sf0);
+  j["tc_ppm_per_c"] = coefficient_json(f->tc_ppm_per_c);
+  j["temp_rate_ppm_per_c_per_min"] = coefficient_json(f->temp_rate_ppm_per_c_per_min);
+  j["model_form"] = {{"sf0", num_or_null(f->model_sf0)}, {"k1_ppm_per_c", coefficient_json(f->k1_ppm_per_c)},
+                     {"k2_ppm_per_c2", coefficient_json(f->k2_ppm_per_c2)}, {"rms_ppm", num_or_null(f->model_rms_ppm)}};
+  j["plateaus"] = plateaus;
+  return j;
 }
 
 ApiResult<json> run_json(storage::Store& store, std::int64_t run_id, const std::string& role) {
@@ -157,11 +207,21 @@ ApiResult<json> build(storage::Store& store, const AnalysisConfig& /*config*/, c
       }
     }
   }
+  // The scale factor over temperature of each listed run that had rate steps (issue 29, point 2).
+  json scale_factors = json::array();
+  for (const auto& r : runs) {
+    auto d = store.get_run(r["id"].get<std::int64_t>());
+    if (!d) return std::unexpected(from_store(d.error()));
+    if (auto sf = scale_factor_of(store, d->run, serial)) {
+      (*sf)["role"] = r["role"];
+      scale_factors.push_back(std::move(*sf));
+    }
+  }
   auto latest = store.latest_verdict(serial);
   if (!latest) return std::unexpected(from_store(latest.error()));
   const verdict::Certified decided = verdict::certified(*latest, mr.id);
   const auto& info = protocol::build_info();
-  return json{{"format", "fogbench.certificate"},
+  json cert = json{{"format", "fogbench.certificate"},
               {"format_version", signing::kCertificateFormatVersion},
               {"serial", serial},
               {"station_id", station_id},
@@ -176,6 +236,9 @@ ApiResult<json> build(storage::Store& store, const AnalysisConfig& /*config*/, c
               {"allan", allans},
               {"software", {{"version", std::string(info.version)}, {"git_hash", std::string(info.git_hash)},
                             {"git_describe", std::string(info.git_describe)}}}};
+  // Only when a run had rate steps: a certificate without them is what it was before.
+  if (!scale_factors.empty()) cert["scale_factor"] = scale_factors;
+  return cert;
 }
 
 std::string hash_of(const json& cert) { return signing::content_sha256(cert); }

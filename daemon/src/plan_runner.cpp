@@ -12,6 +12,8 @@
 #include "fogbench/model/firmware.hpp"
 #include "fogbench/model/json.hpp"
 #include "fogbench/model/model.hpp"
+#include "fogbench/model/scale_factor.hpp"
+#include "fogbench/profiles/profile.hpp"
 #include "verdict.hpp"
 
 namespace fogbench::daemon {
@@ -87,6 +89,41 @@ AllanFigures allan_figures(const model::RunData& run) {
   return f;
 }
 
+// sf_tc_ppm_per_c of one unit's run (docs/plans.md): |tc| of model::sf::fit over the run's
+// turning plateaus, ppm/degC, with the signed value and its 1 sigma in the note; or no value
+// and the reason (no rate data, too few plateaus, a plateau the fit refuses).
+struct SfTc {
+  std::optional<double> abs_ppm_per_c;
+  std::string note;
+};
+SfTc sf_tc(const model::RunData& run) {
+  SfTc out;
+  auto rec = model::sf::rate_record(run);
+  if (!rec) {
+    out.note = "no scale-factor fit: " + rec.error();
+    return out;
+  }
+  auto f = model::sf::fit(*rec, {});
+  if (!f) {
+    out.note = "the scale-factor fit failed: " + f.error();
+    return out;
+  }
+  if (!f->tc_ppm_per_c.value) {
+    out.note = "the temperature sensitivity is not identified: " + f->tc_ppm_per_c.not_identified;
+    return out;
+  }
+  out.abs_ppm_per_c = std::abs(*f->tc_ppm_per_c.value);
+  out.note = "tc = " + short_number(*f->tc_ppm_per_c.value) + " +- " + short_number(f->tc_ppm_per_c.se) +
+             " ppm/degC (1 sigma) over " + std::to_string(f->plateaus.size()) + " plateaus";
+  return out;
+}
+
+// Whether a profile text has rate steps (a run's profile as stored, or a plan step's file).
+bool has_rate_steps(const std::string& text, const std::string& name) {
+  auto p = profiles::parse_profile(text, name);
+  return p && !p->rate_steps.empty();
+}
+
 }  // namespace
 
 const std::vector<drivers::UnitConfig>& PlanRunner::bench_slots() const { return runs_.bench_units(); }
@@ -125,9 +162,12 @@ ApiResult<plans::Plan> PlanRunner::check(const std::string& text, const std::str
   }
   if (auto placed = plan_slot_units(bench_slots(), units, slots); !placed) return std::unexpected(placed.error());
   bool fitted = false;
+  bool rate_step_measured = false;  // a fit or verify step whose profile has rate steps
   for (const plans::Step& s : p->steps) {
     auto prof = runs_.load_profile(s.profile);
     if (!prof) return api_error(prof.error().code, at_line(*p, s.line) + "step " + s.profile + ": " + prof.error().message);
+    if (!prof->rate_steps.empty() && plans::measured_in(plans::Measurement::sf_tc_ppm_per_c, s.purpose))
+      rate_step_measured = true;
     if (s.purpose == plans::StepPurpose::fit) fitted = true;
     if (s.purpose == plans::StepPurpose::verify && !fitted) {
       for (const auto& serial : units) {
@@ -140,6 +180,14 @@ ApiResult<plans::Plan> PlanRunner::check(const std::string& text, const std::str
       }
     }
   }
+  // The scale factor's temperature sensitivity needs a rate sequence: a limit on it with no fit
+  // or verify step whose profile has rate steps would never be measured.
+  for (const plans::Limit& l : p->limits)
+    if (l.measurement == plans::Measurement::sf_tc_ppm_per_c && !rate_step_measured)
+      return api_error(ErrorCode::bad_request,
+                       at_line(*p, l.line) + "limit " + l.describe() +
+                           ": no fit or verify step of this plan has a profile with rate steps "
+                           "(`rate <r> dps for <d>`), so the scale factor is never measured");
   return std::move(*p);
 }
 
@@ -572,8 +620,19 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
           }
     }
     std::optional<AllanFigures> allan;
+    // Whether this step's run had rate steps: its profile as run (stored with the run).
+    std::optional<bool> rate_run;
+    auto run_had_rate_steps = [&]() {
+      if (!rate_run) {
+        auto r = store.get_run(run_id);
+        rate_run = r && has_rate_steps(r->run.profile_text, step.profile + ".profile");
+      }
+      return *rate_run;
+    };
     for (const plans::Limit& l : plan.limits) {
       if (!plans::measured_in(l.measurement, step.purpose)) continue;
+      // Measured only where the table turned (a profile without rate steps has no scale factor).
+      if (l.measurement == plans::Measurement::sf_tc_ppm_per_c && !run_had_rate_steps()) continue;
       std::optional<double> value;
       std::string note_text;
       switch (l.measurement) {
@@ -617,6 +676,17 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
             if (!program) note_text = program.error();
           }
           break;
+        case plans::Measurement::sf_tc_ppm_per_c:
+          // A fit that fails (no rate data, too few plateaus) gives no value: the limit is not met
+          // and the note says why.
+          if (const auto* d = load_data()) {
+            auto tc = sf_tc(*d);
+            value = tc.abs_ppm_per_c;
+            note_text = tc.note;
+          } else {
+            note_text = "the run's samples could not be read";
+          }
+          break;
       }
       const bool met = value && l.met(*value);
       json m = {{"step", step_index + 1}, {"profile", step.profile}, {"run_id", run_id}, {"measurement", l.name()},
@@ -628,7 +698,10 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
       if (met || !(*u)["active"].get<bool>()) continue;
       const std::string measured = l.measurement == plans::Measurement::firmware
                                        ? (value ? "no firmware form (" + note_text + ")" : std::string("no model"))
-                                       : l.name() + " = " + (value ? short_number(*value) : std::string("not measured"));
+                                       : l.name() + " = " + (value ? short_number(*value) : std::string("not measured")) +
+                                             (l.measurement == plans::Measurement::sf_tc_ppm_per_c && !note_text.empty()
+                                                  ? " (" + note_text + ")"
+                                                  : std::string());
       const std::string why = where + ": " + measured + ", limit " + l.describe() + " (line " + std::to_string(l.line) + ")";
       if (l.on_fail == plans::OnFail::go_on) {
         (*u)["marginal"] = true;

@@ -236,6 +236,60 @@ std::string Options::validate() const {
   return {};
 }
 
+RateRecord turning_plateaus(const RateRecord& r, std::size_t* rows_dropped) {
+  const std::size_t n = r.size();
+  // A column of another length is fit()'s to name: returned as it is.
+  if (r.plateau.size() != n || r.rate_in_dps.size() != n || r.rate_out_dps.size() != n ||
+      r.coil_c.size() != n)
+    return r;
+  std::vector<int> turning;
+  for (std::size_t i = 0; i < n; ++i)
+    if (r.rate_in_dps[i] != 0.0 && std::find(turning.begin(), turning.end(), r.plateau[i]) == turning.end())
+      turning.push_back(r.plateau[i]);
+  RateRecord out;
+  std::size_t dropped = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (std::find(turning.begin(), turning.end(), r.plateau[i]) == turning.end()) {
+      ++dropped;
+      continue;
+    }
+    out.time_s.push_back(r.time_s[i]);
+    out.plateau.push_back(r.plateau[i]);
+    out.rate_in_dps.push_back(r.rate_in_dps[i]);
+    out.rate_out_dps.push_back(r.rate_out_dps[i]);
+    out.coil_c.push_back(r.coil_c[i]);
+  }
+  if (rows_dropped) *rows_dropped = dropped;
+  return out;
+}
+
+std::expected<RateRecord, std::string> rate_record(const RunData& run) {
+  const std::size_t n = run.size();
+  if (!run.has_rate_in()) return std::unexpected("the run drove no rate table (no commanded rate stored)");
+  if (!run.has_step()) return std::unexpected("the run has no profile step per sample: its plateaus are not known");
+  if (run.rate_in_dps.size() != n || run.step.size() != n || run.gyro_dph.size() != n || run.t1_c.size() != n ||
+      (run.has_phase() && run.phase.size() != n) || (run.has_flags() && run.flags.size() != n))
+    return std::unexpected(format("{}: columns of different lengths", run.name));
+  RateRecord all;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (run.has_phase() && run.phase[i] == Phase::settle) continue;
+    if (run.flagged(i)) continue;
+    const double out = run.gyro_dph[i] / kDphPerDps;
+    if (!std::isfinite(run.time_s[i]) || !std::isfinite(run.rate_in_dps[i]) || !std::isfinite(out) ||
+        !std::isfinite(run.t1_c[i]))
+      continue;
+    all.time_s.push_back(run.time_s[i]);
+    all.plateau.push_back(run.step[i]);
+    all.rate_in_dps.push_back(run.rate_in_dps[i]);
+    all.rate_out_dps.push_back(out);
+    all.coil_c.push_back(run.t1_c[i]);
+  }
+  RateRecord turned = turning_plateaus(all);
+  if (turned.size() == 0)
+    return std::unexpected("no profile step in which the rate table turned (every good sample's commanded rate is 0 deg/s)");
+  return turned;
+}
+
 double model_scale_factor(const Result& r, double t_c) {
   const double dt = t_c - r.options.t0_c;
   return r.model_sf0 * (1.0 + (r.k1_ppm_per_c.value.value_or(0.0) * dt + r.k2_ppm_per_c2.value.value_or(0.0) * dt * dt) / kPpm);

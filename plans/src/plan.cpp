@@ -31,7 +31,8 @@ namespace {
 constexpr std::array kMeasurements = {Measurement::comp_raw,       Measurement::noise_factor,
                                       Measurement::fail_s,         Measurement::peak_excursion,
                                       Measurement::sensitivity,    Measurement::arw,
-                                      Measurement::bias_instability, Measurement::firmware};
+                                      Measurement::bias_instability, Measurement::firmware,
+                                      Measurement::sf_tc_ppm_per_c};
 }
 
 std::string_view to_string(Measurement m) {
@@ -44,6 +45,7 @@ std::string_view to_string(Measurement m) {
     case Measurement::arw: return "arw";
     case Measurement::bias_instability: return "bias_instability";
     case Measurement::firmware: return "firmware";
+    case Measurement::sf_tc_ppm_per_c: return "sf_tc_ppm_per_c";
   }
   return "?";
 }
@@ -58,6 +60,7 @@ bool measured_in(Measurement m, StepPurpose p) {
     case Measurement::firmware: return p == StepPurpose::fit;
     case Measurement::arw:
     case Measurement::bias_instability: return p == StepPurpose::fit || p == StepPurpose::soak;
+    case Measurement::sf_tc_ppm_per_c: return p == StepPurpose::fit || p == StepPurpose::verify;
   }
   return false;
 }
@@ -68,6 +71,7 @@ std::string_view unit_of(Measurement m) {
     case Measurement::peak_excursion:
     case Measurement::bias_instability: return "deg/h";
     case Measurement::arw: return "deg/sqrt(h)";
+    case Measurement::sf_tc_ppm_per_c: return "ppm/degC";
     default: return "";
   }
 }
@@ -221,6 +225,8 @@ class Parser {
                                        : (l.measurement == Measurement::arw ||
                                           l.measurement == Measurement::bias_instability)
                                            ? "a fit or soak step"
+                                       : l.measurement == Measurement::sf_tc_ppm_per_c
+                                           ? "a fit or verify step whose profile has rate steps"
                                            : "a verify step") +
                            " does)");
     }

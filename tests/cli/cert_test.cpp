@@ -308,3 +308,46 @@ TEST_CASE("fogctl cert: page 4 prints serial, verdict and page x of y in every p
   CHECK(eh.find("</style>") == eh.rfind("</style>"));  // the one that closes the stylesheet
   CHECK(check(d.write("evil.html", eh), {pub}).code == 0);
 }
+
+TEST_CASE("fogctl cert: a certificate with the scale factor over temperature draws page 5 with its tables, checks, and an edit of its figures is seen; one without stays page 4", "[cli][cert]") {
+  Dir d;
+  const std::string pub = d.write("station.pub", station_key().public_key().pem());
+  const json plain = one_verdict_cert("FOG-7", "pass", 1);
+  CHECK(has(certificate_html(plain), "fogbench-certificate-page 4"));  // no rate steps: the page it was
+  CHECK_FALSE(has(certificate_html(plain), "Scale factor"));
+
+  json c = one_verdict_cert("FOG-7", "pass", 1);
+  c["scale_factor"] = json::array(
+      {{{"run_id", 10}, {"role", "fit"}, {"settle_s", 5.0}, {"t0_c", 20.0}, {"sf0", 1.000012},
+        {"tc_ppm_per_c", {{"value", -12.34}, {"sigma", 0.41}}},
+        {"temp_rate_ppm_per_c_per_min", {{"value", nullptr}, {"note", "needs at least 4 plateaus"}}},
+        {"model_form", {{"sf0", 1.000012}, {"k1_ppm_per_c", {{"value", -12.34}, {"sigma", 0.41}}},
+                        {"k2_ppm_per_c2", {{"value", 0.021}, {"sigma", 0.003}}}, {"rms_ppm", 0.8}}},
+        {"plateaus", {{{"plateau", 1}, {"coil_c", -20.0}, {"scale_factor", 1.0004}, {"sigma", 1e-6}, {"bias_dph", -8.1},
+                       {"nonlinearity_ppm", 31.0}, {"asymmetry_ppm", 19.5}}}}},
+       {{"run_id", 11}, {"role", "verify"}, {"error", "plateau 2: no negative input rate"}}});
+  REQUIRE(signing::sign_certificate(c, station_key(), c["station_id"]).has_value());
+  const std::string html = certificate_html(c);
+  CHECK(has(html, "fogbench-certificate-page 5"));
+  CHECK(has(html, "Scale factor over temperature (IEEE Std 952)"));
+  CHECK(has(html, "<td>10</td><td>fit</td><td>1.000012</td><td>-12.34 +- 0.41</td><td>not identified (needs at least 4 plateaus)</td>"));
+  CHECK(has(html, "k2 0.021 +- 0.003 ppm/degC^2, T0 20 degC"));
+  CHECK(has(html, "<td>10</td><td>1</td><td>-20</td><td>1.0004</td><td>1e-06</td><td>-8.1</td><td>31</td><td>19.5</td>"));
+  CHECK(has(html, "no fit: plateau 2: no negative input rate"));
+  auto ok = check(d.write("sf.html", html), {pub});
+  CHECK(ok.code == 0);
+  CHECK(has(ok.out, "visible page matches"));
+  // The sensitivity edited in the page only: edited, exit 1.
+  std::string e = html;
+  e.replace(e.find("-12.34 +- 0.41"), 14, "-2.34 +- 0.41 ");
+  CHECK(check(d.write("e.html", e), {pub}).code == 1);
+  // As page 4 drew it (a fogctl before page 5): without the section, and it still checks.
+  const std::string p4 = certificate_html(c, 4);
+  CHECK_FALSE(has(p4, "Scale factor"));
+  CHECK(check(d.write("p4.html", p4), {pub}).code == 0);
+  // The JSON: its signature covers the figures.
+  json altered = c;
+  altered["scale_factor"][0]["tc_ppm_per_c"]["value"] = -2.34;
+  std::ofstream(d.file("a.json")) << altered.dump();
+  CHECK(check(d.file("a.json"), {pub}).code == 1);
+}

@@ -185,6 +185,30 @@ TEST_CASE("fogctl scale-factor and simulate --rate-sequence: bad input named by 
     CHECK(r.code == kExitError);
     CHECK_THAT(r.err, Contains("pos.csv: plateau 3: no negative input rate"));
   }
+  SECTION("plateaus at rest (a run's ramps, as fogctl export writes them) are left out; none turning is an error") {
+    // sf = 1 + 10 ppm/degC (T - 20): plateaus 0, 2, 4 turn at 20, 30, 40 degC; 1 and 3 are ramps at rest.
+    std::string csv = "time_s,plateau,rate_in_dps,rate_out_dps,t1_c\n";
+    std::string rest = csv;
+    int t = 0;
+    for (int p = 0; p < 5; ++p)
+      for (double rate : {10.0, -10.0, 20.0, -20.0, 0.0})
+        for (int k = 0; k < 10; ++k, ++t) {
+          const double r = p % 2 ? 0.0 : rate;
+          const double temp = 20.0 + 5.0 * p;
+          const std::string row = std::to_string(t) + "," + std::to_string(p) + "," + std::to_string(r) + ",";
+          csv += row + std::to_string(r * (1.0 + 10e-6 * (temp - 20.0))) + "," + std::to_string(temp) + "\n";
+          rest += std::to_string(t) + "," + std::to_string(p) + ",0,0," + std::to_string(temp) + "\n";
+        }
+    auto r = scale_factor(d.write("ramps.csv", csv), true);
+    INFO(r.err);
+    REQUIRE(r.code == kExitOk);
+    const auto j = nlohmann::json::parse(r.out);
+    CHECK(j["plateaus"].size() == 3);
+    CHECK(j["tc_ppm_per_c"]["value"].get<double>() == Approx(10.0).margin(0.05));
+    auto e = scale_factor(d.write("rest.csv", rest), false);
+    CHECK(e.code == kExitError);
+    CHECK_THAT(e.err, Contains("rest.csv: no plateau in which the table turned"));
+  }
   SECTION("a settle longer than the steps") {
     REQUIRE(simulate(d, {}).code == kExitOk);
     auto r = scale_factor(d.file("run.csv"), false, 25.0);

@@ -69,6 +69,8 @@ TEST_CASE("certificate: issued when a verify run completes, the same from cert.g
   // software, Allan figures of the compensated output.
   CHECK(cert["serial"] == "FOG-0001");
   CHECK(cert["station_id"] == "bench-7");
+  // No run with rate steps: no scale-factor entry, the certificate is what it was before them.
+  CHECK_FALSE(cert.contains("scale_factor"));
   const json& coefs = cert["model"]["coefficients"];
   REQUIRE(coefs.size() == 3);  // mu0, d(T1), grad
   CHECK(coefs[0]["term"] == "mu0");

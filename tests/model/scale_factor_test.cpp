@@ -190,3 +190,57 @@ TEST_CASE("scale factor: bad input is an error naming the plateau and step", "[s
     CHECK_THAT(sf::fit(make({{1, 20.0, 0.0}}, kRates, 10, linear), o).error(), Contains("settle_s"));
   }
 }
+
+// A stored run (RunData) as the daemon exports it: the ramp between two holds and the settle
+// phase are left out, flagged samples dropped, and the record fits as the CSV of the same rows.
+TEST_CASE("scale factor rate_record: a stored run's turning plateaus, flagged and settle samples left out", "[scale_factor]") {
+  namespace m = fogbench::model;
+  m::RunData run;
+  run.name = "run 7";
+  double t = 0.0;
+  auto add = [&](int step, m::Phase ph, double rate, double coil, std::uint8_t flags) {
+    run.time_s.push_back(t);
+    t += 1.0;
+    run.step.push_back(step);
+    run.phase.push_back(ph);
+    run.rate_in_dps.push_back(rate);
+    // sf = 1 + 10 ppm/degC (coil - 20); bias 36 deg/h (0.01 deg/s)
+    run.gyro_dph.push_back(3600.0 * (0.01 + (1.0 + 10e-6 * (coil - 20.0)) * rate));
+    run.t1_c.push_back(coil);
+    run.t2_c.push_back(coil);
+    run.flags.push_back(flags);
+  };
+  for (int k = 0; k < 5; ++k) add(0, m::Phase::settle, 0.0, 20.0, 0);
+  for (double rate : {10.0, -10.0, 100.0, -100.0, 0.0})
+    for (int k = 0; k < 10; ++k) add(0, m::Phase::hold, rate, 20.0, 0);
+  for (int k = 0; k < 20; ++k) add(1, m::Phase::heating, 0.0, 20.0 + k, 0);
+  for (double rate : {10.0, -10.0, 100.0, -100.0, 0.0})
+    for (int k = 0; k < 10; ++k) add(2, m::Phase::hold, rate, 40.0, k == 7 ? m::flag::missing : 0);
+  run.gyro_dph[run.size() - 2] = std::nan("");  // not read, flagged: left out, not a fit error
+  run.flags[run.size() - 2] = m::flag::missing;
+  for (int k = 0; k < 10; ++k) add(3, m::Phase::cooling, 0.0, 40.0 - k, 0);
+  for (double rate : {10.0, -10.0, 100.0, -100.0, 0.0})
+    for (int k = 0; k < 10; ++k) add(4, m::Phase::hold, rate, 30.0, 0);
+  auto rec = sf::rate_record(run);
+  REQUIRE(rec.has_value());
+  CHECK(rec->size() == 50 + 50 - 6 + 50);  // settle and ramps out, 5 flagged rows + the NaN one
+  CHECK(rec->plateau.front() == 0);
+  CHECK(rec->plateau.back() == 4);
+  auto f = sf::fit(*rec, {});
+  REQUIRE(f.has_value());
+  REQUIRE(f->plateaus.size() == 3);
+  REQUIRE(f->tc_ppm_per_c.value);
+  CHECK(*f->tc_ppm_per_c.value == Approx(10.0).margin(1e-6));
+
+  SECTION("no rate table, or a table at rest throughout: the reason, never a value") {
+    m::RunData rest = run;
+    for (auto& r : rest.rate_in_dps) r = 0.0;
+    auto e = sf::rate_record(rest);
+    REQUIRE_FALSE(e.has_value());
+    CHECK_THAT(e.error(), Contains("no profile step in which the rate table turned"));
+    rest.rate_in_dps.clear();
+    e = sf::rate_record(rest);
+    REQUIRE_FALSE(e.has_value());
+    CHECK_THAT(e.error(), Contains("drove no rate table"));
+  }
+}

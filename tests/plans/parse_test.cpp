@@ -175,3 +175,44 @@ TEST_CASE("limit firmware required: a fit's model must have a firmware form, wit
   e = error_of("step exp1 fit\nlimit firmware required\nlimit firmware required retest\n");
   CHECK(e.message.find("given twice (first on line 2)") != std::string::npos);
 }
+
+TEST_CASE("limit sf_tc_ppm_per_c: the scale factor's temperature sensitivity, ppm/degC, in fit and verify steps") {
+  auto p = parse_plan("step spin fit\nlimit sf_tc_ppm_per_c < 20 ppm/degC retest\n", "t.plan");
+  REQUIRE(p.has_value());
+  REQUIRE(p->limits.size() == 1);
+  const Limit& l = p->limits[0];
+  CHECK(l.measurement == Measurement::sf_tc_ppm_per_c);
+  CHECK(l.compare == Compare::lt);
+  CHECK(l.value == 20.0);
+  CHECK(l.on_fail == OnFail::retest);
+  CHECK(l.describe() == "sf_tc_ppm_per_c < 20 ppm/degC");
+  CHECK(l.met(19.9));
+  CHECK_FALSE(l.met(20.0));
+  CHECK_FALSE(l.met(std::nan("")));
+  CHECK(unit_of(Measurement::sf_tc_ppm_per_c) == "ppm/degC");
+  CHECK(measured_in(Measurement::sf_tc_ppm_per_c, StepPurpose::fit));
+  CHECK(measured_in(Measurement::sf_tc_ppm_per_c, StepPurpose::verify));
+  CHECK_FALSE(measured_in(Measurement::sf_tc_ppm_per_c, StepPurpose::soak));
+  CHECK_FALSE(measured_in(Measurement::sf_tc_ppm_per_c, StepPurpose::custom));
+  // Without the unit, and on a verify step alone.
+  CHECK(parse_plan("step spin verify\nlimit sf_tc_ppm_per_c <= 5\n", "t.plan").has_value());
+
+  auto e = error_of("step spin fit\nlimit sf_tc_ppm_per_c < 20 ppm/C\n");
+  CHECK(e.line == 2);
+  CHECK(e.column == 28);
+  CHECK(e.message == "expected the unit 'ppm/degC' or 'stop', 'continue', 'retest', found 'ppm/C'");
+  e = error_of("step spin fit\nlimit sf_tc_ppm_per_c < twenty\n");
+  CHECK(e.column == 25);
+  CHECK(e.message == "expected a number after '<', found 'twenty'");
+  e = error_of("step s1 soak\nlimit sf_tc_ppm_per_c < 20\n");  // no fit or verify step
+  CHECK(e.line == 2);
+  CHECK(e.message.find("no step of this plan measures sf_tc_ppm_per_c (a fit or verify step whose profile has rate steps does)") !=
+        std::string::npos);
+  e = error_of("step spin fit\nlimit sf_tc_ppm_per_c < 20\nlimit sf_tc_ppm_per_c < 10\n");
+  CHECK(e.line == 3);
+  CHECK(e.message == "a limit on sf_tc_ppm_per_c is given twice (first on line 2)");
+  e = error_of("step spin fit\nlimit sf_tc < 20\n");
+  CHECK(e.column == 7);
+  CHECK(e.message.find("unknown measurement 'sf_tc'") != std::string::npos);
+  CHECK(e.message.find("'sf_tc_ppm_per_c'") != std::string::npos);
+}

@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include "fogbench/model/run.hpp"
+
 namespace fogbench::model::sf {
 
 // The samples of a rate sequence, one per row, in time order (columns of equal length).
@@ -103,6 +105,20 @@ struct Result {
 
 // The scale factor of the model form at coil temperature t_c, degC.
 double model_scale_factor(const Result& r, double t_c);
+
+// The plateaus of `record` in which the table turned (some commanded rate not 0), in order; the
+// others (a ramp, a hold without a rate sequence: at rest throughout) are left out, their rows
+// counted in *rows_dropped when given. The CSV path (fogctl scale-factor) and the daemon's
+// stored runs (rate_record) select the same plateaus, so a run's exported CSV fits as the
+// daemon measured it.
+RateRecord turning_plateaus(const RateRecord& record, std::size_t* rows_dropped = nullptr);
+
+// The rate record of a stored run (RunData with rate_in_dps and step): plateau = the profile
+// step, rate_out_dps = gyro_dph / 3600, coil_c = T1, as the run's CSV export writes them; the
+// settle phase's samples, flagged samples and samples with a non-finite value left out, then
+// turning_plateaus. Errors: the run drove no rate table (no rate_in_dps), has no step column,
+// or no plateau in which the table turned.
+std::expected<RateRecord, std::string> rate_record(const RunData& run);
 
 // Errors name the plateau and step (and the sample's row, 0-based, where about one sample):
 // a column of another length, a non-finite value, time not increasing, a step with no sample

@@ -38,9 +38,15 @@ enum class Measurement : std::uint8_t {
   arw,                   // angle random walk, deg/sqrt(h) (Allan, IEEE 952)
   bias_instability,      // bias instability, deg/h (Allan, IEEE 952)
   firmware,              // the fitted model has a firmware form (`limit firmware required`): 1 yes, 0 no
+  // The magnitude |tc| of the scale factor's temperature sensitivity, ppm/degC (model::sf::fit
+  // of the run's rate plateaus; `limit sf_tc_ppm_per_c < 20` means |tc| < 20 ppm/degC). Measured
+  // in the fit and verify steps whose profile has rate steps; the daemon refuses a plan with
+  // this limit and no such step.
+  sf_tc_ppm_per_c,
 };
 std::string_view to_string(Measurement m);
-// Which step purposes give the measurement: verify steps, fit steps, or fit and soak steps.
+// Which step purposes give the measurement: verify steps, fit steps, fit and soak steps, or fit
+// and verify steps (sf_tc_ppm_per_c, only where the step's profile has rate steps).
 bool measured_in(Measurement m, StepPurpose p);
 // The unit a value of the measurement may be written with ("" when it has none).
 std::string_view unit_of(Measurement m);
