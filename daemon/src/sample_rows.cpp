@@ -13,14 +13,14 @@ double or_nan(std::optional<double> v) { return v ? *v : storage::kNoValue; }
 std::optional<double> finite(double v) { return std::isfinite(v) ? std::optional(v) : std::nullopt; }
 }  // namespace
 
-std::uint8_t quality_flags(const UnitReading& u, const TickInput& in, bool pv_frozen) {
+std::uint8_t quality_flags(const UnitReading& u, const TickInput& in, bool pv_frozen, double table_max_abs_dps) {
   std::uint8_t f = 0;
   if (!u.gyro_dph || !u.t1_c || !u.t2_c || !in.chamber_c) f |= model::flag::missing;
   if (u.frames_lost > 0 || u.frames_corrupt > 0) f |= model::flag::frames_lost;
   bool oor = u.out_of_range;
   for (auto t : {u.t1_c, u.t2_c})
     if (t && (*t < kCoilMinC || *t > kCoilMaxC)) oor = true;
-  if (u.gyro_dph && std::abs(*u.gyro_dph) > kGyroMaxAbsDph) oor = true;
+  if (u.gyro_dph && std::abs(*u.gyro_dph) > kGyroMaxAbsDph + 3600.0 * std::abs(table_max_abs_dps)) oor = true;
   if (oor) f |= model::flag::out_of_range;
   if (in.chamber_link_down) f |= model::flag::link_gap;
   if (pv_frozen) f |= model::flag::pv_frozen;
@@ -29,7 +29,7 @@ std::uint8_t quality_flags(const UnitReading& u, const TickInput& in, bool pv_fr
 
 storage::SampleRow sample_row(int unit_index, const UnitReading& u, const TickInput& in, double t_s,
                               const profiles::ExecutorStatus& st, bool pv_frozen,
-                              std::optional<double> since_power_on_s) {
+                              std::optional<double> since_power_on_s, double table_max_abs_dps) {
   storage::SampleRow r;
   r.unit_index = unit_index;
   r.t_s = t_s;
@@ -42,7 +42,7 @@ storage::SampleRow sample_row(int unit_index, const UnitReading& u, const TickIn
   r.t2_c = or_nan(u.t2_c);
   r.phase = storage::model_phase(st.phase);
   r.step = static_cast<int>(st.step_index);
-  r.flags = quality_flags(u, in, pv_frozen);
+  r.flags = quality_flags(u, in, pv_frozen, table_max_abs_dps);
   r.since_power_on_s = or_nan(since_power_on_s);
   return r;
 }

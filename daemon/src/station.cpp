@@ -644,13 +644,15 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
 
   // The table's command this second, stored with every unit's row (rate_in_dps).
   const double rate_dps = run.rates ? run.rates->at(st).rate_dps : 0.0;
+  const double table_max_abs_dps = run.rates ? run.rates->max_abs_rate_dps() : 0.0;
   std::vector<storage::SampleRow> rows;
   rows.reserve(run.config_index.size());
   if (run.quality.size() < run.config_index.size()) run.quality.resize(run.config_index.size());
   for (std::size_t i = 0; i < run.config_index.size(); ++i) {
     const std::size_t ci = run.config_index[i];
     const UnitReading u = ci < in.units.size() ? in.units[ci] : UnitReading{};
-    rows.push_back(sample_row(static_cast<int>(i), u, in, t_s, st, run.pv_frozen, power_.since_power_on_s(ci, clock_s)));
+    rows.push_back(sample_row(static_cast<int>(i), u, in, t_s, st, run.pv_frozen, power_.since_power_on_s(ci, clock_s),
+                              table_max_abs_dps));
     rows.back().compensated_dph = run.live.step(i, rows.back());
     if (run.rates) rows.back().rate_in_dps = rate_dps;
     run.quality[i].frames_lost += u.frames_lost;

@@ -1,5 +1,6 @@
 #include "fogbench/profiles/rate_schedule.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace fogbench::profiles {
@@ -18,6 +19,12 @@ RateSchedule::RateSchedule(const Profile& profile) {
     steps_.push_back({r.plateau, t_s, t_s + r.duration_s, r.rate_dps, i});
     t_s += r.duration_s;
   }
+}
+
+double RateSchedule::max_abs_rate_dps() const {
+  double m = 0.0;
+  for (const Planned& p : steps_) m = std::max(m, std::abs(p.rate_dps));
+  return m;
 }
 
 RateCommand RateSchedule::at(std::size_t step_index, double step_elapsed_s) const {

@@ -47,6 +47,12 @@ TEST_CASE("sample rows: each fault sets its own flag") {
   u = good_unit();
   u.gyro_dph = -2.0 * kGyroMaxAbsDph;
   CHECK(quality_flags(u, good_input(), false) == model::flag::out_of_range);
+  // On a rate table spinning up to 100 deg/s (3.6e5 deg/h) the same reading is the table's rate
+  // plus a drift: plausible; beyond the table's largest rate plus the drift bound it is not.
+  CHECK(quality_flags(u, good_input(), false, 100.0) == 0);
+  CHECK(quality_flags(u, good_input(), false, -100.0) == 0);
+  u.gyro_dph = 100.0 * 3600.0 + 1.5 * kGyroMaxAbsDph;
+  CHECK(quality_flags(u, good_input(), false, 100.0) == model::flag::out_of_range);
   TickInput gap = good_input();
   gap.chamber_link_down = true;
   CHECK(quality_flags(good_unit(), gap, false) == model::flag::link_gap);

@@ -52,6 +52,8 @@ TEST_CASE("rate schedule: each plateau its own sequence, 0 during ramps and sett
       "rate 30 dps for 1 s\n");
   const RateSchedule rs(p);
   CHECK_FALSE(rs.empty());
+  CHECK(rs.max_abs_rate_dps() == 30.0);  // the largest |rate| of every plateau's sequence
+  CHECK(RateSchedule(parse_ok("setpoint 20 C\nhold 5 s\nrate -45 dps for 5 s\n")).max_abs_rate_dps() == 45.0);
   CHECK(rs.at(1, 0.0).rate_dps == 10.0);
   CHECK(rs.at(1, 0.0).rate_step == 0u);
   CHECK(rs.at(1, 1.999).rate_dps == 10.0);
@@ -75,6 +77,7 @@ TEST_CASE("rate schedule: each plateau its own sequence, 0 during ramps and sett
 TEST_CASE("rate schedule: none without rate steps, and 0 once the profile has finished or failed") {
   const auto plain = parse_ok("setpoint 20 C\nhold 5 s\n");
   CHECK(RateSchedule(plain).empty());
+  CHECK(RateSchedule(plain).max_abs_rate_dps() == 0.0);
   CHECK(RateSchedule(plain).at(1, 1.0).rate_dps == 0.0);
   const auto p = parse_ok("setpoint 20 C\nhold 5 s\nrate 7 dps for 5 s\n");
   const RateSchedule rs(p);

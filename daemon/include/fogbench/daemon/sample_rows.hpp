@@ -20,18 +20,22 @@ struct TickInput;
 struct UnitReading;
 
 // Readings outside these are implausible for a coil or a gyro on a drift bench (flag out_of_range).
+// On a rate table the gyro reads the table's rate besides its drift: its bound is
+// kGyroMaxAbsDph plus the largest rate the run commands (in deg/h), whatever the table is doing
+// that second (it ramps between steps at its own acceleration).
 inline constexpr double kCoilMinC = -100.0, kCoilMaxC = 200.0;
 inline constexpr double kGyroMaxAbsDph = 1.0e5;
 
 // The quality bits (model::flag) of one unit's second: missing (a reading absent), frames_lost,
 // out_of_range, link_gap (the chamber could not be polled), pv_frozen (the chamber's PV is stale).
-std::uint8_t quality_flags(const UnitReading& u, const TickInput& in, bool pv_frozen);
+// table_max_abs_dps: the largest |rate| the run commands its rate table, deg/s (0: no table).
+std::uint8_t quality_flags(const UnitReading& u, const TickInput& in, bool pv_frozen, double table_max_abs_dps = 0.0);
 
 // One unit's row of a second at run time t_s: the setpoint recorded is the profile's for this
 // second; a value not read is NaN.
 storage::SampleRow sample_row(int unit_index, const UnitReading& u, const TickInput& in, double t_s,
                               const profiles::ExecutorStatus& st, bool pv_frozen,
-                              std::optional<double> since_power_on_s);
+                              std::optional<double> since_power_on_s, double table_max_abs_dps = 0.0);
 
 // The `sample` message of a stored row, for subscribers.
 protocol::SampleMessage sample_message(const storage::SampleRow& r, std::int64_t run_id, const std::string& serial,

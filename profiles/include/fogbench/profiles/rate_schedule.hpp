@@ -26,6 +26,9 @@ class RateSchedule {
 
   // Whether the profile has any rate step (a table is needed to run it).
   bool empty() const { return steps_.empty(); }
+  // The largest |rate| the profile commands, deg/s (0 without rate steps): what a gyro on the
+  // table may read beyond its drift.
+  double max_abs_rate_dps() const;
 
   // The command when profile step `step_index` has run for `step_elapsed_s` (s): in a hold with
   // a rate sequence, the rate step in force, the sequence run in order from the hold's start (a
