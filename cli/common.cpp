@@ -11,6 +11,7 @@
 #include <cstring>
 #include <ctime>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 #include "fogbench/model/json.hpp"
@@ -19,6 +20,25 @@
 #include "fogbench/storage/csv.hpp"
 
 namespace fogbench::cli {
+
+namespace {
+std::map<std::string, std::string>& display_names() {
+  static std::map<std::string, std::string> names;
+  return names;
+}
+}  // namespace
+
+void set_display_name(const std::string& path, std::string name) { display_names()[path] = std::move(name); }
+
+std::string model_label(const std::string& path) {
+  const std::string name = display_name(path);
+  return name == path ? "model " + path : name;
+}
+
+std::string display_name(const std::string& path) {
+  const auto it = display_names().find(path);
+  return it == display_names().end() ? path : it->second;
+}
 
 std::expected<model::RunData, std::string> load_run(const std::string& path, const RunInput& in, QualityLog* log) {
   storage::CsvOptions o;
@@ -38,9 +58,11 @@ std::expected<model::RunData, std::string> load_run(const std::string& path, con
   }
   if (in.time_unit == "ms") o.time_scale = 1e-3;
   else if (in.time_unit != "s") return std::unexpected("--time-unit " + in.time_unit + ": expected s or ms");
+  const std::string name = display_name(path);
+  if (name != path) o.source_name = name;  // a stored run (--run): "run 2 SIM-0001"
   auto r = storage::read_csv_file(path, o);
   if (!r) return std::unexpected(r.error().message);
-  return check_run_quality(std::move(*r), path, in.quality, log, in.retry);
+  return check_run_quality(std::move(*r), name, in.quality, log, in.retry);
 }
 
 void add_run_input(CLI::App* c, RunInput& in) {

@@ -55,6 +55,15 @@ struct QualityLog {
   std::string headline;                            // "a sensor problem: T1 lag at 0..5400 s" when sensor_problem
 };
 
+// A file fogctl made in the temporary directory for a stored run or model (--run): the name it
+// is shown by in tables, reports and messages ("run 2 SIM-0001", "model 1 of SIM-0001") instead
+// of a temporary path that is deleted when fogctl exits (issue 28). display_name of a path
+// nobody named is the path itself.
+void set_display_name(const std::string& path, std::string name);
+std::string display_name(const std::string& path);
+// A model file as a title names it: "model PATH", or a fetched one's name ("model 1 of SIM-0001").
+std::string model_label(const std::string& path);
+
 // Reads a run's CSV and runs the data-quality check of `in.quality` on it: the run (cleaned
 // where the mode cleans) or an error naming the file, the sensor, the interval and what to do.
 // What was cleaned or warned is added to `log`, or printed to stderr as `warning:` lines when

@@ -90,6 +90,7 @@ int run_generate(const FleetOptions& o, std::ostream& out, std::ostream& err) {
   g.seed = o.gen_seed;
   if (g.shifted_lot == 0 && g.lots > 1) g.shifted_lot = 1;
   Progress progress(err, progress_redraws(), 5.0);
+  progress.set_width(progress_width());
   g.progress = [&](std::int64_t done, std::int64_t total, std::int64_t samples) {
     progress.update("copying samples", "samples of " + std::to_string(done) + " of " + std::to_string(total) + " runs copied (" +
                                            std::to_string(samples) + " rows)");

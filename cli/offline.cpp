@@ -2,6 +2,7 @@
 #include "offline.hpp"
 
 #include <CLI/CLI.hpp>
+#include <sstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
 
@@ -261,6 +262,7 @@ int run_verify(const VerifyOptions& o, std::ostream& out, std::ostream& err) {
   }
   QualityLog quality;
   for (const auto& path : o.runs) {
+    const std::string name = display_name(path);  // "run 2 SIM-0001" for --run 2
     auto run = load_run(path, o.input, &quality);
     if (!run) {
       err << "fogctl verify: " << run.error() << "\n";
@@ -268,20 +270,20 @@ int run_verify(const VerifyOptions& o, std::ostream& out, std::ostream& err) {
     }
     auto v = model::verify(*m, *run, vo);
     if (!v) {
-      err << "fogctl verify: " << path << ": " << v.error().message << "\n";
+      err << "fogctl verify: " << name << ": " << v.error().message << "\n";
       return kExitError;
     }
     all_pass = all_pass && v->pass;
     any_fail = any_fail || v->verdict == model::Verdict::fail;
-    for (const auto& why : v->reasons) reasons.push_back(path + ": " + why);
+    for (const auto& why : v->reasons) reasons.push_back(name + ": " + why);
     nlohmann::json j = model::to_json(*v);
-    j["run"] = path;
+    j["run"] = name;
     results.push_back(j);
-    t.add({path, fixed(v->run.est_mean), fixed(v->run.meas_mean), fixed(v->run.est_std), fixed(v->run.meas_std),
+    t.add({name, fixed(v->run.est_mean), fixed(v->run.meas_mean), fixed(v->run.est_std), fixed(v->run.meas_std),
            fixed(v->run.comp_std), fixed(100.0 * v->run.ratio, 1) + "%",
            v->verdict == model::Verdict::pass ? "pass" : v->verdict == model::Verdict::marginal ? "MARGINAL" : "FAIL"});
     for (const auto& p : v->phases)
-      ph.add({path, std::string(to_string(p.phase)), std::to_string(p.stats.n), fixed(p.stats.meas_std),
+      ph.add({name, std::string(to_string(p.phase)), std::to_string(p.stats.n), fixed(p.stats.meas_std),
               fixed(p.stats.comp_std), fixed(100.0 * p.stats.ratio, 1) + "%"});
   }
   if (o.json) {
@@ -294,7 +296,7 @@ int run_verify(const VerifyOptions& o, std::ostream& out, std::ostream& err) {
                             {"threshold", o.threshold}, {"data_quality", quality.flags}}.dump() << "\n";
     }
   } else {
-    out << "Table 1 (deg/h): model " << o.model << " (" << m->terms_string() << "), pass when comp/raw < "
+    out << "Table 1 (deg/h): " << model_label(o.model) << " (" << m->terms_string() << "), pass when comp/raw < "
         << fixed(100.0 * o.threshold, 0) << "%";
     if (vo.noise_test)
       out << ", comp std within " << fixed(vo.noise.max_noise_factor, 2) << " x the gyro's noise std and no failing interval of "
@@ -393,7 +395,12 @@ void add_offline_commands(CLI::App& app, int& code) {
   v->add_flag("--no-noise-test", ver.no_noise_test, "The paper's ratio rule alone (no marginal verdict)");
   v->add_flag("--json", ver.json, "Print one JSON object");
   add_run_input(v, ver.input);
-  v->callback([&] { code = run_verify(ver, std::cout, std::cerr); });
+  v->callback([&] {
+    std::ostringstream text;
+    code = run_verify(ver, text, std::cerr);
+    // Prose within the terminal's width (issue 28); JSON as it is.
+    std::cout << (ver.json ? text.str() : fit_lines(text.str(), output_width())) << std::flush;
+  });
 }
 
 }  // namespace fogbench::cli

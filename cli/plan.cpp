@@ -177,7 +177,7 @@ int plan_exit_code(const json& s) {
 }
 
 // For each unit, the command that reports its runs of the plan (model, Table 1, plots) from
-// the daemon: `fogctl report --unit SERIAL --run 1 --run 2`, with the unit's current model when
+// the daemon: `fogctl report --unit SERIAL --run 1 --run 2 -o report-SERIAL.html`, with the unit's current model when
 // the plan fitted one, else with a model file to give (`--model MODEL.json`).
 static std::string report_commands_html(const json& progress) {
   std::string items;
@@ -194,7 +194,9 @@ static std::string report_commands_html(const json& progress) {
       fitted = fitted || (r["purpose"].is_string() && r["purpose"].get<std::string>() == "fit");
     }
     if (runs.empty()) continue;
-    items += "<li><code>" + html_escape("fogctl report " + std::string(fitted ? "" : "--model MODEL.json ") + "--unit " + serial + runs) +
+    // The output file named: report refuses to run without one (exit 2).
+    items += "<li><code>" + html_escape("fogctl report " + std::string(fitted ? "" : "--model MODEL.json ") + "--unit " + serial + runs +
+                                        " -o report-" + serial + ".html") +
              "</code>" + (fitted ? "" : " (the plan fitted no model of this unit: give one)") + "</li>";
   }
   if (items.empty()) return "<p>No run of the plan has been stored yet: no report to make.</p>\n";

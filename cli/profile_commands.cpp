@@ -45,7 +45,13 @@ int run_profile_list(const ListOptions& o, std::ostream& out, std::ostream& err)
     t.add({name, std::to_string(p->steps.size()), commands::duration_text(s), path.string()});
   }
   if (o.json) out << j.dump() << "\n";
-  else if (found.empty()) out << "no profiles found\n";
+  else if (found.empty()) {
+    // A copied or installed fogctl with no shipped profiles beside it: where it looked, and the
+    // variable that adds a folder (issue 28).
+    std::string where;
+    for (const auto& d : profile_dirs()) where += (where.empty() ? "" : ", ") + d.string();
+    out << "no profiles found in " << where << " (set FOGBENCH_PROFILE_DIR to the folder that holds them)\n";
+  }
   else out << t.str();
   return bad ? kExitError : kExitOk;
 }

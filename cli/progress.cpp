@@ -1,6 +1,7 @@
 // Progress lines: redrawn on a terminal, plain lines elsewhere (progress.hpp).
 #include "progress.hpp"
 
+#include <sys/ioctl.h>
 #include <unistd.h>
 
 #include <cstdlib>
@@ -14,6 +15,17 @@ bool progress_redraws() {
     if (std::strcmp(p, "redraw") == 0) return true;
   }
   return ::isatty(STDERR_FILENO) == 1;
+}
+
+std::size_t progress_width() {
+  if (const char* c = std::getenv("COLUMNS"); c && *c) {
+    char* end = nullptr;
+    const long n = std::strtol(c, &end, 10);
+    if (end && *end == '\0' && n >= 20 && n <= 10000) return static_cast<std::size_t>(n);
+  }
+  winsize ws{};
+  if (::ioctl(STDERR_FILENO, TIOCGWINSZ, &ws) == 0 && ws.ws_col >= 20) return ws.ws_col;
+  return 0;
 }
 
 Progress::Progress(std::ostream& err, bool redraw, double every_s, Clock clock)
@@ -30,10 +42,13 @@ void Progress::update(const std::string& phase, const std::string& text) {
   if (redraw_) {
     // A screen redraw five times a second at most; a new phase at once.
     if (started_ && phase == phase_ && t - last_ < std::chrono::milliseconds(200)) return;
+    std::string shown = text;
+    // One column short of the width: a line that fills the last column wraps on some terminals.
+    if (width_ >= 20 && shown.size() > width_ - 1) shown = shown.substr(0, width_ - 4) + "...";
     std::string pad;
-    if (text.size() < drawn_width_) pad.assign(drawn_width_ - text.size(), ' ');
-    err_ << '\r' << text << pad << std::flush;
-    drawn_width_ = text.size();
+    if (shown.size() < drawn_width_) pad.assign(drawn_width_ - shown.size(), ' ');
+    err_ << '\r' << shown << pad << std::flush;
+    drawn_width_ = shown.size();
     open_line_ = true;
   } else {
     if (started_ && phase == phase_ && t - last_ < every_) return;

@@ -13,6 +13,9 @@ namespace fogbench::cli {
 // Whether progress on stderr is redrawn: stderr is a terminal (isatty). FOGCTL_PROGRESS=lines or
 // =redraw overrides the guess (a terminal multiplexer that logs, a test).
 bool progress_redraws();
+// The width of the terminal progress is redrawn on: $COLUMNS when exported (at least 20), else
+// stderr's terminal width, else 0 (unknown).
+std::size_t progress_width();
 
 class Progress {
  public:
@@ -31,6 +34,11 @@ class Progress {
   void line(const std::string& text);
   // Ends the redrawn line (nothing when lines were written).
   void finish();
+  // The terminal's width in columns (0: unknown, lines whole). A redrawn line longer than the
+  // width less one is cut and ends with "...": a line that wrapped would scroll at every
+  // redraw (issue 28). Lines written when not redrawing stay whole.
+  void set_width(std::size_t columns) { width_ = columns; }
+  std::size_t width() const { return redraw_ ? width_ : 0; }
 
  private:
   std::chrono::steady_clock::time_point now() const;
@@ -43,6 +51,7 @@ class Progress {
   bool started_ = false;
   bool open_line_ = false;  // a redrawn line is on screen, not ended by a newline
   std::size_t drawn_width_ = 0;
+  std::size_t width_ = 0;
   std::chrono::steady_clock::time_point last_{};
 };
 

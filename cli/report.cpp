@@ -12,6 +12,7 @@
 
 #include "fogbench/model/noise.hpp"
 #include "fogbench/model/workbench.hpp"
+#include "progress.hpp"
 #include "report_plots.hpp"
 #include "report_allan.hpp"
 #include "report_runs.hpp"
@@ -142,8 +143,14 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
     err << "fogctl report: --threshold must be between 0 and 1 (a ratio of std), got " << o.threshold << "\n";
     return kExitError;
   }
+  // Progress on stderr (issue 28: a report on a 3-day run took 122 s in silence): a line per
+  // stage in a file or a pipe, one line redrawn on a terminal.
+  Progress progress(err, progress_redraws());
+  progress.set_width(progress_width());
   std::vector<model::RunData> runs;
   for (const auto& p : o.runs) {
+    progress.update("read " + p, "report: reading " + display_name(p) + " (" + std::to_string(runs.size() + 1) + " of " +
+                                     std::to_string(o.runs.size()) + ")");
     auto r = load_run(p, o.input);
     if (!r) {
       err << "fogctl report: " << r.error() << "\n";
@@ -164,6 +171,10 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
   const std::span<const model::RunData> held = std::span<const model::RunData>(runs).subspan(1);
   wb::DiagnoseOptions dopt;
   dopt.threads = 0;  // the candidates on both cores: the same answer, sooner
+  std::size_t samples = 0;
+  for (const auto& r : runs) samples += r.time_s.size();
+  progress.update("diagnose", "report: diagnose, the model refitted on " + runs.front().name + " and its candidates tried (" +
+                                  std::to_string(samples) + " samples in " + std::to_string(runs.size()) + " runs)");
   auto d = wb::diagnose(*m, runs.front(), held, dopt);
   if (!d) {
     err << "fogctl report: " << d.error().message << "\n";
@@ -173,12 +184,13 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
   const std::unique_ptr<bool[]> held_flags(new bool[runs.size()]);
   for (std::size_t i = 0; i < runs.size(); ++i) held_flags[i] = i > 0;
   const wb::Qualification q = wb::qualify(*m, runs, std::span<const bool>(held_flags.get(), runs.size()), o.threshold);
+  progress.update("plots", "report: Table 1, the lineage and the plots");
   const wb::Lineage lin = wb::lineage(*m, runs);
 
   json specs = json::array();  // the plots, drawn by plots::kPlotScript
   std::string body;
   body += "<h1>fogbench report: model " + html_escape(m->terms_string()) + "</h1>";
-  body += "<div class=\"sub\">" + html_escape(o.model) + " (" + std::string(to_string(m->method)) + " method, fitted on " +
+  body += "<div class=\"sub\">" + html_escape(display_name(o.model)) + " (" + std::string(to_string(m->method)) + " method, fitted on " +
           html_escape(m->fitted_on.name) + (m->created_at.empty() ? "" : ", " + html_escape(m->created_at)) + "); runs: ";
   for (std::size_t i = 0; i < runs.size(); ++i) body += (i ? ", " : "") + html_escape(runs[i].name) + (i ? " (held out)" : " (fit run)");
   body += "</div>";
@@ -559,6 +571,8 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
                      "</title><style>" + std::string(vendor::kUplotCss) + "</style><style>" + kStyle + plots::kPlotStyle +
                      "</style></head><body>" + body + "<script>" + std::string(vendor::kUplotJs) + "</script><script>const DATA=" +
                      script_json(json{{"plots", specs}}) + ";</script><script>" + plots::kPlotScript + "</script></body></html>\n";
+  progress.update("write", "report: writing " + o.output);
+  progress.finish();
   if (auto w = write_text(o.output, html); !w) {
     err << "fogctl report: " << w.error() << "\n";
     return kExitError;

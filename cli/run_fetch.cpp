@@ -87,7 +87,9 @@ Fetched fetch_to_csv(const Common& where, std::int64_t run_id, const std::string
   }
   auto g = c->call("run.get", {{"run_id", run_id}});
   if (!g) fail(g.error());
-  return {path.string(), (*g)["run"]["units"][static_cast<std::size_t>(*unit)].get<std::string>()};
+  const auto serial = (*g)["run"]["units"][static_cast<std::size_t>(*unit)].get<std::string>();
+  set_display_name(path.string(), "run " + std::to_string(run_id) + " " + serial);
+  return {path.string(), serial};
 }
 
 std::string fetch_model(const Common& where, const std::string& serial) {
@@ -96,6 +98,7 @@ std::string fetch_model(const Common& where, const std::string& serial) {
   auto m = c->call("model.get", {{"serial", serial}});
   if (!m) fail(m.error());
   auto path = temp_path("model" + std::to_string((*m)["id"].get<std::int64_t>()), ".json");
+  set_display_name(path.string(), "model " + std::to_string((*m)["id"].get<std::int64_t>()) + " of " + serial);
   if (auto ok = write_text(path.string(), (*m)["model"].dump(2)); !ok) {
     std::cerr << "fogctl: " << ok.error() << "\n";
     throw CLI::RuntimeError(kExitError);

@@ -85,6 +85,34 @@ std::size_t display_width(std::string_view text) {
   return n;
 }
 
+std::string fit_lines(std::string_view text, std::size_t width) {
+  if (width == 0) return std::string(text);
+  std::string out;
+  std::size_t pos = 0;
+  while (pos < text.size()) {
+    const std::size_t nl = text.find('\n', pos);
+    const std::size_t end = nl == std::string_view::npos ? text.size() : nl;
+    const std::string_view line = text.substr(pos, end - pos);
+    if (display_width(line) <= width) {
+      out += line;
+    } else {
+      const std::size_t lead = std::min(line.find_first_not_of(' '), width / 2);
+      const std::string first_indent(lead, ' '), next_indent(std::min(lead + 2, width / 2), ' ');
+      const auto first = wrap_text(line.substr(lead), width - lead);
+      // The first line at the line's own indent, the rest two further in.
+      out += first_indent + first.front();
+      std::string rest;
+      for (std::size_t i = 1; i < first.size(); ++i) rest += (rest.empty() ? "" : " ") + first[i];
+      if (!rest.empty())
+        for (const auto& l : wrap_text(rest, width - next_indent.size())) out += "\n" + next_indent + l;
+    }
+    if (nl == std::string_view::npos) break;
+    out += '\n';
+    pos = nl + 1;
+  }
+  return out;
+}
+
 std::vector<std::string> wrap_text(std::string_view text, std::size_t width) {
   width = std::max<std::size_t>(width, 1);
   std::vector<std::string> lines;

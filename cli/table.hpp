@@ -26,6 +26,11 @@ std::size_t display_width(std::string_view text);
 // always at least one line.
 std::vector<std::string> wrap_text(std::string_view text, std::size_t width);
 
+// A command's text output within `width` columns (0: as it is): each line wider than the width
+// is wrapped at spaces, its continuation lines indented two more than the line (a sentence,
+// a note, a hint; tables are already fitted by Table::str and pass through unchanged).
+std::string fit_lines(std::string_view text, std::size_t width);
+
 class Table {
  public:
   explicit Table(std::vector<std::string> header) : header_(std::move(header)) {}

@@ -56,6 +56,7 @@ int watch(const Common& o, std::optional<std::int64_t> run_id, bool quiet, doubl
   const bool tty_line = !quiet && !raw;
   // Redrawn on a terminal; in a file one line per phase change and one a minute (progress.hpp).
   Progress progress(err, progress_redraws());
+  progress.set_width(progress_width());
   // --raw: the sample and event messages of the run on `out`, one JSON object a line (NDJSON,
   // as gpspipe -w prints gpsd's), and no summary: the exit code still says how the run ended.
   std::ostringstream no_summary;
@@ -114,6 +115,17 @@ int watch(const Common& o, std::optional<std::int64_t> run_id, bool quiet, doubl
           for (const auto& [u, x] : latest)
             line << "  " << x.serial << " T1 " << num_text(x.t1_c) << " T2 " << num_text(x.t2_c) << " drift "
                  << num_text(x.gyro_dph) << " comp " << num_text(x.compensated_dph) << " dph";
+          if (const auto w = progress.width(); w && line.str().size() > w - 1) {
+            // Too wide for the terminal: every unit's drift and compensated rate kept, the
+            // words and the thermistors left out (docs/cli.md, "Progress").
+            line.str("");
+            line << "run " << *run_id << " " << s->state << " " << s->step << "  " << duration_text(s->elapsed_s) << ", "
+                 << duration_text(s->remaining_s) << " left  " << num_text(s->chamber_c, 1) << "/" << num_text(s->setpoint_c, 1)
+                 << "C";
+            for (const auto& [u, x] : latest)
+              line << "  " << x.serial << " " << num_text(x.gyro_dph) << "/" << num_text(x.compensated_dph);
+            line << " dph";
+          }
           // A phase of the profile (its step and kind) is what gets a line of its own.
           progress.update(s->state + " " + s->phase + " " + std::to_string(s->step), line.str());
         }

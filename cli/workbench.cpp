@@ -4,6 +4,7 @@
 #include "options.hpp"
 
 #include <CLI/CLI.hpp>
+#include <sstream>
 #include <chrono>
 #include <cmath>
 #include <iostream>
@@ -77,7 +78,7 @@ int run_compare(const CompareCommandOptions& o, std::ostream& out, std::ostream&
     adequate = adequate && c->adequate();
     results.push_back(wb::to_json(*c, o.series));
     const auto& v = c->verification;
-    text += "run " + path + ": " + std::to_string(v.run.n) + " samples, measured std " + fixed(v.run.meas_std, 3) +
+    text += (display_name(path) == path ? "run " + path : display_name(path)) + ": " + std::to_string(v.run.n) + " samples, measured std " + fixed(v.run.meas_std, 3) +
             " deg/h, compensated std " + fixed(v.run.comp_std, 3) + " deg/h (" + pct(v.run.ratio) + " of raw)\n\n";
     Table t({"part", "samples", "est mean", "meas mean", "est std", "meas std", "comp std", "comp/raw"});
     auto row = [&](const std::string& name, const model::Table1& s) {
@@ -109,7 +110,7 @@ int run_compare(const CompareCommandOptions& o, std::ostream& out, std::ostream&
     out << nlohmann::json{{"model", o.model}, {"terms", m->terms_string()}, {"runs", results}, {"adequate", adequate},
                           {"data_quality", quality.flags}}.dump() << "\n";
   } else {
-    out << "compare: model " << o.model << " (" << m->terms_string() << ")\n\n";
+    out << "compare: " << model_label(o.model) << " (" << m->terms_string() << ")\n\n";
     for (const auto& l : quality.lines) out << "warning: " << l << "\n";
     if (!quality.lines.empty()) out << "\n";
     out << text;
@@ -208,7 +209,7 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
     out << j.dump() << "\n";
     return adequate ? kExitOk : kExitFailed;
   }
-  out << "diagnose: model " << o.model << " (" << d->model_terms << ", " << d->method << " method) refitted on " << d->fit_run;
+  out << "diagnose: " << model_label(o.model) << " (" << d->model_terms << ", " << d->method << " method) refitted on " << d->fit_run;
   if (d->base_refitted_on_other_run) out << " (the model was fitted on other data: " << m->fitted_on.name << ")";
   out << "\n\n";
   if (quality.sensor_problem)
@@ -440,7 +441,12 @@ void add_workbench_commands(CLI::App& app, int& code) {
   c->add_flag("--json", cmp.json, "Print one JSON object");
   c->add_flag("--series", cmp.series, "With --json: include the measured, predicted and residual series");
   add_run_input(c, cmp.input);
-  c->callback([&] { code = run_compare(cmp, std::cout, std::cerr); });
+  c->callback([&] {
+    std::ostringstream text;
+    code = run_compare(cmp, text, std::cerr);
+    // Prose within the terminal's width (issue 28); JSON as it is.
+    std::cout << (cmp.json ? text.str() : fit_lines(text.str(), output_width())) << std::flush;
+  });
 
   static DiagnoseCommandOptions dia;
   auto* d = app.add_subcommand("diagnose", "Why a model fails: whiteness, coefficients, and the missing effect from the library");
@@ -454,7 +460,12 @@ void add_workbench_commands(CLI::App& app, int& code) {
   d->add_flag("--json", dia.json, "Print one JSON object");
   d->add_flag("--progress", dia.progress, "Progress lines on stderr even when it is not a terminal (on a terminal they are drawn anyway)");
   add_run_input(d, dia.input);
-  d->callback([&] { code = run_diagnose(dia, std::cout, std::cerr); });
+  d->callback([&] {
+    std::ostringstream text;
+    code = run_diagnose(dia, text, std::cerr);
+    // Prose within the terminal's width (issue 28); JSON as it is.
+    std::cout << (dia.json ? text.str() : fit_lines(text.str(), output_width())) << std::flush;
+  });
 
   static LineageOptions lin;
   auto* l = app.add_subcommand("lineage", "The error of each model of a lineage (root first) on runs");
@@ -462,7 +473,12 @@ void add_workbench_commands(CLI::App& app, int& code) {
   l->add_option("runs", lin.runs, "The runs' CSV files")->required();
   l->add_flag("--json", lin.json, "Print one JSON object");
   add_run_input(l, lin.input);
-  l->callback([&] { code = run_lineage(lin, std::cout, std::cerr); });
+  l->callback([&] {
+    std::ostringstream text;
+    code = run_lineage(lin, text, std::cerr);
+    // Prose within the terminal's width (issue 28); JSON as it is.
+    std::cout << (lin.json ? text.str() : fit_lines(text.str(), output_width())) << std::flush;
+  });
 
   static ReportOptions rep;
   auto* r = app.add_subcommand("report", "One self-contained HTML report: profile, drift, residual, diagnosis, lineage, qualification");

@@ -239,6 +239,56 @@ std::expected<DaemonConfig, std::string> parse_daemon_config_text(std::string_vi
   return std::unexpected(message);
 }
 
+namespace {
+// /var/lib/fogbench and the folders under it: the shipped units' StateDirectory= makes them.
+bool made_by_shipped_unit(const std::filesystem::path& dir) {
+  const std::filesystem::path state = "/var/lib/fogbench";
+  auto d = dir.lexically_normal();
+  for (; !d.empty() && d != d.root_path(); d = d.parent_path())
+    if (d == state) return true;
+  return false;
+}
+}  // namespace
+
+std::vector<std::string> config_path_problems(const DaemonConfig& config, std::string_view text) {
+  std::vector<std::string> out;
+  auto where = [&](const std::string& key) {
+    const auto line = line_of_key(text, key);
+    return key + (line ? " (line " + std::to_string(*line) + ")" : std::string()) + ": ";
+  };
+  // A folder a file is created in: it must exist and be a directory.
+  auto folder = [&](const std::string& key, const std::filesystem::path& file) {
+    const auto dir = file.parent_path();
+    std::error_code ec;
+    const auto st = std::filesystem::status(dir, ec);
+    if (std::filesystem::is_directory(st)) return;
+    if (std::filesystem::exists(st)) {
+      out.push_back(where(key) + dir.string() + " (the folder of " + file.filename().string() + ") is not a directory");
+    } else if (!made_by_shipped_unit(dir)) {
+      out.push_back(where(key) + dir.string() + " (the folder of " + file.filename().string() +
+                    "): no such directory (fogbenchd does not create it)");
+    }
+  };
+  if (config.storage_path != ":memory:") {
+    folder("storage.path", config.storage_path);
+    std::error_code ec;
+    if (std::filesystem::is_directory(config.storage_path, ec))
+      out.push_back(where("storage.path") + config.storage_path.string() + " is a directory, not the store's file");
+  }
+  // Only a key the file names: the default beside the store is the store's folder, checked above.
+  if (!config.signing_key_path.empty() && line_of_key(text, "signing.key_path"))
+    folder("signing.key_path", config.signing_key_path);
+  if (!config.profile_dir.empty()) {
+    std::error_code ec;
+    const auto st = std::filesystem::status(config.profile_dir, ec);
+    if (!std::filesystem::exists(st))
+      out.push_back(where("profile_dir") + config.profile_dir.string() + ": no such directory");
+    else if (!std::filesystem::is_directory(st))
+      out.push_back(where("profile_dir") + config.profile_dir.string() + " is not a directory");
+  }
+  return out;
+}
+
 std::vector<std::string> changed_keys(const json& before, const json& after) {
   std::map<std::string, json> a, b;
   flatten(before, "", a);

@@ -7,7 +7,9 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <fstream>
 #include <iostream>
+#include <sstream>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -16,6 +18,7 @@
 
 #include "fogbench/drivers/serial_devices.hpp"
 #include "fogbench/daemon/config.hpp"
+#include "fogbench/daemon/config_reload.hpp"
 #include "fogbench/daemon/server.hpp"
 #include "fogbench/daemon/systemd.hpp"
 
@@ -85,6 +88,18 @@ int main(int argc, char** argv) {
       std::cerr << "fogbenchd: " << config.error() << "\n";
       return 2;
     }
+    // Paths as this machine has them: the syntax is right, but a folder that does not exist
+    // would stop the daemon at start (issue 28).
+    std::string text;
+    {
+      std::ifstream in(check_path);
+      std::stringstream ss;
+      ss << in.rdbuf();
+      text = ss.str();
+    }
+    const auto problems = fogbench::daemon::config_path_problems(*config, text);
+    for (const auto& p : problems) std::cerr << "fogbenchd: " << check_path << ": " << p << "\n";
+    if (!problems.empty()) return 2;
     std::cout << check_path << ": valid\n";
     // The shipped unit allows /dev/ttyUSB* only: any other serial device would be refused
     // (EPERM) when the service opens it, though the file is valid.

@@ -85,6 +85,27 @@ TEST_CASE("progress: on a terminal, one line redrawn in place and ended by a mes
   CHECK(err.str() == "\rlong status\rshort      \ndone\n");
 }
 
+TEST_CASE("progress: on a terminal of 100 columns a longer line is cut to 99 and ends with ..., a file keeps it whole") {
+  using namespace std::chrono;
+  auto now = steady_clock::time_point{};
+  const std::string wide(184, 'x');
+  std::ostringstream tty, file;
+  {
+    Progress p(tty, /*redraw=*/true, 60.0, [&] { return now; });
+    p.set_width(100);
+    CHECK(p.width() == 100);
+    p.update("hold 0", wide);
+  }
+  CHECK(tty.str() == "\r" + std::string(96, 'x') + "...\n");
+  {
+    Progress p(file, /*redraw=*/false, 60.0, [&] { return now; });
+    p.set_width(100);
+    CHECK(p.width() == 0);  // lines in a file or a pipe are never cut
+    p.update("hold 0", wide);
+  }
+  CHECK(file.str() == wide + "\n");
+}
+
 TEST_CASE("fogctl simulate: progress written to a file has no carriage return") {
   Dir d;
   // The redraw an operator sees on a terminal (forced, as a pty would be) ...
@@ -139,6 +160,10 @@ TEST_CASE("fogctl report: exits as verify does, 1 when the qualification fails")
   CHECK_THAT(r.out, Contains("qualification FAIL"));
   CHECK(r.code == kExitFailed);
   CHECK(fs::exists(d.file("r.html")));  // the report is written either way
+  // Its progress, piped: a line per stage, never a carriage return (issue 28: long work is not silent).
+  CHECK_THAT(r.err, Contains("report: reading " + d.file("e1.csv") + " (1 of 2)\n") && Contains("report: diagnose, ") &&
+                        Contains("report: Table 1, the lineage and the plots\n") && Contains("report: writing "));
+  CHECK(r.err.find('\r') == std::string::npos);
 }
 
 TEST_CASE("fogctl: a CSV from a German spreadsheet, a tab-separated one, upper-case headers") {
@@ -287,8 +312,8 @@ TEST_CASE("fogctl plan report: the page ends with each unit's report command, wi
                                          run(3, "verify", {"FOG-1"})})}}}};
   const std::string html = plan_report_html(status);
   // FOG-1 was fitted by the plan: its current model is the one to report with; FOG-2 was not.
-  CHECK_THAT(html, Contains("<code>fogctl report --unit FOG-1 --run 1 --run 2 --run 3</code>"));
-  CHECK_THAT(html, Contains("<code>fogctl report --model MODEL.json --unit FOG-2 --run 2</code>"));
+  CHECK_THAT(html, Contains("<code>fogctl report --unit FOG-1 --run 1 --run 2 --run 3 -o report-FOG-1.html</code>"));
+  CHECK_THAT(html, Contains("<code>fogctl report --model MODEL.json --unit FOG-2 --run 2 -o report-FOG-2.html</code>"));
   CHECK_THAT(html, !Contains("fogctl report RUN"));
   status["progress"]["runs"] = json::array();
   CHECK_THAT(plan_report_html(status), Contains("No run of the plan has been stored yet"));
@@ -341,4 +366,12 @@ TEST_CASE("fogctl plan validate --offline: a plan checked without a daemon, a co
   const int st = std::system(cmd.c_str());
   INFO(slurp(d.file("copy.out")));
   CHECK((WIFEXITED(st) && WEXITSTATUS(st) == 0));
+  // Without the variables, its profile list says where it looked and which variable adds a folder.
+  const std::string list = "env -u FOGBENCH_PROFILE_DIR '" + copy.string() + "' profile list >'" + d.file("list.out") + "' 2>&1";
+  const int ls = std::system(list.c_str());
+  const std::string listed = slurp(d.file("list.out"));
+  INFO(listed);
+  CHECK((WIFEXITED(ls) && WEXITSTATUS(ls) == 0));
+  CHECK_THAT(listed, Contains("no profiles found in " + (d.path / "share" / "fogbench" / "profiles").string()) &&
+                         Contains("FOGBENCH_PROFILE_DIR"));
 }

@@ -86,3 +86,33 @@ TEST_CASE("fogctl tables: wrap_text and display_width") {
   CHECK(display_width("Zoë") == 3);
   CHECK(wrap_text("ééééé", 2) == std::vector<std::string>{"éé", "éé", "é"});
 }
+
+TEST_CASE("fogctl text output: fit_lines wraps each line wider than the terminal at spaces, indented, and leaves the others") {
+  const std::string title(
+      "Table 1 (deg/h): model run 2 SIM-0001 (d(T1)@0 + grad@0), pass when comp/raw < 20%, comp std within 1.25 x the "
+      "gyro's noise std and no failing interval of 60 s or more (else MARGINAL)");
+  const std::string text = "short line\n" + title + "\n  - " + title + "\n";
+  for (std::size_t width : {100u, 60u}) {
+    INFO("width " << width);
+    const std::string fitted = fit_lines(text, width);
+    std::istringstream in(fitted);
+    std::string line, words;
+    std::size_t n = 0;
+    while (std::getline(in, line)) {
+      ++n;
+      CHECK(display_width(line) <= width);
+      words += line + " ";
+    }
+    CHECK(n > 3);
+    CHECK(fitted.rfind("short line\nTable 1 (deg/h): model", 0) == 0);
+    CHECK(fitted.find("\n  - Table 1") != std::string::npos);  // an indented line keeps its indent
+    CHECK(fitted.find("\n    ") != std::string::npos);         // and its continuation two further
+    // Nothing lost: the same words in the same order.
+    std::istringstream a(text), b(words);
+    std::vector<std::string> wa, wb;
+    for (std::string w; a >> w;) wa.push_back(w);
+    for (std::string w; b >> w;) wb.push_back(w);
+    CHECK(wa == wb);
+  }
+  CHECK(fit_lines(text, 0) == text);
+}

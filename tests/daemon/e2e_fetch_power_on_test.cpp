@@ -104,4 +104,20 @@ TEST_CASE("e2e fetch: fit --run with ton and warm(tau) terms gives what the same
     saw_ton |= ta[i]["term"] == "ton";
   }
   CHECK(saw_ton);
+
+  // verify and report on --run name the run by its id and serial, never the temporary CSV
+  // fogctl fetched it into (deleted when it exits; issue 28).
+  const std::string id = std::to_string(run), sock = " --socket '" + bench.socket().string() + "'";
+  REQUIRE(run_fogctl(bench, "fit '" + csv.string() + "' " + terms + " -o fitted.json").code == 0);
+  auto ver = run_fogctl(bench, "verify --model fitted.json --run " + id + sock);
+  INFO(ver.out << ver.err);
+  CHECK(ver.code != 2);
+  CHECK_THAT(ver.out, Catch::Contains("run " + id + " SIM-0001"));
+  CHECK(ver.out.find("fogctl-") == std::string::npos);
+  auto rep = run_fogctl(bench, "report --model fitted.json --run " + id + sock + " -o report.html");
+  INFO(rep.err);
+  CHECK(rep.code != 2);
+  const std::string html = slurp_file(bench.dir / "report.html");
+  CHECK_THAT(html, Catch::Contains("run " + id + " SIM-0001"));
+  CHECK(html.find("fogctl-") == std::string::npos);
 }

@@ -12,6 +12,8 @@
 #include <fstream>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
+
 #include "fogbench/daemon/systemd.hpp"
 
 using namespace fogbench::daemon::test;
@@ -162,6 +164,41 @@ TEST_CASE("fogbenchd --check-config: 0 for a valid file, 2 naming the key of an 
   }
   CHECK(run("--version") == 0);
   std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("fogbenchd --check-config: a store's folder or a profile_dir that does not exist is exit 2 naming the key, its line and the path") {
+  require_sim();
+  LiveBench bench(20.0);
+  const auto good = nlohmann::json::parse(slurp(bench.dir / "fogbenchd.json"));
+  const auto file = bench.dir / "paths.json";
+  auto run = [&](const nlohmann::json& c) {
+    std::ofstream(file) << c.dump(2);
+    const std::string cmd = "'" + (kBin / "fogbenchd").string() + "' --check-config '" + file.string() + "' >'" +
+                            (bench.dir / "out").string() + "' 2>&1";
+    const int s = std::system(cmd.c_str());
+    return WIFEXITED(s) ? WEXITSTATUS(s) : -1;
+  };
+  CHECK(run(good) == 0);
+  auto c = good;
+  c["storage"]["path"] = (bench.dir / "no-such-folder" / "fogbench.db").string();
+  CHECK(run(c) == 2);
+  auto out = slurp(bench.dir / "out");
+  INFO(out);
+  CHECK_THAT(out, Catch::Contains("storage.path (line ") && Catch::Contains("no-such-folder") &&
+                      Catch::Contains("no such directory"));
+  CHECK_FALSE(std::filesystem::exists(bench.dir / "no-such-folder"));  // nothing made
+  c = good;
+  c["storage"]["path"] = (bench.dir / "fogbenchd.json" / "fogbench.db").string();  // a file as its folder
+  CHECK(run(c) == 2);
+  CHECK_THAT(slurp(bench.dir / "out"), Catch::Contains("storage.path (line ") && Catch::Contains("is not a directory"));
+  c = good;
+  c["profile_dir"] = (bench.dir / "no-profiles").string();
+  CHECK(run(c) == 2);
+  CHECK_THAT(slurp(bench.dir / "out"), Catch::Contains("profile_dir (line ") && Catch::Contains("no-profiles: no such directory"));
+  // The shipped units' StateDirectory= makes /var/lib/fogbench at start: not required before.
+  c = good;
+  c["storage"]["path"] = "/var/lib/fogbench/no-such-instance/fogbench.db";
+  CHECK(run(c) == 0);
 }
 
 TEST_CASE("systemd: fogbenchd's STATUS= follows the run and idles, and STOPPING=1 comes at SIGTERM, before the shutdown") {

@@ -41,6 +41,14 @@ std::optional<std::size_t> line_of_key(std::string_view text, std::string_view p
 std::expected<DaemonConfig, std::string> parse_daemon_config_text(std::string_view text,
                                                                   const std::filesystem::path& base_dir);
 
+// The paths of a parsed configuration checked on this machine, as `fogbenchd --check-config`
+// does (issue 28): storage.path's folder and signing.key_path's folder must be directories that
+// exist (the daemon does not create them: a typo would start an empty store elsewhere), and
+// profile_dir a directory. A folder the shipped units' StateDirectory= makes at start
+// (/var/lib/fogbench and below) is not required yet. Each problem names the key, its line in
+// `text` and the path: "storage.path (line 4): /srv/x: no such directory". Empty: all good.
+std::vector<std::string> config_path_problems(const DaemonConfig& config, std::string_view text);
+
 // What a changed key needs: applied at once, or a restart of the daemon.
 enum class ReloadClass { applies, restart };
 std::string_view to_string(ReloadClass c);
