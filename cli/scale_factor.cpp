@@ -82,8 +82,28 @@ std::string rate_sequence_csv(const SimulatedRun& run, const sim::ScaleFactorTru
   return s;
 }
 
+std::string RateCsvSkipped::text() const {
+  std::string s;
+  if (no_gyro_reading > 0)
+    s += std::to_string(no_gyro_reading) + (no_gyro_reading == 1 ? " second" : " seconds") +
+         " without a gyro reading (empty rate_out_dps)";
+  if (no_coil_reading > 0)
+    s += (s.empty() ? "" : "; ") + std::to_string(no_coil_reading) + (no_coil_reading == 1 ? " second" : " seconds") +
+         " without a coil temperature (empty " + coil_column + ")";
+  if (!at_rest_plateaus.empty()) {
+    if (!s.empty()) s += "; ";
+    s += at_rest_plateaus.size() == 1 ? "plateau " : "plateaus ";
+    for (std::size_t i = 0; i < at_rest_plateaus.size(); ++i) s += (i ? ", " : "") + std::to_string(at_rest_plateaus[i]);
+    s += " (" + std::to_string(at_rest_rows) + (at_rest_rows == 1 ? " second" : " seconds") +
+         ") with no rate step: the table at rest throughout";
+  }
+  return s.empty() ? s : "skipped: " + s;
+}
+
 std::expected<model::sf::RateRecord, std::string> parse_rate_csv(std::string_view text, const std::string& source,
-                                                                 const std::string& coil_column) {
+                                                                 const std::string& coil_column, RateCsvSkipped* skipped) {
+  RateCsvSkipped skip;
+  skip.coil_column = coil_column;
   model::sf::RateRecord rec;
   const std::vector<std::string> wanted = {"time_s", "plateau", "rate_in_dps", "rate_out_dps", coil_column};
   std::vector<std::size_t> col(wanted.size(), SIZE_MAX);
@@ -113,6 +133,15 @@ std::expected<model::sf::RateRecord, std::string> parse_rate_csv(std::string_vie
     if (fields.size() != header.size())
       return std::unexpected(source + ":" + std::to_string(line_no) + ": " + std::to_string(fields.size()) + " fields, the header has " +
                              std::to_string(header.size()));
+    // A second stored without a gyro reading: nothing to fit, whatever else the row lacks.
+    if (fields[col[3]].empty()) {
+      ++skip.no_gyro_reading;
+      continue;
+    }
+    if (fields[col[4]].empty()) {  // nor without the coil's temperature
+      ++skip.no_coil_reading;
+      continue;
+    }
     double v[5] = {};
     for (std::size_t k = 0; k < wanted.size(); ++k) {
       const std::string_view f = fields[col[k]];
@@ -140,16 +169,47 @@ std::expected<model::sf::RateRecord, std::string> parse_rate_csv(std::string_vie
     rec.coil_c.push_back(v[4]);
   }
   if (header.empty()) return std::unexpected(source + ": empty: no header row");
-  if (rec.time_s.empty()) return std::unexpected(source + ": a header but no data rows");
-  return rec;
+  if (rec.time_s.empty() && skip.no_gyro_reading + skip.no_coil_reading == 0)
+    return std::unexpected(source + ": a header but no data rows");
+  if (rec.time_s.empty()) return std::unexpected(source + ": no row with both readings (" + skip.text() + ")");
+  // The plateaus without a rate step: a run's temperature transits, not a rate sequence.
+  std::vector<std::pair<int, bool>> turning;  // plateau, any rate != 0, in file order
+  for (std::size_t i = 0; i < rec.size(); ++i) {
+    if (turning.empty() || turning.back().first != rec.plateau[i]) turning.emplace_back(rec.plateau[i], false);
+    if (rec.rate_in_dps[i] != 0.0) turning.back().second = true;
+  }
+  auto at_rest = [&](int id) {
+    for (const auto& [p, t] : turning)
+      if (p == id && t) return false;
+    return true;
+  };
+  model::sf::RateRecord kept;
+  for (std::size_t i = 0; i < rec.size(); ++i) {
+    if (at_rest(rec.plateau[i])) {
+      ++skip.at_rest_rows;
+      if (std::ranges::find(skip.at_rest_plateaus, rec.plateau[i]) == skip.at_rest_plateaus.end())
+        skip.at_rest_plateaus.push_back(rec.plateau[i]);
+      continue;
+    }
+    kept.time_s.push_back(rec.time_s[i]);
+    kept.plateau.push_back(rec.plateau[i]);
+    kept.rate_in_dps.push_back(rec.rate_in_dps[i]);
+    kept.rate_out_dps.push_back(rec.rate_out_dps[i]);
+    kept.coil_c.push_back(rec.coil_c[i]);
+  }
+  if (skipped) *skipped = skip;
+  if (kept.time_s.empty())
+    return std::unexpected(source + ": no plateau with a rate step (" + skip.text() + ")");
+  return kept;
 }
 
-std::expected<model::sf::Result, std::string> fit_rate_file(const std::string& path, const model::sf::Options& fo, const std::string& coil_column) {
+std::expected<model::sf::Result, std::string> fit_rate_file(const std::string& path, const model::sf::Options& fo, const std::string& coil_column,
+                                                            RateCsvSkipped* skipped) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return std::unexpected(path + ": cannot be read");
   std::stringstream buf;
   buf << in.rdbuf();
-  auto rec = parse_rate_csv(buf.str(), path, coil_column);
+  auto rec = parse_rate_csv(buf.str(), path, coil_column, skipped);
   if (!rec) return std::unexpected(rec.error());
   if (auto bad = fo.validate(); !bad.empty()) return std::unexpected(bad);
   // The plateaus in which the table turned, as the daemon selects them from a stored run
@@ -168,7 +228,8 @@ int run_scale_factor(const ScaleFactorOptions& o, std::ostream& out, std::ostrea
   model::sf::Options fo;
   fo.settle_s = o.settle_s;
   fo.t0_c = o.t0_c;
-  auto r = fit_rate_file(o.run, fo, o.coil_column);
+  RateCsvSkipped skipped;
+  auto r = fit_rate_file(o.run, fo, o.coil_column, &skipped);
   if (!r) {
     err << me << r.error() << "\n";
     return kExitError;
@@ -187,7 +248,12 @@ int run_scale_factor(const ScaleFactorOptions& o, std::ostream& out, std::ostrea
                     {"n_used", p.n_used}, {"steps", steps}});
     }
     out << nlohmann::json{{"run", o.run}, {"settle_s", o.settle_s}, {"t0_c", o.t0_c}, {"coil_column", o.coil_column},
-                          {"nonlinearity_of", "full-scale output"}, {"samples_dropped", r->n_samples_dropped}, {"plateaus", ps},
+                          {"nonlinearity_of", "full-scale output"}, {"samples_dropped", r->n_samples_dropped},
+                          {"skipped", {{"no_gyro_reading", skipped.no_gyro_reading},
+                                       {"no_coil_reading", skipped.no_coil_reading},
+                                       {"at_rest_plateaus", skipped.at_rest_plateaus},
+                                       {"at_rest_rows", skipped.at_rest_rows}}},
+                          {"plateaus", ps},
                           {"sf0", r->sf0}, {"tc_ppm_per_c", coefficient_json(r->tc_ppm_per_c)},
                           {"temp_rate_ppm_per_c_per_min", coefficient_json(r->temp_rate_ppm_per_c_per_min)},
                           {"model", {{"form", "SF(T) = SF0 (1 + k1 (T - T0) + k2 (T - T0)^2)"}, {"sf0", r->model_sf0}, {"t0_c", o.t0_c},
@@ -210,6 +276,7 @@ int run_scale_factor(const ScaleFactorOptions& o, std::ostream& out, std::ostrea
       fixed(o.settle_s, 1) + " s of each rate step dropped: " + std::to_string(r->n_samples_dropped) +
       " samples). " + o.coil_column + ": the coil temperature; degC/min: its rate; dSF: the scale factor against SF0, " +
       "ppm; NL: nonlinearity, ppm of full-scale output; asym: asymmetry, ppm");
+  if (const std::string sk = skipped.text(); !sk.empty()) say(sk);
   out << "\n";
   Table t({"plateau", o.coil_column + " degC", "degC/min", "bias deg/h", "SF", "dSF ppm", "NL ppm", "asym ppm", "steps", "samples"});
   for (const auto& p : r->plateaus)

@@ -70,7 +70,15 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   if (j.contains("rate_table")) {
     // The drivers' own parser: an unknown kind or a bad field is refused naming it
     // ("rate_table.kind: unknown rate table kind 'x' (known: acutrol)").
-    auto t = drivers::parse_rate_table_config(j["rate_table"], "rate_table");
+    nlohmann::json table = j["rate_table"];
+    if (table.is_object() && table.contains("status_tolerance")) {
+      const auto& v = table["status_tolerance"];
+      if (!v.is_number_integer() || v.get<std::int64_t>() < 1 || v.get<std::int64_t>() > 3600)
+        return Err("rate_table.status_tolerance: expected an integer 1..3600 (status reads in a row), got " + v.dump());
+      c.rate_table_status_tolerance = static_cast<int>(v.get<std::int64_t>());
+      table.erase("status_tolerance");
+    }
+    auto t = drivers::parse_rate_table_config(table, "rate_table");
     if (!t) return Err(t.error().message);
     c.rate_table = std::move(*t);
   }

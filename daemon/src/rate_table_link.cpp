@@ -1,5 +1,6 @@
 #include "rate_table_link.hpp"
 
+#include <algorithm>
 #include <boost/asio.hpp>
 #include <optional>
 #include <thread>
@@ -20,8 +21,12 @@ struct RateTableLink::Impl {
   bool in_flight = false;
   std::optional<double> written_dps;  // the rate the table last accepted, deg/s
   std::string last_error;             // logged once per change, not every second
+  int status_tolerance = 5;           // failed status reads in a row before `unreadable`
+  int failed_reads = 0;               // status reads in a row that failed, not for the link
+  std::string last_status_error;      // the last of them, logged once per change
 
-  Impl(asio::io_context& l, std::unique_ptr<drivers::RateTable> t) : loop(l), table(std::move(t)) {
+  Impl(asio::io_context& l, std::unique_ptr<drivers::RateTable> t, int tolerance)
+      : loop(l), table(std::move(t)), status_tolerance(std::max(1, tolerance)) {
     guard.emplace(worker.get_executor());
     thread = std::thread([this] { worker.run(); });
   }
@@ -39,8 +44,8 @@ struct JobResult {
 
 }  // namespace
 
-RateTableLink::RateTableLink(asio::io_context& loop, std::unique_ptr<drivers::RateTable> table)
-    : impl_(std::make_unique<Impl>(loop, std::move(table))) {}
+RateTableLink::RateTableLink(asio::io_context& loop, std::unique_ptr<drivers::RateTable> table, int status_tolerance)
+    : impl_(std::make_unique<Impl>(loop, std::move(table), status_tolerance)) {}
 
 RateTableLink::~RateTableLink() {
   impl_->guard.reset();
@@ -93,7 +98,26 @@ void RateTableLink::command(double rate_dps) {
           m2.last_error = r.command_error;
         }
       }
-      reading_ = r.reading;
+      RateTableReading reading = r.reading;
+      // A status not read, for a reason other than the link: tolerated up to the configured
+      // count in a row (logged at the first and at each new reason), then `unreadable`.
+      if (!reading.fault && !reading.link_down && !reading.reason.empty()) {
+        ++m2.failed_reads;
+        if (m2.failed_reads == 1 || reading.reason != m2.last_status_error)
+          spdlog::warn("rate table: {} ({} of {} tolerated in a row)", reading.reason, m2.failed_reads,
+                       m2.status_tolerance);
+        m2.last_status_error = reading.reason;
+        if (m2.failed_reads >= m2.status_tolerance) {
+          reading.unreadable = true;
+          reading.reason = std::to_string(m2.failed_reads) + " status reads in a row failed (rate_table.status_tolerance " +
+                           std::to_string(m2.status_tolerance) + "); the last: " + reading.reason;
+        }
+      } else {
+        if (m2.failed_reads > 0 && reading.reason.empty())
+          spdlog::info("rate table: status read again after {} failed", m2.failed_reads);
+        m2.failed_reads = 0;
+      }
+      reading_ = reading;
     });
   });
 }

@@ -69,6 +69,7 @@ protocol::SampleMessage sample_message(const storage::SampleRow& r, std::int64_t
   m.flags = r.flags;
   m.since_power_on_s = finite(r.since_power_on_s);
   m.compensated_dph = finite(r.compensated_dph);
+  m.rate_in_dps = finite(r.rate_in_dps);  // NaN (none) unless the run drives a rate table
   return m;
 }
 

@@ -530,7 +530,7 @@ std::expected<void, std::string> Server::Impl::open_acquisition() {
     }
     auto t = drivers::open_rate_table(tc);
     if (!t) return std::unexpected(t.error().message);
-    table = std::make_unique<RateTableLink>(io, std::move(*t));
+    table = std::make_unique<RateTableLink>(io, std::move(*t), config.rate_table_status_tolerance);
     spdlog::info("rate table {} {} ({})", tc.name, tc.kind, tc.line.describe());
   }
   TickSink sink;

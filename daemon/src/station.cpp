@@ -706,6 +706,7 @@ std::optional<std::string> Station::table_fault(const TickInput& in) {
   if (!in.rate_table) return std::string("rate table: none is connected to drive the profile's rate steps");
   if (in.rate_table->fault) return "rate table fault: " + in.rate_table->reason;
   if (in.rate_table->link_down) return "rate table link lost: " + in.rate_table->reason;
+  if (in.rate_table->unreadable) return "rate table status unreadable: " + in.rate_table->reason;
   return std::nullopt;
 }
 

@@ -157,13 +157,16 @@ std::expected<Sample, std::string> sample_from_json(const json& j) {
 }
 
 json to_json(const SampleMessage& s) {
-  return {{"type", "sample"}, {"run_id", s.run_id}, {"t_s", s.t_s}, {"state", s.state}, {"phase", s.phase},
-          {"step", s.step}, {"elapsed_s", s.elapsed_s}, {"remaining_s", s.remaining_s},
-          {"setpoint_c", s.setpoint_c}, {"chamber_c", number_or_null(s.chamber_c)}, {"unit", s.unit},
-          {"serial", s.serial}, {"gyro_dph", number_or_null(s.gyro_dph)}, {"frames", s.frames},
-          {"t1_c", number_or_null(s.t1_c)}, {"t2_c", number_or_null(s.t2_c)}, {"flags", s.flags},
-          {"since_power_on_s", number_or_null(s.since_power_on_s)},
-          {"compensated_dph", number_or_null(s.compensated_dph)}};
+  json j = {{"type", "sample"}, {"run_id", s.run_id}, {"t_s", s.t_s}, {"state", s.state}, {"phase", s.phase},
+            {"step", s.step}, {"elapsed_s", s.elapsed_s}, {"remaining_s", s.remaining_s},
+            {"setpoint_c", s.setpoint_c}, {"chamber_c", number_or_null(s.chamber_c)}, {"unit", s.unit},
+            {"serial", s.serial}, {"gyro_dph", number_or_null(s.gyro_dph)}, {"frames", s.frames},
+            {"t1_c", number_or_null(s.t1_c)}, {"t2_c", number_or_null(s.t2_c)}, {"flags", s.flags},
+            {"since_power_on_s", number_or_null(s.since_power_on_s)},
+            {"compensated_dph", number_or_null(s.compensated_dph)}};
+  // As in run.samples: only where a rate table ran (the golden transcripts of other runs as before).
+  if (s.rate_in_dps) j["rate_in_dps"] = *s.rate_in_dps;
+  return j;
 }
 
 std::expected<SampleMessage, std::string> sample_message_from_json(const json& j) {
@@ -189,6 +192,7 @@ std::expected<SampleMessage, std::string> sample_message_from_json(const json& j
   s.flags = r.integer<std::uint8_t>("flags", 0);
   s.since_power_on_s = r.opt_number("since_power_on_s");
   s.compensated_dph = r.opt_number("compensated_dph");
+  s.rate_in_dps = r.opt_number("rate_in_dps");
   if (!r.ok()) return std::unexpected(r.error());
   return s;
 }

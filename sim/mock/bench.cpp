@@ -429,11 +429,21 @@ json Bench::ready_line() const {
           {"control", c.control_path.empty() ? json(nullptr) : json(c.control_path)},
           {"units", units},
           {"drivers_config", served_drivers_config(c)},
-          // Not in drivers_config: the daemon does not use a rate table yet.
+          // Not in drivers_config: fogbenchd reads it as its own rate_table section.
           {"rate_table_config", c.rate_table_port ? json{{"kind", "acutrol"},
                                                          {"link", {{"transport", "tcp"}, {"host", c.where.host},
                                                                    {"port", *c.rate_table_port}}}}
-                                                  : json(nullptr)}};
+                                                  : json(nullptr)},
+          // What the table's rate becomes in the gyros' output (sim/scale_factor.hpp).
+          {"scale_factor_truth", c.rate_table_port ? json{{"sf0", c.sf_truth.sf0},
+                                                          {"t0_c", c.sf_truth.t0_c},
+                                                          {"tc_ppm_per_c", c.sf_truth.tc_ppm_per_c},
+                                                          {"tc2_ppm_per_c2", c.sf_truth.tc2_ppm_per_c2},
+                                                          {"nl_ppm", c.sf_truth.nl_ppm},
+                                                          {"full_scale_dps", c.sf_truth.full_scale_dps},
+                                                          {"asymmetry_ppm", c.sf_truth.asymmetry_ppm},
+                                                          {"coil", "true_t1_c"}}
+                                                   : json(nullptr)}};
 }
 
 int Bench::run() { return impl_->run(); }

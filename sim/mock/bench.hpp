@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "fogbench/drivers/serial_frame.hpp"
+#include "fogbench/sim/scale_factor.hpp"
 #include "fogbench/sim/sim.hpp"
 #include "ascii_chamber.hpp"
 #include "layout.hpp"
@@ -61,6 +62,11 @@ struct BenchConfig {
   // A rate table (rate_table.hpp) on this TCP port (0: ephemeral, resolved by create()); empty:
   // none. Its time is the wall clock since the start times time_scale (paced or not).
   std::optional<int> rate_table_port;
+  // What the table's rate becomes in each unit's gyro output (axis 0, the one on the table's
+  // axis), at its true inner-coil temperature; served in the ready line (scale_factor_truth).
+  // No temperature-rate term: the bench gives the truth 0 degC/min (keep
+  // temp_rate_ppm_per_c_per_min 0).
+  sim::ScaleFactorTruth sf_truth;
 };
 
 class Bench {

@@ -158,6 +158,18 @@ void BenchClock::step(Batch& b, std::int64_t second, double& last_setpoint_c, st
   const double commanded = std::clamp(setpoint_c, min_setpoint_c, max_setpoint_c);
   // A stopped chamber no longer controls: its air drifts back to the room's temperature.
   world_->step(running ? commanded : cfg_.sim.start_c);
+  // The rate table's rate at the second's start (without its ripple, whose mean over a second
+  // is about 0): every unit sits on the table, its axis 0 on the table's axis. The table keeps
+  // wall time times the scale; free-running, that is this second's time (paced, it is not: the
+  // table is then as its last command left it).
+  double table_dps = 0.0;
+  {
+    std::lock_guard lock(shared_.mutex);
+    if (shared_.rate_table) {
+      if (!cfg_.paced) shared_.rate_table->advance_to(static_cast<double>(second));
+      table_dps = shared_.rate_table->smooth_rate_dps();
+    }
+  }
   const double pv_c = world_->chamber_reading_c();
   b.second = second;
   std::vector<double> gyro_dph(cfg_.units.size());
@@ -168,7 +180,10 @@ void BenchClock::step(Batch& b, std::int64_t second, double& last_setpoint_c, st
     // rate by its stream (the world's own 1 s noise is left out), so the reader's 1 s means
     // carry the specified AR noise whatever their phase.
     const auto s = world_->sample(u);
-    streams_[u].second(second, s.gyro_dph - s.noise_dph + spike, {f.power_off_from_s, f.power_on_at_s}, rng, b.frames[u]);
+    const double turn_dph =
+        table_dps == 0.0 ? 0.0 : 3600.0 * sim::indicated_rate_dps(cfg_.sf_truth, table_dps, world_->true_t1_c(u), 0.0);
+    streams_[u].second(second, s.gyro_dph - s.noise_dph + spike + turn_dph, {f.power_off_from_s, f.power_on_at_s}, rng,
+                       b.frames[u]);
     gyro_dph[u] = streams_[u].last_mean_dph();
     // The other axes: the same housing's drift plus each axis's own bias and its own noise.
     for (std::size_t k = 0; k < axis_streams_[u].size(); ++k) {

@@ -59,16 +59,19 @@ std::string_view to_string(CsvErrc code) {
 namespace {
 
 // The role of a file column; the order is that of csv_columns() (to_csv writes the same
-// columns, since_power_on_s and compensated_dph last).
-// The roles up to r_compensated are numbers (doubles).
+// columns, since_power_on_s and compensated_dph after flags, and a rate table's run's plateau,
+// rate_in_dps and rate_out_dps last).
+// The roles up to r_rate_out are numbers (doubles); r_plateau an integer like r_step.
 enum Role : int {
-  r_time, r_gyro, r_t1, r_t2, r_setpoint, r_chamber, r_power_on, r_compensated, r_phase, r_step, r_flags, r_count,
+  r_time, r_gyro, r_t1, r_t2, r_setpoint, r_chamber, r_power_on, r_compensated, r_rate_in, r_rate_out, r_phase, r_step,
+  r_flags, r_plateau, r_count,
   r_ignore = -1
 };
 constexpr int kRequired = 4;
+constexpr int kLastDouble = r_rate_out;
 constexpr std::array<std::string_view, r_count> kNames = {
     "time_s", "gyro_dph", "t1_c", "t2_c", "setpoint_c", "chamber_c", "since_power_on_s",
-    "compensated_dph", "phase", "step", "flags"};
+    "compensated_dph", "rate_in_dps", "rate_out_dps", "phase", "step", "flags", "plateau"};
 
 // Even spacing tolerance, as a fraction of the median step: loose enough for time written
 // with %.3f at 1 Hz, tight enough to catch a skipped or doubled sample.
@@ -280,6 +283,7 @@ class Parser {
     if (data_.size() == 0)
       return fail(CsvErrc::no_data, 0, 0, "no data rows after the header on line " +
                                                   std::to_string(header_line_));
+    if (auto ok = check_rate_columns(); !ok) return std::unexpected(ok.error());
     if (options_.time_scale != 1.0)
       for (auto& t : data_.time_s) t *= options_.time_scale;
     if (options_.resample_s) return resample(*options_.resample_s);
@@ -326,7 +330,8 @@ class Parser {
         return fail(CsvErrc::bad_option, 0, 0,
                     "--map " + spec + ": '" + m.canonical +
                         "' is not a fogbench column (time_s,gyro_dph,t1_c,t2_c,setpoint_c,"
-                        "chamber_c,since_power_on_s,compensated_dph,phase,step,flags)");
+                        "chamber_c,since_power_on_s,compensated_dph,rate_in_dps,rate_out_dps,phase,"
+                        "step,flags,plateau)");
       if (m.header.empty())
         return fail(CsvErrc::bad_option, 0, 0, "--map " + spec + ": empty header name");
       for (std::size_t j = 0; j < i; ++j) {
@@ -465,6 +470,8 @@ class Parser {
     auto& b = other.data_;
     if (!first_ok || !second_ok || b.size() == 0 || (a.size() > 0 && !(b.time_s.front() > a.time_s.back()))) {
       data_ = model::RunData{};
+      rate_out_dps_.clear();
+      plateau_.clear();
       return false;
     }
     auto append = [](auto& x, auto& y) { x.insert(x.end(), y.begin(), y.end()); };
@@ -476,6 +483,9 @@ class Parser {
     append(a.chamber_c, b.chamber_c);
     append(a.since_power_on_s, b.since_power_on_s);
     append(a.compensated_dph, b.compensated_dph);
+    append(a.rate_in_dps, b.rate_in_dps);
+    append(rate_out_dps_, other.rate_out_dps_);
+    append(plateau_, other.plateau_);
     append(a.phase, b.phase);
     append(a.step, b.step);
     append(a.flags, b.flags);
@@ -490,9 +500,11 @@ class Parser {
     data_.name = source_;
     std::vector<double>* doubles[r_count] = {&data_.time_s,     &data_.gyro_dph,  &data_.t1_c,
                                              &data_.t2_c,       &data_.setpoint_c, &data_.chamber_c,
-                                             &data_.since_power_on_s, &data_.compensated_dph};
-    for (int role = 0; role <= r_compensated; ++role)
+                                             &data_.since_power_on_s, &data_.compensated_dph,
+                                             &data_.rate_in_dps, &rate_out_dps_};
+    for (int role = 0; role <= kLastDouble; ++role)
       if (field_of_[role] >= 0) doubles[role]->reserve(rows);
+    if (field_of_[r_plateau] >= 0) plateau_.reserve(rows);
     if (field_of_[r_phase] >= 0) data_.phase.reserve(rows);
     if (field_of_[r_step] >= 0) data_.step.reserve(rows);
     if (field_of_[r_flags] >= 0) data_.flags.reserve(rows);
@@ -525,9 +537,9 @@ class Parser {
   bool fast_row(std::string_view line, std::vector<double>* doubles[]) {
     const char* p = line.data();
     const char* const end = p + line.size();
-    double values[r_compensated + 1];
+    double values[kLastDouble + 1];
     model::Phase phase{};
-    int step = 0;
+    int step = 0, plateau = 0;
     unsigned flags = 0;
     const std::size_t n = names_.size();
     for (std::size_t i = 0; i < n; ++i) {
@@ -535,7 +547,7 @@ class Parser {
       if (role == r_ignore) {
         for (; p != end && *p != ','; ++p)
           if (*p == '"') return false;  // a quoted cell may hold commas
-      } else if (role <= r_compensated) {
+      } else if (role <= kLastDouble) {
         double v;
         const auto [q, ec] = std::from_chars(p, end, v);
         if (ec != std::errc{} || q == p || !std::isfinite(v)) return false;
@@ -549,7 +561,9 @@ class Parser {
         phase = *ph;
         p = q;
       } else {
-        const auto [q, ec] = role == r_step ? std::from_chars(p, end, step) : std::from_chars(p, end, flags);
+        const auto [q, ec] = role == r_step      ? std::from_chars(p, end, step)
+                             : role == r_plateau ? std::from_chars(p, end, plateau)
+                                                 : std::from_chars(p, end, flags);
         if (ec != std::errc{} || q == p || (role == r_flags && flags > 0xFFu)) return false;
         p = q;
       }
@@ -560,8 +574,9 @@ class Parser {
         return false;
       }
     }
-    for (int role = 0; role <= r_compensated; ++role)
+    for (int role = 0; role <= kLastDouble; ++role)
       if (field_of_[role] >= 0) doubles[role]->push_back(values[role]);
+    if (field_of_[r_plateau] >= 0) plateau_.push_back(plateau);
     if (field_of_[r_phase] >= 0) data_.phase.push_back(phase);
     if (field_of_[r_step] >= 0) data_.step.push_back(step);
     if (field_of_[r_flags] >= 0) data_.flags.push_back(static_cast<std::uint8_t>(flags));
@@ -610,12 +625,56 @@ class Parser {
 
   std::size_t empty_field_ = 0;  // 1-based field of the row's first empty cell, 0 if none
 
+  // A rate table's columns as to_csv writes them: rate_out_dps is gyro_dph / 3600 (both empty
+  // together), and plateau the profile step (the step column when the file has none, else the
+  // same number). rate_in_dps is read as RunData::rate_in_dps.
+  std::expected<void, CsvError> check_rate_columns() {
+    const std::size_t n = data_.size();
+    if (field_of_[r_rate_out] >= 0) {
+      const std::size_t field = static_cast<std::size_t>(field_of_[r_rate_out]) + 1;
+      for (std::size_t i = 0; i < n; ++i) {
+        const double g = data_.gyro_dph[i], r = rate_out_dps_[i];
+        const bool same = std::isfinite(g) ? std::isfinite(r) && std::fabs(r * 3600.0 - g) <= 1e-9 * std::max(1.0, std::fabs(g))
+                                           : !std::isfinite(r);
+        if (!same)
+          return fail(CsvErrc::bad_value, line_of_row(i), field,
+                      (std::isfinite(r) ? format_number(r) + " deg/s" : std::string("empty")) +
+                          " is not gyro_dph / 3600 (" +
+                          (std::isfinite(g) ? format_number(g / 3600.0) + " deg/s" : std::string("gyro_dph empty")) +
+                          "): rate_out_dps is the gyro's output in deg/s");
+      }
+    }
+    rate_out_dps_.clear();
+    if (field_of_[r_plateau] >= 0) {
+      const std::size_t field = static_cast<std::size_t>(field_of_[r_plateau]) + 1;
+      const bool has_step = field_of_[r_step] >= 0;
+      bool complete = true;
+      for (std::size_t i = 0; i < n; ++i) {
+        if (plateau_[i] == kNoPlateau) {
+          complete = false;
+          continue;
+        }
+        if (has_step && plateau_[i] != data_.step[i])
+          return fail(CsvErrc::bad_value, line_of_row(i), field,
+                      "plateau " + std::to_string(plateau_[i]) + " but step " + std::to_string(data_.step[i]) +
+                          ": the plateau is the profile step");
+      }
+      if (!has_step && complete) data_.step = std::move(plateau_);
+    }
+    plateau_.clear();
+    return {};
+  }
+  static constexpr int kNoPlateau = std::numeric_limits<int>::min();
+  std::vector<double> rate_out_dps_;  // rows' rate_out_dps, deg/s, checked and dropped
+  std::vector<int> plateau_;          // rows' plateau, kNoPlateau where empty
+
   std::expected<void, CsvError> parse_cell(int role, std::string_view cell, std::size_t ln,
                                            std::size_t field, std::vector<double>* doubles[]) {
-    if (role <= r_compensated) {
-      if (cell.empty() && (role == r_power_on || role == r_compensated)) {
+    if (role <= kLastDouble) {
+      if (cell.empty() && (role == r_power_on || role == r_compensated || role == r_rate_out)) {
         // The gyro's power-on was not known at this sample (the daemon saw none), or the daemon
-        // computed no live compensation: nothing was missed, nothing is guessed.
+        // computed no live compensation: nothing was missed, nothing is guessed. An empty
+        // rate_out_dps is an empty gyro_dph (check_rate_columns), which the flags answer for.
         doubles[role]->push_back(std::numeric_limits<double>::quiet_NaN());
         return {};
       }
@@ -647,13 +706,19 @@ class Parser {
       data_.phase.push_back(*p);
       return {};
     }
-    if (role == r_step) {
+    if (role == r_plateau && cell.empty()) {
+      // to_csv writes no plateau for a run without its step column.
+      plateau_.push_back(kNoPlateau);
+      return {};
+    }
+    if (role == r_step || role == r_plateau) {
       int v;
       switch (parse_int(cell, v)) {
-        case Num::ok: data_.step.push_back(v); return {};
+        case Num::ok: (role == r_step ? data_.step : plateau_).push_back(v); return {};
         case Num::out_of_range:
           return fail(CsvErrc::bad_value, ln, field,
-                      "step " + std::string(cell) + " is out of the range of an int");
+                      std::string(role == r_step ? "step " : "plateau ") + std::string(cell) +
+                          " is out of the range of an int");
         default:
           return fail(CsvErrc::not_a_number, ln, field,
                       "not an integer: '" + std::string(cell) + "'");
@@ -761,6 +826,7 @@ class Parser {
     if (in.has_step()) out.step.resize(m);
     if (in.has_power_on()) out.since_power_on_s.resize(m);
     if (in.has_compensated()) out.compensated_dph.resize(m);
+    if (in.has_rate_in()) out.rate_in_dps.resize(m);
     out.flags.assign(m, 0);
     bool any_gap = false;
 
@@ -809,6 +875,8 @@ class Parser {
       }
       if (in.has_phase()) out.phase[k] = in.phase[j];
       if (in.has_step()) out.step[k] = in.step[j];
+      // The table's commanded rate holds until the next command: never interpolated.
+      if (in.has_rate_in()) out.rate_in_dps[k] = in.rate_in_dps[j];
       std::uint8_t f = in.has_flags() ? in.flags[j] : 0;
       // A grid point interpolated towards a reading not taken is itself not taken, whatever
       // the flags of the sample before it say (found by the CSV fuzzer).
@@ -949,7 +1017,7 @@ std::string to_csv(const model::RunData& run) {
   if (run.has_power_on()) out += ",since_power_on_s";
   if (run.has_compensated()) out += ",compensated_dph";
   // A run that drove the rate table: the rate-sequence columns of `fogctl scale-factor`
-  // (cli/scale_factor.hpp), the plateau being the profile step. Not read back by parse_csv.
+  // (cli/scale_factor.hpp), the plateau being the profile step. parse_csv reads them back.
   if (run.has_rate_in()) out += ",plateau,rate_in_dps,rate_out_dps";
   out += '\n';
   out.reserve(out.size() + n * 96);

@@ -220,6 +220,65 @@ TEST_CASE("fogctl scale-factor and simulate --rate-sequence: bad input named by 
   }
 }
 
+// A daemon's export (fogctl run export of a run that drove the rate table): the profile's
+// setpoint step at rest (plateau 0), the hold's rate sequence (plateau 1), a second the daemon
+// stored without a gyro reading (empty gyro_dph and rate_out_dps, flagged missing) and one
+// without the thermistors' (empty t1_c and t2_c).
+std::string daemon_export() {
+  std::string csv = "# run: 7\ntime_s,gyro_dph,t1_c,t2_c,step,flags,plateau,rate_in_dps,rate_out_dps\n";
+  for (int i = 0; i < 130; ++i) {
+    const int plateau = i < 10 ? 0 : 1;
+    const double rate = i < 10 ? 0.0 : i < 50 ? 10.0 : i < 90 ? -10.0 : 0.0;
+    const double out_dps = 1.0001 * rate + 0.002;  // SF 1.0001, bias 7.2 deg/h
+    const std::string t = std::to_string(i), p = std::to_string(plateau);
+    if (i == 70) {
+      csv += t + ",,20,20," + p + ",1," + p + ",-10,\n";
+      continue;
+    }
+    if (i == 75) {  // the gyro read, the thermistors not
+      csv += t + ",-35996.4,,," + p + ",1," + p + ",-10,-9.999\n";
+      continue;
+    }
+    char g[64], o[64], r[32];
+    std::snprintf(g, sizeof g, "%.17g", out_dps * 3600.0);
+    std::snprintf(o, sizeof o, "%.17g", out_dps);
+    std::snprintf(r, sizeof r, "%g", rate);
+    csv += t + "," + g + ",20,20," + p + ",0," + p + "," + r + "," + o + "\n";
+  }
+  return csv;
+}
+
+TEST_CASE("fogctl scale-factor skips the seconds without a gyro reading and the plateaus at rest, and says so", "[scale_factor]") {
+  Dir d("sf");
+  const auto path = d.write("export.csv", daemon_export());
+  auto j = scale_factor(path, true);
+  INFO(j.err);
+  REQUIRE(j.code == kExitOk);
+  const auto r = nlohmann::json::parse(j.out);
+  CHECK(r["skipped"]["no_gyro_reading"] == 1);
+  CHECK(r["skipped"]["no_coil_reading"] == 1);
+  CHECK(r["skipped"]["at_rest_plateaus"] == nlohmann::json::array({0}));
+  CHECK(r["skipped"]["at_rest_rows"] == 10);
+  REQUIRE(r["plateaus"].size() == 1);
+  CHECK(r["plateaus"][0]["plateau"] == 1);
+  CHECK(r["plateaus"][0]["scale_factor"].get<double>() == Approx(1.0001).epsilon(1e-9));
+  CHECK(r["plateaus"][0]["bias_dph"].get<double>() == Approx(7.2).epsilon(1e-6));
+  // The -10 deg/s step has two samples fewer: 40 - 5 settled - 2 skipped.
+  CHECK(r["plateaus"][0]["steps"][1]["n_used"] == 33);
+  auto t = scale_factor(path, false);
+  REQUIRE(t.code == kExitOk);
+  CHECK_THAT(t.out, Contains("skipped: 1 second without a gyro reading (empty rate_out_dps); 1 second without a coil "
+                             "temperature (empty t1_c); plateau 0 (10 seconds) with no rate step: the table at rest "
+                             "throughout"));
+  SECTION("a file with no plateau that turns is an error saying what was skipped") {
+    const auto rest = d.write("rest.csv", "time_s,plateau,rate_in_dps,rate_out_dps,t1_c\n0,0,0,0,20\n1,0,0,,20\n");
+    auto e = scale_factor(rest, false);
+    CHECK(e.code == kExitError);
+    CHECK_THAT(e.err, Contains("rest.csv: no plateau with a rate step (skipped: 1 second without a gyro reading "
+                               "(empty rate_out_dps); plateau 0 (1 second) with no rate step"));
+  }
+}
+
 // fogctl report --scale-factor: the page carries the rate sequence's figures as fogctl
 // scale-factor computes them (the same fit, the same numbers), its plateaus' table, and two
 // plots (the scale factor against the coil temperature with the model form, and the steps'

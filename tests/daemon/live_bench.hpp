@@ -92,6 +92,9 @@ struct LiveBench {
               {"profile_dir", "profiles"},
               {"drivers", ready_sim["drivers_config"]}};
     if (paced) c["sim_clock"] = control().string();
+    // A sim serving a rate table (--rate-table-port): the daemon drives it.
+    if (ready_sim.contains("rate_table_config") && !ready_sim["rate_table_config"].is_null())
+      c["rate_table"] = ready_sim["rate_table_config"];
     c.merge_patch(config_patch);
     std::ofstream(dir / "fogbenchd.json") << c.dump(2);
   }

@@ -124,6 +124,15 @@ TEST_CASE("protocol: pushed sample and event messages go to JSON and back") {
   CHECK(back->gyro_dph == -8.11);
   CHECK(back->compensated_dph == 0.021);
   CHECK_FALSE(back->chamber_c.has_value());
+  // No rate table: no rate_in_dps field at all; with one, the commanded rate there and back.
+  CHECK_FALSE(j.contains("rate_in_dps"));
+  CHECK_FALSE(back->rate_in_dps.has_value());
+  m.rate_in_dps = -10.0;
+  const json jt = to_json(m);
+  CHECK(jt["rate_in_dps"] == -10.0);
+  auto back_t = sample_message_from_json(json::parse(jt.dump()));
+  REQUIRE(back_t.has_value());
+  CHECK(back_t->rate_in_dps == -10.0);
 
   const json e = to_json(EventMessage{3, std::nullopt, "state", {{"to", "aborted"}}});
   CHECK(e["t_s"].is_null());

@@ -669,3 +669,55 @@ TEST_CASE("csv: compensated_dph round-trips with empty cells where the daemon co
   CHECK_FALSE(old->has_compensated());
   CHECK(storage::to_csv(*old).find("compensated_dph") == std::string::npos);
 }
+
+TEST_CASE("csv: a rate table's export reads back its plateau, rate_in_dps and rate_out_dps (round trip)", "[csv][rate]") {
+  model::RunData d;
+  for (int i = 0; i < 6; ++i) {
+    d.time_s.push_back(i);
+    d.gyro_dph.push_back(i == 3 ? std::nan("") : 36000.0 * (i < 2 ? 1 : -1) + 0.125 * i);
+    d.t1_c.push_back(20.0 + 0.01 * i);
+    d.t2_c.push_back(20.5);
+    d.step.push_back(i < 4 ? 1 : 2);
+    d.flags.push_back(i == 3 ? model::flag::missing : 0);
+    d.rate_in_dps.push_back(i < 2 ? 10.0 : i < 4 ? -10.0 : 0.0);
+  }
+  const std::string csv = storage::to_csv(d);
+  REQUIRE_THAT(csv, Contains(",plateau,rate_in_dps,rate_out_dps"));
+  auto r = storage::parse_csv(csv, named());
+  INFO((r ? std::string() : r.error().message));
+  REQUIRE(r.has_value());
+  REQUIRE(r->has_rate_in());
+  CHECK(r->rate_in_dps == d.rate_in_dps);
+  CHECK(r->step == d.step);
+  CHECK(storage::to_csv(*r) == csv);  // byte for byte
+  // The missing second keeps its empty gyro_dph and rate_out_dps.
+  CHECK(std::isnan(r->gyro_dph[3]));
+
+  SECTION("without a step column, the plateau is the step") {
+    auto s = storage::parse_csv(
+        "time_s,gyro_dph,t1_c,t2_c,plateau,rate_in_dps,rate_out_dps\n0,36000,20,20,4,10,10\n1,-36000,20,20,4,-10,-10\n",
+        named());
+    REQUIRE(s.has_value());
+    CHECK(s->step == std::vector<int>{4, 4});
+    CHECK(s->rate_in_dps == std::vector<double>{10, -10});
+  }
+  SECTION("resampled, the commanded rate is held, never interpolated") {
+    CsvOptions o = named();
+    o.resample_s = 0.5;
+    auto s = storage::parse_csv(
+        "time_s,gyro_dph,t1_c,t2_c,rate_in_dps\n0,36000,20,20,10\n1,-36000,20,20,-10\n2,-36000,20,20,-10\n", o);
+    REQUIRE(s.has_value());
+    CHECK(s->rate_in_dps == std::vector<double>{10, 10, -10, -10, -10});
+  }
+}
+
+TEST_CASE("csv: a rate table's columns that disagree with the others are named", "[csv][rate][errors]") {
+  const std::string head = "time_s,gyro_dph,t1_c,t2_c,step,plateau,rate_in_dps,rate_out_dps\n";
+  auto e = parse_error(head + "0,36000,20,20,1,1,10,10\n1,36000,20,20,1,1,10,9.5\n");
+  CHECK(e.message == "run.csv:3: column 8 'rate_out_dps': 9.5 deg/s is not gyro_dph / 3600 (10 deg/s): rate_out_dps is "
+                     "the gyro's output in deg/s");
+  auto p = parse_error(head + "0,36000,20,20,1,2,10,10\n");
+  CHECK(p.message == "run.csv:2: column 6 'plateau': plateau 2 but step 1: the plateau is the profile step");
+  auto x = parse_error(head + "0,36000,20,20,1,1,x,10\n");
+  CHECK_THAT(x.message, Contains("run.csv:2: column 7 'rate_in_dps': not a number: 'x'"));
+}

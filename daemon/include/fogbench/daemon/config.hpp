@@ -153,6 +153,10 @@ struct DaemonConfig {
   // The rate table (`rate_table`, drivers/rate_table.hpp: kind, name, link, axis, max_rate_dps,
   // max_accel_dps2), driven by the profiles' rate steps; none: a profile with rate steps is refused.
   std::optional<drivers::RateTableConfig> rate_table;
+  // rate_table.status_tolerance: the table's status reads in a row that may fail for a reason
+  // other than its link (a garbled reply) before a run that drives it is aborted (1..3600; one
+  // read a second). Read by the daemon, not the drivers' parser.
+  int rate_table_status_tolerance = 5;
   nlohmann::json source;                   // the file as read, stored with every run (plant.conninfo left out)
   // The file as read, nothing left out: what a reload compares the new file with (never stored).
   nlohmann::json file_json;

@@ -28,6 +28,9 @@ struct UnitReading {
 struct RateTableReading {
   bool link_down = false;  // the table did not answer (reason says why)
   bool fault = false;      // the table reports a fault (reason: its text)
+  // Its status reads failed, for a reason other than the link (a garbled reply), as many times
+  // in a row as rate_table.status_tolerance allows (reason: how many, and the last reply).
+  bool unreadable = false;
   std::string reason;
 };
 

@@ -107,6 +107,9 @@ struct SampleMessage {
   // gyro_dph minus the unit's model's drift, computed live as the firmware would, deg/h; null
   // without a model, while the compensator warms up, or when an input is missing.
   std::optional<double> compensated_dph;
+  // The rate table's commanded rate this second, deg/s: only for a run that drives a table (the
+  // message of any other run has no such field, as before).
+  std::optional<double> rate_in_dps;
 };
 nlohmann::json to_json(const SampleMessage& s);
 std::expected<SampleMessage, std::string> sample_message_from_json(const nlohmann::json& j);
