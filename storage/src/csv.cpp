@@ -60,15 +60,17 @@ namespace {
 
 // The role of a file column; the order is that of csv_columns() (to_csv writes the same
 // columns, since_power_on_s and compensated_dph last).
-// The roles up to r_compensated are numbers (doubles).
+// The roles up to r_gyro_z are numbers (doubles).
 enum Role : int {
-  r_time, r_gyro, r_t1, r_t2, r_setpoint, r_chamber, r_power_on, r_compensated, r_phase, r_step, r_flags, r_count,
+  r_time, r_gyro, r_t1, r_t2, r_setpoint, r_chamber, r_power_on, r_compensated, r_gyro_y, r_gyro_z, r_phase, r_step,
+  r_flags, r_count,
   r_ignore = -1
 };
 constexpr int kRequired = 4;
 constexpr std::array<std::string_view, r_count> kNames = {
     "time_s", "gyro_dph", "t1_c", "t2_c", "setpoint_c", "chamber_c", "since_power_on_s",
-    "compensated_dph", "phase", "step", "flags"};
+    "compensated_dph", "gyro_y_dph", "gyro_z_dph", "phase", "step", "flags"};
+constexpr int kLastNumber = r_gyro_z;
 
 // Even spacing tolerance, as a fraction of the median step: loose enough for time written
 // with %.3f at 1 Hz, tight enough to catch a skipped or doubled sample.
@@ -326,7 +328,7 @@ class Parser {
         return fail(CsvErrc::bad_option, 0, 0,
                     "--map " + spec + ": '" + m.canonical +
                         "' is not a fogbench column (time_s,gyro_dph,t1_c,t2_c,setpoint_c,"
-                        "chamber_c,since_power_on_s,compensated_dph,phase,step,flags)");
+                        "chamber_c,since_power_on_s,compensated_dph,gyro_y_dph,gyro_z_dph,phase,step,flags)");
       if (m.header.empty())
         return fail(CsvErrc::bad_option, 0, 0, "--map " + spec + ": empty header name");
       for (std::size_t j = 0; j < i; ++j) {
@@ -437,6 +439,12 @@ class Parser {
       if (missing.size() == 1 && required_missing == 1) msg = "required " + msg;
       return fail(CsvErrc::missing_column, header_line_, 0, msg);
     }
+    // A three-axis unit's y and z come together (model::RunData::has_axes).
+    if ((field_of_[r_gyro_y] >= 0) != (field_of_[r_gyro_z] >= 0))
+      return fail(CsvErrc::missing_column, header_line_, 0,
+                  "column '" + std::string(kNames[field_of_[r_gyro_y] >= 0 ? r_gyro_z : r_gyro_y]) +
+                      "' not found: a three-axis unit's columns gyro_y_dph and gyro_z_dph go together; the header has: " +
+                      join_names(names_));
     return {};
   }
 
@@ -476,6 +484,8 @@ class Parser {
     append(a.chamber_c, b.chamber_c);
     append(a.since_power_on_s, b.since_power_on_s);
     append(a.compensated_dph, b.compensated_dph);
+    append(a.gyro_y_dph, b.gyro_y_dph);
+    append(a.gyro_z_dph, b.gyro_z_dph);
     append(a.phase, b.phase);
     append(a.step, b.step);
     append(a.flags, b.flags);
@@ -490,8 +500,9 @@ class Parser {
     data_.name = source_;
     std::vector<double>* doubles[r_count] = {&data_.time_s,     &data_.gyro_dph,  &data_.t1_c,
                                              &data_.t2_c,       &data_.setpoint_c, &data_.chamber_c,
-                                             &data_.since_power_on_s, &data_.compensated_dph};
-    for (int role = 0; role <= r_compensated; ++role)
+                                             &data_.since_power_on_s, &data_.compensated_dph,
+                                             &data_.gyro_y_dph, &data_.gyro_z_dph};
+    for (int role = 0; role <= kLastNumber; ++role)
       if (field_of_[role] >= 0) doubles[role]->reserve(rows);
     if (field_of_[r_phase] >= 0) data_.phase.reserve(rows);
     if (field_of_[r_step] >= 0) data_.step.reserve(rows);
@@ -525,7 +536,7 @@ class Parser {
   bool fast_row(std::string_view line, std::vector<double>* doubles[]) {
     const char* p = line.data();
     const char* const end = p + line.size();
-    double values[r_compensated + 1];
+    double values[kLastNumber + 1];
     model::Phase phase{};
     int step = 0;
     unsigned flags = 0;
@@ -535,7 +546,7 @@ class Parser {
       if (role == r_ignore) {
         for (; p != end && *p != ','; ++p)
           if (*p == '"') return false;  // a quoted cell may hold commas
-      } else if (role <= r_compensated) {
+      } else if (role <= kLastNumber) {
         double v;
         const auto [q, ec] = std::from_chars(p, end, v);
         if (ec != std::errc{} || q == p || !std::isfinite(v)) return false;
@@ -560,7 +571,7 @@ class Parser {
         return false;
       }
     }
-    for (int role = 0; role <= r_compensated; ++role)
+    for (int role = 0; role <= kLastNumber; ++role)
       if (field_of_[role] >= 0) doubles[role]->push_back(values[role]);
     if (field_of_[r_phase] >= 0) data_.phase.push_back(phase);
     if (field_of_[r_step] >= 0) data_.step.push_back(step);
@@ -612,7 +623,7 @@ class Parser {
 
   std::expected<void, CsvError> parse_cell(int role, std::string_view cell, std::size_t ln,
                                            std::size_t field, std::vector<double>* doubles[]) {
-    if (role <= r_compensated) {
+    if (role <= kLastNumber) {
       if (cell.empty() && (role == r_power_on || role == r_compensated)) {
         // The gyro's power-on was not known at this sample (the daemon saw none), or the daemon
         // computed no live compensation: nothing was missed, nothing is guessed.
@@ -754,7 +765,8 @@ class Parser {
     out.time_s.resize(m);
     std::vector<double> model::RunData::*const numeric[] = {
         &model::RunData::gyro_dph, &model::RunData::t1_c, &model::RunData::t2_c,
-        &model::RunData::setpoint_c, &model::RunData::chamber_c};
+        &model::RunData::setpoint_c, &model::RunData::chamber_c, &model::RunData::gyro_y_dph,
+        &model::RunData::gyro_z_dph};
     for (std::size_t c = 0; c < std::size(numeric); ++c)
       if (!(in.*numeric[c]).empty()) (out.*numeric[c]).resize(m);
     if (in.has_phase()) out.phase.resize(m);
@@ -937,7 +949,7 @@ std::string to_csv(const model::RunData& run) {
   assert(run.gyro_dph.size() == n && run.t1_c.size() == n && run.t2_c.size() == n);
   assert(fits(run.setpoint_c) && fits(run.chamber_c) && fits(run.phase) && fits(run.step) &&
          fits(run.flags) && fits(run.since_power_on_s) && fits(run.compensated_dph) &&
-         fits(run.rate_in_dps));
+         fits(run.rate_in_dps) && fits(run.gyro_y_dph) && run.gyro_z_dph.size() == run.gyro_y_dph.size());
   (void)fits;
 
   std::string out = "time_s,gyro_dph,t1_c,t2_c";
@@ -948,6 +960,7 @@ std::string to_csv(const model::RunData& run) {
   if (run.has_flags()) out += ",flags";
   if (run.has_power_on()) out += ",since_power_on_s";
   if (run.has_compensated()) out += ",compensated_dph";
+  if (run.has_axes()) out += ",gyro_y_dph,gyro_z_dph";  // a three-axis unit's y and z only
   // A run that drove the rate table: the rate-sequence columns of `fogctl scale-factor`
   // (cli/scale_factor.hpp), the plateau being the profile step. Not read back by parse_csv.
   if (run.has_rate_in()) out += ",plateau,rate_in_dps,rate_out_dps";
@@ -999,6 +1012,12 @@ std::string to_csv(const model::RunData& run) {
     if (run.has_compensated()) {
       out += ',';
       put(run.compensated_dph[i]);  // empty where the daemon computed none
+    }
+    if (run.has_axes()) {
+      out += ',';
+      put(run.gyro_y_dph[i]);  // empty where the axis sent nothing usable (flag missing)
+      out += ',';
+      put(run.gyro_z_dph[i]);
     }
     if (run.has_rate_in()) {
       out += ',';
