@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "../../daemon/src/acquisition.hpp"
+#include "../../daemon/src/run_reads.hpp"
 #include "fixture.hpp"
 #include "fogbench/drivers/can_frame.hpp"
 #include "fogbench/drivers/gyro_bus.hpp"
@@ -156,4 +157,34 @@ TEST_CASE("station: a three-axis unit's y and z are stored per second, a silent 
   CHECK(silent[0]["axis"] == "z");
   CHECK(silent[0]["can_id"] == kBase + 2);
   CHECK(silent[0]["t_s"] == 10.0);
+
+  // Pushed live: the three-axis unit's samples with y and z (z null while silent), the other's
+  // without the fields.
+  int pushed0 = 0, pushed1 = 0;
+  for (const auto& m : published) {
+    if (m.value("type", "") != "sample") continue;
+    const double t = m["t_s"].get<double>();
+    if (m["unit"] == 0) {
+      ++pushed0;
+      REQUIRE(m.contains("gyro_y_dph"));
+      CHECK(m["gyro_y_dph"].get<double>() == Approx(AxisBench::axis_dph(1, static_cast<int>(t))).margin(1e-9));
+      CHECK(m["gyro_z_dph"].is_null() == (t >= 10 && t < 15));
+    } else {
+      ++pushed1;
+      CHECK_FALSE(m.contains("gyro_y_dph"));
+      CHECK_FALSE(m.contains("gyro_z_dph"));
+    }
+  }
+  CHECK(pushed0 == kTicks);
+  CHECK(pushed1 == kTicks);
+
+  // run.samples: the same, from the store.
+  auto page0 = run_samples(store, *id, {{"unit", 0}}, 0, 100);
+  REQUIRE(page0.has_value());
+  REQUIRE((*page0)["samples"].size() == kTicks);
+  CHECK((*page0)["samples"][3]["gyro_z_dph"].get<double>() == Approx(AxisBench::axis_dph(2, 3)).margin(1e-9));
+  CHECK((*page0)["samples"][12]["gyro_z_dph"].is_null());
+  auto page1 = run_samples(store, *id, {{"unit", 1}}, 0, 100);
+  REQUIRE(page1.has_value());
+  CHECK_FALSE((*page1)["samples"][0].contains("gyro_y_dph"));
 }
