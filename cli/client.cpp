@@ -283,6 +283,7 @@ std::expected<model::RunData, ClientError> fetch_run(Client& c, std::int64_t run
   bool any_compensated = false;  // the daemon's live compensation: a column only if any
   bool any_power_on = false;     // since_power_on_s (the term language's ton): a column only if any
   bool any_rate_in = false;      // the commanded table rate: a column only if any
+  bool three_axis = false;       // a three-axis unit: its y and z columns
   for (;;) {
     auto r = c.call("run.samples", {{"run_id", run_id}, {"unit", unit}, {"offset", offset}, {"limit", page}});
     if (!r) return std::unexpected(r.error());
@@ -308,6 +309,9 @@ std::expected<model::RunData, ClientError> fetch_run(Client& c, std::int64_t run
       any_power_on |= s->since_power_on_s.has_value();
       d.rate_in_dps.push_back(val(s->rate_in_dps));
       any_rate_in |= s->rate_in_dps.has_value();
+      d.gyro_y_dph.push_back(val(s->gyro_y_dph));
+      d.gyro_z_dph.push_back(val(s->gyro_z_dph));
+      three_axis |= s->three_axis;  // the daemon sends y and z for a three-axis unit only
     }
     offset += static_cast<std::int64_t>(rows.size());
     if (rows.size() < static_cast<std::size_t>(page) || offset >= (*r)["total"].get<std::int64_t>()) break;
@@ -318,6 +322,10 @@ std::expected<model::RunData, ClientError> fetch_run(Client& c, std::int64_t run
   if (!any_compensated) d.compensated_dph.clear();
   if (!any_power_on) d.since_power_on_s.clear();
   if (!any_rate_in) d.rate_in_dps.clear();
+  if (!three_axis) {
+    d.gyro_y_dph.clear();
+    d.gyro_z_dph.clear();
+  }
   if (gaps == Gaps::bridge) {
     // A value not read takes its neighbour's, and the sample keeps (or gets) the missing flag
     // so that no fit trusts it.

@@ -83,6 +83,22 @@ class SteadyTime final : public LoopTime {
 
 }  // namespace
 
+void fill_gyro_readings(const drivers::BusSample& s, std::vector<UnitReading>& units) {
+  for (std::size_t i = 0; i < s.units.size() && i < units.size(); ++i) {
+    UnitReading& u = units[i];
+    u.gyro_dph = s.units[i].rate_dph;
+    u.frames = s.units[i].frames;
+    u.frames_lost = s.units[i].frames_lost;
+    u.frames_corrupt = s.units[i].frames_corrupt;
+    u.gyro_starts = s.units[i].starts;
+    u.extra_axes.clear();
+    if (i < s.extra_axes.size())
+      for (const drivers::GyroSample& a : s.extra_axes[i])
+        u.extra_axes.push_back(
+            {.rate_dph = a.rate_dph, .frames = a.frames, .frames_lost = a.frames_lost, .frames_corrupt = a.frames_corrupt});
+  }
+}
+
 struct Acquisition::Impl {
   asio::io_context& io;
   AcquisitionOptions options;
@@ -415,13 +431,7 @@ struct Acquisition::Impl {
     // nothing to read: take its news here too, not only after a read.
     take_gyro_events();
     in.gyro_stream_events = std::exchange(gyro_stream_pending, {});
-    for (std::size_t i = 0; i < s.units.size() && i < in.units.size(); ++i) {
-      in.units[i].gyro_dph = s.units[i].rate_dph;
-      in.units[i].frames = s.units[i].frames;
-      in.units[i].frames_lost = s.units[i].frames_lost;
-      in.units[i].frames_corrupt = s.units[i].frames_corrupt;
-      in.units[i].gyro_starts = s.units[i].starts;
-    }
+    fill_gyro_readings(s, in.units);
   }
   static void fill_chamber(TickInput& in, const DeviceReading& d) {
     in.chamber_c = d.chamber_c;

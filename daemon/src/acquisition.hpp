@@ -98,6 +98,10 @@ struct AcquisitionStats {
   double tick_late_s = 0.0, tick_late_max_s = 0.0;
 };
 
+// The gyro bus's sample of one period into the units' readings, unit by unit: axis 0's rate and
+// frame counts, and a three-axis unit's axes 1 and 2 (UnitReading::extra_axes).
+void fill_gyro_readings(const drivers::BusSample& s, std::vector<UnitReading>& units);
+
 class Acquisition {
  public:
   Acquisition(boost::asio::io_context& io, AcquisitionOptions options, AcquisitionDevices devices, TickSink sink);

@@ -47,7 +47,7 @@ json model_json(const storage::ModelRecord& m) {
           {"model", parse_or_string(m.model_json)}};
 }
 
-json sample_json(const storage::SampleRow& r) {
+json sample_json(const storage::SampleRow& r, int axes) {
   auto finite = [](double v) { return std::isfinite(v) ? std::optional(v) : std::nullopt; };
   protocol::Sample s;
   s.t_s = r.t_s;
@@ -64,28 +64,39 @@ json sample_json(const storage::SampleRow& r) {
   s.since_power_on_s = finite(r.since_power_on_s);
   s.compensated_dph = finite(r.compensated_dph);
   s.rate_in_dps = finite(r.rate_in_dps);
+  s.three_axis = axes == 3;
+  if (s.three_axis) {
+    s.gyro_y_dph = finite(r.gyro_y_dph);
+    s.gyro_z_dph = finite(r.gyro_z_dph);
+  }
   return protocol::to_json(s);
 }
 
 // `unit` is an index into the run's units or a serial; absent means the first unit.
 ApiResult<int> resolve_unit(storage::Store& store, std::int64_t run_id, const json& req) {
+  auto u = resolve_run_unit(store, run_id, req);
+  if (!u) return std::unexpected(u.error());
+  return u->unit_index;
+}
+
+ApiResult<storage::RunUnit> resolve_run_unit(storage::Store& store, std::int64_t run_id, const json& req) {
   auto run = store.get_run(run_id);
   if (!run) return std::unexpected(from_store(run.error()));
   const auto& units = run->run.units;
   if (!req.contains("unit") || req["unit"].is_null()) {
     if (units.empty()) return api_error(ErrorCode::not_found, "run " + std::to_string(run_id) + " has no units");
-    return 0;
+    return units[0];
   }
   const json& u = req["unit"];
   if (u.is_number_integer()) {
     const auto i = u.get<std::int64_t>();
     if (i < 0 || i >= static_cast<std::int64_t>(units.size()))
       return api_error(ErrorCode::not_found, "run " + std::to_string(run_id) + " has no unit " + std::to_string(i));
-    return static_cast<int>(i);
+    return units[static_cast<std::size_t>(i)];
   }
   if (u.is_string()) {
     for (const auto& ru : units)
-      if (ru.serial == u.get<std::string>()) return ru.unit_index;
+      if (ru.serial == u.get<std::string>()) return ru;
     return api_error(ErrorCode::not_found, "run " + std::to_string(run_id) + " has no unit " + u.get<std::string>());
   }
   return api_error(ErrorCode::bad_request, "unit: expected an index or a serial");
@@ -166,15 +177,16 @@ ApiResult<json> run_get(storage::Store& store, std::int64_t run_id, const json& 
 
 ApiResult<json> run_samples(storage::Store& store, std::int64_t run_id, const json& req, std::int64_t offset,
                             std::int64_t limit) {
-  auto unit = resolve_unit(store, run_id, req);
-  if (!unit) return std::unexpected(unit.error());
-  auto total = store.count_samples(run_id, *unit);
+  auto ru = resolve_run_unit(store, run_id, req);
+  if (!ru) return std::unexpected(ru.error());
+  const int unit = ru->unit_index;
+  auto total = store.count_samples(run_id, unit);
   if (!total) return std::unexpected(from_store(total.error()));
-  auto rows = store.get_samples(run_id, *unit, offset, limit);
+  auto rows = store.get_samples(run_id, unit, offset, limit);
   if (!rows) return std::unexpected(from_store(rows.error()));
   json arr = json::array();
-  for (const auto& r : *rows) arr.push_back(sample_json(r));
-  return json{{"run_id", run_id}, {"unit", *unit}, {"offset", offset}, {"total", *total}, {"samples", arr}};
+  for (const auto& r : *rows) arr.push_back(sample_json(r, ru->axes));
+  return json{{"run_id", run_id}, {"unit", unit}, {"offset", offset}, {"total", *total}, {"samples", arr}};
 }
 
 }  // namespace fogbench::daemon

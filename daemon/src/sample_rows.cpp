@@ -21,6 +21,13 @@ std::uint8_t quality_flags(const UnitReading& u, const TickInput& in, bool pv_fr
   for (auto t : {u.t1_c, u.t2_c})
     if (t && (*t < kCoilMinC || *t > kCoilMaxC)) oor = true;
   if (u.gyro_dph && std::abs(*u.gyro_dph) > kGyroMaxAbsDph + 3600.0 * std::abs(table_max_abs_dps)) oor = true;
+  // A three-axis unit's y and z count as its gyro: an axis without a usable frame is a missing
+  // second, its lost frames are the second's.
+  for (const AxisReading& a : u.extra_axes) {
+    if (!a.rate_dph) f |= model::flag::missing;
+    if (a.frames_lost > 0 || a.frames_corrupt > 0) f |= model::flag::frames_lost;
+    if (a.rate_dph && std::abs(*a.rate_dph) > kGyroMaxAbsDph) oor = true;
+  }
   if (oor) f |= model::flag::out_of_range;
   if (in.chamber_link_down) f |= model::flag::link_gap;
   if (pv_frozen) f |= model::flag::pv_frozen;
@@ -37,6 +44,8 @@ storage::SampleRow sample_row(int unit_index, const UnitReading& u, const TickIn
   r.setpoint_c = st.setpoint_c;
   r.chamber_c = or_nan(in.chamber_c);
   r.gyro_dph = or_nan(u.gyro_dph);
+  if (u.extra_axes.size() >= 1) r.gyro_y_dph = or_nan(u.extra_axes[0].rate_dph);
+  if (u.extra_axes.size() >= 2) r.gyro_z_dph = or_nan(u.extra_axes[1].rate_dph);
   r.frames = u.frames;
   r.t1_c = or_nan(u.t1_c);
   r.t2_c = or_nan(u.t2_c);
@@ -49,7 +58,7 @@ storage::SampleRow sample_row(int unit_index, const UnitReading& u, const TickIn
 
 protocol::SampleMessage sample_message(const storage::SampleRow& r, std::int64_t run_id, const std::string& serial,
                                        storage::RunState state, const profiles::ExecutorStatus& st,
-                                       std::optional<double> chamber_c) {
+                                       std::optional<double> chamber_c, int axes) {
   protocol::SampleMessage m;
   m.run_id = run_id;
   m.t_s = r.t_s;
@@ -70,6 +79,11 @@ protocol::SampleMessage sample_message(const storage::SampleRow& r, std::int64_t
   m.since_power_on_s = finite(r.since_power_on_s);
   m.compensated_dph = finite(r.compensated_dph);
   m.rate_in_dps = finite(r.rate_in_dps);  // NaN (none) unless the run drives a rate table
+  m.three_axis = axes == 3;
+  if (m.three_axis) {
+    m.gyro_y_dph = finite(r.gyro_y_dph);
+    m.gyro_z_dph = finite(r.gyro_z_dph);
+  }
   return m;
 }
 

@@ -99,6 +99,32 @@ void Station::audit(std::int64_t run_id, const json& command) {
   event(run_id, storage::EventKind::command, command, t_s);
 }
 
+void Station::note_silent_axes(ActiveRun& run, std::size_t unit, const UnitReading& u, const TickInput& in,
+                               double t_s) {
+  const std::size_t ci = run.config_index[unit];
+  const drivers::GyroChannelConfig& gyro = config_.drivers.units[ci].gyro;
+  if (gyro.axes < 2 || !in.gyro_read || !in.gyro_link_up || u.extra_axes.empty()) return;
+  std::array<std::uint32_t, 3> sent{u.frames + u.frames_corrupt, 0, 0};
+  for (std::size_t k = 0; k < u.extra_axes.size() && k + 1 < sent.size(); ++k)
+    sent[k + 1] = u.extra_axes[k].frames + u.extra_axes[k].frames_corrupt;
+  if (std::ranges::all_of(sent, [](std::uint32_t n) { return n == 0; })) return;  // the unit is silent, not an axis
+  if (run.axis_silence_noted.size() < run.config_index.size()) run.axis_silence_noted.resize(run.config_index.size());
+  static constexpr const char* kAxisNames[] = {"x", "y", "z"};
+  for (std::size_t k = 0; k < sent.size() && k < gyro.axes; ++k) {
+    if (sent[k] != 0 || run.axis_silence_noted[unit][k]) continue;
+    run.axis_silence_noted[unit][k] = true;
+    const auto id = gyro.axis_id(static_cast<std::uint8_t>(k));
+    spdlog::warn("run {}: unit {} ({}) axis {} (CAN id {}) sent no frame at t_s {} s while its other axes did", run.id, unit,
+                 run.serials[unit], kAxisNames[k], id, t_s);
+    event(run.id, storage::EventKind::fault,
+          {{"gyro_axis", "silent"}, {"unit", static_cast<int>(unit)}, {"serial", run.serials[unit]}, {"axis", kAxisNames[k]},
+           {"can_id", id}, {"t_s", t_s},
+           {"reason", "no frame on CAN id " + std::to_string(id) + " for a second while the unit's other axes sent "
+                      "(its seconds are flagged missing; said once per axis and run)"}},
+          t_s);
+  }
+}
+
 void Station::transition(ActiveRun& run, RunState to, const std::string& reason,
                          std::optional<double> t_s) {
   const RunState from = run.state;
@@ -174,6 +200,7 @@ ApiResult<std::int64_t> Station::start_run_in_slots(const std::string& profile_n
   if (!lots) return std::unexpected(lots.error());
   nr.unit_lots = std::move(*lots);
   nr.unit_slots = std::move(slots);
+  for (std::size_t ci : index) nr.unit_axes.push_back(config_.drivers.units[ci].gyro.axes);
   std::vector<UnitPowerOn> power;
   for (std::size_t ci : index) {
     UnitPowerOn p;
@@ -658,14 +685,17 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
     run.quality[i].frames_lost += u.frames_lost;
     run.quality[i].frames_corrupt += u.frames_corrupt;
     run.quality[i].samples_flagged += rows.back().flags != 0;
+    note_silent_axes(run, i, u, in, t_s);
   }
   if (!run.live_noted) {
     run.live_noted = true;
     event(run.id, storage::EventKind::note, run.live.describe(), t_s);
   }
-  for (const auto& r : rows)
-    emit(protocol::to_json(sample_message(r, run.id, run.serials[static_cast<std::size_t>(r.unit_index)], run.state, st,
-                                          in.chamber_c)));
+  for (const auto& r : rows) {
+    const auto i = static_cast<std::size_t>(r.unit_index);
+    emit(protocol::to_json(sample_message(r, run.id, run.serials[i], run.state, st, in.chamber_c,
+                                          config_.drivers.units[run.config_index[i]].gyro.axes)));
+  }
   // Committed off the loop by fogbenchd's writer thread (sample_writer.hpp): a refusal is known
   // here at once with the inline writer, a second or a few later with the thread.
   samples_->append(run.id, std::move(rows), clock_s);

@@ -121,6 +121,16 @@ json number_or_null(std::optional<double> v) {
   return *v;
 }
 
+namespace {
+// A three-axis unit's y and z: fields of its samples only, so that a one-axis unit's keep their
+// fields as before (the golden transcripts, clients that list fields).
+void put_axes(json& j, bool three_axis, std::optional<double> y_dph, std::optional<double> z_dph) {
+  if (!three_axis) return;
+  j["gyro_y_dph"] = number_or_null(y_dph);
+  j["gyro_z_dph"] = number_or_null(z_dph);
+}
+}  // namespace
+
 json to_json(const Sample& s) {
   json j = {{"t_s", s.t_s}, {"wall_time", number_or_null(s.wall_time)}, {"setpoint_c", number_or_null(s.setpoint_c)},
           {"chamber_c", number_or_null(s.chamber_c)}, {"gyro_dph", number_or_null(s.gyro_dph)},
@@ -131,6 +141,7 @@ json to_json(const Sample& s) {
   // The table's commanded rate only where a rate table ran: a run without one keeps the
   // sample's fields as before (the golden transcripts, clients that list fields).
   if (s.rate_in_dps) j["rate_in_dps"] = *s.rate_in_dps;
+  put_axes(j, s.three_axis, s.gyro_y_dph, s.gyro_z_dph);
   return j;
 }
 
@@ -152,6 +163,9 @@ std::expected<Sample, std::string> sample_from_json(const json& j) {
   s.since_power_on_s = r.opt_number("since_power_on_s");
   s.compensated_dph = r.opt_number("compensated_dph");
   s.rate_in_dps = r.opt_number("rate_in_dps");
+  s.three_axis = j.contains("gyro_y_dph") || j.contains("gyro_z_dph");
+  s.gyro_y_dph = r.opt_number("gyro_y_dph");
+  s.gyro_z_dph = r.opt_number("gyro_z_dph");
   if (!r.ok()) return std::unexpected(r.error());
   return s;
 }
@@ -166,6 +180,7 @@ json to_json(const SampleMessage& s) {
             {"compensated_dph", number_or_null(s.compensated_dph)}};
   // As in run.samples: only where a rate table ran (the golden transcripts of other runs as before).
   if (s.rate_in_dps) j["rate_in_dps"] = *s.rate_in_dps;
+  put_axes(j, s.three_axis, s.gyro_y_dph, s.gyro_z_dph);
   return j;
 }
 
@@ -193,6 +208,9 @@ std::expected<SampleMessage, std::string> sample_message_from_json(const json& j
   s.since_power_on_s = r.opt_number("since_power_on_s");
   s.compensated_dph = r.opt_number("compensated_dph");
   s.rate_in_dps = r.opt_number("rate_in_dps");
+  s.three_axis = j.contains("gyro_y_dph") || j.contains("gyro_z_dph");
+  s.gyro_y_dph = r.opt_number("gyro_y_dph");
+  s.gyro_z_dph = r.opt_number("gyro_z_dph");
   if (!r.ok()) return std::unexpected(r.error());
   return s;
 }

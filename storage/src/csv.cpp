@@ -59,19 +59,20 @@ std::string_view to_string(CsvErrc code) {
 namespace {
 
 // The role of a file column; the order is that of csv_columns() (to_csv writes the same
-// columns, since_power_on_s and compensated_dph after flags, and a rate table's run's plateau,
-// rate_in_dps and rate_out_dps last).
-// The roles up to r_rate_out are numbers (doubles); r_plateau an integer like r_step.
+// columns, since_power_on_s and compensated_dph after flags, then a three-axis unit's gyro_y_dph
+// and gyro_z_dph, and a rate table's run's plateau, rate_in_dps and rate_out_dps last).
+// The roles up to r_gyro_z are numbers (doubles); r_plateau an integer like r_step.
 enum Role : int {
-  r_time, r_gyro, r_t1, r_t2, r_setpoint, r_chamber, r_power_on, r_compensated, r_rate_in, r_rate_out, r_phase, r_step,
-  r_flags, r_plateau, r_count,
+  r_time, r_gyro, r_t1, r_t2, r_setpoint, r_chamber, r_power_on, r_compensated, r_rate_in, r_rate_out, r_gyro_y,
+  r_gyro_z, r_phase, r_step, r_flags, r_plateau, r_count,
   r_ignore = -1
 };
 constexpr int kRequired = 4;
-constexpr int kLastDouble = r_rate_out;
+constexpr int kLastDouble = r_gyro_z;
 constexpr std::array<std::string_view, r_count> kNames = {
     "time_s", "gyro_dph", "t1_c", "t2_c", "setpoint_c", "chamber_c", "since_power_on_s",
-    "compensated_dph", "rate_in_dps", "rate_out_dps", "phase", "step", "flags", "plateau"};
+    "compensated_dph", "rate_in_dps", "rate_out_dps", "gyro_y_dph", "gyro_z_dph", "phase", "step", "flags",
+    "plateau"};
 
 // Even spacing tolerance, as a fraction of the median step: loose enough for time written
 // with %.3f at 1 Hz, tight enough to catch a skipped or doubled sample.
@@ -330,8 +331,8 @@ class Parser {
         return fail(CsvErrc::bad_option, 0, 0,
                     "--map " + spec + ": '" + m.canonical +
                         "' is not a fogbench column (time_s,gyro_dph,t1_c,t2_c,setpoint_c,"
-                        "chamber_c,since_power_on_s,compensated_dph,rate_in_dps,rate_out_dps,phase,"
-                        "step,flags,plateau)");
+                        "chamber_c,since_power_on_s,compensated_dph,rate_in_dps,rate_out_dps,gyro_y_dph,"
+                        "gyro_z_dph,phase,step,flags,plateau)");
       if (m.header.empty())
         return fail(CsvErrc::bad_option, 0, 0, "--map " + spec + ": empty header name");
       for (std::size_t j = 0; j < i; ++j) {
@@ -442,6 +443,12 @@ class Parser {
       if (missing.size() == 1 && required_missing == 1) msg = "required " + msg;
       return fail(CsvErrc::missing_column, header_line_, 0, msg);
     }
+    // A three-axis unit's y and z come together (model::RunData::has_axes).
+    if ((field_of_[r_gyro_y] >= 0) != (field_of_[r_gyro_z] >= 0))
+      return fail(CsvErrc::missing_column, header_line_, 0,
+                  "column '" + std::string(kNames[field_of_[r_gyro_y] >= 0 ? r_gyro_z : r_gyro_y]) +
+                      "' not found: a three-axis unit's columns gyro_y_dph and gyro_z_dph go together; the header has: " +
+                      join_names(names_));
     return {};
   }
 
@@ -486,6 +493,8 @@ class Parser {
     append(a.rate_in_dps, b.rate_in_dps);
     append(rate_out_dps_, other.rate_out_dps_);
     append(plateau_, other.plateau_);
+    append(a.gyro_y_dph, b.gyro_y_dph);
+    append(a.gyro_z_dph, b.gyro_z_dph);
     append(a.phase, b.phase);
     append(a.step, b.step);
     append(a.flags, b.flags);
@@ -501,7 +510,8 @@ class Parser {
     std::vector<double>* doubles[r_count] = {&data_.time_s,     &data_.gyro_dph,  &data_.t1_c,
                                              &data_.t2_c,       &data_.setpoint_c, &data_.chamber_c,
                                              &data_.since_power_on_s, &data_.compensated_dph,
-                                             &data_.rate_in_dps, &rate_out_dps_};
+                                             &data_.rate_in_dps, &rate_out_dps_, &data_.gyro_y_dph,
+                                             &data_.gyro_z_dph};
     for (int role = 0; role <= kLastDouble; ++role)
       if (field_of_[role] >= 0) doubles[role]->reserve(rows);
     if (field_of_[r_plateau] >= 0) plateau_.reserve(rows);
@@ -819,7 +829,8 @@ class Parser {
     out.time_s.resize(m);
     std::vector<double> model::RunData::*const numeric[] = {
         &model::RunData::gyro_dph, &model::RunData::t1_c, &model::RunData::t2_c,
-        &model::RunData::setpoint_c, &model::RunData::chamber_c};
+        &model::RunData::setpoint_c, &model::RunData::chamber_c, &model::RunData::gyro_y_dph,
+        &model::RunData::gyro_z_dph};
     for (std::size_t c = 0; c < std::size(numeric); ++c)
       if (!(in.*numeric[c]).empty()) (out.*numeric[c]).resize(m);
     if (in.has_phase()) out.phase.resize(m);
@@ -1005,7 +1016,7 @@ std::string to_csv(const model::RunData& run) {
   assert(run.gyro_dph.size() == n && run.t1_c.size() == n && run.t2_c.size() == n);
   assert(fits(run.setpoint_c) && fits(run.chamber_c) && fits(run.phase) && fits(run.step) &&
          fits(run.flags) && fits(run.since_power_on_s) && fits(run.compensated_dph) &&
-         fits(run.rate_in_dps));
+         fits(run.rate_in_dps) && fits(run.gyro_y_dph) && run.gyro_z_dph.size() == run.gyro_y_dph.size());
   (void)fits;
 
   std::string out = "time_s,gyro_dph,t1_c,t2_c";
@@ -1016,6 +1027,7 @@ std::string to_csv(const model::RunData& run) {
   if (run.has_flags()) out += ",flags";
   if (run.has_power_on()) out += ",since_power_on_s";
   if (run.has_compensated()) out += ",compensated_dph";
+  if (run.has_axes()) out += ",gyro_y_dph,gyro_z_dph";  // a three-axis unit's y and z only
   // A run that drove the rate table: the rate-sequence columns of `fogctl scale-factor`
   // (cli/scale_factor.hpp), the plateau being the profile step. parse_csv reads them back.
   if (run.has_rate_in()) out += ",plateau,rate_in_dps,rate_out_dps";
@@ -1067,6 +1079,12 @@ std::string to_csv(const model::RunData& run) {
     if (run.has_compensated()) {
       out += ',';
       put(run.compensated_dph[i]);  // empty where the daemon computed none
+    }
+    if (run.has_axes()) {
+      out += ',';
+      put(run.gyro_y_dph[i]);  // empty where the axis sent nothing usable (flag missing)
+      out += ',';
+      put(run.gyro_z_dph[i]);
     }
     if (run.has_rate_in()) {
       out += ',';

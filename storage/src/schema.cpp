@@ -282,6 +282,25 @@ SELECT run_id, unit_index, t_s, wall_time, setpoint_c, chamber_c, gyro_dph, fram
 FROM samples;
 )sql";
 
+// Version 13 (issue 29, three-axis units): the y and z outputs of a three-axis unit per second,
+// deg/h (gyro_dph stays axis 0, x), and how many axes each run unit has. Nullable columns on
+// samples rather than a side table: a one-axis row stores them as two NULLs (a byte each in the
+// record header, nothing in its body) and is read by the same single range scan of the primary
+// key as before; a side table would cost three-axis runs a second B-tree insert per second and
+// every read a join or a second scan (docs/storage.md "Three-axis units").
+constexpr const char* kAxes = R"sql(
+ALTER TABLE samples ADD COLUMN gyro_y_dph REAL;
+ALTER TABLE samples ADD COLUMN gyro_z_dph REAL;
+ALTER TABLE run_units ADD COLUMN axes INTEGER NOT NULL DEFAULT 1 CHECK (axes IN (1, 3));
+DROP VIEW sample_view;
+CREATE VIEW sample_view AS
+SELECT run_id, unit_index, t_s, wall_time, setpoint_c, chamber_c, gyro_dph, frames, t1_c, t2_c,
+       CASE phase WHEN 0 THEN 'unknown' WHEN 1 THEN 'settle' WHEN 2 THEN 'hold'
+                  WHEN 3 THEN 'heating' WHEN 4 THEN 'cooling' END AS phase,
+       step, flags, since_power_on_s, compensated_dph, rate_in_dps, gyro_y_dph, gyro_z_dph
+FROM samples;
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "recording tables", kRecording},
     {2, "models and verifications", kModels},
@@ -295,6 +314,7 @@ constexpr Migration kMigrations[] = {
     {10, "unit slots", kUnitSlots},
     {11, "pruned runs", kPrunedRuns},
     {12, "commanded table rate", kTableRate},
+    {13, "three-axis units", kAxes},
 };
 
 StoreResult<std::int64_t> query_int(Database& db, const std::string& sql, std::string_view what) {

@@ -339,13 +339,14 @@ StoreResult<std::int64_t> Store::create_run(const NewRun& r) {
   }
   const std::int64_t id = sqlite3_last_insert_rowid(db.handle());
 
-  auto unit = db.statement("INSERT INTO run_units (run_id, unit_index, serial, lot, slot) VALUES (?1, ?2, ?3, ?4, ?5)");
+  auto unit = db.statement("INSERT INTO run_units (run_id, unit_index, serial, lot, slot, axes) VALUES (?1, ?2, ?3, ?4, ?5, ?6)");
   if (!unit) return fail(std::move(unit));
   for (std::size_t i = 0; i < r.unit_serials.size(); ++i) {
     Query q(db, *unit);
     q.bind(1, id).bind(2, static_cast<int>(i)).bind(3, r.unit_serials[i]);
     q.bind(4, i < r.unit_lots.size() ? r.unit_lots[i] : std::nullopt);
     q.bind(5, i < r.unit_slots.size() && !r.unit_slots[i].empty() ? std::optional<std::string>(r.unit_slots[i]) : std::nullopt);
+    q.bind(6, i < r.unit_axes.size() ? r.unit_axes[i] : 1);
     if (auto ok = run(db, q, what + ": unit " + std::to_string(i)); !ok)
       return fail(std::move(ok));
   }
@@ -426,14 +427,14 @@ namespace {
 
 StoreResult<std::vector<RunUnit>> load_units(Database& db, std::int64_t run_id) {
   auto stmt = db.statement(
-      "SELECT unit_index, serial, lot, slot FROM run_units WHERE run_id = ?1 ORDER BY unit_index");
+      "SELECT unit_index, serial, lot, slot, axes FROM run_units WHERE run_id = ?1 ORDER BY unit_index");
   if (!stmt) return fail(std::move(stmt));
   Query q(db, *stmt);
   q.bind(1, run_id);
   std::vector<RunUnit> units;
   int rc;
   while ((rc = q.step()) == SQLITE_ROW)
-    units.push_back(RunUnit{static_cast<int>(q.int64(0)), q.text(1), q.opt_text(2), q.opt_text(3)});
+    units.push_back(RunUnit{static_cast<int>(q.int64(0)), q.text(1), q.opt_text(2), q.opt_text(3), static_cast<int>(q.int64(4))});
   if (rc != SQLITE_DONE)
     return std::unexpected(db.error(rc, "read the units of " + run_label(run_id)));
   return units;

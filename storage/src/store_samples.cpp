@@ -94,6 +94,17 @@ StoreResult<model::RunData> Store::export_run(std::int64_t run_id, int unit_inde
   auto serial = require_unit(db, run_id, unit_index);
   if (!serial) return fail(std::move(serial));
   if (auto ok = require_samples_kept(db, run_id); !ok) return fail(std::move(ok));
+  // A three-axis unit's y and z are exported with it; a one-axis unit's rows as before.
+  bool three_axis = false;
+  {
+    auto stmt = db.statement("SELECT axes FROM run_units WHERE run_id = ?1 AND unit_index = ?2");
+    if (!stmt) return fail(std::move(stmt));
+    Query q(db, *stmt);
+    q.bind(1, run_id).bind(2, unit_index);
+    auto got = row(db, q, "read the axes of " + label);
+    if (!got) return fail(std::move(got));
+    three_axis = q.int64(0) == 3;
+  }
   auto count = count_samples(run_id, unit_index);
   if (!count) return fail(std::move(count));
 
@@ -113,7 +124,8 @@ StoreResult<model::RunData> Store::export_run(std::int64_t run_id, int unit_inde
 
   auto stmt = db.statement(
       "SELECT t_s, gyro_dph, t1_c, t2_c, setpoint_c, chamber_c, phase, step, flags, since_power_on_s, "
-      "compensated_dph, rate_in_dps FROM samples WHERE run_id = ?1 AND unit_index = ?2 ORDER BY t_s");
+      "compensated_dph, rate_in_dps, gyro_y_dph, gyro_z_dph FROM samples WHERE run_id = ?1 AND unit_index = ?2 "
+      "ORDER BY t_s");
   if (!stmt) return fail(std::move(stmt));
   Query q(db, *stmt);
   q.bind(1, run_id).bind(2, unit_index);
@@ -148,6 +160,10 @@ StoreResult<model::RunData> Store::export_run(std::int64_t run_id, int unit_inde
     d.compensated_dph.push_back(q.real(10));
     has_rate_in |= !q.is_null(11);
     d.rate_in_dps.push_back(q.real(11));
+    if (three_axis) {
+      d.gyro_y_dph.push_back(q.real(12));
+      d.gyro_z_dph.push_back(q.real(13));
+    }
   }
   if (rc != SQLITE_DONE) return std::unexpected(db.error(rc, "export " + label));
   if (d.size() == 0) {
@@ -196,7 +212,8 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
       {"chamber_c", data.chamber_c.size()},   {"phase", data.phase.size()},
       {"step", data.step.size()},             {"flags", data.flags.size()},
       {"since_power_on_s", data.since_power_on_s.size()}, {"compensated_dph", data.compensated_dph.size()},
-      {"rate_in_dps", data.rate_in_dps.size()}};
+      {"rate_in_dps", data.rate_in_dps.size()}, {"gyro_y_dph", data.gyro_y_dph.size()},
+      {"gyro_z_dph", data.gyro_z_dph.size()}};
   for (std::size_t c = 0; c < std::size(sizes); ++c) {
     const bool required = c < 3;
     const auto [name, size] = sizes[c];
@@ -204,6 +221,9 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
       return invalid(std::string(name) + " has " + std::to_string(size) +
                      " values but time_s has " + std::to_string(n));
   }
+  if (data.gyro_y_dph.size() != data.gyro_z_dph.size())
+    return invalid("gyro_y_dph and gyro_z_dph go together (a three-axis unit's y and z): " +
+                   std::to_string(data.gyro_y_dph.size()) + " and " + std::to_string(data.gyro_z_dph.size()) + " values");
   for (std::size_t i = 0; i < n; ++i)
     if (!std::isfinite(data.time_s[i]))
       return invalid("time_s[" + std::to_string(i) + "] is not finite");
@@ -230,10 +250,10 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
   const std::int64_t id = sqlite3_last_insert_rowid(db.handle());
   {
     auto stmt =
-        db.statement("INSERT INTO run_units (run_id, unit_index, serial, lot) VALUES (?1, ?2, ?3, ?4)");
+        db.statement("INSERT INTO run_units (run_id, unit_index, serial, lot, axes) VALUES (?1, ?2, ?3, ?4, ?5)");
     if (!stmt) return fail(std::move(stmt));
     Query q(db, *stmt);
-    q.bind(1, id).bind(2, 0).bind(3, options.serial).bind(4, options.lot);
+    q.bind(1, id).bind(2, 0).bind(3, options.serial).bind(4, options.lot).bind(5, data.has_axes() ? 3 : 1);
     if (auto ok = run(db, q, what); !ok) return fail(std::move(ok));
   }
   {
@@ -252,6 +272,7 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
       if (data.has_power_on()) q.bind(14, data.since_power_on_s[i]);
       if (data.has_compensated()) q.bind(15, data.compensated_dph[i]);
       if (data.has_rate_in()) q.bind(16, data.rate_in_dps[i]);
+      if (data.has_axes()) q.bind(17, data.gyro_y_dph[i]).bind(18, data.gyro_z_dph[i]);
       if (int rc = q.step(); rc != SQLITE_DONE)
         return std::unexpected(sample_error(db, rc, id, 0, data.time_s[i], what));
       q.reset();

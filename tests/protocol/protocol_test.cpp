@@ -170,3 +170,40 @@ TEST_CASE("framing: a newline in a later read ends a line whose start was scanne
   REQUIRE(s.next(line) == LineSplitter::Status::line);
   CHECK(line == "{\"id\":2}");
 }
+
+TEST_CASE("protocol: a three-axis unit's y and z are fields of its samples only, null where not read") {
+  Sample s;
+  s.t_s = 5.0;
+  s.gyro_dph = 1.5;
+  CHECK_FALSE(to_json(s).contains("gyro_y_dph"));  // a one-axis unit's sample as before
+  CHECK_FALSE(sample_from_json(to_json(s))->three_axis);
+  s.three_axis = true;
+  s.gyro_y_dph = 101.25;  // z not read this second
+  const json j = to_json(s);
+  CHECK(j["gyro_y_dph"] == 101.25);
+  CHECK(j["gyro_z_dph"].is_null());
+  auto back = sample_from_json(json::parse(j.dump()));
+  REQUIRE(back.has_value());
+  CHECK(back->three_axis);
+  CHECK(back->gyro_y_dph == 101.25);
+  CHECK_FALSE(back->gyro_z_dph.has_value());
+  json bad = j;
+  bad["gyro_z_dph"] = "x";
+  auto refused = sample_from_json(bad);
+  REQUIRE_FALSE(refused.has_value());
+  CHECK(refused.error().find("gyro_z_dph") != std::string::npos);
+
+  SampleMessage m;
+  m.state = "running";
+  m.phase = "hold";
+  m.serial = "FOG-0001";
+  CHECK_FALSE(to_json(m).contains("gyro_z_dph"));
+  m.three_axis = true;
+  m.gyro_y_dph = -2.0;
+  m.gyro_z_dph = 3.0;
+  auto mb = sample_message_from_json(json::parse(to_json(m).dump()));
+  REQUIRE(mb.has_value());
+  CHECK(mb->three_axis);
+  CHECK(mb->gyro_y_dph == -2.0);
+  CHECK(mb->gyro_z_dph == 3.0);
+}

@@ -37,9 +37,9 @@ storage::SampleRow sample_row(int unit_index, const UnitReading& u, const TickIn
                               const profiles::ExecutorStatus& st, bool pv_frozen,
                               std::optional<double> since_power_on_s, double table_max_abs_dps = 0.0);
 
-// The `sample` message of a stored row, for subscribers.
+// The `sample` message of a stored row, for subscribers; a unit of 3 `axes` with its y and z.
 protocol::SampleMessage sample_message(const storage::SampleRow& r, std::int64_t run_id, const std::string& serial,
                                        storage::RunState state, const profiles::ExecutorStatus& st,
-                                       std::optional<double> chamber_c);
+                                       std::optional<double> chamber_c, int axes = 1);
 
 }  // namespace fogbench::daemon

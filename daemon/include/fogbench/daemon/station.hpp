@@ -10,6 +10,7 @@
 // (write_journal.hpp) and the pure building of a second's rows and messages (sample_rows.hpp).
 #pragma once
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <deque>
@@ -254,6 +255,9 @@ class Station final : public RunControl {
     // tick); empty: the run drives no table and stores no commanded rate.
     std::optional<profiles::RateSchedule> rates;
     bool live_noted = false;                    // its models are in the run's events
+    // Per run unit, per axis (x, y, z): a second of silence of that axis is in the run's events
+    // (said once per run, note_silent_axes).
+    std::vector<std::array<bool, 3>> axis_silence_noted;
   };
 
   static nlohmann::json quality_json(const ActiveRun& run);
@@ -284,6 +288,10 @@ class Station final : public RunControl {
   // Why the rate table's state this second ends a run that drives it (a fault it reports, its
   // link lost, none configured), if it does.
   static std::optional<std::string> table_fault(const TickInput& in);
+  // A three-axis unit's axis that sent no frame this second while another of its axes did: the
+  // first such second of each axis is a `fault` event naming the unit, the axis and its CAN id
+  // (the seconds themselves are flagged missing, sample_rows.hpp).
+  void note_silent_axes(ActiveRun& run, std::size_t unit, const UnitReading& u, const TickInput& in, double t_s);
 
   void transition(ActiveRun& run, storage::RunState to, const std::string& reason,
                   std::optional<double> t_s);

@@ -11,6 +11,14 @@
 
 namespace fogbench::daemon {
 
+// One axis of a three-axis unit beyond its first (drivers::BusSample::extra_axes).
+struct AxisReading {
+  std::optional<double> rate_dph;  // deg/h; empty: no usable frame this period
+  std::uint32_t frames = 0;
+  std::uint32_t frames_lost = 0;
+  std::uint32_t frames_corrupt = 0;
+};
+
 // One configured unit's readings at one tick; an empty optional was not read.
 struct UnitReading {
   std::optional<double> gyro_dph;
@@ -21,6 +29,9 @@ struct UnitReading {
   std::optional<double> t1_c;
   std::optional<double> t2_c;
   bool out_of_range = false;  // a sensor or the gyro reported a value outside its range
+  // A three-axis unit's axes 1 and 2 (y, z) when the bus was read; empty for a one-axis unit
+  // (gyro_dph and the frame counts above are axis 0's, x).
+  std::vector<AxisReading> extra_axes;
 };
 
 // The rate table as its worker last saw it (rate_table_link.hpp): at its last command or status

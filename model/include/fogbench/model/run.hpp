@@ -47,6 +47,11 @@ struct RunData {
   // table). Never an input of a drift fit. CSV: written as `rate_in_dps` with `plateau` (the
   // step) and `rate_out_dps` (gyro_dph / 3600), the columns `fogctl scale-factor` reads.
   std::vector<double> rate_in_dps;
+  // A three-axis unit's axes 1 and 2 (y, z), deg/h (gyro_dph is axis 0, x), both or neither
+  // (optional: empty for a one-axis unit; NaN where the axis sent nothing usable, a sample
+  // flagged missing). Not yet an input of any fit. CSV columns `gyro_y_dph`, `gyro_z_dph`.
+  std::vector<double> gyro_y_dph;
+  std::vector<double> gyro_z_dph;
 
   std::size_t size() const { return time_s.size(); }
   bool has_setpoint() const { return !setpoint_c.empty(); }
@@ -57,6 +62,7 @@ struct RunData {
   bool has_power_on() const { return !since_power_on_s.empty(); }
   bool has_compensated() const { return !compensated_dph.empty(); }
   bool has_rate_in() const { return !rate_in_dps.empty(); }
+  bool has_axes() const { return !gyro_y_dph.empty(); }
   // True when sample i carries any quality flag.
   bool flagged(std::size_t i) const { return !flags.empty() && flags[i] != 0; }
 };

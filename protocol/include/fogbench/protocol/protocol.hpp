@@ -82,6 +82,11 @@ struct Sample {
   std::optional<double> compensated_dph;
   // The rate the daemon commanded the rate table to, deg/s: null when the run drove no table.
   std::optional<double> rate_in_dps;
+  // A three-axis unit's axes 1 and 2 (y, z), deg/h (gyro_dph is axis 0, x). On the wire only for
+  // a three-axis unit (three_axis; read back from the presence of gyro_y_dph), each a number or
+  // null where the axis sent nothing usable that second; a one-axis unit's have no such fields.
+  bool three_axis = false;
+  std::optional<double> gyro_y_dph, gyro_z_dph;
 };
 nlohmann::json to_json(const Sample& s);
 // A row of run.samples as received; the error names the field.
@@ -110,6 +115,11 @@ struct SampleMessage {
   // The rate table's commanded rate this second, deg/s: only for a run that drives a table (the
   // message of any other run has no such field, as before).
   std::optional<double> rate_in_dps;
+  // A three-axis unit's axes 1 and 2 (y, z), deg/h (gyro_dph is axis 0, x). On the wire only for
+  // a three-axis unit (three_axis; read back from the presence of gyro_y_dph), each a number or
+  // null where the axis sent nothing usable that second; a one-axis unit's have no such fields.
+  bool three_axis = false;
+  std::optional<double> gyro_y_dph, gyro_z_dph;
 };
 nlohmann::json to_json(const SampleMessage& s);
 std::expected<SampleMessage, std::string> sample_message_from_json(const nlohmann::json& j);

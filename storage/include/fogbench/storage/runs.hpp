@@ -39,6 +39,8 @@ struct NewRun {
   std::vector<std::optional<std::string>> unit_lots;
   // Each unit's bench slot (same positions; shorter or empty: none), 1..16 characters.
   std::vector<std::string> unit_slots;
+  // Each unit's gyro axes, 1 or 3 (same positions; shorter or empty: 1).
+  std::vector<int> unit_axes;
 };
 
 struct RunUnit {
@@ -46,6 +48,7 @@ struct RunUnit {
   std::string serial;
   std::optional<std::string> lot;  // the production lot the unit came from, when given
   std::optional<std::string> slot; // the bench slot it sat in; empty for runs stored before slots
+  int axes = 1;                    // its gyro axes: 3 stores gyro_y_dph and gyro_z_dph
 };
 
 struct RunRecord {

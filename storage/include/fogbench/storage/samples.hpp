@@ -39,6 +39,10 @@ struct SampleRow {
   // The rate the daemon commanded the rate table to this second, deg/s (the profile's rate
   // steps, rate_schedule.hpp); kNoValue when the run drove no table.
   double rate_in_dps = kNoValue;
+  // A three-axis unit's axes 1 and 2 (y, z), deg/h (gyro_dph is axis 0, x); kNoValue for a
+  // one-axis unit, and for an axis that sent nothing usable that second (flag missing).
+  double gyro_y_dph = kNoValue;
+  double gyro_z_dph = kNoValue;
 };
 
 struct ExportOptions {

@@ -1,0 +1,190 @@
+// Three-axis units in the station (issue 29 point 3, the daemon): a real GyroBus fed fake frames
+// in-process (no transport read: GyroBus::route), its samples turned into the second's readings
+// by the acquisition's own fill_gyro_readings, and the station storing every axis. An axis that
+// goes silent while the others send is flagged missing each second and said once as an event
+// naming the unit, the axis and the time; a one-axis unit beside it records as before.
+#include <cmath>
+
+#include "../../daemon/src/acquisition.hpp"
+#include "../../daemon/src/run_reads.hpp"
+#include "fixture.hpp"
+#include "fogbench/drivers/can_frame.hpp"
+#include "fogbench/drivers/gyro_bus.hpp"
+#include "fogbench/model/run.hpp"
+
+using namespace fogbench;
+using namespace fogbench::daemon;
+using namespace fogbench::daemon::test;
+using nlohmann::json;
+
+namespace {
+
+constexpr std::uint16_t kBase = 0x110;   // unit 0: three axes on 0x110, 0x111, 0x112
+constexpr std::uint16_t kSingle = 0x120; // unit 1: one axis
+constexpr int kFramesPerSecond = 10;
+constexpr double kScaleDphPerCount = 0.0001;  // the golden configuration's
+
+// Never read: the test routes its frames straight into the bus.
+class NoTransport final : public drivers::CanTransport {
+ public:
+  int fd() const noexcept override { return -1; }
+  drivers::Result<std::size_t> read(std::vector<::can_frame>& out) override {
+    out.clear();
+    return std::size_t{0};
+  }
+  std::uint64_t malformed() const noexcept override { return 0; }
+  std::string describe() const override { return "no transport (test)"; }
+};
+
+DaemonConfig three_axis_config() {
+  json j = golden_config_json();
+  j["drivers"]["units"][0]["gyro"]["node_id"] = kBase;
+  j["drivers"]["units"][0]["gyro"]["axes"] = 3;
+  j["drivers"]["units"][1]["gyro"]["node_id"] = kSingle;
+  auto c = parse_daemon_config(j, golden_dir());
+  REQUIRE(c.has_value());
+  return *c;
+}
+
+// Each axis k of unit 0 reads (k + 1) * 100 deg/h + the second, unit 1 reads -5 deg/h; axis
+// `silent_axis` of unit 0 sends nothing in seconds [silent_from, silent_to).
+struct AxisBench {
+  drivers::GyroBus bus;
+  std::uint8_t seq[3] = {0, 0, 0};
+  std::uint8_t seq_single = 0;
+  int second = 0;
+  int silent_axis = 2;
+  int silent_from = 10, silent_to = 15;
+
+  explicit AxisBench(const DaemonConfig& c)
+      : bus(std::make_unique<NoTransport>(),
+            std::vector<drivers::GyroChannelConfig>{c.drivers.units[0].gyro, c.drivers.units[1].gyro}) {}
+
+  static double axis_dph(int axis, int second) { return (axis + 1) * 100.0 + second; }
+
+  void fill(TickInput& in) {
+    const bool silence = second >= silent_from && second < silent_to;
+    for (int f = 0; f < kFramesPerSecond; ++f) {
+      for (int k = 0; k < 3; ++k) {
+        if (silence && k == silent_axis) continue;
+        const auto counts = static_cast<std::int32_t>(std::lround(axis_dph(k, second) / kScaleDphPerCount));
+        bus.route(drivers::can::encode({static_cast<std::uint16_t>(kBase + k), counts, seq[k]++, drivers::can::status::valid}));
+      }
+      bus.route(drivers::can::encode(
+          {kSingle, static_cast<std::int32_t>(std::lround(-5.0 / kScaleDphPerCount)), seq_single++, drivers::can::status::valid}));
+    }
+    fill_gyro_readings(bus.close_samples(), in.units);
+    ++second;
+  }
+};
+
+}  // namespace
+
+TEST_CASE("station: a three-axis unit's y and z are stored per second, a silent axis flagged and said once") {
+  const DaemonConfig config = three_axis_config();
+  REQUIRE(config.drivers.units[0].gyro.axes == 3);
+  auto store = memory_store();
+  Station st(config, store, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
+  std::vector<json> published;
+  st.set_publisher([&](const json& m) { published.push_back(m); });
+  SyntheticBench thermal(2);
+  AxisBench gyros(config);
+  double clock_s = 100.0;
+
+  auto id = st.start_run("short", {"FOG-0001", "FOG-0002"}, storage::Purpose::fit, {{"cmd", "run.start"}});
+  REQUIRE(id.has_value());
+  constexpr int kTicks = 30;
+  double sp = st.status()["setpoint_c"].get<double>();
+  for (int n = 0; n < kTicks; ++n) {
+    TickInput in = thermal.step(sp);
+    for (auto& u : in.units) u.gyro_dph.reset();  // the gyros are the bus's
+    gyros.fill(in);
+    sp = st.tick(clock_s, in).setpoint_c;
+    clock_s += 1.0;
+  }
+  REQUIRE(st.abort_run("test over", {{"cmd", "run.abort"}}).has_value());
+  st.tick(clock_s, thermal.step(sp));
+
+  auto detail = store.get_run(*id);
+  REQUIRE(detail.has_value());
+  REQUIRE(detail->run.units.size() == 2);
+  CHECK(detail->run.units[0].axes == 3);
+  CHECK(detail->run.units[1].axes == 1);
+
+  auto rows = store.get_samples(*id, 0, 0, kTicks);
+  REQUIRE(rows.has_value());
+  REQUIRE(rows->size() == kTicks);
+  for (int s = 0; s < kTicks; ++s) {
+    const storage::SampleRow& r = rows->at(static_cast<std::size_t>(s));
+    INFO("second " << s);
+    CHECK(r.t_s == s);
+    CHECK(r.gyro_dph == Approx(AxisBench::axis_dph(0, s)).margin(1e-9));
+    CHECK(r.gyro_y_dph == Approx(AxisBench::axis_dph(1, s)).margin(1e-9));
+    if (s >= 10 && s < 15) {
+      CHECK(std::isnan(r.gyro_z_dph));
+      CHECK((r.flags & model::flag::missing) != 0);
+    } else {
+      CHECK(r.gyro_z_dph == Approx(AxisBench::axis_dph(2, s)).margin(1e-9));
+      CHECK((r.flags & model::flag::missing) == 0);
+    }
+    CHECK((r.flags & model::flag::frames_lost) == 0);  // z's counter goes on where it stopped: nothing lost
+  }
+
+  // The one-axis unit beside it: no y, no z, never flagged for them.
+  auto single = store.get_samples(*id, 1, 0, kTicks);
+  REQUIRE(single.has_value());
+  REQUIRE(single->size() == kTicks);
+  for (const auto& r : *single) {
+    CHECK(r.gyro_dph == Approx(-5.0).margin(1e-9));
+    CHECK(std::isnan(r.gyro_y_dph));
+    CHECK(std::isnan(r.gyro_z_dph));
+    CHECK((r.flags & model::flag::missing) == 0);
+  }
+
+  // The silence is one event, at its first second, naming unit, serial, axis and CAN id.
+  std::vector<json> silent;
+  for (const auto& e : detail->events)
+    if (e.kind == storage::EventKind::fault) {
+      auto d = json::parse(e.detail_json);
+      if (d.value("gyro_axis", "") == "silent") {
+        silent.push_back(d);
+        CHECK(e.t_s == 10.0);
+      }
+    }
+  REQUIRE(silent.size() == 1);
+  CHECK(silent[0]["unit"] == 0);
+  CHECK(silent[0]["serial"] == "FOG-0001");
+  CHECK(silent[0]["axis"] == "z");
+  CHECK(silent[0]["can_id"] == kBase + 2);
+  CHECK(silent[0]["t_s"] == 10.0);
+
+  // Pushed live: the three-axis unit's samples with y and z (z null while silent), the other's
+  // without the fields.
+  int pushed0 = 0, pushed1 = 0;
+  for (const auto& m : published) {
+    if (m.value("type", "") != "sample") continue;
+    const double t = m["t_s"].get<double>();
+    if (m["unit"] == 0) {
+      ++pushed0;
+      REQUIRE(m.contains("gyro_y_dph"));
+      CHECK(m["gyro_y_dph"].get<double>() == Approx(AxisBench::axis_dph(1, static_cast<int>(t))).margin(1e-9));
+      CHECK(m["gyro_z_dph"].is_null() == (t >= 10 && t < 15));
+    } else {
+      ++pushed1;
+      CHECK_FALSE(m.contains("gyro_y_dph"));
+      CHECK_FALSE(m.contains("gyro_z_dph"));
+    }
+  }
+  CHECK(pushed0 == kTicks);
+  CHECK(pushed1 == kTicks);
+
+  // run.samples: the same, from the store.
+  auto page0 = run_samples(store, *id, {{"unit", 0}}, 0, 100);
+  REQUIRE(page0.has_value());
+  REQUIRE((*page0)["samples"].size() == kTicks);
+  CHECK((*page0)["samples"][3]["gyro_z_dph"].get<double>() == Approx(AxisBench::axis_dph(2, 3)).margin(1e-9));
+  CHECK((*page0)["samples"][12]["gyro_z_dph"].is_null());
+  auto page1 = run_samples(store, *id, {{"unit", 1}}, 0, 100);
+  REQUIRE(page1.has_value());
+  CHECK_FALSE((*page1)["samples"][0].contains("gyro_y_dph"));
+}
