@@ -28,7 +28,19 @@ std::map<std::string, std::string>& display_names() {
 }
 }  // namespace
 
+std::map<std::string, CommandForm>& command_forms() {
+  static std::map<std::string, CommandForm> forms;
+  return forms;
+}
+
 void set_display_name(const std::string& path, std::string name) { display_names()[path] = std::move(name); }
+
+void set_command_form(const std::string& path, CommandForm form) { command_forms()[path] = std::move(form); }
+
+CommandForm command_form(const std::string& path) {
+  const auto it = command_forms().find(path);
+  return it == command_forms().end() ? CommandForm{path, {}} : it->second;
+}
 
 std::string model_label(const std::string& path) {
   const std::string name = display_name(path);

@@ -63,6 +63,16 @@ void set_display_name(const std::string& path, std::string name);
 std::string display_name(const std::string& path);
 // A model file as a title names it: "model PATH", or a fetched one's name ("model 1 of SIM-0001").
 std::string model_label(const std::string& path);
+// How a command line a hint prints names such a file: a fetched run as `--run 2 --unit
+// SIM-0001`, a fetched model as the file `fetch` writes (`model-SIM-0001.json`, with `fetch`
+// the command that writes it: `fogctl model get SIM-0001 -o model-SIM-0001.json`); any other
+// path as itself, with no fetch.
+struct CommandForm {
+  std::string arg;
+  std::string fetch;
+};
+void set_command_form(const std::string& path, CommandForm form);
+CommandForm command_form(const std::string& path);
 
 // Reads a run's CSV and runs the data-quality check of `in.quality` on it: the run (cleaned
 // where the mode cleans) or an error naming the file, the sensor, the interval and what to do.

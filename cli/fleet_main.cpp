@@ -6,11 +6,13 @@
 
 #include "common.hpp"
 #include "fleet.hpp"
+#include "help_format.hpp"
 #include "table.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{"fogctl: fibre-optic gyro thermal-drift qualification (fogbench " FOGBENCH_VERSION "), fleet commands",
                "fogctl"};
+  app.formatter(fogbench::cli::wrapping_help_formatter());  // before the commands: they inherit it
   app.set_version_flag("--version", std::string(FOGBENCH_VERSION));
   app.require_subcommand(1);
   app.fallthrough();

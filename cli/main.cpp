@@ -15,6 +15,7 @@
 #include "coefficients.hpp"
 #include "common.hpp"
 #include "fleet.hpp"
+#include "help_format.hpp"
 #include "offline.hpp"
 #include "plan.hpp"
 #include "scale_factor.hpp"
@@ -39,6 +40,8 @@ int main(int argc, char** argv) {
     std::free(probe);  // kept in the heap (trim threshold above), untouched until used
   }
   CLI::App app{"fogctl: fibre-optic gyro thermal-drift qualification (fogbench " FOGBENCH_VERSION ")"};
+  // Before the commands: each inherits the formatter when it is made.
+  app.formatter(fogbench::cli::wrapping_help_formatter());
   app.set_version_flag("--version", std::string(FOGBENCH_VERSION));
   app.require_subcommand(1);
   // Human tables fit the terminal (cli/table.hpp: wrapped text columns); --wide prints whole

@@ -191,7 +191,7 @@ int run_fit(const FitCommandOptions& o, std::ostream& out, std::ostream& err) {
   for (const auto& t : terms->terms) uses_ta = uses_ta || model::uses_signal(*t.expr, model::Signal::Ta);
   // The quality check reads the air (a thermistor's lag is judged against it) unless it is off.
   if (!uses_ta && input.quality == "off") input.skip.push_back("chamber_c");
-  input.retry = "fogctl fit " + o.run + (o.terms == "paper" ? "" : " --terms \"" + o.terms + "\"") +
+  input.retry = "fogctl fit " + command_form(o.run).arg + (o.terms == "paper" ? "" : " --terms \"" + o.terms + "\"") +
                 (o.method.empty() ? "" : " --method " + o.method);
   QualityLog quality;
   auto run = load_run(o.run, input, &quality);

@@ -266,7 +266,7 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
             "during ramps. Sensitivities: the model's coefficients with their standard errors from the prewhitened regression.</p>";
   }
 
-  if (sfr) body += report::scale_factor_section(*sfr, o.scale_factor, "t1_c", specs, o.max_points);
+  if (sfr) body += report_html::scale_factor_section(*sfr, o.scale_factor, "t1_c", specs, o.max_points);
 
   // Diagnosis.
   body += "<h2>Diagnosis</h2><div class=\"summary\">" + html_escape(d->summary) + "</div>";
@@ -411,7 +411,7 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
   std::vector<std::string> step_notes;
   std::vector<std::string> added;
   for (const auto& st : d->steps) added.push_back(st.added);
-  const std::vector<report::Step> steps = report::lineage_steps(*m, runs.front(), added, owned, step_notes);
+  const std::vector<report_html::Step> steps = report_html::lineage_steps(*m, runs.front(), added, owned, step_notes);
   body += "<h2>Lineage of the error</h2>";
   {
     std::vector<std::string> head{"#", "terms"};
@@ -544,8 +544,8 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
       body += plots::render(p, specs, o.max_points);
     }
     const wb::QualRun* qr = k < q.runs.size() ? &q.runs[k] : nullptr;
-    body += report::analysis_plots({*m, runs[k], *c, qr, key}, steps, specs, o.max_points);
-    body += report::allan_section(*m, runs[k], key, specs, o.max_points);
+    body += report_html::analysis_plots({*m, runs[k], *c, qr, key}, steps, specs, o.max_points);
+    body += report_html::allan_section(*m, runs[k], key, specs, o.max_points);
     HtmlTable t({"part", "samples", "est mean", "meas mean", "est std", "meas std", "comp std", "comp/raw"});
     auto row = [&](const std::string& name, const model::Table1& x) {
       t.row({name, std::to_string(x.n), fixed(x.est_mean, 3), fixed(x.meas_mean, 3), fixed(x.est_std, 3), fixed(x.meas_std, 3),

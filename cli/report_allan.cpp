@@ -11,7 +11,7 @@
 #include "table.hpp"
 #include "html.hpp"
 
-namespace fogbench::cli::report {
+namespace fogbench::cli::report_html {
 
 namespace allan = model::allan;
 
@@ -167,4 +167,4 @@ std::string allan_section(const model::Model& m, const model::RunData& run, cons
   return html;
 }
 
-}  // namespace fogbench::cli::report
+}  // namespace fogbench::cli::report_html

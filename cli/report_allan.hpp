@@ -11,7 +11,7 @@
 #include "fogbench/model/allan.hpp"
 #include "fogbench/model/model.hpp"
 
-namespace fogbench::cli::report {
+namespace fogbench::cli::report_html {
 
 // Series shorter than this are not analysed (10 min at 1 Hz, fogctl allan's default).
 inline constexpr std::size_t kAllanMinSamples = 600;
@@ -24,4 +24,4 @@ std::string allan_section(const model::Model& m, const model::RunData& run, cons
 // decimals, "-" when the curve does not show the term.
 std::string allan_cell(const std::optional<model::allan::NoiseEstimate>& e, int digits);
 
-}  // namespace fogbench::cli::report
+}  // namespace fogbench::cli::report_html

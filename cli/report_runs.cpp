@@ -11,7 +11,7 @@
 #include "fogbench/model/stats.hpp"
 #include "report_plots.hpp"
 
-namespace fogbench::cli::report {
+namespace fogbench::cli::report_html {
 
 namespace wb = model::workbench;
 
@@ -263,4 +263,4 @@ std::string analysis_plots(const RunContext& c, const std::vector<Step>& steps, 
   return html;
 }
 
-}  // namespace fogbench::cli::report
+}  // namespace fogbench::cli::report_html

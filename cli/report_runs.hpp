@@ -11,7 +11,7 @@
 
 #include "fogbench/model/workbench.hpp"
 
-namespace fogbench::cli::report {
+namespace fogbench::cli::report_html {
 
 // Confidence level of the ACF and CCF bands: MATLAB resid's default, 99% (z = 2.576).
 inline constexpr double kBandLevel = 0.99;
@@ -39,4 +39,4 @@ struct RunContext {
 // The plots' HTML (specs appended to `specs`), in the order listed above.
 std::string analysis_plots(const RunContext& c, const std::vector<Step>& steps, nlohmann::json& specs, std::size_t max_points);
 
-}  // namespace fogbench::cli::report
+}  // namespace fogbench::cli::report_html

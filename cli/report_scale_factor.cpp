@@ -9,7 +9,7 @@
 #include "scale_factor.hpp"
 #include "table.hpp"
 
-namespace fogbench::cli::report {
+namespace fogbench::cli::report_html {
 
 namespace sf = model::sf;
 
@@ -122,4 +122,4 @@ std::string scale_factor_section(const sf::Result& r, const std::string& source,
   return html;
 }
 
-}  // namespace fogbench::cli::report
+}  // namespace fogbench::cli::report_html

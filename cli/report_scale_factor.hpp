@@ -11,11 +11,11 @@
 
 #include "fogbench/model/scale_factor.hpp"
 
-namespace fogbench::cli::report {
+namespace fogbench::cli::report_html {
 
 // The section's HTML; its two plots' specs appended to `specs` (ids "sf_temp", "sf_nl").
 // `source` names the file it was read from, `coil_column` the temperature it used.
 std::string scale_factor_section(const model::sf::Result& r, const std::string& source, const std::string& coil_column,
                                  nlohmann::json& specs, std::size_t max_points);
 
-}  // namespace fogbench::cli::report
+}  // namespace fogbench::cli::report_html

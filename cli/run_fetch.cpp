@@ -89,6 +89,7 @@ Fetched fetch_to_csv(const Common& where, std::int64_t run_id, const std::string
   if (!g) fail(g.error());
   const auto serial = (*g)["run"]["units"][static_cast<std::size_t>(*unit)].get<std::string>();
   set_display_name(path.string(), "run " + std::to_string(run_id) + " " + serial);
+  set_command_form(path.string(), {"--run " + std::to_string(run_id) + " --unit " + serial, {}});
   return {path.string(), serial};
 }
 
@@ -99,6 +100,7 @@ std::string fetch_model(const Common& where, const std::string& serial) {
   if (!m) fail(m.error());
   auto path = temp_path("model" + std::to_string((*m)["id"].get<std::int64_t>()), ".json");
   set_display_name(path.string(), "model " + std::to_string((*m)["id"].get<std::int64_t>()) + " of " + serial);
+  set_command_form(path.string(), {"model-" + serial + ".json", "fogctl model get " + serial + " -o model-" + serial + ".json"});
   if (auto ok = write_text(path.string(), (*m)["model"].dump(2)); !ok) {
     std::cerr << "fogctl: " << ok.error() << "\n";
     throw CLI::RuntimeError(kExitError);

@@ -261,8 +261,10 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
           << fixed(st.rms_before_dph, 3) << " -> " << fixed(st.rms_after_dph, 3);
       for (const auto& h : st.held_out)
         if (h.scored) out << ", " << h.run << " " << fixed(h.rms_before_dph, 3) << " -> " << fixed(h.rms_after_dph, 3);
-      out << "\n     add it: fogctl fit --model " << (i ? "model" + std::to_string(i + 1) + ".json" : o.model) << " --add \"" << st.added
-          << "\" " << o.runs.front() << " -o model" << i + 2 << ".json\n";
+      const CommandForm mf = command_form(o.model);
+      if (i == 0 && !mf.fetch.empty()) out << "\n     first: " << mf.fetch;
+      out << "\n     add it: fogctl fit --model " << (i ? "model" + std::to_string(i + 1) + ".json" : mf.arg) << " --add \"" << st.added
+          << "\" " << command_form(o.runs.front()).arg << " -o model" << i + 2 << ".json\n";
     }
     out << "  model with them: " << d->final_terms << (d->outside_search ? " (something still remains: outside the search)" : " (adequate)") << "\n";
   }
@@ -314,7 +316,10 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
         out << "\nwhy " << b.expr << ": " << b.explanation << "\n";
         break;
       }
-    out << "add it: fogctl fit --model " << o.model << " --add \"" << st.added << "\" " << o.runs.front() << " -o model2.json\n";
+    const CommandForm mf = command_form(o.model);
+    if (!mf.fetch.empty()) out << "first: " << mf.fetch << "\n";
+    out << "add it: fogctl fit --model " << mf.arg << " --add \"" << st.added << "\" " << command_form(o.runs.front()).arg
+        << " -o model2.json\n";
   }
   out << "\ncross-correlation of the prewhitened residual with each regressor (lags 0.." << (d->ccf.empty() || d->ccf[0].r.empty() ? 0 : d->ccf[0].r.size() - 1)
       << " s, band +-" << (d->ccf.empty() ? "-" : fixed(d->ccf[0].band, 3)) << "):\n";

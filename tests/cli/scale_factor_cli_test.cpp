@@ -207,7 +207,9 @@ TEST_CASE("fogctl scale-factor and simulate --rate-sequence: bad input named by 
     CHECK(j["tc_ppm_per_c"]["value"].get<double>() == Approx(10.0).margin(0.05));
     auto e = scale_factor(d.write("rest.csv", rest), false);
     CHECK(e.code == kExitError);
-    CHECK_THAT(e.err, Contains("rest.csv: no plateau in which the table turned"));
+    // The reader leaves the plateaus at rest out and says so; none left is the error.
+    CHECK_THAT(e.err, Contains("rest.csv: no plateau with a rate step"));
+    CHECK_THAT(e.err, Contains("the table at rest throughout"));
   }
   SECTION("a settle longer than the steps") {
     REQUIRE(simulate(d, {}).code == kExitOk);

@@ -120,4 +120,10 @@ TEST_CASE("e2e fetch: fit --run with ton and warm(tau) terms gives what the same
   const std::string html = slurp_file(bench.dir / "report.html");
   CHECK_THAT(html, Catch::Contains("run " + id + " SIM-0001"));
   CHECK(html.find("fogctl-") == std::string::npos);
+  // diagnose's commands to copy (`add it: fogctl fit ...`) name the run as --run and --unit.
+  auto dia = run_fogctl(bench, "diagnose --model fitted.json --run " + id + sock);
+  INFO(dia.out << dia.err);
+  CHECK(dia.code != 2);
+  CHECK(dia.out.find("fogctl-") == std::string::npos);
+  if (dia.out.find("add it:") != std::string::npos) CHECK_THAT(dia.out, Catch::Contains("--run " + id + " --unit SIM-0001"));
 }
