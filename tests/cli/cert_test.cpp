@@ -309,7 +309,7 @@ TEST_CASE("fogctl cert: page 4 prints serial, verdict and page x of y in every p
   CHECK(check(d.write("evil.html", eh), {pub}).code == 0);
 }
 
-TEST_CASE("fogctl cert: a certificate with the scale factor over temperature draws page 5 with its tables, checks, and an edit of its figures is seen; one without stays page 4", "[cli][cert]") {
+TEST_CASE("fogctl cert: a certificate with the scale factor over temperature draws page 5 with its tables, checks, and an edit of its figures is seen, one without stays page 4", "[cli][cert]") {
   Dir d;
   const std::string pub = d.write("station.pub", station_key().public_key().pem());
   const json plain = one_verdict_cert("FOG-7", "pass", 1);

@@ -76,8 +76,10 @@ TEST_CASE("plan fogctl: validate names the bad line, start --wait follows to the
   CHECK_THAT(html, Catch::Contains("SIM-0001") && Catch::Contains("bias_instability &lt; 1000 deg/h (line 3)") &&
                        Catch::Contains("pshort"));
   // The page's hint is a command that works: the soak plan fitted no model, so it asks for one.
-  CHECK_THAT(html, Catch::Contains("<code>fogctl report --model MODEL.json --unit SIM-0001 --run 1</code>") &&
-                       Catch::Contains("--unit SIM-0002 --run 1</code>") && !Catch::Contains("fogctl report RUN"));
+  // It names its output file: report refuses to run without one (issue 28's audit).
+  CHECK_THAT(html, Catch::Contains("<code>fogctl report --model MODEL.json --unit SIM-0001 --run 1 -o report-SIM-0001.html</code>") &&
+                       Catch::Contains("--unit SIM-0002 --run 1 -o report-SIM-0002.html</code>") &&
+                       !Catch::Contains("fogctl report RUN"));
   CHECK(fogctl(bench, "plan report 99").code == 2);
   CHECK(fogctl(bench, "queue remove 1").code == 2);  // ended, not queued
 }
