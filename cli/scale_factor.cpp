@@ -8,6 +8,7 @@
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <sstream>
 
 #include "common.hpp"
@@ -172,31 +173,13 @@ std::expected<model::sf::RateRecord, std::string> parse_rate_csv(std::string_vie
   if (rec.time_s.empty() && skip.no_gyro_reading + skip.no_coil_reading == 0)
     return std::unexpected(source + ": a header but no data rows");
   if (rec.time_s.empty()) return std::unexpected(source + ": no row with both readings (" + skip.text() + ")");
-  // The plateaus without a rate step: a run's temperature transits, not a rate sequence.
-  std::vector<std::pair<int, bool>> turning;  // plateau, any rate != 0, in file order
-  for (std::size_t i = 0; i < rec.size(); ++i) {
-    if (turning.empty() || turning.back().first != rec.plateau[i]) turning.emplace_back(rec.plateau[i], false);
-    if (rec.rate_in_dps[i] != 0.0) turning.back().second = true;
-  }
-  auto at_rest = [&](int id) {
-    for (const auto& [p, t] : turning)
-      if (p == id && t) return false;
-    return true;
-  };
-  model::sf::RateRecord kept;
-  for (std::size_t i = 0; i < rec.size(); ++i) {
-    if (at_rest(rec.plateau[i])) {
-      ++skip.at_rest_rows;
-      if (std::ranges::find(skip.at_rest_plateaus, rec.plateau[i]) == skip.at_rest_plateaus.end())
-        skip.at_rest_plateaus.push_back(rec.plateau[i]);
-      continue;
-    }
-    kept.time_s.push_back(rec.time_s[i]);
-    kept.plateau.push_back(rec.plateau[i]);
-    kept.rate_in_dps.push_back(rec.rate_in_dps[i]);
-    kept.rate_out_dps.push_back(rec.rate_out_dps[i]);
-    kept.coil_c.push_back(rec.coil_c[i]);
-  }
+  // The plateaus without a rate step (a run's temperature transits, not a rate sequence) left
+  // out as the daemon leaves them out of a stored run (model::sf::turning_plateaus), and named.
+  model::sf::RateRecord kept = model::sf::turning_plateaus(rec, &skip.at_rest_rows);
+  const std::set<int> turned(kept.plateau.begin(), kept.plateau.end());
+  std::set<int> named;
+  for (int p : rec.plateau)
+    if (!turned.contains(p) && named.insert(p).second) skip.at_rest_plateaus.push_back(p);  // in file order
   if (skipped) *skipped = skip;
   if (kept.time_s.empty())
     return std::unexpected(source + ": no plateau with a rate step (" + skip.text() + ")");
@@ -212,13 +195,10 @@ std::expected<model::sf::Result, std::string> fit_rate_file(const std::string& p
   auto rec = parse_rate_csv(buf.str(), path, coil_column, skipped);
   if (!rec) return std::unexpected(rec.error());
   if (auto bad = fo.validate(); !bad.empty()) return std::unexpected(bad);
-  // The plateaus in which the table turned, as the daemon selects them from a stored run
-  // (model::sf::turning_plateaus): a run's export (ramps at rest among its holds) fits as the
-  // daemon's plan limit and certificate measured it.
-  const model::sf::RateRecord turned = model::sf::turning_plateaus(*rec);
-  if (turned.size() == 0)
-    return std::unexpected(path + ": no plateau in which the table turned (every commanded rate_in_dps is 0)");
-  auto r = model::sf::fit(turned, fo);
+  // parse_rate_csv kept the plateaus in which the table turned (model::sf::turning_plateaus,
+  // as the daemon selects them from a stored run): a run's export fits as its plan limit and
+  // certificate measured it.
+  auto r = model::sf::fit(*rec, fo);
   if (!r) return std::unexpected(path + ": " + r.error());
   return r;
 }
