@@ -21,6 +21,7 @@
 
 #include "fit_internal.hpp"
 #include "fogbench/model/model.hpp"
+#include "cycling.hpp"
 #include "fogbench/sim/sim.hpp"
 
 extern "C" {
@@ -106,31 +107,6 @@ Count counted(F&& f) {
   return {calls.load(), bytes.load()};
 }
 
-// The paper's cycling profile, as bench_fit builds it: 10 min hold, then 1 degC/min ramps
-// between 10 and 30 degC separated by 20 min holds.
-std::vector<sim::SetpointSample> cycling_program(std::size_t n) {
-  std::vector<sim::SetpointSample> p;
-  p.reserve(n);
-  double sp = 20.0, target = 10.0;
-  std::size_t hold_left = 600;
-  for (std::size_t i = 0; i < n; ++i) {
-    model::Phase ph = model::Phase::hold;
-    if (hold_left > 0) {
-      --hold_left;
-    } else {
-      const double step = 1.0 / 60.0;
-      ph = target > sp ? model::Phase::heating : model::Phase::cooling;
-      sp += target > sp ? std::min(step, target - sp) : -std::min(step, sp - target);
-      if (std::abs(sp - target) < 1e-9) {
-        target = target < 20.0 ? 30.0 : 10.0;
-        hold_left = 1200;
-      }
-    }
-    p.push_back({sp, ph, 0});
-  }
-  return p;
-}
-
 std::string human(long b) {
   char s[32];
   if (b >= 10L << 20) std::snprintf(s, sizeof s, "%.1f MB", static_cast<double>(b) / (1 << 20));
@@ -160,7 +136,7 @@ int main(int argc, char** argv) {
   for (std::size_t n : sizes) {
     sim::SimConfig cfg;
     cfg.seed = 5;
-    auto runs = sim::simulate(cfg, cycling_program(n));
+    auto runs = sim::simulate(cfg, bench::cycling_program(n));
     if (!runs) {
       std::fprintf(stderr, "simulation failed: %s\n", runs.error().c_str());
       return 1;
