@@ -1,5 +1,10 @@
 // The run state machine: start, resume, abort, the tick (profile, chamber faults, the second's
 // samples) and the end of a run. The station's other rooms are listed in station.hpp.
+//
+// Why this file is longer than 800 lines: its one job is one run's state machine. start,
+// resume, the tick and the end share the Run record and its transitions (every state change
+// and event goes through transition() and event()); the parts that stand alone (profiles,
+// analysis, status, the plant link, the sample rows) are already their own files.
 #include "fogbench/daemon/station.hpp"
 
 #include "fogbench/daemon/sample_rows.hpp"
