@@ -236,14 +236,15 @@ class LineParser {
       Token& t = tokens_[pos_];
       t.text.remove_prefix(1);
       ++t.column;
+      if (t.text.front() == '-') return Unexpected(expected_after("a rate in deg/s", kw));
       // "+100dps" as typed: split the unit off as the tokenizer does for an unsigned number.
+      // The insert may move the tokens: `t` is not used after it.
       const std::size_t n = number_prefix(t.text);
-      if (n > 0 && n < t.text.size() && t.text.front() != '-') {
+      if (n > 0 && n < t.text.size()) {
         const Token unit{t.text.substr(n), t.column + static_cast<int>(n)};
         t.text = t.text.substr(0, n);
         tokens_.insert(tokens_.begin() + static_cast<std::ptrdiff_t>(pos_) + 1, unit);
       }
-      if (!t.text.empty() && t.text.front() == '-') return Unexpected(expected_after("a rate in deg/s", kw));
     }
     auto v = number("a table rate in deg/s", kw);
     if (!v) return Unexpected(v.error());

@@ -55,6 +55,11 @@ TEST_CASE("rate steps: errors name the line, the column and what is wrong") {
   CHECK(e.to_string() == "t.profile:3:18: a duration must be positive, found '-5'");
   e = parse_err("setpoint 20 C\nhold 10 min\nrate 100 dps for 60 s each\n");
   CHECK(e.to_string() == "t.profile:3:23: unexpected 'each' after the end of the 'rate' statement");
+  // "+10dps" splits into two words while the line has exactly four: the words' storage grows
+  // under the split (a use after free found by fuzz_profile, fuzz/regressions/profile/).
+  e = parse_err("setpoint 20 C\nhold 10 min\nrate +10dps for 5\n");
+  CHECK(e.to_string() == "t.profile:3:18: expected a duration unit 's', 'min' or 'h' after '5', found end of line");
+  CHECK(parse_ok("setpoint 20 C\nhold 10 min\nrate +10dps for 5s\n").rate_steps.at(0).rate_dps == 10.0);
   e = parse_err("setpoint 20 C\nhold 10 min\nrate +-5 dps for 60 s\n");
   CHECK(e.line == 3);
   CHECK_THAT(e.message, Catch::StartsWith("expected a rate in deg/s after 'rate'"));
