@@ -135,11 +135,11 @@ struct Acquisition::Impl {
   // and what a late loop does. acquisition.hpp, "One schedule, two clocks".
   struct ReadingClock {
     virtual ~ReadingClock() = default;
-    // After tick k - 1 (k = 0: at the start): asks for second k's readings, then arms the loop's
+    // After tick `second` - 1 (0: at the start): asks for that second's readings, then arms the loop's
     // timer (Impl::arm_tick), having skipped the seconds it was too late for (Impl::skip_to).
-    virtual void ask(std::int64_t k) = 0;
-    // Tick k is due, woken at `now`: the second to close now (> k: the ones before it skipped).
-    virtual std::int64_t resume(std::int64_t k, Clock::time_point now) = 0;
+    virtual void ask(std::int64_t second) = 0;
+    // Tick `second` is due, woken at `now`: the second to close now (later: the ones before it skipped).
+    virtual std::int64_t resume(std::int64_t second, Clock::time_point now) = 0;
     // Whether second k's readings are in; until they are, the tick waits (Impl::readings_in).
     virtual bool ready() const = 0;
     // Before the second's gyro sample is closed.
@@ -471,8 +471,8 @@ struct Acquisition::Impl::RealClock final : Acquisition::Impl::ReadingClock {
 
   explicit RealClock(Impl& impl) : a(impl), poll_timer(impl.time.alarm()) {}
 
-  void ask(std::int64_t k) override {
-    poll_timer->set(a.sched.slot_due(2 * k - 1), [this] {  // the first, k = 0: slot -1
+  void ask(std::int64_t second) override {
+    poll_timer->set(a.sched.slot_due(2 * second - 1), [this] {  // the first, k = 0: slot -1
       if (a.stopped) return;
       const std::int64_t slot = resume_slot(2 * a.k - 1, a.time.now());
       a.skip_to((slot + 1) / 2);
@@ -480,7 +480,7 @@ struct Acquisition::Impl::RealClock final : Acquisition::Impl::ReadingClock {
       a.arm_tick();
     });
   }
-  std::int64_t resume(std::int64_t k, Clock::time_point now) override { return resume_slot(2 * k, now) / 2; }
+  std::int64_t resume(std::int64_t second, Clock::time_point now) override { return resume_slot(2 * second, now) / 2; }
   // Far behind (the loop was blocked, e.g. by a long fit): skip ahead rather than replay a burst
   // of empty seconds; from a poll's slot to a poll's, from a tick's to a tick's.
   std::int64_t resume_slot(std::int64_t slot, Clock::time_point now) const {
@@ -571,8 +571,8 @@ struct Acquisition::Impl::PacedClock final : Acquisition::Impl::ReadingClock {
   PacedClock(Impl& impl, std::unique_ptr<PacedWorld> w)
       : a(impl), world(std::move(w)), commanded_setpoint_c(impl.options.safe_setpoint_c) {}
 
-  void ask(std::int64_t k) override {
-    if (k == 0) {  // the start: no setpoint of a tick yet, and no run
+  void ask(std::int64_t second) override {
+    if (second == 0) {  // the start: no setpoint of a tick yet, and no run
       post_job(false, std::nullopt);
     } else {
       std::optional<double> sp;
@@ -582,7 +582,7 @@ struct Acquisition::Impl::PacedClock final : Acquisition::Impl::ReadingClock {
       // rather than catching up in a burst. The run goes on slower than the time scale, and
       // every second is acquired as it would be on an idle host.
       const auto now = a.time.now();
-      if (const auto shift = a.sched.paced_shift(k, now); shift.count() > 0) {
+      if (const auto shift = a.sched.paced_shift(second, now); shift.count() > 0) {
         a.sched.t0 += shift;
         ++a.stats.paced_slowed;
         if (now - slowed_logged > std::chrono::seconds(10)) {
@@ -594,7 +594,7 @@ struct Acquisition::Impl::PacedClock final : Acquisition::Impl::ReadingClock {
     }
     a.arm_tick();
   }
-  std::int64_t resume(std::int64_t k, Clock::time_point) override { return k; }  // never skips
+  std::int64_t resume(std::int64_t second, Clock::time_point) override { return second; }  // never skips
   bool ready() const override { return result.has_value(); }
 
   // The job: the setpoint of the last tick, one simulated second (in a run), then the poll. In
