@@ -166,9 +166,10 @@ PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& ben
       !ok)
     return fail(ok.error());
   for (const auto& u : run.units) {
-    if (auto ok = plant.query("INSERT INTO fogbench.units (bench_id, run_id, unit_index, serial, lot) "
-                              "VALUES ($1, $2, $3, $4, $5)",
-                              {b, rid, std::to_string(u.unit_index), u.serial, u.lot}, "insert a unit");
+    if (auto ok = plant.query("INSERT INTO fogbench.units (bench_id, run_id, unit_index, serial, lot, axes) "
+                              "VALUES ($1, $2, $3, $4, $5, $6)",
+                              {b, rid, std::to_string(u.unit_index), u.serial, u.lot, std::to_string(u.axes)},
+                              "insert a unit");
         !ok)
       return fail(ok.error());
     ++stats.units;
@@ -266,7 +267,8 @@ PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& ben
   {
     if (auto ok = plant.copy_begin(
             "COPY fogbench.samples (bench_id, run_id, unit_index, t_s, wall_time, setpoint_c, chamber_c, gyro_dph, "
-            "frames, t1_c, t2_c, phase, step, flags, since_power_on_s, compensated_dph) FROM STDIN (FORMAT binary)",
+            "frames, t1_c, t2_c, phase, step, flags, since_power_on_s, compensated_dph, rate_in_dps, gyro_y_dph, "
+            "gyro_z_dph) FROM STDIN (FORMAT binary)",
             "copy the samples");
         !ok)
       return fail(ok.error());

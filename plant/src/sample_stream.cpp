@@ -42,7 +42,7 @@ bool SampleStream::push(Chunk c) {
 
 void SampleStream::run() {
   BinaryCopy out;
-  out.reserve(static_cast<std::size_t>(page_) * 150);
+  out.reserve(static_cast<std::size_t>(page_) * 190);
   out.header();
   bool ok = true;
   for (std::size_t k = 0; ok && k < units_.size(); ++k) {
@@ -55,7 +55,7 @@ void SampleStream::run() {
         break;
       }
       for (const auto& s : *rows) {
-        out.row(16);
+        out.row(19);
         out.text(bench_id_);
         out.int8(run_id_);
         out.int4(unit);
@@ -69,7 +69,7 @@ void SampleStream::run() {
         else out.null();
         out.int2(static_cast<std::int16_t>(s.flags));
         out.float8(s.since_power_on_s);
-        out.float8(s.compensated_dph);
+        for (double v : {s.compensated_dph, s.rate_in_dps, s.gyro_y_dph, s.gyro_z_dph}) out.float8(v);
       }
       const auto n = static_cast<std::int64_t>(rows->size());
       const bool last_page = n < page_;
@@ -77,7 +77,7 @@ void SampleStream::run() {
       if (!out.data().empty()) {
         Chunk c{std::move(out.data()), {}, n};
         out.clear();
-        out.reserve(static_cast<std::size_t>(page_) * 150);
+        out.reserve(static_cast<std::size_t>(page_) * 190);
         if (!push(std::move(c))) ok = false;
       }
       if (last_page) break;

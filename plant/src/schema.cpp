@@ -5,7 +5,8 @@
 // a bench's own ids are unique only on that bench. Later migrations add what other parts
 // bring: version 2 adds the run identity (keyed the same way, with ON DELETE CASCADE from
 // fogbench.runs, so that a re-sent run replaces it too), the certificates and each sample's
-// compensated rate; version 3 the stations' public keys (station_keys); version 4 the verdicts.
+// compensated rate; version 3 the stations' public keys (station_keys); version 4 the verdicts;
+// version 5 the rate table's commanded rate, the y and z axes and each unit's axes.
 #include <libpq-fe.h>
 
 #include "fogbench/plant/plant.hpp"
@@ -223,14 +224,25 @@ CREATE INDEX verdicts_serial ON fogbench.verdicts (serial);
 CREATE INDEX verdicts_run ON fogbench.verdicts (bench_id, run_id, unit_index);
 )sql";
 
+// Version 5 (issue 29): what a run on the rate table and a three-axis unit add to a sample (the
+// table's commanded rate, deg/s; the y and z axes, deg/h; NULL where the bench recorded none), and
+// each unit's gyro axes (1 or 3; a run replicated before this version reads 1).
+constexpr const char* kV5 = R"sql(
+ALTER TABLE fogbench.samples ADD COLUMN rate_in_dps double precision,
+                             ADD COLUMN gyro_y_dph double precision,
+                             ADD COLUMN gyro_z_dph double precision;
+ALTER TABLE fogbench.units ADD COLUMN axes smallint NOT NULL DEFAULT 1 CHECK (axes IN (1, 3));
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "runs, units, samples, events, models, verifications, figures", kV1},
     {2, "samples.compensated_dph, run_identity, unit_identity, certificates", kV2},
     {3, "station_keys", kV3},
     {4, "verdicts", kV4},
+    {5, "samples.rate_in_dps, gyro_y_dph, gyro_z_dph, units.axes", kV5},
 };
 
-constexpr int kCurrent = 4;
+constexpr int kCurrent = 5;
 
 // The version recorded, 0 when the schema is absent.
 PlantResult<int> read_version(Connection& c) {

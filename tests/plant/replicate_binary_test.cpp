@@ -22,6 +22,7 @@ TEST_CASE("binary COPY: whole pages, a unit without samples, extreme values and 
   storage::NewRun nr;
   nr.profile_name = "edges";
   nr.unit_serials = {"FOG-0001", "FOG-0002", "FOG-0003"};
+  nr.unit_axes = {1, 1, 3};  // unit 2 has three axes: its y and z travel too (schema 5)
   auto id = bench.create_run(nr);
   REQUIRE(id);
   REQUIRE(bench.set_run_state(*id, storage::RunState::running, "go"));
@@ -54,6 +55,9 @@ TEST_CASE("binary COPY: whole pages, a unit without samples, extreme values and 
   hi.step = std::numeric_limits<int>::max();
   hi.since_power_on_s = 1.0 / 3.0;
   hi.compensated_dph = -1e-300;
+  hi.rate_in_dps = -123.5;  // the rate table's commanded rate, deg/s
+  hi.gyro_y_dph = std::numeric_limits<double>::min();
+  hi.gyro_z_dph = -0.1;
   none.t_s = 0.25;  // every optional signal left out: NULL
   rows.push_back(lo);
   rows.push_back(hi);
@@ -85,6 +89,16 @@ TEST_CASE("binary COPY: whole pages, a unit without samples, extreme values and 
   CHECK(edge(1e15) == "1.7976931348623157e+308 123456.789 9223372036854775807 2147483647 0 " +
                           std::to_string(static_cast<int>(model::Phase::unknown)) +
                           " 0.3333333333333333 -1e-300 null");
+  // The table's rate and the y and z axes: exact where the bench had them, NULL elsewhere.
+  auto axes = [&](double t) {
+    return pg.psql("SELECT concat_ws(' ', coalesce(rate_in_dps::text, 'null'), coalesce(gyro_y_dph::text, 'null'), "
+                   "coalesce(gyro_z_dph::text, 'null')) FROM fogbench.samples WHERE unit_index = 2 AND t_s = " +
+                   std::to_string(t));
+  };
+  CHECK(axes(1e15) == "-123.5 2.2250738585072014e-308 -0.1");
+  CHECK(axes(0.5) == "null null null");
+  CHECK(pg.psql("SELECT count(rate_in_dps) + count(gyro_y_dph) + count(gyro_z_dph) FROM fogbench.samples WHERE unit_index = 0") == "0");
+  CHECK(pg.psql("SELECT string_agg(unit_index || ':' || axes, ',' ORDER BY unit_index) FROM fogbench.units") == "0:1,1:1,2:3");
   CHECK(pg.psql("SELECT concat_ws(' ', coalesce(gyro_dph::text, 'null'), coalesce(frames::text, 'null'), "
                 "coalesce(step::text, 'null'), coalesce(t1_c::text, 'null')) FROM fogbench.samples WHERE t_s = 0.25") ==
         "null null null null");

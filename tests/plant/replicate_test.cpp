@@ -336,7 +336,7 @@ TEST_CASE("a refused login, a newer schema and bad ids are clear errors and writ
       CHECK(c.error().code == plant::PlantErrc::schema_too_new);
       CHECK_THAT(c.error().message, Catch::Contains("schema version 99 is newer"));
     }
-    CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2,3,4,99");
+    CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2,3,4,5,99");
   }
   SECTION("a lot id with a control character, an empty bench id") {
     auto path = test::temp_store_path("badlot");
@@ -361,7 +361,7 @@ TEST_CASE("a refused login, a newer schema and bad ids are clear errors and writ
   }
 }
 
-TEST_CASE("a plant at schema 1 migrates to 4 on a bench's connection, keeping what it held") {
+TEST_CASE("a plant at schema 1 migrates to 5 on a bench's connection, keeping what it held") {
   PgServer pg;
   auto path = test::temp_store_path("migrate");
   auto bench = open_store(path);
@@ -377,7 +377,8 @@ TEST_CASE("a plant at schema 1 migrates to 4 on a bench's connection, keeping wh
     CHECK(st->identity_rows == 0);
     CHECK(st->certificates == 0);
     CHECK(st->certificates_held == 0);
-    REQUIRE(c->exec("ALTER TABLE fogbench.samples DROP COLUMN compensated_dph; "
+    REQUIRE(c->exec("ALTER TABLE fogbench.samples DROP COLUMN compensated_dph, DROP COLUMN rate_in_dps, "
+                    "DROP COLUMN gyro_y_dph, DROP COLUMN gyro_z_dph; ALTER TABLE fogbench.units DROP COLUMN axes; "
                     "DROP TABLE fogbench.run_identity, fogbench.unit_identity, fogbench.certificates, "
                     "fogbench.station_keys, fogbench.verdicts; DELETE FROM fogbench.schema_version WHERE version >= 2",
                     "back to schema 1"));
@@ -388,17 +389,20 @@ TEST_CASE("a plant at schema 1 migrates to 4 on a bench's connection, keeping wh
   auto reader = plant::Connection::open(pg.conninfo(), false);
   REQUIRE_FALSE(reader);
   CHECK(reader.error().code == plant::PlantErrc::schema_missing);
-  CHECK_THAT(reader.error().message, Catch::Contains("schema version 1 is older than 4"));
+  CHECK_THAT(reader.error().message, Catch::Contains("schema version 1 is older than 5"));
 
   // A bench migrates: version 2 recorded, the run held before kept (its samples' compensated
   // rate NULL), and a run with identity and compensated rates then replicates in full.
   auto c = plant::Connection::open(pg.conninfo(), true);
   REQUIRE(c);
-  CHECK(c->schema_version() == 4);
-  CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2,3,4");
+  CHECK(c->schema_version() == 5);
+  CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2,3,4,5");
   const std::string old_rid = std::to_string(old_run);
   CHECK(count(*c, "SELECT count(*) FROM fogbench.samples WHERE run_id = " + old_rid) == *bench.count_samples(old_run));
   CHECK(count(*c, "SELECT count(compensated_dph) FROM fogbench.samples") == 0);
+  // Version 5's columns: the run held before reads no table rate, no y or z, and one axis.
+  CHECK(count(*c, "SELECT count(rate_in_dps) + count(gyro_y_dph) + count(gyro_z_dph) FROM fogbench.samples") == 0);
+  CHECK(pg.psql("SELECT string_agg(DISTINCT axes::text, ',') FROM fogbench.units WHERE run_id = " + old_rid) == "1");
   const auto run = test::record_run(bench, {std::string("L2"), std::nullopt}, 1, 4, false, bench_identity());
   auto st = plant::replicate_run(*c, bench, "b1", run);
   REQUIRE(st);
