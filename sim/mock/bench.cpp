@@ -109,8 +109,10 @@ struct Bench::Impl final : ControlHandler {
     cfg.where.thermistor_port = modbus->thermistor_port();
     if (cfg.rate_table_port) {
       shared.rate_table.emplace();
-      // Called under the shared mutex: the wall clock only.
+      // Called under the shared mutex. Free-running, the bench's time is the wall clock times the
+      // scale; paced, it is the simulated time the clock has reached (it moves only on advance).
       table.emplace(shared, cfg.where.host, *cfg.rate_table_port, [this] {
+        if (cfg.paced) return shared.snap.time_s;
         return cfg.time_scale * std::chrono::duration<double>(SteadyClock::now() - started).count();
       });
       if (auto ok = table->open(); !ok) return ok;

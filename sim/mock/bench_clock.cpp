@@ -159,14 +159,14 @@ void BenchClock::step(Batch& b, std::int64_t second, double& last_setpoint_c, st
   // A stopped chamber no longer controls: its air drifts back to the room's temperature.
   world_->step(running ? commanded : cfg_.sim.start_c);
   // The rate table's rate at the second's start (without its ripple, whose mean over a second
-  // is about 0): every unit sits on the table, its axis 0 on the table's axis. The table keeps
-  // wall time times the scale; free-running, that is this second's time (paced, it is not: the
-  // table is then as its last command left it).
+  // is about 0): every unit sits on the table, its axis 0 on the table's axis. The table moves
+  // with the bench's time: free-running, wall time times the scale, this second's; paced, the
+  // simulated seconds advance asks for (its commands are answered at that time too, bench.cpp).
   double table_dps = 0.0;
   {
     std::lock_guard lock(shared_.mutex);
     if (shared_.rate_table) {
-      if (!cfg_.paced) shared_.rate_table->advance_to(static_cast<double>(second));
+      shared_.rate_table->advance_to(static_cast<double>(second));
       table_dps = shared_.rate_table->smooth_rate_dps();
     }
   }

@@ -5,6 +5,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <thread>
 
 #include "fogbench/drivers/rate_table_registry.hpp"
 #include "mock_process.hpp"
@@ -62,4 +63,36 @@ TEST_CASE("fogbench-sim without --rate-table-port: the table's faults are refuse
   const auto reply = mock.control({{"cmd", "fault"}, {"name", "table_fault"}, {"text", "OVERSPEED TRIP"}});
   CHECK(reply["ok"] == false);
   CHECK(reply["error"] == "table_fault: no rate table is served (--rate-table-port)");
+}
+
+TEST_CASE("fogbench-sim --paced --rate-table-port: the table moves with the simulated clock, not the wall's") {
+  MockProcess mock({"--paced", "--rate-table-port", "0", "--time-scale", "1000"});
+  auto j = mock.ready()["rate_table_config"];
+  REQUIRE(j.is_object());
+  j["max_accel_dps2"] = 50;  // 100 deg/s reached 2 simulated seconds after the command
+  auto cfg = parse_rate_table_config(j, "rate_table");
+  INFO((cfg ? std::string() : cfg.error().to_string()));
+  REQUIRE(cfg);
+  auto table = open_rate_table(*cfg);
+  REQUIRE(table);
+  REQUIRE((*table)->set_rate_dps(100));
+  // Left alone, the bench's time stands still: at K = 1000, 300 ms of wall would be 300
+  // simulated seconds, far past the ramp, if the table kept the wall clock.
+  std::this_thread::sleep_for(300ms);
+  auto s = (*table)->read_status();
+  REQUIRE(s);
+  CHECK_FALSE(s->at_rate);
+  CHECK(std::fabs(s->rate_dps) < 1.0);
+  CHECK(mock.status()["rate_table"]["time_s"] == 0.0);
+  // One simulated second: half way up the ramp; three: at rate.
+  REQUIRE(mock.control({{"cmd", "advance"}, {"seconds", 1}})["ok"] == true);
+  s = (*table)->read_status();
+  REQUIRE(s);
+  CHECK(s->rate_dps == Approx(50.0).margin(1.0));
+  REQUIRE(mock.control({{"cmd", "advance"}, {"seconds", 2}})["ok"] == true);
+  s = (*table)->read_status();
+  REQUIRE(s);
+  CHECK(s->at_rate);
+  CHECK(s->rate_dps == Approx(100.0).margin(0.01));
+  CHECK(mock.status()["rate_table"]["time_s"] == 3.0);
 }
