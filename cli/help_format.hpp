@@ -1,6 +1,7 @@
 // fogctl's --help within the terminal (issue 28, point 1): CLI11 prints each option's and
 // command's description on one line, up to 250 columns; this formatter wraps them at spaces
-// under the description column, and the command's description and footer at the width.
+// under the description column, and the command's description and footer at the width
+// (console::wrapping_help_formatter, shared with fogbenchd and fogbench-sim).
 #pragma once
 
 #include <CLI/CLI.hpp>

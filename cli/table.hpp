@@ -5,6 +5,8 @@
 #include <string_view>
 #include <vector>
 
+#include "fogbench/console/text.hpp"
+
 namespace fogbench::cli {
 
 // `text` safe to print in a terminal cell: control characters (U+0000..U+001F, U+007F) as
@@ -13,18 +15,16 @@ namespace fogbench::cli {
 std::string printable(std::string_view text, std::size_t max_bytes = 500);
 
 // How wide human output may be, in terminal columns (0: whole lines, as `--wide` asks). Unless
-// set, the limit is $COLUMNS when exported (a number of at least 20), else the terminal's width
-// when stdout is one, else 0: piped output keeps whole lines, for grep and files.
+// set, the limit is console::terminal_width(): $COLUMNS when exported (a number of at least 20),
+// else the terminal's width when stdout is one, else 0: piped output keeps whole lines, for grep
+// and files.
 void set_output_width(std::size_t columns);
 std::size_t output_width();
 
-// Columns a UTF-8 string takes in a terminal (one per code point: fogctl prints no wide or
-// combining characters of its own).
-std::size_t display_width(std::string_view text);
-
-// `text` wrapped at spaces into lines of at most `width` columns (a longer word is cut);
-// always at least one line.
-std::vector<std::string> wrap_text(std::string_view text, std::size_t width);
+// Columns a UTF-8 string takes, and text wrapped at spaces to a width: fogbench/console/text.hpp,
+// shared with fogbenchd's and fogbench-sim's --help.
+using console::display_width;
+using console::wrap_text;
 
 // A command's text output within `width` columns (0: as it is): each line wider than the width
 // is wrapped at spaces, its continuation lines indented two more than the line (a sentence,

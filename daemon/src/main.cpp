@@ -16,6 +16,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "fogbench/console/text.hpp"
 #include "fogbench/drivers/serial_devices.hpp"
 #include "fogbench/daemon/config.hpp"
 #include "fogbench/daemon/config_reload.hpp"
@@ -63,6 +64,7 @@ class Watchdog {
 
 int main(int argc, char** argv) {
   CLI::App app{"fogbenchd: the fogbench bench daemon (fogbench " FOGBENCH_DAEMON_VERSION ")"};
+  app.formatter(fogbench::console::wrapping_help_formatter());  // --help within the terminal
   std::string config_path, check_path, device_allow_path;
   double time_scale = 1.0;
   std::string log_level = "info";

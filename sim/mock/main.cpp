@@ -10,6 +10,7 @@
 #include <iostream>
 
 #include "bench.hpp"
+#include "fogbench/console/text.hpp"
 #include "options.hpp"
 
 int main(int argc, char** argv) {
@@ -23,6 +24,7 @@ int main(int argc, char** argv) {
       "frames (unix SEQPACKET socket), stepped K times faster than real time. Prints one JSON line "
       "on stdout with what it serves, then runs until SIGINT/SIGTERM or {\"cmd\":\"stop\"}. See "
       "docs/mock-bench.md."};
+  app.formatter(fogbench::console::wrapping_help_formatter());  // --help within the terminal
   app.add_option("--modbus-host", o.host, "IPv4 address the Modbus listeners bind")->capture_default_str();
   app.add_option("--modbus-port", o.modbus_port, "chamber controller's TCP port; 0: ephemeral (see the JSON line)")
       ->capture_default_str();
