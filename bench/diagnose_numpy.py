@@ -30,9 +30,10 @@ the pruning of small candidates); the ends of d(x) by polyfit on the one-sided w
 bench/fit_numpy.py does. Its numbers are therefore close to diagnose's, not equal; the point
 is the cost of the same search.
 
-Usage: diagnose_numpy.py RUN.csv [--reps R]
+Usage: diagnose_numpy.py RUN.csv [--reps R] [--whole]
   Prints the candidates (lag, delta BIC, fall) and the median and minimum CPU time of R searches
-  (default 3) after the CSV is read, then, with --whole, the whole process's (read + one search).
+  (default 3) after the CSV is read; with --whole instead, the CPU time of reading the CSV and one
+  search (the peer of `fogctl diagnose RUN.csv --search library` timed whole).
 """
 import sys
 import time
