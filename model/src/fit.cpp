@@ -130,7 +130,7 @@ std::expected<Evaluated, FitError> evaluate_terms_with(FitCache& cache, const st
   for (const auto& t : terms) {
     auto v = cache.column(t);
     if (!v) return std::unexpected(v.error());
-    ev.x.push_back(**v);
+    ev.x.emplace_back(**v);  // the cache's column, pinned for this thread: not copied
     ev.names.push_back(to_string(t, false));
   }
   return ev;
@@ -144,7 +144,8 @@ std::expected<Evaluated, FitError> evaluate_terms(const RunData& run, const std:
   for (const auto& t : terms) {
     auto v = evaluate(*t.expr, ev.sig.view());
     if (!v) return fail(FitError::Code::missing_signal, "term '" + to_string(t, false) + "': " + v.error());
-    ev.x.push_back(std::move(*v));
+    ev.own.push_back(std::move(*v));  // its buffer stays where it is as own grows
+    ev.x.emplace_back(ev.own.back());
     ev.names.push_back(to_string(t, false));
   }
   return ev;
@@ -159,7 +160,7 @@ std::expected<const RunSignals*, FitError> FitCache::signals() {
   return &**sig_;
 }
 
-std::expected<FitCache::Entry*, FitError> FitCache::entry_locked(const Term& t, const std::vector<double>* x,
+std::expected<FitCache::Entry*, FitError> FitCache::entry_locked(const Term& t, const std::span<const double>* x,
                                                                  std::unique_lock<std::mutex>& lock) {
   const std::string key = term_key(t);
   auto it = cols_.find(key);
@@ -168,7 +169,7 @@ std::expected<FitCache::Entry*, FitError> FitCache::entry_locked(const Term& t, 
     lock.unlock();
     auto e = std::make_shared<Entry>();
     if (x) {
-      e->x = *x;
+      e->x.assign(x->begin(), x->end());
     } else {
       auto s = signals();
       if (!s) {
@@ -199,10 +200,11 @@ std::expected<const std::vector<double>*, FitError> FitCache::column(const Term&
 
 void FitCache::put(const Term& t, const std::vector<double>& x) {
   std::unique_lock lock(mu_);
-  (void)entry_locked(t, &x, lock);
+  const std::span<const double> xs(x);
+  (void)entry_locked(t, &xs, lock);
 }
 
-const Lagged& FitCache::lagged(const Term& t, const std::vector<double>& x, int max_lag, const LagScanner& sc) {
+const Lagged& FitCache::lagged(const Term& t, std::span<const double> x, int max_lag, const LagScanner& sc) {
   // x is the term's column (column() gave it this fit, or a copy of it): the entry exists
   // unless the caller evaluated it elsewhere, then x is kept.
   std::unique_lock lock(mu_);
@@ -394,7 +396,7 @@ std::expected<Model, FitError> fit_run(const RunData& run, const TermList& tl, c
       names.push_back(copies > 1 && !terms[j].lag.automatic ? ev->names[j] + "@" + std::to_string(lag_s) : ev->names[j]);
       memo_keys.push_back(keys[j] + "@" + std::to_string(lag_s));
     }
-    std::vector<std::vector<double>> subset;
+    std::vector<std::span<const double>> subset;
     if (keep.size() < terms.size())
       for (std::size_t j : keep) subset.push_back(ev->x[j]);
     const auto& cols = keep.size() < terms.size() ? subset : ev->x;

@@ -48,7 +48,7 @@ std::expected<void, FitError> check_terms(std::size_t n, const std::vector<Term>
 // of the correlation matrix of the columns. Column j is read delayed by lags[j] samples (the
 // first sample standing in before the start), so lagged columns need no copies; no lags, no
 // delay.
-std::expected<void, FitError> check_collinear(const std::vector<std::vector<double>>& cols,
+std::expected<void, FitError> check_collinear(const std::vector<std::span<const double>>& cols,
                                               const std::vector<std::string>& names, std::span<const double> w,
                                               std::span<const std::size_t> lags, CollinearMemo* memo,
                                               std::span<const std::string> keys) {

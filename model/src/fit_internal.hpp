@@ -99,7 +99,7 @@ struct CollinearMemo {
   static constexpr std::size_t max_entries = 1 << 14;           // dropped all at once beyond
   MemoMutex mu;  // held while the maps are read or changed (never while a sum is made)
 };
-std::expected<void, FitError> check_collinear(const std::vector<std::vector<double>>& cols,
+std::expected<void, FitError> check_collinear(const std::vector<std::span<const double>>& cols,
                                               const std::vector<std::string>& names, std::span<const double> w,
                                               std::span<const std::size_t> lags = {}, CollinearMemo* memo = nullptr,
                                               std::span<const std::string> keys = {});
@@ -107,10 +107,19 @@ std::expected<void, FitError> check_collinear(const std::vector<std::vector<doub
 // ---- shared by the two methods (fit.cpp) ----
 
 // The run's signals and every term evaluated on them, unlagged.
+// x views the columns: those evaluated here are held in own; evaluate_terms_with's are the fit
+// cache's, pinned for the calling thread until its next fit (FitCache::trim), so that a refit
+// does not copy every column of the run. Not copyable (the views would point into the original).
 struct Evaluated {
   RunSignals sig;
-  std::vector<std::vector<double>> x;  // each term, unlagged
+  std::vector<std::span<const double>> x;  // each term, unlagged
   std::vector<std::string> names;
+  std::vector<std::vector<double>> own;    // the columns evaluated here (x's views into them)
+  Evaluated() = default;
+  Evaluated(Evaluated&&) = default;
+  Evaluated& operator=(Evaluated&&) = default;
+  Evaluated(const Evaluated&) = delete;
+  Evaluated& operator=(const Evaluated&) = delete;
 };
 std::expected<Evaluated, FitError> evaluate_terms(const RunData& run, const std::vector<Term>& terms, double tref_c);
 
@@ -168,7 +177,7 @@ class FitCache {
   void put(const Term& t, const std::vector<double>& x);
   // The column extended for lags up to max_lag (make_lagged), its spectrum for sc (the
   // scanner of this run and max_lag that reads it) made before it is handed out and kept with it.
-  const Lagged& lagged(const Term& t, const std::vector<double>& x, int max_lag, const LagScanner& sc);
+  const Lagged& lagged(const Term& t, std::span<const double> x, int max_lag, const LagScanner& sc);
   // The paper method's first step for these options (w: good_weights of the run).
   const std::expected<PaperPrep, FitError>& paper_prep(const FitOptions& o, const std::vector<double>& w);
   // Drops the columns used least recently beyond keep_columns, and what this thread was handed
@@ -190,7 +199,7 @@ class FitCache {
     std::uint64_t used = 0;
   };
   // The entry of t (made from x, or evaluated when x is null), pinned for this thread; under mu_.
-  std::expected<Entry*, FitError> entry_locked(const Term& t, const std::vector<double>* x, std::unique_lock<std::mutex>& lock);
+  std::expected<Entry*, FitError> entry_locked(const Term& t, const std::span<const double>* x, std::unique_lock<std::mutex>& lock);
   const RunData& run_;
   double tref_c_;
   std::size_t keep_;

@@ -121,7 +121,7 @@ class JointSolver {
   }
 
   // e(t) = y(t) - theta_0 - sum_j theta_j x_j(t - lag_j), the unlagged terms x read in place.
-  void residual(std::span<const double> y, const std::vector<std::vector<double>>& x, std::vector<double>& e) const {
+  void residual(std::span<const double> y, const std::vector<std::span<const double>>& x, std::vector<double>& e) const {
     const std::size_t n = y.size(), nt = terms_.size();
     e.assign(y.begin(), y.end());
     for (std::size_t t = 0; t < n; ++t) {

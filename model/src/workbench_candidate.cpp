@@ -306,8 +306,10 @@ EvaluatedCandidate evaluate_candidate(const StepContext& ctx, Cand& cd, Scorer& 
   }
   if (!cd.repeat) fs.put(cd.term, *x);  // dropped below with the other columns the base lacks
   score(ctx, cd, *r.model, r.extra_params, fs, held_sc, c);
-  // x is r.term's column unlagged (the same expression, evaluated on the same signals).
-  out.partial = ctx.scan.partial(lagged(*x, r.term.lag.seconds));
+  // x is r.term's column unlagged (the same expression, evaluated on the same signals). Only the
+  // detected are compared as look-alikes (mark_look_alikes, right after the step's evaluations):
+  // the others' partial columns, one run-length vector each kept to the end of the step, are not made.
+  if (c.detected) out.partial = ctx.scan.partial(lagged(*x, r.term.lag.seconds));
   // The scorers' columns of terms the base model lacks are used by this candidate only: dropped,
   // so that memory does not grow with the candidates refitted (a 3-day run's column is 2 MB).
   for (const auto& ft : r.model->terms)

@@ -353,7 +353,7 @@ struct StepContext {
 struct EvaluatedCandidate {
   Candidate c;
   bool pruned = false;          // not refitted: its one-column update falls short (prune_fraction)
-  std::vector<double> partial;  // its column with the model's terms regressed out (empty if not evaluated)
+  std::vector<double> partial;  // its column with the model's terms regressed out (empty if not evaluated or not detected)
 };
 
 // One candidate: its lag (scan, rescans as the refit moves the model's lags, lag 0 tried),
