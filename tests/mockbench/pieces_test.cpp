@@ -9,11 +9,15 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <numeric>
+#include <random>
 
 #include "control.hpp"
 #include "faults.hpp"
+#include "fogbench/drivers/can_frame.hpp"
 #include "fogbench/drivers/config.hpp"
+#include "fogbench/drivers/sample_accumulator.hpp"
 #include "fogbench/drivers/thermistor_conversion.hpp"
 #include "frames.hpp"
 #include "layout.hpp"
@@ -371,4 +375,42 @@ TEST_CASE("mock bench options --axes: 1 or 3, and not with a serial gyro", "[thr
   cfg = fogbench::mock::make_bench_config(o);
   REQUIRE_FALSE(cfg.has_value());
   CHECK(cfg.error() == "--serial-gyro needs --axes 1: a serial gyro's frame carries one axis");
+}
+
+TEST_CASE("fault silence_axis: one axis of a unit, by name or index, switched on and off", "[three_axis]") {
+  const std::vector<std::string> serials = {"SIM-0001", "SIM-0002"};
+  FaultState state;
+  state.units.resize(2);
+  auto apply = [&](const json& j) {
+    auto c = parse_fault_command(j, serials);
+    INFO(j.dump());
+    REQUIRE(c.has_value());
+    apply_fault(state, *c, 10.0);
+  };
+  apply({{"name", "silence_axis"}, {"unit", 0}, {"axis", "z"}});
+  CHECK(state.units[0].silent_axis == std::array<bool, 3>{false, false, true});
+  CHECK(state.units[1].silent_axis == std::array<bool, 3>{false, false, false});
+  apply({{"name", "silence_axis"}, {"unit", "SIM-0002"}, {"axis", 1}});  // an index: y
+  CHECK(state.units[1].silent_axis == std::array<bool, 3>{false, true, false});
+  const auto active = active_faults(state, serials, 10.0);
+  REQUIRE(active.size() == 2);
+  CHECK(active[0] == json({{"name", "silence_axis"}, {"axis", "z"}, {"unit", 0}, {"serial", "SIM-0001"}}));
+  CHECK(active[1]["axis"] == "y");
+  // Off without an axis: every axis of the unit speaks again.
+  apply({{"name", "silence_axis"}, {"unit", 1}, {"on", false}});
+  CHECK(state.units[1].silent_axis == std::array<bool, 3>{false, false, false});
+  CHECK(state.units[0].silent_axis[2]);
+
+  // The command-line form: the axis is the main parameter.
+  auto j = fault_json_from_cli("silence_axis=z,unit=0");
+  REQUIRE(j.has_value());
+  CHECK(*j == json({{"cmd", "fault"}, {"name", "silence_axis"}, {"on", true}, {"axis", "z"}, {"unit", 0}}));
+
+  CHECK(parse_fault_command({{"name", "silence_axis"}, {"unit", 0}}, serials).error() == "silence_axis: axis: missing");
+  CHECK(parse_fault_command({{"name", "silence_axis"}, {"axis", "w"}}, serials).error() ==
+        "silence_axis: axis: expected x, y, z or 0..2 (got \"w\")");
+  CHECK(parse_fault_command({{"name", "silence_axis"}, {"axis", 3}}, serials).error() ==
+        "silence_axis: axis: expected x, y, z or 0..2 (got 3)");
+  CHECK(parse_fault_command({{"name", "silence_axis"}, {"axis", "x"}, {"fraction", 1}}, serials).error() ==
+        "silence_axis: unknown field 'fraction' (known: axis, on, unit)");
 }
