@@ -188,3 +188,54 @@ TEST_CASE("station: a three-axis unit's y and z are stored per second, a silent 
   REQUIRE(page1.has_value());
   CHECK_FALSE((*page1)["samples"][0].contains("gyro_y_dph"));
 }
+
+TEST_CASE("station: a configuration reloaded mid-run does not change the running run's axes") {
+  const DaemonConfig config = three_axis_config();
+  auto store = memory_store();
+  Station st(config, store, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
+  std::vector<json> published;
+  st.set_publisher([&](const json& m) { published.push_back(m); });
+  SyntheticBench thermal(2);
+  AxisBench gyros(config);  // unit 0's bus stays three-axis: the devices are opened at start
+  gyros.silent_from = 15;   // z silent in seconds 15..19, after the reload
+  gyros.silent_to = 20;
+  double clock_s = 100.0;
+  auto id = st.start_run("short", {"FOG-0001", "FOG-0002"}, storage::Purpose::fit, {{"cmd", "run.start"}});
+  REQUIRE(id.has_value());
+  // The reloaded configuration says unit 0 is one-axis.
+  DaemonConfig one_axis = config;
+  one_axis.drivers.units[0].gyro.axes = 1;
+  constexpr int kTicks = 20;
+  double sp = st.status()["setpoint_c"].get<double>();
+  for (int n = 0; n < kTicks; ++n) {
+    if (n == 5) st.reload_config(one_axis);
+    TickInput in = thermal.step(sp);
+    for (auto& u : in.units) u.gyro_dph.reset();
+    gyros.fill(in);
+    sp = st.tick(clock_s, in).setpoint_c;
+    clock_s += 1.0;
+  }
+  REQUIRE(st.abort_run("test over", {{"cmd", "run.abort"}}).has_value());
+  st.tick(clock_s, thermal.step(sp));
+
+  // Every pushed sample of unit 0, before and after the reload, is the three-axis unit's.
+  int pushed0 = 0;
+  for (const auto& m : published) {
+    if (m.value("type", "") != "sample" || m["unit"] != 0) continue;
+    ++pushed0;
+    INFO("t_s " << m["t_s"]);
+    REQUIRE(m.contains("gyro_y_dph"));
+    CHECK(m["gyro_y_dph"].get<double>() == Approx(AxisBench::axis_dph(1, static_cast<int>(m["t_s"].get<double>()))).margin(1e-9));
+  }
+  CHECK(pushed0 == kTicks);
+  // The silence after the reload is still a three-axis unit's silent axis.
+  auto detail = store.get_run(*id);
+  REQUIRE(detail.has_value());
+  int silent = 0;
+  for (const auto& e : detail->events)
+    if (e.kind == storage::EventKind::fault && json::parse(e.detail_json).value("gyro_axis", "") == "silent") {
+      ++silent;
+      CHECK(e.t_s == 15.0);
+    }
+  CHECK(silent == 1);
+}

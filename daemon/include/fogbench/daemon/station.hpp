@@ -254,6 +254,12 @@ class Station final : public RunControl {
     // The rate table's command over the run, from the profile's rate steps (set at the first
     // tick); empty: the run drives no table and stores no commanded rate.
     std::optional<profiles::RateSchedule> rates;
+    // The largest |rate| of `rates`, deg/s (0 without): the out-of-range bound of every second's
+    // gyro reading, computed once when the run starts or resumes.
+    double table_max_abs_dps = 0.0;
+    // Per run unit: its gyro axes (1 or 3) as the run started or was stored, not as the current
+    // configuration says (a reload mid-run must not change a running run's axes).
+    std::vector<int> unit_axes;
     bool live_noted = false;                    // its models are in the run's events
     // Per run unit, per axis (x, y, z): a second of silence of that axis is in the run's events
     // (said once per run, note_silent_axes).
