@@ -131,6 +131,36 @@ void Station::note_silent_axes(ActiveRun& run, std::size_t unit, const UnitReadi
   }
 }
 
+void Station::note_saturated_axes(ActiveRun& run, std::size_t unit, const UnitReading& u, double t_s) {
+  std::array<std::uint32_t, 3> at_limit{u.frames_saturated, 0, 0};
+  std::array<std::uint32_t, 3> frames{u.frames, 0, 0};
+  for (std::size_t k = 0; k < u.extra_axes.size() && k + 1 < at_limit.size(); ++k) {
+    at_limit[k + 1] = u.extra_axes[k].frames_saturated;
+    frames[k + 1] = u.extra_axes[k].frames;
+  }
+  if (run.axis_saturation_noted.size() < run.config_index.size()) run.axis_saturation_noted.resize(run.config_index.size());
+  const drivers::GyroChannelConfig& gyro = config_.drivers.units[run.config_index[unit]].gyro;
+  // The largest |rate| the int32 counts hold at the unit's scale (in increment mode, at its
+  // nominal frame rate), deg/s.
+  const double holds_dps = std::abs(gyro.mean_counts_to_rate_dph(2147483647.0)) / 3600.0;
+  static constexpr const char* kAxisNames[] = {"x", "y", "z"};
+  for (std::size_t k = 0; k < at_limit.size(); ++k) {
+    if (at_limit[k] == 0 || run.axis_saturation_noted[unit][k]) continue;
+    run.axis_saturation_noted[unit][k] = true;
+    const auto id = gyro.axis_id(static_cast<std::uint8_t>(k));
+    std::ostringstream why;
+    why << at_limit[k] << " of " << frames[k] << " frames on CAN id " << id
+        << " at the int32 count limit: the rate is beyond what the unit's scale carries (about +-" << holds_dps
+        << " deg/s), so the reading is clipped (its seconds are flagged out_of_range; said once per axis and run)";
+    spdlog::warn("run {}: unit {} ({}) axis {} saturated at t_s {} s: {}", run.id, unit, run.serials[unit], kAxisNames[k], t_s,
+                 why.str());
+    event(run.id, storage::EventKind::fault,
+          {{"gyro_axis", "saturated"}, {"unit", static_cast<int>(unit)}, {"serial", run.serials[unit]}, {"axis", kAxisNames[k]},
+           {"can_id", id}, {"t_s", t_s}, {"holds_dps", holds_dps}, {"reason", why.str()}},
+          t_s);
+  }
+}
+
 void Station::transition(ActiveRun& run, RunState to, const std::string& reason,
                          std::optional<double> t_s) {
   const RunState from = run.state;
@@ -695,6 +725,7 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
     run.quality[i].frames_corrupt += u.frames_corrupt;
     run.quality[i].samples_flagged += rows.back().flags != 0;
     note_silent_axes(run, i, u, in, t_s);
+    note_saturated_axes(run, i, u, t_s);
   }
   if (!run.live_noted) {
     run.live_noted = true;

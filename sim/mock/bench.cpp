@@ -443,7 +443,8 @@ json Bench::ready_line() const {
           // Not in drivers_config: fogbenchd reads it as its own rate_table section.
           {"rate_table_config", c.rate_table_port ? json{{"kind", "acutrol"},
                                                          {"link", {{"transport", "tcp"}, {"host", c.where.host},
-                                                                   {"port", *c.rate_table_port}}}}
+                                                                   {"port", *c.rate_table_port}}},
+                                                         {"max_rate_dps", served_table_max_rate_dps}}
                                                   : json(nullptr)},
           // What the table's rate becomes in the gyros' output (sim/scale_factor.hpp).
           {"scale_factor_truth", c.rate_table_port ? json{{"sf0", c.sf_truth.sf0},
