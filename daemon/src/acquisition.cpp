@@ -91,11 +91,16 @@ void fill_gyro_readings(const drivers::BusSample& s, std::vector<UnitReading>& u
     u.frames_lost = s.units[i].frames_lost;
     u.frames_corrupt = s.units[i].frames_corrupt;
     u.gyro_starts = s.units[i].starts;
+    u.frames_saturated = s.units[i].frames_saturated;
     u.extra_axes.clear();
     if (i < s.extra_axes.size())
       for (const drivers::GyroSample& a : s.extra_axes[i])
         u.extra_axes.push_back(
-            {.rate_dph = a.rate_dph, .frames = a.frames, .frames_lost = a.frames_lost, .frames_corrupt = a.frames_corrupt});
+            {.rate_dph = a.rate_dph,
+             .frames = a.frames,
+             .frames_lost = a.frames_lost,
+             .frames_corrupt = a.frames_corrupt,
+             .frames_saturated = a.frames_saturated});
   }
 }
 

@@ -17,7 +17,8 @@ std::uint8_t quality_flags(const UnitReading& u, const TickInput& in, bool pv_fr
   std::uint8_t f = 0;
   if (!u.gyro_dph || !u.t1_c || !u.t2_c || !in.chamber_c) f |= model::flag::missing;
   if (u.frames_lost > 0 || u.frames_corrupt > 0) f |= model::flag::frames_lost;
-  bool oor = u.out_of_range;
+  // A gyro at its count limit reads a clipped rate: never stored as if it were the rate.
+  bool oor = u.out_of_range || u.frames_saturated > 0;
   for (auto t : {u.t1_c, u.t2_c})
     if (t && (*t < kCoilMinC || *t > kCoilMaxC)) oor = true;
   if (u.gyro_dph && std::abs(*u.gyro_dph) > kGyroMaxAbsDph + 3600.0 * std::abs(table_max_abs_dps)) oor = true;
@@ -26,7 +27,7 @@ std::uint8_t quality_flags(const UnitReading& u, const TickInput& in, bool pv_fr
   for (const AxisReading& a : u.extra_axes) {
     if (!a.rate_dph) f |= model::flag::missing;
     if (a.frames_lost > 0 || a.frames_corrupt > 0) f |= model::flag::frames_lost;
-    if (a.rate_dph && std::abs(*a.rate_dph) > kGyroMaxAbsDph) oor = true;
+    if ((a.rate_dph && std::abs(*a.rate_dph) > kGyroMaxAbsDph) || a.frames_saturated > 0) oor = true;
   }
   if (oor) f |= model::flag::out_of_range;
   if (in.chamber_link_down) f |= model::flag::link_gap;

@@ -108,14 +108,15 @@ void Station::note_silent_axes(ActiveRun& run, std::size_t unit, const UnitReadi
                                double t_s) {
   const std::size_t ci = run.config_index[unit];
   const drivers::GyroChannelConfig& gyro = config_.drivers.units[ci].gyro;
-  if (gyro.axes < 2 || !in.gyro_read || !in.gyro_link_up || u.extra_axes.empty()) return;
+  const int axes = unit < run.unit_axes.size() ? run.unit_axes[unit] : 1;  // the run's, not the config's
+  if (axes < 2 || !in.gyro_read || !in.gyro_link_up || u.extra_axes.empty()) return;
   std::array<std::uint32_t, 3> sent{u.frames + u.frames_corrupt, 0, 0};
   for (std::size_t k = 0; k < u.extra_axes.size() && k + 1 < sent.size(); ++k)
     sent[k + 1] = u.extra_axes[k].frames + u.extra_axes[k].frames_corrupt;
   if (std::ranges::all_of(sent, [](std::uint32_t n) { return n == 0; })) return;  // the unit is silent, not an axis
   if (run.axis_silence_noted.size() < run.config_index.size()) run.axis_silence_noted.resize(run.config_index.size());
   static constexpr const char* kAxisNames[] = {"x", "y", "z"};
-  for (std::size_t k = 0; k < sent.size() && k < gyro.axes; ++k) {
+  for (std::size_t k = 0; k < sent.size() && k < static_cast<std::size_t>(axes); ++k) {
     if (sent[k] != 0 || run.axis_silence_noted[unit][k]) continue;
     run.axis_silence_noted[unit][k] = true;
     const auto id = gyro.axis_id(static_cast<std::uint8_t>(k));
@@ -126,6 +127,36 @@ void Station::note_silent_axes(ActiveRun& run, std::size_t unit, const UnitReadi
            {"can_id", id}, {"t_s", t_s},
            {"reason", "no frame on CAN id " + std::to_string(id) + " for a second while the unit's other axes sent "
                       "(its seconds are flagged missing; said once per axis and run)"}},
+          t_s);
+  }
+}
+
+void Station::note_saturated_axes(ActiveRun& run, std::size_t unit, const UnitReading& u, double t_s) {
+  std::array<std::uint32_t, 3> at_limit{u.frames_saturated, 0, 0};
+  std::array<std::uint32_t, 3> frames{u.frames, 0, 0};
+  for (std::size_t k = 0; k < u.extra_axes.size() && k + 1 < at_limit.size(); ++k) {
+    at_limit[k + 1] = u.extra_axes[k].frames_saturated;
+    frames[k + 1] = u.extra_axes[k].frames;
+  }
+  if (run.axis_saturation_noted.size() < run.config_index.size()) run.axis_saturation_noted.resize(run.config_index.size());
+  const drivers::GyroChannelConfig& gyro = config_.drivers.units[run.config_index[unit]].gyro;
+  // The largest |rate| the int32 counts hold at the unit's scale (in increment mode, at its
+  // nominal frame rate), deg/s.
+  const double holds_dps = std::abs(gyro.mean_counts_to_rate_dph(2147483647.0)) / 3600.0;
+  static constexpr const char* kAxisNames[] = {"x", "y", "z"};
+  for (std::size_t k = 0; k < at_limit.size(); ++k) {
+    if (at_limit[k] == 0 || run.axis_saturation_noted[unit][k]) continue;
+    run.axis_saturation_noted[unit][k] = true;
+    const auto id = gyro.axis_id(static_cast<std::uint8_t>(k));
+    std::ostringstream why;
+    why << at_limit[k] << " of " << frames[k] << " frames on CAN id " << id
+        << " at the int32 count limit: the rate is beyond what the unit's scale carries (about +-" << holds_dps
+        << " deg/s), so the reading is clipped (its seconds are flagged out_of_range; said once per axis and run)";
+    spdlog::warn("run {}: unit {} ({}) axis {} saturated at t_s {} s: {}", run.id, unit, run.serials[unit], kAxisNames[k], t_s,
+                 why.str());
+    event(run.id, storage::EventKind::fault,
+          {{"gyro_axis", "saturated"}, {"unit", static_cast<int>(unit)}, {"serial", run.serials[unit]}, {"axis", kAxisNames[k]},
+           {"can_id", id}, {"t_s", t_s}, {"holds_dps", holds_dps}, {"reason", why.str()}},
           t_s);
   }
 }
@@ -228,6 +259,8 @@ ApiResult<std::int64_t> Station::start_run_in_slots(const std::string& profile_n
   run.slots = nr.unit_slots;
   run.executor = std::make_unique<profiles::Executor>(std::move(*profile));
   if (!run.executor->profile().rate_steps.empty()) run.rates.emplace(run.executor->profile());
+  run.table_max_abs_dps = run.rates ? run.rates->max_abs_rate_dps() : 0.0;
+  run.unit_axes = nr.unit_axes;
   run.live = LiveCompensation::load(store_, serials);
   run_analysis_[*id] = config_.analysis;
   run_ = std::move(run);
@@ -296,11 +329,13 @@ ApiResult<Station::ResumeReplay> Station::begin_resume(std::int64_t run_id) {
     run.serials.push_back(u.serial);
     run.config_index.push_back(*ci);
     run.slots.push_back(u.slot ? *u.slot : config_.drivers.units[*ci].slot);
+    run.unit_axes.push_back(u.axes);  // as stored with the run
   }
   auto profile = check_profile_text(rec.profile_text, rec.profile_name + ".profile");
   if (!profile) return std::unexpected(profile.error());
   run.executor = std::make_unique<profiles::Executor>(std::move(*profile));
   if (!run.executor->profile().rate_steps.empty()) run.rates.emplace(run.executor->profile());
+  run.table_max_abs_dps = run.rates ? run.rates->max_abs_rate_dps() : 0.0;
   // The live compensation with the models the run started with; its state is rebuilt from the
   // stored seconds by the replay (the gap's below restart it).
   const auto recorded = LiveCompensation::recorded_models(*detail);
@@ -676,7 +711,6 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
 
   // The table's command this second, stored with every unit's row (rate_in_dps).
   const double rate_dps = run.rates ? run.rates->at(st).rate_dps : 0.0;
-  const double table_max_abs_dps = run.rates ? run.rates->max_abs_rate_dps() : 0.0;
   std::vector<storage::SampleRow> rows;
   rows.reserve(run.config_index.size());
   if (run.quality.size() < run.config_index.size()) run.quality.resize(run.config_index.size());
@@ -684,13 +718,14 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
     const std::size_t ci = run.config_index[i];
     const UnitReading u = ci < in.units.size() ? in.units[ci] : UnitReading{};
     rows.push_back(sample_row(static_cast<int>(i), u, in, t_s, st, run.pv_frozen, power_.since_power_on_s(ci, clock_s),
-                              table_max_abs_dps));
+                              run.table_max_abs_dps));
     rows.back().compensated_dph = run.live.step(i, rows.back());
     if (run.rates) rows.back().rate_in_dps = rate_dps;
     run.quality[i].frames_lost += u.frames_lost;
     run.quality[i].frames_corrupt += u.frames_corrupt;
     run.quality[i].samples_flagged += rows.back().flags != 0;
     note_silent_axes(run, i, u, in, t_s);
+    note_saturated_axes(run, i, u, t_s);
   }
   if (!run.live_noted) {
     run.live_noted = true;
@@ -699,7 +734,7 @@ TickOutput Station::tick_station(double clock_s, const TickInput& in) {
   for (const auto& r : rows) {
     const auto i = static_cast<std::size_t>(r.unit_index);
     emit(protocol::to_json(sample_message(r, run.id, run.serials[i], run.state, st, in.chamber_c,
-                                          config_.drivers.units[run.config_index[i]].gyro.axes)));
+                                          i < run.unit_axes.size() ? run.unit_axes[i] : 1)));
   }
   // Committed off the loop by fogbenchd's writer thread (sample_writer.hpp): a refusal is known
   // here at once with the inline writer, a second or a few later with the thread.

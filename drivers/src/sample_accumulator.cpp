@@ -2,6 +2,7 @@
 #include "fogbench/drivers/sample_accumulator.hpp"
 
 #include <algorithm>
+#include <limits>
 
 #include "fogbench/drivers/can_frame.hpp"
 
@@ -57,6 +58,9 @@ void SampleAccumulator::add(const ::can_frame& frame) noexcept {
   if (decoded->status & can::status::valid) {
     current_.sum_counts += decoded->counts;
     ++current_.frames_used;
+    if (decoded->counts == std::numeric_limits<std::int32_t>::max() ||
+        decoded->counts == std::numeric_limits<std::int32_t>::min())
+      ++current_.frames_saturated;
   }
 }
 

@@ -178,6 +178,17 @@ struct Bench::Impl final : ControlHandler {
     if (!table && (cmd->kind == FaultKind::table_fault || cmd->kind == FaultKind::drop_table)) {
       return std::unexpected(std::string(to_string(cmd->kind)) + ": no rate table is served (--rate-table-port)");
     }
+    if (cmd->kind == FaultKind::silence_axis && cmd->axis) {
+      // An axis the unit does not have cannot be silenced: said, not ignored.
+      for (std::size_t u = 0; u < cfg.units.size(); ++u) {
+        if (cmd->unit && *cmd->unit != u) continue;
+        if (*cmd->axis >= cfg.units[u].gyro.axes) {
+          return std::unexpected("silence_axis: axis " + std::string(1, "xyz"[*cmd->axis]) + ": unit " + cfg.units[u].serial +
+                                 " has " + std::to_string(cfg.units[u].gyro.axes) +
+                                 " axis (start the bench with --axes 3 for three-axis units)");
+        }
+      }
+    }
     const bool serial_fault = cmd->kind == FaultKind::serial_garbage || cmd->kind == FaultKind::serial_cut ||
                               cmd->kind == FaultKind::serial_bad_crc || cmd->kind == FaultKind::serial_baud;
     if (serial_fault && cfg.serial_gyro_link.empty()) {
@@ -434,7 +445,8 @@ json Bench::ready_line() const {
           // Not in drivers_config: fogbenchd reads it as its own rate_table section.
           {"rate_table_config", c.rate_table_port ? json{{"kind", "acutrol"},
                                                          {"link", {{"transport", "tcp"}, {"host", c.where.host},
-                                                                   {"port", *c.rate_table_port}}}}
+                                                                   {"port", *c.rate_table_port}}},
+                                                         {"max_rate_dps", served_table_max_rate_dps}}
                                                   : json(nullptr)},
           // What the table's rate becomes in the gyros' output (sim/scale_factor.hpp).
           {"scale_factor_truth", c.rate_table_port ? json{{"sf0", c.sf_truth.sf0},

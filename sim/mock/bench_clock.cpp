@@ -245,7 +245,7 @@ void BenchClock::emit(Batch& b, Clock::time_point until, Clock::time_point t0, s
         auto other_axes = [&] {
           for (std::size_t k = 0; k < b.axis_frames[u].size(); ++k) {
             const StreamFrame a = b.axis_frames[u][k][j];
-            if (!a.powered) continue;
+            if (!a.powered || f.silent_axis[k + 1]) continue;  // no power or silenced: no frame
             auto& arng = axis_rngs_[u][k];
             ++st.axes_frames_sent;
             if (f.lose_fraction > 0 && uniform(arng) < f.lose_fraction) {
@@ -264,6 +264,10 @@ void BenchClock::emit(Batch& b, Clock::time_point until, Clock::time_point t0, s
           }
         };
         if (!slot.powered) continue;  // no power, no frame
+        if (f.silent_axis[0]) {       // axis x silenced: y and z still speak
+          other_axes();
+          continue;
+        }
         ++st.frames_sent;
         if (f.lose_burst > 0 || (f.lose_fraction > 0 && uniform(rng) < f.lose_fraction)) {
           if (f.lose_burst > 0) --f.lose_burst;

@@ -30,6 +30,7 @@ std::optional<std::string_view> main_parameter(FaultKind kind) {
     case FaultKind::power_off: return "duration_s";
     case FaultKind::power_cycle: return "off_s";
     case FaultKind::table_fault: return "text";
+    case FaultKind::silence_axis: return "axis";
     default: return std::nullopt;
   }
 }
@@ -52,6 +53,7 @@ std::set<std::string_view> fields_of(FaultKind kind) {
     case FaultKind::gyro_spike: f.insert({"unit", "dph", "duration_s"}); break;
     case FaultKind::power_off: f.insert({"unit", "duration_s"}); break;
     case FaultKind::power_cycle: f.insert({"unit", "off_s"}); break;
+    case FaultKind::silence_axis: f.insert({"unit", "axis"}); break;
     case FaultKind::serial_garbage: f.insert({"fraction", "bytes"}); break;
     case FaultKind::serial_cut:
     case FaultKind::serial_bad_crc: f.insert("fraction"); break;
@@ -94,6 +96,7 @@ std::string_view to_string(FaultKind kind) noexcept {
     case FaultKind::serial_baud: return "serial_baud";
     case FaultKind::table_fault: return "table_fault";
     case FaultKind::drop_table: return "drop_table";
+    case FaultKind::silence_axis: return "silence_axis";
   }
   return "?";
 }
@@ -161,6 +164,14 @@ std::expected<FaultCommand, std::string> parse_fault_command(const json& c, cons
     else if (s == "t2" || s == "T2") cmd.sensor = 2;
     else if (s != "both") return std::unexpected(name + ": sensor: expected t1, t2 or both (got " + s.dump() + ")");
   }
+  if (c.contains("axis")) {
+    const auto& a = c["axis"];
+    static constexpr const char* kNames[] = {"x", "y", "z"};
+    for (std::size_t k = 0; k < 3; ++k)
+      if (a == kNames[k] || (a.is_number_integer() && a.get<std::int64_t>() == static_cast<std::int64_t>(k))) cmd.axis = k;
+    if (!cmd.axis) return std::unexpected(name + ": axis: expected x, y, z or 0..2 (got " + a.dump() + ")");
+  }
+  if (cmd.kind == FaultKind::silence_axis && cmd.on && !cmd.axis) return std::unexpected(name + ": axis: missing");
   if (c.contains("text")) {
     if (!c["text"].is_string()) return std::unexpected(name + ": text: expected a string (got " + c["text"].dump() + ")");
     cmd.text = c["text"].get<std::string>();
@@ -335,6 +346,12 @@ void apply_fault(FaultState& state, const FaultCommand& c, double next_second_s)
         u.power_on_at_s = next_second_s + c.value;
       });
       break;
+    case FaultKind::silence_axis:
+      each_unit([&](UnitFaults& u) {
+        for (std::size_t k = 0; k < u.silent_axis.size(); ++k)
+          if (!c.axis || *c.axis == k) u.silent_axis[k] = c.on;
+      });
+      break;
     case FaultKind::serial_garbage:
       state.serial.garbage_fraction = c.on ? c.value : 0.0;
       state.serial.garbage_bytes = c.bytes;
@@ -377,6 +394,9 @@ json active_faults(const FaultState& s, const std::vector<std::string>& serials,
     if (u.lose_fraction > 0) with({{"name", "lose_frames"}, {"fraction", u.lose_fraction}});
     if (u.lose_burst > 0) with({{"name", "lose_burst"}, {"count", u.lose_burst}});
     if (u.corrupt_fraction > 0) with({{"name", "corrupt_frames"}, {"fraction", u.corrupt_fraction}});
+    static constexpr const char* kAxisNames[] = {"x", "y", "z"};
+    for (std::size_t k = 0; k < u.silent_axis.size(); ++k)
+      if (u.silent_axis[k]) with({{"name", "silence_axis"}, {"axis", kAxisNames[k]}});
     if (u.open_t1) with({{"name", "open_thermistor"}, {"sensor", "t1"}});
     if (u.open_t2) with({{"name", "open_thermistor"}, {"sensor", "t2"}});
     if (u.spike_until_s > next_second_s) with({{"name", "gyro_spike"}, {"dph", u.spike_dph}, {"until_s", u.spike_until_s}});

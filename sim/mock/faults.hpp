@@ -38,15 +38,17 @@ enum class FaultKind {
   serial_baud,      // the gyro sends at `baud` while the line reads at `line_baud` (default 921600)
   table_fault,      // the rate table's controller reports a fault (`text`), latched until reset
   drop_table,       // action: close the rate table's connected clients now
+  silence_axis,     // one `axis` (x, y, z) of a three-axis unit sends no frame until switched off
 };
 
-inline constexpr std::array<FaultKind, 19> all_fault_kinds = {
+inline constexpr std::array<FaultKind, 20> all_fault_kinds = {
     FaultKind::refuse_modbus, FaultKind::drop_modbus, FaultKind::stall_modbus,
     FaultKind::freeze_pv,     FaultKind::alarm,       FaultKind::lose_frames,
     FaultKind::lose_burst,    FaultKind::corrupt_frames, FaultKind::open_thermistor,
     FaultKind::gyro_spike,    FaultKind::power_off,   FaultKind::power_cycle,
     FaultKind::refuse_setpoint, FaultKind::serial_garbage, FaultKind::serial_cut,
-    FaultKind::serial_bad_crc, FaultKind::serial_baud, FaultKind::table_fault, FaultKind::drop_table};
+    FaultKind::serial_bad_crc, FaultKind::serial_baud, FaultKind::table_fault, FaultKind::drop_table,
+    FaultKind::silence_axis};
 
 // The line baud rate serial_baud assumes when not given (the KVH 1775's default), bits/s.
 inline constexpr int default_serial_line_baud = 921600;
@@ -67,6 +69,7 @@ struct FaultCommand {
   std::optional<Device> device;     // Modbus faults; empty: both devices
   std::optional<std::size_t> unit;  // unit faults, resolved to an index; empty: every unit
   std::optional<int> sensor;        // open_thermistor: 1 (T1) or 2 (T2); empty: both
+  std::optional<std::size_t> axis;  // silence_axis: 0, 1, 2 (x, y, z); empty (off only): every axis
   double value = 0;                 // ms, fraction, count, dph or off_s, by kind; power_off:
                                     // duration_s (infinity when not given)
   double duration_s = 10.0;         // gyro_spike, simulated seconds
@@ -97,6 +100,9 @@ struct UnitFaults {
   // No power from power_off_from_s (inclusive) to power_on_at_s (exclusive), simulated s.
   double power_off_from_s = std::numeric_limits<double>::infinity();
   double power_on_at_s = 0;
+  // By axis (x, y, z): the axis sends no frame (silence_axis). Its stream runs on unseen, so
+  // when it speaks again its counter has moved on: the reader counts the silence as lost.
+  std::array<bool, 3> silent_axis{};
 };
 
 // The serial gyro's line faults (the first unit's frames on --serial-gyro's pty).

@@ -43,7 +43,7 @@ std::expected<UnitLayout, std::string> default_unit_layout(std::size_t i, int fr
   const auto a = static_cast<int>(i);
   if (i % 2 == 0) {
     u.gyro.mode = drivers::GyroMode::rate;
-    u.gyro.scale_dph_per_count = 1e-4;
+    u.gyro.scale_dph_per_count = default_rate_scale_dph_per_count;
     auto channel = [](int address) {
       return json{{"function", "input"}, {"address", address}, {"type", "int16"}, {"scale", 0.01},
                   {"kind", "temperature"}, {"open_circuit_raw", 32767}};

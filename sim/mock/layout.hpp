@@ -41,7 +41,17 @@ struct UnitLayout {
   double counts_per_dph() const noexcept { return 1.0 / gyro.mean_counts_to_rate_dph(1.0); }
 };
 
-// Unit i (0-based), serial SIM-000(i+1). Even units: rate counts of 1e-4 deg/h, thermistors as
+// The rate-mode units' scale, deg/h per count. Frames carry int32 counts, so the scale bounds
+// the rate a frame can carry: 1e-3 deg/h per count holds +-2,147,483 deg/h (+-596.5 deg/s),
+// beyond the daemon's rate table limit (max_rate_dps, 500 deg/s, the served rate_table_config's).
+inline constexpr double default_rate_scale_dph_per_count = 1e-3;
+// The |rate| the served rate_table_config lets the daemon command, deg/s: what the units' counts
+// hold (the mock table itself would turn up to 1000 deg/s, RateTableSpec).
+inline constexpr double served_table_max_rate_dps = 500.0;
+static_assert(default_rate_scale_dph_per_count * 2147483647.0 > served_table_max_rate_dps * 3600.0,
+              "the served rate units' int32 counts must hold the table's largest rate");
+
+// Unit i (0-based), serial SIM-000(i+1). Even units: rate counts of 1e-3 deg/h, thermistors as
 // int16 centi-degC at input i and i+1 (open circuit 32767). Odd units: increment counts of
 // 1e-7 deg at a nominal 8000 frames/s, NTC resistances as float32 at input 100+2(i-1) and
 // 102+2(i-1). Node id 257 + i; with `axes` 3, 257 + 4i (axis k on 257 + 4i + k: the units'

@@ -4,6 +4,7 @@
 // goes silent while the others send is flagged missing each second and said once as an event
 // naming the unit, the axis and the time; a one-axis unit beside it records as before.
 #include <cmath>
+#include <limits>
 
 #include "../../daemon/src/acquisition.hpp"
 #include "../../daemon/src/run_reads.hpp"
@@ -55,6 +56,10 @@ struct AxisBench {
   int second = 0;
   int silent_axis = 2;
   int silent_from = 10, silent_to = 15;
+  // Axis `saturated_axis` of unit 0 sends counts at the int32 limit in [saturated_from,
+  // saturated_to): a rate beyond what its scale carries (none by default).
+  int saturated_axis = -1;
+  int saturated_from = 0, saturated_to = 0;
 
   explicit AxisBench(const DaemonConfig& c)
       : bus(std::make_unique<NoTransport>(),
@@ -67,7 +72,9 @@ struct AxisBench {
     for (int f = 0; f < kFramesPerSecond; ++f) {
       for (int k = 0; k < 3; ++k) {
         if (silence && k == silent_axis) continue;
-        const auto counts = static_cast<std::int32_t>(std::lround(axis_dph(k, second) / kScaleDphPerCount));
+        const bool at_limit = k == saturated_axis && second >= saturated_from && second < saturated_to;
+        const auto counts = at_limit ? std::numeric_limits<std::int32_t>::max()
+                                     : static_cast<std::int32_t>(std::lround(axis_dph(k, second) / kScaleDphPerCount));
         bus.route(drivers::can::encode({static_cast<std::uint16_t>(kBase + k), counts, seq[k]++, drivers::can::status::valid}));
       }
       bus.route(drivers::can::encode(
@@ -187,4 +194,119 @@ TEST_CASE("station: a three-axis unit's y and z are stored per second, a silent 
   auto page1 = run_samples(store, *id, {{"unit", 1}}, 0, 100);
   REQUIRE(page1.has_value());
   CHECK_FALSE((*page1)["samples"][0].contains("gyro_y_dph"));
+}
+
+TEST_CASE("station: a gyro axis at its int32 count limit is flagged out_of_range and said once, not stored silently") {
+  const DaemonConfig config = three_axis_config();
+  auto store = memory_store();
+  Station st(config, store, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
+  SyntheticBench thermal(2);
+  AxisBench gyros(config);
+  gyros.silent_from = gyros.silent_to = 0;  // no silence here
+  gyros.saturated_axis = 1;                 // y
+  gyros.saturated_from = 8;
+  gyros.saturated_to = 12;
+  double clock_s = 100.0;
+  auto id = st.start_run("short", {"FOG-0001", "FOG-0002"}, storage::Purpose::fit, {{"cmd", "run.start"}});
+  REQUIRE(id.has_value());
+  constexpr int kTicks = 20;
+  double sp = st.status()["setpoint_c"].get<double>();
+  for (int n = 0; n < kTicks; ++n) {
+    TickInput in = thermal.step(sp);
+    for (auto& u : in.units) u.gyro_dph.reset();
+    gyros.fill(in);
+    sp = st.tick(clock_s, in).setpoint_c;
+    clock_s += 1.0;
+  }
+  REQUIRE(st.abort_run("test over", {{"cmd", "run.abort"}}).has_value());
+  st.tick(clock_s, thermal.step(sp));
+
+  auto rows = store.get_samples(*id, 0, 0, kTicks);
+  REQUIRE(rows.has_value());
+  REQUIRE(rows->size() == kTicks);
+  for (int s = 0; s < kTicks; ++s) {
+    const storage::SampleRow& r = rows->at(static_cast<std::size_t>(s));
+    INFO("second " << s);
+    const bool clipped = s >= 8 && s < 12;
+    CHECK(((r.flags & model::flag::out_of_range) != 0) == clipped);
+    // The clipped value is kept (flagged): INT32_MAX counts x 1e-4 deg/h = 214748.3647 deg/h.
+    if (clipped) CHECK(r.gyro_y_dph == Approx(2147483647.0 * kScaleDphPerCount).epsilon(1e-12));
+    CHECK(r.gyro_dph == Approx(AxisBench::axis_dph(0, s)).margin(1e-9));  // x unaffected
+  }
+  auto single = store.get_samples(*id, 1, 0, kTicks);
+  REQUIRE(single.has_value());
+  for (const auto& r : *single) CHECK((r.flags & model::flag::out_of_range) == 0);
+
+  auto detail = store.get_run(*id);
+  REQUIRE(detail.has_value());
+  std::vector<json> saturated;
+  for (const auto& e : detail->events)
+    if (e.kind == storage::EventKind::fault) {
+      auto d = json::parse(e.detail_json);
+      if (d.value("gyro_axis", "") == "saturated") {
+        saturated.push_back(d);
+        CHECK(e.t_s == 8.0);
+      }
+    }
+  REQUIRE(saturated.size() == 1);  // once per axis and run, at its first second
+  CHECK(saturated[0]["unit"] == 0);
+  CHECK(saturated[0]["serial"] == "FOG-0001");
+  CHECK(saturated[0]["axis"] == "y");
+  CHECK(saturated[0]["can_id"] == kBase + 1);
+  CHECK(saturated[0]["t_s"] == 8.0);
+  // 1e-4 deg/h per count holds 2147483647 x 1e-4 / 3600 = 59.65 deg/s.
+  CHECK(saturated[0]["holds_dps"].get<double>() == Approx(59.652).margin(1e-3));
+  const std::string reason = saturated[0]["reason"];
+  CHECK(reason.find("10 of 10 frames on CAN id " + std::to_string(kBase + 1) + " at the int32 count limit") == 0);
+}
+
+TEST_CASE("station: a configuration reloaded mid-run does not change the running run's axes") {
+  const DaemonConfig config = three_axis_config();
+  auto store = memory_store();
+  Station st(config, store, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
+  std::vector<json> published;
+  st.set_publisher([&](const json& m) { published.push_back(m); });
+  SyntheticBench thermal(2);
+  AxisBench gyros(config);  // unit 0's bus stays three-axis: the devices are opened at start
+  gyros.silent_from = 15;   // z silent in seconds 15..19, after the reload
+  gyros.silent_to = 20;
+  double clock_s = 100.0;
+  auto id = st.start_run("short", {"FOG-0001", "FOG-0002"}, storage::Purpose::fit, {{"cmd", "run.start"}});
+  REQUIRE(id.has_value());
+  // The reloaded configuration says unit 0 is one-axis.
+  DaemonConfig one_axis = config;
+  one_axis.drivers.units[0].gyro.axes = 1;
+  constexpr int kTicks = 20;
+  double sp = st.status()["setpoint_c"].get<double>();
+  for (int n = 0; n < kTicks; ++n) {
+    if (n == 5) st.reload_config(one_axis);
+    TickInput in = thermal.step(sp);
+    for (auto& u : in.units) u.gyro_dph.reset();
+    gyros.fill(in);
+    sp = st.tick(clock_s, in).setpoint_c;
+    clock_s += 1.0;
+  }
+  REQUIRE(st.abort_run("test over", {{"cmd", "run.abort"}}).has_value());
+  st.tick(clock_s, thermal.step(sp));
+
+  // Every pushed sample of unit 0, before and after the reload, is the three-axis unit's.
+  int pushed0 = 0;
+  for (const auto& m : published) {
+    if (m.value("type", "") != "sample" || m["unit"] != 0) continue;
+    ++pushed0;
+    INFO("t_s " << m["t_s"]);
+    REQUIRE(m.contains("gyro_y_dph"));
+    CHECK(m["gyro_y_dph"].get<double>() == Approx(AxisBench::axis_dph(1, static_cast<int>(m["t_s"].get<double>()))).margin(1e-9));
+  }
+  CHECK(pushed0 == kTicks);
+  // The silence after the reload is still a three-axis unit's silent axis.
+  auto detail = store.get_run(*id);
+  REQUIRE(detail.has_value());
+  int silent = 0;
+  for (const auto& e : detail->events)
+    if (e.kind == storage::EventKind::fault && json::parse(e.detail_json).value("gyro_axis", "") == "silent") {
+      ++silent;
+      CHECK(e.t_s == 15.0);
+    }
+  CHECK(silent == 1);
 }

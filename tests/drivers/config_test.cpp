@@ -43,7 +43,7 @@ TEST_CASE("the example configuration of the mock bench parses") {
   REQUIRE(cfg->units.size() == 2);
   CHECK(cfg->units[0].serial == "FOG-0001");
   CHECK(cfg->units[0].gyro.node_id == 257);
-  CHECK(cfg->units[0].gyro.scale_dph_per_count == 0.0001);
+  CHECK(cfg->units[0].gyro.scale_dph_per_count == 0.001);
   CHECK(cfg->units[1].gyro.mode == GyroMode::increment);
   CHECK(cfg->units[1].gyro.frame_rate_hz == 8000);
   CHECK(cfg->units[1].t2.kind == ThermistorKind::ntc);

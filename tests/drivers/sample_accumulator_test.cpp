@@ -2,6 +2,8 @@
 // frames.
 #include <catch2/catch.hpp>
 
+#include <limits>
+
 #include "fogbench/drivers/can_frame.hpp"
 #include "fogbench/drivers/sample_accumulator.hpp"
 
@@ -212,4 +214,21 @@ TEST_CASE("a power-on is a frame that says so: warming_up rising or the counter 
     acc.add(frame(0, 1000, warm));
     CHECK(acc.close().starts == 1);
   }
+}
+
+TEST_CASE("frames at the int32 count limit are counted saturated, others are not") {
+  SampleAccumulator acc(rate_unit());
+  constexpr std::int32_t hi = std::numeric_limits<std::int32_t>::max(), lo = std::numeric_limits<std::int32_t>::min();
+  acc.add(frame(0, hi));
+  acc.add(frame(1, hi - 1));  // one count short of the limit: a rate the scale still carries
+  acc.add(frame(2, lo));
+  acc.add(frame(3, hi, 0));   // not valid: not averaged, so not counted either
+  GyroSample s = acc.close();
+  CHECK(s.frames_used == 3);
+  CHECK(s.frames_saturated == 2);
+  // The next sample starts with none.
+  acc.add(frame(4, 1000));
+  s = acc.close();
+  CHECK(s.frames_saturated == 0);
+  CHECK(*s.rate_dph == Approx(1.0).epsilon(1e-12));
 }

@@ -9,11 +9,15 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <numeric>
+#include <random>
 
 #include "control.hpp"
 #include "faults.hpp"
+#include "fogbench/drivers/can_frame.hpp"
 #include "fogbench/drivers/config.hpp"
+#include "fogbench/drivers/sample_accumulator.hpp"
 #include "fogbench/drivers/thermistor_conversion.hpp"
 #include "frames.hpp"
 #include "layout.hpp"
@@ -371,4 +375,86 @@ TEST_CASE("mock bench options --axes: 1 or 3, and not with a serial gyro", "[thr
   cfg = fogbench::mock::make_bench_config(o);
   REQUIRE_FALSE(cfg.has_value());
   CHECK(cfg.error() == "--serial-gyro needs --axes 1: a serial gyro's frame carries one axis");
+}
+
+TEST_CASE("fault silence_axis: one axis of a unit, by name or index, switched on and off", "[three_axis]") {
+  const std::vector<std::string> serials = {"SIM-0001", "SIM-0002"};
+  FaultState state;
+  state.units.resize(2);
+  auto apply = [&](const json& j) {
+    auto c = parse_fault_command(j, serials);
+    INFO(j.dump());
+    REQUIRE(c.has_value());
+    apply_fault(state, *c, 10.0);
+  };
+  apply({{"name", "silence_axis"}, {"unit", 0}, {"axis", "z"}});
+  CHECK(state.units[0].silent_axis == std::array<bool, 3>{false, false, true});
+  CHECK(state.units[1].silent_axis == std::array<bool, 3>{false, false, false});
+  apply({{"name", "silence_axis"}, {"unit", "SIM-0002"}, {"axis", 1}});  // an index: y
+  CHECK(state.units[1].silent_axis == std::array<bool, 3>{false, true, false});
+  const auto active = active_faults(state, serials, 10.0);
+  REQUIRE(active.size() == 2);
+  CHECK(active[0] == json({{"name", "silence_axis"}, {"axis", "z"}, {"unit", 0}, {"serial", "SIM-0001"}}));
+  CHECK(active[1]["axis"] == "y");
+  // Off without an axis: every axis of the unit speaks again.
+  apply({{"name", "silence_axis"}, {"unit", 1}, {"on", false}});
+  CHECK(state.units[1].silent_axis == std::array<bool, 3>{false, false, false});
+  CHECK(state.units[0].silent_axis[2]);
+
+  // The command-line form: the axis is the main parameter.
+  auto j = fault_json_from_cli("silence_axis=z,unit=0");
+  REQUIRE(j.has_value());
+  CHECK(*j == json({{"cmd", "fault"}, {"name", "silence_axis"}, {"on", true}, {"axis", "z"}, {"unit", 0}}));
+
+  CHECK(parse_fault_command({{"name", "silence_axis"}, {"unit", 0}}, serials).error() == "silence_axis: axis: missing");
+  CHECK(parse_fault_command({{"name", "silence_axis"}, {"axis", "w"}}, serials).error() ==
+        "silence_axis: axis: expected x, y, z or 0..2 (got \"w\")");
+  CHECK(parse_fault_command({{"name", "silence_axis"}, {"axis", 3}}, serials).error() ==
+        "silence_axis: axis: expected x, y, z or 0..2 (got 3)");
+  CHECK(parse_fault_command({{"name", "silence_axis"}, {"axis", "x"}, {"fraction", 1}}, serials).error() ==
+        "silence_axis: unknown field 'fraction' (known: axis, on, unit)");
+}
+
+TEST_CASE("the served rate unit's int32 counts carry the served table's largest rate, and clip only beyond it") {
+  auto u = default_unit_layout(0, 100);
+  REQUIRE(u.has_value());
+  REQUIRE(u->gyro.mode == drivers::GyroMode::rate);
+  CHECK(u->gyro.scale_dph_per_count == default_rate_scale_dph_per_count);
+  // What the example configuration tells the daemon is what the mock encodes with.
+  CHECK(example().units[0].gyro.scale_dph_per_count == u->gyro.scale_dph_per_count);
+  constexpr double hi = std::numeric_limits<std::int32_t>::max();
+  // The int32 counts hold +-hi x scale deg/h: at 1e-3 deg/h per count 596.5 deg/s.
+  const double holds_dps = hi * u->gyro.scale_dph_per_count / 3600.0;
+  CHECK(holds_dps == Approx(596.52).margin(0.01));
+  CHECK(holds_dps > served_table_max_rate_dps);
+
+  // A noiseless stream at the table's largest rate (+ and -): every frame's counts below the
+  // limit, and the daemon's accumulator reads the rate back (the quantisation's error over a
+  // second is at most one count, 1e-3 deg/h, in 100 frames).
+  StreamParams p;
+  p.frame_rate_hz = 100;
+  p.counts_per_dph = u->counts_per_dph();
+  p.sigma_a_dph = 0;
+  p.startup_flag_s = 0;
+  for (double dps : {served_table_max_rate_dps, -served_table_max_rate_dps, 1.2 * holds_dps}) {
+    INFO(dps << " deg/s");
+    GyroStream g(p);
+    std::mt19937_64 rng(1);
+    std::vector<StreamFrame> frames;
+    g.second(0, dps * 3600.0, PowerWindow{}, rng, frames);
+    drivers::SampleAccumulator acc(u->gyro);
+    std::uint8_t seq = 0;
+    for (const auto& f : frames) acc.add(drivers::can::encode({u->gyro.node_id, f.counts, seq++, drivers::can::status::valid}));
+    const auto s = acc.close();
+    REQUIRE(s.rate_dph.has_value());
+    if (std::abs(dps) < holds_dps) {
+      CHECK(s.frames_saturated == 0);
+      CHECK(*s.rate_dph == Approx(dps * 3600.0).margin(1e-3));
+    } else {
+      // Beyond: every frame at the limit, the rate clipped to what the counts hold, and the
+      // accumulator says so (the daemon flags the second out_of_range).
+      CHECK(s.frames_saturated == frames.size());
+      CHECK(*s.rate_dph == Approx(holds_dps * 3600.0).epsilon(1e-9));
+    }
+  }
 }

@@ -254,10 +254,19 @@ class Station final : public RunControl {
     // The rate table's command over the run, from the profile's rate steps (set at the first
     // tick); empty: the run drives no table and stores no commanded rate.
     std::optional<profiles::RateSchedule> rates;
+    // The largest |rate| of `rates`, deg/s (0 without): the out-of-range bound of every second's
+    // gyro reading, computed once when the run starts or resumes.
+    double table_max_abs_dps = 0.0;
+    // Per run unit: its gyro axes (1 or 3) as the run started or was stored, not as the current
+    // configuration says (a reload mid-run must not change a running run's axes).
+    std::vector<int> unit_axes;
     bool live_noted = false;                    // its models are in the run's events
     // Per run unit, per axis (x, y, z): a second of silence of that axis is in the run's events
     // (said once per run, note_silent_axes).
     std::vector<std::array<bool, 3>> axis_silence_noted;
+    // Per run unit, per axis: a second with frames at the int32 count limit is in the run's
+    // events (said once per run, note_saturated_axes).
+    std::vector<std::array<bool, 3>> axis_saturation_noted;
   };
 
   static nlohmann::json quality_json(const ActiveRun& run);
@@ -292,6 +301,11 @@ class Station final : public RunControl {
   // first such second of each axis is a `fault` event naming the unit, the axis and its CAN id
   // (the seconds themselves are flagged missing, sample_rows.hpp).
   void note_silent_axes(ActiveRun& run, std::size_t unit, const UnitReading& u, const TickInput& in, double t_s);
+  // An axis whose frames this second carried counts at the int32 limit (a rate beyond what the
+  // unit's scale can carry: the reading is clipped): the first such second of each axis is a
+  // `fault` event naming the unit, the axis, the time and the scale (the seconds themselves are
+  // flagged out_of_range, sample_rows.hpp).
+  void note_saturated_axes(ActiveRun& run, std::size_t unit, const UnitReading& u, double t_s);
 
   void transition(ActiveRun& run, storage::RunState to, const std::string& reason,
                   std::optional<double> t_s);

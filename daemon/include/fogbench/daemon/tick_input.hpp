@@ -17,6 +17,7 @@ struct AxisReading {
   std::uint32_t frames = 0;
   std::uint32_t frames_lost = 0;
   std::uint32_t frames_corrupt = 0;
+  std::uint32_t frames_saturated = 0;  // counts at the int32 limit: the rate is clipped
 };
 
 // One configured unit's readings at one tick; an empty optional was not read.
@@ -26,6 +27,9 @@ struct UnitReading {
   std::uint32_t frames_lost = 0;
   std::uint32_t frames_corrupt = 0;  // bad CRC or length: discarded, so lost to the average too
   std::uint32_t gyro_starts = 0;     // frames that began a power-on (drivers::GyroSample::starts)
+  // Averaged frames whose counts were at the int32 limit (drivers::GyroSample::frames_saturated):
+  // the rate beyond what the unit's scale carries, so gyro_dph is clipped.
+  std::uint32_t frames_saturated = 0;
   std::optional<double> t1_c;
   std::optional<double> t2_c;
   bool out_of_range = false;  // a sensor or the gyro reported a value outside its range

@@ -58,6 +58,9 @@ struct GyroSample {
   // A late reader, a paused one or lost frames of a running gyro never make one.
   std::uint32_t starts = 0;
   std::int64_t sum_counts = 0;       // of the frames used (exact; the mean is this / frames_used)
+  // Frames used whose counts are at the int32 limit (INT32_MIN or INT32_MAX): a gyro whose rate
+  // is beyond what its scale can carry sends the limit, so the mean is a clipped rate.
+  std::uint32_t frames_saturated = 0;
   // The axis this sample is of (0 for a one-axis unit); node_id stays the unit's (base) id, the
   // frames' id is node_id + axis.
   std::uint8_t axis = 0;
