@@ -140,20 +140,53 @@ void settled_stretches(const FloorRun& fr, const NoiseFloorOptions& o, std::vect
 // a thermal term the model misses (or a wrong one it holds) then moves the residual with them:
 // read as slow noise, it would widen the limits and excuse itself and whatever else is
 // missing. Regressors pooled over all stretches, each demeaned within its stretch: T1 and T2
-// levels (degC) and their rates (degC/s, a slope over +-rate_half_s). Taken out only when
-// significant: the explained sum of squares over the residual's variance, a chi-square of p
-// degrees of freedom under no creep, scaled down by the post-fit residual's autocorrelation
-// over lags 1..max_lag_s (1 + 2 sum rho: slow noise has fewer independent samples than it has
-// samples), above its 99.9 % quantile. The gyro's own slow noise does not follow the
-// thermistors; where by chance it does, the guard keeps it in the floor unless the match is
-// far beyond chance. Returns the scaled chi-square (0: no regressor moved), its quantile and
-// the variance taken out, (deg/h)^2.
+// levels (degC), their rates (degC/s, a slope over +-rate_half_s) and their levels times the
+// stretch's mean level (degC^2, for a term not linear in temperature).
+//
+// Taken out only when significant, by a Wald test whose variance is the gyro's own noise's: the
+// scores g = X'y (X the regressors scaled to unit norm) have, under no creep, the covariance
+// M = X' Sigma X with Sigma the noise's autocovariance within each stretch (a sandwich with the
+// noise's long-range dependence in its meat). Sigma is the floor read on the holds as they are
+// (`null_floor`: white or the model's AR at short lags, flicker h/f and random walk h/f^2,
+// stretches independent), so W = g' M^-1 g is a chi-square of rank(M) degrees of freedom under
+// no creep, however slowly the noise wanders. A residual autocovariance estimated from the same
+// stretches (Newey-West, or the scalar 1 + 2 sum rho it replaces) is biased low for flicker and
+// walk, whose correlation outlasts a hold, and its test was too liberal. Returns W (0: no
+// regressor moved), its 99.9 % quantile and the variance taken out, (deg/h)^2.
 struct CreepFit {
   double chi2_eff = 0.0, quantile = 0.0, removed_var_dph2 = 0.0;
+  std::size_t dof = 0;
   bool removed = false;
 };
-CreepFit remove_creep(std::vector<Stretch>& spans) {
-  constexpr std::size_t rate_half_s = 30, max_lag_s = 600;
+
+// The short-term part's autocovariance at lags 0.. (the white level read off the holds, or the
+// model's AR(p) with its sigma_a), (deg/h)^2; cut where it falls under 1e-6 of lag 0.
+std::vector<double> creep_fast_acov(const NoiseFloor& f) {
+  if (f.white_var_dph2 > 0.0 || f.ar.empty()) return {f.white_var_dph2 > 0.0 ? f.white_var_dph2 : f.sigma_a_dph * f.sigma_a_dph};
+  std::vector<double> psi{1.0};  // the AR filter's impulse response
+  const std::size_t p = f.ar.size();
+  for (std::size_t j = 1; j < 20000; ++j) {
+    double v = 0.0;
+    for (std::size_t i = 1; i <= p && i <= j; ++i) v += f.ar[i - 1] * psi[j - i];
+    if (!std::isfinite(v) || std::abs(v) > 1e6) return {f.sigma_a_dph * f.sigma_a_dph};  // not stationary: white at sigma_a
+    psi.push_back(v);
+    bool small = j >= p;
+    for (std::size_t i = 0; i < p && small; ++i) small = std::abs(psi[j - i]) < 1e-9;
+    if (small) break;
+  }
+  std::vector<double> g;
+  const double s2 = f.sigma_a_dph * f.sigma_a_dph;
+  for (std::size_t l = 0; l < psi.size() && l <= 600; ++l) {
+    double v = 0.0;
+    for (std::size_t j = 0; j + l < psi.size(); ++j) v += psi[j] * psi[j + l];
+    g.push_back(s2 * v);
+    if (l > 0 && std::abs(g.back()) < 1e-6 * g.front()) break;
+  }
+  return g;
+}
+
+CreepFit remove_creep(std::vector<Stretch>& spans, const NoiseFloor& null_floor) {
+  constexpr std::size_t rate_half_s = 30;
   constexpr double p_false = 1e-3;
   CreepFit cf;
   std::size_t n = 0;
@@ -184,7 +217,21 @@ CreepFit remove_creep(std::vector<Stretch>& spans) {
     }
     demeaned(r, col);
   };
-  std::vector<std::vector<double>> cols(4);
+  // A level times its stretch's mean level (degC^2): a term the model misses that is not linear
+  // in temperature (T1^2, a product) moves the residual in a hold by its slope at the hold's
+  // temperature, 2 T dT for T^2, which one pooled coefficient per level cannot follow across
+  // holds at different temperatures (its misfit in the other holds would read as slow noise).
+  auto level_at = [&](const std::vector<double>& t, std::size_t len, std::vector<double>& col) {
+    if (t.size() != len) {
+      col.insert(col.end(), len, 0.0);
+      return;
+    }
+    double m = 0.0;
+    for (double x : t) m += x;
+    m /= static_cast<double>(len);
+    for (double x : t) col.push_back((x - m) * m);
+  };
+  std::vector<std::vector<double>> cols(6);
   std::vector<double> y;
   y.reserve(n);
   for (const auto& sp : spans) {
@@ -193,6 +240,8 @@ CreepFit remove_creep(std::vector<Stretch>& spans) {
     level(sp.t2_c, len, cols[1]);
     rate(sp.t1_c, len, cols[2]);
     rate(sp.t2_c, len, cols[3]);
+    level_at(sp.t1_c, len, cols[4]);
+    level_at(sp.t2_c, len, cols[5]);
     demeaned(sp.x, y);
   }
   // Columns that move at all, scaled to unit norm (levels and rates differ by orders of magnitude).
@@ -208,49 +257,108 @@ CreepFit remove_creep(std::vector<Stretch>& spans) {
   }
   if (use.empty() || n < 10 * use.size() + spans.size()) return cf;
   const auto ni = static_cast<Eigen::Index>(n);
-  Eigen::MatrixXd X(ni, static_cast<Eigen::Index>(use.size()));
+  const auto p = static_cast<Eigen::Index>(use.size());
+  Eigen::MatrixXd X(ni, p);
   for (std::size_t c = 0; c < use.size(); ++c)
     for (std::size_t i = 0; i < n; ++i) X(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(c)) = cols[use[c]][i] * scale[c];
   const Eigen::VectorXd yv = Eigen::Map<const Eigen::VectorXd>(y.data(), ni);
+  const Eigen::VectorXd g = X.transpose() * yv;
+
+  // M = X' Sigma X, stretch by stretch: the short-term part in time (its autocovariance is a
+  // few lags long), the slow part in frequency (int S_slow(f) Re(C_a(f) C_b(f)*) df, C_a the
+  // regressor's transform over the stretch; finite since each column sums to 0 in a stretch),
+  // on a log grid in f fine enough for the stretches' lengths.
+  Eigen::MatrixXd M = Eigen::MatrixXd::Zero(p, p);
+  std::vector<double> fast = creep_fast_acov(null_floor);
+  // The regression's own fit, taken out when significant; its residual's variance stands for
+  // the short-term level where the floor saw no slow law (the model's AR noise was fitted on
+  // the opening hold alone and may be a different level from the holds').
+  // A column with under 1 % of its norm its own (the rest follows the others) is left out of
+  // the fit: nearly collinear levels would take huge opposite coefficients and put the
+  // thermistors' own noise, amplified, into the residual.
   Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(X);
-  qr.setThreshold(1e-8);
-  const auto rank = static_cast<std::size_t>(qr.rank());
-  if (rank == 0) return cf;
-  const Eigen::VectorXd b = qr.solve(yv);
-  const Eigen::VectorXd fit = X * b;
-  const Eigen::VectorXd e = yv - fit;
-  // Degrees of freedom: n samples less one mean per stretch less the fitted coefficients.
-  const double dof = static_cast<double>(n) - static_cast<double>(spans.size()) - static_cast<double>(rank);
-  if (dof < 1.0) return cf;
-  const double var_e = e.squaredNorm() / dof;
-  if (!(var_e > 0.0)) return cf;
-  // The post-fit residual's autocorrelation, pooled over the stretches (lags within a stretch).
-  double factor = 1.0;
-  {
-    std::vector<double> acc(max_lag_s + 1, 0.0), cnt(max_lag_s + 1, 0.0);
-    std::size_t off = 0;
-    for (const auto& sp : spans) {
-      const std::size_t len = sp.x.size();
-      for (std::size_t lag = 0; lag <= max_lag_s && lag < len; ++lag)
-        for (std::size_t i = lag; i < len; ++i) {
-          acc[lag] += e(static_cast<Eigen::Index>(off + i)) * e(static_cast<Eigen::Index>(off + i - lag));
-          cnt[lag] += 1.0;
-        }
-      off += len;
+  qr.setThreshold(1e-2);
+  if (qr.rank() == 0) return cf;
+  const Eigen::VectorXd fit = X * qr.solve(yv);
+  if (!null_floor.slow()) {
+    const double dof = static_cast<double>(n) - static_cast<double>(spans.size()) - static_cast<double>(qr.rank());
+    const double var_e = dof >= 1.0 ? (yv - fit).squaredNorm() / dof : 0.0;
+    if (var_e > 0.0 && fast.front() > 0.0) {
+      const double k = var_e / fast.front();
+      for (double& v : fast) v *= k;
     }
-    const double c0 = acc[0] / cnt[0];
-    for (std::size_t lag = 1; lag <= max_lag_s && cnt[lag] > 0.0; ++lag)
-      factor += 2.0 * (1.0 - static_cast<double>(lag) / static_cast<double>(max_lag_s + 1)) * (acc[lag] / cnt[lag]) / c0;
-    factor = std::max(1.0, factor);
   }
-  const double chi2 = fit.squaredNorm() / var_e;
-  cf.chi2_eff = chi2 / factor;
+  const double slow_h1 = null_floor.flicker_h, slow_h2 = null_floor.walk_h + null_floor.walk_bound_h;
+  std::size_t longest = 0;
+  for (const auto& sp : spans) longest = std::max(longest, sp.x.size());
+  constexpr int grid = 200;
+  const double f_lo = std::log(std::min(1e-6, 0.01 / static_cast<double>(longest))), f_hi = std::log(0.5);
+  const double step = (f_hi - f_lo) / (grid - 1);
+  std::size_t off = 0;
+  for (const auto& sp : spans) {
+    const auto len = static_cast<Eigen::Index>(sp.x.size());
+    const auto Xs = X.middleRows(static_cast<Eigen::Index>(off), len);
+    // Exact over the first exact_lags lags; beyond, the regressors (levels, and rates over
+    // +-30 s) barely change within a lag, so x_t x_{t+l}' is taken as x_t x_t' (a long AR tail
+    // would otherwise cost a pass over the stretch per lag).
+    constexpr std::size_t exact_lags = 30;
+    double tail = 0.0;
+    for (std::size_t l = 0; l < fast.size() && static_cast<Eigen::Index>(l) < len; ++l) {
+      if (l > exact_lags) {
+        tail += fast[l];
+        continue;
+      }
+      const auto L = static_cast<Eigen::Index>(l);
+      const Eigen::MatrixXd cross = Xs.topRows(len - L).transpose() * Xs.bottomRows(len - L);
+      M += fast[l] * (l == 0 ? cross : Eigen::MatrixXd(cross + cross.transpose()));
+    }
+    if (tail != 0.0) M += 2.0 * tail * (Xs.transpose() * Xs);
+    if (slow_h1 > 0.0 || slow_h2 > 0.0) {
+      double prev_w = 0.0;
+      Eigen::MatrixXd prev_m = Eigen::MatrixXd::Zero(p, p);
+      for (int k = 0; k < grid; ++k) {
+        const double fk = std::exp(f_lo + step * k);
+        const std::complex<double> rot = std::polar(1.0, -2.0 * kPi * fk);
+        std::complex<double> z{1.0, 0.0};
+        Eigen::VectorXcd C = Eigen::VectorXcd::Zero(p);
+        for (Eigen::Index i = 0; i < len; ++i) {
+          for (Eigen::Index c = 0; c < p; ++c) C(c) += Xs(i, c) * z;
+          z *= rot;
+        }
+        // One-sided S(f) df with df = f dln f; Re(C C^H).
+        const double w = (slow_h1 / fk + slow_h2 / (fk * fk)) * fk;
+        const Eigen::MatrixXd m = (C * C.adjoint()).real();
+        if (k > 0) M += 0.5 * step * (prev_w * prev_m + w * m);
+        prev_w = w;
+        prev_m = m;
+      }
+    }
+    off += sp.x.size();
+  }
+  // W = g' M^+ g over M's directions that carry variance (near-collinear regressors leave
+  // directions with none: they are dropped, and with them their degrees of freedom).
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(M);
+  if (es.info() != Eigen::Success) return cf;
+  const double lmax = es.eigenvalues().maxCoeff();
+  if (!(lmax > 0.0)) return cf;
+  double wald = 0.0;
+  std::size_t rank = 0;
+  for (Eigen::Index k = 0; k < p; ++k) {
+    const double lk = es.eigenvalues()(k);
+    if (!(lk > 1e-8 * lmax)) continue;
+    const double proj = es.eigenvectors().col(k).dot(g);
+    wald += proj * proj / lk;
+    ++rank;
+  }
+  if (rank == 0) return cf;
+  cf.chi2_eff = wald;
+  cf.dof = rank;
   // The chi-square of `rank` degrees of freedom is 2 x a gamma of shape rank / 2.
   cf.quantile = 2.0 * gamma_quantile(0.5 * static_cast<double>(rank), 1.0 - p_false);
   if (!(cf.chi2_eff > cf.quantile)) return cf;
   cf.removed = true;
   cf.removed_var_dph2 = fit.squaredNorm() / static_cast<double>(n);
-  std::size_t off = 0;
+  off = 0;
   for (auto& sp : spans) {
     for (std::size_t i = 0; i < sp.x.size(); ++i) sp.x[i] -= fit(static_cast<Eigen::Index>(off + i));
     off += sp.x.size();
@@ -289,25 +397,19 @@ NoiseFloor estimate_noise_floor(const RunData& run, std::span<const double> resi
   return estimate_noise_floor(std::span<const FloorRun>(&one, 1), ar, sigma_a_dph, o);
 }
 
-NoiseFloor estimate_noise_floor(std::span<const FloorRun> runs, std::span<const double> ar, double sigma_a_dph, const NoiseFloorOptions& o) {
+namespace {
+
+// The floor's laws read off the stretches' pooled Allan curve (below), with the model's AR
+// noise as the fallback; the note says how it was read.
+// bound_always: the walk the holds cannot exclude read even where no flicker is seen (the creep
+// guard's null noise, remove_creep; the floor itself bounds it only beside flicker).
+NoiseFloor read_floor_laws(const std::vector<Stretch>& spans, std::span<const double> ar, double sigma_a_dph, const NoiseFloorOptions& o,
+                           bool bound_always = false) {
   NoiseFloor fl;
   fl.ar.assign(ar.begin(), ar.end());
   fl.sigma_a_dph = sigma_a_dph;
-  std::vector<Stretch> spans;
-  for (const auto& fr : runs) settled_stretches(fr, o, spans);
   std::size_t total = 0;
   for (const auto& sp : spans) total += sp.x.size();
-  if (spans.empty()) {
-    fl.note = "no settled hold of " + std::to_string(o.min_stretch_s) + " s or more: the model's AR noise alone";
-    return fl;
-  }
-  const CreepFit creep = o.remove_creep ? remove_creep(spans) : CreepFit{};
-  fl.creep_removed = creep.removed;
-  fl.creep_chi2 = creep.chi2_eff;
-  const std::string creep_note =
-      creep.removed ? "; the thermistors' creep taken out of the holds (" + fmt(std::sqrt(creep.removed_var_dph2), 4) + " deg/h rms, chi-square " +
-                          fmt(creep.chi2_eff, 1) + " against " + fmt(creep.quantile, 1) + ")"
-                    : std::string();
   // The pooled curve: each stretch's overlapping Allan variance at half-octave cluster sizes up
   // to a third of it, weighted by its number of terms; degrees of freedom N/m - 1 summed (IEEE
   // 952's conservative count).
@@ -468,7 +570,7 @@ NoiseFloor estimate_noise_floor(std::span<const FloorRun> runs, std::span<const 
   // Read when flicker is seen and no walk (the case the holds leave ambiguous); with white noise
   // alone the AR rule stands (the bound is small there: 0.075 deg/h/sqrt(h) on exp1-3 at the
   // default noise, docs/workbench.md).
-  if (best.cw <= 0.0 && best.cf > 0.0 && o.walk_bound_chi2 > 0.0) {
+  if (best.cw <= 0.0 && (best.cf > 0.0 || bound_always) && o.walk_bound_chi2 > 0.0) {
     // The deviance of the curve's estimates under a law, each a chi-square of edf degrees of
     // freedom about the law's value m (half its edf: half-octave points overlap):
     // sum edf/2 (y/m - 1 - ln(y/m)). The weighted misfit the laws are fitted by saturates as m
@@ -517,8 +619,35 @@ NoiseFloor estimate_noise_floor(std::span<const FloorRun> runs, std::span<const 
             (fl.flicker_h > 0.0 ? ", bias instability " + fmt(fl.bias_instability_dph, 4) + " deg/h" : std::string()) +
             (fl.walk_h > 0.0 ? ", rate random walk " + fmt(fl.rrw_dph_per_sqrt_h, 4) + " deg/h/sqrt(h)" : std::string()) +
             (fl.slow() ? "" : ", no flicker or random walk seen") +
-            (fl.walk_bound_h > 0.0 ? ", a rate random walk up to " + fmt(fl.rrw_bound_dph_per_sqrt_h, 4) + " deg/h/sqrt(h) not excluded" : std::string()) +
-            creep_note;
+            (fl.walk_bound_h > 0.0 ? ", a rate random walk up to " + fmt(fl.rrw_bound_dph_per_sqrt_h, 4) + " deg/h/sqrt(h) not excluded" : std::string());
+  return fl;
+}
+
+}  // namespace
+
+NoiseFloor estimate_noise_floor(std::span<const FloorRun> runs, std::span<const double> ar, double sigma_a_dph, const NoiseFloorOptions& o) {
+  std::vector<Stretch> spans;
+  for (const auto& fr : runs) settled_stretches(fr, o, spans);
+  if (spans.empty()) {
+    NoiseFloor fl;
+    fl.ar.assign(ar.begin(), ar.end());
+    fl.sigma_a_dph = sigma_a_dph;
+    fl.note = "no settled hold of " + std::to_string(o.min_stretch_s) + " s or more: the model's AR noise alone";
+    return fl;
+  }
+  NoiseFloor fl = read_floor_laws(spans, ar, sigma_a_dph, o);
+  if (!o.remove_creep) return fl;
+  // The creep tested against the floor read on the holds as they are (the noise under no
+  // creep); where it is taken out, the floor is read again on what is left.
+  const CreepFit creep = remove_creep(spans, fl.slow() || fl.walk_bound_h > 0.0 ? fl : read_floor_laws(spans, ar, sigma_a_dph, o, true));
+  if (creep.removed) {
+    fl = read_floor_laws(spans, ar, sigma_a_dph, o);
+    fl.creep_removed = true;
+    fl.note += "; the thermistors' creep taken out of the holds (" + fmt(std::sqrt(creep.removed_var_dph2), 4) + " deg/h rms, Wald chi-square " +
+               fmt(creep.chi2_eff, 1) + " against " + fmt(creep.quantile, 1) + ")";
+  }
+  fl.creep_chi2 = creep.chi2_eff;
+  fl.creep_dof = creep.dof;
   return fl;
 }
 

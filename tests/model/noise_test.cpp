@@ -312,18 +312,18 @@ TEST_CASE("noise floor: the thermistors' creep through the holds is taken out, s
     CHECK(s_fixed > 0.9 * s_truth);
   }
   // Slow noise alone (flicker of B = 0.03 deg/h and a rate random walk of 0.05 deg/h/sqrt(h),
-  // which wander as slowly as the creep but do not follow it): a 0.1 % test, but the
-  // autocorrelation's scaling is approximate for noise this slow: measured 3 seeds of 30 see
-  // a creep (chi-square 29 to 34 against 18.5). Where none is seen the floor is exactly as
-  // without thermistors; where one is, it takes little of the slow noise (the noise std over
-  // the run at least 0.9 x).
+  // which wander as slowly as the creep but do not follow it). Where no creep is seen the floor
+  // is exactly as without thermistors; where one is, it takes little of the slow noise (the
+  // noise std over the run at least 0.9 x).
   int removed = 0;
-  for (std::uint64_t seed = 41; seed <= 70; ++seed) {
+  for (std::uint64_t seed = 41; seed <= 50; ++seed) {
     INFO("seed " << seed);
     const std::vector<double> gyro = noise(n, 0.06, 0.03, 0.05, seed);
     const NoiseFloor flat = read_creep_floor(gyro, true);
     const NoiseFloor f = read_creep_floor(gyro, false);
     INFO(f.note);
+    CHECK(f.creep_dof >= 1);
+    CHECK(flat.creep_dof == 0);  // nothing to regress on
     removed += f.creep_removed;
     if (!f.creep_removed) {
       CHECK(f.flicker_h == flat.flicker_h);
@@ -333,5 +333,55 @@ TEST_CASE("noise floor: the thermistors' creep through the holds is taken out, s
       CHECK(std::sqrt(floor_variance(f, n).total) >= 0.9 * std::sqrt(floor_variance(flat, n).total));
     }
   }
-  CHECK(removed <= 4);
+  CHECK(removed <= 1);
+}
+
+TEST_CASE("noise floor: the creep guard's Wald statistic keeps its level under flicker and random walk", "[noise]") {
+  // Under no creep the statistic is a chi-square of creep_dof degrees of freedom when its
+  // variance is the noise's own (noise.cpp, remove_creep); the floor's laws are read on the same
+  // holds, and the walk they cannot exclude is counted in, so the test errs on the safe side.
+  // Over 200 gyros of white noise, flicker and rate random walk over the issue's range on the
+  // four cycles of creep_run (measured 2026-11-29 on 1000 seeds, 5 degrees of freedom: mean
+  // W/dof 0.57, 5 past the 95 % quantile, 1 past the 99 %, 0 past the 99.9 %), the 99.9 %
+  // quantile (the guard's, 0.2 expected at the nominal rate) is passed at most twice
+  // (P(X >= 3) = 0.1 % at the nominal rate), the 99 % at most 5 times (2 expected; P(X >= 6) =
+  // 1.6 %), and the mean of W/dof (1 under the law, sd about sqrt(2 / 5 / 200) = 0.045) is
+  // under 1.2: not liberal. The scalar 1 + 2 sum rho scaling it replaced saw a creep in 3 of
+  // 30 seeds of B 0.03, K 0.05 alone.
+  const std::size_t n = 4 * 4200;
+  constexpr int seeds = 200;
+  int over99 = 0, over999 = 0, dof_seen = 0;
+  double mean_ratio = 0.0;  // W / dof
+  for (int s = 0; s < seeds; ++s) {
+    const auto seed = static_cast<std::uint64_t>(1000 + s);
+    // ARW 0.01, 0.001 and 0.0033 deg/sqrt(h) (0.6, 0.06, 0.2 deg/h a second), flicker B 0.02 to
+    // 0.05 deg/h, rate random walk 0.1 or 0.02 deg/h/sqrt(h).
+    const double white = s % 3 == 0 ? 0.6 : s % 3 == 1 ? 0.06 : 0.2, b = 0.02 + 0.01 * (s % 4), k = s % 2 == 0 ? 0.1 : 0.02;
+    const NoiseFloor f = read_creep_floor(noise(n, white, b, k, seed), false);
+    REQUIRE(f.creep_dof >= 1);
+    REQUIRE(f.creep_dof <= 6);  // six regressors at most
+    dof_seen = std::max(dof_seen, static_cast<int>(f.creep_dof));
+    // Its p-value as a chi-square of creep_dof degrees of freedom: Q(dof / 2, W / 2).
+    const double p = gamma_q(0.5 * static_cast<double>(f.creep_dof), 0.5 * f.creep_chi2);
+    over99 += p < 0.01;
+    over999 += p < 0.001;
+    CHECK(f.creep_removed == (p < 0.001));
+    mean_ratio += f.creep_chi2 / static_cast<double>(f.creep_dof) / seeds;
+  }
+  INFO("dof up to " << dof_seen << ", mean W/dof " << mean_ratio << ", over 99 % " << over99 << ", over 99.9 % " << over999 << " of " << seeds);
+  CHECK(over99 <= 5);
+  CHECK(over999 <= 2);
+  CHECK(mean_ratio < 1.2);
+  // A real creep is still seen through the slowest mix (ARW 0.001, B 0.05, K 0.1): 0.7 deg/h per
+  // degC of T1's distance to the setpoint (0.94 deg/h at the settled holds' start; measured on
+  // 50 seeds: 50 seen at 0.7, 41 at 0.5, 7 at 0.3: the price of the slow noise's own share).
+  int seen = 0;
+  for (std::uint64_t seed = 1; seed <= 10; ++seed) {
+    std::vector<double> y = noise(n, 0.06, 0.05, 0.1, seed);
+    const RunData shape = creep_run(y, false);
+    for (std::size_t i = 0; i < n; ++i)
+      if (shape.phase[i] == Phase::hold) y[i] += 0.7 * (shape.t1_c[i] - ((i / 4200) % 2 == 0 ? 30.0 : 20.0));
+    seen += read_creep_floor(y, false).creep_removed;
+  }
+  CHECK(seen >= 9);
 }

@@ -34,10 +34,11 @@ struct NoiseFloorOptions {
   // run), at 16 not, while a walk of 0.1 deg/h/sqrt(h) in 20 min holds is still seen.
   double min_chi2_gain = 16.0;
   // Regress the thermistors' creep (T1, T2 levels and rates) out of the hold residual before the
-  // curve is read, when significant (noise.cpp, remove_creep). Off by default: on, it does not
-  // yet reach the floor on the distributed coil's seed 71 and it read a creep (chi-square 23
-  // against 18.5) into a false alarm of tests/sim/workbench_noise_test.cpp (2026-11-28).
-  bool remove_creep = false;
+  // curve is read, when significant: a Wald test at 99.9 % whose variance is the floor's own
+  // noise (noise.cpp, remove_creep). On: it raised no false alarm more than off on the
+  // workbench's noise suites and brings the distributed coil's seed 71 closer to its floor.
+  // docs/workbench.md "The noise floor".
+  bool remove_creep = true;
   // The rate random walk the holds cannot exclude, when flicker and no walk is seen: the largest
   // walk whose profile deviance of the Allan curve rises by at most this above its least (0: not
   // bounded; 4 is about a 2 sigma one-sided bound). The rule allows
@@ -69,10 +70,12 @@ struct NoiseFloor {
   std::vector<allan::AdevPoint> curve;  // the holds' pooled Allan deviation of the residual
   std::string note;                     // how it was read, or why the AR noise alone is used
   // The part of the holds' residual that follows the thermistors' creep (T1, T2 levels and
-  // rates) was taken out before the curve was read: it was significant (creep_chi2, scaled by
-  // the residual's autocorrelation, above the 99.9 % quantile). docs/workbench.md "The noise floor".
+  // rates) was taken out before the curve was read: it was significant (creep_chi2, a Wald
+  // chi-square of creep_dof degrees of freedom under no creep, above its 99.9 % quantile, the
+  // variance the floor's own noise). docs/workbench.md "The noise floor".
   bool creep_removed = false;
-  double creep_chi2 = 0.0;              // that chi-square (0: the thermistors did not move)
+  double creep_chi2 = 0.0;              // that Wald statistic (0: not tested, or no thermistor moved)
+  std::size_t creep_dof = 0;            // its degrees of freedom (0: not tested)
   bool measured() const { return hold_samples > 0; }
   bool slow() const { return flicker_h > 0.0 || walk_h > 0.0; }
 };
