@@ -51,7 +51,10 @@ TEST_CASE("plan e2e: SIGKILL between a fit run's end and its analysis, the resta
     plan_id = s["result"]["plan_id"].get<std::int64_t>();
   }
   // The daemon dies by itself when the fit run completes (generous: the run is 36 s at K = 100).
-  bench.daemon->wait(600s);
+  // The wait stays well inside the test's 600 s CTest timeout, so that a daemon that never gets
+  // there fails here with its log named rather than being cut off without a word.
+  bench.daemon->wait(400s);
+  INFO("fogbenchd log in " << (bench.dir / "fogbenchd.log") << " (FOGBENCH_KEEP_TEST_DIRS=1 keeps it)");
   REQUIRE_FALSE(bench.daemon->running());
   std::int64_t run_id = 0;
   {
