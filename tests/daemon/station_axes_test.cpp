@@ -4,7 +4,10 @@
 // goes silent while the others send is flagged missing each second and said once as an event
 // naming the unit, the axis and the time; a one-axis unit beside it records as before.
 #include <cmath>
+#include <functional>
 #include <limits>
+#include <string>
+#include <vector>
 
 #include "../../daemon/src/acquisition.hpp"
 #include "../../daemon/src/run_reads.hpp"
@@ -85,6 +88,39 @@ struct AxisBench {
   }
 };
 
+// A run of `ticks` seconds on the bus's gyros, from clock 100 s (`before_tick(n)`, when given,
+// first each second), then aborted and ticked once more, as a run's end.
+void run_seconds(Station& st, SyntheticBench& thermal, AxisBench& gyros, int ticks,
+                 const std::function<void(int)>& before_tick = {}) {
+  double clock_s = 100.0;
+  double sp = st.status()["setpoint_c"].get<double>();
+  for (int n = 0; n < ticks; ++n) {
+    if (before_tick) before_tick(n);
+    TickInput in = thermal.step(sp);
+    for (auto& u : in.units) u.gyro_dph.reset();  // the gyros are the bus's
+    gyros.fill(in);
+    sp = st.tick(clock_s, in).setpoint_c;
+    clock_s += 1.0;
+  }
+  REQUIRE(st.abort_run("test over", {{"cmd", "run.abort"}}).has_value());
+  st.tick(clock_s, thermal.step(sp));
+}
+
+// The run's gyro_axis fault events of `kind` ("silent", "saturated"): their details, each
+// checked to carry the event's own time (s).
+std::vector<json> axis_events(const storage::RunDetail& detail, const std::string& kind) {
+  std::vector<json> out;
+  for (const auto& e : detail.events) {
+    if (e.kind != storage::EventKind::fault) continue;
+    json d = json::parse(e.detail_json);
+    if (d.value("gyro_axis", "") != kind) continue;
+    REQUIRE(e.t_s.has_value());
+    CHECK(d["t_s"] == *e.t_s);
+    out.push_back(std::move(d));
+  }
+  return out;
+}
+
 }  // namespace
 
 TEST_CASE("station: a three-axis unit's y and z are stored per second, a silent axis flagged and said once") {
@@ -96,21 +132,11 @@ TEST_CASE("station: a three-axis unit's y and z are stored per second, a silent 
   st.set_publisher([&](const json& m) { published.push_back(m); });
   SyntheticBench thermal(2);
   AxisBench gyros(config);
-  double clock_s = 100.0;
 
   auto id = st.start_run("short", {"FOG-0001", "FOG-0002"}, storage::Purpose::fit, {{"cmd", "run.start"}});
   REQUIRE(id.has_value());
   constexpr int kTicks = 30;
-  double sp = st.status()["setpoint_c"].get<double>();
-  for (int n = 0; n < kTicks; ++n) {
-    TickInput in = thermal.step(sp);
-    for (auto& u : in.units) u.gyro_dph.reset();  // the gyros are the bus's
-    gyros.fill(in);
-    sp = st.tick(clock_s, in).setpoint_c;
-    clock_s += 1.0;
-  }
-  REQUIRE(st.abort_run("test over", {{"cmd", "run.abort"}}).has_value());
-  st.tick(clock_s, thermal.step(sp));
+  run_seconds(st, thermal, gyros, kTicks);
 
   auto detail = store.get_run(*id);
   REQUIRE(detail.has_value());
@@ -149,15 +175,7 @@ TEST_CASE("station: a three-axis unit's y and z are stored per second, a silent 
   }
 
   // The silence is one event, at its first second, naming unit, serial, axis and CAN id.
-  std::vector<json> silent;
-  for (const auto& e : detail->events)
-    if (e.kind == storage::EventKind::fault) {
-      auto d = json::parse(e.detail_json);
-      if (d.value("gyro_axis", "") == "silent") {
-        silent.push_back(d);
-        CHECK(e.t_s == 10.0);
-      }
-    }
+  const auto silent = axis_events(*detail, "silent");
   REQUIRE(silent.size() == 1);
   CHECK(silent[0]["unit"] == 0);
   CHECK(silent[0]["serial"] == "FOG-0001");
@@ -206,20 +224,10 @@ TEST_CASE("station: a gyro axis at its int32 count limit is flagged out_of_range
   gyros.saturated_axis = 1;                 // y
   gyros.saturated_from = 8;
   gyros.saturated_to = 12;
-  double clock_s = 100.0;
   auto id = st.start_run("short", {"FOG-0001", "FOG-0002"}, storage::Purpose::fit, {{"cmd", "run.start"}});
   REQUIRE(id.has_value());
   constexpr int kTicks = 20;
-  double sp = st.status()["setpoint_c"].get<double>();
-  for (int n = 0; n < kTicks; ++n) {
-    TickInput in = thermal.step(sp);
-    for (auto& u : in.units) u.gyro_dph.reset();
-    gyros.fill(in);
-    sp = st.tick(clock_s, in).setpoint_c;
-    clock_s += 1.0;
-  }
-  REQUIRE(st.abort_run("test over", {{"cmd", "run.abort"}}).has_value());
-  st.tick(clock_s, thermal.step(sp));
+  run_seconds(st, thermal, gyros, kTicks);
 
   auto rows = store.get_samples(*id, 0, 0, kTicks);
   REQUIRE(rows.has_value());
@@ -239,15 +247,7 @@ TEST_CASE("station: a gyro axis at its int32 count limit is flagged out_of_range
 
   auto detail = store.get_run(*id);
   REQUIRE(detail.has_value());
-  std::vector<json> saturated;
-  for (const auto& e : detail->events)
-    if (e.kind == storage::EventKind::fault) {
-      auto d = json::parse(e.detail_json);
-      if (d.value("gyro_axis", "") == "saturated") {
-        saturated.push_back(d);
-        CHECK(e.t_s == 8.0);
-      }
-    }
+  const auto saturated = axis_events(*detail, "saturated");
   REQUIRE(saturated.size() == 1);  // once per axis and run, at its first second
   CHECK(saturated[0]["unit"] == 0);
   CHECK(saturated[0]["serial"] == "FOG-0001");
@@ -270,24 +270,15 @@ TEST_CASE("station: a configuration reloaded mid-run does not change the running
   AxisBench gyros(config);  // unit 0's bus stays three-axis: the devices are opened at start
   gyros.silent_from = 15;   // z silent in seconds 15..19, after the reload
   gyros.silent_to = 20;
-  double clock_s = 100.0;
   auto id = st.start_run("short", {"FOG-0001", "FOG-0002"}, storage::Purpose::fit, {{"cmd", "run.start"}});
   REQUIRE(id.has_value());
   // The reloaded configuration says unit 0 is one-axis.
   DaemonConfig one_axis = config;
   one_axis.drivers.units[0].gyro.axes = 1;
   constexpr int kTicks = 20;
-  double sp = st.status()["setpoint_c"].get<double>();
-  for (int n = 0; n < kTicks; ++n) {
+  run_seconds(st, thermal, gyros, kTicks, [&](int n) {
     if (n == 5) st.reload_config(one_axis);
-    TickInput in = thermal.step(sp);
-    for (auto& u : in.units) u.gyro_dph.reset();
-    gyros.fill(in);
-    sp = st.tick(clock_s, in).setpoint_c;
-    clock_s += 1.0;
-  }
-  REQUIRE(st.abort_run("test over", {{"cmd", "run.abort"}}).has_value());
-  st.tick(clock_s, thermal.step(sp));
+  });
 
   // Every pushed sample of unit 0, before and after the reload, is the three-axis unit's.
   int pushed0 = 0;
@@ -302,11 +293,7 @@ TEST_CASE("station: a configuration reloaded mid-run does not change the running
   // The silence after the reload is still a three-axis unit's silent axis.
   auto detail = store.get_run(*id);
   REQUIRE(detail.has_value());
-  int silent = 0;
-  for (const auto& e : detail->events)
-    if (e.kind == storage::EventKind::fault && json::parse(e.detail_json).value("gyro_axis", "") == "silent") {
-      ++silent;
-      CHECK(e.t_s == 15.0);
-    }
-  CHECK(silent == 1);
+  const auto silent = axis_events(*detail, "silent");
+  REQUIRE(silent.size() == 1);
+  CHECK(silent[0]["t_s"] == 15.0);
 }
