@@ -104,6 +104,10 @@ void Station::audit(std::int64_t run_id, const json& command) {
   event(run_id, storage::EventKind::command, command, t_s);
 }
 
+namespace {
+constexpr const char* kGyroAxisNames[] = {"x", "y", "z"};  // axis 0, 1, 2 as events and messages name them
+}  // namespace
+
 void Station::note_silent_axes(ActiveRun& run, std::size_t unit, const UnitReading& u, const TickInput& in,
                                double t_s) {
   const std::size_t ci = run.config_index[unit];
@@ -115,15 +119,14 @@ void Station::note_silent_axes(ActiveRun& run, std::size_t unit, const UnitReadi
     sent[k + 1] = u.extra_axes[k].frames + u.extra_axes[k].frames_corrupt;
   if (std::ranges::all_of(sent, [](std::uint32_t n) { return n == 0; })) return;  // the unit is silent, not an axis
   if (run.axis_silence_noted.size() < run.config_index.size()) run.axis_silence_noted.resize(run.config_index.size());
-  static constexpr const char* kAxisNames[] = {"x", "y", "z"};
   for (std::size_t k = 0; k < sent.size() && k < static_cast<std::size_t>(axes); ++k) {
     if (sent[k] != 0 || run.axis_silence_noted[unit][k]) continue;
     run.axis_silence_noted[unit][k] = true;
     const auto id = gyro.axis_id(static_cast<std::uint8_t>(k));
     spdlog::warn("run {}: unit {} ({}) axis {} (CAN id {}) sent no frame at t_s {} s while its other axes did", run.id, unit,
-                 run.serials[unit], kAxisNames[k], id, t_s);
+                 run.serials[unit], kGyroAxisNames[k], id, t_s);
     event(run.id, storage::EventKind::fault,
-          {{"gyro_axis", "silent"}, {"unit", static_cast<int>(unit)}, {"serial", run.serials[unit]}, {"axis", kAxisNames[k]},
+          {{"gyro_axis", "silent"}, {"unit", static_cast<int>(unit)}, {"serial", run.serials[unit]}, {"axis", kGyroAxisNames[k]},
            {"can_id", id}, {"t_s", t_s},
            {"reason", "no frame on CAN id " + std::to_string(id) + " for a second while the unit's other axes sent "
                       "(its seconds are flagged missing; said once per axis and run)"}},
@@ -143,7 +146,6 @@ void Station::note_saturated_axes(ActiveRun& run, std::size_t unit, const UnitRe
   // The largest |rate| the int32 counts hold at the unit's scale (in increment mode, at its
   // nominal frame rate), deg/s.
   const double holds_dps = std::abs(gyro.mean_counts_to_rate_dph(2147483647.0)) / 3600.0;
-  static constexpr const char* kAxisNames[] = {"x", "y", "z"};
   for (std::size_t k = 0; k < at_limit.size(); ++k) {
     if (at_limit[k] == 0 || run.axis_saturation_noted[unit][k]) continue;
     run.axis_saturation_noted[unit][k] = true;
@@ -152,10 +154,10 @@ void Station::note_saturated_axes(ActiveRun& run, std::size_t unit, const UnitRe
     why << at_limit[k] << " of " << frames[k] << " frames on CAN id " << id
         << " at the int32 count limit: the rate is beyond what the unit's scale carries (about +-" << holds_dps
         << " deg/s), so the reading is clipped (its seconds are flagged out_of_range; said once per axis and run)";
-    spdlog::warn("run {}: unit {} ({}) axis {} saturated at t_s {} s: {}", run.id, unit, run.serials[unit], kAxisNames[k], t_s,
+    spdlog::warn("run {}: unit {} ({}) axis {} saturated at t_s {} s: {}", run.id, unit, run.serials[unit], kGyroAxisNames[k], t_s,
                  why.str());
     event(run.id, storage::EventKind::fault,
-          {{"gyro_axis", "saturated"}, {"unit", static_cast<int>(unit)}, {"serial", run.serials[unit]}, {"axis", kAxisNames[k]},
+          {{"gyro_axis", "saturated"}, {"unit", static_cast<int>(unit)}, {"serial", run.serials[unit]}, {"axis", kGyroAxisNames[k]},
            {"can_id", id}, {"t_s", t_s}, {"holds_dps", holds_dps}, {"reason", why.str()}},
           t_s);
   }

@@ -14,6 +14,8 @@ using nlohmann::json;
 
 namespace {
 
+constexpr const char* kFaultAxisNames[] = {"x", "y", "z"};  // silence_axis's axis 0, 1, 2
+
 // The main parameter of each fault: the VALUE of the command-line form.
 std::optional<std::string_view> main_parameter(FaultKind kind) {
   switch (kind) {
@@ -166,9 +168,8 @@ std::expected<FaultCommand, std::string> parse_fault_command(const json& c, cons
   }
   if (c.contains("axis")) {
     const auto& a = c["axis"];
-    static constexpr const char* kNames[] = {"x", "y", "z"};
     for (std::size_t k = 0; k < 3; ++k)
-      if (a == kNames[k] || (a.is_number_integer() && a.get<std::int64_t>() == static_cast<std::int64_t>(k))) cmd.axis = k;
+      if (a == kFaultAxisNames[k] || (a.is_number_integer() && a.get<std::int64_t>() == static_cast<std::int64_t>(k))) cmd.axis = k;
     if (!cmd.axis) return std::unexpected(name + ": axis: expected x, y, z or 0..2 (got " + a.dump() + ")");
   }
   if (cmd.kind == FaultKind::silence_axis && cmd.on && !cmd.axis) return std::unexpected(name + ": axis: missing");
@@ -394,9 +395,8 @@ json active_faults(const FaultState& s, const std::vector<std::string>& serials,
     if (u.lose_fraction > 0) with({{"name", "lose_frames"}, {"fraction", u.lose_fraction}});
     if (u.lose_burst > 0) with({{"name", "lose_burst"}, {"count", u.lose_burst}});
     if (u.corrupt_fraction > 0) with({{"name", "corrupt_frames"}, {"fraction", u.corrupt_fraction}});
-    static constexpr const char* kAxisNames[] = {"x", "y", "z"};
     for (std::size_t k = 0; k < u.silent_axis.size(); ++k)
-      if (u.silent_axis[k]) with({{"name", "silence_axis"}, {"axis", kAxisNames[k]}});
+      if (u.silent_axis[k]) with({{"name", "silence_axis"}, {"axis", kFaultAxisNames[k]}});
     if (u.open_t1) with({{"name", "open_thermistor"}, {"sensor", "t1"}});
     if (u.open_t2) with({{"name", "open_thermistor"}, {"sensor", "t2"}});
     if (u.spike_until_s > next_second_s) with({{"name", "gyro_spike"}, {"dph", u.spike_dph}, {"until_s", u.spike_until_s}});
