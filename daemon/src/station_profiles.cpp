@@ -1,6 +1,8 @@
 // The profiles a station may run: by name from its profile directory, or from text, parsed and
 // checked against the chamber's limits (station.hpp).
 #include <algorithm>
+#include <cmath>
+#include <iomanip>
 #include <fstream>
 #include <regex>
 #include <sstream>
@@ -14,6 +16,26 @@ namespace {
 bool valid_profile_name(const std::string& name) {
   static const std::regex re("[A-Za-z0-9_][A-Za-z0-9_.-]{0,63}");
   return std::regex_match(name, re);
+}
+
+// The units ride the table: a rate beyond what a unit's counts carry at its scale would be stored
+// as the int32 limit (a clipped rate, flagged out_of_range), and the scale factor fitted from
+// those steps would be wrong. The first such step, by line and unit; empty when all fit.
+std::string rate_beyond_unit_scales(const profiles::Profile& p, const std::vector<drivers::UnitConfig>& units) {
+  for (const auto& r : p.rate_steps) {
+    for (std::size_t i = 0; i < units.size(); ++i) {
+      // The largest rate the unit's frames carry, deg/s: the int32 count limit at its scale.
+      const double holds_dps = std::abs(units[i].gyro.mean_counts_to_rate_dph(2147483647.0)) / 3600.0;
+      if (std::fabs(r.rate_dps) <= holds_dps) continue;
+      std::ostringstream why;
+      why << p.source_name << ":" << r.line << ":" << r.rate_column << ": '" << r.text << "': table rate " << r.rate_dps
+          << " deg/s is beyond what units[" << i << "]'s gyro counts carry at its scale (int32 limit: +-"
+          << std::setprecision(4) << holds_dps << " deg/s, units[" << i
+          << "].gyro); a coarser scale or slower table rates (docs/scale-factor.md)";
+      return why.str();
+    }
+  }
+  return {};
 }
 
 }  // namespace
@@ -42,9 +64,12 @@ ApiResult<profiles::Profile> Station::check_profile_text(const std::string& text
                          "docs/configuration.md); remove the " +
                          std::to_string(p->rate_steps.size()) + " rate line(s) to run the temperatures alone");
   }
-  if (config_.rate_table)
+  if (config_.rate_table) {
     if (auto ok = profiles::check_rate_limits(*p, config_.rate_table->limits.max_rate_dps); !ok)
       return api_error(ErrorCode::limits, ok.error().to_string() + " (rate_table.max_rate_dps)");
+    if (auto why = rate_beyond_unit_scales(*p, config_.drivers.units); !why.empty())
+      return api_error(ErrorCode::limits, why);
+  }
   if (auto ok = profiles::check_limits(*p, config_.limits); !ok)
     return api_error(ErrorCode::limits, ok.error().to_string());
   return std::move(*p);

@@ -36,6 +36,16 @@ inline DaemonConfig golden_config(const nlohmann::json& patch = nlohmann::json::
   return *c;
 }
 
+// The golden configuration's units with another gyro scale: its 1e-4 deg/h per count holds
+// +-59.65 deg/s, short of a rate table's faster steps (refused at run.start and
+// profile.validate); the shipped examples count in 1e-3 deg/h (+-596 deg/s).
+// As a patch for golden_config: {"drivers": {"units": [...]}}.
+inline nlohmann::json golden_units_at_scale(double scale_dph_per_count) {
+  nlohmann::json units = golden_config_json()["drivers"]["units"];
+  for (auto& u : units) u["gyro"]["scale_dph_per_count"] = scale_dph_per_count;
+  return {{"units", units}};
+}
+
 inline storage::Store memory_store() {
   auto s = storage::Store::open(":memory:");
   REQUIRE(s.has_value());

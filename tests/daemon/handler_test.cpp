@@ -117,7 +117,9 @@ TEST_CASE("handler: error codes of queries") {
 
 TEST_CASE("handler: a profile with rate steps is accepted once a rate table is configured, within its limit") {
   storage::Store store = memory_store();
-  Station station{golden_config({{"rate_table", {{"kind", "acutrol"}, {"link", {{"transport", "tcp"}, {"host", "127.0.0.1"}, {"port", 9888}}},
+  // 100 deg/s needs a coarser scale than the golden units' (fixture.hpp).
+  Station station{golden_config({{"drivers", golden_units_at_scale(1e-3)},
+                                 {"rate_table", {{"kind", "acutrol"}, {"link", {{"transport", "tcp"}, {"host", "127.0.0.1"}, {"port", 9888}}},
                                                  {"max_rate_dps", 200}}}}),
                   store};
   Handler handler{station};

@@ -48,7 +48,9 @@ struct Rig {
     std::ofstream(dir / "spin.profile") << "setpoint 20 C\nhold 2 min\n" + spin_plateau() + "ramp to 30 C at 2 C/min\nhold 15 min\n" +
                                                spin_plateau() + "ramp to 40 C at 2 C/min\nhold 15 min\n" + spin_plateau();
     std::ofstream(dir / "still.profile") << "setpoint 20 C\nhold 10 min\nramp to 25 C at 1 C/min\nhold 5 min\n";
+    // The sequence's 60 deg/s needs a coarser scale than the golden units' (fixture.hpp).
     auto c = golden_config({{"profile_dir", dir.string()},
+                            {"drivers", golden_units_at_scale(1e-3)},
                             {"rate_table", {{"kind", "acutrol"}, {"link", {{"transport", "tcp"}, {"host", "127.0.0.1"}, {"port", 9888}}}}}});
     st = std::make_unique<Station>(std::move(c), store, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
     runner = std::make_unique<PlanRunner>(*st, st->store());

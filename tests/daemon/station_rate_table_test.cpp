@@ -103,3 +103,33 @@ TEST_CASE("station rate table: the table's link lost aborts the run") {
   CHECK(rec->run.state == storage::RunState::aborted);
   CHECK_THAT(rec->run.state_reason, Catch::Contains("rate table link lost: timeout"));
 }
+
+TEST_CASE("station rate table: a table rate beyond what a unit's counts carry at its scale is refused by line and unit") {
+  const auto dir = std::filesystem::temp_directory_path() / ("fogbench-rate-scale-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  // 60 deg/s is within the table's default limit but beyond the golden units' +-59.65 deg/s
+  // (int32 counts at 1e-4 deg/h per count).
+  std::ofstream(dir / "fast.profile") << "setpoint 20 C\nhold 8 s\nrate 10 dps for 2 s\nrate 60 dps for 2 s\n";
+  std::ofstream(dir / "slow.profile") << "setpoint 20 C\nhold 8 s\nrate 59 dps for 2 s\n";
+  storage::Store store = memory_store();
+  Station st(golden_config({{"profile_dir", dir.string()},
+                            {"rate_table", {{"kind", "acutrol"}, {"link", {{"transport", "tcp"}, {"host", "127.0.0.1"}, {"port", 9888}}}}}}),
+             store, 1.0, [] { return std::string("2026-01-01T00:00:00Z"); });
+  auto refused = st.start_run("fast", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
+  REQUIRE_FALSE(refused.has_value());
+  CHECK(refused.error().code == ErrorCode::limits);
+  const std::string& why = refused.error().message;
+  INFO(why);
+  CHECK(why.find("fast.profile:4:") != std::string::npos);
+  CHECK(why.find("units[0]") != std::string::npos);
+  CHECK(why.find("59.65") != std::string::npos);
+  auto runs = store.list_runs();
+  REQUIRE(runs.has_value());
+  CHECK(runs->empty());
+  // Within every unit's range: accepted.
+  auto ok = st.start_run("slow", {"FOG-0001"}, storage::Purpose::fit, {{"cmd", "run.start"}});
+  INFO((ok ? std::string() : ok.error().message));
+  CHECK(ok.has_value());
+  std::error_code ec;
+  std::filesystem::remove_all(dir, ec);
+}
