@@ -374,15 +374,18 @@ void add_offline_commands(CLI::App& app, int& code) {
   f->add_option("--add", add.add, "With --model: the term to add, e.g. \"T1\" or \"lp(T1,300)@auto\"");
   add_run_input(f, fit.input);
   f->callback([&] {
+    std::ostringstream text;
     if (add.model.empty() && add.add.empty()) {
-      code = run_fit(fit, std::cout, std::cerr);
-      return;
+      code = run_fit(fit, text, std::cerr);
+    } else {
+      add.run = fit.run;
+      add.output = fit.output;
+      add.json = fit.json;
+      add.input = fit.input;
+      code = run_fit_add(add, text, std::cerr);
     }
-    add.run = fit.run;
-    add.output = fit.output;
-    add.json = fit.json;
-    add.input = fit.input;
-    code = run_fit_add(add, std::cout, std::cerr);
+    // Its notes within the terminal's width, as verify's; the model's JSON as it is.
+    std::cout << (fit.json ? text.str() : fit_lines(text.str(), output_width())) << std::flush;
   });
 
   static VerifyOptions ver;

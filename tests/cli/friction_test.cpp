@@ -3,6 +3,7 @@
 // file, a term the model already has, profile list|validate. Exit codes and messages through
 // the built fogctl, as a user meets them.
 #include <catch2/catch.hpp>
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -164,6 +165,51 @@ TEST_CASE("fogctl report: exits as verify does, 1 when the qualification fails")
   CHECK_THAT(r.err, Contains("report: reading " + d.file("e1.csv") + " (1 of 2)\n") && Contains("report: diagnose, ") &&
                         Contains("report: Table 1, the lineage and the plots\n") && Contains("report: writing "));
   CHECK(r.err.find('\r') == std::string::npos);
+}
+
+namespace {
+
+std::size_t widest_line(const std::string& text) {
+  std::size_t widest = 0;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) widest = std::max(widest, line.size());
+  return widest;
+}
+
+// A text without its spaces and line breaks: a line wrapped at spaces reads the same.
+std::string without_spaces(const std::string& text) {
+  std::string out;
+  for (char c : text)
+    if (c != ' ' && c != '\n') out += c;
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("fogctl fit and allan at COLUMNS=60: every line within 60 and every word kept while piped lines stay whole") {
+  Dir d;
+  simulate("exp1", 2, d.file("e1.csv"));
+  for (const std::string& args : {"fit " + d.file("e1.csv"), "allan " + d.file("e1.csv")}) {
+    INFO(args);
+    const Ran piped = fogctl(d, args, "-u COLUMNS");
+    const Ran narrow = fogctl(d, args, "COLUMNS=60");
+    INFO(piped.out << "\n--- at 60:\n" << narrow.out);
+    REQUIRE(piped.code == 0);
+    REQUIRE(narrow.code == 0);
+    // The run's notes (fit's whiteness and collinearity, allan's bias instability per hold) are
+    // sentences of 166 and more columns (the tables are at most 107), left whole in a pipe ...
+    CHECK(widest_line(piped.out) > 150);
+    // ... and wrapped at spaces on a 60-column terminal (tables narrowed), each note's words kept.
+    CHECK(widest_line(narrow.out) <= 60);
+    std::istringstream lines(piped.out);
+    int notes = 0;
+    for (std::string line; std::getline(lines, line);) {
+      if (line.size() <= 150) continue;  // a table's row: table_test.cpp covers their wrapping
+      ++notes;
+      CHECK_THAT(without_spaces(narrow.out), Contains(without_spaces(line)));
+    }
+    CHECK(notes >= 1);
+  }
 }
 
 TEST_CASE("fogctl: a CSV from a German spreadsheet, a tab-separated one, upper-case headers") {
