@@ -261,15 +261,23 @@ int run_verify(const VerifyOptions& o, std::ostream& out, std::ostream& err) {
     return kExitError;
   }
   QualityLog quality;
-  for (const auto& path : o.runs) {
+  // Two 3-day runs take seconds: a line per run and stage once it has taken a while.
+  QuietStartProgress progress(err);
+  const std::string of_n = " of " + std::to_string(o.runs.size()) + ")";
+  for (std::size_t k = 0; k < o.runs.size(); ++k) {
+    const std::string& path = o.runs[k];
     const std::string name = display_name(path);  // "run 2 SIM-0001" for --run 2
+    progress.update("read " + path, "verify: reading " + name + " (" + std::to_string(k + 1) + of_n);
     auto run = load_run(path, o.input, &quality);
     if (!run) {
+      progress.finish();
       err << "fogctl verify: " << run.error() << "\n";
       return kExitError;
     }
+    progress.update("verify " + path, "verify: compensating " + name + " (" + std::to_string(k + 1) + of_n);
     auto v = model::verify(*m, *run, vo);
     if (!v) {
+      progress.finish();
       err << "fogctl verify: " << name << ": " << v.error().message << "\n";
       return kExitError;
     }
@@ -286,6 +294,7 @@ int run_verify(const VerifyOptions& o, std::ostream& out, std::ostream& err) {
       ph.add({name, std::string(to_string(p.phase)), std::to_string(p.stats.n), fixed(p.stats.meas_std),
               fixed(p.stats.comp_std), fixed(100.0 * p.stats.ratio, 1) + "%"});
   }
+  progress.finish();
   if (o.json) {
     if (results.size() == 1) {
       auto one = results[0];

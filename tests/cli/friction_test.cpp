@@ -212,6 +212,38 @@ TEST_CASE("fogctl fit and allan at COLUMNS=60: every line within 60 and every wo
   }
 }
 
+TEST_CASE("fogctl diagnose: progress lines in a log that asks for them without --progress, never a carriage return") {
+  Dir d;
+  simulate("exp1", 5, d.file("e1.csv"));
+  simulate("exp2", 6, d.file("e2.csv"));
+  fit_paper(d.file("e1.csv"), d.file("m.json"));
+  const std::string args = "diagnose --model " + d.file("m.json") + " " + d.file("e1.csv") + " " + d.file("e2.csv");
+  // A log that wants progress (FOGCTL_PROGRESS=lines, as for run start --wait): a line per stage
+  // from the start. Without it, a piped diagnose writes them once it has taken 2 s (a 3-day run
+  // takes a minute), so this short one writes none.
+  const Ran logged = fogctl(d, args, "FOGCTL_PROGRESS=lines");
+  INFO(logged.err);
+  REQUIRE((logged.code == kExitOk || logged.code == kExitFailed));
+  CHECK_THAT(logged.err, Contains("diagnose: step 1, "));
+  CHECK(logged.err.find('\r') == std::string::npos);
+  CHECK(logged.out.find("diagnose: step") == std::string::npos);  // never on stdout
+}
+
+TEST_CASE("fogctl verify: progress lines per run in a log that asks for them, none on a quick piped verify") {
+  Dir d;
+  simulate("exp1", 7, d.file("e1.csv"));
+  simulate("exp2", 8, d.file("e2.csv"));
+  fit_paper(d.file("e1.csv"), d.file("m.json"));
+  const std::string args = "verify --model " + d.file("m.json") + " " + d.file("e1.csv") + " " + d.file("e2.csv");
+  const Ran logged = fogctl(d, args, "FOGCTL_PROGRESS=lines");
+  INFO(logged.err);
+  REQUIRE(logged.code != 2);
+  CHECK_THAT(logged.err, Contains("verify: reading " + d.file("e1.csv") + " (1 of 2)\n") &&
+                             Contains("verify: compensating " + d.file("e2.csv") + " (2 of 2)\n"));
+  CHECK(logged.err.find('\r') == std::string::npos);
+  CHECK_THAT(logged.out, Contains("Table 1"));
+}
+
 TEST_CASE("fogctl: a CSV from a German spreadsheet, a tab-separated one, upper-case headers") {
   Dir d;
   simulate("exp1", 5, d.file("e1.csv"));
