@@ -6,6 +6,7 @@
 #include <cmath>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "fogbench/model/allan.hpp"
 #include "table.hpp"
@@ -160,7 +161,12 @@ void add_allan_command(CLI::App& app, int& code) {
   a->add_flag("--whole-run", o.whole_run, "Analyse every phase, not only the holds");
   a->add_flag("--json", o.json, "Print one JSON object with the curves");
   add_run_input(a, o.input);
-  a->callback([&] { code = run_allan(o, std::cout, std::cerr); });
+  a->callback([&] {
+    std::ostringstream text;
+    code = run_allan(o, text, std::cerr);
+    // Each hold's notes within the terminal's width, as verify's; JSON as it is.
+    std::cout << (o.json ? text.str() : fit_lines(text.str(), output_width())) << std::flush;
+  });
 }
 
 }  // namespace fogbench::cli

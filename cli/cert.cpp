@@ -37,11 +37,16 @@ constexpr const char* kScriptOpen = "<script type=\"application/json\" id=\"fogb
 // Page 5 (issue 29, point 2): page 4 with the scale factor over temperature, for a certificate
 // that has `scale_factor` (a run with rate steps); one without it is still drawn as page 4, so
 // its page is what it was.
-constexpr int kPageLatest = 5;
+// Page 6: page 4 or 5 (the scale factor's section when the
+// certificate has one) with the runs' times as date and time to the second, which wrap at most
+// once in their column (`2026-11-29 13:44:50Z`, not `2026-11-29T13:44:50.889Z` broken anywhere
+// over three lines), and an empty station or operator named, never an empty cell or "by station
+// with key".
+constexpr int kPageLatest = 6;
 bool one_verdict_layout(const json& cert) { return cert.contains("verifications") || cert.contains("qualification"); }
 int latest_page_of(const json& cert) {
   if (!one_verdict_layout(cert)) return 2;
-  return cert.contains("scale_factor") ? 5 : 4;
+  return kPageLatest;
 }
 std::string renderer_name(int page) { return "fogbench-certificate-page " + std::to_string(page); }
 constexpr const char* kRendererMeta = "<meta name=\"generator\" content=\"";
@@ -232,6 +237,17 @@ std::string css_string(std::string_view text) {
   return s + "\"";
 }
 
+// Page 6's run time: "2026-11-29T13:44:50.889Z" as "2026-11-29 13:44:50Z" (its one break
+// between date and time); another text as it is.
+std::string run_time_text(const std::string& ts) {
+  const bool iso = ts.size() >= 20 && ts[4] == '-' && ts[7] == '-' && ts[10] == 'T' && ts[13] == ':' && ts[16] == ':' &&
+                   ts.back() == 'Z';
+  return iso ? ts.substr(0, 10) + " " + ts.substr(11, 8) + "Z" : ts;
+}
+
+// Page 6's name of who or where: the text, or `none` when it is empty.
+std::string named_or(const std::string& text, const char* none) { return text.empty() ? std::string(none) : text; }
+
 std::string render_certificate(const json& cert, int page) {
   // Page 4 keeps each section on one sheet when it fits (a <section> per heading) and repeats
   // each table's header row on the sheets it runs onto.
@@ -247,8 +263,12 @@ std::string render_certificate(const json& cert, int page) {
     b += "<h1>Certificate of qualification: " + html_escape(field_text(cert, "serial")) + "</h1>";
   else  // a unit that did not pass gets no certificate of qualification, only its record
     b += "<h1>Qualification record: " + html_escape(field_text(cert, "serial")) + " (NOT QUALIFIED)</h1>";
+  // Page 6: a station without a station.id said so, not "by station  with".
+  auto station_text = [page](const std::string& id) {
+    return page >= 6 && id.empty() ? std::string("a station without a station.id") : "station " + id;
+  };
   b += "<div class=\"sub\">Thermal drift model, version " + html_escape(field_text(m, "version")) + ", issued " + html_escape(field_text(cert, "issued_at")) +
-       " by station " + html_escape(field_text(cert, "station_id")) + " with fogbench " + html_escape(field_text(cert["software"], "version")) + " (" +
+       " by " + html_escape(station_text(field_text(cert, "station_id"))) + " with fogbench " + html_escape(field_text(cert["software"], "version")) + " (" +
        html_escape(field_text(cert["software"], "git_hash")) + ")</div>";
   b += "<p>Verdict: <span class=\"" + std::string(verdict == "pass" ? "pass" : "fail") + "\">" + html_escape(verdict) + "</span></p>";
   b += h2 + "Model coefficients (1 sigma)</h2><p class=\"sub\">" + html_escape(field_text(m, "terms")) + " (" + html_escape(field_text(m, "method")) +
@@ -316,6 +336,11 @@ std::string render_certificate(const json& cert, int page) {
           lot = u["lot"].get<std::string>();
     std::vector<std::string> row{field_text(r, "id"), field_text(r, "role"), field_text(r, "profile"), field_text(r, "ended_at"),
                                  id.is_object() ? field_text(id, "station_id") : "-", id.is_object() ? field_text(id, "operator") : "-"};
+    if (page >= 6) {
+      row[3] = run_time_text(row[3]);
+      row[4] = named_or(row[4], "not configured");
+      row[5] = named_or(row[5], "not recorded");
+    }
     if (v3) row.push_back(lot);  // page 2 (format 2) is drawn as it was, without the lot
     row.push_back(id.is_object() ? field_text(id, "software_version") + " " + field_text(id, "git_hash").substr(0, 12) : "-");
     rows.push_back(std::move(row));
@@ -324,7 +349,7 @@ std::string render_certificate(const json& cert, int page) {
           : tbl({"run", "role", "profile", "ended", "station", "operator", "software"}, rows);
   b += h2 + "Integrity</h2><p class=\"hash\">SHA-256 " + html_escape(field_text(cert, "sha256")) + "</p>";
   if (cert.contains("signed_by") && cert["signed_by"].is_object())
-    b += "<p class=\"hash\">Signed (Ed25519) by station " + html_escape(field_text(cert["signed_by"], "station_id")) + " with key " +
+    b += "<p class=\"hash\">Signed (Ed25519) by " + html_escape(station_text(field_text(cert["signed_by"], "station_id"))) + " with key " +
          html_escape(field_text(cert["signed_by"], "key_id")) + "</p><p class=\"sub\">Check with <code>fogctl cert --check FILE --key station.pub</code>" +
          " (the station's public key): the signature of the certificate embedded in this page, and this page's tables against it.</p>";
   else

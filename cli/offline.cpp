@@ -261,15 +261,23 @@ int run_verify(const VerifyOptions& o, std::ostream& out, std::ostream& err) {
     return kExitError;
   }
   QualityLog quality;
-  for (const auto& path : o.runs) {
+  // Two 3-day runs take seconds: a line per run and stage once it has taken a while.
+  QuietStartProgress progress(err);
+  const std::string of_n = " of " + std::to_string(o.runs.size()) + ")";
+  for (std::size_t k = 0; k < o.runs.size(); ++k) {
+    const std::string& path = o.runs[k];
     const std::string name = display_name(path);  // "run 2 SIM-0001" for --run 2
+    progress.update("read " + path, "verify: reading " + name + " (" + std::to_string(k + 1) + of_n);
     auto run = load_run(path, o.input, &quality);
     if (!run) {
+      progress.finish();
       err << "fogctl verify: " << run.error() << "\n";
       return kExitError;
     }
+    progress.update("verify " + path, "verify: compensating " + name + " (" + std::to_string(k + 1) + of_n);
     auto v = model::verify(*m, *run, vo);
     if (!v) {
+      progress.finish();
       err << "fogctl verify: " << name << ": " << v.error().message << "\n";
       return kExitError;
     }
@@ -286,6 +294,7 @@ int run_verify(const VerifyOptions& o, std::ostream& out, std::ostream& err) {
       ph.add({name, std::string(to_string(p.phase)), std::to_string(p.stats.n), fixed(p.stats.meas_std),
               fixed(p.stats.comp_std), fixed(100.0 * p.stats.ratio, 1) + "%"});
   }
+  progress.finish();
   if (o.json) {
     if (results.size() == 1) {
       auto one = results[0];
@@ -374,15 +383,18 @@ void add_offline_commands(CLI::App& app, int& code) {
   f->add_option("--add", add.add, "With --model: the term to add, e.g. \"T1\" or \"lp(T1,300)@auto\"");
   add_run_input(f, fit.input);
   f->callback([&] {
+    std::ostringstream text;
     if (add.model.empty() && add.add.empty()) {
-      code = run_fit(fit, std::cout, std::cerr);
-      return;
+      code = run_fit(fit, text, std::cerr);
+    } else {
+      add.run = fit.run;
+      add.output = fit.output;
+      add.json = fit.json;
+      add.input = fit.input;
+      code = run_fit_add(add, text, std::cerr);
     }
-    add.run = fit.run;
-    add.output = fit.output;
-    add.json = fit.json;
-    add.input = fit.input;
-    code = run_fit_add(add, std::cout, std::cerr);
+    // Its notes within the terminal's width, as verify's; the model's JSON as it is.
+    std::cout << (fit.json ? text.str() : fit_lines(text.str(), output_width())) << std::flush;
   });
 
   static VerifyOptions ver;

@@ -17,6 +17,11 @@ bool progress_redraws() {
   return ::isatty(STDERR_FILENO) == 1;
 }
 
+bool progress_lines_asked() {
+  const char* p = std::getenv("FOGCTL_PROGRESS");
+  return p && std::strcmp(p, "lines") == 0;
+}
+
 std::size_t progress_width() {
   if (const char* c = std::getenv("COLUMNS"); c && *c) {
     char* end = nullptr;
@@ -70,6 +75,18 @@ void Progress::finish() {
   if (open_line_) err_ << '\n' << std::flush;
   open_line_ = false;
   drawn_width_ = 0;
+}
+
+QuietStartProgress::QuietStartProgress(std::ostream& err)
+    : bar_(err, progress_redraws()),
+      t0_(std::chrono::steady_clock::now()),
+      quiet_s_(progress_lines_asked() ? 0.0 : progress_redraws() ? 0.5 : 2.0) {
+  bar_.set_width(progress_width());
+}
+
+void QuietStartProgress::update(const std::string& phase, const std::string& text) {
+  if (std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count() < quiet_s_) return;
+  bar_.update(phase, text);
 }
 
 }  // namespace fogbench::cli

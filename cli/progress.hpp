@@ -13,6 +13,9 @@ namespace fogbench::cli {
 // Whether progress on stderr is redrawn: stderr is a terminal (isatty). FOGCTL_PROGRESS=lines or
 // =redraw overrides the guess (a terminal multiplexer that logs, a test).
 bool progress_redraws();
+// FOGCTL_PROGRESS=lines: progress lines asked for, from a command's start (a log that wants
+// them all; without it a command that prints progress only when it runs long waits first).
+bool progress_lines_asked();
 // The width of the terminal progress is redrawn on: $COLUMNS when exported (at least 20), else
 // stderr's terminal width, else 0 (unknown).
 std::size_t progress_width();
@@ -53,6 +56,21 @@ class Progress {
   std::size_t drawn_width_ = 0;
   std::size_t width_ = 0;
   std::chrono::steady_clock::time_point last_{};
+};
+
+// Progress of a command that is quick on a day's run and not on a week's (verify): nothing until
+// it has run quiet_s (half a second on a terminal, 2 s in a file or a pipe, none with
+// FOGCTL_PROGRESS=lines), then as Progress, so that a quick command prints nothing.
+class QuietStartProgress {
+ public:
+  explicit QuietStartProgress(std::ostream& err);
+  void update(const std::string& phase, const std::string& text);
+  void finish() { bar_.finish(); }
+
+ private:
+  Progress bar_;
+  std::chrono::steady_clock::time_point t0_;
+  double quiet_s_;
 };
 
 }  // namespace fogbench::cli

@@ -292,7 +292,12 @@ void add_scale_factor_command(CLI::App& app, int& code) {
   c->add_option("--t0", o.t0_c, "The model form's reference temperature T0, degC (default 20)");
   c->add_option("--coil-column", o.coil_column, "The column of the coil temperature the scale factor is a function of (default t1_c)");
   c->add_flag("--json", o.json, "Print one JSON object");
-  c->callback([&] { code = run_scale_factor(o, std::cout, std::cerr); });
+  c->callback([&] {
+    std::ostringstream text;
+    code = run_scale_factor(o, text, std::cerr);
+    // Within the terminal's width, as verify's; JSON as it is.
+    std::cout << (o.json ? text.str() : fit_lines(text.str(), output_width())) << std::flush;
+  });
 }
 
 }  // namespace fogbench::cli

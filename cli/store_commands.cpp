@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "client.hpp"
 #include "common.hpp"
@@ -75,7 +76,9 @@ int run_store_prune(const PruneCliOptions& o, std::ostream& out, std::ostream& e
   if (r->pruned.empty()) {
     out << "no run that ended before " << r->before << " has samples to prune\n";
   } else {
-    Table t({"run", "ended", "state", "serials", "samples " + verb, "plant store received"});
+    // Titled as the kept runs' table below; the samples' header one word, so the table fits 60 columns.
+    out << (r->dry_run ? "would prune" : "pruned") << " (ended before " << r->before << "):\n";
+    Table t({"run", "ended", "state", "serials", "samples", "plant store received"});
     for (const auto& p : r->pruned)
       t.add({std::to_string(p.run_id), p.ended_at, p.state, join(p.serials), std::to_string(p.samples),
              p.sent_at ? *p.sent_at : "never"});
@@ -87,13 +90,16 @@ int run_store_prune(const PruneCliOptions& o, std::ostream& out, std::ostream& e
     for (const auto& k : r->kept) t.add({std::to_string(k.run_id), k.ended_at, k.reason});
     out << t.str();
   }
-  out << (r->dry_run ? "dry run: nothing changed; " : "") << r->pruned.size() << " run" << (r->pruned.size() == 1 ? "" : "s")
-      << ", " << r->samples << " samples " << verb
-      << "; records, events, models, verdicts and certificates kept";
+  std::ostringstream summary;
+  summary << (r->dry_run ? "dry run: nothing changed; " : "") << r->pruned.size() << " run"
+          << (r->pruned.size() == 1 ? "" : "s") << ", " << r->samples << " samples " << verb
+          << "; records, events, models, verdicts and certificates kept";
   if (!r->dry_run && !r->pruned.empty())
-    out << ". The file does not shrink: SQLite reuses the freed pages for new runs (`fogctl store vacuum`, with "
-           "fogbenchd stopped, gives them back)";
-  out << "\n";
+    summary << ". The file does not shrink: SQLite reuses the freed pages for new runs (`fogctl store vacuum`, with "
+               "fogbenchd stopped, gives them back)";
+  summary << "\n";
+  // A sentence within the terminal's width (the tables above are fitted by Table::str).
+  out << fit_lines(summary.str(), output_width());
   return kExitOk;
 }
 

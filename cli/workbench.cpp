@@ -169,17 +169,22 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
     }
   // The candidates on both cores (up to 4 threads): the same answer as one thread, sooner.
   dopt.threads = 0;
-  // Progress on stderr for long work (a 3-day run takes seconds): on a terminal or with
-  // --progress, never on stdout (--json stays one object). On a terminal nothing is drawn in
-  // the first half second, so that a short diagnose prints none.
+  // Progress on stderr for long work (a 3-day run takes a minute), never on stdout (--json
+  // stays one object). On a terminal redrawn, nothing in the first half second, so that a short
+  // diagnose shows none; in a file or a pipe a line per stage once it has taken 2 s (a short
+  // diagnose writes nothing), from the start with --progress (then one every 5 s as well) or
+  // FOGCTL_PROGRESS=lines.
   std::optional<Progress> bar;
   const auto t0 = std::chrono::steady_clock::now();
   const bool redraw = progress_redraws();
-  if (o.progress || redraw) {
-    bar.emplace(err, redraw, 5.0);
-    dopt.progress = [&](const wb::DiagnoseProgress& p) {
+  {
+    const bool from_start = o.progress || progress_lines_asked();
+    const double quiet_s = from_start ? 0.0 : redraw ? 0.5 : 2.0;
+    bar.emplace(err, redraw, o.progress ? 5.0 : 60.0);
+    bar->set_width(progress_width());
+    dopt.progress = [&, quiet_s](const wb::DiagnoseProgress& p) {
       const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      if (!o.progress && s < 0.5) return;
+      if (s < quiet_s) return;
       std::string text = "diagnose: step " + std::to_string(p.step) + ", " + p.stage;
       if (p.stage == "screening") text += " " + std::to_string(p.total) + " generated candidates";
       else if (p.total > 0) text += " candidate " + std::to_string(p.done) + " of " + std::to_string(p.total);

@@ -41,5 +41,9 @@ if(COMMANDS)
     string(APPEND page ".SS ${NAME} ${cmd}\n.nf\n${text}.fi\n")
   endforeach()
 endif()
-string(APPEND page ".SH SEE ALSO\nThe documentation installed with fogbench (docs/*.md): cli.md, daemon.md, csv.md, mock-bench.md.\n")
+# Each file named here is installed in share/doc/fogbench (cli/CMakeLists.txt, daemon/CMakeLists.txt;
+# tests/package/install_layout.sh checks every name against the installed folder).
+string(APPEND page ".SH SEE ALSO\nThe documentation installed with fogbench in share/doc/fogbench under the install prefix: "
+                   "cli.md, daemon.md, storage.md, csv.md, protocol.md, web.md and the sample configuration "
+                   "fogbenchd.json.example; mock-bench.md with the mock bench (component mockbench).\n")
 file(WRITE ${OUT} "${page}")

@@ -240,7 +240,7 @@ TEST_CASE("fogctl cert: a one-verdict certificate (page 4) shows the rule that d
   REQUIRE(signing::sign_certificate(c, station_key(), c["station_id"]).has_value());
   const std::string pub = d.write("station.pub", station_key().public_key().pem());
   const std::string html = certificate_html(c);
-  CHECK(has(html, "fogbench-certificate-page 4"));
+  CHECK(has(html, "fogbench-certificate-page 6"));
   CHECK_FALSE(has(html, "Certificate of qualification"));
   CHECK(has(html, "<title>Qualification record FOG-1: NOT QUALIFIED (fail)</title>"));
   CHECK(has(html, "NOT QUALIFIED"));
@@ -274,7 +274,7 @@ TEST_CASE("fogctl cert: page 4 prints serial, verdict and page x of y in every p
   const std::string pub = d.write("station.pub", station_key().public_key().pem());
   const json c = one_verdict_cert("FOG-7", "pass", 3);
   const std::string html = certificate_html(c);
-  CHECK(has(html, "fogbench-certificate-page 4"));
+  CHECK(has(html, "fogbench-certificate-page 6"));  // page 4's print furniture, kept by page 6
   CHECK(has(html, "<title>Certificate of qualification FOG-7: QUALIFIED (pass)</title>"));
   CHECK(has(html, "@top-left{content:\"Certificate of qualification FOG-7: QUALIFIED (pass)\""));
   CHECK(has(html, "counter(page) \" of \" counter(pages)"));
@@ -298,7 +298,7 @@ TEST_CASE("fogctl cert: page 4 prints serial, verdict and page x of y in every p
   CHECK(check(d.write("e3.html", e3), {pub}).code == 1);
   // A page claiming a layout this fogctl never drew: cannot tell.
   std::string p9 = html;
-  p9.replace(p9.find("fogbench-certificate-page 4"), 27, "fogbench-certificate-page 9");
+  p9.replace(p9.find("fogbench-certificate-page 6"), 27, "fogbench-certificate-page 9");
   CHECK(check(d.write("p9.html", p9), {pub}).code == 2);
 
   // A serial that would close the <style> element or the CSS string: escaped in the margins.
@@ -313,7 +313,7 @@ TEST_CASE("fogctl cert: a certificate with the scale factor over temperature dra
   Dir d;
   const std::string pub = d.write("station.pub", station_key().public_key().pem());
   const json plain = one_verdict_cert("FOG-7", "pass", 1);
-  CHECK(has(certificate_html(plain), "fogbench-certificate-page 4"));  // no rate steps: the page it was
+  CHECK(has(certificate_html(plain), "fogbench-certificate-page 6"));  // no rate steps: no section
   CHECK_FALSE(has(certificate_html(plain), "Scale factor"));
 
   json c = one_verdict_cert("FOG-7", "pass", 1);
@@ -328,7 +328,7 @@ TEST_CASE("fogctl cert: a certificate with the scale factor over temperature dra
        {{"run_id", 11}, {"role", "verify"}, {"error", "plateau 2: no negative input rate"}}});
   REQUIRE(signing::sign_certificate(c, station_key(), c["station_id"]).has_value());
   const std::string html = certificate_html(c);
-  CHECK(has(html, "fogbench-certificate-page 5"));
+  CHECK(has(html, "fogbench-certificate-page 6"));
   CHECK(has(html, "Scale factor over temperature (IEEE Std 952)"));
   CHECK(has(html, "<td>10</td><td>fit</td><td>1.000012</td><td>-12.34 +- 0.41</td><td>not identified (needs at least 4 plateaus)</td>"));
   CHECK(has(html, "k2 0.021 +- 0.003 ppm/degC^2, T0 20 degC"));
@@ -345,9 +345,48 @@ TEST_CASE("fogctl cert: a certificate with the scale factor over temperature dra
   const std::string p4 = certificate_html(c, 4);
   CHECK_FALSE(has(p4, "Scale factor"));
   CHECK(check(d.write("p4.html", p4), {pub}).code == 0);
+  // As page 5 drew it (a fogctl before page 6): with the section, and it still checks.
+  const std::string p5 = certificate_html(c, 5);
+  CHECK(has(p5, "fogbench-certificate-page 5"));
+  CHECK(has(p5, "Scale factor over temperature (IEEE Std 952)"));
+  CHECK(check(d.write("p5.html", p5), {pub}).code == 0);
   // The JSON: its signature covers the figures.
   json altered = c;
   altered["scale_factor"][0]["tc_ppm_per_c"]["value"] = -2.34;
   std::ofstream(d.file("a.json")) << altered.dump();
   CHECK(check(d.file("a.json"), {pub}).code == 1);
+}
+
+TEST_CASE("fogctl cert: page 6 draws a run's end as date and time to the second and names an empty station or operator, and a page 4 issued before it still checks", "[cli][cert]") {
+  Dir d;
+  const std::string pub = d.write("station.pub", station_key().public_key().pem());
+  json c = one_verdict_cert("FOG-7", "marginal", 1);
+  // A station without a station.id and a run whose operator was not recorded, as the demo's.
+  c["station_id"] = "";
+  c["runs"] = json::array({{{"id", 10}, {"role", "fit"}, {"profile", "exp1"}, {"ended_at", "2026-11-29T13:44:50.889Z"},
+                            {"identity", {{"station_id", ""}, {"operator", ""}, {"software_version", "0.1.0"},
+                                          {"git_hash", "62756e985c7e4dfb"}}}}});
+  REQUIRE(signing::sign_certificate(c, station_key(), c["station_id"]).has_value());
+  const std::string html = certificate_html(c);
+  CHECK(has(html, "fogbench-certificate-page 6"));
+  // The end as date and time (one break between them in a narrow column, never inside either),
+  // the station and the operator named: no empty cell.
+  CHECK(has(html, "<td>exp1</td><td>2026-11-29 13:44:50Z</td><td>not configured</td><td>not recorded</td>"));
+  CHECK_FALSE(has(html, "<td></td>"));
+  CHECK(has(html, "by a station without a station.id with fogbench 0.1.0"));
+  CHECK(has(html, "Signed (Ed25519) by a station without a station.id with key "));
+  CHECK_FALSE(has(html, "by station  with"));
+  auto ok = check(d.write("p6.html", html), {pub});
+  CHECK(ok.code == 0);
+  CHECK(has(ok.out, "visible page matches"));
+  // An operator written into the page only: edited, exit 1.
+  std::string e = html;
+  e.replace(e.find("<td>not recorded</td>"), 21, "<td>A. N. Other</td>");
+  CHECK(check(d.write("e.html", e), {pub}).code == 1);
+  // The same certificate as page 4 drew it, byte for byte as issued: its empty cells and its
+  // full timestamp, and it still checks.
+  const std::string p4 = certificate_html(c, 4);
+  CHECK(has(p4, "<td>exp1</td><td>2026-11-29T13:44:50.889Z</td><td></td><td></td>"));
+  CHECK(has(p4, "by station  with fogbench"));
+  CHECK(check(d.write("p4.html", p4), {pub}).code == 0);
 }

@@ -3,6 +3,7 @@
 // file, a term the model already has, profile list|validate. Exit codes and messages through
 // the built fogctl, as a user meets them.
 #include <catch2/catch.hpp>
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -164,6 +165,83 @@ TEST_CASE("fogctl report: exits as verify does, 1 when the qualification fails")
   CHECK_THAT(r.err, Contains("report: reading " + d.file("e1.csv") + " (1 of 2)\n") && Contains("report: diagnose, ") &&
                         Contains("report: Table 1, the lineage and the plots\n") && Contains("report: writing "));
   CHECK(r.err.find('\r') == std::string::npos);
+}
+
+namespace {
+
+std::size_t widest_line(const std::string& text) {
+  std::size_t widest = 0;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) widest = std::max(widest, line.size());
+  return widest;
+}
+
+// A text without its spaces and line breaks: a line wrapped at spaces reads the same.
+std::string without_spaces(const std::string& text) {
+  std::string out;
+  for (char c : text)
+    if (c != ' ' && c != '\n') out += c;
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("fogctl fit and allan at COLUMNS=60: every line within 60 and every word kept while piped lines stay whole") {
+  Dir d;
+  simulate("exp1", 2, d.file("e1.csv"));
+  for (const std::string& args : {"fit " + d.file("e1.csv"), "allan " + d.file("e1.csv")}) {
+    INFO(args);
+    const Ran piped = fogctl(d, args, "-u COLUMNS");
+    const Ran narrow = fogctl(d, args, "COLUMNS=60");
+    INFO(piped.out << "\n--- at 60:\n" << narrow.out);
+    REQUIRE(piped.code == 0);
+    REQUIRE(narrow.code == 0);
+    // The run's notes (fit's whiteness and collinearity, allan's bias instability per hold) are
+    // sentences of 166 and more columns (the tables are at most 107), left whole in a pipe ...
+    CHECK(widest_line(piped.out) > 150);
+    // ... and wrapped at spaces on a 60-column terminal (tables narrowed), each note's words kept.
+    CHECK(widest_line(narrow.out) <= 60);
+    std::istringstream lines(piped.out);
+    int notes = 0;
+    for (std::string line; std::getline(lines, line);) {
+      if (line.size() <= 150) continue;  // a table's row: table_test.cpp covers their wrapping
+      ++notes;
+      CHECK_THAT(without_spaces(narrow.out), Contains(without_spaces(line)));
+    }
+    CHECK(notes >= 1);
+  }
+}
+
+TEST_CASE("fogctl diagnose: progress lines in a log that asks for them without --progress, never a carriage return") {
+  Dir d;
+  simulate("exp1", 5, d.file("e1.csv"));
+  simulate("exp2", 6, d.file("e2.csv"));
+  fit_paper(d.file("e1.csv"), d.file("m.json"));
+  const std::string args = "diagnose --model " + d.file("m.json") + " " + d.file("e1.csv") + " " + d.file("e2.csv");
+  // A log that wants progress (FOGCTL_PROGRESS=lines, as for run start --wait): a line per stage
+  // from the start. Without it, a piped diagnose writes them once it has taken 2 s (a 3-day run
+  // takes a minute), so this short one writes none.
+  const Ran logged = fogctl(d, args, "FOGCTL_PROGRESS=lines");
+  INFO(logged.err);
+  REQUIRE((logged.code == kExitOk || logged.code == kExitFailed));
+  CHECK_THAT(logged.err, Contains("diagnose: step 1, "));
+  CHECK(logged.err.find('\r') == std::string::npos);
+  CHECK(logged.out.find("diagnose: step") == std::string::npos);  // never on stdout
+}
+
+TEST_CASE("fogctl verify: progress lines per run in a log that asks for them, none on a quick piped verify") {
+  Dir d;
+  simulate("exp1", 7, d.file("e1.csv"));
+  simulate("exp2", 8, d.file("e2.csv"));
+  fit_paper(d.file("e1.csv"), d.file("m.json"));
+  const std::string args = "verify --model " + d.file("m.json") + " " + d.file("e1.csv") + " " + d.file("e2.csv");
+  const Ran logged = fogctl(d, args, "FOGCTL_PROGRESS=lines");
+  INFO(logged.err);
+  REQUIRE(logged.code != 2);
+  CHECK_THAT(logged.err, Contains("verify: reading " + d.file("e1.csv") + " (1 of 2)\n") &&
+                             Contains("verify: compensating " + d.file("e2.csv") + " (2 of 2)\n"));
+  CHECK(logged.err.find('\r') == std::string::npos);
+  CHECK_THAT(logged.out, Contains("Table 1"));
 }
 
 TEST_CASE("fogctl: a CSV from a German spreadsheet, a tab-separated one, upper-case headers") {

@@ -7,6 +7,8 @@
 #include <chrono>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
 
 #include "fogbench/storage/lock.hpp"
 #include "fogbench/storage/runs.hpp"
@@ -63,6 +65,19 @@ TEST_CASE("fogctl store prune: the plant's runs lose their samples, the others a
   INFO(dry.err);
   REQUIRE(dry.code == 0);
   CHECK_THAT(dry.out, Contains("dry run: nothing changed; 1 run, 50 samples would delete"));
+  CHECK(samples_of(db, 1) == 50);
+  // On a 60-column terminal every line fits, the summary's sentence wrapped at spaces, the run
+  // kept and why still said.
+  auto narrow = fogctl(d, "store prune --store '" + db + "' --before 2026-02-01 --dry-run", "COLUMNS=60");
+  INFO(narrow.out);
+  REQUIRE(narrow.code == 0);
+  std::istringstream lines(narrow.out);
+  std::string joined;
+  for (std::string line; std::getline(lines, line);) {
+    CHECK(line.size() <= 60);
+    joined += line + " ";
+  }
+  CHECK_THAT(joined, Contains("50 samples would delete;") && Contains("certificates kept") && Contains("never sent"));
   CHECK(samples_of(db, 1) == 50);
 
   auto r = fogctl(d, "store prune --store '" + db + "' --before 2026-02-01");

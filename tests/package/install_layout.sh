@@ -47,6 +47,25 @@ sed "s|$p||g" "$example" | grep -q "/tmp" && fail "the sample configuration poin
 grep -q "\"$p/share/fogbench/profiles\"" "$example" || fail "sample profile_dir is not the prefix's"
 "$p/sbin/fogbenchd" --check-config "$example" >/dev/null || fail "the sample configuration does not pass --check-config"
 
+# The configuration the unit starts from is installed under etc/ from the sample when there is
+# none, and an existing one is never overwritten (the install says it kept it).
+config=$p/etc/fogbench/fogbenchd.json
+[[ -f $config ]] || fail "etc/fogbench/fogbenchd.json not installed (the unit's ExecStart names it)"
+cmp -s "$config" "$example" || fail "etc/fogbench/fogbenchd.json is not the sample configuration"
+"$p/sbin/fogbenchd" --check-config "$config" >/dev/null || fail "the installed configuration does not pass --check-config"
+echo '{"station edited": true}' > "$config"
+again=$(cmake --install "$build" --prefix "$p" --component runtime)
+[[ $(cat "$config") == '{"station edited": true}' ]] || fail "a second install overwrote etc/fogbench/fogbenchd.json"
+[[ $again == *"Keeping: $config (it exists: never overwritten"* ]] || fail "a second install does not say it kept $config: $again"
+
+# Every document the man pages' SEE ALSO names is installed (mock-bench.md with the mock bench, below).
+see_also=$(sed -n '/^\.SH SEE ALSO/,$p' "$p/share/man/man1/fogctl.1")
+named=$(grep -o '[a-z-]*\.md\|fogbenchd\.json\.example' <<<"$see_also" | sort -u)
+[[ -n $named ]] || fail "fogctl.1's SEE ALSO names no document: $see_also"
+for doc in $named; do
+  [[ $doc == mock-bench.md || -e $p/share/doc/fogbench/$doc ]] || fail "SEE ALSO names $doc, not installed in share/doc/fogbench"
+done
+
 # The installed fogctl runs its fleet commands in the installed fogctl-fleet (its own usage error).
 fleet_err=$("$p/bin/fogctl" fleet serials 2>&1 >/dev/null || true)
 [[ $fleet_err == *"give the plant store with exactly one of --db"* ]] || fail "fogctl fleet does not reach libexec/fogbench/fogctl-fleet: $fleet_err"
@@ -72,4 +91,20 @@ cmake --install "$build" --prefix "$m" --component mockbench >/dev/null
 [[ -x $m/bin/fogbench-sim && -e $m/share/man/man1/fogbench-sim.1 ]] || fail "mockbench component incomplete"
 [[ ! -e $m/bin/fogctl && ! -e $m/sbin/fogbenchd ]] || fail "the mockbench component installs production tools"
 "$m/bin/fogbench-sim" --version | grep -q '^[0-9]' || fail "fogbench-sim --version"
+[[ -e $m/share/doc/fogbench/mock-bench.md ]] || fail "mockbench: mock-bench.md (its man page's SEE ALSO) not installed"
+
+# A build of named targets only (scripts/demo's `fogbenchd fogctl fogbench-sim`) does not make
+# the man pages and completion (they are `all`'s): install makes them from the executables, the
+# same files as the build's, and says so.
+gen=$(cd "$build" && pwd)/generated
+rm -f "$gen/fogctl.1" "$gen/fogctl.bash" "$gen/_fogctl" "$gen/fogbenchd.8" "$gen/fogbench-sim.1"
+q=$tmp/partial
+out=$(cmake --install "$build" --prefix "$q" --component runtime)
+[[ $out == *"Generating: $gen/fogctl.1"* ]] || fail "install after a partial build does not say it makes fogctl.1: $out"
+for f in share/man/man1/fogctl.1 share/man/man8/fogbenchd.8 share/bash-completion/completions/fogctl share/zsh/vendor-completions/_fogctl; do
+  cmp -s "$p/$f" "$q/$f" || fail "after a partial build, $f is missing or differs from a full build's"
+done
+cmake --install "$build" --prefix "$q" --component mockbench >/dev/null
+cmp -s "$m/share/man/man1/fogbench-sim.1" "$q/share/man/man1/fogbench-sim.1" || fail "after a partial build, fogbench-sim.1 is missing or differs"
+ls "$gen"/*.tmp >/dev/null 2>&1 && fail "temporary files left in $gen: $(ls "$gen"/*.tmp)"
 echo "install layout: ok"
