@@ -8,6 +8,10 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
+#include <span>
+#include <utility>
+#include <vector>
 
 namespace fogbench::model::allan {
 namespace {
@@ -192,6 +196,144 @@ NoiseEstimate estimate_of(const Reading& r, const AdevPoint& p, double value, do
   return e;
 }
 
+// The squared differences are summed in blocks of this many; the blocks' sums in long double.
+constexpr std::int64_t kSumBlock = 4096;
+// Independent partial sums in a block (a multiple of the widest vector's doubles), so the
+// compiler vectorises the sum without reordering one accumulator's additions.
+constexpr std::int64_t kLanes = 8;
+
+// sum_k (b[k] - a[k])^2 for k < len, b = a + m (the window sums S_m(k + m) and S_m(k)); and,
+// in squares_and_sums, out[k] = a[k] + b[k] (S_2m(k)) in the same pass. a and b overlap (both
+// read); out does not. Compiled for AVX2 as well as the baseline, chosen at load time by the
+// CPU (GCC's target_clones): the passes are bound by arithmetic, not memory (the run's 7 MB at
+// 864,000 samples stays in cache), so the vector width is their speed.
+// sum_k x[k] for k < n, in kLanes partial sums.
+[[gnu::target_clones("avx2", "default")]] double lane_sum(const double* x, std::int64_t n) {
+  std::array<double, kLanes> acc{};
+  std::int64_t k = 0;
+  for (; k + kLanes <= n; k += kLanes)
+    for (std::int64_t j = 0; j < kLanes; ++j) acc[static_cast<std::size_t>(j)] += x[k + j];
+  double sum = 0.0;
+  for (; k < n; ++k) sum += x[k];
+  for (const double v : acc) sum += v;
+  return sum;
+}
+
+[[gnu::target_clones("avx2", "default")]] double squares(const double* __restrict a, const double* __restrict b, std::int64_t len) {
+  std::array<double, kLanes> acc{};
+  std::int64_t k = 0;
+  for (; k + kLanes <= len; k += kLanes)
+    for (std::int64_t j = 0; j < kLanes; ++j) {
+      const double d = b[k + j] - a[k + j];
+      acc[static_cast<std::size_t>(j)] += d * d;
+    }
+  double sum = 0.0;
+  for (; k < len; ++k) sum += (b[k] - a[k]) * (b[k] - a[k]);
+  for (const double v : acc) sum += v;
+  return sum;
+}
+
+// The same with S_2m written over S_m (out = a), for len <= m: b's range lies past the one
+// written.
+[[gnu::target_clones("avx2", "default")]] double squares_and_sums_in_place(double* a, const double* __restrict b, std::int64_t len) {
+  std::array<double, kLanes> acc{};
+  std::int64_t k = 0;
+  for (; k + kLanes <= len; k += kLanes)
+    for (std::int64_t j = 0; j < kLanes; ++j) {
+      const double d = b[k + j] - a[k + j];
+      acc[static_cast<std::size_t>(j)] += d * d;
+      a[k + j] += b[k + j];
+    }
+  double sum = 0.0;
+  for (; k < len; ++k) {
+    sum += (b[k] - a[k]) * (b[k] - a[k]);
+    a[k] += b[k];
+  }
+  for (const double v : acc) sum += v;
+  return sum;
+}
+
+[[gnu::target_clones("avx2", "default")]] double squares_and_sums(const double* __restrict a, const double* __restrict b,
+                                                                   double* __restrict out, std::int64_t len) {
+  std::array<double, kLanes> acc{};
+  std::int64_t k = 0;
+  for (; k + kLanes <= len; k += kLanes)
+    for (std::int64_t j = 0; j < kLanes; ++j) {
+      const double d = b[k + j] - a[k + j];
+      acc[static_cast<std::size_t>(j)] += d * d;
+      out[k + j] = a[k + j] + b[k + j];
+    }
+  double sum = 0.0;
+  for (; k < len; ++k) {
+    sum += (b[k] - a[k]) * (b[k] - a[k]);
+    out[k] = a[k] + b[k];
+  }
+  for (const double v : acc) sum += v;
+  return sum;
+}
+
+// The octaves done chunk by chunk (blocked_octaves): up to this cluster size, in chunks of this
+// many starting indices (a multiple of kSumBlock, so the blocks are those of the whole-array
+// pass); a chunk and its halo of 2 kBlockedMaxM sums, twice (the pass's input and output), take
+// about 650 kB, within a core's L2 cache.
+constexpr std::int64_t kBlockedMaxM = 4096;
+constexpr std::int64_t kChunk = 8 * kSumBlock;
+
+// The octaves m = 1, 2, ..., 2^(levels-1) in one pass over the run, where the whole-array passes
+// would make two per octave through the last-level cache: for each chunk of kChunk starting
+// indices, its rates and a halo of 2^levels after it, less the mean, are copied to a scratch;
+// each octave's squared differences over the chunk are summed (in blocks of kSumBlock at the
+// same indices as the whole-array pass) while the window sums are doubled into the other scratch
+// (S_2m(k) = S_m(k) + S_m(k + m)). Returns each octave's sum of squared differences. With `next`
+// not null, S_(2^levels)(k) for k = 0 .. n - 2^levels is written there, the start of the longer
+// octaves.
+std::vector<long double> blocked_octaves(std::span<const double> rate_dph, double mean, int levels, double* next) {
+  const auto n = static_cast<std::int64_t>(rate_dph.size());
+  const std::int64_t halo = std::int64_t{1} << levels;
+  std::vector<long double> sums(static_cast<std::size_t>(levels), 0.0L);
+  const auto scratch_size = static_cast<std::size_t>(std::min(n, kChunk + halo));
+  const std::unique_ptr<double[]> scratch_a(new double[scratch_size]), scratch_b(new double[scratch_size]);
+  for (std::int64_t c0 = 0; c0 < n; c0 += kChunk) {
+    const std::int64_t c1 = std::min(n, c0 + kChunk);
+    double* a = scratch_a.get();  // a[j] is S_m(c0 + j)
+    double* b = scratch_b.get();
+    std::int64_t valid = std::min(n, c1 + halo) - c0;  // a[j] holds S_m(c0 + j) for j < valid
+    for (std::int64_t j = 0; j < valid; ++j) a[j] = rate_dph[static_cast<std::size_t>(c0 + j)] - mean;
+    for (int level = 0; level < levels; ++level) {
+      const std::int64_t m = std::int64_t{1} << level;
+      // This chunk's starting indices of m's second differences: c0 .. terms_end - 1. A chunk
+      // holds them all, as 2m <= halo.
+      const std::int64_t terms = std::max<std::int64_t>(0, std::min(c1, n - 2 * m + 1) - c0);
+      long double& sum = sums[static_cast<std::size_t>(level)];
+      for (std::int64_t j0 = 0; j0 < terms; j0 += kSumBlock)
+        sum += squares_and_sums(a + j0, a + j0 + m, b + j0, std::min(kSumBlock, terms - j0));
+      valid -= m;  // S_2m(c0 + j) needs S_m up to c0 + j + m
+      for (std::int64_t j = terms; j < valid; ++j) b[j] = a[j] + a[j + m];
+      std::swap(a, b);
+    }
+    if (next != nullptr)
+      for (std::int64_t k = c0; k < std::min(c1, n - halo + 1); ++k) next[k] = a[k - c0];
+  }
+  return sums;
+}
+
+// The Allan deviation at cluster size m of n samples from the sum of its squared differences.
+AdevPoint point_of(std::int64_t m, std::int64_t n, double tau0_s, long double sum) {
+  const std::int64_t terms = n - 2 * m + 1;
+  // theta is in rate*tau0 units, so (theta diff / (m tau0))^2 * tau0^2 = diff^2 / m^2.
+  const double avar = static_cast<double>(sum / (2.0L * static_cast<long double>(m) * m * terms));
+  AdevPoint p;
+  p.m = m;
+  p.tau_s = static_cast<double>(m) * tau0_s;
+  p.adev_dph = std::sqrt(avar);
+  p.terms = terms;
+  const double clusters = static_cast<double>(n) / static_cast<double>(m);
+  const double rel = clusters > 1.0 ? 1.0 / std::sqrt(2.0 * (clusters - 1.0)) : std::numeric_limits<double>::infinity();
+  p.ci_low_dph = std::max(0.0, p.adev_dph * (1.0 - rel));
+  p.ci_high_dph = p.adev_dph * (1.0 + rel);
+  return p;
+}
+
 }  // namespace
 
 double AvarFit::part(NoiseKind k, double tau_s) const {
@@ -229,9 +371,17 @@ std::expected<std::vector<AdevPoint>, std::string> overlapping_adev(
   if (!(tau0_s > 0.0) || !std::isfinite(tau0_s))
     return std::unexpected("tau0_s must be a positive number of seconds, got " + fmt(tau0_s));
   if (n < 3) return std::unexpected("Allan deviation needs at least 3 samples, got " + std::to_string(n));
-  for (std::int64_t i = 0; i < n; ++i)
-    if (!std::isfinite(rate_dph[static_cast<std::size_t>(i)]))
-      return std::unexpected("rate sample " + std::to_string(i) + " is not a finite number");
+  // The mean rate, deg/h, in lanes of double (vectorised): it cancels in the second differences,
+  // so its own rounding does not reach the deviation. A sum that is not finite has a sample that
+  // is not (or rates near 1e308): found and named.
+  const double sum_dph = lane_sum(rate_dph.data(), n);
+  if (!std::isfinite(sum_dph)) {
+    for (std::int64_t i = 0; i < n; ++i)
+      if (!std::isfinite(rate_dph[static_cast<std::size_t>(i)]))
+        return std::unexpected("rate sample " + std::to_string(i) + " is not a finite number");
+    return std::unexpected("the rate samples' sum overflows a double: rates near 1e308 deg/h are not a gyro's");
+  }
+  const double mean = sum_dph / static_cast<double>(n);
   std::int64_t previous = 0;
   for (const auto m : cluster_sizes) {
     if (m < 1 || m > (n - 1) / 2)
@@ -247,68 +397,85 @@ std::expected<std::vector<AdevPoint>, std::string> overlapping_adev(
   // S_m(k + m) - S_m(k), S_m(k) the sum of the m rates from k (in (deg/h)*tau0). The window sums
   // are kept, not the angle: an angle accumulated over 864,000 samples of a drifting gyro
   // reaches 1e6 and more, and its second differences at short taus would lose 7 of double's 16
-  // digits. The mean rate is removed first (in long double; it cancels in the second difference
-  // anyway). When m doubles, as at octave taus, S_2m(k) = S_m(k) + S_m(k + m) in place, one
-  // vectorised pass per tau over one array of doubles; another m is summed afresh from the
-  // angle in long double (half-octave taus on short holds). What this replaced, a long-double
-  // loop over the angle for every tau, took 84 ms at 864,000 samples and 19 taus
-  // (docs/performance.md, "Allan deviation").
-  long double mean = 0.0L;
-  for (const double r : rate_dph) mean += r;
-  mean /= static_cast<long double>(n);
+  // digits. The mean rate is removed first (it cancels in the second difference anyway). When the next cluster size is a doubling, S_2m(k) = S_m(k) + S_m(k + m) is made in
+  // the same pass as m's squared differences, into a second array (no aliasing: the pass is
+  // vectorised whole); another m is summed afresh from the angle in long double (half-octave
+  // taus on short holds). What this replaced, a long-double loop over the angle for every tau,
+  // took 84 ms at 864,000 samples and 19 taus (docs/performance.md, "Allan deviation").
   std::vector<long double> theta;  // the angle, made only for a cluster size that does not double
-  std::vector<double> window(static_cast<std::size_t>(n), 0.0);  // S_m(k), k = 0 .. n - m
-  for (std::int64_t i = 0; i < n; ++i)
-    window[static_cast<std::size_t>(i)] = static_cast<double>(rate_dph[static_cast<std::size_t>(i)] - mean);
+  // S_m(k), k = 0 .. n - m, and S_2m as the pass makes it; left as allocated where the leading
+  // octaves' pass fills it.
+  std::unique_ptr<double[]> window(new double[static_cast<std::size_t>(n)]), doubled;
+  double* s = window.get();
   std::int64_t window_m = 1;
+  // The leading cluster sizes 1, 2, 4, ... up to kBlockedMaxM, chunk by chunk (blocked_octaves).
+  std::size_t leading = 0;
+  while (leading < cluster_sizes.size() && cluster_sizes[leading] == (std::int64_t{1} << leading) &&
+         cluster_sizes[leading] <= kBlockedMaxM)
+    ++leading;
+  std::vector<long double> leading_sums;
+  if (leading > 0) {
+    const bool more = leading < cluster_sizes.size();
+    leading_sums = blocked_octaves(rate_dph, mean, static_cast<int>(leading), more ? s : nullptr);
+    window_m = std::int64_t{1} << leading;
+  } else {
+    for (std::int64_t i = 0; i < n; ++i) s[i] = rate_dph[static_cast<std::size_t>(i)] - mean;
+  }
   const auto sums_from_angle = [&](std::int64_t m) {
     if (theta.empty()) {
       theta.assign(static_cast<std::size_t>(n) + 1, 0.0L);
       for (std::int64_t i = 0; i < n; ++i)
         theta[static_cast<std::size_t>(i) + 1] =
-            theta[static_cast<std::size_t>(i)] + (rate_dph[static_cast<std::size_t>(i)] - mean);
+            theta[static_cast<std::size_t>(i)] + (static_cast<long double>(rate_dph[static_cast<std::size_t>(i)]) - mean);
     }
     for (std::int64_t k = 0; k + m <= n; ++k)
-      window[static_cast<std::size_t>(k)] =
-          static_cast<double>(theta[static_cast<std::size_t>(k + m)] - theta[static_cast<std::size_t>(k)]);
+      s[k] = static_cast<double>(theta[static_cast<std::size_t>(k + m)] - theta[static_cast<std::size_t>(k)]);
     window_m = m;
   };
-  double* const s = window.data();
+  // S_2m from S_m into the other array, without the squares (a doubling no cluster size asks for).
+  const auto double_windows = [&] {  // forward order: S_m(k + m) is read before it is overwritten
+    const std::int64_t len = n - 2 * window_m + 1;
+    for (std::int64_t k = 0; k < len; ++k) s[k] += s[k + window_m];
+    window_m *= 2;
+  };
 
   std::vector<AdevPoint> out;
   out.reserve(cluster_sizes.size());
-  for (const auto m : cluster_sizes) {
-    while (window_m < m && 2 * window_m <= m) {  // double the windows while m is reached that way
-      // Forward order: S_m(k + m) is read before it is overwritten. Fusing this pass into the
-      // sums' below, block by block, measured slower (22 against 17 ms at 864,000).
-      const std::int64_t len = n - 2 * window_m + 1;
-      for (std::int64_t k = 0; k < len; ++k) s[k] += s[k + window_m];
-      window_m *= 2;
+  for (std::size_t level = 0; level < cluster_sizes.size(); ++level) {
+    const std::int64_t m = cluster_sizes[level];
+    if (level < leading) {
+      out.push_back(point_of(m, n, tau0_s, leading_sums[level]));
+      continue;
     }
+    while (window_m < m && 2 * window_m <= m) double_windows();
     if (window_m != m) sums_from_angle(m);
     const std::int64_t terms = n - 2 * m + 1;
-    // Summed in blocks (each block's partial sums vectorised by Eigen), the blocks' sums added
-    // in long double: the rounding of 864,000 squares stays near one block's.
-    constexpr std::int64_t kBlock = 4096;
+    // The next cluster size is reached by doubling: S_2m made in this pass, over S_m where a
+    // block's writes stay below its reads (m >= kSumBlock, forward order), else into the other
+    // array.
+    const bool doubling = level + 1 < cluster_sizes.size() && cluster_sizes[level + 1] >= 2 * m;
+    const bool in_place = m >= kSumBlock;
+    if (doubling && !in_place && !doubled) doubled.reset(new double[static_cast<std::size_t>(n)]);
+    // Summed in blocks, the blocks' sums added in long double: the rounding of 864,000 squares
+    // stays near one block's.
     long double sum = 0.0L;
-    for (std::int64_t k0 = 0; k0 < terms; k0 += kBlock) {
-      const std::int64_t len = std::min(kBlock, terms - k0);
-      const Eigen::Map<const Eigen::ArrayXd> a(s + k0, len), b(s + k0 + m, len);
-      sum += (b - a).square().sum();
+    for (std::int64_t k0 = 0; k0 < terms; k0 += kSumBlock) {
+      const std::int64_t len = std::min(kSumBlock, terms - k0);
+      if (!doubling)
+        sum += squares(s + k0, s + k0 + m, len);
+      else if (in_place)
+        sum += squares_and_sums_in_place(s + k0, s + k0 + m, len);
+      else
+        sum += squares_and_sums(s + k0, s + k0 + m, doubled.get() + k0, len);
     }
-    // theta is in rate*tau0 units, so (theta diff / (m tau0))^2 * tau0^2 = diff^2 / m^2.
-    const double avar = static_cast<double>(sum / (2.0L * static_cast<long double>(m) * m * terms));
-    AdevPoint p;
-    p.m = m;
-    p.tau_s = static_cast<double>(m) * tau0_s;
-    p.adev_dph = std::sqrt(avar);
-    p.terms = terms;
-    const double clusters = static_cast<double>(n) / static_cast<double>(m);
-    const double rel = clusters > 1.0 ? 1.0 / std::sqrt(2.0 * (clusters - 1.0))
-                                      : std::numeric_limits<double>::infinity();
-    p.ci_low_dph = std::max(0.0, p.adev_dph * (1.0 - rel));
-    p.ci_high_dph = p.adev_dph * (1.0 + rel);
-    out.push_back(p);
+    if (doubling) {
+      if (!in_place) {
+        window.swap(doubled);
+        s = window.get();
+      }
+      window_m = 2 * m;
+    }
+    out.push_back(point_of(m, n, tau0_s, sum));
   }
   return out;
 }
