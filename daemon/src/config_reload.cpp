@@ -2,6 +2,8 @@
 // comparison of two files, and the errors placed on their line.
 #include "fogbench/daemon/config_reload.hpp"
 
+#include <sys/statvfs.h>
+
 #include <algorithm>
 #include <cctype>
 #include <map>
@@ -256,12 +258,21 @@ std::vector<std::string> config_path_problems(const DaemonConfig& config, std::s
     const auto line = line_of_key(text, key);
     return key + (line ? " (line " + std::to_string(*line) + ")" : std::string()) + ": ";
   };
-  // A folder a file is created in: it must exist and be a directory.
+  // A folder a file is created in: it must exist and be a directory, on a filesystem mounted
+  // for writing (the store's journal and WAL files are created beside it: a read-only mount would
+  // stop the daemon at its first write, or at an upgrade's migration).
   auto folder = [&](const std::string& key, const std::filesystem::path& file) {
     const auto dir = file.parent_path();
     std::error_code ec;
     const auto st = std::filesystem::status(dir, ec);
-    if (std::filesystem::is_directory(st)) return;
+    if (std::filesystem::is_directory(st)) {
+      struct statvfs fs {};
+      if (::statvfs(dir.c_str(), &fs) == 0 && (fs.f_flag & ST_RDONLY) != 0)
+        out.push_back(where(key) + dir.string() + " (the folder of " + file.filename().string() +
+                      ") is on a read-only filesystem: fogbenchd cannot write there (remount it read-write, or "
+                      "name a folder on a writable one)");
+      return;
+    }
     if (std::filesystem::exists(st)) {
       out.push_back(where(key) + dir.string() + " (the folder of " + file.filename().string() + ") is not a directory");
     } else if (!made_by_shipped_unit(dir)) {

@@ -9,6 +9,7 @@
 
 #include <cstdlib>
 #include <fstream>
+#include <iostream>
 #include <sstream>
 
 using namespace fogbench::daemon::test;
@@ -168,5 +169,35 @@ TEST_CASE("serial devices the shipped unit does not allow are named by --check-c
   CHECK(bad.status == 2);
   CHECK_THAT(bad.out, Catch::Contains("drivers.chamber.modbus.device"));
   CHECK(bad.out.find("[Service]") == std::string::npos);
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("--check-config names a store folder on a read-only filesystem (a bind mount made read-only in a mount namespace of its own)") {
+  REQUIRE(std::filesystem::exists(kBin / "fogbenchd"));
+  char tmpl[] = "/tmp/fogbench-rofs-XXXXXX";
+  const std::filesystem::path dir = ::mkdtemp(tmpl);
+  const std::filesystem::path ro = dir / "ro";
+  std::filesystem::create_directories(ro);
+  json config = sample();
+  config["storage"]["path"] = (ro / "fogbench.db").string();
+  auto writable = check_config(dir, config);
+  INFO(writable.out);
+  CHECK(writable.status == 0);  // the same folder, writable: valid
+  // The folder made read-only for this one command: unshare gives it a mount namespace, so the
+  // bind mount ends with it. Without the rights or the tools (not root, no unshare): SKIPPED.
+  const std::string cmd = "unshare -m sh -c \"mount --bind '" + ro.string() + "' '" + ro.string() + "' && mount -o remount,bind,ro '" +
+                          ro.string() + "' || exit 77; exec '" + (kBin / "fogbenchd").string() + "' --check-config '" +
+                          (dir / "fogbenchd.json").string() + "'\" >'" + (dir / "out").string() + "' 2>&1";
+  const int s = std::system(cmd.c_str());
+  const int status = WIFEXITED(s) ? WEXITSTATUS(s) : -1;
+  const std::string out = read_all(dir / "out");
+  if (status == 77 || (status != 0 && status != 2)) {
+    std::cerr << "SKIPPED: cannot make a read-only bind mount here (root and util-linux's unshare are needed): " << out << "\n";
+    std::filesystem::remove_all(dir);
+    std::exit(77);
+  }
+  INFO(out);
+  CHECK(status == 2);
+  CHECK_THAT(out, Catch::Contains("storage.path (line ") && Catch::Contains(ro.string() + " (the folder of fogbench.db) is on a read-only filesystem"));
   std::filesystem::remove_all(dir);
 }
