@@ -223,8 +223,20 @@ std::expected<DaemonConfig, std::string> parse_daemon_config_text(std::string_vi
     const auto p = position_of_offset(text, e.byte == 0 ? 0 : e.byte - 1);
     std::string what = e.what();
     if (const auto c = what.find(": "); c != std::string::npos) what = what.substr(c + 2);
+    // JSON has no trailing comma, the commonest slip in a file edited by hand: a '}' or ']'
+    // whose previous non-blank byte is ',' is named as one, at the comma's place.
+    std::string hint;
+    if (const std::size_t at = e.byte == 0 ? 0 : e.byte - 1; at < text.size() && (text[at] == '}' || text[at] == ']')) {
+      std::size_t before = at;
+      while (before > 0 && std::isspace(static_cast<unsigned char>(text[before - 1]))) --before;
+      if (before > 0 && text[before - 1] == ',') {
+        const auto comma = position_of_offset(text, before - 1);
+        hint = " (a trailing comma at line " + std::to_string(comma.line) + ", column " + std::to_string(comma.column) +
+               ": JSON allows none before '" + std::string(1, text[at]) + "')";
+      }
+    }
     return std::unexpected("line " + std::to_string(p.line) + ", column " + std::to_string(p.column) +
-                           ": not valid JSON: " + what);
+                           ": not valid JSON: " + what + hint);
   }
   auto c = parse_daemon_config(j, base_dir);
   if (c) return c;

@@ -259,3 +259,19 @@ TEST_CASE("config reload: a byte offset as line and column") {
   CHECK(position_of_offset(text, 1000).line == 4);
   CHECK(position_of_offset(text, 1000).column == 2);
 }
+
+TEST_CASE("config text: a trailing comma is named at the comma's line and column, in objects and arrays") {
+  auto c = parse_daemon_config_text("{\"simulated\": true,\n \"storage\": {\"path\": \"x.db\"},\n}\n", golden_dir());
+  REQUIRE_FALSE(c.has_value());
+  INFO(c.error());
+  CHECK(c.error().starts_with("line 3, column 1: not valid JSON"));
+  CHECK(c.error().find("(a trailing comma at line 2, column 29: JSON allows none before '}')") != std::string::npos);
+  auto a = parse_daemon_config_text("{\"x\": [1, 2,  ]}", golden_dir());
+  REQUIRE_FALSE(a.has_value());
+  INFO(a.error());
+  CHECK(a.error().find("(a trailing comma at line 1, column 12: JSON allows none before ']')") != std::string::npos);
+  // Another syntax error is not called one.
+  auto other = parse_daemon_config_text("{\"x\": [1 2]}", golden_dir());
+  REQUIRE_FALSE(other.has_value());
+  CHECK(other.error().find("trailing comma") == std::string::npos);
+}

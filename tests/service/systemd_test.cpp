@@ -154,7 +154,7 @@ TEST_CASE("fogbenchd --check-config: 0 for a valid file, 2 naming the key of an 
   CHECK_THAT(slurp(dir / "out"), Catch::Contains("chamber_limits.max_rate_c_per_min (line 2)"));
   std::ofstream(dir / "comma.json") << "{\"simulated\": true,\n \"storage\": {\"path\": \"x.db\"},\n}\n";  // a trailing comma
   CHECK(run("--check-config '" + (dir / "comma.json").string() + "'") == 2);
-  CHECK_THAT(slurp(dir / "out"), Catch::Contains("comma.json: line 3, column 1: not valid JSON"));
+  CHECK_THAT(slurp(dir / "out"), Catch::Contains("comma.json: line 3, column 1: not valid JSON") && Catch::Contains("a trailing comma at line 2, column 29"));
   CHECK(run("--check-config '" + (dir / "missing.json").string() + "'") == 2);
   CHECK(run("") == 2);  // neither --config nor --check-config
   {
