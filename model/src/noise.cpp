@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <limits>
 #include <numbers>
+#include <optional>
 
 #include "fogbench/model/model.hpp"
 #include "fogbench/model/stats.hpp"
@@ -185,14 +186,21 @@ std::vector<double> creep_fast_acov(const NoiseFloor& f) {
   return g;
 }
 
-CreepFit remove_creep(std::vector<Stretch>& spans, const NoiseFloor& null_floor) {
+// Step 1, the regression: the creep regressors pooled over every stretch, each demeaned within
+// its stretch and scaled to unit norm (levels and rates differ by orders of magnitude; columns
+// that never move are left out), the hold residual demeaned the same way, and its least-squares
+// fit on them. Empty when no regressor moves or the holds are too short for them.
+struct CreepRegression {
+  Eigen::MatrixXd X;       // n x p, unit-norm columns
+  Eigen::VectorXd y, fit;  // the demeaned hold residual and its fit on X, deg/h
+  Eigen::Index rank = 0;   // the fit's rank
+};
+
+std::optional<CreepRegression> creep_regression(const std::vector<Stretch>& spans) {
   constexpr std::size_t rate_half_s = 30;
-  constexpr double p_false = 1e-3;
-  CreepFit cf;
   std::size_t n = 0;
   for (const auto& sp : spans) n += sp.x.size();
-  // The candidate columns, each demeaned within each stretch; a stretch without a thermistor
-  // contributes zeros to its columns.
+  // A stretch without a thermistor contributes zeros to its columns.
   auto demeaned = [](const std::vector<double>& v, std::vector<double>& col) {
     double m = 0.0;
     for (double x : v) m += x;
@@ -244,7 +252,6 @@ CreepFit remove_creep(std::vector<Stretch>& spans, const NoiseFloor& null_floor)
     level_at(sp.t2_c, len, cols[5]);
     demeaned(sp.x, y);
   }
-  // Columns that move at all, scaled to unit norm (levels and rates differ by orders of magnitude).
   std::vector<std::size_t> use;
   std::vector<double> scale;
   for (std::size_t c = 0; c < cols.size(); ++c) {
@@ -255,34 +262,113 @@ CreepFit remove_creep(std::vector<Stretch>& spans, const NoiseFloor& null_floor)
       scale.push_back(1.0 / std::sqrt(ss));
     }
   }
-  if (use.empty() || n < 10 * use.size() + spans.size()) return cf;
+  if (use.empty() || n < 10 * use.size() + spans.size()) return std::nullopt;
   const auto ni = static_cast<Eigen::Index>(n);
-  const auto p = static_cast<Eigen::Index>(use.size());
-  Eigen::MatrixXd X(ni, p);
+  CreepRegression r;
+  r.X.resize(ni, static_cast<Eigen::Index>(use.size()));
   for (std::size_t c = 0; c < use.size(); ++c)
-    for (std::size_t i = 0; i < n; ++i) X(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(c)) = cols[use[c]][i] * scale[c];
-  const Eigen::VectorXd yv = Eigen::Map<const Eigen::VectorXd>(y.data(), ni);
-  const Eigen::VectorXd g = X.transpose() * yv;
-
-  // M = X' Sigma X, stretch by stretch: the short-term part in time (its autocovariance is a
-  // few lags long), the slow part in frequency (int S_slow(f) Re(C_a(f) C_b(f)*) df, C_a the
-  // regressor's transform over the stretch; finite since each column sums to 0 in a stretch),
-  // on a log grid in f fine enough for the stretches' lengths.
-  Eigen::MatrixXd M = Eigen::MatrixXd::Zero(p, p);
-  std::vector<double> fast = creep_fast_acov(null_floor);
-  // The regression's own fit, taken out when significant; its residual's variance stands for
-  // the short-term level where the floor saw no slow law (the model's AR noise was fitted on
-  // the opening hold alone and may be a different level from the holds').
+    for (std::size_t i = 0; i < n; ++i) r.X(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(c)) = cols[use[c]][i] * scale[c];
+  r.y = Eigen::Map<const Eigen::VectorXd>(y.data(), ni);
   // A column with under 1 % of its norm its own (the rest follows the others) is left out of
   // the fit: nearly collinear levels would take huge opposite coefficients and put the
   // thermistors' own noise, amplified, into the residual.
-  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(X);
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(r.X);
   qr.setThreshold(1e-2);
-  if (qr.rank() == 0) return cf;
-  const Eigen::VectorXd fit = X * qr.solve(yv);
+  r.rank = qr.rank();
+  if (r.rank == 0) return std::nullopt;
+  r.fit = r.X * qr.solve(r.y);
+  return r;
+}
+
+// One stretch's regressors as Q Rt: Q (len x r) orthonormal, Rt (r x p), r the rank within the
+// stretch (a level times the stretch's mean level is that level scaled, so r <= 4 of 6). The
+// variances below are computed on Q's r columns and carried back by Rt' (.) Rt; what a rank
+// cut drops is under 1e-12 of the columns' norm.
+struct StretchBasis {
+  Eigen::MatrixXd q, rt;
+};
+StretchBasis stretch_basis(const Eigen::Ref<const Eigen::MatrixXd>& xs) {
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(xs);
+  qr.setThreshold(1e-12);
+  const Eigen::Index r = qr.rank(), p = xs.cols();
+  StretchBasis b;
+  b.q = qr.householderQ() * Eigen::MatrixXd::Identity(xs.rows(), r);
+  const Eigen::MatrixXd R = qr.matrixR().topLeftCorner(r, p).triangularView<Eigen::Upper>();
+  b.rt = R * qr.colsPermutation().transpose();
+  return b;
+}
+
+// int S_slow(f) Re(C_a(f) C_b(f)*) df over the columns of q (one stretch, 1 s samples), C the
+// columns' transforms, S_slow = h1 / f + h2 / f^2: the trapezoid in ln f over `grid` points
+// from e^ln_lo to e^(ln_lo + (grid - 1) step) Hz (df = f dln f). Only Re(C C^H) is needed, so
+// each transform may carry a phase common to the columns. Where w = 2 pi f is small against
+// the stretch (w half-length <= 1) the transform is a power series in w of the columns' moments
+// about the stretch's middle (20 terms: under 1e-18 of the columns' sums), computed once for
+// all those frequencies; above, a direct sum with a rotating phasor.
+Eigen::MatrixXd slow_cross_spectrum(const Eigen::MatrixXd& q, double h1, double h2, double ln_lo, double step, int grid) {
+  const Eigen::Index len = q.rows(), r = q.cols();
+  Eigen::MatrixXd mq = Eigen::MatrixXd::Zero(r, r);
+  if (len == 0 || r == 0) return mq;
+  const double half = 0.5 * static_cast<double>(len - 1);
+  const double u_scale = half > 0.0 ? 1.0 / half : 0.0;
+  constexpr int terms = 20;
+  Eigen::MatrixXd mom;  // (terms + 1) x r: sum_n q(n, c) u_n^k, u_n = (n - half) / half in [-1, 1]
+  Eigen::VectorXcd c(r);
+  const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows = q;
+  for (int k = 0; k < grid; ++k) {
+    const double fk = std::exp(ln_lo + step * k), w = 2.0 * kPi * fk;
+    if (w * half <= 1.0) {
+      if (mom.size() == 0) {
+        mom = Eigen::MatrixXd::Zero(terms + 1, r);
+        for (Eigen::Index i = 0; i < len; ++i) {
+          const double u = (static_cast<double>(i) - half) * u_scale;
+          double pw = 1.0;
+          for (int t = 0; t <= terms; ++t) {
+            mom.row(t) += pw * rows.row(i);
+            pw *= u;
+          }
+        }
+      }
+      // sum_n q_n e^{-i w (n - half)} = sum_t (-i w half)^t / t! mom_t
+      const double a = w * half;
+      std::complex<double> coef{1.0, 0.0};
+      c.setZero();
+      for (int t = 0; t <= terms; ++t) {
+        c += coef * mom.row(t).transpose().cast<std::complex<double>>();
+        coef *= std::complex<double>(0.0, -a / static_cast<double>(t + 1));
+      }
+    } else {
+      const std::complex<double> rot = std::polar(1.0, -w);
+      std::complex<double> z{1.0, 0.0};
+      c.setZero();
+      for (Eigen::Index i = 0; i < len; ++i) {
+        for (Eigen::Index j = 0; j < r; ++j) c(j) += rows(i, j) * z;
+        z *= rot;
+      }
+    }
+    // One-sided S(f) df with df = f dln f, trapezoid weights.
+    const double wt = (h1 / fk + h2 / (fk * fk)) * fk * step * (k == 0 || k == grid - 1 ? 0.5 : 1.0);
+    mq += wt * (c * c.adjoint()).real();
+  }
+  return mq;
+}
+
+// Step 2, the sandwich: the covariance of the scores g = X'y under no creep, M = X' Sigma X,
+// Sigma the floor's noise within each stretch (stretches independent). The short-term part in
+// time (its autocovariance is a few lags long), the slow part in frequency
+// (int S_slow(f) Re(C_a(f) C_b(f)*) df, C_a the regressor's transform over the stretch; finite
+// since each column sums to 0 in a stretch), on a log grid in f fine enough for the stretches'
+// lengths.
+Eigen::MatrixXd creep_score_covariance(const CreepRegression& reg, const std::vector<Stretch>& spans, const NoiseFloor& null_floor) {
+  const Eigen::Index p = reg.X.cols();
+  Eigen::MatrixXd M = Eigen::MatrixXd::Zero(p, p);
+  std::vector<double> fast = creep_fast_acov(null_floor);
+  // The regression's residual variance stands for the short-term level where the floor saw no
+  // slow law (the model's AR noise was fitted on the opening hold alone and may be a different
+  // level from the holds').
   if (!null_floor.slow()) {
-    const double dof = static_cast<double>(n) - static_cast<double>(spans.size()) - static_cast<double>(qr.rank());
-    const double var_e = dof >= 1.0 ? (yv - fit).squaredNorm() / dof : 0.0;
+    const double dof = static_cast<double>(reg.X.rows()) - static_cast<double>(spans.size()) - static_cast<double>(reg.rank);
+    const double var_e = dof >= 1.0 ? (reg.y - reg.fit).squaredNorm() / dof : 0.0;
     if (var_e > 0.0 && fast.front() > 0.0) {
       const double k = var_e / fast.front();
       for (double& v : fast) v *= k;
@@ -294,13 +380,16 @@ CreepFit remove_creep(std::vector<Stretch>& spans, const NoiseFloor& null_floor)
   constexpr int grid = 200;
   const double f_lo = std::log(std::min(1e-6, 0.01 / static_cast<double>(longest))), f_hi = std::log(0.5);
   const double step = (f_hi - f_lo) / (grid - 1);
-  std::size_t off = 0;
+  Eigen::Index off = 0;
   for (const auto& sp : spans) {
     const auto len = static_cast<Eigen::Index>(sp.x.size());
-    const auto Xs = X.middleRows(static_cast<Eigen::Index>(off), len);
+    const StretchBasis b = stretch_basis(reg.X.middleRows(off, len));
+    off += len;
+    if (b.q.cols() == 0) continue;
+    Eigen::MatrixXd mq = Eigen::MatrixXd::Zero(b.q.cols(), b.q.cols());
     // Exact over the first exact_lags lags; beyond, the regressors (levels, and rates over
     // +-30 s) barely change within a lag, so x_t x_{t+l}' is taken as x_t x_t' (a long AR tail
-    // would otherwise cost a pass over the stretch per lag).
+    // would otherwise cost a pass over the stretch per lag). Q'Q = I.
     constexpr std::size_t exact_lags = 30;
     double tail = 0.0;
     for (std::size_t l = 0; l < fast.size() && static_cast<Eigen::Index>(l) < len; ++l) {
@@ -309,59 +398,62 @@ CreepFit remove_creep(std::vector<Stretch>& spans, const NoiseFloor& null_floor)
         continue;
       }
       const auto L = static_cast<Eigen::Index>(l);
-      const Eigen::MatrixXd cross = Xs.topRows(len - L).transpose() * Xs.bottomRows(len - L);
-      M += fast[l] * (l == 0 ? cross : Eigen::MatrixXd(cross + cross.transpose()));
+      const Eigen::MatrixXd cross = b.q.topRows(len - L).transpose() * b.q.bottomRows(len - L);
+      mq += fast[l] * (l == 0 ? cross : Eigen::MatrixXd(cross + cross.transpose()));
     }
-    if (tail != 0.0) M += 2.0 * tail * (Xs.transpose() * Xs);
-    if (slow_h1 > 0.0 || slow_h2 > 0.0) {
-      double prev_w = 0.0;
-      Eigen::MatrixXd prev_m = Eigen::MatrixXd::Zero(p, p);
-      for (int k = 0; k < grid; ++k) {
-        const double fk = std::exp(f_lo + step * k);
-        const std::complex<double> rot = std::polar(1.0, -2.0 * kPi * fk);
-        std::complex<double> z{1.0, 0.0};
-        Eigen::VectorXcd C = Eigen::VectorXcd::Zero(p);
-        for (Eigen::Index i = 0; i < len; ++i) {
-          for (Eigen::Index c = 0; c < p; ++c) C(c) += Xs(i, c) * z;
-          z *= rot;
-        }
-        // One-sided S(f) df with df = f dln f; Re(C C^H).
-        const double w = (slow_h1 / fk + slow_h2 / (fk * fk)) * fk;
-        const Eigen::MatrixXd m = (C * C.adjoint()).real();
-        if (k > 0) M += 0.5 * step * (prev_w * prev_m + w * m);
-        prev_w = w;
-        prev_m = m;
-      }
-    }
-    off += sp.x.size();
+    if (tail != 0.0) mq += 2.0 * tail * Eigen::MatrixXd::Identity(b.q.cols(), b.q.cols());
+    if (slow_h1 > 0.0 || slow_h2 > 0.0) mq += slow_cross_spectrum(b.q, slow_h1, slow_h2, f_lo, step, grid);
+    M += b.rt.transpose() * mq * b.rt;
   }
-  // W = g' M^+ g over M's directions that carry variance (near-collinear regressors leave
-  // directions with none: they are dropped, and with them their degrees of freedom).
+  return M;
+}
+
+// Step 3, the Wald test: W = g' M^+ g over M's directions that carry variance (near-collinear
+// regressors leave directions with none: they are dropped, and with them their degrees of
+// freedom), a chi-square of that many degrees of freedom under no creep; its (1 - p_false)
+// quantile. Empty when M carries no variance.
+struct WaldTest {
+  double chi2 = 0.0, quantile = 0.0;
+  std::size_t dof = 0;
+};
+std::optional<WaldTest> creep_wald(const Eigen::VectorXd& g, const Eigen::MatrixXd& M, double p_false) {
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(M);
-  if (es.info() != Eigen::Success) return cf;
+  if (es.info() != Eigen::Success) return std::nullopt;
   const double lmax = es.eigenvalues().maxCoeff();
-  if (!(lmax > 0.0)) return cf;
-  double wald = 0.0;
-  std::size_t rank = 0;
-  for (Eigen::Index k = 0; k < p; ++k) {
+  if (!(lmax > 0.0)) return std::nullopt;
+  WaldTest w;
+  for (Eigen::Index k = 0; k < M.rows(); ++k) {
     const double lk = es.eigenvalues()(k);
     if (!(lk > 1e-8 * lmax)) continue;
     const double proj = es.eigenvectors().col(k).dot(g);
-    wald += proj * proj / lk;
-    ++rank;
+    w.chi2 += proj * proj / lk;
+    ++w.dof;
   }
-  if (rank == 0) return cf;
-  cf.chi2_eff = wald;
-  cf.dof = rank;
-  // The chi-square of `rank` degrees of freedom is 2 x a gamma of shape rank / 2.
-  cf.quantile = 2.0 * gamma_quantile(0.5 * static_cast<double>(rank), 1.0 - p_false);
+  if (w.dof == 0) return std::nullopt;
+  // The chi-square of dof degrees of freedom is 2 x a gamma of shape dof / 2.
+  w.quantile = 2.0 * gamma_quantile(0.5 * static_cast<double>(w.dof), 1.0 - p_false);
+  return w;
+}
+
+CreepFit remove_creep(std::vector<Stretch>& spans, const NoiseFloor& null_floor) {
+  constexpr double p_false = 1e-3;
+  CreepFit cf;
+  const std::optional<CreepRegression> reg = creep_regression(spans);
+  if (!reg) return cf;
+  const Eigen::MatrixXd M = creep_score_covariance(*reg, spans, null_floor);
+  const Eigen::VectorXd g = reg->X.transpose() * reg->y;
+  const std::optional<WaldTest> w = creep_wald(g, M, p_false);
+  if (!w) return cf;
+  cf.chi2_eff = w->chi2;
+  cf.dof = w->dof;
+  cf.quantile = w->quantile;
   if (!(cf.chi2_eff > cf.quantile)) return cf;
   cf.removed = true;
-  cf.removed_var_dph2 = fit.squaredNorm() / static_cast<double>(n);
-  off = 0;
+  cf.removed_var_dph2 = reg->fit.squaredNorm() / static_cast<double>(reg->fit.size());
+  Eigen::Index off = 0;
   for (auto& sp : spans) {
-    for (std::size_t i = 0; i < sp.x.size(); ++i) sp.x[i] -= fit(static_cast<Eigen::Index>(off + i));
-    off += sp.x.size();
+    for (std::size_t i = 0; i < sp.x.size(); ++i) sp.x[i] -= reg->fit(off + static_cast<Eigen::Index>(i));
+    off += static_cast<Eigen::Index>(sp.x.size());
   }
   return cf;
 }
