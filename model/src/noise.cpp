@@ -3,6 +3,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <complex>
 #include <cstdio>
@@ -308,47 +309,81 @@ StretchBasis stretch_basis(const Eigen::Ref<const Eigen::MatrixXd>& xs) {
 Eigen::MatrixXd slow_cross_spectrum(const Eigen::MatrixXd& q, double h1, double h2, double ln_lo, double step, int grid) {
   const Eigen::Index len = q.rows(), r = q.cols();
   Eigen::MatrixXd mq = Eigen::MatrixXd::Zero(r, r);
-  if (len == 0 || r == 0) return mq;
+  if (len == 0 || r == 0 || grid < 1) return mq;
   const double half = 0.5 * static_cast<double>(len - 1);
   const double u_scale = half > 0.0 ? 1.0 / half : 0.0;
   constexpr int terms = 20;
+  const auto ng = static_cast<Eigen::Index>(grid);
+  Eigen::MatrixXcd cs(r, ng);  // each frequency's transforms
+  std::vector<double> fks(static_cast<std::size_t>(grid));
+  std::vector<Eigen::Index> direct;
   Eigen::MatrixXd mom;  // (terms + 1) x r: sum_n q(n, c) u_n^k, u_n = (n - half) / half in [-1, 1]
-  Eigen::VectorXcd c(r);
   const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows = q;
-  for (int k = 0; k < grid; ++k) {
-    const double fk = std::exp(ln_lo + step * k), w = 2.0 * kPi * fk;
-    if (w * half <= 1.0) {
-      if (mom.size() == 0) {
-        mom = Eigen::MatrixXd::Zero(terms + 1, r);
-        for (Eigen::Index i = 0; i < len; ++i) {
-          const double u = (static_cast<double>(i) - half) * u_scale;
-          double pw = 1.0;
-          for (int t = 0; t <= terms; ++t) {
-            mom.row(t) += pw * rows.row(i);
-            pw *= u;
-          }
+  for (Eigen::Index k = 0; k < ng; ++k) {
+    const double fk = std::exp(ln_lo + step * static_cast<double>(k)), w = 2.0 * kPi * fk;
+    fks[static_cast<std::size_t>(k)] = fk;
+    if (w * half > 1.0) {
+      direct.push_back(k);
+      continue;
+    }
+    if (mom.size() == 0) {
+      mom = Eigen::MatrixXd::Zero(terms + 1, r);
+      for (Eigen::Index i = 0; i < len; ++i) {
+        const double u = (static_cast<double>(i) - half) * u_scale;
+        double pw = 1.0;
+        for (int t = 0; t <= terms; ++t) {
+          mom.row(t) += pw * rows.row(i);
+          pw *= u;
         }
       }
-      // sum_n q_n e^{-i w (n - half)} = sum_t (-i w half)^t / t! mom_t
-      const double a = w * half;
-      std::complex<double> coef{1.0, 0.0};
-      c.setZero();
-      for (int t = 0; t <= terms; ++t) {
-        c += coef * mom.row(t).transpose().cast<std::complex<double>>();
-        coef *= std::complex<double>(0.0, -a / static_cast<double>(t + 1));
-      }
-    } else {
-      const std::complex<double> rot = std::polar(1.0, -w);
-      std::complex<double> z{1.0, 0.0};
-      c.setZero();
-      for (Eigen::Index i = 0; i < len; ++i) {
-        for (Eigen::Index j = 0; j < r; ++j) c(j) += rows(i, j) * z;
-        z *= rot;
+    }
+    // sum_n q_n e^{-i w (n - half)} = sum_t (-i w half)^t / t! mom_t
+    const double a = w * half;
+    std::complex<double> coef{1.0, 0.0};
+    Eigen::VectorXcd c = Eigen::VectorXcd::Zero(r);
+    for (int t = 0; t <= terms; ++t) {
+      c += coef * mom.row(t).transpose().cast<std::complex<double>>();
+      coef *= std::complex<double>(0.0, -a / static_cast<double>(t + 1));
+    }
+    cs.col(k) = c;
+  }
+  // The direct sums, four frequencies a pass: each phasor's rotation is a chain of dependent
+  // multiplications, and four independent chains keep the processor busy where one waits on
+  // its own latency.
+  constexpr std::size_t block = 4, max_cols = 8;  // the creep regressors are 6
+  assert(static_cast<std::size_t>(r) <= max_cols);
+  for (std::size_t d0 = 0; d0 < direct.size(); d0 += block) {
+    const std::size_t nb = std::min(block, direct.size() - d0);
+    double zr[block], zi[block], cr[block], ci[block], are[block][max_cols], aim[block][max_cols];
+    for (std::size_t b = 0; b < block; ++b) {
+      const double w = b < nb ? 2.0 * kPi * fks[static_cast<std::size_t>(direct[d0 + b])] : 0.0;
+      zr[b] = 1.0;
+      zi[b] = 0.0;
+      cr[b] = std::cos(w);
+      ci[b] = -std::sin(w);
+      for (std::size_t j = 0; j < max_cols; ++j) are[b][j] = aim[b][j] = 0.0;
+    }
+    const auto rc = static_cast<std::size_t>(r);
+    for (Eigen::Index i = 0; i < len; ++i) {
+      const double* x = rows.data() + i * r;
+      for (std::size_t b = 0; b < block; ++b) {
+        for (std::size_t j = 0; j < rc; ++j) {
+          are[b][j] += x[j] * zr[b];
+          aim[b][j] += x[j] * zi[b];
+        }
+        const double nr = zr[b] * cr[b] - zi[b] * ci[b];
+        zi[b] = zr[b] * ci[b] + zi[b] * cr[b];
+        zr[b] = nr;
       }
     }
+    for (std::size_t b = 0; b < nb; ++b)
+      for (std::size_t j = 0; j < rc; ++j) cs(static_cast<Eigen::Index>(j), direct[d0 + b]) = std::complex<double>(are[b][j], aim[b][j]);
+  }
+  for (Eigen::Index k = 0; k < ng; ++k) {
     // One-sided S(f) df with df = f dln f, trapezoid weights.
-    const double wt = (h1 / fk + h2 / (fk * fk)) * fk * step * (k == 0 || k == grid - 1 ? 0.5 : 1.0);
-    mq += wt * (c * c.adjoint()).real();
+    const double fk = fks[static_cast<std::size_t>(k)];
+    const double wt = (h1 / fk + h2 / (fk * fk)) * fk * step * (k == 0 || k == ng - 1 ? 0.5 : 1.0);
+    mq += wt * (cs.col(k) * cs.col(k).adjoint()).real();
   }
   return mq;
 }
