@@ -493,24 +493,36 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   auto backfit = [&](std::vector<SearchStep>& steps, Model& cur, const Model& base_m, const RunData& f, const std::vector<RunData>& h,
                      const auto& at_step, const TimeDrift& tdrift) {
     if (steps.empty()) return;
+    bool passing = false;
     {
       const DiagnoseOptions oc = with_floor(cur, f, h);
       std::vector<RunCheck> fc{check_run(cur, f, false, oc)};
       for (const auto& r : h) fc.push_back(check_run(cur, r, true, oc));
-      if (passes(fc)) return;
+      passing = passes(fc);
     }
+    // Passing the checks is not proof that the first step was right: the floor is read under
+    // the model, and a look-alike's misfit in the holds reads as slow noise there and excuses
+    // itself. So the restart (below) is tried whenever two steps or more were taken.
+    if (passing && steps.size() < 2) return;
     if (o.progress) o.progress(DiagnoseProgress{"backfitting", static_cast<int>(steps.size()), 0, steps.size()});
     double best = mean_log_rms(cur, f, h);
     std::vector<SearchStep> best_steps;
     std::optional<Model> best_model;
     // The first two steps only: the largest falls, where a look-alike of two effects is taken
-    // (each try repeats up to max_terms searches).
-    for (std::size_t j = 0; j < steps.size() && j < 2; ++j) {
+    // (each try repeats up to max_terms searches), when the checks fail. A last try starts again
+    // from the base with another first term and keeps none of the steps after it: those were
+    // chosen to make up for the first one's misfit (on the distributed coil a lagged square of the air, Ta^2@372,
+    // taken for T1^2 beside the coil's own field, then grad*d(grad), d(lp(Ta,2700)) and a
+    // product around it, ending at 1.05 / 1.10 / 1.16 x the floor on seed 71).
+    const std::size_t tries = std::min<std::size_t>(steps.size(), 2) + (steps.size() > 1 ? 1 : 0);
+    for (std::size_t t = passing ? 2 : 0; t < tries; ++t) {
+      const bool restart = t == 2;
+      const std::size_t j = restart ? 0 : t;
       Model m2 = base_m;
       std::vector<SearchStep> s2;
       bool ok = true;
       for (std::size_t i = 0; i < steps.size() && ok; ++i) {
-        if (i == j) continue;
+        if (i == j || restart) continue;
         auto a = add_term(m2, f, steps[i].added);
         if (!a) ok = false;
         else {
@@ -545,7 +557,9 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
         s2.push_back(ss);
         m2 = a->model;
       }
-      if (s2.size() < steps.size()) continue;
+      // A restart may end with fewer steps (nothing left to detect): fewer terms at a lower
+      // error is better still.
+      if (s2.empty() || (s2.size() < steps.size() && !restart)) continue;
       const double score = mean_log_rms(m2, f, h);
       if (score < best - 0.01) {
         best = score;

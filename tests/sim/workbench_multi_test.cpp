@@ -160,7 +160,7 @@ TEST_CASE("workbench on the distributed coil with effects beside its own: every 
 // A tool, hidden: MULTI_CASES="effect|D:effect" (D: the distributed coil) and MULTI_SEEDS="7 21" print
 // where the search stops on each and why (steps, final ratios, the next round's candidates, the
 // noise floor each model reads); MULTI_CREEP=0 reads the floor with the thermistors' creep left in
-// (1: taken out, the default).
+// (1: taken out, the default); MULTI_MAX_TERMS=N searches up to N steps (default 5).
 TEST_CASE("workbench multi explore", "[.explore]") {
   const char* env = std::getenv("MULTI_CASES");
   std::vector<std::string> cases;
@@ -190,6 +190,7 @@ TEST_CASE("workbench multi explore", "[.explore]") {
       wb::DiagnoseOptions o;
       o.threads = 2;
       if (const char* c = std::getenv("MULTI_CREEP"); c && *c) o.failing.noise.floor.remove_creep = *c == '1';  // the thermistors' creep taken out of the floor (1) or not (0)
+      if (const char* c = std::getenv("MULTI_MAX_TERMS"); c && *c) o.max_terms = std::atoi(c);
       auto t0 = std::chrono::steady_clock::now();
       auto d = wb::diagnose(*m, r[0], std::span<const model::RunData>(r).subspan(1), o);
       const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
