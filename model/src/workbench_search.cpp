@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cctype>
 #include <cstdio>
+#include <future>
 #include <limits>
 #include <numeric>
 #include <optional>
@@ -450,13 +451,19 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   auto with_floor = [&](const Model& mm, const RunData& first, std::span<const RunData> rest) {
     DiagnoseOptions oo = o;
     if (oo.failing.noise.given || !oo.failing.noise.read_floor) return oo;
-    std::vector<RunData> all;
-    all.push_back(first);
-    all.insert(all.end(), rest.begin(), rest.end());
-    if (auto f = unit_noise_floor(mm, all, oo.failing.noise.floor)) oo.failing.noise.given = std::move(*f);
+    std::vector<RunData> all;  // the runs side by side: a copy only when there is more than one
+    if (!rest.empty()) {
+      all.push_back(first);
+      all.insert(all.end(), rest.begin(), rest.end());
+    }
+    const std::span<const RunData> runs = rest.empty() ? std::span<const RunData>(&first, 1) : std::span<const RunData>(all);
+    if (auto f = unit_noise_floor(mm, runs, oo.failing.noise.floor)) oo.failing.noise.given = std::move(*f);
     return oo;
   };
   const DiagnoseOptions ob = with_floor(*base, fit_run, held_out);
+  // ob's floor when with_floor read it (the caller gave none): the floor diagnose_once reads
+  // again under the same base on the same runs (a step hint).
+  const NoiseFloor* base_floor = !o.failing.noise.given && o.failing.noise.read_floor && ob.failing.noise.given ? &*ob.failing.noise.given : nullptr;
 
   // Bias jumps: found on each run's residual, removed from that run's copy for the search.
   // A pass: the jumps (by jumps_by, or the base model), the search on the copies without them.
@@ -466,9 +473,13 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     RunData fit_copy;
     std::vector<RunData> held_copy;
     Model base;
+    bool base_refitted = false;  // base is the model refitted without the fit run's jumps (else *base's copy)
     std::expected<Diagnosis, FitError> d = std::unexpected(FitError{});
     Model cur;
     TimeDrift td;
+    // The checks of cur on fit_copy and held_copy (with cur's floor), when backfit made them and
+    // kept cur: the adequacy checks' final_checks are the same calls.
+    std::optional<std::vector<RunCheck>> cur_checks;
   };
   // Backfitting (issue 25: several effects at once). A greedy step may take a look-alike that
   // spells two effects on the fit run and only part of them on another (hidden -1.5*d(T1)@300 +
@@ -491,13 +502,15 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     return k ? s / k : kNaN;
   };
   auto backfit = [&](std::vector<SearchStep>& steps, Model& cur, const Model& base_m, const RunData& f, const std::vector<RunData>& h,
-                     const auto& at_step, const TimeDrift& tdrift) {
+                     const auto& at_step, const TimeDrift& tdrift, std::optional<std::vector<RunCheck>>& cur_checks) {
     if (steps.empty()) return;
     {
       const DiagnoseOptions oc = with_floor(cur, f, h);
       std::vector<RunCheck> fc{check_run(cur, f, false, oc)};
       for (const auto& r : h) fc.push_back(check_run(cur, r, true, oc));
-      if (passes(fc)) return;
+      const bool pass = passes(fc);
+      cur_checks = std::move(fc);
+      if (pass) return;
     }
     if (o.progress) o.progress(DiagnoseProgress{"backfitting", static_cast<int>(steps.size()), 0, steps.size()});
     double best = mean_log_rms(cur, f, h);
@@ -556,6 +569,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     if (best_model) {
       steps = std::move(best_steps);
       cur = std::move(*best_model);
+      cur_checks.reset();
     }
   };
   auto search_pass = [&](const Model* jumps_by) {
@@ -586,7 +600,10 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       };
       if (scan_run(ps.fit_copy)) {
         // The base again without the fit run's jumps (its mu0 and lag were pulled by them).
-        if (auto b2 = fit(ps.fit_copy, terms_of(m), fo)) ps.base = std::move(*b2);
+        if (auto b2 = fit(ps.fit_copy, terms_of(m), fo)) {
+          ps.base = std::move(*b2);
+          ps.base_refitted = true;
+        }
       }
       for (auto& h : ps.held_copy) scan_run(h);
     }
@@ -605,7 +622,11 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
         if (!o.failing.noise.given) op.failing.noise.given = ps.td.floor;
       }
     }
-    ps.d = wbi::diagnose_once(m, ps.fit_copy, ps.held_copy, at_step(0), space.gen, &stats);
+    // With no jump removed the step's runs are the runs as given: its base is *base and its floor
+    // base_floor (the same fit and read on the same runs).
+    wbi::StepHint hint;
+    if (ps.jumps.empty()) hint = wbi::StepHint{&*base, base_floor};
+    ps.d = wbi::diagnose_once(m, ps.fit_copy, ps.held_copy, at_step(0), space.gen, &stats, hint);
     if (!ps.d) return ps;
     promote_time(*ps.d, ps.td, o);
     promote_pooled(*ps.d, o);
@@ -636,7 +657,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       promote_pooled(*next, o);
       step = std::move(*next);
     }
-    backfit(ps.d->steps, ps.cur, ps.base, ps.fit_copy, ps.held_copy, at_step, ps.td);
+    backfit(ps.d->steps, ps.cur, ps.base, ps.fit_copy, ps.held_copy, at_step, ps.td, ps.cur_checks);
     return ps;
   };
   Pass ps = search_pass(nullptr);
@@ -665,14 +686,43 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
 
   // Adequacy of the model as given (refitted on the fit run), on the runs as given.
   tell("adequacy checks", static_cast<int>(ps.d->steps.size()));
-  const DiagnoseOptions obase = with_floor(ps.base, fit_run, held_out);
+  // The periodic search (below) needs none of the checks: on a thread of its own beside them
+  // when threads are allowed, its results taken in the runs' order (the same answer).
+  struct PeriodicScan {
+    std::vector<PeriodicDisturbance> found;
+    std::vector<RunData> cleaned;
+  };
+  auto periodic_scan = [&]() {
+    PeriodicScan out;
+    auto scan = [&](const RunData& r) {
+      RunData c = r;
+      if (auto p = find_periodic(cur, r, o)) {
+        for (std::size_t i = 0; i < c.size(); ++i)
+          c.gyro_dph[i] -= p->amplitude_dph * std::sin(2.0 * 3.141592653589793 * static_cast<double>(i) / p->period_s + p->phase_rad);
+        out.found.push_back(std::move(*p));
+      }
+      out.cleaned.push_back(std::move(c));
+    };
+    scan(fit_copy);
+    for (const auto& h : held_copy) scan(h);
+    return out;
+  };
+  std::future<PeriodicScan> periodic_later;
+  if (o.periodic && o.threads != 1) periodic_later = std::async(std::launch::async, periodic_scan);
+  // The floor under the base on the runs as given is ob's when the base was not refitted
+  // without the fit run's jumps (the same read).
+  const DiagnoseOptions obase = ps.base_refitted ? with_floor(ps.base, fit_run, held_out) : ob;
   d->checks.push_back(check_run(ps.base, fit_run, false, obase));
   for (const auto& h : held_out) d->checks.push_back(check_run(ps.base, h, true, obase));
 
   d->final_terms = cur.terms_string();
-  const DiagnoseOptions ocur = with_floor(cur, fit_copy, held_copy);
-  d->final_checks.push_back(check_run(cur, fit_copy, false, ocur));
-  for (const auto& h : held_copy) d->final_checks.push_back(check_run(cur, h, true, ocur));
+  if (ps.cur_checks) {
+    d->final_checks = std::move(*ps.cur_checks);  // backfit's checks of this model on these runs
+  } else {
+    const DiagnoseOptions ocur = with_floor(cur, fit_copy, held_copy);
+    d->final_checks.push_back(check_run(cur, fit_copy, false, ocur));
+    for (const auto& h : held_copy) d->final_checks.push_back(check_run(cur, h, true, ocur));
+  }
   // Drift that is not thermal: the trend in time as the search judged it, and a periodic
   // disturbance of what the final model leaves on each run.
   TimeDrift& td = d->time_drift;
@@ -705,18 +755,9 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       td.message += "; but the thermal term " + td.thermal_term + " explains it better across the runs: it is taken as thermal";
   }
   if (o.periodic) {
-    std::vector<RunData> cleaned;
-    auto scan = [&](const RunData& r) {
-      RunData c = r;
-      if (auto p = find_periodic(cur, r, o)) {
-        for (std::size_t i = 0; i < c.size(); ++i)
-          c.gyro_dph[i] -= p->amplitude_dph * std::sin(2.0 * 3.141592653589793 * static_cast<double>(i) / p->period_s + p->phase_rad);
-        d->periodic.push_back(std::move(*p));
-      }
-      cleaned.push_back(std::move(c));
-    };
-    scan(fit_copy);
-    for (const auto& h : held_copy) scan(h);
+    PeriodicScan ps_periodic = periodic_later.valid() ? periodic_later.get() : periodic_scan();
+    for (auto& p : ps_periodic.found) d->periodic.push_back(std::move(p));
+    const std::vector<RunData>& cleaned = ps_periodic.cleaned;
     if (!d->periodic.empty() && !passes(d->final_checks)) {
       // What remains without the disturbance: when every run then passes, nothing else is missing.
       std::vector<RunCheck> again;
