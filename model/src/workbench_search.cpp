@@ -446,6 +446,19 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   tell("base fit");
   auto base = fit(fit_run, terms_of(m), fo);
   if (!base) return std::unexpected(FitError{base.error().code, "fit run " + fit_run.name + ": " + base.error().message});
+  // The trend in time under the base on the runs as given, read beside the floor and the jump
+  // scan below (it needs neither) when threads are allowed: a pass takes it when it removed no
+  // jump (its runs are then these and its base *base: the same call), else reads it again.
+  std::vector<RunData> td_runs;  // the runs side by side: a copy only when there is more than one
+  std::future<TimeDrift> td_early;
+  if (o.time_drift && o.threads != 1) {
+    if (!held_out.empty()) {
+      td_runs.push_back(fit_run);
+      td_runs.insert(td_runs.end(), held_out.begin(), held_out.end());
+    }
+    const std::span<const RunData> runs = held_out.empty() ? std::span<const RunData>(&fit_run, 1) : std::span<const RunData>(td_runs);
+    td_early = std::async(std::launch::async, [&base, &o, runs] { return time_drift(*base, runs, o); });
+  }
   // The unit's noise floor under a model, read over the holds of every run given at once (one
   // gyro: a steadier reading of its slow noise than one run's holds), for every check.
   auto with_floor = [&](const Model& mm, const RunData& first, std::span<const RunData> rest) {
@@ -612,9 +625,13 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     // (and the floor is the one read with each run's line removed: a trend read as a random
     // walk would excuse itself).
     if (o.time_drift) {
-      std::vector<RunData> all{ps.fit_copy};
-      all.insert(all.end(), ps.held_copy.begin(), ps.held_copy.end());
-      ps.td = time_drift(ps.base, all, o);
+      if (ps.jumps.empty() && td_early.valid()) {
+        ps.td = td_early.get();  // no jump removed: the runs as given, under *base
+      } else {
+        std::vector<RunData> all{ps.fit_copy};
+        all.insert(all.end(), ps.held_copy.begin(), ps.held_copy.end());
+        ps.td = time_drift(ps.base, all, o);
+      }
       bool has_trun = false;
       for (const auto& ft : ps.base.terms) has_trun = has_trun || term_key(ft.term) == "trun";
       if (ps.td.found && !has_trun) {
