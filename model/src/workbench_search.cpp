@@ -514,13 +514,20 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     for (const auto& r : h) add(r);
     return k ? s / k : kNaN;
   };
+  // The checks of a model on the runs, under the floor read under it over them.
+  auto checks_of = [&](const Model& mm, const RunData& f, const std::vector<RunData>& h) {
+    const DiagnoseOptions oc = with_floor(mm, f, h);
+    std::vector<RunCheck> fc{check_run(mm, f, false, oc)};
+    for (const auto& r : h) fc.push_back(check_run(mm, r, true, oc));
+    return fc;
+  };
+  // given: checks_of(cur, f, h) when the caller made them already.
   auto backfit = [&](std::vector<SearchStep>& steps, Model& cur, const Model& base_m, const RunData& f, const std::vector<RunData>& h,
-                     const auto& at_step, const TimeDrift& tdrift, std::optional<std::vector<RunCheck>>& cur_checks) {
+                     const auto& at_step, const TimeDrift& tdrift, std::optional<std::vector<RunCheck>>& cur_checks,
+                     std::optional<std::vector<RunCheck>> given) {
     if (steps.empty()) return;
     {
-      const DiagnoseOptions oc = with_floor(cur, f, h);
-      std::vector<RunCheck> fc{check_run(cur, f, false, oc)};
-      for (const auto& r : h) fc.push_back(check_run(cur, r, true, oc));
+      std::vector<RunCheck> fc = given ? std::move(*given) : checks_of(cur, f, h);
       const bool pass = passes(fc);
       cur_checks = std::move(fc);
       if (pass) return;
@@ -650,6 +657,12 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     // Greedy forward selection: add the first detected candidate, search again from there.
     ps.cur = ps.base;
     Diagnosis step = *ps.d;
+    // The checks backfit starts with, of the model a step was added to, made beside the next
+    // search when threads are allowed (a copy of the model; the runs do not change here): when
+    // that search adds nothing, the model is the search's and backfit takes them. cur_version
+    // counts the models ps.cur has held, checks_version the one the checks are of.
+    int cur_version = 0, checks_version = -1;
+    std::future<std::vector<RunCheck>> checks_later;
     for (int k = 0; k < o.max_terms; ++k) {
       const Candidate* pick = pick_step(step);
       if (!pick) break;
@@ -667,14 +680,22 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       ss.look_alikes = top.collinear_with;
       ps.d->steps.push_back(ss);
       ps.cur = added->model;
+      ++cur_version;
       if (k + 1 == o.max_terms) break;
+      if (o.threads != 1) {
+        checks_later = std::async(std::launch::async, [&checks_of, &ps, mm = ps.cur] { return checks_of(mm, ps.fit_copy, ps.held_copy); });
+        checks_version = cur_version;
+      }
       auto next = wbi::diagnose_once(ps.cur, ps.fit_copy, ps.held_copy, at_step(k + 1), space.gen, &stats);
       if (!next) break;
       promote_time(*next, ps.td, o);
       promote_pooled(*next, o);
       step = std::move(*next);
     }
-    backfit(ps.d->steps, ps.cur, ps.base, ps.fit_copy, ps.held_copy, at_step, ps.td, ps.cur_checks);
+    std::optional<std::vector<RunCheck>> made;
+    if (checks_later.valid() && checks_version == cur_version) made = checks_later.get();
+    if (checks_later.valid()) checks_later.wait();  // of an earlier model: done before ps is handed back
+    backfit(ps.d->steps, ps.cur, ps.base, ps.fit_copy, ps.held_copy, at_step, ps.td, ps.cur_checks, std::move(made));
     return ps;
   };
   Pass ps = search_pass(nullptr);
