@@ -483,7 +483,11 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   wbi::SearchStats stats;
   struct Pass {
     std::vector<BiasJump> jumps;
-    RunData fit_copy;
+    // The fit run with its jumps removed: a copy only when the scan removed one (fit_own), else
+    // the run as given (fit_in, the caller's: it outlives the pass).
+    const RunData* fit_in = nullptr;
+    std::optional<RunData> fit_own;
+    const RunData& fit_copy() const { return fit_own ? *fit_own : *fit_in; }
     std::vector<RunData> held_copy;
     Model base;
     bool base_refitted = false;  // base is the model refitted without the fit run's jumps (else *base's copy)
@@ -594,7 +598,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   };
   auto search_pass = [&](const Model* jumps_by) {
     Pass ps;
-    ps.fit_copy = fit_run;
+    ps.fit_in = &fit_run;
     ps.held_copy.assign(held_out.begin(), held_out.end());
     ps.base = *base;
     // The options of step k: the progress it reports carries k.
@@ -618,9 +622,15 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
         ps.jumps.insert(ps.jumps.end(), js.begin(), js.end());
         return !js.empty();
       };
-      if (scan_run(ps.fit_copy)) {
+      // The fit run's scan on the run as given; the copy is made only to take jumps out.
+      std::vector<double> removed(fit_run.size(), 0.0);
+      auto fit_js = find_jumps(jumps_by ? *jumps_by : *base, fit_run, ob, &removed);
+      ps.jumps.insert(ps.jumps.end(), fit_js.begin(), fit_js.end());
+      if (!fit_js.empty()) {
+        ps.fit_own = fit_run;
+        for (std::size_t t = 0; t < fit_run.size(); ++t) ps.fit_own->gyro_dph[t] -= removed[t];
         // The base again without the fit run's jumps (its mu0 and lag were pulled by them).
-        if (auto b2 = fit(ps.fit_copy, terms_of(m), fo)) {
+        if (auto b2 = fit(*ps.fit_own, terms_of(m), fo)) {
           ps.base = std::move(*b2);
           ps.base_refitted = true;
         }
@@ -635,7 +645,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       if (ps.jumps.empty() && td_early.valid()) {
         ps.td = td_early.get();  // no jump removed: the runs as given, under *base
       } else {
-        std::vector<RunData> all{ps.fit_copy};
+        std::vector<RunData> all{ps.fit_copy()};
         all.insert(all.end(), ps.held_copy.begin(), ps.held_copy.end());
         ps.td = time_drift(ps.base, all, o);
       }
@@ -650,7 +660,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     // base_floor (the same fit and read on the same runs).
     wbi::StepHint hint;
     if (ps.jumps.empty()) hint = wbi::StepHint{&*base, base_floor};
-    ps.d = wbi::diagnose_once(m, ps.fit_copy, ps.held_copy, at_step(0), space.gen, &stats, hint);
+    ps.d = wbi::diagnose_once(m, ps.fit_copy(), ps.held_copy, at_step(0), space.gen, &stats, hint);
     if (!ps.d) return ps;
     promote_time(*ps.d, ps.td, o);
     promote_pooled(*ps.d, o);
@@ -667,7 +677,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       const Candidate* pick = pick_step(step);
       if (!pick) break;
       const Candidate& top = *pick;
-      auto added = add_term(ps.cur, ps.fit_copy, top.term);
+      auto added = add_term(ps.cur, ps.fit_copy(), top.term);
       if (!added) break;
       SearchStep ss;
       ss.added = added->added;
@@ -683,10 +693,10 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       ++cur_version;
       if (k + 1 == o.max_terms) break;
       if (o.threads != 1) {
-        checks_later = std::async(std::launch::async, [&checks_of, &ps, mm = ps.cur] { return checks_of(mm, ps.fit_copy, ps.held_copy); });
+        checks_later = std::async(std::launch::async, [&checks_of, &ps, mm = ps.cur] { return checks_of(mm, ps.fit_copy(), ps.held_copy); });
         checks_version = cur_version;
       }
-      auto next = wbi::diagnose_once(ps.cur, ps.fit_copy, ps.held_copy, at_step(k + 1), space.gen, &stats);
+      auto next = wbi::diagnose_once(ps.cur, ps.fit_copy(), ps.held_copy, at_step(k + 1), space.gen, &stats);
       if (!next) break;
       promote_time(*next, ps.td, o);
       promote_pooled(*next, o);
@@ -695,7 +705,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     std::optional<std::vector<RunCheck>> made;
     if (checks_later.valid() && checks_version == cur_version) made = checks_later.get();
     if (checks_later.valid()) checks_later.wait();  // of an earlier model: done before ps is handed back
-    backfit(ps.d->steps, ps.cur, ps.base, ps.fit_copy, ps.held_copy, at_step, ps.td, ps.cur_checks, std::move(made));
+    backfit(ps.d->steps, ps.cur, ps.base, ps.fit_copy(), ps.held_copy, at_step, ps.td, ps.cur_checks, std::move(made));
     return ps;
   };
   Pass ps = search_pass(nullptr);
@@ -714,7 +724,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   }
   std::vector<BiasJump>& jumps = ps.jumps;
   bool periodic_explains = false;
-  RunData& fit_copy = ps.fit_copy;
+  const RunData& fit_copy = ps.fit_copy();
   std::vector<RunData>& held_copy = ps.held_copy;
   Model& cur = ps.cur;
   auto& d = ps.d;
@@ -830,10 +840,13 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     for (const auto& r : c.reasons) d->reasons.push_back(c.run + ": " + r);
   d->adequate = d->reasons.empty();
   d->outside_search = !passes(d->final_checks) && !periodic_explains;
-  std::vector<RunData> all;
-  all.push_back(fit_copy);
-  for (const auto& h : held_copy) all.push_back(h);
-  d->residual_follows = d->outside_search ? follows(cur, all) : "none";
+  d->residual_follows = "none";
+  if (d->outside_search) {
+    std::vector<RunData> all;
+    all.push_back(fit_copy);
+    for (const auto& h : held_copy) all.push_back(h);
+    d->residual_follows = follows(cur, all);
+  }
 
   // The summary for people.
   std::string s;
