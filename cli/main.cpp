@@ -28,6 +28,11 @@ int main(int argc, char** argv) {
   // third of `fogctl fit` on a day's run.
   mallopt(M_MMAP_THRESHOLD, 256 << 20);
   mallopt(M_TRIM_THRESHOLD, 512 << 20);
+  // One heap for every thread: diagnose and report refit on both cores and read the floor and
+  // the periodic search beside them, and an arena per thread kept each one's freed columns
+  // apart from the others' (never trimmed, above). The allocations are few and large, so the
+  // shared lock costs nothing measurable; a 3-day diagnose's peak fell from 456 to 302 MB.
+  mallopt(M_ARENA_MAX, 1);
   // ... and back the heap with transparent huge pages where the kernel offers them on request
   // (madvise mode, Debian's default): 2 MB pages cut the page faults of a day's run from
   // ~6,800 to ~900. The heap is grown once by 64 MB so the advice covers what a fit uses.

@@ -324,7 +324,7 @@ std::expected<CandidateScan, FitError> scan_beside(const Model& m, const RunData
   auto cols = regressors(m, run);
   if (!cols) return std::unexpected(cols.error());
   if (without_last_term && !cols->empty()) cols->pop_back();
-  return CandidateScan(run.gyro_dph, *cols, detail::good_weights(run), max_lag_s);
+  return CandidateScan(run.gyro_dph, std::move(*cols), detail::good_weights(run), max_lag_s);
 }
 
 std::expected<CandidateScan, FitError> scan_beside(const Model& m, detail::FitCache& cache, int max_lag_s, bool without_last_term) {
@@ -335,7 +335,7 @@ std::expected<CandidateScan, FitError> scan_beside(const Model& m, detail::FitCa
   std::vector<std::string> keys;
   if (cache.tref_c() == m.tref_c)
     for (std::size_t j = 0; j < cols->size(); ++j) keys.push_back(term_key(m.terms[j].term) + "@" + std::to_string(m.terms[j].term.lag.seconds));
-  return CandidateScan(cache.run().gyro_dph, *cols, detail::good_weights(cache.run()), max_lag_s, keys,
+  return CandidateScan(cache.run().gyro_dph, std::move(*cols), detail::good_weights(cache.run()), max_lag_s, keys,
                        keys.empty() ? nullptr : &cache);
 }
 

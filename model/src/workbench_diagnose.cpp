@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <future>
 #include <memory>
 #include <numeric>
 #include <optional>
@@ -452,9 +453,13 @@ std::string missing_signal_of(const Expr& e, const RunData& run) {
 
 namespace wbi {
 std::expected<Diagnosis, FitError> diagnose_once(const Model& m, const RunData& fit_run_in, std::span<const RunData> held_out,
-                                                 const DiagnoseOptions& o, const std::vector<Generated>& gen, SearchStats* stats) {
+                                                 const DiagnoseOptions& o, const std::vector<Generated>& gen, SearchStats* stats,
+                                                 const StepHint& hint) {
   RunData fit_copy;
   const RunData& fit_run = finite_gyro(fit_run_in, fit_copy);
+  // The hint was computed on the run as given: it holds only when no non-finite gyro sample was
+  // zeroed into a copy here.
+  const bool hint_holds = &fit_run == &fit_run_in;
   Diagnosis d;
   d.fit_run = fit_run.name;
   for (const auto& h : held_out) d.held_out_runs.push_back(h.name);
@@ -462,8 +467,32 @@ std::expected<Diagnosis, FitError> diagnose_once(const Model& m, const RunData& 
   if (o.max_lag_s) fo.max_lag_s = *o.max_lag_s;
   // The base: the model's terms refitted on the fit run, so that every candidate is compared
   // with the same method on the same data (BIC compares models of one run only).
-  auto base = fit(fit_run, terms_of(m), fo);
+  auto base = hint_holds && hint.base ? std::expected<Model, FitError>(*hint.base) : fit(fit_run, terms_of(m), fo);
   if (!base) return std::unexpected(FitError{base.error().code, "fit run " + fit_run.name + ": " + base.error().message});
+  // The unit's floor (diagnose reads it over every run at once; a step's own base reads it
+  // again, as its terms move the holds' residual). Read beside the residual's checks and the
+  // screen when threads are allowed (it needs neither): the same numbers, sooner.
+  const bool floor_read = o.failing.noise.read_floor && !(hint_holds && hint.floor);
+  // The runs side by side (a copy only when there are held-out runs to put beside the fit run).
+  std::vector<RunData> all_copy;
+  if (floor_read && !held_out.empty()) {
+    all_copy.reserve(held_out.size() + 1);
+    all_copy.push_back(fit_run);
+    all_copy.insert(all_copy.end(), held_out.begin(), held_out.end());
+  }
+  const std::span<const RunData> all_runs = held_out.empty() ? std::span<const RunData>(&fit_run, 1) : std::span<const RunData>(all_copy);
+  auto read_unit_floor = [&]() -> std::optional<NoiseFloor> {
+    std::optional<NoiseFloor> f = o.failing.noise.given;
+    if (o.failing.noise.read_floor) {
+      if (!floor_read) return *hint.floor;
+      if (auto r = unit_noise_floor(*base, all_runs, o.failing.noise.floor)) f = std::move(*r);
+    }
+    return f;
+  };
+  const bool floor_aside = floor_read && o.threads != 1;
+  // Declared after what it reads: an early return waits for it before those go.
+  std::future<std::optional<NoiseFloor>> floor_later;
+  if (floor_aside) floor_later = std::async(std::launch::async, read_unit_floor);
   d.base_refitted_on_other_run = !m.fitted_on.fingerprint.empty() && m.fitted_on.fingerprint != base->fitted_on.fingerprint;
   d.model_terms = base->terms_string();
   d.method = std::string(to_string(base->method));
@@ -477,28 +506,42 @@ std::expected<Diagnosis, FitError> diagnose_once(const Model& m, const RunData& 
   report_coefficients(*base, d);
   auto fr = prepare_fit_run(*base, fit_run);
   if (!fr) return std::unexpected(fr.error());
-  if (auto r = check_residual(*base, fit_run, *fr, o, d); !r) return std::unexpected(r.error());
+  // The residual's whiteness and cross-correlations (d.whiteness, d.ccf): beside the candidates'
+  // list and screen when threads are allowed (it reads the base, the run and fr's signals and
+  // weights, which nothing changes meanwhile), into a Diagnosis of its own, its error returned
+  // first as when it runs first.
+  Diagnosis resid;
+  auto residual_checks = [&] { return check_residual(*base, fit_run, *fr, o, resid); };
+  std::future<std::expected<void, FitError>> resid_later;
+  if (o.threads != 1) resid_later = std::async(std::launch::async, residual_checks);
+  else if (auto r = residual_checks(); !r) return std::unexpected(r.error());
+  auto resid_done = [&]() -> std::expected<void, FitError> {
+    if (resid_later.valid())
+      if (auto r = resid_later.get(); !r) return r;
+    d.whiteness = std::move(resid.whiteness);
+    d.ccf = std::move(resid.ccf);
+    return {};
+  };
 
   // Held-out runs: the base model as fitted, applied unchanged.
   std::vector<std::expected<double, std::string>> held_before;
   for (auto& h : held_scorers) held_before.push_back(h.comp_std(*base));
 
   auto list = collect_candidates(*base, o, gen);
-  if (!list) return std::unexpected(list.error());
+  if (!list) {
+    if (auto r = resid_done(); !r) return std::unexpected(r.error());
+    return std::unexpected(list.error());
+  }
   std::vector<Cand>& cands = list->cands;
-  CandidateScan scan(fit_run.gyro_dph, fr->base_cols, fr->w, fo.max_lag_s);
+  // The base's columns are the scan's from here on (nothing else reads fr->base_cols).
+  CandidateScan scan(fit_run.gyro_dph, std::move(fr->base_cols), fr->w, fo.max_lag_s);
   if (o.progress && cands.size() > list->n_fixed) o.progress(DiagnoseProgress{"screening", 0, 0, cands.size() - list->n_fixed});
   screen_generated(cands, list->n_fixed, scan, fit_run, *fr, o, stats);
+  if (auto r = resid_done(); !r) return std::unexpected(r.error());
   const double ln_n = std::log(static_cast<double>(std::max<std::size_t>(base->fit.n_used, 2)));
-  // The gyro's slow noise on each run, read off its settled holds under the base model.
-  // The unit's floor (diagnose reads it over every run at once; a step's own base reads it
-  // again, as its terms move the holds' residual), the slow part's mean over each run.
-  std::optional<NoiseFloor> unit_floor = o.failing.noise.given;
-  if (o.failing.noise.read_floor) {
-    std::vector<RunData> all{fit_run};
-    all.insert(all.end(), held_out.begin(), held_out.end());
-    if (auto f = unit_noise_floor(*base, all, o.failing.noise.floor)) unit_floor = std::move(*f);
-  }
+  // The gyro's slow noise on each run, read off its settled holds under the base model: the
+  // unit's floor (above), the slow part's mean over each run.
+  const std::optional<NoiseFloor> unit_floor = floor_aside ? floor_later.get() : read_unit_floor();
   auto slow_of = [&](const RunData& r) {
     return unit_floor && unit_floor->slow() ? floor_variance(*unit_floor, r.size(), 1).slow : 0.0;
   };

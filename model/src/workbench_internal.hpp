@@ -126,10 +126,20 @@ struct SearchStats {
   std::size_t pruned = 0;    // candidates not refitted: their one-column update falls short (prune_fraction)
 };
 
+// What diagnose computed already for a step's own inputs: the base (m refitted on the fit run
+// as diagnose_once refits it) and the unit's noise floor read under it over the same runs. Given
+// when the step's runs are the ones these were computed on (no bias jump removed), so that
+// diagnose_once uses them instead of computing the same numbers again.
+struct StepHint {
+  const Model* base = nullptr;
+  const NoiseFloor* floor = nullptr;
+};
+
 // One step: the model's terms refitted on the fit run, every library candidate (and the
 // generated ones, screened by their lag scan's gain to o.refit_top) refitted and scored.
 std::expected<Diagnosis, FitError> diagnose_once(const Model& m, const RunData& fit_run, std::span<const RunData> held_out,
-                                                 const DiagnoseOptions& o, const std::vector<Generated>& gen, SearchStats* stats);
+                                                 const DiagnoseOptions& o, const std::vector<Generated>& gen, SearchStats* stats,
+                                                 const StepHint& hint = {});
 
 }  // namespace wbi
 }  // namespace fogbench::model::workbench

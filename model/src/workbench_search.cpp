@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cctype>
 #include <cstdio>
+#include <future>
 #include <limits>
 #include <numeric>
 #include <optional>
@@ -445,30 +446,57 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   tell("base fit");
   auto base = fit(fit_run, terms_of(m), fo);
   if (!base) return std::unexpected(FitError{base.error().code, "fit run " + fit_run.name + ": " + base.error().message});
+  // The trend in time under the base on the runs as given, read beside the floor and the jump
+  // scan below (it needs neither) when threads are allowed: a pass takes it when it removed no
+  // jump (its runs are then these and its base *base: the same call), else reads it again.
+  std::vector<RunData> td_runs;  // the runs side by side: a copy only when there is more than one
+  std::future<TimeDrift> td_early;
+  if (o.time_drift && o.threads != 1) {
+    if (!held_out.empty()) {
+      td_runs.push_back(fit_run);
+      td_runs.insert(td_runs.end(), held_out.begin(), held_out.end());
+    }
+    const std::span<const RunData> runs = held_out.empty() ? std::span<const RunData>(&fit_run, 1) : std::span<const RunData>(td_runs);
+    td_early = std::async(std::launch::async, [&base, &o, runs] { return time_drift(*base, runs, o); });
+  }
   // The unit's noise floor under a model, read over the holds of every run given at once (one
   // gyro: a steadier reading of its slow noise than one run's holds), for every check.
   auto with_floor = [&](const Model& mm, const RunData& first, std::span<const RunData> rest) {
     DiagnoseOptions oo = o;
     if (oo.failing.noise.given || !oo.failing.noise.read_floor) return oo;
-    std::vector<RunData> all;
-    all.push_back(first);
-    all.insert(all.end(), rest.begin(), rest.end());
-    if (auto f = unit_noise_floor(mm, all, oo.failing.noise.floor)) oo.failing.noise.given = std::move(*f);
+    std::vector<RunData> all;  // the runs side by side: a copy only when there is more than one
+    if (!rest.empty()) {
+      all.push_back(first);
+      all.insert(all.end(), rest.begin(), rest.end());
+    }
+    const std::span<const RunData> runs = rest.empty() ? std::span<const RunData>(&first, 1) : std::span<const RunData>(all);
+    if (auto f = unit_noise_floor(mm, runs, oo.failing.noise.floor)) oo.failing.noise.given = std::move(*f);
     return oo;
   };
   const DiagnoseOptions ob = with_floor(*base, fit_run, held_out);
+  // ob's floor when with_floor read it (the caller gave none): the floor diagnose_once reads
+  // again under the same base on the same runs (a step hint).
+  const NoiseFloor* base_floor = !o.failing.noise.given && o.failing.noise.read_floor && ob.failing.noise.given ? &*ob.failing.noise.given : nullptr;
 
   // Bias jumps: found on each run's residual, removed from that run's copy for the search.
   // A pass: the jumps (by jumps_by, or the base model), the search on the copies without them.
   wbi::SearchStats stats;
   struct Pass {
     std::vector<BiasJump> jumps;
-    RunData fit_copy;
+    // The fit run with its jumps removed: a copy only when the scan removed one (fit_own), else
+    // the run as given (fit_in, the caller's: it outlives the pass).
+    const RunData* fit_in = nullptr;
+    std::optional<RunData> fit_own;
+    const RunData& fit_copy() const { return fit_own ? *fit_own : *fit_in; }
     std::vector<RunData> held_copy;
     Model base;
+    bool base_refitted = false;  // base is the model refitted without the fit run's jumps (else *base's copy)
     std::expected<Diagnosis, FitError> d = std::unexpected(FitError{});
     Model cur;
     TimeDrift td;
+    // The checks of cur on fit_copy and held_copy (with cur's floor), when backfit made them and
+    // kept cur: the adequacy checks' final_checks are the same calls.
+    std::optional<std::vector<RunCheck>> cur_checks;
   };
   // Backfitting (issue 25: several effects at once). A greedy step may take a look-alike that
   // spells two effects on the fit run and only part of them on another (hidden -1.5*d(T1)@300 +
@@ -490,15 +518,23 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     for (const auto& r : h) add(r);
     return k ? s / k : kNaN;
   };
+  // The checks of a model on the runs, under the floor read under it over them.
+  auto checks_of = [&](const Model& mm, const RunData& f, const std::vector<RunData>& h) {
+    const DiagnoseOptions oc = with_floor(mm, f, h);
+    std::vector<RunCheck> fc{check_run(mm, f, false, oc)};
+    for (const auto& r : h) fc.push_back(check_run(mm, r, true, oc));
+    return fc;
+  };
+  // given: checks_of(cur, f, h) when the caller made them already.
   auto backfit = [&](std::vector<SearchStep>& steps, Model& cur, const Model& base_m, const RunData& f, const std::vector<RunData>& h,
-                     const auto& at_step, const TimeDrift& tdrift) {
+                     const auto& at_step, const TimeDrift& tdrift, std::optional<std::vector<RunCheck>>& cur_checks,
+                     std::optional<std::vector<RunCheck>> given) {
     if (steps.empty()) return;
     bool passing = false;
     {
-      const DiagnoseOptions oc = with_floor(cur, f, h);
-      std::vector<RunCheck> fc{check_run(cur, f, false, oc)};
-      for (const auto& r : h) fc.push_back(check_run(cur, r, true, oc));
+      std::vector<RunCheck> fc = given ? std::move(*given) : checks_of(cur, f, h);
       passing = passes(fc);
+      cur_checks = std::move(fc);  // cur's checks while cur stays (reset below when it is replaced)
     }
     // Passing the checks is not proof that the first step was right: the floor is read under
     // the model, and a look-alike's misfit in the holds reads as slow noise there and excuses
@@ -570,11 +606,12 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     if (best_model) {
       steps = std::move(best_steps);
       cur = std::move(*best_model);
+      cur_checks.reset();
     }
   };
   auto search_pass = [&](const Model* jumps_by) {
     Pass ps;
-    ps.fit_copy = fit_run;
+    ps.fit_in = &fit_run;
     ps.held_copy.assign(held_out.begin(), held_out.end());
     ps.base = *base;
     // The options of step k: the progress it reports carries k.
@@ -598,9 +635,18 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
         ps.jumps.insert(ps.jumps.end(), js.begin(), js.end());
         return !js.empty();
       };
-      if (scan_run(ps.fit_copy)) {
+      // The fit run's scan on the run as given; the copy is made only to take jumps out.
+      std::vector<double> removed(fit_run.size(), 0.0);
+      auto fit_js = find_jumps(jumps_by ? *jumps_by : *base, fit_run, ob, &removed);
+      ps.jumps.insert(ps.jumps.end(), fit_js.begin(), fit_js.end());
+      if (!fit_js.empty()) {
+        ps.fit_own = fit_run;
+        for (std::size_t t = 0; t < fit_run.size(); ++t) ps.fit_own->gyro_dph[t] -= removed[t];
         // The base again without the fit run's jumps (its mu0 and lag were pulled by them).
-        if (auto b2 = fit(ps.fit_copy, terms_of(m), fo)) ps.base = std::move(*b2);
+        if (auto b2 = fit(*ps.fit_own, terms_of(m), fo)) {
+          ps.base = std::move(*b2);
+          ps.base_refitted = true;
+        }
       }
       for (auto& h : ps.held_copy) scan_run(h);
     }
@@ -609,9 +655,13 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     // (and the floor is the one read with each run's line removed: a trend read as a random
     // walk would excuse itself).
     if (o.time_drift) {
-      std::vector<RunData> all{ps.fit_copy};
-      all.insert(all.end(), ps.held_copy.begin(), ps.held_copy.end());
-      ps.td = time_drift(ps.base, all, o);
+      if (ps.jumps.empty() && td_early.valid()) {
+        ps.td = td_early.get();  // no jump removed: the runs as given, under *base
+      } else {
+        std::vector<RunData> all{ps.fit_copy()};
+        all.insert(all.end(), ps.held_copy.begin(), ps.held_copy.end());
+        ps.td = time_drift(ps.base, all, o);
+      }
       bool has_trun = false;
       for (const auto& ft : ps.base.terms) has_trun = has_trun || term_key(ft.term) == "trun";
       if (ps.td.found && !has_trun) {
@@ -619,18 +669,28 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
         if (!o.failing.noise.given) op.failing.noise.given = ps.td.floor;
       }
     }
-    ps.d = wbi::diagnose_once(m, ps.fit_copy, ps.held_copy, at_step(0), space.gen, &stats);
+    // With no jump removed the step's runs are the runs as given: its base is *base and its floor
+    // base_floor (the same fit and read on the same runs).
+    wbi::StepHint hint;
+    if (ps.jumps.empty()) hint = wbi::StepHint{&*base, base_floor};
+    ps.d = wbi::diagnose_once(m, ps.fit_copy(), ps.held_copy, at_step(0), space.gen, &stats, hint);
     if (!ps.d) return ps;
     promote_time(*ps.d, ps.td, o);
     promote_pooled(*ps.d, o);
     // Greedy forward selection: add the first detected candidate, search again from there.
     ps.cur = ps.base;
     Diagnosis step = *ps.d;
+    // The checks backfit starts with, of the model a step was added to, made beside the next
+    // search when threads are allowed (a copy of the model; the runs do not change here): when
+    // that search adds nothing, the model is the search's and backfit takes them. cur_version
+    // counts the models ps.cur has held, checks_version the one the checks are of.
+    int cur_version = 0, checks_version = -1;
+    std::future<std::vector<RunCheck>> checks_later;
     for (int k = 0; k < o.max_terms; ++k) {
       const Candidate* pick = pick_step(step);
       if (!pick) break;
       const Candidate& top = *pick;
-      auto added = add_term(ps.cur, ps.fit_copy, top.term);
+      auto added = add_term(ps.cur, ps.fit_copy(), top.term);
       if (!added) break;
       SearchStep ss;
       ss.added = added->added;
@@ -643,14 +703,22 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       ss.look_alikes = top.collinear_with;
       ps.d->steps.push_back(ss);
       ps.cur = added->model;
+      ++cur_version;
       if (k + 1 == o.max_terms) break;
-      auto next = wbi::diagnose_once(ps.cur, ps.fit_copy, ps.held_copy, at_step(k + 1), space.gen, &stats);
+      if (o.threads != 1) {
+        checks_later = std::async(std::launch::async, [&checks_of, &ps, mm = ps.cur] { return checks_of(mm, ps.fit_copy(), ps.held_copy); });
+        checks_version = cur_version;
+      }
+      auto next = wbi::diagnose_once(ps.cur, ps.fit_copy(), ps.held_copy, at_step(k + 1), space.gen, &stats);
       if (!next) break;
       promote_time(*next, ps.td, o);
       promote_pooled(*next, o);
       step = std::move(*next);
     }
-    backfit(ps.d->steps, ps.cur, ps.base, ps.fit_copy, ps.held_copy, at_step, ps.td);
+    std::optional<std::vector<RunCheck>> made;
+    if (checks_later.valid() && checks_version == cur_version) made = checks_later.get();
+    if (checks_later.valid()) checks_later.wait();  // of an earlier model: done before ps is handed back
+    backfit(ps.d->steps, ps.cur, ps.base, ps.fit_copy(), ps.held_copy, at_step, ps.td, ps.cur_checks, std::move(made));
     return ps;
   };
   Pass ps = search_pass(nullptr);
@@ -669,7 +737,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   }
   std::vector<BiasJump>& jumps = ps.jumps;
   bool periodic_explains = false;
-  RunData& fit_copy = ps.fit_copy;
+  const RunData& fit_copy = ps.fit_copy();
   std::vector<RunData>& held_copy = ps.held_copy;
   Model& cur = ps.cur;
   auto& d = ps.d;
@@ -679,14 +747,43 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
 
   // Adequacy of the model as given (refitted on the fit run), on the runs as given.
   tell("adequacy checks", static_cast<int>(ps.d->steps.size()));
-  const DiagnoseOptions obase = with_floor(ps.base, fit_run, held_out);
+  // The periodic search (below) needs none of the checks: on a thread of its own beside them
+  // when threads are allowed, its results taken in the runs' order (the same answer).
+  struct PeriodicScan {
+    std::vector<PeriodicDisturbance> found;
+    std::vector<RunData> cleaned;
+  };
+  auto periodic_scan = [&]() {
+    PeriodicScan out;
+    auto scan = [&](const RunData& r) {
+      RunData c = r;
+      if (auto p = find_periodic(cur, r, o)) {
+        for (std::size_t i = 0; i < c.size(); ++i)
+          c.gyro_dph[i] -= p->amplitude_dph * std::sin(2.0 * 3.141592653589793 * static_cast<double>(i) / p->period_s + p->phase_rad);
+        out.found.push_back(std::move(*p));
+      }
+      out.cleaned.push_back(std::move(c));
+    };
+    scan(fit_copy);
+    for (const auto& h : held_copy) scan(h);
+    return out;
+  };
+  std::future<PeriodicScan> periodic_later;
+  if (o.periodic && o.threads != 1) periodic_later = std::async(std::launch::async, periodic_scan);
+  // The floor under the base on the runs as given is ob's when the base was not refitted
+  // without the fit run's jumps (the same read).
+  const DiagnoseOptions obase = ps.base_refitted ? with_floor(ps.base, fit_run, held_out) : ob;
   d->checks.push_back(check_run(ps.base, fit_run, false, obase));
   for (const auto& h : held_out) d->checks.push_back(check_run(ps.base, h, true, obase));
 
   d->final_terms = cur.terms_string();
-  const DiagnoseOptions ocur = with_floor(cur, fit_copy, held_copy);
-  d->final_checks.push_back(check_run(cur, fit_copy, false, ocur));
-  for (const auto& h : held_copy) d->final_checks.push_back(check_run(cur, h, true, ocur));
+  if (ps.cur_checks) {
+    d->final_checks = std::move(*ps.cur_checks);  // backfit's checks of this model on these runs
+  } else {
+    const DiagnoseOptions ocur = with_floor(cur, fit_copy, held_copy);
+    d->final_checks.push_back(check_run(cur, fit_copy, false, ocur));
+    for (const auto& h : held_copy) d->final_checks.push_back(check_run(cur, h, true, ocur));
+  }
   // Drift that is not thermal: the trend in time as the search judged it, and a periodic
   // disturbance of what the final model leaves on each run.
   TimeDrift& td = d->time_drift;
@@ -719,18 +816,9 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       td.message += "; but the thermal term " + td.thermal_term + " explains it better across the runs: it is taken as thermal";
   }
   if (o.periodic) {
-    std::vector<RunData> cleaned;
-    auto scan = [&](const RunData& r) {
-      RunData c = r;
-      if (auto p = find_periodic(cur, r, o)) {
-        for (std::size_t i = 0; i < c.size(); ++i)
-          c.gyro_dph[i] -= p->amplitude_dph * std::sin(2.0 * 3.141592653589793 * static_cast<double>(i) / p->period_s + p->phase_rad);
-        d->periodic.push_back(std::move(*p));
-      }
-      cleaned.push_back(std::move(c));
-    };
-    scan(fit_copy);
-    for (const auto& h : held_copy) scan(h);
+    PeriodicScan ps_periodic = periodic_later.valid() ? periodic_later.get() : periodic_scan();
+    for (auto& p : ps_periodic.found) d->periodic.push_back(std::move(p));
+    const std::vector<RunData>& cleaned = ps_periodic.cleaned;
     if (!d->periodic.empty() && !passes(d->final_checks)) {
       // What remains without the disturbance: when every run then passes, nothing else is missing.
       std::vector<RunCheck> again;
@@ -765,10 +853,13 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     for (const auto& r : c.reasons) d->reasons.push_back(c.run + ": " + r);
   d->adequate = d->reasons.empty();
   d->outside_search = !passes(d->final_checks) && !periodic_explains;
-  std::vector<RunData> all;
-  all.push_back(fit_copy);
-  for (const auto& h : held_copy) all.push_back(h);
-  d->residual_follows = d->outside_search ? follows(cur, all) : "none";
+  d->residual_follows = "none";
+  if (d->outside_search) {
+    std::vector<RunData> all;
+    all.push_back(fit_copy);
+    for (const auto& h : held_copy) all.push_back(h);
+    d->residual_follows = follows(cur, all);
+  }
 
   // The summary for people.
   std::string s;

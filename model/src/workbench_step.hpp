@@ -43,16 +43,20 @@ class CandidateScan {
   // keys and spectra (both or neither): each base column's key (its term's key at its lag) and
   // the run's cache of the weighted columns' spectra (FitCache::spectrum; w must be the run's
   // good_weights), so that the rescans beside models at the same lags transform them once.
-  CandidateScan(std::span<const double> y_in, const std::vector<std::vector<double>>& base_cols, std::vector<double> w, int max_lag,
+  // base_cols are kept (taken by value: a caller done with its columns moves them in, one
+  // run-length copy fewer each).
+  CandidateScan(std::span<const double> y_in, std::vector<std::vector<double>> base_cols, std::vector<double> w, int max_lag,
                 std::span<const std::string> keys = {}, detail::FitCache* spectra = nullptr)
       : sc_(y_in.size(), max_lag, w), w_(std::move(w)), L_(max_lag) {
     const std::size_t n = y_in.size();
+    const std::size_t n_base = base_cols.size();
     // Samples of weight 0 may hold NaN (a missing gyro reading): 0 * NaN is NaN, so zero them.
     std::vector<double> y(y_in.begin(), y_in.end());
     for (std::size_t t = 0; t < n; ++t)
       if (w_[t] == 0.0) y[t] = 0.0;
     cols_.push_back(std::vector<double>(n, 1.0));
-    for (const auto& c : base_cols) cols_.push_back(c);
+    cols_.reserve(n_base + 1);
+    for (auto& c : base_cols) cols_.push_back(std::move(c));
     const auto k = static_cast<Eigen::Index>(cols_.size());
     Eigen::MatrixXd G(k, k);
     Eigen::VectorXd b(k);
@@ -85,7 +89,7 @@ class CandidateScan {
         for (std::size_t t = 0; t < n; ++t) wc[t] = w_[t] * cols_[a][t];
         return sc_.spectrum_of_target(wc);
       };
-      if (spectra && keys.size() == base_cols.size())
+      if (spectra && keys.size() == n_base)
         col_spec_.push_back(spectra->spectrum(keys[a - 1] + "/L" + std::to_string(L_), make));
       else
         col_spec_.push_back(std::make_shared<const detail::Spectrum>(make()));
