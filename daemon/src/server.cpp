@@ -505,7 +505,7 @@ std::expected<void, std::string> Server::Impl::open_acquisition() {
   auto chamber = drivers::open_chamber(config.drivers.chamber);
   if (!chamber) return std::unexpected(chamber.error().message);
   d.chamber = std::move(*chamber);
-  d.thermistors = std::make_unique<drivers::ThermistorModule>(config.drivers.thermistors, config.drivers.units);
+  d.thermistors = drivers::open_thermistor_source(config.drivers.thermistors, config.drivers.units);
   d.open_gyro = [this](std::optional<drivers::GyroBus>& bus) -> drivers::Result<void> {
     if (bus) return bus->reopen(config.drivers.gyro_bus);
     std::vector<drivers::GyroChannelConfig> channels;

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <limits>
 #include <sstream>
+#include <vector>
 
 #include "json_fields.hpp"
 
@@ -187,17 +188,9 @@ Result<RegisterSpec> parse_register_spec(const json& value, const std::string& p
   if (auto ok = detail::expect_object(value, path); !ok) return std::unexpected(ok.error());
   static constexpr std::string_view common[] = {"function", "address", "type", "word_order",
                                                 "scale",    "offset",  "description"};
-  for (auto it = value.begin(); it != value.end(); ++it) {
-    bool known = false;
-    for (auto k : common) known = known || it.key() == k;
-    for (auto k : extra_keys) known = known || it.key() == k;
-    if (!known) {
-      std::string list;
-      for (auto k : common) list += (list.empty() ? "" : ", ") + std::string(k);
-      for (auto k : extra_keys) list += ", " + std::string(k);
-      return config_error(join_path(path, it.key()), "unknown field (known: " + list + ")");
-    }
-  }
+  std::vector<std::string_view> known(std::begin(common), std::end(common));
+  known.insert(known.end(), extra_keys.begin(), extra_keys.end());
+  if (auto ok = detail::expect_known_keys(value, path, known); !ok) return std::unexpected(ok.error());
 
   RegisterSpec spec;
   auto function = detail::get_string(value, path, "function");

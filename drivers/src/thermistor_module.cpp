@@ -78,4 +78,9 @@ Result<std::vector<CoilTemperatures>> ThermistorModule::read_all() {
   return out;
 }
 
+std::unique_ptr<ThermistorSource> open_thermistor_source(const ThermistorModuleConfig& config,
+                                                         const std::vector<UnitConfig>& units) {
+  return std::make_unique<ThermistorModule>(config, units);
+}
+
 }  // namespace fogbench::drivers

@@ -1,7 +1,8 @@
 // The mock bench put together (see bench.hpp): the configuration checked, the shared state set
 // up, the control socket and the signals handled, and the server loop that polls the parts.
 // The parts are apart: ModbusServer (modbus_server.hpp), CanBus (can_bus.hpp) and BenchClock
-// (bench_clock.hpp), meeting only in SharedState (shared_state.hpp).
+// (bench_clock.hpp), meeting only in SharedState (shared_state.hpp); the control socket is a
+// LineServer (line_server.hpp) answered by handle_line (control.hpp).
 #include "bench.hpp"
 
 #include <signal.h>
@@ -20,6 +21,7 @@
 #include "can_bus.hpp"
 #include "control.hpp"
 #include "faults.hpp"
+#include "line_server.hpp"
 #include "modbus_server.hpp"
 #include "poll_set.hpp"
 #include "serial_gyro.hpp"
@@ -44,13 +46,8 @@ struct Bench::Impl final : ControlHandler {
   std::optional<BenchClock> clock;
 
   // ---- the control socket and the loop's own descriptors (server loop only) ----
-  struct ControlClient {
-    int fd = -1;
-    LineBuffer in;
-    std::string out;
-  };
-  std::vector<ControlClient> control_clients;
-  int control_fd = -1, signal_fd = -1, wake_fd = -1;
+  std::optional<LineServer> control;  // --control: JSON lines, answered by handle_line
+  int signal_fd = -1, wake_fd = -1;
   std::atomic<bool> stop_requested{false};
   sigset_t blocked{};
 
@@ -131,9 +128,12 @@ struct Bench::Impl final : ControlHandler {
       can.tap(&serial_gyro);
     }
     if (!cfg.control_path.empty()) {
-      auto ctl = listen_unix(cfg.control_path, SOCK_STREAM);
-      if (!ctl) return std::unexpected("control socket " + ctl.error());
-      control_fd = *ctl;
+      const auto too_long =
+          json{{"ok", false}, {"error", "request longer than " + std::to_string(max_control_line) + " bytes"}}.dump() + "\n";
+      control.emplace("control socket", LineServer::UnixPath{cfg.control_path},
+                      [this](const std::string& line) { return LineServer::Reply{handle_line(line, *this) + "\n"}; },
+                      LineServer::Options{.lf_only = true, .overflow_reply = too_long});
+      if (auto ok = control->open(); !ok) return std::unexpected("control socket " + ok.error());
     }
     for (const auto& f : cfg.start_faults) {
       if (auto ok = fault(f); !ok) return std::unexpected("--fault " + f.value("name", std::string("?")) + ": " + ok.error());
@@ -152,18 +152,10 @@ struct Bench::Impl final : ControlHandler {
     if (modbus) modbus->close();
     if (ascii) ascii->close();
     if (table) table->close();
-    for (auto& c : control_clients) {
-      if (c.fd >= 0) ::close(c.fd);
-    }
-    control_clients.clear();
+    if (control) control->close();
     can.close();
     can.tap(nullptr);
     serial_gyro.close();
-    if (control_fd >= 0) {
-      ::close(control_fd);
-      ::unlink(cfg.control_path.c_str());
-      control_fd = -1;
-    }
     for (int* fd : {&signal_fd, &wake_fd}) {
       if (*fd >= 0) ::close(*fd);
       *fd = -1;
@@ -267,53 +259,6 @@ struct Bench::Impl final : ControlHandler {
     [[maybe_unused]] auto n = ::write(wake_fd, &one, sizeof one);
   }
 
-  // ===== control socket =======================================================================
-
-  void accept_control() {
-    const int fd = ::accept4(control_fd, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
-    if (fd < 0) return;
-    ControlClient c;
-    c.fd = fd;
-    control_clients.push_back(std::move(c));
-  }
-
-  void flush_control(ControlClient& c) {
-    while (!c.out.empty()) {
-      const auto n = ::send(c.fd, c.out.data(), c.out.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
-      if (n < 0) {
-        if (errno == EAGAIN || errno == EINTR) return;
-        ::close(c.fd);
-        c.fd = -1;
-        return;
-      }
-      c.out.erase(0, static_cast<std::size_t>(n));
-    }
-  }
-
-  void read_control(ControlClient& c) {
-    char buf[4096];
-    const auto n = ::recv(c.fd, buf, sizeof buf, 0);
-    if (n == 0 || (n < 0 && errno != EAGAIN && errno != EINTR)) {
-      ::close(c.fd);
-      c.fd = -1;
-      return;
-    }
-    if (n < 0) return;
-    c.in.append(std::string_view(buf, static_cast<std::size_t>(n)));
-    while (auto line = c.in.next_line()) {
-      if (line->empty()) continue;
-      c.out += handle_line(*line, *this) + "\n";
-    }
-    if (c.in.overflowed()) {
-      c.out += json{{"ok", false}, {"error", "request longer than " + std::to_string(max_control_line) + " bytes"}}.dump() + "\n";
-      flush_control(c);
-      if (c.fd >= 0) ::close(c.fd);
-      c.fd = -1;
-      return;
-    }
-    flush_control(c);
-  }
-
   // ===== the server loop ======================================================================
 
   void watch_own(PollSet& set) {
@@ -326,17 +271,7 @@ struct Bench::Impl final : ControlHandler {
       [[maybe_unused]] auto r = ::read(wake_fd, &n, sizeof n);
     });
     set.add(can.fd(), POLLIN, [this](short) { can.accept(); });
-    if (control_fd >= 0) set.add(control_fd, POLLIN, [this](short) { accept_control(); });
-    for (std::size_t i = 0; i < control_clients.size(); ++i) {
-      const auto& c = control_clients[i];
-      if (c.fd < 0) continue;
-      set.add(c.fd, static_cast<short>(POLLIN | (c.out.empty() ? 0 : POLLOUT)), [this, i, fd = c.fd](short revents) {
-        auto& client = control_clients[i];
-        if (client.fd != fd) return;
-        if (revents & POLLOUT) flush_control(client);
-        if (client.fd >= 0 && (revents & (POLLIN | POLLHUP | POLLERR))) read_control(client);
-      });
-    }
+    if (control) (void)control->watch(set);  // its replies are never held back
   }
 
   int run() {
@@ -361,12 +296,9 @@ struct Bench::Impl final : ControlHandler {
       set.dispatch([this] { return !stop_requested.load(); });
       modbus->after_round(SteadyClock::now());
       if (ascii) ascii->after_round(SteadyClock::now());
-      std::erase_if(control_clients, [](const ControlClient& c) { return c.fd < 0; });
     }
     // Let the last replies (the "stop" command's own) go out before the sockets close.
-    for (auto& c : control_clients) {
-      if (c.fd >= 0) flush_control(c);
-    }
+    if (control) control->flush();
     clock->stop();
     {
       std::lock_guard lock(shared.mutex);

@@ -5,20 +5,6 @@ namespace fogbench::mock {
 
 using nlohmann::json;
 
-std::optional<std::string> LineBuffer::next_line() {
-  const auto nl = data_.find('\n');
-  if (nl == std::string::npos) return std::nullopt;
-  std::string line = data_.substr(0, nl);
-  data_.erase(0, nl + 1);
-  if (!line.empty() && line.back() == '\r') line.pop_back();
-  return line;
-}
-
-bool LineBuffer::overflowed() const noexcept {
-  const auto nl = data_.find('\n');
-  return (nl == std::string::npos ? data_.size() : nl) > max_control_line;
-}
-
 std::string handle_line(std::string_view line, ControlHandler& handler) {
   auto error = [](const std::string& message) { return json{{"ok", false}, {"error", message}}.dump(); };
   if (line.size() > max_control_line) {

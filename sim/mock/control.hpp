@@ -1,6 +1,7 @@
 // The control protocol of the mock bench, without I/O: newline-delimited JSON requests on a
-// unix stream socket, one JSON reply line each. The framing (LineBuffer) and the dispatch
-// (handle_line) never touch a socket, so both are tested on strings.
+// unix stream socket, one JSON reply line each. The socket and the framing are the bench's
+// LineServer (line_server.hpp, as for the ASCII chamber and the rate table); the dispatch
+// (handle_line) never touches a socket, so it is tested on strings.
 //
 //   {"cmd":"fault","name":"freeze_pv","on":true}   -> {"ok":true}
 //   {"cmd":"status"}                               -> {"ok":true,"time_s":...,...}
@@ -13,7 +14,6 @@
 
 #include <cstdint>
 #include <expected>
-#include <optional>
 #include <string>
 #include <string_view>
 
@@ -22,19 +22,6 @@ namespace fogbench::mock {
 inline constexpr int control_protocol_version = 1;
 // A request line longer than this is refused and the connection closed.
 inline constexpr std::size_t max_control_line = 4096;
-
-// Splits a byte stream into lines ("\n", an optional "\r" before it dropped).
-class LineBuffer {
- public:
-  void append(std::string_view bytes) { data_.append(bytes); }
-  // The next complete line, if any.
-  std::optional<std::string> next_line();
-  // True when the pending, incomplete line is already longer than max_control_line.
-  bool overflowed() const noexcept;
-
- private:
-  std::string data_;
-};
 
 // What the bench does for each request.
 class ControlHandler {

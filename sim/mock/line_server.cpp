@@ -13,10 +13,17 @@
 #include <cstring>
 
 #include "fogbench/drivers/chamber_dialects.hpp"
+#include "unix_socket.hpp"
 
 namespace fogbench::mock {
 
 std::expected<void, std::string> LineServer::open() {
+  if (!unix_path_.empty()) {
+    auto fd = listen_unix(unix_path_, SOCK_STREAM);
+    if (!fd) return std::unexpected(fd.error());
+    listen_fd_ = *fd;
+    return {};
+  }
   const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
   if (fd < 0) return std::unexpected(std::string("socket: ") + std::strerror(errno));
   int one = 1;
@@ -43,6 +50,7 @@ std::expected<void, std::string> LineServer::open() {
 }
 
 void LineServer::refuse(bool on) {
+  if (!unix_path_.empty()) return;  // TCP listeners only
   if (on && listen_fd_ >= 0) {
     ::close(listen_fd_);
     listen_fd_ = -1;
@@ -57,7 +65,7 @@ void LineServer::accept() {
   int one = 1;
   ::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
   spdlog::debug("{} client connected", name_);
-  clients_.push_back({fd, {}, {}});
+  clients_.push_back({fd, {}, {}, {}});
 }
 
 void LineServer::close_client(Client& c) {
@@ -65,8 +73,24 @@ void LineServer::close_client(Client& c) {
   c.fd = -1;
 }
 
+void LineServer::write_out(Client& c) {
+  while (c.fd >= 0 && !c.out.empty()) {
+    const auto n = ::send(c.fd, c.out.data(), c.out.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+    if (n < 0) {
+      if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) close_client(c);
+      return;
+    }
+    c.out.erase(0, static_cast<std::size_t>(n));
+  }
+}
+
 void LineServer::send(Client& c, const std::string& reply) {
-  if (::send(c.fd, reply.data(), reply.size(), MSG_NOSIGNAL) != static_cast<ssize_t>(reply.size())) close_client(c);
+  c.out += reply;
+  write_out(c);
+  if (c.out.size() > max_unsent_bytes) {
+    spdlog::warn("{}: a client left {} bytes of replies unread: closed", name_, c.out.size());
+    close_client(c);
+  }
 }
 
 void LineServer::read(Client& c) {
@@ -78,12 +102,14 @@ void LineServer::read(Client& c) {
   }
   if (n < 0) return;
   c.in.append(buf, static_cast<std::size_t>(n));
-  // Espec and the rate table end a line in CR LF, SIMSERV in CR: a CR or an LF ends one.
+  // Espec and the rate table end a line in CR LF, SIMSERV in CR: a CR or an LF ends one. The
+  // control socket's JSON lines end in LF (a CR before it dropped).
   while (c.fd >= 0) {
-    const auto at = c.in.find_first_of("\r\n");
+    const auto at = options_.lf_only ? c.in.find('\n') : c.in.find_first_of("\r\n");
     if (at == std::string::npos) break;
     std::string line = c.in.substr(0, at);
     c.in.erase(0, at + 1);
+    if (!line.empty() && line.back() == '\r') line.pop_back();
     if (line.empty()) continue;
     Reply reply = answer_(line);
     spdlog::debug("{}: '{}' -> '{}'", name_, drivers::printable(line), drivers::printable(reply.text));
@@ -93,7 +119,14 @@ void LineServer::read(Client& c) {
       send(c, reply.text);
     }
   }
-  if (c.fd >= 0 && c.in.size() > 4096) close_client(c);
+  if (c.fd >= 0 && c.in.size() > max_line_bytes) {
+    spdlog::warn("{}: a client sent more than {} bytes without a line end: closed", name_, max_line_bytes);
+    if (!options_.overflow_reply.empty()) {
+      c.out += options_.overflow_reply;
+      write_out(c);
+    }
+    close_client(c);
+  }
 }
 
 LineServer::Clock::time_point LineServer::watch(PollSet& set) {
@@ -107,8 +140,11 @@ LineServer::Clock::time_point LineServer::watch(PollSet& set) {
   for (std::size_t i = 0; i < clients_.size(); ++i) {
     const auto& c = clients_[i];
     if (!c.replies.empty()) next_due = std::min(next_due, c.replies.front().first);
-    set.add(c.fd, POLLIN, [this, i, fd = c.fd](short) {
-      if (i < clients_.size() && clients_[i].fd == fd) read(clients_[i]);
+    const auto events = static_cast<short>(POLLIN | (c.out.empty() ? 0 : POLLOUT));
+    set.add(c.fd, events, [this, i, fd = c.fd](short revents) {
+      if (i >= clients_.size() || clients_[i].fd != fd) return;
+      if (revents & POLLOUT) write_out(clients_[i]);
+      if (clients_[i].fd >= 0 && (revents & ~POLLOUT) != 0) read(clients_[i]);
     });
   }
   return next_due;
@@ -124,6 +160,10 @@ void LineServer::after_round(Clock::time_point now) {
   std::erase_if(clients_, [](const Client& c) { return c.fd < 0; });
 }
 
+void LineServer::flush() {
+  for (auto& c : clients_) write_out(c);
+}
+
 void LineServer::drop_clients() {
   for (auto& c : clients_) close_client(c);
 }
@@ -135,7 +175,10 @@ std::size_t LineServer::open_clients() const {
 void LineServer::close() {
   drop_clients();
   clients_.clear();
-  if (listen_fd_ >= 0) ::close(listen_fd_);
+  if (listen_fd_ >= 0) {
+    ::close(listen_fd_);
+    if (!unix_path_.empty()) ::unlink(unix_path_.c_str());
+  }
   listen_fd_ = -1;
 }
 

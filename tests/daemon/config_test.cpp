@@ -1,5 +1,6 @@
 // fogbenchd's configuration: the golden one parses; each refusal names its field.
 #include "fixture.hpp"
+#include "fogbench/drivers/chamber_registry.hpp"
 
 using namespace fogbench::daemon;
 using fogbench::daemon::test::golden_config_json;
@@ -236,4 +237,15 @@ TEST_CASE("config: rate_table, optional, its kind and fields refused by name") {
              Catch::Contains("rate_table.speed"));
   CHECK_THAT(refusal({{"rate_table", {{"kind", "acutrol"}}}}), Catch::StartsWith("rate_table.link"));
   CHECK_THAT(refusal({{"rate_table", "acutrol"}}), Catch::StartsWith("rate_table"));
+}
+
+TEST_CASE("config: an unknown chamber kind is refused at start-up, naming the field and the known kinds") {
+  // The chamber is opened by its kind from the drivers' table (chamber_registry.hpp): a kind the
+  // table does not hold stops the configuration, it never falls back to Modbus.
+  CHECK_THAT(refusal({{"drivers", {{"chamber", {{"kind", "thermotron"}}}}}}),
+             Catch::Contains("chamber.kind") && Catch::Contains("'thermotron'") &&
+                 Catch::Contains("(known: " + fogbench::drivers::known_chamber_kinds() + ")"));
+  // A known kind with another kind's fields (the golden chamber's Modbus ones) is refused by name.
+  CHECK_THAT(refusal({{"drivers", {{"chamber", {{"kind", "espec"}, {"link", {{"transport", "tcp"}, {"host", "127.0.0.1"}}}}}}}}),
+             Catch::Contains("chamber.") && Catch::Contains("unknown field"));
 }

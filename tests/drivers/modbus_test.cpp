@@ -286,6 +286,18 @@ TEST_CASE("thermistor module: every unit's T1 and T2 in few requests, errors per
     put_float(&m.tab_input_registers[100], 10000.0f);  // 24.9997 degC (see thermistor_test)
     put_float(&m.tab_input_registers[102], 5.0e6f);    // open NTC
   });
+  {
+    // The daemon's way in: the same module behind the interface, from open_thermistor_source
+    // (first, and closed before `module` connects: the test server serves one client at a time).
+    auto source = open_thermistor_source(mcfg, units);
+    REQUIRE(source);
+    auto first = source->read_all();
+    REQUIRE(first.has_value());
+    REQUIRE(first->size() == 2);
+    REQUIRE((*first)[0].t1_c.has_value());
+    CHECK(*(*first)[0].t1_c == Approx(25.34));
+    CHECK((*first)[0].t2_c.error().code == ErrorCode::open_circuit);
+  }
   auto r = module.read_all();
   REQUIRE(r.has_value());
   REQUIRE(r->size() == 2);

@@ -3,6 +3,7 @@
 // the chamber: the daemon runs it on a worker thread.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -64,5 +65,13 @@ class ThermistorModule final : public ThermistorSource {
   std::vector<Sensor> sensors_;
   std::vector<Block> blocks_;
 };
+
+// The coil thermistors' source the configuration describes, as open_chamber is for the chamber:
+// the daemon opens it here and talks to a ThermistorSource, never naming the module's class.
+// One kind so far (the Modbus input module): a second would add a `kind` to the configuration
+// and a table as chamber_registry.hpp's (docs/adding-a-device.md, "Other devices"). No I/O (the
+// first read connects).
+std::unique_ptr<ThermistorSource> open_thermistor_source(const ThermistorModuleConfig& config,
+                                                         const std::vector<UnitConfig>& units);
 
 }  // namespace fogbench::drivers
