@@ -14,6 +14,7 @@
 
 #include "fogbench/model/model.hpp"
 #include "fogbench/model/terms.hpp"
+#include "fogbench/storage/identity.hpp"
 #include "config_fields.hpp"
 
 namespace fogbench::daemon {
@@ -101,9 +102,9 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
     if (st.contains("id")) {
       auto id = string(st, "station", "id");
       if (!id) return Err(id.error());
-      if (id->size() > 64) return Err("station.id: longer than 64 bytes");
-      for (char ch : *id)
-        if (static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f) return Err("station.id: control character");
+      // The same rule as every stored name (storage/identity.hpp): printable UTF-8, bounded.
+      if (auto why = storage::check_stored_text("station.id", *id, storage::kMaxNameBytes); !why.empty())
+        return Err(why);
       c.station_id = *id;
     }
   }
@@ -395,6 +396,13 @@ std::expected<DaemonConfig, std::string> parse_daemon_config(const json& j,
   auto drv = drivers::parse_drivers_config(j["drivers"], map_dir, "drivers");
   if (!drv) return Err(drv.error().message);
   if (drv->units.empty()) return Err("drivers.units: expected at least one unit");
+  // A slot's default serial is stored with every run that names it and shown by status and
+  // fogctl: the same rule as a serial a request gives (storage/identity.hpp).
+  for (std::size_t i = 0; i < drv->units.size(); ++i)
+    if (auto why = storage::check_stored_text("drivers.units[" + std::to_string(i) + "].serial", drv->units[i].serial,
+                                              storage::kMaxNameBytes);
+        !why.empty())
+      return Err(why);
   // A profile checked against chamber_limits must not then be refused setpoint by setpoint by
   // the driver: the limits have to lie within what the driver will write.
   const auto& sp = drv->chamber.setpoint_limits_c;

@@ -3,16 +3,12 @@
 // READY=1 once its sockets are bound, RELOADING=1 then READY=1 around a reload, STATUS= lines,
 // WATCHDOG=1 while its event loop turns.
 #include <CLI/CLI.hpp>
-#include <atomic>
 #include <chrono>
 #include <cmath>
-#include <condition_variable>
 #include <fstream>
 #include <iostream>
 #include <sstream>
-#include <mutex>
 #include <optional>
-#include <thread>
 
 #include <spdlog/spdlog.h>
 
@@ -22,43 +18,11 @@
 #include "fogbench/daemon/config_reload.hpp"
 #include "fogbench/daemon/server.hpp"
 #include "fogbench/daemon/systemd.hpp"
+#include "watchdog.hpp"
 
 namespace {
 
 namespace sd = fogbench::daemon::systemd;
-
-// Pings systemd's watchdog at half its interval, but only while the event loop answers: each
-// round posts a task to the loop and pings when the previous one has run. A loop stuck in a
-// handler stops the pings and systemd restarts the daemon (WatchdogSec= in the unit).
-class Watchdog {
- public:
-  Watchdog(fogbench::daemon::Server& server, std::chrono::microseconds interval) : server_(server) {
-    thread_ = std::thread([this, half = interval / 2] {
-      std::unique_lock lock(mutex_);
-      alive_ = true;
-      while (!cv_.wait_for(lock, half, [this] { return stop_; })) {
-        if (alive_.exchange(false)) sd::notify("WATCHDOG=1");
-        server_.post([this] { alive_ = true; });
-      }
-    });
-  }
-  ~Watchdog() {
-    {
-      std::lock_guard lock(mutex_);
-      stop_ = true;
-    }
-    cv_.notify_all();
-    thread_.join();
-  }
-
- private:
-  fogbench::daemon::Server& server_;
-  std::mutex mutex_;
-  std::condition_variable cv_;
-  bool stop_ = false;
-  std::atomic<bool> alive_{false};
-  std::thread thread_;
-};
 
 }  // namespace
 
@@ -165,8 +129,11 @@ int main(int argc, char** argv) {
   sd::notify("READY=1\nSTATUS=serving on " + socket_path);
   int rc = 0;
   {
-    std::optional<Watchdog> watchdog;
-    if (auto interval = sd::watchdog_interval()) watchdog.emplace(server, *interval);
+    // WATCHDOG=1 only while the loop runs what is posted to it (watchdog.hpp).
+    std::optional<fogbench::daemon::LoopWatchdog> watchdog;
+    if (auto interval = sd::watchdog_interval())
+      watchdog.emplace([&server](std::function<void()> task) { server.post(std::move(task)); },
+                       [] { sd::notify("WATCHDOG=1"); }, *interval);
     rc = server.run();
   }
   sd::notify("STATUS=stopped (exit status " + std::to_string(rc) + ")");

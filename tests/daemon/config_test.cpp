@@ -45,6 +45,29 @@ TEST_CASE("config: errors name the field") {
   CHECK_THAT(refusal({{"drivers", {{"units", {{{"serial", "X"}}}}}}}), Catch::StartsWith("drivers.units[0]"));
 }
 
+TEST_CASE("config: a slot's default serial and station.id are checked as every stored name, naming the field") {
+  // Both are stored with runs and shown by status, fogctl and certificates (issue 27, point 8):
+  // printable UTF-8 within storage::kMaxNameBytes, as a serial or a name a request gives.
+  auto with_serial = [](const std::string& serial) {
+    auto j = golden_config_json();
+    j["drivers"]["units"][1]["serial"] = serial;
+    auto c = parse_daemon_config(j, golden_dir());
+    return c ? std::string() : c.error();
+  };
+  CHECK(with_serial("FOG-0002-\xc3\xa9").empty());  // printable, whatever the script
+  CHECK(with_serial("FOG\x1b[2J") == "drivers.units[1].serial: control character 0x1B at byte 4");
+  CHECK(with_serial("FOG\x07") == "drivers.units[1].serial: control character 0x07 at byte 4");
+  CHECK(with_serial(std::string(65, 'F')) == "drivers.units[1].serial: longer than 64 bytes (65)");
+  CHECK(with_serial(std::string(64, 'F')).empty());
+  CHECK(with_serial("FOG-\xff") == "drivers.units[1].serial: not valid UTF-8 at byte 5");
+
+  CHECK(refusal({{"station", {{"id", "line\r\n2"}}}}) == "station.id: control character 0x0D at byte 5");
+  CHECK(refusal({{"station", {{"id", std::string(65, 's')}}}}) == "station.id: longer than 64 bytes (65)");
+  CHECK(refusal({{"station", {{"id", "line-\xc3"}}}}) == "station.id: not valid UTF-8 at byte 6");
+  auto ok = fogbench::daemon::test::golden_config({{"station", {{"id", "line-2"}}}});
+  CHECK(ok.station_id == "line-2");
+}
+
 TEST_CASE("config: link_loss and tracking, their defaults and errors naming the field") {
   auto c = parse_daemon_config(golden_config_json(), golden_dir());
   REQUIRE(c.has_value());

@@ -231,3 +231,29 @@ TEST_CASE("plan runner: plan.status without an id gives the running plan, else t
   REQUIRE(by_id);
   CHECK((*by_id)["plan_id"] == second);
 }
+
+TEST_CASE("plan commands: plan.abort's reason is checked as every stored text, naming the field, the plan left running") {
+  // The reason is stored with the plan and its run (issue 27, point 8): a control character or
+  // one beyond storage::kMaxReasonBytes is refused before anything is aborted.
+  auto store = test::memory_store();
+  FakeRuns runs(store);
+  PlanRunner runner(runs, store);
+  auto started = runner.start("plan first\nstep pshort soak\n", "t.plan", {"FOG-0001"}, PlanTrace{}, json{{"cmd", "plan.start"}});
+  REQUIRE(started);
+  runner.after_tick(1.0, 1000.0);
+  REQUIRE(runs.active);
+  auto refused = [&](const std::string& reason) {
+    auto r = plan_abort(&runner, "plan.abort", json{{"cmd", "plan.abort"}, {"reason", reason}});
+    REQUIRE_FALSE(r);
+    CHECK(r.error().code == ErrorCode::bad_request);
+    return r.error().message;
+  };
+  CHECK(refused("done\x1b]0;owned\x07") == "reason: control character 0x1B at byte 5");
+  CHECK(refused(std::string(501, 'r')) == "reason: longer than 500 bytes (501)");
+  CHECK(runs.aborted.empty());
+  REQUIRE(runs.active);
+  auto ok = plan_abort(&runner, "plan.abort", json{{"cmd", "plan.abort"}, {"reason", "line stop"}});
+  REQUIRE(ok);
+  REQUIRE(runs.aborted.size() == 1);
+  CHECK_THAT(runs.aborted[0], Catch::Contains("line stop"));
+}
