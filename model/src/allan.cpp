@@ -202,74 +202,56 @@ constexpr std::int64_t kSumBlock = 4096;
 // compiler vectorises the sum without reordering one accumulator's additions.
 constexpr std::int64_t kLanes = 8;
 
-// sum_k (b[k] - a[k])^2 for k < len, b = a + m (the window sums S_m(k + m) and S_m(k)); and,
-// in squares_and_sums, out[k] = a[k] + b[k] (S_2m(k)) in the same pass. a and b overlap (both
-// read); out does not. Compiled for AVX2 as well as the baseline, chosen at load time by the
-// CPU (GCC's target_clones): the passes are bound by arithmetic, not memory (the run's 7 MB at
-// 864,000 samples stays in cache), so the vector width is their speed.
-// sum_k x[k] for k < n, in kLanes partial sums.
-[[gnu::target_clones("avx2", "default")]] double lane_sum(const double* x, std::int64_t n) {
+// sum_k term(k) for k < len in kLanes partial sums; term may also write (the doubling). Inlined
+// into each kernel below, so that it is compiled for each of the kernel's targets.
+template <class Term>
+[[gnu::always_inline]] inline double lane_pass(std::int64_t len, Term term) {
   std::array<double, kLanes> acc{};
   std::int64_t k = 0;
-  for (; k + kLanes <= n; k += kLanes)
-    for (std::int64_t j = 0; j < kLanes; ++j) acc[static_cast<std::size_t>(j)] += x[k + j];
+  for (; k + kLanes <= len; k += kLanes)
+    for (std::int64_t j = 0; j < kLanes; ++j) acc[static_cast<std::size_t>(j)] += term(k + j);
   double sum = 0.0;
-  for (; k < n; ++k) sum += x[k];
+  for (; k < len; ++k) sum += term(k);
   for (const double v : acc) sum += v;
   return sum;
 }
 
+// The kernels: compiled for AVX2 as well as the baseline, chosen at load time by the CPU (GCC's
+// target_clones); the passes are bound by arithmetic once their data is in cache, so the
+// vector width is their speed. a and b are the window sums S_m(k) and S_m(k + m) (b = a + m:
+// they overlap, both read); out, where written, overlaps neither.
+
+// sum_k x[k] for k < n.
+[[gnu::target_clones("avx2", "default")]] double lane_sum(const double* x, std::int64_t n) {
+  return lane_pass(n, [x](std::int64_t k) { return x[k]; });
+}
+
+// sum_k (b[k] - a[k])^2 for k < len.
 [[gnu::target_clones("avx2", "default")]] double squares(const double* __restrict a, const double* __restrict b, std::int64_t len) {
-  std::array<double, kLanes> acc{};
-  std::int64_t k = 0;
-  for (; k + kLanes <= len; k += kLanes)
-    for (std::int64_t j = 0; j < kLanes; ++j) {
-      const double d = b[k + j] - a[k + j];
-      acc[static_cast<std::size_t>(j)] += d * d;
-    }
-  double sum = 0.0;
-  for (; k < len; ++k) sum += (b[k] - a[k]) * (b[k] - a[k]);
-  for (const double v : acc) sum += v;
-  return sum;
+  return lane_pass(len, [a, b](std::int64_t k) {
+    const double d = b[k] - a[k];
+    return d * d;
+  });
+}
+
+// The same, and S_2m(k) = a[k] + b[k] into out in the same pass.
+[[gnu::target_clones("avx2", "default")]] double squares_and_sums(const double* __restrict a, const double* __restrict b,
+                                                                   double* __restrict out, std::int64_t len) {
+  return lane_pass(len, [a, b, out](std::int64_t k) {
+    const double d = b[k] - a[k];
+    out[k] = a[k] + b[k];
+    return d * d;
+  });
 }
 
 // The same with S_2m written over S_m (out = a), for len <= m: b's range lies past the one
 // written.
 [[gnu::target_clones("avx2", "default")]] double squares_and_sums_in_place(double* a, const double* __restrict b, std::int64_t len) {
-  std::array<double, kLanes> acc{};
-  std::int64_t k = 0;
-  for (; k + kLanes <= len; k += kLanes)
-    for (std::int64_t j = 0; j < kLanes; ++j) {
-      const double d = b[k + j] - a[k + j];
-      acc[static_cast<std::size_t>(j)] += d * d;
-      a[k + j] += b[k + j];
-    }
-  double sum = 0.0;
-  for (; k < len; ++k) {
-    sum += (b[k] - a[k]) * (b[k] - a[k]);
+  return lane_pass(len, [a, b](std::int64_t k) {
+    const double d = b[k] - a[k];
     a[k] += b[k];
-  }
-  for (const double v : acc) sum += v;
-  return sum;
-}
-
-[[gnu::target_clones("avx2", "default")]] double squares_and_sums(const double* __restrict a, const double* __restrict b,
-                                                                   double* __restrict out, std::int64_t len) {
-  std::array<double, kLanes> acc{};
-  std::int64_t k = 0;
-  for (; k + kLanes <= len; k += kLanes)
-    for (std::int64_t j = 0; j < kLanes; ++j) {
-      const double d = b[k + j] - a[k + j];
-      acc[static_cast<std::size_t>(j)] += d * d;
-      out[k + j] = a[k + j] + b[k + j];
-    }
-  double sum = 0.0;
-  for (; k < len; ++k) {
-    sum += (b[k] - a[k]) * (b[k] - a[k]);
-    out[k] = a[k] + b[k];
-  }
-  for (const double v : acc) sum += v;
-  return sum;
+    return d * d;
+  });
 }
 
 // The octaves done chunk by chunk (blocked_octaves): up to this cluster size, in chunks of this
