@@ -201,6 +201,9 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
   };
   const std::size_t n = data.size();
   if (options.serial.empty()) return invalid("no unit serial given");
+  // Stored names as at every other entry (docs/reliability.md "Issue 27 checklist").
+  if (auto why = check_stored_text("serial", options.serial, kMaxNameBytes); !why.empty()) return invalid(why);
+  if (auto why = check_stored_text("profile_name", options.profile_name, kMaxNameBytes); !why.empty()) return invalid(why);
   if (options.lot) {
     if (options.lot->empty()) return invalid("the lot is empty (leave it out for a unit without one)");
     if (auto why = check_stored_text("lot", *options.lot, 64); !why.empty()) return invalid(why);

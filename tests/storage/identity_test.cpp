@@ -174,6 +174,20 @@ TEST_CASE("identity: the CSV comments read back to the same identity, and the ru
   auto bad_lot = s.import_run(*data, o);
   REQUIRE_FALSE(bad_lot.has_value());
   CHECK(bad_lot.error().message.find("lot") != std::string::npos);
+  // The serial and the profile's name are stored names too: a control character, or longer than
+  // 64 bytes, refused naming the field; nothing stored.
+  o.lot.reset();
+  const auto runs_before = s.list_runs()->size();
+  o.serial = std::string("FOG") + char(0x07);
+  auto bad_serial = s.import_run(*data, o);
+  REQUIRE_FALSE(bad_serial.has_value());
+  CHECK(bad_serial.error().message.find("serial: control character 0x07") != std::string::npos);
+  o.serial = "FOG-1";
+  o.profile_name = std::string(65, 'p');
+  auto bad_profile = s.import_run(*data, o);
+  REQUIRE_FALSE(bad_profile.has_value());
+  CHECK(bad_profile.error().message.find("profile_name: longer than 64 bytes") != std::string::npos);
+  CHECK(s.list_runs()->size() == runs_before);
 
   // Comments after the header are data's business, not the identity's; a file without
   // software_version is no fogbench export.
