@@ -130,6 +130,14 @@ std::string Table::str(std::size_t max_width) const {
   std::string out = lines(header_, true);
   out += std::string(total_of(), '-') + "\n";
   for (const auto& r : rows_) out += lines(r, false);
+  // Still wider (numbers are never cut, text columns stop at their floor): said, so that a
+  // wrapped-around table on a narrow terminal is not taken for a broken one.
+  if (max_width > 0 && total_of() > max_width)
+    for (const auto& l : wrap_text("(this table is " + std::to_string(total_of()) + " columns wide, the terminal " +
+                                       std::to_string(max_width) + ": its numbers are kept whole; a wider terminal, "
+                                       "or a pipe, shows it unwrapped)",
+                                   max_width))
+      out += l + "\n";
   return out;
 }
 

@@ -1,4 +1,5 @@
 // fogctl's human tables: what a cell may carry to the terminal.
+#include <algorithm>
 #include <catch2/catch.hpp>
 
 #include <sstream>
@@ -75,6 +76,17 @@ TEST_CASE("fogctl tables: a 20-column limit narrows every text column to its flo
   std::string all;
   for (const auto& l : lines_of(s)) all += l + "\n";
   for (const char* word : {"pass", "(plan", "strict,", "limits", "of", "plan", "7)"}) CHECK(all.find(word) != std::string::npos);
+  // And it says the table is wider than the terminal, in lines that fit it.
+  const auto ls = lines_of(s);
+  REQUIRE(ls.size() >= 2);
+  std::string flat = all;  // the note's wrapped lines joined again
+  std::replace(flat.begin(), flat.end(), '\n', ' ');
+  CHECK(flat.find("(this table is ") != std::string::npos);
+  CHECK(flat.find("columns wide, the terminal 20: its numbers are kept whole") != std::string::npos);
+  CHECK(display_width(ls.back()) <= 20);
+  // A table that fits says nothing of the kind.
+  CHECK(t.str(200).find("columns wide") == std::string::npos);
+  CHECK(t.str(0).find("columns wide") == std::string::npos);
 }
 
 TEST_CASE("fogctl tables: wrap_text and display_width") {
