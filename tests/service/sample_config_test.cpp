@@ -172,7 +172,7 @@ TEST_CASE("serial devices the shipped unit does not allow are named by --check-c
   std::filesystem::remove_all(dir);
 }
 
-TEST_CASE("--check-config names a store folder on a read-only filesystem (a bind mount made read-only in a mount namespace of its own)") {
+TEST_CASE("fogbenchd --check-config names a store folder on a read-only filesystem (a bind mount made read-only in a mount namespace of its own)") {
   REQUIRE(std::filesystem::exists(kBin / "fogbenchd"));
   char tmpl[] = "/tmp/fogbench-rofs-XXXXXX";
   const std::filesystem::path dir = ::mkdtemp(tmpl);
