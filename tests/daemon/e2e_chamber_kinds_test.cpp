@@ -16,23 +16,33 @@ namespace {
 
 bool running(const json& r) { return r["run"].is_object() && r["run"]["state"] == "running"; }
 
+// A short reconnection back-off for the ASCII chamber's link (wall time, not the scaled clock).
+json fast_reconnect(json patch = json::object()) {
+  patch["drivers"]["chamber"]["link"]["backoff"] = {{"initial_ms", 20}, {"max_ms", 100}, {"multiplier", 2}};
+  return patch;
+}
+
+// Waits until the run is into the ramp (the controller's setpoint above 21 degC, so that the safe
+// 20 degC is observable); the status reply.
+json into_ramp(LiveBench& bench, LineClient& c) {
+  return bench.wait_status(c, [](const json& r) {
+    return running(r) && r["chamber"]["setpoint_c"].is_number() && r["chamber"]["setpoint_c"].get<double>() > 21.0;
+  }, 120s);
+}
+
 }  // namespace
 
 TEST_CASE("e2e chamber kinds: an Espec or SIMSERV chamber runs a profile, its alarm aborts, the safe setpoint follows") {
   require_sim();
   const std::string dialect = GENERATE(as<std::string>{}, "espec", "simserv");
   INFO("dialect " << dialect);
-  json patch;
-  patch["drivers"]["chamber"]["link"]["backoff"] = {{"initial_ms", 20}, {"max_ms", 100}, {"multiplier", 2}};
-  LiveBench bench(50.0, patch, false, nullptr, {"--chamber-dialect", dialect});
+  LiveBench bench(50.0, fast_reconnect(), false, nullptr, {"--chamber-dialect", dialect});
   REQUIRE(bench.ready_sim["drivers_config"]["chamber"]["kind"] == dialect);
   LineClient c(bench.socket());
   REQUIRE(c.ok());
   const auto run = bench.start_run(c, "short", {"SIM-0001"});
   // Into the ramp: the setpoint went out in the dialect and the air follows it.
-  auto s = bench.wait_status(c, [](const json& r) {
-    return running(r) && r["chamber"]["setpoint_c"].is_number() && r["chamber"]["setpoint_c"].get<double>() > 21.0;
-  }, 120s);
+  auto s = into_ramp(bench, c);
   INFO("fogbenchd log in " << (bench.dir / "fogbenchd.log"));
   REQUIRE(s["result"]["chamber"]["setpoint_c"].get<double>() > 21.0);
   CHECK(s["result"]["chamber"]["link"] == "up");
@@ -52,16 +62,12 @@ TEST_CASE("e2e chamber kinds: an Espec or SIMSERV chamber's link lost past link_
   require_sim();
   const std::string dialect = GENERATE(as<std::string>{}, "espec", "simserv");
   INFO("dialect " << dialect);
-  json patch;
-  patch["drivers"]["chamber"]["link"]["backoff"] = {{"initial_ms", 20}, {"max_ms", 100}, {"multiplier", 2}};
-  patch["link_loss"] = {{"policy", "hold"}, {"tolerance_s", 20}};
-  LiveBench bench(50.0, patch, false, nullptr, {"--chamber-dialect", dialect});
+  LiveBench bench(50.0, fast_reconnect({{"link_loss", {{"policy", "hold"}, {"tolerance_s", 20}}}}), false, nullptr,
+                  {"--chamber-dialect", dialect});
   LineClient c(bench.socket());
   REQUIRE(c.ok());
   const auto run = bench.start_run(c, "short", {"SIM-0001"});
-  auto s = bench.wait_status(c, [](const json& r) {
-    return running(r) && r["chamber"]["setpoint_c"].is_number() && r["chamber"]["setpoint_c"].get<double>() > 21.0;
-  }, 120s);
+  auto s = into_ramp(bench, c);
   INFO("fogbenchd log in " << (bench.dir / "fogbenchd.log"));
   REQUIRE(s["result"]["chamber"]["setpoint_c"].get<double>() > 21.0);
 
