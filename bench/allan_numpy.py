@@ -5,8 +5,8 @@ implementation: the angle by one float64 cumsum of the demeaned rate, then for e
 cluster size m the second difference of the angle as three slices, squared and summed.
 
 Usage: allan_numpy.py RUN.f64 [--reps R]   (RUN.f64: raw float64 rates in deg/h at 1 s, as
-`bench_allan --write-dir DIR` writes them). Prints the median CPU time of R repetitions
-(default 21) and the deviation at the shortest and longest tau, to compare with bench_allan's.
+`bench_allan --write-dir DIR` writes them). Prints the median time of R repetitions
+(default 21), wall and CPU, and the deviation at the shortest and longest tau, to compare with bench_allan's.
        allan_numpy.py --csv RUN.csv   the whole-process peer of `fogctl allan RUN.csv --whole-run`:
 reads fogctl's CSV (np.loadtxt, the gyro column) and prints the curve once.
 """
@@ -39,14 +39,16 @@ def main():
         return 0
     reps = int(sys.argv[sys.argv.index("--reps") + 1]) if "--reps" in sys.argv else 21
     rate = np.fromfile(sys.argv[1], dtype="<f8")
-    times = []
+    times, walls = [], []
     for _ in range(reps):
-        t0 = time.process_time()
+        t0, w0 = time.process_time(), time.perf_counter()
         curve = overlapping_adev(rate)
         times.append((time.process_time() - t0) * 1e3)
+        walls.append((time.perf_counter() - w0) * 1e3)
     times.sort()
-    print("numpy overlapping ADEV of %d samples at %d octave taus: median %.2f ms CPU (min %.2f, max %.2f)"
-          % (len(rate), len(curve), times[len(times) // 2], times[0], times[-1]))
+    walls.sort()
+    print("numpy overlapping ADEV of %d samples at %d octave taus: median %.2f ms wall (min %.2f, max %.2f), %.2f ms CPU"
+          % (len(rate), len(curve), walls[len(walls) // 2], walls[0], walls[-1], times[len(times) // 2]))
     print("  adev(1 s) %.12g deg/h, adev(%.0f s) %.12g deg/h" % (curve[0][1], curve[-1][0], curve[-1][1]))
     return 0
 

@@ -4,12 +4,16 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <array>
+#include <barrier>
+#include <bit>
 #include <boost/math/distributions/chi_squared.hpp>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <memory>
 #include <span>
+#include <system_error>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -269,13 +273,17 @@ constexpr std::int64_t kChunk = 8 * kSumBlock;
 // (S_2m(k) = S_m(k) + S_m(k + m)). Returns each octave's sum of squared differences. With `next`
 // not null, S_(2^levels)(k) for k = 0 .. n - 2^levels is written there, the start of the longer
 // octaves.
-std::vector<long double> blocked_octaves(std::span<const double> rate_dph, double mean, int levels, double* next) {
+// Only the chunks whose first index lies in [from, to) (multiples of kChunk) when given: the two
+// halves of a long run (octaves_in_halves) each do theirs.
+std::vector<long double> blocked_octaves(std::span<const double> rate_dph, double mean, int levels, double* next,
+                                         std::int64_t from = 0, std::int64_t to = -1) {
   const auto n = static_cast<std::int64_t>(rate_dph.size());
+  if (to < 0) to = n;
   const std::int64_t halo = std::int64_t{1} << levels;
   std::vector<long double> sums(static_cast<std::size_t>(levels), 0.0L);
   const auto scratch_size = static_cast<std::size_t>(std::min(n, kChunk + halo));
   const std::unique_ptr<double[]> scratch_a(new double[scratch_size]), scratch_b(new double[scratch_size]);
-  for (std::int64_t c0 = 0; c0 < n; c0 += kChunk) {
+  for (std::int64_t c0 = from; c0 < std::min(n, to); c0 += kChunk) {
     const std::int64_t c1 = std::min(n, c0 + kChunk);
     double* a = scratch_a.get();  // a[j] is S_m(c0 + j)
     double* b = scratch_b.get();
@@ -297,6 +305,89 @@ std::vector<long double> blocked_octaves(std::span<const double> rate_dph, doubl
       for (std::int64_t k = c0; k < std::min(c1, n - halo + 1); ++k) next[k] = a[k - c0];
   }
   return sums;
+}
+
+// Runs at least this long (samples) are done by octaves_in_halves, on two threads where the
+// machine has two cores: the octaves' passes are most of fogctl allan's time on a long run.
+constexpr std::int64_t kHalvesMinSamples = std::int64_t{1} << 18;
+
+// Every octave m = 1, 2, ..., 2^(levels-1) of a long run (issue 30, point 3), its starting
+// indices in two halves that two threads can do side by side: the leading octaves
+// (blocked_octaves) by chunks, the first half's chunks and the second's; each longer octave's
+// terms split at h (a multiple of kSumBlock), S_2m doubled in place over S_m in each half. The
+// first half's last m doublings read S_m(h .. h + m), which the second half overwrites: those m
+// sums are copied aside before either half starts the octave (`boundary`). The split is the same
+// whether one thread or two do it, and each octave's sum is the first half's plus the second's,
+// so the deviations do not depend on the machine's cores.
+std::vector<long double> octaves_in_halves(std::span<const double> rate_dph, double mean, int levels, bool two_threads) {
+  const auto n = static_cast<std::int64_t>(rate_dph.size());
+  const int leading = std::min(levels, std::countr_zero(static_cast<std::uint64_t>(kBlockedMaxM)) + 1);
+  const bool more = leading < levels;
+  const std::unique_ptr<double[]> window(more ? new double[static_cast<std::size_t>(n)] : nullptr);
+  double* s = window.get();
+  const std::int64_t chunks = (n + kChunk - 1) / kChunk;
+  const std::int64_t chunk_split = chunks / 2 * kChunk;
+  std::array<std::vector<long double>, 2> sums;
+  for (auto& v : sums) v.assign(static_cast<std::size_t>(levels), 0.0L);
+  // The first m of the longest doubling octave at most (m <= n / 4 when 2m is an octave too).
+  std::vector<double> boundary(more ? static_cast<std::size_t>(n / 4 + 1) : 0);
+  const auto split_of = [n](std::int64_t m) { return (n - 2 * m + 1) / 2 / kSumBlock * kSumBlock; };
+  const auto save_boundary = [&](int level) {
+    const std::int64_t m = std::int64_t{1} << level;
+    if (level + 1 < levels) std::copy(s + split_of(m), s + split_of(m) + m, boundary.begin());
+  };
+  // One half's share of octave `level` >= leading.
+  const auto long_octave = [&](int level, int half) {
+    const std::int64_t m = std::int64_t{1} << level;
+    const std::int64_t terms = n - 2 * m + 1, h = split_of(m);
+    const bool doubling = level + 1 < levels;
+    long double& sum = sums[static_cast<std::size_t>(half)][static_cast<std::size_t>(level)];
+    for (std::int64_t k0 = half == 0 ? 0 : h; k0 < (half == 0 ? h : terms); k0 += kSumBlock) {
+      const std::int64_t len = std::min(kSumBlock, terms - k0);
+      // m and h are multiples of kSumBlock: a block's S_m(k + m) lie wholly below h or from h on.
+      const double* b = half == 0 && doubling && k0 + m >= h ? boundary.data() + (k0 + m - h) : s + k0 + m;
+      sum += doubling ? squares_and_sums_in_place(s + k0, b, len) : squares(s + k0, b, len);
+    }
+  };
+  const auto run = [&](int half, std::barrier<>* sync) {
+    sums[static_cast<std::size_t>(half)] =
+        blocked_octaves(rate_dph, mean, leading, s, half == 0 ? 0 : chunk_split, half == 0 ? chunk_split : n);
+    sums[static_cast<std::size_t>(half)].resize(static_cast<std::size_t>(levels), 0.0L);
+    for (int level = leading; level < levels; ++level) {
+      if (sync != nullptr) {
+        sync->arrive_and_wait();  // S_m complete in both halves
+        if (half == 1) save_boundary(level);
+        sync->arrive_and_wait();  // the boundary saved before the second half writes over it
+      }
+      long_octave(level, half);
+    }
+  };
+  if (two_threads) {
+    std::barrier<> sync(2);
+    std::thread second;
+    try {
+      second = std::thread(run, 1, &sync);
+    } catch (const std::system_error&) {  // no thread to be had: one thread does both halves
+      two_threads = false;
+    }
+    if (two_threads) {
+      run(0, &sync);
+      second.join();
+    }
+  }
+  if (!two_threads) {
+    sums[0] = blocked_octaves(rate_dph, mean, leading, s, 0, chunk_split);
+    sums[1] = blocked_octaves(rate_dph, mean, leading, s, chunk_split, n);
+    for (auto& v : sums) v.resize(static_cast<std::size_t>(levels), 0.0L);
+    for (int level = leading; level < levels; ++level) {
+      save_boundary(level);
+      long_octave(level, 0);
+      long_octave(level, 1);
+    }
+  }
+  std::vector<long double> total(static_cast<std::size_t>(levels));
+  for (std::size_t l = 0; l < total.size(); ++l) total[l] = sums[0][l] + sums[1][l];
+  return total;
 }
 
 // The Allan deviation at cluster size m of n samples from the sum of its squared differences.
@@ -373,6 +464,19 @@ std::expected<std::vector<AdevPoint>, std::string> overlapping_adev(
       return std::unexpected("cluster sizes must increase: " + std::to_string(m) + " after " +
                              std::to_string(previous));
     previous = m;
+  }
+
+  // A long run at octave taus only (octave_cluster_sizes: fogctl allan, the report): in halves.
+  bool all_octaves = n >= kHalvesMinSamples;
+  for (std::size_t i = 0; all_octaves && i < cluster_sizes.size(); ++i)
+    all_octaves = cluster_sizes[i] == std::int64_t{1} << i;
+  if (all_octaves && !cluster_sizes.empty()) {
+    const auto sums = octaves_in_halves(rate_dph, mean, static_cast<int>(cluster_sizes.size()),
+                                        std::thread::hardware_concurrency() >= 2);
+    std::vector<AdevPoint> out;
+    for (std::size_t level = 0; level < sums.size(); ++level)
+      out.push_back(point_of(cluster_sizes[level], n, tau0_s, sums[level]));
+    return out;
   }
 
   // The second difference of the angle at cluster size m is a difference of two window sums,
