@@ -89,32 +89,51 @@ AllanFigures allan_figures(const model::RunData& run) {
   return f;
 }
 
-// sf_tc_ppm_per_c of one unit's run (docs/plans.md): |tc| of model::sf::fit over the run's
-// turning plateaus, ppm/degC, with the signed value and its 1 sigma in the note; or no value
-// and the reason (no rate data, too few plateaus, a plateau the fit refuses).
-struct SfTc {
-  std::optional<double> abs_ppm_per_c;
-  std::string note;
+// The scale factor's measurements of one unit's run (docs/plans.md), from one model::sf::fit
+// over the run's turning plateaus: |tc|, ppm/degC, with the signed value and its 1 sigma in the
+// note; the worst plateau's nonlinearity, ppm, and its worst |asymmetry|, ppm, each with the
+// plateau in the note. No value and the reason when the fit fails (no rate data, too few
+// plateaus, a plateau the fit refuses) or tc is not identified.
+struct SfFigures {
+  std::optional<double> abs_tc_ppm_per_c, nonlinearity_ppm, abs_asymmetry_ppm;
+  std::string tc_note, nonlinearity_note, asymmetry_note;
 };
-SfTc sf_tc(const model::RunData& run) {
-  SfTc out;
+SfFigures sf_figures(const model::RunData& run) {
+  SfFigures out;
+  const auto fail_all = [&out](const std::string& why) {
+    out.tc_note = out.nonlinearity_note = out.asymmetry_note = why;
+    return out;
+  };
   auto rec = model::sf::rate_record(run);
-  if (!rec) {
-    out.note = "no scale-factor fit: " + rec.error();
-    return out;
-  }
+  if (!rec) return fail_all("no scale-factor fit: " + rec.error());
   auto f = model::sf::fit(*rec, {});
-  if (!f) {
-    out.note = "the scale-factor fit failed: " + f.error();
-    return out;
-  }
+  if (!f) return fail_all("the scale-factor fit failed: " + f.error());
+  const std::string over = " over " + std::to_string(f->plateaus.size()) + " plateaus";
   if (!f->tc_ppm_per_c.value) {
-    out.note = "the temperature sensitivity is not identified: " + f->tc_ppm_per_c.not_identified;
-    return out;
+    out.tc_note = "the temperature sensitivity is not identified: " + f->tc_ppm_per_c.not_identified;
+  } else {
+    out.abs_tc_ppm_per_c = std::abs(*f->tc_ppm_per_c.value);
+    out.tc_note = "tc = " + short_number(*f->tc_ppm_per_c.value) + " +- " + short_number(f->tc_ppm_per_c.se) +
+                  " ppm/degC (1 sigma)" + over;
   }
-  out.abs_ppm_per_c = std::abs(*f->tc_ppm_per_c.value);
-  out.note = "tc = " + short_number(*f->tc_ppm_per_c.value) + " +- " + short_number(f->tc_ppm_per_c.se) +
-             " ppm/degC (1 sigma) over " + std::to_string(f->plateaus.size()) + " plateaus";
+  const model::sf::Plateau* worst_nl = nullptr;
+  const model::sf::Plateau* worst_asym = nullptr;
+  for (const auto& p : f->plateaus) {
+    if (!worst_nl || p.nonlinearity_ppm > worst_nl->nonlinearity_ppm) worst_nl = &p;
+    if (!worst_asym || std::abs(p.asymmetry_ppm) > std::abs(worst_asym->asymmetry_ppm)) worst_asym = &p;
+  }
+  const auto at = [](const model::sf::Plateau& p) {
+    return "plateau " + std::to_string(p.id) + " (coil " + short_number(p.coil_c) + " degC)";
+  };
+  if (worst_nl) {
+    out.nonlinearity_ppm = worst_nl->nonlinearity_ppm;
+    out.nonlinearity_note = "the worst of " + std::to_string(f->plateaus.size()) + " plateaus: " + at(*worst_nl);
+  }
+  if (worst_asym) {
+    out.abs_asymmetry_ppm = std::abs(worst_asym->asymmetry_ppm);
+    out.asymmetry_note = "the worst of " + std::to_string(f->plateaus.size()) + " plateaus: " +
+                         short_number(worst_asym->asymmetry_ppm) + " ppm at " + at(*worst_asym);
+  }
   return out;
 }
 
@@ -166,7 +185,7 @@ ApiResult<plans::Plan> PlanRunner::check(const std::string& text, const std::str
   for (const plans::Step& s : p->steps) {
     auto prof = runs_.load_profile(s.profile);
     if (!prof) return api_error(prof.error().code, at_line(*p, s.line) + "step " + s.profile + ": " + prof.error().message);
-    if (!prof->rate_steps.empty() && plans::measured_in(plans::Measurement::sf_tc_ppm_per_c, s.purpose))
+    if (!prof->rate_steps.empty() && (s.purpose == plans::StepPurpose::fit || s.purpose == plans::StepPurpose::verify))
       rate_step_measured = true;
     if (s.purpose == plans::StepPurpose::fit) fitted = true;
     if (s.purpose == plans::StepPurpose::verify && !fitted) {
@@ -180,10 +199,10 @@ ApiResult<plans::Plan> PlanRunner::check(const std::string& text, const std::str
       }
     }
   }
-  // The scale factor's temperature sensitivity needs a rate sequence: a limit on it with no fit
-  // or verify step whose profile has rate steps would never be measured.
+  // The scale factor's measurements need a rate sequence: a limit on one with no fit or verify
+  // step whose profile has rate steps would never be measured.
   for (const plans::Limit& l : p->limits)
-    if (l.measurement == plans::Measurement::sf_tc_ppm_per_c && !rate_step_measured)
+    if (plans::needs_rate_steps(l.measurement) && !rate_step_measured)
       return api_error(ErrorCode::bad_request,
                        at_line(*p, l.line) + "limit " + l.describe() +
                            ": no fit or verify step of this plan has a profile with rate steps "
@@ -620,6 +639,7 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
           }
     }
     std::optional<AllanFigures> allan;
+    std::optional<SfFigures> sf;  // the run's scale-factor fit, made once for every sf_* limit
     // Whether this step's run had rate steps: its profile as run (stored with the run).
     std::optional<bool> rate_run;
     auto run_had_rate_steps = [&]() {
@@ -632,7 +652,7 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
     for (const plans::Limit& l : plan.limits) {
       if (!plans::measured_in(l.measurement, step.purpose)) continue;
       // Measured only where the table turned (a profile without rate steps has no scale factor).
-      if (l.measurement == plans::Measurement::sf_tc_ppm_per_c && !run_had_rate_steps()) continue;
+      if (plans::needs_rate_steps(l.measurement) && !run_had_rate_steps()) continue;
       std::optional<double> value;
       std::string note_text;
       switch (l.measurement) {
@@ -677,14 +697,23 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
           }
           break;
         case plans::Measurement::sf_tc_ppm_per_c:
+        case plans::Measurement::sf_nonlinearity_ppm:
+        case plans::Measurement::sf_asymmetry_ppm:
           // A fit that fails (no rate data, too few plateaus) gives no value: the limit is not met
           // and the note says why.
-          if (const auto* d = load_data()) {
-            auto tc = sf_tc(*d);
-            value = tc.abs_ppm_per_c;
-            note_text = tc.note;
-          } else {
+          if (!sf)
+            if (const auto* d = load_data()) sf = sf_figures(*d);
+          if (!sf) {
             note_text = "the run's samples could not be read";
+          } else if (l.measurement == plans::Measurement::sf_tc_ppm_per_c) {
+            value = sf->abs_tc_ppm_per_c;
+            note_text = sf->tc_note;
+          } else if (l.measurement == plans::Measurement::sf_nonlinearity_ppm) {
+            value = sf->nonlinearity_ppm;
+            note_text = sf->nonlinearity_note;
+          } else {
+            value = sf->abs_asymmetry_ppm;
+            note_text = sf->asymmetry_note;
           }
           break;
       }
@@ -699,7 +728,7 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
       const std::string measured = l.measurement == plans::Measurement::firmware
                                        ? (value ? "no firmware form (" + note_text + ")" : std::string("no model"))
                                        : l.name() + " = " + (value ? short_number(*value) : std::string("not measured")) +
-                                             (l.measurement == plans::Measurement::sf_tc_ppm_per_c && !note_text.empty()
+                                             (plans::needs_rate_steps(l.measurement) && !note_text.empty()
                                                   ? " (" + note_text + ")"
                                                   : std::string());
       const std::string why = where + ": " + measured + ", limit " + l.describe() + " (line " + std::to_string(l.line) + ")";

@@ -32,7 +32,8 @@ constexpr std::array kMeasurements = {Measurement::comp_raw,       Measurement::
                                       Measurement::fail_s,         Measurement::peak_excursion,
                                       Measurement::sensitivity,    Measurement::arw,
                                       Measurement::bias_instability, Measurement::firmware,
-                                      Measurement::sf_tc_ppm_per_c};
+                                      Measurement::sf_tc_ppm_per_c, Measurement::sf_nonlinearity_ppm,
+                                      Measurement::sf_asymmetry_ppm};
 }
 
 std::string_view to_string(Measurement m) {
@@ -46,6 +47,8 @@ std::string_view to_string(Measurement m) {
     case Measurement::bias_instability: return "bias_instability";
     case Measurement::firmware: return "firmware";
     case Measurement::sf_tc_ppm_per_c: return "sf_tc_ppm_per_c";
+    case Measurement::sf_nonlinearity_ppm: return "sf_nonlinearity_ppm";
+    case Measurement::sf_asymmetry_ppm: return "sf_asymmetry_ppm";
   }
   return "?";
 }
@@ -60,9 +63,15 @@ bool measured_in(Measurement m, StepPurpose p) {
     case Measurement::firmware: return p == StepPurpose::fit;
     case Measurement::arw:
     case Measurement::bias_instability: return p == StepPurpose::fit || p == StepPurpose::soak;
-    case Measurement::sf_tc_ppm_per_c: return p == StepPurpose::fit || p == StepPurpose::verify;
+    case Measurement::sf_tc_ppm_per_c:
+    case Measurement::sf_nonlinearity_ppm:
+    case Measurement::sf_asymmetry_ppm: return p == StepPurpose::fit || p == StepPurpose::verify;
   }
   return false;
+}
+
+bool needs_rate_steps(Measurement m) {
+  return m == Measurement::sf_tc_ppm_per_c || m == Measurement::sf_nonlinearity_ppm || m == Measurement::sf_asymmetry_ppm;
 }
 
 std::string_view unit_of(Measurement m) {
@@ -72,6 +81,8 @@ std::string_view unit_of(Measurement m) {
     case Measurement::bias_instability: return "deg/h";
     case Measurement::arw: return "deg/sqrt(h)";
     case Measurement::sf_tc_ppm_per_c: return "ppm/degC";
+    case Measurement::sf_nonlinearity_ppm:
+    case Measurement::sf_asymmetry_ppm: return "ppm";
     default: return "";
   }
 }
@@ -225,7 +236,7 @@ class Parser {
                                        : (l.measurement == Measurement::arw ||
                                           l.measurement == Measurement::bias_instability)
                                            ? "a fit or soak step"
-                                       : l.measurement == Measurement::sf_tc_ppm_per_c
+                                       : needs_rate_steps(l.measurement)
                                            ? "a fit or verify step whose profile has rate steps"
                                            : "a verify step") +
                            " does)");

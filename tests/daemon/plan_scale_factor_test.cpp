@@ -168,3 +168,45 @@ TEST_CASE("plan limit sf_tc_ppm_per_c: a step with rate steps whose fit fails (o
   CHECK_THAT(s["progress"]["units"][0]["reasons"][0].get<std::string>(),
              Catch::Contains("sf_tc_ppm_per_c = not measured (the temperature sensitivity is not identified"));
 }
+
+TEST_CASE("plan limits sf_nonlinearity_ppm and sf_asymmetry_ppm: the worst plateau of each gyro against its limit, with the plateau named") {
+  Rig r;
+  // The first gyro as above (cubic nonlinearity 30 ppm, asymmetry 20 ppm); the second with 100
+  // times the nonlinearity and 400 ppm of asymmetry. The measured nonlinearity is the line's
+  // largest residual over +-10 and +-60 deg/s, of full scale: about 5 and 110 ppm.
+  r.truth[1].nl_ppm = 3000.0;
+  r.truth[1].asymmetry_ppm = 400.0;
+  auto started = r.runner->start("plan sf\nstep spin fit\nlimit sf_asymmetry_ppm < 100 ppm\nlimit sf_nonlinearity_ppm < 50 continue\n",
+                                 "sf.plan", {"FOG-0001", "FOG-0002"}, PlanTrace{}, json{{"cmd", "plan.start"}});
+  INFO((started ? std::string() : started.error().message));
+  REQUIRE(started.has_value());
+  const auto plan_id = (*started)["plan_id"].get<std::int64_t>();
+  for (int k = 0; k < 6000 && r.plan_status(plan_id)["state"] == "running"; ++k) r.tick();
+  const json s = r.plan_status(plan_id);
+  INFO(s.dump(1));
+  REQUIRE(s["state"] != "running");
+  const json& units = s["progress"]["units"];
+  REQUIRE(units.size() == 2);
+  const json* asym0 = measurement(units[0], "sf_asymmetry_ppm");
+  const json* asym1 = measurement(units[1], "sf_asymmetry_ppm");
+  const json* nl0 = measurement(units[0], "sf_nonlinearity_ppm");
+  const json* nl1 = measurement(units[1], "sf_nonlinearity_ppm");
+  REQUIRE(asym0);
+  REQUIRE(asym1);
+  REQUIRE(nl0);
+  REQUIRE(nl1);
+  CHECK((*asym0)["unit"] == "ppm");
+  CHECK((*asym0)["value"].get<double>() == Approx(20.0).margin(3.0));
+  CHECK((*asym0)["met"] == true);
+  CHECK((*asym1)["value"].get<double>() == Approx(400.0).margin(10.0));
+  CHECK((*asym1)["met"] == false);
+  CHECK_THAT((*asym1)["note"].get<std::string>(), Catch::Contains("the worst of 3 plateaus") && Catch::Contains("degC)"));
+  CHECK((*nl0)["value"].get<double>() < 50.0);
+  CHECK((*nl1)["value"].get<double>() > 50.0);
+  CHECK((*nl1)["met"] == false);
+  CHECK_THAT((*nl1)["note"].get<std::string>(), Catch::Contains("the worst of 3 plateaus: plateau "));
+  CHECK(units[0]["verdict"] == "pass");
+  CHECK(units[1]["verdict"] == "fail");
+  CHECK_THAT(units[1]["reasons"][0].get<std::string>(),
+             Catch::Contains("sf_asymmetry_ppm = 4") && Catch::Contains("limit sf_asymmetry_ppm < 100 ppm (line 3)"));
+}

@@ -216,3 +216,30 @@ TEST_CASE("limit sf_tc_ppm_per_c: the scale factor's temperature sensitivity, pp
   CHECK(e.message.find("unknown measurement 'sf_tc'") != std::string::npos);
   CHECK(e.message.find("'sf_tc_ppm_per_c'") != std::string::npos);
 }
+
+TEST_CASE("limits sf_nonlinearity_ppm and sf_asymmetry_ppm: ppm, where the scale factor is measured") {
+  auto p = parse_plan("step spin verify\nlimit sf_nonlinearity_ppm < 200 ppm continue\nlimit sf_asymmetry_ppm <= 50\n", "t.plan");
+  REQUIRE(p.has_value());
+  REQUIRE(p->limits.size() == 2);
+  CHECK(p->limits[0].measurement == Measurement::sf_nonlinearity_ppm);
+  CHECK(p->limits[0].describe() == "sf_nonlinearity_ppm < 200 ppm");
+  CHECK(p->limits[0].on_fail == OnFail::go_on);
+  CHECK(p->limits[1].measurement == Measurement::sf_asymmetry_ppm);
+  CHECK(p->limits[1].describe() == "sf_asymmetry_ppm <= 50 ppm");
+  for (auto m : {Measurement::sf_nonlinearity_ppm, Measurement::sf_asymmetry_ppm}) {
+    CHECK(unit_of(m) == "ppm");
+    CHECK(needs_rate_steps(m));
+    CHECK(measured_in(m, StepPurpose::fit));
+    CHECK(measured_in(m, StepPurpose::verify));
+    CHECK_FALSE(measured_in(m, StepPurpose::soak));
+  }
+  CHECK(needs_rate_steps(Measurement::sf_tc_ppm_per_c));
+  CHECK_FALSE(needs_rate_steps(Measurement::arw));
+
+  auto e = error_of("step spin fit\nlimit sf_asymmetry_ppm < 50 ppm/degC\n");
+  CHECK(e.line == 2);
+  CHECK(e.message == "expected the unit 'ppm' or 'stop', 'continue', 'retest', found 'ppm/degC'");
+  e = error_of("step s1 soak\nlimit sf_nonlinearity_ppm < 20\n");
+  CHECK(e.message.find("no step of this plan measures sf_nonlinearity_ppm (a fit or verify step whose profile has rate steps does)") !=
+        std::string::npos);
+}

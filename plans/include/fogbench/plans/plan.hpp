@@ -43,11 +43,19 @@ enum class Measurement : std::uint8_t {
   // in the fit and verify steps whose profile has rate steps; the daemon refuses a plan with
   // this limit and no such step.
   sf_tc_ppm_per_c,
+  // The scale factor's worst nonlinearity over the run's rate plateaus, ppm of full-scale output
+  // (IEEE 952: the largest residual of the least-squares line, model::sf::Plateau), and its
+  // worst asymmetry |sf+ - sf-| / sf, ppm; measured where sf_tc_ppm_per_c is.
+  sf_nonlinearity_ppm,
+  sf_asymmetry_ppm,
 };
 std::string_view to_string(Measurement m);
 // Which step purposes give the measurement: verify steps, fit steps, fit and soak steps, or fit
-// and verify steps (sf_tc_ppm_per_c, only where the step's profile has rate steps).
+// and verify steps (the sf_* measurements, only where the step's profile has rate steps).
 bool measured_in(Measurement m, StepPurpose p);
+// Whether the measurement is the scale factor's (sf_*): measured only in a fit or verify step
+// whose profile has rate steps, and refused on a plan without one.
+bool needs_rate_steps(Measurement m);
 // The unit a value of the measurement may be written with ("" when it has none).
 std::string_view unit_of(Measurement m);
 
