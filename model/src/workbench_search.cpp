@@ -408,6 +408,8 @@ std::expected<void, std::string> DiagnoseOptions::validate() const {
   if (refit_top < 1 || refit_top > 50) return std::unexpected("refit_top must be 1 to 50, got " + std::to_string(refit_top));
   if (tau_points < 2 || tau_points > 24) return std::unexpected("tau_points must be 2 to 24, got " + std::to_string(tau_points));
   if (max_candidates < 1 || max_candidates > 2000) return std::unexpected("the candidate limit must be 1 to 2000");
+  if (max_samples < 1000 || max_samples > 100'000'000)
+    return std::unexpected("max_samples must be 1000 to 100000000, got " + std::to_string(max_samples));
   if (!(adequacy_alpha > 0.0 && adequacy_alpha < 0.5)) return std::unexpected("adequacy_alpha must be in (0, 0.5)");
   if (jump_window_s < 60 || jump_window_s > 3600) return std::unexpected("jump_window_s must be 60 to 3600 s");
   if (!(jump_t > 0.0)) return std::unexpected("jump_t must be positive");
@@ -419,9 +421,35 @@ std::expected<void, std::string> DiagnoseOptions::validate() const {
   return {};
 }
 
+std::expected<void, std::string> check_diagnose_size(std::span<const RunSize> runs, std::size_t max_samples) {
+  std::size_t total = 0;
+  for (const auto& r : runs) total += r.samples;
+  if (total <= max_samples) return {};
+  auto who = [&](std::size_t i) { return (i == 0 ? "fit run '" : "held-out run '") + runs[i].name + "'"; };
+  const std::string limit = "over diagnose's limit of " + std::to_string(max_samples) +
+                            " samples for all the runs together (its memory grows with them, about 1 kB a sample of the fit run: "
+                            "give a shorter part of the run, fewer held-out runs, or a higher limit)";
+  if (runs.size() == 1) return std::unexpected(who(0) + " has " + std::to_string(total) + " samples, " + limit);
+  std::vector<std::size_t> order(runs.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return runs[a].samples > runs[b].samples; });
+  std::string each;
+  const std::size_t named = std::min<std::size_t>(order.size(), 4);
+  for (std::size_t k = 0; k < named; ++k) each += (k ? ", " : "") + who(order[k]) + " " + std::to_string(runs[order[k]].samples);
+  if (order.size() > named) each += " and " + std::to_string(order.size() - named) + " more";
+  return std::unexpected("the " + std::to_string(runs.size()) + " runs given hold " + std::to_string(total) + " samples in all (" + each +
+                         "), " + limit);
+}
+
 std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_run, std::span<const RunData> held_out,
                                             const DiagnoseOptions& o) {
   if (auto v = o.validate(); !v) return fail(FitError::Code::bad_options, "diagnose: " + v.error());
+  // The runs' size before any work (a run of 10 million samples would need gigabytes).
+  {
+    std::vector<RunSize> sizes{{fit_run.name, fit_run.size()}};
+    for (const auto& h : held_out) sizes.push_back({h.name, h.size()});
+    if (auto c = check_diagnose_size(sizes, o.max_samples); !c) return fail(FitError::Code::bad_options, "diagnose: " + c.error());
+  }
   // The search space first: a bad request is an error before any work.
   Space space;
   const bool language = o.search == DiagnoseOptions::Search::language;
