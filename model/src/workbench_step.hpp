@@ -54,19 +54,17 @@ class CandidateScan {
     std::vector<double> y(y_in.begin(), y_in.end());
     for (std::size_t t = 0; t < n; ++t)
       if (w_[t] == 0.0) y[t] = 0.0;
-    cols_.push_back(std::vector<double>(n, 1.0));
-    cols_.reserve(n_base + 1);
-    for (auto& c : base_cols) cols_.push_back(std::move(c));
-    const auto k = static_cast<Eigen::Index>(cols_.size());
+    cols_ = std::move(base_cols);
+    const auto k = static_cast<Eigen::Index>(cols_.size() + 1);
     Eigen::MatrixXd G(k, k);
     Eigen::VectorXd b(k);
     for (Eigen::Index a = 0; a < k; ++a) {
       double s = 0.0;
-      for (std::size_t t = 0; t < n; ++t) s += w_[t] * cols_[a][t] * y[t];
+      for (std::size_t t = 0; t < n; ++t) s += w_[t] * col(static_cast<std::size_t>(a), t) * y[t];
       b(a) = s;
       for (Eigen::Index c = a; c < k; ++c) {
         double g = 0.0;
-        for (std::size_t t = 0; t < n; ++t) g += w_[t] * cols_[a][t] * cols_[c][t];
+        for (std::size_t t = 0; t < n; ++t) g += w_[t] * col(static_cast<std::size_t>(a), t) * col(static_cast<std::size_t>(c), t);
         G(a, c) = G(c, a) = g;
       }
     }
@@ -74,19 +72,19 @@ class CandidateScan {
     ok_ = ldlt_.info() == Eigen::Success && ldlt_.rcond() > 1e-14;
     if (!ok_) return;
     const Eigen::VectorXd th = ldlt_.solve(b);
-    u_.assign(y.begin(), y.end());
+    u_ = std::move(y);
     for (std::size_t t = 0; t < n; ++t)
-      for (Eigen::Index a = 0; a < k; ++a) u_[t] -= th(a) * cols_[a][t];
+      for (Eigen::Index a = 0; a < k; ++a) u_[t] -= th(a) * col(static_cast<std::size_t>(a), t);
     std::vector<double> wu(n);
     for (std::size_t t = 0; t < n; ++t) {
       wu[t] = w_[t] * u_[t];
       sse_ += wu[t] * u_[t];
     }
     u_spec_ = sc_.spectrum_of_target(wu);
-    for (std::size_t a = 1; a < cols_.size(); ++a) {
+    for (std::size_t a = 1; a <= cols_.size(); ++a) {
       auto make = [&] {
         std::vector<double> wc(n);
-        for (std::size_t t = 0; t < n; ++t) wc[t] = w_[t] * cols_[a][t];
+        for (std::size_t t = 0; t < n; ++t) wc[t] = w_[t] * col(a, t);
         return sc_.spectrum_of_target(wc);
       };
       if (spectra && keys.size() == n_base)
@@ -143,7 +141,7 @@ class CandidateScan {
                       (px.w == &w_ || *px.w == w_);
     if (!same) return scan(std::span<const double>(px.lx.ext).subspan(static_cast<std::size_t>(px.max_lag)), avoid, avoid_half_width);
     const detail::Lagged& lx = px.lx;
-    const std::size_t k = cols_.size();
+    const std::size_t k = cols_.size() + 1;
     std::vector<std::vector<double>> cxb(k);
     cxb[0] = px.s1;
     for (std::size_t a = 1; a < k; ++a) cxb[a] = sc_.corr(lx, *col_spec_[a - 1]);
@@ -172,17 +170,17 @@ class CandidateScan {
 
   // x with the base columns regressed out (for correlations between candidates).
   std::vector<double> partial(std::span<const double> x) const {
-    const std::size_t n = x.size(), k = cols_.size();
+    const std::size_t n = x.size(), k = cols_.size() + 1;
     Eigen::VectorXd b(static_cast<Eigen::Index>(k));
     for (std::size_t a = 0; a < k; ++a) {
       double s = 0.0;
-      for (std::size_t t = 0; t < n; ++t) s += w_[t] * cols_[a][t] * x[t];
+      for (std::size_t t = 0; t < n; ++t) s += w_[t] * col(a, t) * x[t];
       b(static_cast<Eigen::Index>(a)) = s;
     }
     const Eigen::VectorXd th = ldlt_.solve(b);
     std::vector<double> r(x.begin(), x.end());
     for (std::size_t t = 0; t < n; ++t)
-      for (std::size_t a = 0; a < k; ++a) r[t] -= th(static_cast<Eigen::Index>(a)) * cols_[a][t];
+      for (std::size_t a = 0; a < k; ++a) r[t] -= th(static_cast<Eigen::Index>(a)) * col(a, t);
     return r;
   }
 
@@ -190,7 +188,10 @@ class CandidateScan {
   detail::LagScanner sc_;
   std::vector<double> w_;
   int L_;
+  // The base columns; column 0 of the regression is the intercept's, 1 everywhere, not stored
+  // (col(0, t) is 1.0: w * 1.0 * y is w * y exactly, the same sums as a stored column of ones).
   std::vector<std::vector<double>> cols_;
+  double col(std::size_t a, std::size_t t) const { return a == 0 ? 1.0 : cols_[a - 1][t]; }
   Eigen::LDLT<Eigen::MatrixXd> ldlt_;
   bool ok_ = false;
   double sse_ = 0.0;
