@@ -4,6 +4,9 @@
 #include "options.hpp"
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
 #include <sstream>
 #include <chrono>
 #include <cmath>
@@ -37,6 +40,35 @@ std::expected<std::vector<model::RunData>, std::string> load_runs(const std::vec
 }
 
 std::string step_name(int s) { return s < 0 ? "-" : std::to_string(s); }
+
+// diagnose's size check on the CSV files' data rows (their lines less the header, counted in
+// blocks without parsing: at most the samples each will give) before they are loaded, so that a
+// run of 10 million samples is refused at once, not after reading it (about 1.5 GB). Resampled
+// input and what is not a regular file (a pipe) are left to diagnose's check on the runs read.
+std::expected<void, std::string> diagnose_rows_within(const std::vector<std::string>& paths, const RunInput& in, std::size_t max_samples) {
+  if (in.resample_s) return {};
+  std::vector<model::workbench::RunSize> sizes;
+  for (const auto& p : paths) {
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(p, ec)) return {};
+    std::ifstream f(p, std::ios::binary);
+    if (!f) return {};  // load_run names the problem
+    std::vector<char> block(1 << 20);
+    std::size_t lines = 0;
+    char last = '\n';
+    while (f) {
+      f.read(block.data(), static_cast<std::streamsize>(block.size()));
+      const auto got = static_cast<std::size_t>(f.gcount());
+      lines += static_cast<std::size_t>(std::count(block.data(), block.data() + got, '\n'));
+      if (got) last = block[got - 1];
+    }
+    if (last != '\n') ++lines;  // a last line without its newline
+    sizes.push_back({display_name(p), lines > 0 ? lines - 1 : 0});
+  }
+  auto c = model::workbench::check_diagnose_size(sizes, max_samples);
+  if (!c) return std::unexpected(c.error() + " (counted as the files' data rows, before reading them; --max-samples)");
+  return {};
+}
 
 }  // namespace
 
@@ -139,12 +171,21 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
     err << "fogctl diagnose: " << one.error() << "\n";
     return kExitError;
   }
+  if (o.max_samples < 1000 || o.max_samples > 100'000'000) {
+    err << "fogctl diagnose: --max-samples must be 1000 to 100000000, got " << o.max_samples << "\n";
+    return kExitError;
+  }
+  if (auto within = diagnose_rows_within(o.runs, o.input, o.max_samples); !within) {
+    err << "fogctl diagnose: " << within.error() << "\n";
+    return kExitError;
+  }
   auto runs = load_runs(o.runs, o.input, &quality);
   if (!runs) {
     err << "fogctl diagnose: " << runs.error() << "\n";
     return kExitError;
   }
   wb::DiagnoseOptions dopt;
+  dopt.max_samples = o.max_samples;
   dopt.extra_terms = o.candidates;
   dopt.max_lag_s = o.max_lag_s;
   if (o.search == "library") dopt.search = wb::DiagnoseOptions::Search::library;
@@ -196,7 +237,7 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
   if (bar) bar->finish();
   if (!d) {
     err << "fogctl diagnose: "
-        << as_typed(d.error().message, {{"max_terms", "--max-terms"}, {"tau_points", "--tau-points"}, {"max_lag_s", "--max-lag"}})
+        << as_typed(d.error().message, {{"max_terms", "--max-terms"}, {"tau_points", "--tau-points"}, {"max_lag_s", "--max-lag"}, {"max_samples", "--max-samples"}})
         << "\n";
     return kExitError;
   }
@@ -467,6 +508,8 @@ void add_workbench_commands(CLI::App& app, int& code) {
   d->add_option("--search", dia.search, "library (the effects library) or language (the term language, default)");
   d->add_option("--max-terms", dia.max_terms, "Greedy forward selection: terms added at most, 1 to 6 (default 5)");
   d->add_option("--tau-points", dia.tau_points, "Time constants of lp and warm on a log grid 30 s to 4 h (default 12)");
+  d->add_option("--max-samples", dia.max_samples,
+                "The runs' samples in all, at most (default 2000000: about 2 GB); larger runs are refused before they are read");
   d->add_flag("--json", dia.json, "Print one JSON object");
   d->add_flag("--progress", dia.progress, "Progress lines on stderr even when it is not a terminal (on a terminal they are drawn anyway)");
   add_run_input(d, dia.input);

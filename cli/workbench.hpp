@@ -36,6 +36,9 @@ struct DiagnoseCommandOptions {
   std::string search = "language";      // library | language
   int max_terms = 5;                    // greedy forward selection: terms added at most
   int tau_points = 12;                  // time constants of lp and warm on the log grid 30 s .. 4 h
+  // The runs' samples in all, at most (model::workbench::DiagnoseOptions::max_samples): larger
+  // files are refused before they are read, by their rows.
+  std::size_t max_samples = 2'000'000;
   bool json = false;
   bool progress = false;                // progress lines on stderr even when it is not a terminal
   RunInput input;

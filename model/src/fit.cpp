@@ -151,13 +151,17 @@ std::expected<Evaluated, FitError> evaluate_terms(const RunData& run, const std:
   return ev;
 }
 
-FitCache::FitCache(const RunData& run, double tref_c, std::size_t keep_columns) : run_(run), tref_c_(tref_c), keep_(keep_columns) {}
+FitCache::FitCache(const RunData& run, double tref_c, std::size_t keep_columns, std::shared_ptr<const RunSignals> sig)
+    : run_(run), tref_c_(tref_c), keep_(keep_columns), sig_(std::move(sig)) {}
 
 std::expected<const RunSignals*, FitError> FitCache::signals() {
   std::lock_guard lock(mu_);
-  if (!sig_) sig_ = std::make_unique<std::expected<RunSignals, FitError>>(run_signals(run_, tref_c_));
-  if (!*sig_) return std::unexpected(sig_->error());
-  return &**sig_;
+  if (!sig_ && !sig_error_) {
+    if (auto s = run_signals(run_, tref_c_)) sig_ = std::make_shared<const RunSignals>(std::move(*s));
+    else sig_error_ = s.error();
+  }
+  if (sig_error_) return std::unexpected(*sig_error_);
+  return sig_.get();
 }
 
 std::expected<FitCache::Entry*, FitError> FitCache::entry_locked(const Term& t, const std::span<const double>* x,

@@ -9,6 +9,7 @@
 #include <functional>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <memory>
 #include <limits>
@@ -158,7 +159,9 @@ struct PaperPrep {
 // is kept once (they are the same numbers). Its two switches are set before it is shared.
 class FitCache {
  public:
-  FitCache(const RunData& run, double tref_c, std::size_t keep_columns = 8);
+  // sig: the run's signals at tref_c when the caller holds them (run_signals(run, tref_c)),
+  // read instead of a copy of its own.
+  FitCache(const RunData& run, double tref_c, std::size_t keep_columns = 8, std::shared_ptr<const RunSignals> sig = nullptr);
   const RunData& run() const { return run_; }
   double tref_c() const { return tref_c_; }
   // fit()'s Ljung-Box over the whole run (Model::fit.ljung_box_q/p); off for refits that are
@@ -205,7 +208,8 @@ class FitCache {
   std::size_t keep_;
   std::mutex mu_;  // guards every member below and the entries' maps
   std::uint64_t clock_ = 0;
-  std::unique_ptr<std::expected<RunSignals, FitError>> sig_;
+  std::shared_ptr<const RunSignals> sig_;  // made on first use unless given
+  std::optional<FitError> sig_error_;
   std::map<std::string, std::shared_ptr<Entry>> cols_;
   // The entries each thread was handed since its last trim(): kept alive for it if dropped.
   std::map<std::thread::id, std::vector<std::shared_ptr<Entry>>> pins_;

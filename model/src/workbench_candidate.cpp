@@ -251,7 +251,7 @@ EvaluatedCandidate evaluate_candidate(const StepContext& ctx, Cand& cd, Scorer& 
   }
   // The column on the fit run's signals: the screen's for a generated candidate it kept.
   std::expected<std::vector<double>, std::string> x = std::move(cd.x);
-  if (!cd.screened || x->empty()) x = evaluate(*cd.term.expr, ctx.fr.sig.view());
+  if (!cd.screened || x->empty()) x = evaluate(*cd.term.expr, ctx.fr.sig->view());
   if (!x) {
     c.skipped = x.error();
     return out;

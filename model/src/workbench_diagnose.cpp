@@ -51,14 +51,16 @@ void report_coefficients(const Model& base, Diagnosis& d) {
     }
 }
 
-// The fit run's signals, weights and the base model's regressors at their fitted lags.
-std::expected<FitRun, FitError> prepare_fit_run(const Model& base, const RunData& fit_run) {
+// The fit run's signals (sig: the fit run's scorer's, shared), weights and the base model's
+// regressors at their fitted lags.
+std::expected<FitRun, FitError> prepare_fit_run(const Model& base, const RunData& fit_run, std::shared_ptr<const RunSignals> sig) {
   FitRun fr;
-  {
+  if (!sig) {
     auto s = run_signals(fit_run, base.tref_c);
     if (!s) return std::unexpected(s.error());
-    fr.sig = std::move(*s);
+    sig = std::make_shared<const RunSignals>(std::move(*s));
   }
+  fr.sig = std::move(sig);
   fr.w = detail::good_weights(fit_run);
   auto bc = regressors(base, fit_run);
   if (!bc) return std::unexpected(bc.error());
@@ -120,7 +122,7 @@ std::expected<void, FitError> check_residual(const Model& base, const RunData& f
     for (const auto& eff : effects_library()) {
       auto t = parse_term(eff.term);
       if (!t) continue;
-      auto x = evaluate(*t->expr, fr.sig.view());
+      auto x = evaluate(*t->expr, fr.sig->view());
       if (!x) continue;
       std::vector<double> xf = ar_filter(*x, base.ar);
       const double mx = std::accumulate(xf.begin(), xf.end(), 0.0) / static_cast<double>(n);
@@ -230,13 +232,13 @@ void screen_generated(std::vector<Cand>& cands, std::size_t n_fixed, const Candi
     std::vector<std::optional<Screened>> slot(cands.size() - n_fixed);
     // The bare signals' rates, which about 40 of the 90 derivatives here are (products, up/down,
     // dd), computed once for the screen (the same numbers: RateMemo).
-    RateMemo rates(fr.sig.view());
+    RateMemo rates(fr.sig->view());
     {
       std::atomic<std::size_t> next{n_fixed};
       auto worker = [&] {
         for (std::size_t i = next++; i < cands.size(); i = next++) {
           if (!missing_signal_of(*cands[i].term.expr, fit_run).empty()) continue;
-          auto x = evaluate(*cands[i].term.expr, fr.sig.view(), &rates);
+          auto x = evaluate(*cands[i].term.expr, fr.sig->view(), &rates);
           if (!x) continue;
           auto g = scan.scan(*x);
           if (!g) continue;
@@ -259,7 +261,7 @@ void screen_generated(std::vector<Cand>& cands, std::size_t n_fixed, const Candi
     std::vector<std::vector<double>> kept_cols;
     for (const auto& x : sc) {
       if (keep.size() >= static_cast<std::size_t>(o.refit_top)) break;
-      auto v = evaluate(*cands[x.i].term.expr, fr.sig.view(), &rates);
+      auto v = evaluate(*cands[x.i].term.expr, fr.sig->view(), &rates);
       if (!v) continue;  // evaluated above: not reached
       std::vector<double> partial = scan.partial(lagged(*v, x.g.lag));
       bool alike = false;
@@ -279,8 +281,8 @@ void screen_generated(std::vector<Cand>& cands, std::size_t n_fixed, const Candi
 }
 
 // Every candidate evaluated, on o.threads threads (each with its own scorers: their column
-// caches are not shared; the refits' FitCache is, fit_scorer's); fit_scorer and held_scorers
-// serve the calling thread.
+// caches are not shared, the runs' signals, weights and phases are, and the refits' FitCache,
+// fit_scorer's); fit_scorer and held_scorers serve the calling thread.
 std::vector<EvaluatedCandidate> evaluate_all(const StepContext& ctx, std::vector<Cand>& cands, Scorer& fit_scorer,
                                              std::vector<Scorer>& held_scorers) {
   std::vector<EvaluatedCandidate> results(cands.size());
@@ -306,9 +308,9 @@ std::vector<EvaluatedCandidate> evaluate_all(const StepContext& ctx, std::vector
   std::vector<std::unique_ptr<Scorer>> fit_scorers;
   std::vector<std::vector<Scorer>> held_sets(threads);
   for (unsigned k = 1; k < threads; ++k) {
-    fit_scorers.push_back(std::make_unique<Scorer>(ctx.fit_run, ctx.base.tref_c));
-    held_sets[k].reserve(ctx.held_out.size());
-    for (const auto& h : ctx.held_out) held_sets[k].emplace_back(h, ctx.base.tref_c);
+    fit_scorers.push_back(std::make_unique<Scorer>(fit_scorer.sibling()));
+    held_sets[k].reserve(held_scorers.size());
+    for (const auto& h : held_scorers) held_sets[k].push_back(h.sibling());
   }
   for (unsigned k = 1; k < threads; ++k) pool.emplace_back(worker, std::ref(*fit_scorers[k - 1]), std::ref(held_sets[k]), false);
   worker(fit_scorer, held_scorers, true);
@@ -473,14 +475,10 @@ std::expected<Diagnosis, FitError> diagnose_once(const Model& m, const RunData& 
   // again, as its terms move the holds' residual). Read beside the residual's checks and the
   // screen when threads are allowed (it needs neither): the same numbers, sooner.
   const bool floor_read = o.failing.noise.read_floor && !(hint_holds && hint.floor);
-  // The runs side by side (a copy only when there are held-out runs to put beside the fit run).
+  // The runs side by side (a copy only when they are not already, and the floor is read).
   std::vector<RunData> all_copy;
-  if (floor_read && !held_out.empty()) {
-    all_copy.reserve(held_out.size() + 1);
-    all_copy.push_back(fit_run);
-    all_copy.insert(all_copy.end(), held_out.begin(), held_out.end());
-  }
-  const std::span<const RunData> all_runs = held_out.empty() ? std::span<const RunData>(&fit_run, 1) : std::span<const RunData>(all_copy);
+  const std::span<const RunData> all_runs =
+      floor_read ? side_by_side(fit_run, held_out, all_copy) : std::span<const RunData>(&fit_run, 1);
   auto read_unit_floor = [&]() -> std::optional<NoiseFloor> {
     std::optional<NoiseFloor> f = o.failing.noise.given;
     if (o.failing.noise.read_floor) {
@@ -504,7 +502,7 @@ std::expected<Diagnosis, FitError> diagnose_once(const Model& m, const RunData& 
   if (!rms0) return fail(FitError::Code::degenerate, "fit run " + fit_run.name + ": " + rms0.error());
   d.rms_fit_dph = *rms0;
   report_coefficients(*base, d);
-  auto fr = prepare_fit_run(*base, fit_run);
+  auto fr = prepare_fit_run(*base, fit_run, fit_scorer.signals());
   if (!fr) return std::unexpected(fr.error());
   // The residual's whiteness and cross-correlations (d.whiteness, d.ccf): beside the candidates'
   // list and screen when threads are allowed (it reads the base, the run and fr's signals and

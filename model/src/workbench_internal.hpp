@@ -28,6 +28,18 @@ void sort_detected_first(std::vector<Candidate>& candidates);
 
 namespace wbi {
 
+// The runs side by side (first, then rest), as unit_noise_floor and time_drift read them: the
+// runs as given when rest already follows first in one array (fogctl hands diagnose one vector,
+// the fit run first), else copies into `copy` (each run as long as it is: on a 3-day run 14 MB).
+inline std::span<const RunData> side_by_side(const RunData& first, std::span<const RunData> rest, std::vector<RunData>& copy) {
+  if (rest.empty()) return {&first, 1};
+  if (rest.data() == &first + 1) return {&first, rest.size() + 1};
+  copy.reserve(rest.size() + 1);
+  copy.push_back(first);
+  copy.insert(copy.end(), rest.begin(), rest.end());
+  return copy;
+}
+
 // v with `digits` decimals, for the workbench's sentences.
 inline std::string fmt(double v, int digits) {
   char buf[64];

@@ -408,6 +408,8 @@ std::expected<void, std::string> DiagnoseOptions::validate() const {
   if (refit_top < 1 || refit_top > 50) return std::unexpected("refit_top must be 1 to 50, got " + std::to_string(refit_top));
   if (tau_points < 2 || tau_points > 24) return std::unexpected("tau_points must be 2 to 24, got " + std::to_string(tau_points));
   if (max_candidates < 1 || max_candidates > 2000) return std::unexpected("the candidate limit must be 1 to 2000");
+  if (max_samples < 1000 || max_samples > 100'000'000)
+    return std::unexpected("max_samples must be 1000 to 100000000, got " + std::to_string(max_samples));
   if (!(adequacy_alpha > 0.0 && adequacy_alpha < 0.5)) return std::unexpected("adequacy_alpha must be in (0, 0.5)");
   if (jump_window_s < 60 || jump_window_s > 3600) return std::unexpected("jump_window_s must be 60 to 3600 s");
   if (!(jump_t > 0.0)) return std::unexpected("jump_t must be positive");
@@ -419,9 +421,35 @@ std::expected<void, std::string> DiagnoseOptions::validate() const {
   return {};
 }
 
+std::expected<void, std::string> check_diagnose_size(std::span<const RunSize> runs, std::size_t max_samples) {
+  std::size_t total = 0;
+  for (const auto& r : runs) total += r.samples;
+  if (total <= max_samples) return {};
+  auto who = [&](std::size_t i) { return (i == 0 ? "fit run '" : "held-out run '") + runs[i].name + "'"; };
+  const std::string limit = "over diagnose's limit of " + std::to_string(max_samples) +
+                            " samples for all the runs together (its memory grows with them, about 1 kB a sample of the fit run: "
+                            "give a shorter part of the run, fewer held-out runs, or a higher limit)";
+  if (runs.size() == 1) return std::unexpected(who(0) + " has " + std::to_string(total) + " samples, " + limit);
+  std::vector<std::size_t> order(runs.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return runs[a].samples > runs[b].samples; });
+  std::string each;
+  const std::size_t named = std::min<std::size_t>(order.size(), 4);
+  for (std::size_t k = 0; k < named; ++k) each += (k ? ", " : "") + who(order[k]) + " " + std::to_string(runs[order[k]].samples);
+  if (order.size() > named) each += " and " + std::to_string(order.size() - named) + " more";
+  return std::unexpected("the " + std::to_string(runs.size()) + " runs given hold " + std::to_string(total) + " samples in all (" + each +
+                         "), " + limit);
+}
+
 std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_run, std::span<const RunData> held_out,
                                             const DiagnoseOptions& o) {
   if (auto v = o.validate(); !v) return fail(FitError::Code::bad_options, "diagnose: " + v.error());
+  // The runs' size before any work (a run of 10 million samples would need gigabytes).
+  {
+    std::vector<RunSize> sizes{{fit_run.name, fit_run.size()}};
+    for (const auto& h : held_out) sizes.push_back({h.name, h.size()});
+    if (auto c = check_diagnose_size(sizes, o.max_samples); !c) return fail(FitError::Code::bad_options, "diagnose: " + c.error());
+  }
   // The search space first: a bad request is an error before any work.
   Space space;
   const bool language = o.search == DiagnoseOptions::Search::language;
@@ -449,14 +477,10 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   // The trend in time under the base on the runs as given, read beside the floor and the jump
   // scan below (it needs neither) when threads are allowed: a pass takes it when it removed no
   // jump (its runs are then these and its base *base: the same call), else reads it again.
-  std::vector<RunData> td_runs;  // the runs side by side: a copy only when there is more than one
+  std::vector<RunData> td_runs;  // the runs side by side: a copy only when they are not already
   std::future<TimeDrift> td_early;
   if (o.time_drift && o.threads != 1) {
-    if (!held_out.empty()) {
-      td_runs.push_back(fit_run);
-      td_runs.insert(td_runs.end(), held_out.begin(), held_out.end());
-    }
-    const std::span<const RunData> runs = held_out.empty() ? std::span<const RunData>(&fit_run, 1) : std::span<const RunData>(td_runs);
+    const std::span<const RunData> runs = wbi::side_by_side(fit_run, held_out, td_runs);
     td_early = std::async(std::launch::async, [&base, &o, runs] { return time_drift(*base, runs, o); });
   }
   // The unit's noise floor under a model, read over the holds of every run given at once (one
@@ -464,12 +488,8 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   auto with_floor = [&](const Model& mm, const RunData& first, std::span<const RunData> rest) {
     DiagnoseOptions oo = o;
     if (oo.failing.noise.given || !oo.failing.noise.read_floor) return oo;
-    std::vector<RunData> all;  // the runs side by side: a copy only when there is more than one
-    if (!rest.empty()) {
-      all.push_back(first);
-      all.insert(all.end(), rest.begin(), rest.end());
-    }
-    const std::span<const RunData> runs = rest.empty() ? std::span<const RunData>(&first, 1) : std::span<const RunData>(all);
+    std::vector<RunData> all;  // the runs side by side: a copy only when they are not already
+    const std::span<const RunData> runs = wbi::side_by_side(first, rest, all);
     if (auto f = unit_noise_floor(mm, runs, oo.failing.noise.floor)) oo.failing.noise.given = std::move(*f);
     return oo;
   };
@@ -488,7 +508,12 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     const RunData* fit_in = nullptr;
     std::optional<RunData> fit_own;
     const RunData& fit_copy() const { return fit_own ? *fit_own : *fit_in; }
-    std::vector<RunData> held_copy;
+    // The held-out runs with their jumps removed: copies only when the scan removed one from any
+    // (held_own), else the runs as given (held_in, the caller's), side by side with fit_in as
+    // the caller gave them (fogctl: one vector), so that the runs are read together uncopied.
+    std::span<const RunData> held_in;
+    std::vector<RunData> held_own;
+    std::span<const RunData> held_copy() const { return held_own.empty() ? held_in : std::span<const RunData>(held_own); }
     Model base;
     bool base_refitted = false;  // base is the model refitted without the fit run's jumps (else *base's copy)
     std::expected<Diagnosis, FitError> d = std::unexpected(FitError{});
@@ -519,14 +544,14 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     return k ? s / k : kNaN;
   };
   // The checks of a model on the runs, under the floor read under it over them.
-  auto checks_of = [&](const Model& mm, const RunData& f, const std::vector<RunData>& h) {
+  auto checks_of = [&](const Model& mm, const RunData& f, std::span<const RunData> h) {
     const DiagnoseOptions oc = with_floor(mm, f, h);
     std::vector<RunCheck> fc{check_run(mm, f, false, oc)};
     for (const auto& r : h) fc.push_back(check_run(mm, r, true, oc));
     return fc;
   };
   // given: checks_of(cur, f, h) when the caller made them already.
-  auto backfit = [&](std::vector<SearchStep>& steps, Model& cur, const Model& base_m, const RunData& f, const std::vector<RunData>& h,
+  auto backfit = [&](std::vector<SearchStep>& steps, Model& cur, const Model& base_m, const RunData& f, std::span<const RunData> h,
                      const auto& at_step, const TimeDrift& tdrift, std::optional<std::vector<RunCheck>>& cur_checks,
                      std::optional<std::vector<RunCheck>> given) {
     if (steps.empty()) return;
@@ -612,7 +637,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   auto search_pass = [&](const Model* jumps_by) {
     Pass ps;
     ps.fit_in = &fit_run;
-    ps.held_copy.assign(held_out.begin(), held_out.end());
+    ps.held_in = held_out;
     ps.base = *base;
     // The options of step k: the progress it reports carries k.
     DiagnoseOptions op = ob;  // ob, with trun offered when a trend in time is found (below)
@@ -628,13 +653,6 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     };
     if (o.jumps) {
       tell("bias jumps");
-      auto scan_run = [&](RunData& copy) {
-        std::vector<double> removed(copy.size(), 0.0);
-        auto js = find_jumps(jumps_by ? *jumps_by : *base, copy, ob, &removed);
-        for (std::size_t t = 0; t < copy.size(); ++t) copy.gyro_dph[t] -= removed[t];
-        ps.jumps.insert(ps.jumps.end(), js.begin(), js.end());
-        return !js.empty();
-      };
       // The fit run's scan on the run as given; the copy is made only to take jumps out.
       std::vector<double> removed(fit_run.size(), 0.0);
       auto fit_js = find_jumps(jumps_by ? *jumps_by : *base, fit_run, ob, &removed);
@@ -648,7 +666,15 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
           ps.base_refitted = true;
         }
       }
-      for (auto& h : ps.held_copy) scan_run(h);
+      // Each held-out run's scan on the run as given; the copies are made only to take jumps out.
+      for (std::size_t i = 0; i < held_out.size(); ++i) {
+        std::vector<double> removed_h(held_out[i].size(), 0.0);
+        auto js = find_jumps(jumps_by ? *jumps_by : *base, held_out[i], ob, &removed_h);
+        ps.jumps.insert(ps.jumps.end(), js.begin(), js.end());
+        if (js.empty() && std::all_of(removed_h.begin(), removed_h.end(), [](double v) { return v == 0.0; })) continue;
+        if (ps.held_own.empty()) ps.held_own.assign(held_out.begin(), held_out.end());
+        for (std::size_t t = 0; t < removed_h.size(); ++t) ps.held_own[i].gyro_dph[t] -= removed_h[t];
+      }
     }
     // A trend in time (with the jumps removed): when the base model's residual follows the
     // run's own clock beyond the gyro's noise, trun is a candidate beside the thermal terms
@@ -658,9 +684,8 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       if (ps.jumps.empty() && td_early.valid()) {
         ps.td = td_early.get();  // no jump removed: the runs as given, under *base
       } else {
-        std::vector<RunData> all{ps.fit_copy()};
-        all.insert(all.end(), ps.held_copy.begin(), ps.held_copy.end());
-        ps.td = time_drift(ps.base, all, o);
+        std::vector<RunData> all;
+        ps.td = time_drift(ps.base, wbi::side_by_side(ps.fit_copy(), ps.held_copy(), all), o);
       }
       bool has_trun = false;
       for (const auto& ft : ps.base.terms) has_trun = has_trun || term_key(ft.term) == "trun";
@@ -673,7 +698,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     // base_floor (the same fit and read on the same runs).
     wbi::StepHint hint;
     if (ps.jumps.empty()) hint = wbi::StepHint{&*base, base_floor};
-    ps.d = wbi::diagnose_once(m, ps.fit_copy(), ps.held_copy, at_step(0), space.gen, &stats, hint);
+    ps.d = wbi::diagnose_once(m, ps.fit_copy(), ps.held_copy(), at_step(0), space.gen, &stats, hint);
     if (!ps.d) return ps;
     promote_time(*ps.d, ps.td, o);
     promote_pooled(*ps.d, o);
@@ -706,10 +731,10 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
       ++cur_version;
       if (k + 1 == o.max_terms) break;
       if (o.threads != 1) {
-        checks_later = std::async(std::launch::async, [&checks_of, &ps, mm = ps.cur] { return checks_of(mm, ps.fit_copy(), ps.held_copy); });
+        checks_later = std::async(std::launch::async, [&checks_of, &ps, mm = ps.cur] { return checks_of(mm, ps.fit_copy(), ps.held_copy()); });
         checks_version = cur_version;
       }
-      auto next = wbi::diagnose_once(ps.cur, ps.fit_copy(), ps.held_copy, at_step(k + 1), space.gen, &stats);
+      auto next = wbi::diagnose_once(ps.cur, ps.fit_copy(), ps.held_copy(), at_step(k + 1), space.gen, &stats);
       if (!next) break;
       promote_time(*next, ps.td, o);
       promote_pooled(*next, o);
@@ -718,7 +743,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     std::optional<std::vector<RunCheck>> made;
     if (checks_later.valid() && checks_version == cur_version) made = checks_later.get();
     if (checks_later.valid()) checks_later.wait();  // of an earlier model: done before ps is handed back
-    backfit(ps.d->steps, ps.cur, ps.base, ps.fit_copy(), ps.held_copy, at_step, ps.td, ps.cur_checks, std::move(made));
+    backfit(ps.d->steps, ps.cur, ps.base, ps.fit_copy(), ps.held_copy(), at_step, ps.td, ps.cur_checks, std::move(made));
     return ps;
   };
   Pass ps = search_pass(nullptr);
@@ -738,7 +763,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   std::vector<BiasJump>& jumps = ps.jumps;
   bool periodic_explains = false;
   const RunData& fit_copy = ps.fit_copy();
-  std::vector<RunData>& held_copy = ps.held_copy;
+  const std::span<const RunData> held_copy = ps.held_copy();
   Model& cur = ps.cur;
   auto& d = ps.d;
   d->fit_run = fit_run.name;
@@ -856,9 +881,7 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
   d->residual_follows = "none";
   if (d->outside_search) {
     std::vector<RunData> all;
-    all.push_back(fit_copy);
-    for (const auto& h : held_copy) all.push_back(h);
-    d->residual_follows = follows(cur, all);
+    d->residual_follows = follows(cur, wbi::side_by_side(fit_copy, held_copy, all));
   }
 
   // The summary for people.

@@ -54,19 +54,17 @@ class CandidateScan {
     std::vector<double> y(y_in.begin(), y_in.end());
     for (std::size_t t = 0; t < n; ++t)
       if (w_[t] == 0.0) y[t] = 0.0;
-    cols_.push_back(std::vector<double>(n, 1.0));
-    cols_.reserve(n_base + 1);
-    for (auto& c : base_cols) cols_.push_back(std::move(c));
-    const auto k = static_cast<Eigen::Index>(cols_.size());
+    cols_ = std::move(base_cols);
+    const auto k = static_cast<Eigen::Index>(cols_.size() + 1);
     Eigen::MatrixXd G(k, k);
     Eigen::VectorXd b(k);
     for (Eigen::Index a = 0; a < k; ++a) {
       double s = 0.0;
-      for (std::size_t t = 0; t < n; ++t) s += w_[t] * cols_[a][t] * y[t];
+      for (std::size_t t = 0; t < n; ++t) s += w_[t] * col(static_cast<std::size_t>(a), t) * y[t];
       b(a) = s;
       for (Eigen::Index c = a; c < k; ++c) {
         double g = 0.0;
-        for (std::size_t t = 0; t < n; ++t) g += w_[t] * cols_[a][t] * cols_[c][t];
+        for (std::size_t t = 0; t < n; ++t) g += w_[t] * col(static_cast<std::size_t>(a), t) * col(static_cast<std::size_t>(c), t);
         G(a, c) = G(c, a) = g;
       }
     }
@@ -74,19 +72,19 @@ class CandidateScan {
     ok_ = ldlt_.info() == Eigen::Success && ldlt_.rcond() > 1e-14;
     if (!ok_) return;
     const Eigen::VectorXd th = ldlt_.solve(b);
-    u_.assign(y.begin(), y.end());
+    u_ = std::move(y);
     for (std::size_t t = 0; t < n; ++t)
-      for (Eigen::Index a = 0; a < k; ++a) u_[t] -= th(a) * cols_[a][t];
+      for (Eigen::Index a = 0; a < k; ++a) u_[t] -= th(a) * col(static_cast<std::size_t>(a), t);
     std::vector<double> wu(n);
     for (std::size_t t = 0; t < n; ++t) {
       wu[t] = w_[t] * u_[t];
       sse_ += wu[t] * u_[t];
     }
     u_spec_ = sc_.spectrum_of_target(wu);
-    for (std::size_t a = 1; a < cols_.size(); ++a) {
+    for (std::size_t a = 1; a <= cols_.size(); ++a) {
       auto make = [&] {
         std::vector<double> wc(n);
-        for (std::size_t t = 0; t < n; ++t) wc[t] = w_[t] * cols_[a][t];
+        for (std::size_t t = 0; t < n; ++t) wc[t] = w_[t] * col(a, t);
         return sc_.spectrum_of_target(wc);
       };
       if (spectra && keys.size() == n_base)
@@ -143,7 +141,7 @@ class CandidateScan {
                       (px.w == &w_ || *px.w == w_);
     if (!same) return scan(std::span<const double>(px.lx.ext).subspan(static_cast<std::size_t>(px.max_lag)), avoid, avoid_half_width);
     const detail::Lagged& lx = px.lx;
-    const std::size_t k = cols_.size();
+    const std::size_t k = cols_.size() + 1;
     std::vector<std::vector<double>> cxb(k);
     cxb[0] = px.s1;
     for (std::size_t a = 1; a < k; ++a) cxb[a] = sc_.corr(lx, *col_spec_[a - 1]);
@@ -172,17 +170,17 @@ class CandidateScan {
 
   // x with the base columns regressed out (for correlations between candidates).
   std::vector<double> partial(std::span<const double> x) const {
-    const std::size_t n = x.size(), k = cols_.size();
+    const std::size_t n = x.size(), k = cols_.size() + 1;
     Eigen::VectorXd b(static_cast<Eigen::Index>(k));
     for (std::size_t a = 0; a < k; ++a) {
       double s = 0.0;
-      for (std::size_t t = 0; t < n; ++t) s += w_[t] * cols_[a][t] * x[t];
+      for (std::size_t t = 0; t < n; ++t) s += w_[t] * col(a, t) * x[t];
       b(static_cast<Eigen::Index>(a)) = s;
     }
     const Eigen::VectorXd th = ldlt_.solve(b);
     std::vector<double> r(x.begin(), x.end());
     for (std::size_t t = 0; t < n; ++t)
-      for (std::size_t a = 0; a < k; ++a) r[t] -= th(static_cast<Eigen::Index>(a)) * cols_[a][t];
+      for (std::size_t a = 0; a < k; ++a) r[t] -= th(static_cast<Eigen::Index>(a)) * col(a, t);
     return r;
   }
 
@@ -190,7 +188,10 @@ class CandidateScan {
   detail::LagScanner sc_;
   std::vector<double> w_;
   int L_;
+  // The base columns; column 0 of the regression is the intercept's, 1 everywhere, not stored
+  // (col(0, t) is 1.0: w * 1.0 * y is w * y exactly, the same sums as a stored column of ones).
   std::vector<std::vector<double>> cols_;
+  double col(std::size_t a, std::size_t t) const { return a == 0 ? 1.0 : cols_[a - 1][t]; }
   Eigen::LDLT<Eigen::MatrixXd> ldlt_;
   bool ok_ = false;
   double sse_ = 0.0;
@@ -217,20 +218,29 @@ inline std::expected<std::vector<double>, std::string> column(const Term& t, con
 // Table 1's compensated std of models on one run, exactly as verify() computes it (flagged
 // samples out, 3-sigma outliers of the residual out, settle samples out), with the run's
 // signals, phases and unlagged term columns computed once for all the candidates' models.
+// What does not change (the run's signals, weights and phases) is held once and shared by the
+// scorers of the same run (sibling(): one per thread), read only.
 class Scorer {
  public:
-  Scorer(const RunData& run, double tref_c) : run_(run), tref_c_(tref_c), w_(detail::good_weights(run)), phase_(derive_phases(run)) {
-    auto s = run_signals(run, tref_c);
-    if (s) sig_ = std::move(*s);
-    else error_ = s.error().message;
-  }
+  // sig: the run's signals at tref_c when the caller has them (run_signals(run, tref_c): the
+  // same numbers), shared instead of computed again.
+  Scorer(const RunData& run, double tref_c, std::shared_ptr<const RunSignals> sig = nullptr)
+      : run_(run), tref_c_(tref_c), fixed_(make_fixed(run, tref_c, std::move(sig))) {}
+  // A scorer of the same run for another thread: the run's signals, weights and phases shared
+  // (read only), its own column cache, no fit cache.
+  Scorer sibling() const { return Scorer(Share{}, run_, tref_c_, fixed_); }
+  // The run's signals (null when they could not be made: comp_std says why).
+  const std::shared_ptr<const RunSignals>& signals() const { return fixed_->sig; }
+
   std::expected<double, std::string> comp_std(const Model& m) {
-    if (!error_.empty()) return std::unexpected(error_);
+    if (!fixed_->error.empty()) return std::unexpected(fixed_->error);
     if (m.tref_c != tref_c_) {  // another reference: no cache (never within one diagnose)
       auto v = verify(m, run_);
       if (!v) return std::unexpected(v.error().message);
       return v->run.comp_std;
     }
+    const std::vector<double>& w = fixed_->w;
+    const std::vector<Phase>& phase = fixed_->phase;
     const std::size_t n = run_.size();
     std::vector<double> mu(n, m.mu0_dph);
     for (const auto& ft : m.terms) {
@@ -243,14 +253,14 @@ class Scorer {
     std::vector<double> r;
     r.reserve(n);
     for (std::size_t t = 0; t < n; ++t)
-      if (w_[t] != 0.0) r.push_back(run_.gyro_dph[t] - mu[t]);
+      if (w[t] != 0.0) r.push_back(run_.gyro_dph[t] - mu[t]);
     const OutlierResult ro = outliers_3sigma(r, 3.0);
     std::vector<double> kept;
     kept.reserve(n);
     std::size_t j = 0;
     for (std::size_t t = 0; t < n; ++t) {
-      if (w_[t] == 0.0) continue;
-      if (ro.keep[j] && phase_[t] != Phase::settle) kept.push_back(r[j]);
+      if (w[t] == 0.0) continue;
+      if (ro.keep[j] && phase[t] != Phase::settle) kept.push_back(r[j]);
       ++j;
     }
     if (kept.size() < 2) return std::unexpected(run_.name + ": no usable samples to verify on");
@@ -262,16 +272,17 @@ class Scorer {
   // The term's column evaluated by the caller on this run's signals (run_signals of the run at
   // this tref: the same numbers column() would make), kept unless it is there.
   void put(const Term& t, const std::vector<double>& x) {
-    if (error_.empty()) cols_.try_emplace(to_string(*t.expr), x);
+    if (fixed_->error.empty()) cols_.try_emplace(to_string(*t.expr), x);
   }
 
   // What the refits on this run share (the candidates' refits on the fit run: detail::fit_with),
   // made on first use, by the thread that then shares it (thread-safe once made); the refits'
   // whole-run Ljung-Box is not computed (they are only scored) and they are compared by BIC,
-  // without standard errors (add_standard_errors for the one kept).
+  // without standard errors (add_standard_errors for the one kept). It reads this scorer's
+  // signals (not a copy of its own).
   detail::FitCache& fit_cache() {
     if (!fit_cache_) {
-      fit_cache_ = std::make_unique<detail::FitCache>(run_, tref_c_);
+      fit_cache_ = std::make_unique<detail::FitCache>(run_, tref_c_, 8, fixed_->sig);
       fit_cache_->whole_run_whiteness = false;
       fit_cache_->standard_errors = false;
     }
@@ -279,20 +290,38 @@ class Scorer {
   }
 
  private:
+  struct Fixed {
+    std::vector<double> w;
+    std::vector<Phase> phase;
+    std::shared_ptr<const RunSignals> sig;
+    std::string error;
+  };
+  struct Share {};
+  Scorer(Share, const RunData& run, double tref_c, std::shared_ptr<const Fixed> fixed) : run_(run), tref_c_(tref_c), fixed_(std::move(fixed)) {}
+  static std::shared_ptr<const Fixed> make_fixed(const RunData& run, double tref_c, std::shared_ptr<const RunSignals> sig) {
+    auto f = std::make_shared<Fixed>();
+    f->w = detail::good_weights(run);
+    f->phase = derive_phases(run);
+    if (sig) {
+      f->sig = std::move(sig);
+    } else if (auto s = run_signals(run, tref_c)) {
+      f->sig = std::make_shared<const RunSignals>(std::move(*s));
+    } else {
+      f->error = s.error().message;
+    }
+    return f;
+  }
   std::expected<const std::vector<double>*, std::string> column(const Term& t) {
     const std::string key = to_string(*t.expr);
     auto it = cols_.find(key);
     if (it != cols_.end()) return &it->second;
-    auto v = evaluate(*t.expr, sig_.view());
+    auto v = evaluate(*t.expr, fixed_->sig->view());
     if (!v) return std::unexpected("term '" + key + "': " + v.error());
     return &cols_.emplace(key, std::move(*v)).first->second;
   }
   const RunData& run_;
   double tref_c_;
-  std::vector<double> w_;
-  std::vector<Phase> phase_;
-  RunSignals sig_;
-  std::string error_;
+  std::shared_ptr<const Fixed> fixed_;
   std::map<std::string, std::vector<double>> cols_;
   std::unique_ptr<detail::FitCache> fit_cache_;
 };
@@ -314,7 +343,7 @@ const RunData& finite_gyro(const RunData& run, RunData& copy);
 
 // The fit run as the candidates see it.
 struct FitRun {
-  RunSignals sig;
+  std::shared_ptr<const RunSignals> sig;  // the fit run's scorer's (shared, read only)
   std::vector<double> w;
   std::vector<std::vector<double>> base_cols;  // the base model's regressors at fitted lags
 };

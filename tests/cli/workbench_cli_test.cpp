@@ -183,6 +183,23 @@ TEST_CASE("fogctl fit --add and diagnose: bad input gives a clear message and ex
   r = call(run_fit_add, a);
   CHECK(r.code == kExitError);
   CHECK(r.err.find("too short") != std::string::npos);
+
+  // Runs over diagnose's limit of samples (--max-samples; by default 2,000,000, tested here
+  // lower on exp1's 5400 rows and exp2's 4200): refused by the files' rows before they are read,
+  // naming each file, its rows and the limit.
+  d.runs = {b.e1, b.e2};
+  d.max_samples = 9000;
+  r = call(run_diagnose, d);
+  CHECK(r.code == kExitError);
+  INFO(r.err);
+  CHECK(r.err.find("the 2 runs given hold 9600 samples in all (fit run '" + b.e1 + "' 5400, held-out run '" + b.e2 + "' 4200)") !=
+        std::string::npos);
+  CHECK(r.err.find("limit of 9000 samples") != std::string::npos);
+  CHECK(r.out.empty());
+  d.max_samples = 999;
+  r = call(run_diagnose, d);
+  CHECK(r.code == kExitError);
+  CHECK(r.err.find("--max-samples must be 1000 to 100000000") != std::string::npos);
 }
 
 TEST_CASE("fogctl executable: the workbench commands are registered and exit with their codes") {

@@ -136,6 +136,12 @@ struct DiagnoseOptions {
   int refit_top = 10;                  // generated candidates refitted per step (the best by lag-scan gain)
   int tau_points = 12;                 // lp, d(lp) and warm time constants: a log grid 30 s .. 4 h (2..24 points)
   std::size_t max_candidates = 400;    // a search space larger than this is refused (an error naming it)
+  // The samples of all the runs given (the fit run and every held-out run), at most: diagnose's
+  // memory grows with them (the fit run's refits and lag scans, each held-out run's scorers; about
+  // 1 kB a sample of the fit run at the peak, docs/performance.md), so a larger request is refused
+  // before any work (an error naming the runs, their samples and this limit) rather than run the
+  // machine into swap. 2,000,000: 23 days at 1 Hz in all, about 2 GB; 1,000 to 100,000,000.
+  std::size_t max_samples = 2'000'000;
   // Adequacy (every run given, the model as refitted on the fit run and applied unchanged):
   double adequacy_alpha = 0.01;        // the prewhitened residual passes Ljung-Box at this level,
   // ... or its structure is too small to matter: the RMS of its ACF over the lags,
@@ -331,8 +337,19 @@ struct Diagnosis {
   std::string summary;              // one paragraph for people
 };
 
+// A run's name and length, for the size check.
+struct RunSize {
+  std::string name;
+  std::size_t samples = 0;
+};
+// diagnose's size check on the runs' names and lengths (the fit run first, then the held-out
+// runs), so that it is tested without such runs: an error naming the runs, their samples and the
+// limit when they hold more than max_samples in all (the largest named first).
+std::expected<void, std::string> check_diagnose_size(std::span<const RunSize> runs, std::size_t max_samples);
+
 // Diagnoses `m` (its terms refitted on `fit_run` with its method and options) against the
-// library; held-out runs score each candidate's refitted model unchanged.
+// library; held-out runs score each candidate's refitted model unchanged. Runs holding more than
+// o.max_samples in all are refused (FitError::Code::bad_options, check_diagnose_size's message).
 std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_run, std::span<const RunData> held_out,
                                             const DiagnoseOptions& o = {});
 
