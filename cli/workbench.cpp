@@ -139,7 +139,7 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
     err << "fogctl diagnose: " << one.error() << "\n";
     return kExitError;
   }
-  auto runs = load_runs(o.runs, o.input, &quality);
+  auto runs = load_runs(o.runs, with_model_axis(o.input, *m), &quality);
   if (!runs) {
     err << "fogctl diagnose: " << runs.error() << "\n";
     return kExitError;
@@ -345,9 +345,14 @@ int run_fit_add(const FitAddOptions& o, std::ostream& out, std::ostream& err) {
     err << "fogctl fit: " << m.error() << "\n";
     return kExitError;
   }
-  auto run = load_run(o.run, o.input);
+  auto run = load_run(o.run, with_model_axis(o.input, *m));
   if (!run) {
     err << "fogctl fit: " << run.error() << "\n";
+    return kExitError;
+  }
+  if (m->axis.value_or(model::Axis::x) != run->gyro_axis()) {
+    err << "fogctl fit: --add: " << o.model << " is a model of axis " << model::to_string(m->axis.value_or(model::Axis::x)) << ", --axis "
+        << model::to_string(run->gyro_axis()) << " asks for another: a model extends on its own axis\n";
     return kExitError;
   }
   // A term the model has already, given without a lag (d(T1) when the model has d(T1)@120), is
@@ -470,6 +475,7 @@ void add_workbench_commands(CLI::App& app, int& code) {
   d->add_flag("--json", dia.json, "Print one JSON object");
   d->add_flag("--progress", dia.progress, "Progress lines on stderr even when it is not a terminal (on a terminal they are drawn anyway)");
   add_run_input(d, dia.input);
+  add_axis_option(d, dia.input);
   d->callback([&] {
     std::ostringstream text;
     code = run_diagnose(dia, text, std::cerr);
