@@ -65,7 +65,7 @@ int run_compare(const CompareCommandOptions& o, std::ostream& out, std::ostream&
   bool adequate = true;
   QualityLog quality;
   for (const auto& path : o.runs) {
-    auto run = load_run(path, o.input, &quality);
+    auto run = load_run(path, with_model_axis(o.input, *m), &quality);  // the model's axis of a three-axis run
     if (!run) {
       err << "fogctl compare: " << run.error() << "\n";
       return kExitError;
@@ -416,7 +416,7 @@ int run_lineage(const LineageOptions& o, std::ostream& out, std::ostream& err) {
     return kExitError;
   }
   for (const auto& w : warnings) err << "warning: " << w << "\n";
-  auto runs = load_runs(o.runs, o.input);
+  auto runs = load_runs(o.runs, with_model_axis(o.input, *m));  // the model's axis of a three-axis run
   if (!runs) {
     err << "fogctl lineage: " << runs.error() << "\n";
     return kExitError;

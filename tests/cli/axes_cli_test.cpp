@@ -146,6 +146,17 @@ TEST_CASE("fogctl fit and verify --axis: each axis its model and verdict, y's ow
   const AxesOut vt = axes_call(run_verify, v);
   CHECK_THAT(vt.out, Catch::Contains("axis y") && Catch::Contains("FAIL"));
 
+  // compare follows the model's axis too (it has no --axis): y's model on y's output, where
+  // its failing intervals are.
+  CompareCommandOptions c;
+  c.model = b.my;
+  c.runs = {b.e3};
+  c.json = true;
+  const AxesOut cy = axes_call(run_compare, c);
+  INFO(cy.err);
+  CHECK(cy.code == kExitFailed);
+  CHECK(cy.err.find("axis") == std::string::npos);
+
   // Another axis than the model's: refused, naming both.
   v.input.axis = "x";
   const AxesOut wrong = axes_call(run_verify, v);
