@@ -72,9 +72,30 @@ std::expected<model::RunData, std::string> load_run(const std::string& path, con
   else if (in.time_unit != "s") return std::unexpected("--time-unit " + in.time_unit + ": expected s or ms");
   const std::string name = display_name(path);
   if (name != path) o.source_name = name;  // a stored run (--run): "run 2 SIM-0001"
+  model::Axis axis = model::Axis::x;
+  if (!in.axis.empty()) {
+    const auto a = model::axis_from_string(in.axis);
+    if (!a) return std::unexpected("--axis " + in.axis + ": expected x, y or z");
+    axis = *a;
+  }
   auto r = storage::read_csv_file(path, o);
   if (!r) return std::unexpected(r.error().message);
-  return check_run_quality(std::move(*r), name, in.quality, log, in.retry);
+  // The axis is picked before the quality check, which then judges that axis's gyro.
+  auto picked = model::select_axis(std::move(*r), axis);
+  if (!picked) return std::unexpected(picked.error());
+  return check_run_quality(std::move(*picked), name, in.quality, log, in.retry);
+}
+
+void add_axis_option(CLI::App* c, RunInput& in) {
+  c->add_option("--axis", in.axis,
+                "The axis of a three-axis unit's run (gyro_y_dph, gyro_z_dph columns) to analyse: x, y or z (default: the "
+                "model's axis, else x)")
+      ->check(CLI::IsMember({"x", "y", "z"}));
+}
+
+RunInput with_model_axis(RunInput in, const model::Model& m) {
+  if (in.axis.empty() && m.axis) in.axis = std::string(model::to_string(*m.axis));
+  return in;
 }
 
 void add_run_input(CLI::App* c, RunInput& in) {

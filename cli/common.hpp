@@ -41,6 +41,9 @@ struct RunInput {
   // cleans every cleanable one and refuses the rest, `warn` refuses nothing and warns, `off`
   // skips the check.
   std::string quality = "check";
+  // --axis x|y|z (fit, verify, diagnose): the axis of a three-axis run (gyro_y_dph, gyro_z_dph
+  // columns) the command analyses; empty: the model's axis where a model is given, else x.
+  std::string axis;
   // The command as the user gave it, for hints that name a whole working command (e.g. "fogctl
   // fit run.csv"); empty: hints name the option only.
   std::string retry;
@@ -82,6 +85,10 @@ std::expected<model::RunData, std::string> load_run(const std::string& path, con
 // Adds --map, --resample, --delimiter, --decimal-comma, --time-unit and --quality to a command
 // that reads runs.
 void add_run_input(CLI::App* command, RunInput& in);
+// Adds --axis to a command that analyses one axis of a three-axis run.
+void add_axis_option(CLI::App* command, RunInput& in);
+// `in` with the model's axis when --axis was not given (a model is one axis's: docs/cli.md).
+RunInput with_model_axis(RunInput in, const model::Model& m);
 std::expected<model::Model, std::string> load_model(const std::string& path);
 std::expected<void, std::string> write_text(const std::string& path, const std::string& text);
 

@@ -2,6 +2,7 @@
 #include "offline.hpp"
 
 #include <CLI/CLI.hpp>
+#include <array>
 #include <sstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -17,6 +18,17 @@
 #include "workbench.hpp"
 
 namespace fogbench::cli {
+
+namespace {
+// "; own drift y: 0.05*T1": each axis's own extra drift, as `simulate` says it.
+std::string axis_effects_text(const std::array<std::string, 3>& axis_effect) {
+  std::string s;
+  for (std::size_t k = 0; k < 3; ++k)
+    if (!axis_effect[k].empty())
+      s += std::string(s.empty() ? "; own drift " : ", ") + std::string(model::to_string(static_cast<model::Axis>(k))) + ": " + axis_effect[k];
+  return s;
+}
+}  // namespace
 
 int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err) {
   auto profile = load_profile(o.profile);
@@ -70,6 +82,45 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
       return kExitError;
     }
   }
+  // A three-axis unit is simulated as three gyros on one coil in the world: the coil's physics
+  // is deterministic, so axes 1 and 2 (the world's units 1 and 2) see exactly unit 0's true
+  // temperatures, and each draws its own noise; the CSV keeps unit 0's thermistors.
+  if (o.axes != 1 && o.axes != 3) {
+    err << "fogctl simulate: --axes: expected 1 or 3, found " << o.axes << "\n";
+    return kExitError;
+  }
+  if (o.axes == 3 && rates) {
+    err << "fogctl simulate: --axes 3 with --rate-sequence: the rate-sequence CSV carries one axis (its axis 0 on the table)\n";
+    return kExitError;
+  }
+  if (o.axes == 1 && !o.axis_effects.empty()) {
+    err << "fogctl simulate: --axis-effect needs --axes 3 (a one-axis gyro's drift is --effect)\n";
+    return kExitError;
+  }
+  std::array<std::string, 3> axis_effect;  // x, y, z: each axis's own extra drift
+  for (const auto& e : o.axis_effects) {
+    const auto eq = e.find('=');
+    const auto axis = eq == std::string::npos ? std::nullopt : model::axis_from_string(e.substr(0, eq));
+    if (!axis) {
+      err << "fogctl simulate: --axis-effect " << e << ": expected AXIS=TERMS, AXIS x, y or z, e.g. y=0.05*T1\n";
+      return kExitError;
+    }
+    const std::string terms = e.substr(eq + 1);
+    if (auto l = model::parse_terms(terms); !l) {
+      err << "fogctl simulate: --axis-effect " << e << ": " << l.error().pretty() << "\n";
+      return kExitError;
+    }
+    auto& to = axis_effect[static_cast<std::size_t>(*axis)];
+    to += (to.empty() ? "" : " + ") + terms;
+  }
+  if (o.axes == 3) {
+    const sim::UnitParams housing = cfg.units[0];
+    cfg.units.assign(3, housing);
+    for (std::size_t k = 0; k < 3; ++k) {
+      if (k > 0) cfg.units[k].serial = housing.serial + "-" + std::string(model::to_string(static_cast<model::Axis>(k)));
+      if (!axis_effect[k].empty()) cfg.units[k].effects += (cfg.units[k].effects.empty() ? "" : " + ") + axis_effect[k];
+    }
+  }
   // Redrawn on a terminal; in a file a line a minute (progress.hpp).
   std::optional<Progress> bar;
   if (!o.quiet && !o.json) bar.emplace(err, progress_redraws());
@@ -83,6 +134,11 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
   if (!r) {
     err << "fogctl simulate: " << r.error() << "\n";
     return kExitError;
+  }
+  if (o.axes == 3) {
+    r->units[0].gyro_y_dph = std::move(r->units[1].gyro_dph);
+    r->units[0].gyro_z_dph = std::move(r->units[2].gyro_dph);
+    r->units.resize(1);
   }
   const model::RunData& run = r->units.front();
   if (rates) {
@@ -105,14 +161,18 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
     return kExitOk;
   }
   if (o.json) {
-    out << nlohmann::json{{"profile", profile->source_name}, {"seed", o.seed}, {"samples", run.size()},
+    nlohmann::json summary{{"profile", profile->source_name}, {"seed", o.seed}, {"samples", run.size()},
                           {"settle_s", r->settle_s}, {"effects", cfg.units[0].effects}, {"coil", o.coil}, {"output", o.output},
-                          {"rate_sequence", o.rate_sequence}}
-               .dump()
-        << "\n";
+                          {"rate_sequence", o.rate_sequence}};
+    if (o.axes == 3) {
+      summary["axes"] = 3;
+      summary["axis_effects"] = {{"x", cfg.units[0].effects}, {"y", cfg.units[1].effects}, {"z", cfg.units[2].effects}};
+    }
+    out << summary.dump() << "\n";
   } else {
     out << "simulated " << profile->source_name << " (" << o.coil << " coil, seed " << o.seed << (cfg.units[0].effects.empty() ? "" : ", effect " + cfg.units[0].effects)
-        << (rates ? ", rate sequence " + o.rate_sequence + " deg/s, " + fixed(o.rate_step_s, 0) + " s each" : "") << "): " << run.size() << " samples after a " << static_cast<long>(r->settle_s) << " s settle -> " << o.output << "\n";
+        << (rates ? ", rate sequence " + o.rate_sequence + " deg/s, " + fixed(o.rate_step_s, 0) + " s each" : "")
+        << (o.axes == 3 ? ", three axes" + axis_effects_text(axis_effect) : std::string()) << "): " << run.size() << " samples after a " << static_cast<long>(r->settle_s) << " s settle -> " << o.output << "\n";
   }
   return kExitOk;
 }
@@ -121,7 +181,8 @@ namespace {
 
 std::string describe_model(const model::Model& m) {
   std::string s;
-  s += "model (" + std::string(to_string(m.method)) + " method) fitted on " + m.fitted_on.name + ": " +
+  s += "model (" + std::string(to_string(m.method)) + " method) fitted on " + m.fitted_on.name +
+       (m.axis ? ", axis " + std::string(to_string(*m.axis)) : std::string()) + ": " +
        std::to_string(m.fitted_on.n_samples) + " samples, " + std::to_string(static_cast<long>(m.fitted_on.duration_s)) + " s\n\n";
   Table t({"term", "lag_s", "coef", "se (1 sigma)", "unit"});
   t.add({"mu0", "", fixed(m.mu0_dph, 3), fixed(m.mu0_se_dph, 3), "deg/h"});
@@ -268,7 +329,7 @@ int run_verify(const VerifyOptions& o, std::ostream& out, std::ostream& err) {
     const std::string& path = o.runs[k];
     const std::string name = display_name(path);  // "run 2 SIM-0001" for --run 2
     progress.update("read " + path, "verify: reading " + name + " (" + std::to_string(k + 1) + of_n);
-    auto run = load_run(path, o.input, &quality);
+    auto run = load_run(path, with_model_axis(o.input, *m), &quality);
     if (!run) {
       progress.finish();
       err << "fogctl verify: " << run.error() << "\n";
@@ -305,7 +366,8 @@ int run_verify(const VerifyOptions& o, std::ostream& out, std::ostream& err) {
                             {"threshold", o.threshold}, {"data_quality", quality.flags}}.dump() << "\n";
     }
   } else {
-    out << "Table 1 (deg/h): " << model_label(o.model) << " (" << m->terms_string() << "), pass when comp/raw < "
+    out << "Table 1 (deg/h): " << model_label(o.model) << " (" << m->terms_string() << ")"
+        << (m->axis ? ", axis " + std::string(to_string(*m->axis)) : std::string()) << ", pass when comp/raw < "
         << fixed(100.0 * o.threshold, 0) << "%";
     if (vo.noise_test)
       out << ", comp std within " << fixed(vo.noise.max_noise_factor, 2) << " x the gyro's noise std and no failing interval of "
@@ -322,6 +384,11 @@ void add_offline_commands(CLI::App& app, int& code) {
   auto* s = app.add_subcommand("simulate", "Simulate a thermal run of a gyro on the mock bench's physics, to CSV");
   s->add_option("--profile", sim.profile, "exp1, exp2, exp3, qualification or a profile file")->required();
   s->add_option("--effect", sim.effects, "Extra drift in the term language with its coefficient, e.g. \"0.05*T1\" (repeatable)");
+  s->add_option("--axes", sim.axes, "Gyro axes of the unit: 1 (default), or 3 (columns gyro_y_dph, gyro_z_dph: y and z share the "
+                                    "housing's drift and --effect, each with its own noise)")
+      ->check(CLI::IsMember({1, 3}));
+  s->add_option("--axis-effect", sim.axis_effects,
+                "With --axes 3: one axis's own extra drift, AXIS=TERMS, e.g. \"y=0.05*T1\" (repeatable); the other axes have none");
   s->add_option("--seed", sim.seed, "Random seed, 0 to 18446744073709551615 (same seed, same run)")
       ->check(seed_check());
   s->add_option("--serial", sim.serial, "Serial number of the simulated gyro");
@@ -382,6 +449,7 @@ void add_offline_commands(CLI::App& app, int& code) {
   f->add_option("--model", add.model, "With --add: the model to extend (its terms, method and options)");
   f->add_option("--add", add.add, "With --model: the term to add, e.g. \"T1\" or \"lp(T1,300)@auto\"");
   add_run_input(f, fit.input);
+  add_axis_option(f, fit.input);
   f->callback([&] {
     std::ostringstream text;
     if (add.model.empty() && add.add.empty()) {
@@ -407,6 +475,7 @@ void add_offline_commands(CLI::App& app, int& code) {
   v->add_flag("--no-noise-test", ver.no_noise_test, "The paper's ratio rule alone (no marginal verdict)");
   v->add_flag("--json", ver.json, "Print one JSON object");
   add_run_input(v, ver.input);
+  add_axis_option(v, ver.input);
   v->callback([&] {
     std::ostringstream text;
     code = run_verify(ver, text, std::cerr);

@@ -20,6 +20,11 @@ namespace fogbench::cli {
 struct SimulateOptions {
   std::string profile;                 // exp1|exp2|exp3|FILE
   std::vector<std::string> effects;    // extra drift terms with coefficients, e.g. "0.05*T1"
+  // A three-axis unit (axes 3): y and z share the housing (its coil, thermistors and drift,
+  // effects included) with their own noise, plus each axis's own extra drift, "y=0.05*T1"
+  // (repeatable, an axis may take several).
+  int axes = 1;
+  std::vector<std::string> axis_effects;
   std::uint64_t seed = 1;
   std::string output;                  // -o run.csv
   std::string serial = "SIM-0001";

@@ -151,7 +151,7 @@ int run_report(const ReportOptions& o, std::ostream& out, std::ostream& err) {
   for (const auto& p : o.runs) {
     progress.update("read " + p, "report: reading " + display_name(p) + " (" + std::to_string(runs.size() + 1) + " of " +
                                      std::to_string(o.runs.size()) + ")");
-    auto r = load_run(p, o.input);
+    auto r = load_run(p, with_model_axis(o.input, *m));  // the model's axis of a three-axis run
     if (!r) {
       err << "fogctl report: " << r.error() << "\n";
       return kExitError;

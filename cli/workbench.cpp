@@ -97,7 +97,7 @@ int run_compare(const CompareCommandOptions& o, std::ostream& out, std::ostream&
   bool adequate = true;
   QualityLog quality;
   for (const auto& path : o.runs) {
-    auto run = load_run(path, o.input, &quality);
+    auto run = load_run(path, with_model_axis(o.input, *m), &quality);  // the model's axis of a three-axis run
     if (!run) {
       err << "fogctl compare: " << run.error() << "\n";
       return kExitError;
@@ -179,7 +179,7 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
     err << "fogctl diagnose: " << within.error() << "\n";
     return kExitError;
   }
-  auto runs = load_runs(o.runs, o.input, &quality);
+  auto runs = load_runs(o.runs, with_model_axis(o.input, *m), &quality);
   if (!runs) {
     err << "fogctl diagnose: " << runs.error() << "\n";
     return kExitError;
@@ -386,9 +386,14 @@ int run_fit_add(const FitAddOptions& o, std::ostream& out, std::ostream& err) {
     err << "fogctl fit: " << m.error() << "\n";
     return kExitError;
   }
-  auto run = load_run(o.run, o.input);
+  auto run = load_run(o.run, with_model_axis(o.input, *m));
   if (!run) {
     err << "fogctl fit: " << run.error() << "\n";
+    return kExitError;
+  }
+  if (m->axis.value_or(model::Axis::x) != run->gyro_axis()) {
+    err << "fogctl fit: --add: " << o.model << " is a model of axis " << model::to_string(m->axis.value_or(model::Axis::x)) << ", --axis "
+        << model::to_string(run->gyro_axis()) << " asks for another: a model extends on its own axis\n";
     return kExitError;
   }
   // A term the model has already, given without a lag (d(T1) when the model has d(T1)@120), is
@@ -452,7 +457,7 @@ int run_lineage(const LineageOptions& o, std::ostream& out, std::ostream& err) {
     return kExitError;
   }
   for (const auto& w : warnings) err << "warning: " << w << "\n";
-  auto runs = load_runs(o.runs, o.input);
+  auto runs = load_runs(o.runs, with_model_axis(o.input, *m));  // the model's axis of a three-axis run
   if (!runs) {
     err << "fogctl lineage: " << runs.error() << "\n";
     return kExitError;
@@ -513,6 +518,7 @@ void add_workbench_commands(CLI::App& app, int& code) {
   d->add_flag("--json", dia.json, "Print one JSON object");
   d->add_flag("--progress", dia.progress, "Progress lines on stderr even when it is not a terminal (on a terminal they are drawn anyway)");
   add_run_input(d, dia.input);
+  add_axis_option(d, dia.input);
   d->callback([&] {
     std::ostringstream text;
     code = run_diagnose(dia, text, std::cerr);

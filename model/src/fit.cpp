@@ -356,6 +356,7 @@ void fill_fitted_on(Model& m, const RunData& run) {
     m.fitted_on.t1_max_c = *hi;
   }
   m.fitted_on.fingerprint = fnv1a(run);
+  m.axis = run.axis;
 }
 
 }  // namespace

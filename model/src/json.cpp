@@ -115,6 +115,7 @@ json to_json(const Model& m) {
       {"note", m.note},
   };
   if (!m.fit.lag_note.empty()) j["fit"]["lag_note"] = m.fit.lag_note;
+  if (m.axis) j["axis"] = std::string(to_string(*m.axis));  // absent for a one-axis run's model
   j["parent"] = m.parent ? to_json(*m.parent) : json(nullptr);
   return j;
 }
@@ -140,6 +141,11 @@ std::expected<Model, std::string> model_from_json(const json& j) {
   m.created_at = r.string("created_at", "", false);
   m.note = r.string("note", "", false);
   if (!r.err.empty()) return std::unexpected(r.err);
+  if (const json* a = r.get("axis", false)) {
+    const auto axis = a->is_string() ? axis_from_string(a->get<std::string>()) : std::nullopt;
+    if (!axis) return std::unexpected("axis: expected \"x\", \"y\" or \"z\", found " + a->dump());
+    m.axis = *axis;
+  }
   if (const json* ar = r.get("ar")) {
     if (!ar->is_array()) return std::unexpected(std::string("ar: expected an array of numbers"));
     for (std::size_t i = 0; i < ar->size(); ++i) {

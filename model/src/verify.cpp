@@ -117,6 +117,11 @@ std::expected<Verification, FitError> verify(const Model& m, const RunData& run,
 
 std::expected<Verification, FitError> verify(const Model& m, const RunData& run, const VerifyOptions& o) {
   if (auto ok = o.validate(); !ok) return fail(FitError::Code::bad_options, "verify: " + ok.error());
+  // A model is one axis's: another axis's output against it would be a verdict on nothing.
+  if (m.axis.value_or(Axis::x) != run.gyro_axis())
+    return fail(FitError::Code::missing_signal, "verify: the model was fitted on axis " + std::string(to_string(m.axis.value_or(Axis::x))) +
+                                                    ", " + (run.name.empty() ? std::string("the run") : run.name) + " holds axis " +
+                                                    std::string(to_string(run.gyro_axis())) + " (pick the model's axis of the run)");
   const double threshold = o.threshold;
   auto mu = predict(m, run);
   if (!mu) return std::unexpected(mu.error());

@@ -359,6 +359,8 @@ json Bench::ready_line() const {
     if (u.gyro.axes != 1) {
       units.back()["axes"] = u.gyro.axes;
       units.back()["axis_bias_dph"] = u.axis_bias_dph;  // per axis, added to the unit's drift
+      const auto& own = c.sim.units[units.size() - 1].axis_effects;
+      if (!own[0].empty() || !own[1].empty()) units.back()["axis_effects"] = {{"y", own[0]}, {"z", own[1]}};
     }
   }
   return {{"event", "ready"},

@@ -185,9 +185,11 @@ void BenchClock::step(Batch& b, std::int64_t second, double& last_setpoint_c, st
     streams_[u].second(second, s.gyro_dph - s.noise_dph + spike + turn_dph, {f.power_off_from_s, f.power_on_at_s}, rng,
                        b.frames[u]);
     gyro_dph[u] = streams_[u].last_mean_dph();
-    // The other axes: the same housing's drift plus each axis's own bias and its own noise.
+    // The other axes: the same housing's drift plus each axis's own bias, its own drift
+    // (--axis-effect) and its own noise.
     for (std::size_t k = 0; k < axis_streams_[u].size(); ++k) {
-      axis_streams_[u][k].second(second, s.gyro_dph - s.noise_dph + spike + cfg_.units[u].axis_bias_dph[k + 1],
+      axis_streams_[u][k].second(second,
+                                 s.gyro_dph - s.noise_dph + spike + cfg_.units[u].axis_bias_dph[k + 1] + world_->axis_drift_dph(u, k + 1),
                                  {f.power_off_from_s, f.power_on_at_s}, axis_rngs_[u][k], b.axis_frames[u][k]);
     }
     b.next[u] = 0;

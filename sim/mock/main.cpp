@@ -57,6 +57,9 @@ int main(int argc, char** argv) {
   app.add_option("--axes", o.axes, "gyro axes per unit: 1, or 3 (axis k on node id + k, node ids 257 + 4i)")->capture_default_str();
   app.add_option("--axis-bias-dph", o.axis_bias_dph, "with --axes 3: 1 sigma of each y and z axis's own bias (seeded), deg/h")
       ->capture_default_str();
+  app.add_option("--axis-effect", o.axis_effects,
+                 "with --axes 3: drift of the y or z axis alone, AXIS=EXPR in the term language, e.g. \"y=0.5*T1\"; every unit; "
+                 "repeatable");
   app.add_option("--frame-noise-dph", o.frame_noise_dph,
                  "extra white noise per frame (1 sigma, deg/h), on top of the gyro's own noise made at the frame rate")
       ->capture_default_str();

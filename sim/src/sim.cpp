@@ -101,7 +101,20 @@ std::expected<World, std::string> World::create(const SimConfig& cfg) {
       if (!f) return std::unexpected("unit " + u.serial + ": coil: " + f.error());
       st.field = std::move(*f);
     }
-    w.window_ = std::max<std::size_t>(w.window_, static_cast<std::size_t>(st.law.history_s) + 2 * model::kDerivativeHalfWidth + 64);
+    int history_s = st.law.history_s;
+    for (std::size_t k = 0; k < 2; ++k) {
+      if (u.axis_effects[k].empty()) continue;
+      UnitParams own;  // the axis's effect alone: no mu0, no truth terms
+      own.gyro.mu0_dph = 0.0;
+      own.gyro.tref_c = u.gyro.tref_c;
+      own.gyro.terms.clear();
+      own.effects = u.axis_effects[k];
+      auto al = make_drift_law(own);
+      if (!al) return std::unexpected("unit " + u.serial + ": axis " + std::string(1, "yz"[k]) + ": " + al.error());
+      history_s = std::max(history_s, al->history_s);
+      st.axis_law[k] = std::move(*al);
+    }
+    w.window_ = std::max<std::size_t>(w.window_, static_cast<std::size_t>(history_s) + 2 * model::kDerivativeHalfWidth + 64);
     w.units_.push_back(std::move(st));
   }
   return w;
@@ -181,6 +194,11 @@ void World::step(double setpoint_c) {
       drift = 0.0;
     } else if (auto d = drift_series(u.law, u.h1, u.h2, u.ha)) {
       drift = d->back();
+    }
+    for (std::size_t k = 0; k < 2; ++k) {
+      u.axis_drift[k] = 0.0;
+      if (!streaming_drift_ || !u.axis_law[k]) continue;
+      if (auto d = drift_series(*u.axis_law[k], u.h1, u.h2, u.ha)) u.axis_drift[k] = d->back();
     }
     if (u.field) drift += u.field_drift;
     drift += nonthermal_drift(p.gyro, time_s_ - 1.0);

@@ -13,6 +13,7 @@
 #include <limits>
 #include <numeric>
 #include <random>
+#include <tuple>
 
 #include "control.hpp"
 #include "faults.hpp"
@@ -369,6 +370,30 @@ TEST_CASE("mock bench options --axes: 1 or 3, and not with a serial gyro", "[thr
   cfg = fogbench::mock::make_bench_config(o);
   REQUIRE_FALSE(cfg.has_value());
   CHECK(cfg.error() == "--serial-gyro needs --axes 1: a serial gyro's frame carries one axis");
+}
+
+TEST_CASE("mock bench options --axis-effect: y or z of three-axis units, every unit, bad ones named", "[three_axis]") {
+  fogbench::mock::Options o;
+  o.axes = 3;
+  o.axis_effects = {"y=1*T1", "z=-0.5*T1", "y=0.1*grad"};
+  auto cfg = fogbench::mock::make_bench_config(o);
+  REQUIRE(cfg.has_value());
+  for (const auto& u : cfg->sim.units) {
+    CHECK(u.axis_effects[0] == "1*T1 + 0.1*grad");
+    CHECK(u.axis_effects[1] == "-0.5*T1");
+    CHECK(u.effects.find("T1") == std::string::npos);  // x (the unit's own drift) has none of it
+  }
+  for (const auto& [axes, effect, says] :
+       {std::tuple{1, "y=1*T1", "--axis-effect needs --axes 3"}, std::tuple{3, "x=1*T1", "AXIS y or z"},
+        std::tuple{3, "1*T1", "AXIS y or z"}, std::tuple{3, "y=1*T9", "--axis-effect y=1*T9"},
+        std::tuple{3, "z=1*T1@auto", "fixed lag"}}) {
+    o.axes = axes;
+    o.axis_effects = {effect};
+    cfg = fogbench::mock::make_bench_config(o);
+    INFO(effect);
+    REQUIRE_FALSE(cfg.has_value());
+    CHECK_THAT(cfg.error(), Catch::Contains(says));
+  }
 }
 
 TEST_CASE("fault silence_axis: one axis of a unit, by name or index, switched on and off", "[three_axis]") {

@@ -105,6 +105,9 @@ struct Model {
   int hold_s = 600;             // paper method: opening hold used in step 1, s
   FitStats fit;
   FittedOn fitted_on;
+  // The axis of a three-axis unit it was fitted on (the run's RunData::axis); unset: a one-axis
+  // run. verify() refuses a run whose gyro_dph is another axis.
+  std::optional<Axis> axis;
   std::string created_at;       // ISO 8601, set by the caller (model/ reads no clock)
   std::string note;             // free text, e.g. "added T1 after diagnose"
   std::shared_ptr<const Model> parent;  // the model this one was refined from

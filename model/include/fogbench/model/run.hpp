@@ -3,6 +3,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <expected>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -15,6 +16,13 @@ enum class Phase : std::uint8_t { unknown = 0, settle, hold, heating, cooling };
 
 std::string_view to_string(Phase p);
 std::optional<Phase> phase_from_string(std::string_view s);
+
+// A gyro axis of a three-axis unit (docs/daemon.md "Three-axis units"): x is axis 0, the one a
+// one-axis unit has; y and z are axes 1 and 2.
+enum class Axis : std::uint8_t { x = 0, y, z };
+
+std::string_view to_string(Axis a);  // "x", "y", "z"
+std::optional<Axis> axis_from_string(std::string_view s);
 
 // Quality flags of one sample (bit set), as stored by the daemon and exported in CSV.
 namespace flag {
@@ -52,6 +60,10 @@ struct RunData {
   // flagged missing). Not yet an input of any fit. CSV columns `gyro_y_dph`, `gyro_z_dph`.
   std::vector<double> gyro_y_dph;
   std::vector<double> gyro_z_dph;
+  // The axis gyro_dph holds when select_axis() picked it from a three-axis recording (its
+  // gyro_y_dph, gyro_z_dph are then empty); unset: a one-axis run, or a three-axis one not
+  // picked, whose gyro_dph is x.
+  std::optional<Axis> axis;
 
   std::size_t size() const { return time_s.size(); }
   bool has_setpoint() const { return !setpoint_c.empty(); }
@@ -65,6 +77,16 @@ struct RunData {
   bool has_axes() const { return !gyro_y_dph.empty(); }
   // True when sample i carries any quality flag.
   bool flagged(std::size_t i) const { return !flags.empty() && flags[i] != 0; }
+  // The axis gyro_dph holds: `axis`, else x.
+  Axis gyro_axis() const { return axis.value_or(Axis::x); }
 };
+
+// The run as the one axis a drift analysis reads: gyro_dph becomes `axis` (from gyro_y_dph or
+// gyro_z_dph for y, z), `axis` is set and the three-axis columns are dropped, so every fit,
+// prediction and check reads that axis exactly as it reads a one-axis gyro. compensated_dph is
+// dropped for y and z (the daemon's live compensation is of x). A one-axis run asked for x is
+// returned as it is (`axis` unset: it has no other). Errors, naming the run and the axis: y or
+// z of a run without those columns, another axis of a run already picked.
+std::expected<RunData, std::string> select_axis(RunData run, Axis axis);
 
 }  // namespace fogbench::model

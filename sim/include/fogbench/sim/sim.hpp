@@ -8,6 +8,7 @@
 // It feeds every model test (simulate()) and, stepped live, the mock bench (World).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <expected>
 #include <optional>
@@ -77,6 +78,10 @@ struct UnitParams {
   CoilParams coil;
   GyroTruth gyro;
   std::string effects;   // extra drift in the term language, e.g. "0.05*T1" (hidden effects)
+  // A three-axis unit's axes 1 and 2 (y, z): drift of their own beyond the unit's, in the term
+  // language with fixed lags (empty: none). World::axis_drift_dph gives it each second (the
+  // mock bench adds it to those axes' frames); the unit's own gyro_dph (axis 0, x) never has it.
+  std::array<std::string, 2> axis_effects;
 };
 
 struct SimConfig {
@@ -136,6 +141,9 @@ class World {
   // second just stepped, deg/h without mu0 (0 for a lumped coil).
   const CoilField* field(std::size_t u) const { return units_[u].field ? &*units_[u].field : nullptr; }
   double field_drift_dph(std::size_t u) const { return units_[u].field_drift; }
+  // Axis k's (1 y, 2 z) own drift over the second just stepped, deg/h: UnitParams::axis_effects
+  // on the trailing window, as the unit's drift is (0 when it has none, or streaming is off).
+  double axis_drift_dph(std::size_t u, std::size_t k) const { return units_[u].axis_drift[k - 1]; }
 
  private:
   struct UnitState {
@@ -148,6 +156,8 @@ class World {
     std::vector<double> flicker;      // the flicker's Markov processes, deg/h (empty: none)
     double walk = 0.0;                // the rate random walk, deg/h
     UnitSample last{};
+    std::array<std::optional<DriftLaw>, 2> axis_law;  // axes 1, 2: their own drift (none: empty)
+    std::array<double, 2> axis_drift{};               // deg/h, of the last second
   };
   World() = default;
   double gyro_noise(UnitState& u, const UnitParams& p);
