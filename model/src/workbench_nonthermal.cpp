@@ -402,12 +402,33 @@ std::optional<PeriodicDisturbance> find_periodic(const Model& m, const RunData& 
     const NoiseFloor floor1 = read_floor(clean);
     // The noise at the peak: the floor's, or the periodogram's own level around it (its median
     // over an octave each side, the peak's bins left out: an exponential ordinate's median is
-    // ln 2 of its mean) when that is higher (slow noise the holds did not show).
+    // ln 2 of its mean) when that is higher (slow noise the holds did not show). At long
+    // periods an octave holds fewer than 6 bins: then the 6 nearest beyond the peak's, read on
+    // the blocks with the sinusoid removed (its leakage would otherwise lift them). A random
+    // walk's lowest ordinate taken for a line lowers the walk the floor reads once removed; its
+    // neighbours then stand above that floor too, where a line's do not.
     double noise = expected(floor1, f_hat);
     {
       std::vector<double> around;
       for (std::size_t i = 0; i < fk.size(); ++i)
         if (fk[i] >= 0.5 * f_hat && fk[i] <= 2.0 * f_hat && std::abs(fk[i] - f_hat) * span_s > 2.5) around.push_back(pk[i] / expected(floor1, fk[i]));
+      if (around.size() < 6) {
+        std::vector<std::pair<double, std::size_t>> near;  // (bins from the peak, index)
+        for (std::size_t i = 0; i < fk.size(); ++i)
+          if (const double dk = std::abs(fk[i] - f_hat) * span_s; dk > 2.5) near.emplace_back(dk, i);
+        std::sort(near.begin(), near.end());
+        if (near.size() > 6) near.resize(6);
+        around.clear();
+        for (const auto& [dk, i] : near) {
+          std::complex<double> x{0.0, 0.0};
+          for (std::size_t j = 0; j < xb.size(); ++j)
+            if (wb[j] != 0.0) {
+              const double ph = 2.0 * kPi * f_hat * tb[j];
+              x += (xb[j] - sine.s * std::sin(ph) - sine.c * std::cos(ph)) * std::polar(1.0, -2.0 * kPi * fk[i] * tb[j]);
+            }
+          around.push_back(std::norm(x) / expected(floor1, fk[i]));
+        }
+      }
       if (around.size() >= 6) {
         std::nth_element(around.begin(), around.begin() + static_cast<std::ptrdiff_t>(around.size() / 2), around.end());
         noise *= std::max(1.0, around[around.size() / 2] / std::log(2.0));
