@@ -271,3 +271,31 @@ TEST_CASE("workbench: the periodic search raises no line from a rate random walk
   INFO(why);
   CHECK(alarms <= 1);
 }
+
+TEST_CASE("workbench: an ageing ramp over a rate random walk is one trun term with the whole slope", "[nonthermal][sim]") {
+  // 0.5 deg/h per h on a gyro with ARW 0.001 deg/sqrt(h) and RRW 0.1 deg/h/sqrt(h), the fit
+  // run exp1 and exp3 held out: the walk moves each run's slope by about 0.1 deg/h per h. The
+  // run's clock has no second path: trun again at another delay is the same column a constant
+  // apart, and took part of the slope (the reported slope is trun's own coefficient).
+  Truth tr;
+  tr.arw = 0.001;
+  tr.rrw = 0.1;
+  tr.ageing_dph_per_h = 0.5;
+  int named = 0, total = 0;
+  std::string why;
+  for (std::uint64_t seed = 7000; seed < 7060; seed += 10) {
+    const std::vector<model::RunData> r = {run("exp1", seed, tr), run("exp3", seed + 1, tr)};
+    auto d = diagnose(r);
+    REQUIRE(d);
+    ++total;
+    int truns = 0;
+    for (const auto& st : d->steps) truns += st.expr == "trun" ? 1 : 0;
+    const auto& td = d->time_drift;
+    CHECK(truns <= 1);
+    const bool ok = truns == 1 && td.found && td.named && std::abs(td.slope_dph_per_h - 0.5) <= 3.0 * td.se_dph_per_h + 0.05;
+    if (ok) ++named;
+    else why += "seed " + std::to_string(seed) + ": trun steps " + std::to_string(truns) + ", " + d->summary.substr(0, 220) + "\n";
+  }
+  INFO(why);
+  CHECK(named >= total - 1);
+}
