@@ -193,14 +193,14 @@ TEST_CASE("workbench: a periodic disturbance on the held-out run only is named o
   // at a short period: the model was called adequate. Amplitudes of 0.15 to 0.3 deg/h, 1 to 2
   // times the run's noise std at the line's period and below the residual's std (0.2 to 0.3
   // deg/h). Seeds from a screen of 36 (6 periods x 6 seeds): main missed 5 (the 5 below with
-  // a "missed" mark) and named the other 31; the others here were named there too.
+  // a "missed" mark) and named the other 31, the other 2 here among them.
   struct Case {
     double period_s, amplitude_dph;
     std::uint64_t seed;
   };
-  const Case cases[] = {{1800.0, 0.3, 5100},  {1800.0, 0.3, 5140} /* missed */,  {900.0, 0.15, 5160} /* missed */,
-                        {900.0, 0.15, 5170},  {2700.0, 0.3, 5230} /* missed */,  {2700.0, 0.3, 5240} /* missed */,
-                        {1200.0, 0.2, 5300} /* missed */, {1800.0, 0.15, 5340}, {600.0, 0.15, 5400}};
+  const Case cases[] = {{1800.0, 0.3, 5100},  {1800.0, 0.3, 5140} /* missed */, {900.0, 0.15, 5160} /* missed */,
+                        {2700.0, 0.3, 5230} /* missed */, {2700.0, 0.3, 5240} /* missed */,
+                        {1200.0, 0.2, 5300} /* missed */, {600.0, 0.15, 5400}};
   Truth clean;
   clean.arw = 0.001;
   clean.rrw = 0.1;
@@ -231,7 +231,7 @@ TEST_CASE("workbench: a periodic disturbance on the held-out run only is named o
   // Clean pairs (no line) raise no periodic disturbance, on either coil: on the lumped coil
   // the walk's lowest ordinates, taken for a line and removed, lower the walk the floor reads.
   int alarms = 0;
-  for (std::uint64_t seed : {5500u, 5510u, 5520u, 5530u, 5540u, 5550u, 5560u, 5570u}) {
+  for (std::uint64_t seed : {5500u, 5510u, 5540u, 5550u}) {
     Truth c0 = clean;
     c0.distributed = seed < 5540u;
     const std::vector<model::RunData> r = {run("exp1", seed, c0), run("exp3", seed + 1, c0)};
