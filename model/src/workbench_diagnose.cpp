@@ -179,6 +179,9 @@ std::expected<CandidateList, FitError> collect_candidates(const Model& base, con
   if (o.second_lags)
     for (const auto& ft : base.terms) {
       const std::string k = term_key(ft.term);
+      // The run's clock has no second path: trun at another delay is trun again (a constant
+      // apart), and the two would split one slope between them.
+      if (k == "trun") continue;
       const Effect* eff = find_effect(k);
       push(k, "a second thermal path: " + (eff ? eff->name : k) + " again at another delay",
            "heat reaches the fibre by more than one path (through the flange and through the housing), each with its own delay",

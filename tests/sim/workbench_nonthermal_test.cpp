@@ -21,13 +21,15 @@ struct Truth {
   double arw = 0.0024, bi = 0.0, rrw = 0.0;   // deg/sqrt(h), deg/h, deg/h/sqrt(h)
   double ageing_dph_per_h = 0.0;
   double period_s = 0.0, amplitude_dph = 0.0, phase_rad = 0.0;
+  bool distributed = false;  // the radial-layer coil (the paper's model then misfits a little)
 };
 
 model::RunData run(const std::string& profile, std::uint64_t seed, const Truth& tr) {
   sim::SimConfig cfg;
   cfg.seed = seed;
   auto& u = cfg.units[0];
-  u.coil.model = sim::CoilModel::lumped;  // the paper's model is the exact thermal truth
+  // The lumped coil: the paper's model is the exact thermal truth.
+  u.coil.model = tr.distributed ? sim::CoilModel::distributed : sim::CoilModel::lumped;
   u.gyro.sigma_a_dph = 60.0 * tr.arw;
   u.gyro.bias_instability_dph = tr.bi;
   u.gyro.rrw_dph_per_sqrt_h = tr.rrw;
@@ -182,3 +184,118 @@ TEST_CASE("workbench: clean runs with realistic FOG noise show no drift in time 
   CHECK(alarms <= 1);
 }
 
+
+TEST_CASE("workbench: a periodic disturbance on the held-out run only is named over a rate random walk", "[nonthermal][sim]") {
+  // The fit run (exp1) is clean; the held-out run (exp3, 9300 s) carries the line. The gyro
+  // has the issue's slow noise (ARW 0.001 deg/sqrt(h), RRW 0.1 deg/h/sqrt(h)) on the
+  // distributed coil. The whole run's Allan curve reads the line's bump as a random walk, and
+  // against that floor (rising as 1/f^2 below the line) the line sank under a noise ordinate
+  // at a short period: the model was called adequate. Amplitudes of 0.15 to 0.3 deg/h, 1 to 2
+  // times the run's noise std at the line's period and below the residual's std (0.2 to 0.3
+  // deg/h). Seeds from a screen of 36 (6 periods x 6 seeds): main missed 5 (the 5 below with
+  // a "missed" mark) and named the other 31, the other 2 here among them.
+  struct Case {
+    double period_s, amplitude_dph;
+    std::uint64_t seed;
+  };
+  const Case cases[] = {{1800.0, 0.3, 5100},  {1800.0, 0.3, 5140} /* missed */, {900.0, 0.15, 5160} /* missed */,
+                        {2700.0, 0.3, 5230} /* missed */, {2700.0, 0.3, 5240} /* missed */,
+                        {1200.0, 0.2, 5300} /* missed */, {600.0, 0.15, 5400}};
+  Truth clean;
+  clean.arw = 0.001;
+  clean.rrw = 0.1;
+  clean.distributed = true;
+  int named = 0, total = 0;
+  std::string why;
+  for (const auto& c : cases) {
+    Truth tr = clean;
+    tr.period_s = c.period_s;
+    tr.amplitude_dph = c.amplitude_dph;
+    tr.phase_rad = 0.9 * static_cast<double>(c.seed % 5);
+    const std::vector<model::RunData> r = {run("exp1", c.seed, clean), run("exp3", c.seed + 1, tr)};
+    auto d = diagnose(r);
+    REQUIRE(d);
+    ++total;
+    // Named on exp3 alone, within 10 % in period and 30 % in amplitude, and not adequate.
+    bool ok = !d->adequate && d->periodic.size() == 1;
+    for (const auto& p : d->periodic)
+      ok = ok && p.run == "exp3" && std::abs(p.period_s - c.period_s) <= 0.1 * c.period_s &&
+           std::abs(p.amplitude_dph - c.amplitude_dph) <= 0.3 * c.amplitude_dph;
+    if (ok) ++named;
+    else {
+      why += "period " + std::to_string(c.period_s) + " amplitude " + std::to_string(c.amplitude_dph) + " seed " + std::to_string(c.seed) + ":";
+      for (const auto& p : d->periodic) why += " [" + p.run + " " + std::to_string(p.period_s) + " s " + std::to_string(p.amplitude_dph) + " deg/h]";
+      why += " " + d->summary.substr(0, 200) + "\n";
+    }
+  }
+  // Clean pairs (no line) raise no periodic disturbance, on either coil: on the lumped coil
+  // the walk's lowest ordinates, taken for a line and removed, lower the walk the floor reads.
+  int alarms = 0;
+  for (std::uint64_t seed : {5500u, 5510u, 5540u, 5550u}) {
+    Truth c0 = clean;
+    c0.distributed = seed < 5540u;
+    const std::vector<model::RunData> r = {run("exp1", seed, c0), run("exp3", seed + 1, c0)};
+    auto d = diagnose(r);
+    REQUIRE(d);
+    if (!d->periodic.empty()) {
+      ++alarms;
+      why += "clean seed " + std::to_string(seed) + ": " + d->periodic.front().message + "\n";
+    }
+  }
+  INFO(why);
+  CHECK(named >= total - 1);
+  CHECK(alarms <= 1);
+}
+
+TEST_CASE("workbench: the periodic search raises no line from a rate random walk alone", "[nonthermal][sim]") {
+  // find_periodic on clean runs (lumped coil: the paper's model is exact, the residual is the
+  // gyro's noise) with the issue's slow noise, ARW 0.001 deg/sqrt(h) and RRW 0.1
+  // deg/h/sqrt(h). Its test is at p 1e-4 over every frequency searched: over 40 runs the
+  // chance of even one alarm is under 1 % when the floor is read right. A walk's lowest
+  // ordinate taken for a line and removed lowers the walk the floor reads, and then passes.
+  Truth clean;
+  clean.arw = 0.001;
+  clean.rrw = 0.1;
+  const model::RunData fit_run = run("exp1", 6000, clean);
+  auto m = model::fit(fit_run, *model::parse_terms("paper"));
+  REQUIRE(m);
+  int alarms = 0;
+  std::string why;
+  for (std::uint64_t seed = 6001; seed <= 6040; ++seed) {
+    const model::RunData r = run(seed % 2 ? "exp3" : "exp1", seed, clean);
+    if (auto p = wb::find_periodic(*m, r)) {
+      ++alarms;
+      why += "seed " + std::to_string(seed) + ": " + p->message.substr(0, 160) + "\n";
+    }
+  }
+  INFO(why);
+  CHECK(alarms <= 1);
+}
+
+TEST_CASE("workbench: an ageing ramp over a rate random walk is one trun term with the whole slope", "[nonthermal][sim]") {
+  // 0.5 deg/h per h on a gyro with ARW 0.001 deg/sqrt(h) and RRW 0.1 deg/h/sqrt(h), the fit
+  // run exp1 and exp3 held out: the walk moves each run's slope by about 0.1 deg/h per h. The
+  // run's clock has no second path: trun again at another delay is the same column a constant
+  // apart, and took part of the slope (the reported slope is trun's own coefficient).
+  Truth tr;
+  tr.arw = 0.001;
+  tr.rrw = 0.1;
+  tr.ageing_dph_per_h = 0.5;
+  int named = 0, total = 0;
+  std::string why;
+  for (std::uint64_t seed = 7000; seed < 7060; seed += 10) {
+    const std::vector<model::RunData> r = {run("exp1", seed, tr), run("exp3", seed + 1, tr)};
+    auto d = diagnose(r);
+    REQUIRE(d);
+    ++total;
+    int truns = 0;
+    for (const auto& st : d->steps) truns += st.expr == "trun" ? 1 : 0;
+    const auto& td = d->time_drift;
+    CHECK(truns <= 1);
+    const bool ok = truns == 1 && td.found && td.named && std::abs(td.slope_dph_per_h - 0.5) <= 3.0 * td.se_dph_per_h + 0.05;
+    if (ok) ++named;
+    else why += "seed " + std::to_string(seed) + ": trun steps " + std::to_string(truns) + ", " + d->summary.substr(0, 220) + "\n";
+  }
+  INFO(why);
+  CHECK(named >= total - 1);
+}
