@@ -235,12 +235,8 @@ RunCheck check_run(const Model& m, const RunData& run, bool held_out, const Diag
   c.acf_rms = rw->acf_rms;
   // The floor's slow noise (flicker, random walk) is nearly constant over the test's lags: it
   // lifts every autocorrelation by its share of the variance, up to its 99th percentile.
-  c.acf_allowed = o.min_acf_rms;
-  if (ver.floor.slow()) {
-    const FloorVariance fv = floor_variance(ver.floor, rw->n, 1);
-    const double rest = fv.total - fv.slow;
-    c.acf_allowed += fv.slow_q99 / (rest + fv.slow_q99);
-  }
+  // With the walk the holds cannot exclude counted in (noise.hpp's slow_acf_allowance).
+  c.acf_allowed = o.min_acf_rms + slow_acf_allowance(ver.floor, rw->n);
   if (!(c.ljung_box_p >= o.adequacy_alpha) && c.acf_rms >= c.acf_allowed)
     c.reasons.push_back("the prewhitened residual is not white (Ljung-Box over " + std::to_string(o.whiteness_lags) + " lags: Q " +
                         fmt(c.ljung_box_q, 1) + ", p " + (c.ljung_box_p < 1e-4 ? std::string("< 0.0001") : fmt(c.ljung_box_p, 4)) +

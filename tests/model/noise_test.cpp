@@ -2,7 +2,10 @@
 // generated noise of known white, flicker and random-walk strengths, and the rule falling back
 // to the AR noise exactly where no slow noise is seen.
 #include <catch2/catch.hpp>
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <numbers>
 #include <random>
 
@@ -62,11 +65,11 @@ std::vector<double> demeaned(const std::vector<double>& y) {
   return res;
 }
 
-NoiseFloor read_floor(const std::vector<double>& y, double sigma) {
+NoiseFloor read_floor(const std::vector<double>& y, double sigma, const NoiseFloorOptions& o = {}) {
   const RunData r = rest_run(y);
   const std::vector<double> res = demeaned(y), w(y.size(), 1.0);
   const std::vector<double> ar;  // white: AR(0)
-  return estimate_noise_floor(r, res, w, ar, sigma);
+  return estimate_noise_floor(r, res, w, ar, sigma, o);
 }
 
 }  // namespace
@@ -160,18 +163,20 @@ TEST_CASE("noise floor: a flat curve over a white level too small to read gives 
   // K = 0.2 lifts it by two thirds at 512 s. The fit used to read white 0.025 and a walk of 1.0-1.2 (the
   // curve 7 x the estimate at 512 s) in every seed, its flicker-only law rejected for a white
   // coefficient a hair below 0 and the walk's overshoot at the long taus weighted down by its
-  // own values. Now a walk may still be read for the short taus' shape where it does not
-  // overshoot the long ones: measured in 2 of these 20 seeds (0.38 and 0.48), 9 of 40 seeds
-  // 1-40 (0.31 to 0.54); allowed here in 3 of 20, below 0.6 (a partial fix: the issue asks
-  // for none). Flicker is read within a factor 1.6; the walk not excluded stays within 1
-  // deg/h/sqrt(h) (at most 0.34 measured: what 2.5 degrees of freedom at 512 s can exclude).
+  // own values. The dominated taus' check (the walk as read must fit the taus it dominates no
+  // worse than no walk) left a walk read for the short taus' shape in 9 of these 40 seeds (0.31
+  // to 0.54). Now a walk must also lower the deviance of the curve's last six octaves by 4 (a
+  // likelihood-ratio test there, the other laws refitted): measured 2026-11-29 in 4 of 40
+  // (0.38 to 0.54), allowed here in 4, below 0.6 (a partial fix: the issue asks for none).
+  // Flicker is read within a factor 1.6; the walk not excluded stays within 1 deg/h/sqrt(h).
   int walks = 0, flicker = 0;
-  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+  for (std::uint64_t seed = 1; seed <= 40; ++seed) {
     const NoiseFloor f = read_floor(noise(1800, 0.006, 0.05, 0.0, seed), 0.006);
     INFO("seed " << seed << ": " << f.note);
     if (f.walk_h > 0.0) {
       ++walks;
       CHECK(f.rrw_dph_per_sqrt_h < 0.6);
+      CHECK(f.walk_test_gain >= NoiseFloorOptions{}.walk_min_gain);
     }
     if (f.flicker_h > 0.0) {
       ++flicker;
@@ -180,8 +185,15 @@ TEST_CASE("noise floor: a flat curve over a white level too small to read gives 
     }
     CHECK(f.rrw_bound_dph_per_sqrt_h < 1.0);
   }
-  CHECK(walks <= 3);
-  CHECK(flicker >= 19);
+  CHECK(walks <= 4);
+  CHECK(flicker >= 38);
+  // The test itself: with no gain asked of the long taus (walk_min_gain 0) the same seeds read
+  // the 9 walks of before.
+  NoiseFloorOptions lax;
+  lax.walk_min_gain = 0.0;
+  int lax_walks = 0;
+  for (std::uint64_t seed = 1; seed <= 40; ++seed) lax_walks += read_floor(noise(1800, 0.006, 0.05, 0.0, seed), 0.006, lax).walk_h > 0.0;
+  CHECK(lax_walks > walks);
 }
 
 TEST_CASE("noise rule: slow noise widens the limits it may stray over, and the options name what is wrong", "[noise]") {
@@ -257,6 +269,15 @@ TEST_CASE("noise floor: a walk the short holds cannot exclude is bounded and all
   const double wv = k * k * static_cast<double>(run_s) / 21600.0;
   const double nv = with.noise_std_dph * with.noise_std_dph;
   CHECK(with.limit_factor == Approx(std::sqrt(with.limit_factor_seen * with.limit_factor_seen + wv / nv)).epsilon(0.05));
+  // The whiteness test's allowance counts the bound walk in too: more than the flicker alone
+  // allows, as much as a seen walk of the bound's size would.
+  NoiseFloor seen_only = with.floor, as_seen = with.floor;
+  seen_only.walk_bound_h = 0.0;
+  as_seen.walk_h = with.floor.walk_bound_h;
+  as_seen.walk_bound_h = 0.0;
+  CHECK(slow_acf_allowance(with.floor, run_s) > slow_acf_allowance(seen_only, run_s));
+  CHECK(slow_acf_allowance(with.floor, run_s) == Approx(slow_acf_allowance(as_seen, run_s)).epsilon(1e-12));
+  CHECK(slow_acf_allowance(NoiseFloor{}, run_s) == 0.0);
   rule.floor.walk_bound_chi2 = 0.0;
   const Yardstick without = yardstick(r, res, w, ar, 0.055, run_s, rule);
   CHECK_FALSE(without.walk_allowance);
@@ -270,6 +291,10 @@ TEST_CASE("noise floor: a walk the short holds cannot exclude is bounded and all
   rule.floor.walk_bound_chi2 = -1.0;
   REQUIRE_FALSE(rule.validate());
   CHECK(rule.validate().error().find("walk_bound_chi2") != std::string::npos);
+  rule.floor.walk_bound_chi2 = 4.0;
+  rule.floor.walk_min_gain = -1.0;
+  REQUIRE_FALSE(rule.validate());
+  CHECK(rule.validate().error().find("walk_min_gain") != std::string::npos);
 }
 
 namespace {
@@ -416,4 +441,75 @@ TEST_CASE("noise floor: the creep guard's Wald statistic keeps its level under f
     seen += read_creep_floor(y, false).creep_removed;
   }
   CHECK(seen >= 9);
+}
+
+// Hidden (run by hand: test_model "[.noise_explore]" -s): the floor's walk read over many
+// seeds of the classes the tests above sample. NOISE_EXPLORE_SEEDS (default 40) seeds 1..N of:
+// a flat curve (white 0.006, flicker B 0.05, no walk, 30 min), flicker at the issue's ARW
+// (white 0.06 and 0.6 deg/h, B 0.02 and 0.05, no walk, 30 min and 3 h), and a real walk of 0.1
+// deg/h/sqrt(h) at white 0.06 over 3 h, 1 h and 30 min; and NOISE_EXPLORE_CREEP (default 0)
+// seeds of the creep guard's level (as in the Wald test above).
+TEST_CASE("noise floor explore: walks read over many seeds", "[.noise_explore]") {
+  const char* env = std::getenv("NOISE_EXPLORE_SEEDS");
+  const int seeds = env ? std::atoi(env) : 40;
+  struct Case {
+    const char* name;
+    std::size_t n;
+    double white, b, k;
+  };
+  const Case cases[] = {{"flat 30 min (white 0.006, B 0.05)", 1800, 0.006, 0.05, 0.0},
+                        {"flicker 30 min (white 0.06, B 0.05)", 1800, 0.06, 0.05, 0.0},
+                        {"flicker 30 min (white 0.06, B 0.02)", 1800, 0.06, 0.02, 0.0},
+                        {"flicker 30 min (white 0.6, B 0.05)", 1800, 0.6, 0.05, 0.0},
+                        {"flicker 3 h (white 0.06, B 0.05)", 10800, 0.06, 0.05, 0.0},
+                        {"walk 3 h (white 0.06, K 0.1)", 10800, 0.06, 0.0, 0.1},
+                        {"walk 1 h (white 0.06, K 0.1)", 3600, 0.06, 0.0, 0.1},
+                        {"walk 30 min (white 0.06, K 0.1)", 1800, 0.06, 0.0, 0.1},
+                        {"walk+flicker 30 min (white 0.055, B 0.05, K 0.1)", 1800, 0.055, 0.05, 0.1},
+                        {"walk+flicker 3 h (white 0.055, B 0.05, K 0.1)", 10800, 0.055, 0.05, 0.1}};
+  NoiseFloorOptions o;
+  if (const char* g = std::getenv("NOISE_EXPLORE_GAIN")) o.walk_min_gain = std::atof(g);
+  std::printf("walk_min_gain %.1f\n", o.walk_min_gain);
+  for (const Case& c : cases) {
+    int walks = 0, flick = 0, covered = 0;
+    double kmin = 1e9, kmax = 0.0, bmax = 0.0;
+    std::vector<double> gains;
+    for (int s = 1; s <= seeds; ++s) {
+      const NoiseFloor f = read_floor(noise(c.n, c.white, c.b, c.k, static_cast<std::uint64_t>(s)), c.white, o);
+      if (f.walk_h > 0.0) {
+        ++walks;
+        kmin = std::min(kmin, f.rrw_dph_per_sqrt_h);
+        kmax = std::max(kmax, f.rrw_dph_per_sqrt_h);
+      }
+      flick += f.flicker_h > 0.0;
+      bmax = std::max(bmax, f.rrw_bound_dph_per_sqrt_h);
+      covered += f.walk_h > 0.0 || f.rrw_bound_dph_per_sqrt_h >= c.k;
+      gains.push_back(f.walk_test_gain);
+    }
+    std::sort(gains.begin(), gains.end());
+    std::printf("  walk test gains:");
+    for (double g : gains) std::printf(" %.1f", g);
+    std::printf("\n");
+    std::printf("%-50s walk read %2d/%d (K %.3f..%.3f), flicker %2d, walk seen or bound >= true %2d, bound up to %.3f\n", c.name, walks, seeds,
+                walks ? kmin : 0.0, kmax, flick, covered, bmax);
+  }
+  const char* cenv = std::getenv("NOISE_EXPLORE_CREEP");
+  const int creep_seeds = cenv ? std::atoi(cenv) : 0;
+  if (creep_seeds > 0) {
+    const std::size_t n = 4 * 4200;
+    int over95 = 0, over99 = 0, over999 = 0, dof_max = 0;
+    double mean_ratio = 0.0;
+    for (int s = 0; s < creep_seeds; ++s) {
+      const double white = s % 3 == 0 ? 0.6 : s % 3 == 1 ? 0.06 : 0.2, b = 0.02 + 0.01 * (s % 4), k = s % 2 == 0 ? 0.1 : 0.02;
+      const NoiseFloor f = read_creep_floor(noise(n, white, b, k, static_cast<std::uint64_t>(1000 + s)), false);
+      const double p = gamma_q(0.5 * static_cast<double>(f.creep_dof), 0.5 * f.creep_chi2);
+      over95 += p < 0.05;
+      over99 += p < 0.01;
+      over999 += p < 0.001;
+      dof_max = std::max(dof_max, static_cast<int>(f.creep_dof));
+      mean_ratio += f.creep_chi2 / static_cast<double>(f.creep_dof) / creep_seeds;
+    }
+    std::printf("creep guard, %d seeds: dof up to %d, mean W/dof %.3f, past 95 %% %d, 99 %% %d, 99.9 %% %d\n", creep_seeds, dof_max, mean_ratio, over95,
+                over99, over999);
+  }
 }

@@ -44,6 +44,11 @@ struct NoiseFloorOptions {
   // bounded; 4 is about a 2 sigma one-sided bound). The rule allows
   // for it in its limits (yardstick). docs/workbench.md "Real FOG noise: where the floor is blind".
   double walk_bound_chi2 = 4.0;
+  // A rate random walk is read only when, on the curve's last six octaves (tau >= the longest /
+  // 64, where a walk is identifiable), the laws refitted there with a free walk lower the
+  // deviance by at least this against the same laws without one (a likelihood-ratio test of one
+  // parameter held >= 0: 4 is about 2.3 % under no walk). docs/workbench.md "The noise floor".
+  double walk_min_gain = 4.0;
 };
 
 // One-sided power spectral density of the floor at 1 s samples, (deg/h)^2/Hz:
@@ -64,6 +69,9 @@ struct NoiseFloor {
   // K, deg/h/sqrt(h)). Not part of the floor's laws (psd, variances): the rule's limits only.
   double walk_bound_h = 0.0;
   double rrw_bound_dph_per_sqrt_h = 0.0;
+  // The walk's test on the curve's last six octaves (NoiseFloorOptions::walk_min_gain): how much
+  // a free walk lowered the deviance there (0: it came out 0, or no walk was asked of the holds).
+  double walk_test_gain = 0.0;
   std::size_t hold_samples = 0;         // settled hold samples the curve was read on
   std::size_t stretches = 0;
   double longest_tau_s = 0.0;           // the longest cluster time of the curve, s
@@ -116,6 +124,11 @@ double floor_psd(const NoiseFloor& f, double f_hz);
 
 // The Allan variance the floor gives at cluster time tau_s, (deg/h)^2.
 double floor_avar(const NoiseFloor& f, double tau_s);
+
+// What the whiteness test's RMS of the autocorrelation may exceed its white-noise allowance by
+// on a run of `samples` samples: the slow noise's 99th-percentile share of the run's variance
+// (flicker, random walk, and the walk the holds cannot exclude); 0 with no slow noise seen.
+double slow_acf_allowance(const NoiseFloor& f, std::size_t samples);
 
 // What a limit of the rule allows for beyond the floor as read, for its message: ", allowing
 // for a rate random walk up to K deg/h/sqrt(h) that the holds cannot exclude", or "".
