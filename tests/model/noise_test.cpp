@@ -165,9 +165,10 @@ TEST_CASE("noise floor: a flat curve over a white level too small to read gives 
   // coefficient a hair below 0 and the walk's overshoot at the long taus weighted down by its
   // own values. The dominated taus' check (the walk as read must fit the taus it dominates no
   // worse than no walk) left a walk read for the short taus' shape in 9 of these 40 seeds (0.31
-  // to 0.54). Now a walk must also lower the deviance of the curve's last six octaves by 4 (a
-  // likelihood-ratio test there, the other laws refitted): measured 2026-11-29 in 4 of 40
-  // (0.38 to 0.54), allowed here in 4, below 0.6 (a partial fix: the issue asks for none).
+  // to 0.54). Now a walk must also be borne out by the curve's last six octaves (the other laws
+  // refitted there): a free walk lowering their deviance by 4, or the walk as read fitting them
+  // no worse than none. Measured 2026-11-29 in 4 of 40 (0.38 to 0.54), allowed here in 4,
+  // below 0.6 (a partial fix: the issue asks for none).
   // Flicker is read within a factor 1.6; the walk not excluded stays within 1 deg/h/sqrt(h).
   int walks = 0, flicker = 0;
   for (std::uint64_t seed = 1; seed <= 40; ++seed) {
@@ -466,7 +467,9 @@ TEST_CASE("noise floor explore: walks read over many seeds", "[.noise_explore]")
                         {"walk 1 h (white 0.06, K 0.1)", 3600, 0.06, 0.0, 0.1},
                         {"walk 30 min (white 0.06, K 0.1)", 1800, 0.06, 0.0, 0.1},
                         {"walk+flicker 30 min (white 0.055, B 0.05, K 0.1)", 1800, 0.055, 0.05, 0.1},
-                        {"walk+flicker 3 h (white 0.055, B 0.05, K 0.1)", 10800, 0.055, 0.05, 0.1}};
+                        {"walk+flicker 3 h (white 0.055, B 0.05, K 0.1)", 10800, 0.055, 0.05, 0.1},
+                        {"walk 2.6 h under ARW 0.01 (white 0.6, K 0.1)", 9300, 0.6, 0.0, 0.1},
+                        {"walk 2.6 h under ARW 0.01 (white 0.6, K 0.05)", 9300, 0.6, 0.0, 0.05}};
   NoiseFloorOptions o;
   if (const char* g = std::getenv("NOISE_EXPLORE_GAIN")) o.walk_min_gain = std::atof(g);
   std::printf("walk_min_gain %.1f\n", o.walk_min_gain);

@@ -44,10 +44,11 @@ struct NoiseFloorOptions {
   // bounded; 4 is about a 2 sigma one-sided bound). The rule allows
   // for it in its limits (yardstick). docs/workbench.md "Real FOG noise: where the floor is blind".
   double walk_bound_chi2 = 4.0;
-  // A rate random walk is read only when, on the curve's last six octaves (tau >= the longest /
-  // 64, where a walk is identifiable), the laws refitted there with a free walk lower the
-  // deviance by at least this against the same laws without one (a likelihood-ratio test of one
-  // parameter held >= 0: 4 is about 2.3 % under no walk). docs/workbench.md "The noise floor".
+  // A rate random walk read off the whole curve is kept only when, on the curve's last six
+  // octaves (tau >= the longest / 64, where a walk is identifiable), the laws refitted there
+  // with a free walk lower the deviance by at least this against the same laws without one (a
+  // likelihood-ratio test of one parameter held >= 0: 4 is about 2.3 % under no walk), or the
+  // walk as read fits those taus no worse than no walk. docs/workbench.md "The noise floor".
   double walk_min_gain = 4.0;
 };
 
