@@ -24,6 +24,7 @@
 #include "fogbench/storage/runs.hpp"
 #include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
+#include "fogbench/storage/models.hpp"
 #include "cert.hpp"
 #include <openssl/opensslv.h>
 

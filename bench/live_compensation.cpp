@@ -17,6 +17,7 @@
 #include "fogbench/daemon/live_compensation.hpp"
 #include "fogbench/daemon/station.hpp"
 #include "fogbench/model/json.hpp"
+#include "fogbench/storage/models.hpp"
 
 #include <spdlog/spdlog.h>
 

@@ -17,6 +17,7 @@
 #include <thread>
 
 #include "daemon_bench.hpp"
+#include "fogbench/storage/outbox.hpp"
 #include "fogbench/storage/runs.hpp"
 #include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"

@@ -11,6 +11,7 @@
 #include "fogbench/model/model.hpp"
 #include "fogbench/model/terms.hpp"
 #include "fogbench/model/workbench.hpp"
+#include "fogbench/storage/models.hpp"
 #include "fogbench/storage/run_data.hpp"
 
 namespace fogbench::daemon::analysis {

@@ -13,6 +13,7 @@
 #include "fogbench/profiles/profile.hpp"
 #include "fogbench/protocol/build_info.hpp"
 #include "fogbench/signing/certificate.hpp"
+#include "fogbench/storage/models.hpp"
 #include "fogbench/storage/run_data.hpp"
 #include "verdict.hpp"
 

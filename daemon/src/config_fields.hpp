@@ -9,12 +9,12 @@
 
 #include <nlohmann/json.hpp>
 
+#include "fogbench/drivers/known_fields.hpp"
+
 namespace fogbench::daemon::config_fields {
 
 // `path.key`, or `key` at the top level.
-inline std::string join(const std::string& path, const std::string& key) {
-  return path.empty() ? key : path + "." + key;
-}
+inline std::string join(const std::string& path, const std::string& key) { return drivers::field_path(path, key); }
 
 // The keys each section of the file may hold: the parser refuses any other, and the reload's
 // table (config_reload.cpp) is tested to classify every one of them. The drivers' sections are
@@ -49,15 +49,12 @@ inline constexpr Section kSections[] = {
     {"chamber_limits", kChamberLimitsKeys}, {"analysis", kAnalysisKeys}, {"link_loss", kLinkLossKeys},
     {"tracking", kTrackingKeys}, {"web", kWebKeys},           {"plant", kPlantKeys}};
 
-// Unknown keys are refused so that a typo is an error, not a silently ignored setting:
-// "socket.tcp.tokn: unknown field".
+// Unknown keys are refused so that a typo is an error, not a silently ignored setting, by the
+// check every file of fogbench shares (drivers/known_fields.hpp):
+// "socket.tcp.tokn: unknown field (known: port, address, token, token_file, allow_remote)".
 inline std::expected<void, std::string> only_keys(const nlohmann::json& obj, const std::string& path,
                                                   std::span<const std::string_view> allowed) {
-  for (const auto& [key, value] : obj.items()) {
-    bool known = false;
-    for (std::string_view a : allowed) known = known || a == key;
-    if (!known) return std::unexpected(join(path, key) + ": unknown field");
-  }
+  if (auto refusal = drivers::unknown_field(obj, path, allowed)) return std::unexpected(std::move(*refusal));
   return {};
 }
 

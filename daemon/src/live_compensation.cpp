@@ -7,6 +7,7 @@
 
 #include "fogbench/model/json.hpp"
 #include "fogbench/model/run.hpp"
+#include "fogbench/storage/models.hpp"
 
 namespace fogbench::daemon {
 

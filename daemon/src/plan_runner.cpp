@@ -14,6 +14,8 @@
 #include "fogbench/model/model.hpp"
 #include "fogbench/model/scale_factor.hpp"
 #include "fogbench/profiles/profile.hpp"
+#include "fogbench/storage/models.hpp"
+#include "fogbench/storage/plans.hpp"
 #include "verdict.hpp"
 
 namespace fogbench::daemon {

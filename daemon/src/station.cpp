@@ -8,6 +8,7 @@
 #include "fogbench/daemon/station.hpp"
 
 #include "fogbench/daemon/sample_rows.hpp"
+#include "fogbench/storage/models.hpp"
 #include "fogbench/storage/run_data.hpp"
 
 #include <algorithm>

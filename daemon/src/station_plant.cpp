@@ -7,6 +7,7 @@
 
 #include "fogbench/daemon/station.hpp"
 #include "fogbench/plant/plant.hpp"
+#include "fogbench/storage/outbox.hpp"
 
 namespace fogbench::daemon {
 

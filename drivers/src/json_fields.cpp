@@ -3,6 +3,41 @@
 
 #include <cmath>
 
+#include "fogbench/drivers/known_fields.hpp"
+
+namespace fogbench::drivers {
+
+std::string field_path(std::string_view path, std::string_view key) {
+  std::string out(path);
+  if (!out.empty()) out += '.';
+  out += key;
+  return out;
+}
+
+std::optional<std::string> unknown_field(const nlohmann::json& object, std::string_view path,
+                                         std::span<const std::string_view> known) {
+  if (!object.is_object()) return std::nullopt;
+  for (auto it = object.begin(); it != object.end(); ++it) {
+    bool ok = false;
+    for (auto k : known) ok = ok || it.key() == k;
+    if (ok) continue;
+    std::string list;
+    for (auto k : known) {
+      if (!list.empty()) list += ", ";
+      list += k;
+    }
+    return field_path(path, it.key()) + ": unknown field (known: " + list + ")";
+  }
+  return std::nullopt;
+}
+
+std::optional<std::string> unknown_field(const nlohmann::json& object, std::string_view path,
+                                         std::initializer_list<std::string_view> known) {
+  return unknown_field(object, path, std::span<const std::string_view>(known.begin(), known.size()));
+}
+
+}  // namespace fogbench::drivers
+
 namespace fogbench::drivers::detail {
 namespace {
 
@@ -48,13 +83,7 @@ Result<std::int64_t> as_int(const json& v, const std::string& path, std::int64_t
 
 }  // namespace
 
-std::string join_path(const std::string& base, std::string_view key) {
-  if (base.empty()) return std::string(key);
-  std::string out = base;
-  out += '.';
-  out += key;
-  return out;
-}
+std::string join_path(const std::string& base, std::string_view key) { return field_path(base, key); }
 
 std::string index_path(const std::string& base, std::size_t index) {
   return base + "[" + std::to_string(index) + "]";
@@ -78,18 +107,7 @@ Result<void> expect_known_keys(const json& object, const std::string& path,
 
 Result<void> expect_known_keys(const json& object, const std::string& path,
                                std::span<const std::string_view> known) {
-  for (auto it = object.begin(); it != object.end(); ++it) {
-    bool ok = false;
-    for (auto k : known) ok = ok || it.key() == k;
-    if (!ok) {
-      std::string list;
-      for (auto k : known) {
-        if (!list.empty()) list += ", ";
-        list += k;
-      }
-      return config_error(join_path(path, it.key()), "unknown field (known: " + list + ")");
-    }
-  }
+  if (auto refusal = unknown_field(object, path, known)) return fail(ErrorCode::config, std::move(*refusal));
   return {};
 }
 

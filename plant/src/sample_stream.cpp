@@ -2,6 +2,7 @@
 #include "sample_stream.hpp"
 
 #include "copy_binary.hpp"
+#include "fogbench/storage/samples.hpp"
 
 namespace fogbench::plant::detail {
 

@@ -19,6 +19,7 @@
 #include <set>
 
 #include "faults.hpp"
+#include "fogbench/drivers/known_fields.hpp"
 
 namespace fogbench::mock {
 
@@ -32,14 +33,16 @@ std::string trim(std::string s) {
   return b == std::string::npos ? std::string() : s.substr(b, e - b + 1);
 }
 
-std::expected<void, std::string> known_keys(const json& j, const std::string& path, const std::set<std::string>& known) {
-  if (!j.is_object()) return std::unexpected(path + ": expected an object");
-  for (const auto& [key, value] : j.items()) {
-    if (!known.contains(key)) {
-      std::string list;
-      for (const auto& k : known) list += (list.empty() ? "" : ", ") + k;
-      return std::unexpected(path + "." + key + ": unknown field (known: " + list + ")");
-    }
+// An object with only the fields in `known`, listed in alphabetical order when one is not: the
+// check every file of fogbench shares (drivers/known_fields.hpp). `path` starts with the --config
+// file's name ("bench.json: units[0].coil"); `file` is set for the file's top level instead, said
+// before the field ("bench.json: colour: unknown field ...").
+std::expected<void, std::string> known_keys(const json& j, const std::string& path, const std::set<std::string_view>& known,
+                                            const std::string& file = {}) {
+  if (!j.is_object()) return std::unexpected((file.empty() ? path : file) + ": expected an object");
+  const std::vector<std::string_view> sorted(known.begin(), known.end());
+  if (auto refusal = drivers::unknown_field(j, path, sorted)) {
+    return std::unexpected(file.empty() ? *refusal : file + ": " + *refusal);
   }
   return {};
 }
@@ -259,7 +262,7 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
     } catch (const json::exception& e) {
       return std::unexpected(o.config_file + ": " + e.what());
     }
-    if (auto ok = known_keys(file, o.config_file, {"chamber", "units"}); !ok) return std::unexpected(ok.error());
+    if (auto ok = known_keys(file, "", {"chamber", "units"}, o.config_file); !ok) return std::unexpected(ok.error());
     if (file.contains("chamber")) {
       const auto& c = file["chamber"];
       const auto cp = o.config_file + ": chamber";

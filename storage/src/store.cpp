@@ -1,5 +1,6 @@
 // The Store API: opening, and every read and write of runs, samples, events, models and
 // verifications, over the cached statements of sqlite.hpp.
+#include "fogbench/storage/runs.hpp"
 #include "fogbench/storage/store.hpp"
 
 #include <algorithm>
@@ -441,6 +442,8 @@ StoreResult<std::vector<RunUnit>> load_units(Database& db, std::int64_t run_id) 
 }
 
 }  // namespace
+
+StoreResult<std::vector<RunRecord>> Store::list_runs() { return list_runs(RunFilter{}); }
 
 StoreResult<std::vector<RunRecord>> Store::list_runs(const RunFilter& f) {
   assert(db_);

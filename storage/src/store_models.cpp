@@ -4,6 +4,7 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
+#include "fogbench/storage/models.hpp"
 #include "fogbench/storage/store.hpp"
 #include "store_rows.hpp"
 

@@ -2,6 +2,7 @@
 // PostgreSQL by fogbench::plant, kept here so that an outage of the network or of the plant
 // store loses nothing. The other rooms: store.cpp (opening, runs), store_samples.cpp,
 // store_models.cpp.
+#include "fogbench/storage/outbox.hpp"
 #include "fogbench/storage/store.hpp"
 #include "store_rows.hpp"
 

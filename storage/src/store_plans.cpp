@@ -2,6 +2,7 @@
 // docs/plans.md). The other rooms: store.cpp (runs), store_samples.cpp, store_models.cpp.
 #include <nlohmann/json.hpp>
 
+#include "fogbench/storage/plans.hpp"
 #include "fogbench/storage/store.hpp"
 #include "store_rows.hpp"
 

@@ -11,6 +11,8 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
+#include "fogbench/storage/prune.hpp"
+#include "fogbench/storage/runs.hpp"
 #include "fogbench/storage/store.hpp"
 #include "store_rows.hpp"
 

@@ -12,7 +12,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "fogbench/storage/store.hpp"
+#include "fogbench/storage/errors.hpp"
+#include "fogbench/storage/models.hpp"
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "schema.hpp"
 #include "format_number.hpp"
 #include "sqlite.hpp"

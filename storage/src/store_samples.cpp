@@ -5,6 +5,9 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
+#include "fogbench/storage/identity.hpp"
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
 #include "store_identity.hpp"
 #include "store_rows.hpp"
@@ -85,6 +88,10 @@ StoreResult<std::vector<SampleRow>> Store::get_samples(std::int64_t run_id, int 
 }
 
 // ---------------------------------------------------------------- RunData
+
+StoreResult<model::RunData> Store::export_run(std::int64_t run_id, int unit_index) {
+  return export_run(run_id, unit_index, ExportOptions{});
+}
 
 StoreResult<model::RunData> Store::export_run(std::int64_t run_id, int unit_index,
                                               const ExportOptions& options) {

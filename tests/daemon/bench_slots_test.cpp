@@ -6,6 +6,7 @@
 #include "fogbench/daemon/bench_slots.hpp"
 #include "fogbench/daemon/handler.hpp"
 #include "fogbench/daemon/plan_runner.hpp"
+#include "fogbench/storage/plans.hpp"
 
 using namespace fogbench;
 using namespace fogbench::daemon;

@@ -5,6 +5,7 @@
 
 #include "fogbench/daemon/certificate.hpp"
 #include "fogbench/daemon/handler.hpp"
+#include "fogbench/storage/models.hpp"
 
 using namespace fogbench;
 using namespace fogbench::daemon;

@@ -8,6 +8,7 @@
 #include "fogbench/daemon/handler.hpp"
 #include "fogbench/model/sha256.hpp"
 #include "fogbench/signing/certificate.hpp"
+#include "fogbench/storage/models.hpp"
 
 using namespace fogbench;
 using namespace fogbench::daemon;

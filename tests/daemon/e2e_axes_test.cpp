@@ -7,6 +7,8 @@
 #include <cmath>
 
 #include "fogbench/storage/csv.hpp"
+#include "fogbench/storage/runs.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
 
 using namespace fogbench;

@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 
 #include "fogbench/daemon/config_reload.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
 
 using namespace fogbench;

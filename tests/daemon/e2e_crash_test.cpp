@@ -9,6 +9,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
 
 using namespace fogbench;

@@ -10,6 +10,7 @@
 
 #include "fogbench/storage/csv.hpp"
 #include "fogbench/storage/run_data.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
 
 using namespace fogbench::daemon::test;

@@ -7,6 +7,8 @@
 #include "live_bench.hpp"
 
 #include "../plant/pg_server.hpp"
+#include "fogbench/storage/identity.hpp"
+#include "fogbench/storage/models.hpp"
 #include "fogbench/storage/store.hpp"
 
 using namespace fogbench;

@@ -8,6 +8,7 @@
 #include <sqlite3.h>
 
 #include "fogbench/model/run.hpp"
+#include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"
 
 using namespace fogbench;

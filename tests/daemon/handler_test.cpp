@@ -3,6 +3,7 @@
 
 #include "fogbench/protocol/framing.hpp"
 #include "fogbench/daemon/handler.hpp"
+#include "fogbench/storage/models.hpp"
 
 using namespace fogbench;
 using namespace fogbench::daemon;

@@ -10,6 +10,7 @@
 #include "fogbench/daemon/live_compensation.hpp"
 #include "fogbench/model/firmware.hpp"
 #include "fogbench/model/json.hpp"
+#include "fogbench/storage/models.hpp"
 
 using namespace fogbench;
 using namespace fogbench::daemon;

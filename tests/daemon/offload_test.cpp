@@ -8,6 +8,7 @@
 
 #include "fogbench/daemon/handler.hpp"
 #include "fogbench/daemon/offload.hpp"
+#include "fogbench/storage/models.hpp"
 
 using namespace fogbench;
 using namespace fogbench::daemon;

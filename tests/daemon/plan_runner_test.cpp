@@ -13,6 +13,7 @@
 #include "fogbench/daemon/plan_runner.hpp"
 #include "fogbench/daemon/run_control.hpp"
 #include "fogbench/profiles/profile.hpp"
+#include "fogbench/storage/plans.hpp"
 
 using namespace fogbench;
 using namespace fogbench::daemon;

@@ -9,6 +9,7 @@
 
 #include "../../daemon/src/plant_link.hpp"
 #include "../plant/pg_server.hpp"
+#include "fogbench/storage/outbox.hpp"
 
 using namespace fogbench;
 using namespace fogbench::daemon;

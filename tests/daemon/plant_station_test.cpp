@@ -3,6 +3,8 @@
 #include "fixture.hpp"
 
 #include "fogbench/daemon/handler.hpp"
+#include "fogbench/storage/models.hpp"
+#include "fogbench/storage/outbox.hpp"
 
 using namespace fogbench;
 using namespace fogbench::daemon;

@@ -10,6 +10,7 @@
 #include <sqlite3.h>
 
 #include "fogbench/daemon/sample_writer.hpp"
+#include "fogbench/storage/models.hpp"
 
 using namespace fogbench;
 using namespace fogbench::daemon;

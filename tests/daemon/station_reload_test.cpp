@@ -5,6 +5,7 @@
 #include "fixture.hpp"
 
 #include "fogbench/model/json.hpp"
+#include "fogbench/storage/models.hpp"
 
 using namespace fogbench;
 using namespace fogbench::daemon;

@@ -4,6 +4,7 @@
 
 #include "fogbench/model/firmware.hpp"
 #include "fogbench/model/json.hpp"
+#include "fogbench/storage/models.hpp"
 
 using namespace fogbench;
 using namespace fogbench::daemon;

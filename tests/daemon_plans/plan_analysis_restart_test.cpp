@@ -7,6 +7,7 @@
 
 #include <fstream>
 
+#include "fogbench/storage/plans.hpp"
 #include "fogbench/storage/runs.hpp"
 #include "fogbench/storage/store.hpp"
 

@@ -3,6 +3,7 @@
 // profiles written into the bench's profile directory. Every wait has a generous deadline.
 #include "../daemon/live_bench.hpp"
 #include "plan_wait.hpp"
+#include "fogbench/storage/plans.hpp"
 
 #include <fstream>
 #include <map>

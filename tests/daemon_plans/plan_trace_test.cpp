@@ -6,6 +6,7 @@
 // fogbench-sim as processes (K = 100) with short profiles; fogctl for its flags.
 #include "../daemon/live_bench.hpp"
 #include "plan_wait.hpp"
+#include "fogbench/storage/plans.hpp"
 
 #include <pwd.h>
 #include <sys/wait.h>

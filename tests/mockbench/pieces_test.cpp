@@ -280,6 +280,12 @@ TEST_CASE("options: a --config file sets per-unit parameters and refuses unknown
         file + ": units[0].coil.wal_tau_s: unknown field (known: absolute_dph_per_c, contact_tau_s, core_tau_s, film_tau_s, "
                "hub_capacity, inner_radius_mm, layers, model, mount_tau_s, outer_radius_mm, shupe_dph_per_c_per_min, "
                "stress_dph_per_c, t1_at, t2_at, t_noise_c, wall_tau_s, winding_tau_s)");
+  // At the file's top level the file is named before the field, not joined to it as a path.
+  write({{"chamber", {{"air_tau_s", 90}}}, {"colour", "blue"}});
+  CHECK(make_bench_config(o).error() == file + ": colour: unknown field (known: chamber, units)");
+  write({{"chamber", {{"air_tau_s", 90}, {"air_tau", 60}}}});
+  CHECK(make_bench_config(o).error() ==
+        file + ": chamber.air_tau: unknown field (known: air_noise_c, air_tau_s, max_rate_c_per_min)");
   // The distributed coil's parameters, its thermistors' places and the model per unit.
   write({{"units", {{{"coil", {{"model", "lumped"}, {"layers", 10}, {"t1_at", "middle"}, {"winding_tau_s", 150}}}}}}});
   auto coil = make_bench_config(o);
@@ -346,7 +352,7 @@ TEST_CASE("power faults: power_off for a while or until switched off, power_cycl
   CHECK(parse_fault_command({{"name", "power_cycle"}, {"off_s", 0}}, serials).error() ==
         "power_cycle: off_s: expected 1e-09..1000000000 (got 0)");
   CHECK(parse_fault_command({{"name", "power_off"}, {"ms", 5}}, serials).error() ==
-        "power_off: unknown field 'ms' (known: duration_s, on, unit)");
+        "power_off.ms: unknown field (known: duration_s, on, unit)");
 }
 
 TEST_CASE("mock bench options --axes: 1 or 3, and not with a serial gyro", "[three_axis]") {
@@ -431,7 +437,7 @@ TEST_CASE("fault silence_axis: one axis of a unit, by name or index, switched on
   CHECK(parse_fault_command({{"name", "silence_axis"}, {"axis", 3}}, serials).error() ==
         "silence_axis: axis: expected x, y, z or 0..2 (got 3)");
   CHECK(parse_fault_command({{"name", "silence_axis"}, {"axis", "x"}, {"fraction", 1}}, serials).error() ==
-        "silence_axis: unknown field 'fraction' (known: axis, on, unit)");
+        "silence_axis.fraction: unknown field (known: axis, on, unit)");
 }
 
 TEST_CASE("the served rate unit's int32 counts carry the served table's largest rate, and clip only beyond it") {

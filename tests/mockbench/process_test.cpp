@@ -82,7 +82,7 @@ TEST_CASE("the control socket answers status and refuses bad requests with a rea
   refused({{"cmd", "fault"}, {"name", "stall_modbus"}}, "stall_modbus: ms: missing");
   refused({{"cmd", "fault"}, {"name", "lose_frames"}, {"fraction", 2}}, "fraction: expected 0..1");
   refused({{"cmd", "fault"}, {"name", "open_thermistor"}, {"unit", 9}}, "unit: expected an index 0..1");
-  refused({{"cmd", "fault"}, {"name", "alarm"}, {"ms", 3}}, "unknown field 'ms'");
+  refused({{"cmd", "fault"}, {"name", "alarm"}, {"ms", 3}}, "alarm.ms: unknown field (known: on)");
   refused("just a string", "expected an object");
 }
 

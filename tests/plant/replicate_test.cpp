@@ -12,6 +12,7 @@
 #include "fogbench/plant/plant.hpp"
 #include "fogbench/plant/verdicts.hpp"
 #include "fogbench/signing/certificate.hpp"
+#include "fogbench/storage/outbox.hpp"
 #include "pg_server.hpp"
 
 using namespace fogbench;

@@ -2,6 +2,7 @@
 #include <catch2/catch.hpp>
 
 #include "fogbench/storage/errors.hpp"
+#include "fogbench/storage/outbox.hpp"
 #include "fogbench/storage/runs.hpp"
 #include "fogbench/storage/store.hpp"
 

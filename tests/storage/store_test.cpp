@@ -16,6 +16,8 @@
 
 #include "fogbench/storage/csv.hpp"
 #include "fogbench/storage/errors.hpp"
+#include "fogbench/storage/identity.hpp"
+#include "fogbench/storage/models.hpp"
 #include "fogbench/storage/runs.hpp"
 #include "fogbench/storage/samples.hpp"
 #include "fogbench/storage/store.hpp"

@@ -123,6 +123,7 @@ TEST_CASE("config: listen parsed, loopback by default, other addresses only with
   CHECK(daemon::parse_web_config(json{{"listen", "localhost:8080"}}).error() == "web.listen: not an IP address: \"localhost\"");
   CHECK(daemon::parse_web_config(json{{"listen", "127.0.0.1:99999"}}).error().find("web.listen: expected a port") == 0);
   CHECK(daemon::parse_web_config(json{{"listen", "127.0.0.1"}}).error().find("web.listen: expected \"address:port\"") == 0);
-  CHECK(daemon::parse_web_config(json{{"port", 80}}).error() == "web.port: unknown field");
+  CHECK(daemon::parse_web_config(json{{"port", 80}}).error() ==
+        "web.port: unknown field (known: listen, allow_remote, enabled, token_file, hosts)");
   CHECK(daemon::parse_web_config(json::object()).error().find("web.listen: missing") == 0);
 }

@@ -1,7 +1,8 @@
 // The SQLite store of a fogbench station: runs, their units, samples and audit events, fitted
 // models and verifications: the Store class. Each table's records have their own header
 // (runs.hpp, samples.hpp, models.hpp, plans.hpp, outbox.hpp, prune.hpp, identity.hpp, verdict.hpp;
-// errors.hpp for StoreResult). Schema, migrations and durability are described in docs/storage.md.
+// errors.hpp for StoreResult), which this one only declares: a file includes the headers of the
+// records it uses beside this one. Schema, migrations and durability are described in docs/storage.md.
 //
 // Thread safety: a Store is one SQLite connection opened without SQLite's mutexes; use it
 // from one thread at a time (one Store per thread is fine: several Stores, in one or several
@@ -19,18 +20,43 @@
 #include <string_view>
 #include <vector>
 
-#include "fogbench/model/run.hpp"
 #include "fogbench/storage/errors.hpp"
-#include "fogbench/storage/identity.hpp"
-#include "fogbench/storage/models.hpp"
-#include "fogbench/storage/outbox.hpp"
-#include "fogbench/storage/plans.hpp"
-#include "fogbench/storage/prune.hpp"
-#include "fogbench/storage/runs.hpp"
-#include "fogbench/storage/samples.hpp"
-#include "fogbench/storage/verdict.hpp"
+
+namespace fogbench::model {
+struct RunData;  // model/run.hpp
+}
 
 namespace fogbench::storage {
+
+// The records the Store's calls take and return, each defined in its table's header. A call's
+// declaration needs no more than their names; a caller that makes or reads one includes its header.
+enum class RunState;  // runs.hpp
+enum class EventKind;
+struct NewRun;
+struct RunRecord;
+struct RunDetail;
+struct RunFilter;
+struct SampleRow;  // samples.hpp
+struct ExportOptions;
+struct ImportOptions;
+struct NewModel;  // models.hpp
+struct ModelRef;
+struct ModelRecord;
+struct NewVerification;
+struct VerificationRecord;
+struct RunIdentity;  // identity.hpp
+struct NewCertificate;
+struct CertificateRecord;
+struct NewVerdict;  // verdict.hpp
+struct VerdictRecord;
+struct NewPlan;  // plans.hpp
+struct PlanRecord;
+struct PlanEvent;
+struct OutboxEntry;  // outbox.hpp
+struct OutboxStatus;
+struct PruneOptions;  // prune.hpp
+struct PruneReport;
+struct VacuumReport;
 
 namespace detail {
 class Database;  // the connection and its statement cache (storage/src/sqlite.hpp)
@@ -93,7 +119,8 @@ class Store {
   StoreResult<std::int64_t> add_event(std::int64_t run_id, EventKind kind,
                                       std::string_view detail_json,
                                       std::optional<double> t_s = std::nullopt);
-  StoreResult<std::vector<RunRecord>> list_runs(const RunFilter& filter = {});
+  StoreResult<std::vector<RunRecord>> list_runs(const RunFilter& filter);
+  StoreResult<std::vector<RunRecord>> list_runs();  // every run: a default RunFilter
   StoreResult<RunDetail> get_run(std::int64_t run_id);
   // Runs left in settling or running (by a crash) become interrupted, with `reason` and a
   // 'state' event at the last sample's t_s. Returns their ids, oldest first.
@@ -116,8 +143,8 @@ class Store {
   // optional column is filled when any exported sample has it (gaps: NaN, unknown, step -1,
   // flags 0) and left empty otherwise, so import_run -> export_run gives back the columns
   // imported. No samples to export is a not_found error.
-  StoreResult<model::RunData> export_run(std::int64_t run_id, int unit_index,
-                                         const ExportOptions& options = {});
+  StoreResult<model::RunData> export_run(std::int64_t run_id, int unit_index, const ExportOptions& options);
+  StoreResult<model::RunData> export_run(std::int64_t run_id, int unit_index);  // default ExportOptions
   // Stores a run from a CSV (or any RunData) as a completed run with one unit (index 0), in one
   // transaction. Returns the new run's id.
   StoreResult<std::int64_t> import_run(const model::RunData& data, const ImportOptions& options);
