@@ -1,5 +1,8 @@
 // The qualification-plan runner (plan_runner.hpp, docs/plans.md): checks, the step machine run
 // after each tick, the judgement of measurements against limits, and the queue.
+// Past 800 lines since the scale factor's three limits (2026-11-29): the seam to cut first is the
+// measurements' own figures (allan_figures, sf_figures, peak_excursion_dph: pure functions of a
+// run and a model) into a plan_measurements.cpp of their own, leaving the step machine here.
 #include "fogbench/daemon/plan_runner.hpp"
 
 #include <spdlog/spdlog.h>
