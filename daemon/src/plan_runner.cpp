@@ -1,8 +1,7 @@
 // The qualification-plan runner (plan_runner.hpp, docs/plans.md): checks, the step machine run
-// after each tick, the judgement of measurements against limits, and the queue.
-// Past 800 lines since the scale factor's three limits (2026-11-29): the seam to cut first is the
-// measurements' own figures (allan_figures, sf_figures, peak_excursion_dph: pure functions of a
-// run and a model) into a plan_measurements.cpp of their own, leaving the step machine here.
+// after each tick, the judgement of measurements against limits, and the queue. What a limit
+// measures on a run (the Allan figures, the scale factor's, the peak excursion) is computed in
+// plan_figures.cpp; this file decides with them.
 #include "fogbench/daemon/plan_runner.hpp"
 
 #include <spdlog/spdlog.h>
@@ -11,14 +10,13 @@
 #include <cmath>
 #include <cstdio>
 
-#include "fogbench/model/allan.hpp"
 #include "fogbench/model/firmware.hpp"
 #include "fogbench/model/json.hpp"
 #include "fogbench/model/model.hpp"
-#include "fogbench/model/scale_factor.hpp"
 #include "fogbench/profiles/profile.hpp"
 #include "fogbench/storage/models.hpp"
 #include "fogbench/storage/plans.hpp"
+#include "plan_figures.hpp"
 #include "verdict.hpp"
 
 namespace fogbench::daemon {
@@ -46,100 +44,6 @@ json* find_unit(json& progress, const std::string& serial) {
   for (auto& u : progress["units"])
     if (u["serial"] == serial) return &u;
   return nullptr;
-}
-
-// Four significant digits, for the reasons people read ("1.863"); the measurements keep the value.
-std::string short_number(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.4g", v);
-  return buf;
-}
-
-// The compensated output's largest distance from its mean, deg/h (flagged samples left out).
-std::optional<double> peak_excursion_dph(const model::Model& m, const model::RunData& run) {
-  auto pred = model::predict(m, run);
-  if (!pred) return std::nullopt;
-  std::vector<double> comp;
-  for (std::size_t i = 0; i < run.gyro_dph.size() && i < pred->size(); ++i)
-    if (!run.flagged(i) && std::isfinite(run.gyro_dph[i]) && std::isfinite((*pred)[i]))
-      comp.push_back(run.gyro_dph[i] - (*pred)[i]);
-  if (comp.empty()) return std::nullopt;
-  double mean = 0.0;
-  for (double c : comp) mean += c;
-  mean /= static_cast<double>(comp.size());
-  double peak = 0.0;
-  for (double c : comp) peak = std::max(peak, std::abs(c - mean));
-  return peak;
-}
-
-// The Allan figures of the unit's raw output (1 Hz), or why not.
-struct AllanFigures {
-  std::optional<double> arw, bias_instability;
-  std::string note;
-};
-AllanFigures allan_figures(const model::RunData& run) {
-  AllanFigures f;
-  std::vector<double> rate;
-  for (std::size_t i = 0; i < run.gyro_dph.size(); ++i)
-    if (!run.flagged(i) && std::isfinite(run.gyro_dph[i])) rate.push_back(run.gyro_dph[i]);
-  auto curve = model::allan::overlapping_adev(rate, 1.0, model::allan::octave_cluster_sizes(rate.size()));
-  if (!curve) {
-    f.note = curve.error();
-    return f;
-  }
-  auto terms = model::allan::noise_terms(*curve);
-  if (terms.arw_deg_per_sqrt_h) f.arw = terms.arw_deg_per_sqrt_h->value;
-  if (terms.bias_instability_dph) f.bias_instability = terms.bias_instability_dph->value;
-  f.note = terms.arw_note.empty() ? terms.bias_instability_note : terms.arw_note;
-  return f;
-}
-
-// The scale factor's measurements of one unit's run (docs/plans.md), from one model::sf::fit
-// over the run's turning plateaus: |tc|, ppm/degC, with the signed value and its 1 sigma in the
-// note; the worst plateau's nonlinearity, ppm, and its worst |asymmetry|, ppm, each with the
-// plateau in the note. No value and the reason when the fit fails (no rate data, too few
-// plateaus, a plateau the fit refuses) or tc is not identified.
-struct SfFigures {
-  std::optional<double> abs_tc_ppm_per_c, nonlinearity_ppm, abs_asymmetry_ppm;
-  std::string tc_note, nonlinearity_note, asymmetry_note;
-};
-SfFigures sf_figures(const model::RunData& run) {
-  SfFigures out;
-  const auto fail_all = [&out](const std::string& why) {
-    out.tc_note = out.nonlinearity_note = out.asymmetry_note = why;
-    return out;
-  };
-  auto rec = model::sf::rate_record(run);
-  if (!rec) return fail_all("no scale-factor fit: " + rec.error());
-  auto f = model::sf::fit(*rec, {});
-  if (!f) return fail_all("the scale-factor fit failed: " + f.error());
-  const std::string over = " over " + std::to_string(f->plateaus.size()) + " plateaus";
-  if (!f->tc_ppm_per_c.value) {
-    out.tc_note = "the temperature sensitivity is not identified: " + f->tc_ppm_per_c.not_identified;
-  } else {
-    out.abs_tc_ppm_per_c = std::abs(*f->tc_ppm_per_c.value);
-    out.tc_note = "tc = " + short_number(*f->tc_ppm_per_c.value) + " +- " + short_number(f->tc_ppm_per_c.se) +
-                  " ppm/degC (1 sigma)" + over;
-  }
-  const model::sf::Plateau* worst_nl = nullptr;
-  const model::sf::Plateau* worst_asym = nullptr;
-  for (const auto& p : f->plateaus) {
-    if (!worst_nl || p.nonlinearity_ppm > worst_nl->nonlinearity_ppm) worst_nl = &p;
-    if (!worst_asym || std::abs(p.asymmetry_ppm) > std::abs(worst_asym->asymmetry_ppm)) worst_asym = &p;
-  }
-  const auto at = [](const model::sf::Plateau& p) {
-    return "plateau " + std::to_string(p.id) + " (coil " + short_number(p.coil_c) + " degC)";
-  };
-  if (worst_nl) {
-    out.nonlinearity_ppm = worst_nl->nonlinearity_ppm;
-    out.nonlinearity_note = "the worst of " + std::to_string(f->plateaus.size()) + " plateaus: " + at(*worst_nl);
-  }
-  if (worst_asym) {
-    out.abs_asymmetry_ppm = std::abs(worst_asym->asymmetry_ppm);
-    out.asymmetry_note = "the worst of " + std::to_string(f->plateaus.size()) + " plateaus: " +
-                         short_number(worst_asym->asymmetry_ppm) + " ppm at " + at(*worst_asym);
-  }
-  return out;
 }
 
 // Whether a profile text has rate steps (a run's profile as stored, or a plan step's file).
@@ -643,8 +547,8 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
             }
           }
     }
-    std::optional<AllanFigures> allan;
-    std::optional<SfFigures> sf;  // the run's scale-factor fit, made once for every sf_* limit
+    std::optional<plan_figures::AllanFigures> allan;
+    std::optional<plan_figures::SfFigures> sf;  // the run's scale-factor fit, made once for every sf_* limit
     // Whether this step's run had rate steps: its profile as run (stored with the run).
     std::optional<bool> rate_run;
     auto run_had_rate_steps = [&]() {
@@ -674,7 +578,7 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
           break;
         case plans::Measurement::peak_excursion:
           if (verified_model)
-            if (const auto* d = load_data()) value = peak_excursion_dph(*verified_model, *d);
+            if (const auto* d = load_data()) value = plan_figures::peak_excursion_dph(*verified_model, *d);
           break;
         case plans::Measurement::sensitivity:
           if (fitted) {
@@ -686,7 +590,7 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
         case plans::Measurement::arw:
         case plans::Measurement::bias_instability:
           if (!allan)
-            if (const auto* d = load_data()) allan = allan_figures(*d);
+            if (const auto* d = load_data()) allan = plan_figures::allan_figures(*d);
           if (allan) {
             value = l.measurement == plans::Measurement::arw ? allan->arw : allan->bias_instability;
             if (!value) note_text = allan->note;
@@ -707,7 +611,7 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
           // A fit that fails (no rate data, too few plateaus) gives no value: the limit is not met
           // and the note says why.
           if (!sf)
-            if (const auto* d = load_data()) sf = sf_figures(*d);
+            if (const auto* d = load_data()) sf = plan_figures::sf_figures(*d);
           if (!sf) {
             note_text = "the run's samples could not be read";
           } else if (l.measurement == plans::Measurement::sf_tc_ppm_per_c) {
@@ -732,7 +636,7 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
       if (met || !(*u)["active"].get<bool>()) continue;
       const std::string measured = l.measurement == plans::Measurement::firmware
                                        ? (value ? "no firmware form (" + note_text + ")" : std::string("no model"))
-                                       : l.name() + " = " + (value ? short_number(*value) : std::string("not measured")) +
+                                       : l.name() + " = " + (value ? plan_figures::short_number(*value) : std::string("not measured")) +
                                              (plans::needs_rate_steps(l.measurement) && !note_text.empty()
                                                   ? " (" + note_text + ")"
                                                   : std::string());
