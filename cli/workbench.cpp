@@ -171,9 +171,13 @@ int run_diagnose(const DiagnoseCommandOptions& o, std::ostream& out, std::ostrea
     err << "fogctl diagnose: " << one.error() << "\n";
     return kExitError;
   }
-  if (o.max_samples < 1000 || o.max_samples > 100'000'000) {
-    err << "fogctl diagnose: --max-samples must be 1000 to 100000000, got " << o.max_samples << "\n";
-    return kExitError;
+  {  // the limit's range as diagnose checks it (DiagnoseOptions::validate), before any file is read
+    wb::DiagnoseOptions probe;
+    probe.max_samples = o.max_samples;
+    if (auto v = probe.validate(); !v) {
+      err << "fogctl diagnose: " << as_typed(v.error(), {{"max_samples", "--max-samples"}}) << "\n";
+      return kExitError;
+    }
   }
   if (auto within = diagnose_rows_within(o.runs, o.input, o.max_samples); !within) {
     err << "fogctl diagnose: " << within.error() << "\n";
