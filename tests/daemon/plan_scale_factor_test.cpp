@@ -74,6 +74,16 @@ struct Rig {
     clock_s += 1.0;
   }
   json plan_status(std::int64_t id) { return runner->status(id).value(); }
+  // Starts the plan for `units`, ticks until it ends or `max_ticks` seconds pass, and gives its
+  // status.
+  json run_plan(const std::string& text, const std::string& source, const std::vector<std::string>& units, int max_ticks) {
+    auto started = runner->start(text, source, units, PlanTrace{}, json{{"cmd", "plan.start"}});
+    INFO((started ? std::string() : started.error().message));
+    REQUIRE(started.has_value());
+    const auto plan_id = (*started)["plan_id"].get<std::int64_t>();
+    for (int k = 0; k < max_ticks && plan_status(plan_id)["state"] == "running"; ++k) tick();
+    return plan_status(plan_id);
+  }
 };
 
 const json* measurement(const json& unit, const std::string& name) {
@@ -86,13 +96,7 @@ const json* measurement(const json& unit, const std::string& name) {
 
 TEST_CASE("plan limit sf_tc_ppm_per_c: |tc| of the mock gyros (4 and 16 ppm/degC) against 10 passes one and fails the other, and the certificate carries the scale factor") {
   Rig r;
-  auto started = r.runner->start("plan sf\nstep spin fit\nlimit sf_tc_ppm_per_c < 10 ppm/degC\n", "sf.plan",
-                                 {"FOG-0001", "FOG-0002"}, PlanTrace{}, json{{"cmd", "plan.start"}});
-  INFO((started ? std::string() : started.error().message));
-  REQUIRE(started.has_value());
-  const auto plan_id = (*started)["plan_id"].get<std::int64_t>();
-  for (int k = 0; k < 6000 && r.plan_status(plan_id)["state"] == "running"; ++k) r.tick();
-  const json s = r.plan_status(plan_id);
+  const json s = r.run_plan("plan sf\nstep spin fit\nlimit sf_tc_ppm_per_c < 10 ppm/degC\n", "sf.plan", {"FOG-0001", "FOG-0002"}, 6000);
   INFO(s.dump(1));
   REQUIRE(s["state"] != "running");
   const json& units = s["progress"]["units"];
@@ -152,12 +156,7 @@ TEST_CASE("plan limit sf_tc_ppm_per_c on a plan whose fit and verify steps have 
 TEST_CASE("plan limit sf_tc_ppm_per_c: a step with rate steps whose fit fails (one plateau) fails the limit with the reason") {
   Rig r;
   std::ofstream(r.dir / "one.profile") << "setpoint 20 C\nhold 2 min\n" + spin_plateau() + "ramp to 25 C at 1 C/min\nhold 8 min\n";
-  auto started = r.runner->start("plan one\nstep one fit\nlimit sf_tc_ppm_per_c < 1000 continue\n", "one.plan", {"FOG-0001"},
-                                 PlanTrace{}, json{{"cmd", "plan.start"}});
-  REQUIRE(started.has_value());
-  const auto plan_id = (*started)["plan_id"].get<std::int64_t>();
-  for (int k = 0; k < 3000 && r.plan_status(plan_id)["state"] == "running"; ++k) r.tick();
-  const json s = r.plan_status(plan_id);
+  const json s = r.run_plan("plan one\nstep one fit\nlimit sf_tc_ppm_per_c < 1000 continue\n", "one.plan", {"FOG-0001"}, 3000);
   INFO(s.dump(1));
   const json* m = measurement(s["progress"]["units"][0], "sf_tc_ppm_per_c");
   REQUIRE(m);
@@ -176,13 +175,8 @@ TEST_CASE("plan limits sf_nonlinearity_ppm and sf_asymmetry_ppm: the worst plate
   // largest residual over +-10 and +-60 deg/s, of full scale: about 5 and 110 ppm.
   r.truth[1].nl_ppm = 3000.0;
   r.truth[1].asymmetry_ppm = 400.0;
-  auto started = r.runner->start("plan sf\nstep spin fit\nlimit sf_asymmetry_ppm < 100 ppm\nlimit sf_nonlinearity_ppm < 50 continue\n",
-                                 "sf.plan", {"FOG-0001", "FOG-0002"}, PlanTrace{}, json{{"cmd", "plan.start"}});
-  INFO((started ? std::string() : started.error().message));
-  REQUIRE(started.has_value());
-  const auto plan_id = (*started)["plan_id"].get<std::int64_t>();
-  for (int k = 0; k < 6000 && r.plan_status(plan_id)["state"] == "running"; ++k) r.tick();
-  const json s = r.plan_status(plan_id);
+  const json s = r.run_plan("plan sf\nstep spin fit\nlimit sf_asymmetry_ppm < 100 ppm\nlimit sf_nonlinearity_ppm < 50 continue\n", "sf.plan",
+                            {"FOG-0001", "FOG-0002"}, 6000);
   INFO(s.dump(1));
   REQUIRE(s["state"] != "running");
   const json& units = s["progress"]["units"];
