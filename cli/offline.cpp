@@ -97,22 +97,12 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
     err << "fogctl simulate: --axis-effect needs --axes 3 (a one-axis gyro's drift is --effect)\n";
     return kExitError;
   }
-  std::array<std::string, 3> axis_effect;  // x, y, z: each axis's own extra drift
-  for (const auto& e : o.axis_effects) {
-    const auto eq = e.find('=');
-    const auto axis = eq == std::string::npos ? std::nullopt : model::axis_from_string(e.substr(0, eq));
-    if (!axis) {
-      err << "fogctl simulate: --axis-effect " << e << ": expected AXIS=TERMS, AXIS x, y or z, e.g. y=0.05*T1\n";
-      return kExitError;
-    }
-    const std::string terms = e.substr(eq + 1);
-    if (auto l = model::parse_terms(terms); !l) {
-      err << "fogctl simulate: --axis-effect " << e << ": " << l.error().pretty() << "\n";
-      return kExitError;
-    }
-    auto& to = axis_effect[static_cast<std::size_t>(*axis)];
-    to += (to.empty() ? "" : " + ") + terms;
+  const auto parsed_axis_effects = sim::parse_axis_effects(o.axis_effects);
+  if (!parsed_axis_effects) {
+    err << "fogctl simulate: " << parsed_axis_effects.error() << "\n";
+    return kExitError;
   }
+  const std::array<std::string, 3>& axis_effect = *parsed_axis_effects;  // x, y, z: each axis's own extra drift
   if (o.axes == 3) {
     const sim::UnitParams housing = cfg.units[0];
     cfg.units.assign(3, housing);

@@ -198,18 +198,13 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
   if (!o.axis_effects.empty() && o.axes != 3) {
     return std::unexpected(std::string("--axis-effect needs --axes 3 (a one-axis unit's drift is --effect)"));
   }
-  std::array<std::string, 2> axis_effects;  // y, z
-  for (const auto& e : o.axis_effects) {
-    const auto eq = e.find('=');
-    const std::string axis = eq == std::string::npos ? std::string() : e.substr(0, eq);
-    if (axis != "y" && axis != "z") {
-      return std::unexpected("--axis-effect " + e + ": expected AXIS=EXPR, AXIS y or z (x's drift is the unit's: --effect)");
-    }
-    auto& to = axis_effects[axis == "y" ? 0 : 1];
-    to += (to.empty() ? "" : " + ") + e.substr(eq + 1);
-    sim::UnitParams check;
-    check.effects = e.substr(eq + 1);
-    if (auto law = sim::make_drift_law(check); !law) return std::unexpected("--axis-effect " + e + ": " + law.error());
+  // Read by fogctl simulate's rule; here only y and z: the mock's axis 0 (x) frames are the unit's
+  // gyro_dph, which y and z share, so an x of its own would be theirs too (use --effect).
+  const auto axis_effects = sim::parse_axis_effects(o.axis_effects);
+  if (!axis_effects) return std::unexpected(axis_effects.error());
+  if (!(*axis_effects)[0].empty()) {
+    return std::unexpected("--axis-effect x=" + (*axis_effects)[0] +
+                           ": the mock bench gives y and z their own drift only, AXIS y or z (x's drift is the unit's, which y and z share: --effect)");
   }
   if (!std::isfinite(o.warmup_dph)) return std::unexpected(std::string("--warmup-dph: expected a number"));
   if (!(o.warmup_tau_s > 0) || !std::isfinite(o.warmup_tau_s)) return std::unexpected(std::string("--warmup-tau-s: expected a positive number"));
@@ -305,7 +300,7 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
     effects.insert(effects.end(), o.effects.begin(), o.effects.end());
     p.effects = join_effects(effects);
     if (auto law = sim::make_drift_law(p); !law) return std::unexpected("unit " + p.serial + ": " + law.error());
-    p.axis_effects = axis_effects;
+    p.axis_effects = {(*axis_effects)[1], (*axis_effects)[2]};
     if (!serials.insert(p.serial).second) return std::unexpected("two units have serial " + p.serial);
     layout->serial = p.serial;
     layout->frame_rate_hz = rate;

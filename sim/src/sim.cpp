@@ -55,6 +55,22 @@ std::expected<DriftLaw, std::string> make_drift_law(const UnitParams& u) {
   return law;
 }
 
+std::expected<std::array<std::string, 3>, std::string> parse_axis_effects(std::span<const std::string> options) {
+  std::array<std::string, 3> by_axis;  // x, y, z (model::Axis order)
+  for (const auto& e : options) {
+    const auto eq = e.find('=');
+    const auto axis = eq == std::string::npos ? std::nullopt : model::axis_from_string(e.substr(0, eq));
+    if (!axis) return std::unexpected("--axis-effect " + e + ": expected AXIS=TERMS, AXIS x, y or z, e.g. y=0.05*T1");
+    UnitParams check;
+    check.gyro.terms.clear();
+    check.effects = e.substr(eq + 1);
+    if (auto law = make_drift_law(check); !law) return std::unexpected("--axis-effect " + e + ": " + law.error());
+    auto& to = by_axis[static_cast<std::size_t>(*axis)];
+    to += (to.empty() ? "" : " + ") + check.effects;
+  }
+  return by_axis;
+}
+
 std::expected<std::vector<double>, std::string> drift_series(const DriftLaw& law, std::span<const double> t1_c,
                                                              std::span<const double> t2_c, std::span<const double> ta_c) {
   const std::size_t n = t1_c.size();

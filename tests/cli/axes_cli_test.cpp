@@ -114,6 +114,12 @@ TEST_CASE("fogctl simulate --axes 3: y and z columns, the same housing, each axi
   b = axes_call(run_simulate, bad);
   CHECK(b.code == kExitError);
   CHECK_THAT(b.err, Catch::Contains("--axis-effect y=0.1*T9"));
+  // Read by the simulator's own rule (sim::parse_axis_effects, fogbench-sim's too): a lag the
+  // simulator cannot draw is refused here, before any sample is made.
+  bad.axis_effects = {"z=0.1*T1@auto"};
+  b = axes_call(run_simulate, bad);
+  CHECK(b.code == kExitError);
+  CHECK_THAT(b.err, Catch::Contains("--axis-effect z=0.1*T1@auto") && Catch::Contains("fixed lag"));
   bad.axis_effects = {"y=0.1*T1"};
   bad.axes = 1;
   b = axes_call(run_simulate, bad);

@@ -13,6 +13,7 @@
 #include <expected>
 #include <optional>
 #include <random>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -106,6 +107,11 @@ struct DriftLaw {
   int history_s = 0;               // samples of history a streaming evaluation needs
 };
 std::expected<DriftLaw, std::string> make_drift_law(const UnitParams& u);
+// The `--axis-effect AXIS=TERMS` options of fogctl simulate and fogbench-sim, one rule for both:
+// each axis's own extra drift (x, y, z; several for one axis are summed with " + "), each checked
+// as the simulator will read it (make_drift_law: fixed lags, no ton). An error names the option
+// as given and what is wrong with it.
+std::expected<std::array<std::string, 3>, std::string> parse_axis_effects(std::span<const std::string> options);
 // The deterministic drift (deg/h) at every sample of true temperatures (degC).
 std::expected<std::vector<double>, std::string> drift_series(const DriftLaw& law, std::span<const double> t1_c,
                                                              std::span<const double> t2_c, std::span<const double> ta_c);
