@@ -41,6 +41,21 @@ Refit refit_at(const StepContext& ctx, const Cand& cd, int lag_s, detail::FitCac
   return Refit{t, detail::fit_with(ctx.fit_run, tl, ctx.fo, fc), extra_params};
 }
 
+// A clock (trun, ton) delayed by L s is the same clock less L s: a constant the model's mu0
+// holds (in warm(tau), a factor its coefficient holds), so the run cannot tell its lag and a
+// scan would pick one by noise (an ageing slope came out as trun@262). A term that reads no
+// temperature is refitted at lag 0, with no lag parameter.
+bool reads_temperature(const Expr& e) {
+  return uses_signal(e, Signal::T1) || uses_signal(e, Signal::T2) || uses_signal(e, Signal::Ta) || uses_signal(e, Signal::grad);
+}
+
+Refit refit_undelayed(const StepContext& ctx, const Cand& cd, detail::FitCache& fc) {
+  Term t = cd.term;
+  t.lag = Lag{false, 0};
+  auto [tl, extra_params] = extended_terms(ctx.base, t, false);
+  return Refit{t, detail::fit_with(ctx.fit_run, tl, ctx.fo, fc), extra_params};
+}
+
 // The lag of x (the candidate evaluated on the fit run) starting at the scan's best, then
 // coordinate descent with the refit (as the joint fit does), then lag 0 if BIC prefers it.
 // fc: this thread's cache of the fit run's refits.
@@ -293,7 +308,9 @@ EvaluatedCandidate evaluate_candidate(const StepContext& ctx, Cand& cd, Scorer& 
   // that its refits and its score do not evaluate it again. A second path's refit is another
   // expression: not put.
   if (!cd.repeat) fc.put(cd.term, *x);
-  Refit r = cd.repeat ? refit_second_path(ctx, cd, px, gain->lag, fc) : refit_at_best_lag(ctx, cd, px, gain->lag, fc);
+  Refit r = cd.repeat                          ? refit_second_path(ctx, cd, px, gain->lag, fc)
+            : !reads_temperature(*cd.term.expr) ? refit_undelayed(ctx, cd, fc)
+                                                : refit_at_best_lag(ctx, cd, px, gain->lag, fc);
   if (r.model) detail::add_standard_errors(*r.model, fc);
   c.lag_s = r.term.lag.seconds;
   // What add_term is given to build the same model: a second path with the model's lags
