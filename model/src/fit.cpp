@@ -115,6 +115,18 @@ std::expected<RunSignals, FitError> run_signals(const RunData& run, double tref_
     s.ta.resize(n);
     if (auto r = bridge(run.chamber_c, s.ta, "Ta (chamber_c)"); !r) return std::unexpected(r.error());
   }
+  if (run.has_axis_thermistors()) {
+    static constexpr const char* kAxisNames[2][3] = {{"T1x (t1_c)", "T1y (t1_y_c)", "T1z (t1_z_c)"},
+                                                     {"T2x (t2_c)", "T2y (t2_y_c)", "T2z (t2_z_c)"}};
+    for (std::size_t k = 0; k < 3; ++k) {
+      if (run.axis_t1_c[k].size() != n || run.axis_t2_c[k].size() != n)
+        return fail(FitError::Code::missing_signal, std::string("the per-axis thermistors of axis ") + "xyz"[k] + " are not one per sample");
+      s.axis_t1[k].resize(n);
+      s.axis_t2[k].resize(n);
+      if (auto r = bridge(run.axis_t1_c[k], s.axis_t1[k], kAxisNames[0][k]); !r) return std::unexpected(r.error());
+      if (auto r = bridge(run.axis_t2_c[k], s.axis_t2[k], kAxisNames[1][k]); !r) return std::unexpected(r.error());
+    }
+  }
   // Time since power-on is a clock, not a reading: taken as recorded (not offset by Tref, not
   // bridged); a run without it leaves it empty and a term using it says so.
   if (run.has_power_on() && run.since_power_on_s.size() == n) s.ton = run.since_power_on_s;

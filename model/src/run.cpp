@@ -50,6 +50,11 @@ std::expected<RunData, std::string> select_axis(RunData run, Axis axis) {
   if (axis == Axis::y) run.gyro_dph = std::move(run.gyro_y_dph);
   else if (axis == Axis::z) run.gyro_dph = std::move(run.gyro_z_dph);
   if (axis != Axis::x) run.compensated_dph.clear();
+  if (run.has_axis_thermistors()) {
+    const auto k = static_cast<std::size_t>(axis);
+    run.t1_c = run.axis_t1_c[k];
+    run.t2_c = run.axis_t2_c[k];
+  }
   run.gyro_y_dph.clear();
   run.gyro_z_dph.clear();
   run.axis = axis;

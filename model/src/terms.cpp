@@ -552,6 +552,24 @@ std::string coef_unit(const Expr& e) {
   return "deg/h per " + s;
 }
 
+bool uses_axis_thermistor(const Expr& e) {
+  if (e.kind == K::signal) return axis_thermistor(e.signal).has_value();
+  return (e.a && uses_axis_thermistor(*e.a)) || (e.b && uses_axis_thermistor(*e.b));
+}
+
+std::optional<std::pair<std::size_t, bool>> axis_thermistor(Signal s) {
+  switch (s) {
+    case Signal::T1x: return std::pair<std::size_t, bool>{0, false};
+    case Signal::T2x: return std::pair<std::size_t, bool>{0, true};
+    case Signal::T1y: return std::pair<std::size_t, bool>{1, false};
+    case Signal::T2y: return std::pair<std::size_t, bool>{1, true};
+    case Signal::T1z: return std::pair<std::size_t, bool>{2, false};
+    case Signal::T2z: return std::pair<std::size_t, bool>{2, true};
+    case Signal::T1: case Signal::T2: case Signal::Ta: case Signal::grad: case Signal::ton: case Signal::trun: return std::nullopt;
+  }
+  return std::nullopt;
+}
+
 bool uses_signal(const Expr& e, Signal s) {
   if (e.kind == K::warm) return s == Signal::ton;
   if (e.kind == K::signal) return e.signal == s || (s != Signal::Ta && e.signal == Signal::grad && (s == Signal::T1 || s == Signal::T2));
@@ -617,6 +635,8 @@ std::vector<double> derivative_per_min(std::span<const double> x, double dt_s, i
 namespace {
 bool same_signals(const Signals& a, const Signals& b) {
   auto same = [](std::span<const double> x, std::span<const double> y) { return x.data() == y.data() && x.size() == y.size(); };
+  for (std::size_t k = 0; k < 3; ++k)
+    if (!same(a.axis_t1[k], b.axis_t1[k]) || !same(a.axis_t2[k], b.axis_t2[k])) return false;
   return same(a.t1, b.t1) && same(a.t2, b.t2) && same(a.ta, b.ta) && same(a.ton, b.ton) && a.dt_s == b.dt_s;
 }
 }  // namespace
@@ -666,6 +686,16 @@ std::expected<std::vector<double>, std::string> evaluate(const Expr& e, const Si
         std::vector<double> v(n);
         for (std::size_t i = 0; i < n; ++i) v[i] = static_cast<double>(i) * s.dt_s / 3600.0;
         return v;
+      }
+      if (const auto ax = axis_thermistor(e.signal)) {
+        const auto& col = ax->second ? s.axis_t2[ax->first] : s.axis_t1[ax->first];
+        if (col.size() != n) {
+          return std::unexpected("term uses " + std::string(term_signal(e.signal).name) + ", axis " + std::string(1, "xyz"[ax->first]) +
+                                 "'s own coil " + (ax->second ? "outer-wall" : "centre") +
+                                 " thermistor, which this run did not record (no per-axis thermistor columns t1_y_c, t2_y_c, t1_z_c, "
+                                 "t2_z_c: its axes share the unit's thermistors, or it is a one-axis gyro)");
+        }
+        return std::vector<double>(col.begin(), col.end());
       }
       std::vector<double> g(n);
       for (std::size_t i = 0; i < n; ++i) g[i] = s.t1[i] - s.t2[i];

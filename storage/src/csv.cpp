@@ -60,19 +60,20 @@ namespace {
 
 // The role of a file column; the order is that of csv_columns() (to_csv writes the same
 // columns, since_power_on_s and compensated_dph after flags, then a three-axis unit's gyro_y_dph
-// and gyro_z_dph, and a rate table's run's plateau, rate_in_dps and rate_out_dps last).
-// The roles up to r_gyro_z are numbers (doubles); r_plateau an integer like r_step.
+// and gyro_z_dph with, where its axes have their own thermistors, t1_y_c, t2_y_c, t1_z_c,
+// t2_z_c, and a rate table's run's plateau, rate_in_dps and rate_out_dps last).
+// The roles up to r_t2_z are numbers (doubles); r_plateau an integer like r_step.
 enum Role : int {
   r_time, r_gyro, r_t1, r_t2, r_setpoint, r_chamber, r_power_on, r_compensated, r_rate_in, r_rate_out, r_gyro_y,
-  r_gyro_z, r_phase, r_step, r_flags, r_plateau, r_count,
+  r_gyro_z, r_t1_y, r_t2_y, r_t1_z, r_t2_z, r_phase, r_step, r_flags, r_plateau, r_count,
   r_ignore = -1
 };
 constexpr int kRequired = 4;
-constexpr int kLastDouble = r_gyro_z;
+constexpr int kLastDouble = r_t2_z;
 constexpr std::array<std::string_view, r_count> kNames = {
     "time_s", "gyro_dph", "t1_c", "t2_c", "setpoint_c", "chamber_c", "since_power_on_s",
-    "compensated_dph", "rate_in_dps", "rate_out_dps", "gyro_y_dph", "gyro_z_dph", "phase", "step", "flags",
-    "plateau"};
+    "compensated_dph", "rate_in_dps", "rate_out_dps", "gyro_y_dph", "gyro_z_dph", "t1_y_c", "t2_y_c",
+    "t1_z_c", "t2_z_c", "phase", "step", "flags", "plateau"};
 
 // Even spacing tolerance, as a fraction of the median step: loose enough for time written
 // with %.3f at 1 Hz, tight enough to catch a skipped or doubled sample.
@@ -285,6 +286,7 @@ class Parser {
       return fail(CsvErrc::no_data, 0, 0, "no data rows after the header on line " +
                                                   std::to_string(header_line_));
     if (auto ok = check_rate_columns(); !ok) return std::unexpected(ok.error());
+    take_axis_thermistors();
     if (options_.time_scale != 1.0)
       for (auto& t : data_.time_s) t *= options_.time_scale;
     if (options_.resample_s) return resample(*options_.resample_s);
@@ -332,7 +334,7 @@ class Parser {
                     "--map " + spec + ": '" + m.canonical +
                         "' is not a fogbench column (time_s,gyro_dph,t1_c,t2_c,setpoint_c,"
                         "chamber_c,since_power_on_s,compensated_dph,rate_in_dps,rate_out_dps,gyro_y_dph,"
-                        "gyro_z_dph,phase,step,flags,plateau)");
+                        "gyro_z_dph,t1_y_c,t2_y_c,t1_z_c,t2_z_c,phase,step,flags,plateau)");
       if (m.header.empty())
         return fail(CsvErrc::bad_option, 0, 0, "--map " + spec + ": empty header name");
       for (std::size_t j = 0; j < i; ++j) {
@@ -449,6 +451,17 @@ class Parser {
                   "column '" + std::string(kNames[field_of_[r_gyro_y] >= 0 ? r_gyro_z : r_gyro_y]) +
                       "' not found: a three-axis unit's columns gyro_y_dph and gyro_z_dph go together; the header has: " +
                       join_names(names_));
+    // Per-axis thermistors: all four together, and only beside y and z.
+    int axis_temps = 0;
+    for (int role = r_t1_y; role <= r_t2_z; ++role) axis_temps += field_of_[role] >= 0 ? 1 : 0;
+    if (axis_temps != 0 && (axis_temps != 4 || field_of_[r_gyro_y] < 0)) {
+      std::string absent;
+      for (int role = r_gyro_y; role <= r_t2_z; ++role)
+        if (field_of_[role] < 0) absent += (absent.empty() ? "'" : ", '") + std::string(kNames[role]) + "'";
+      return fail(CsvErrc::missing_column, header_line_, 0,
+                  "column " + absent + " not found: a three-axis unit's per-axis thermistors t1_y_c, t2_y_c, t1_z_c, t2_z_c go "
+                  "together, beside gyro_y_dph and gyro_z_dph; the header has: " + join_names(names_));
+    }
     return {};
   }
 
@@ -495,6 +508,7 @@ class Parser {
     append(plateau_, other.plateau_);
     append(a.gyro_y_dph, b.gyro_y_dph);
     append(a.gyro_z_dph, b.gyro_z_dph);
+    for (std::size_t k = 0; k < axis_temps_.size(); ++k) append(axis_temps_[k], other.axis_temps_[k]);
     append(a.phase, b.phase);
     append(a.step, b.step);
     append(a.flags, b.flags);
@@ -511,7 +525,8 @@ class Parser {
                                              &data_.t2_c,       &data_.setpoint_c, &data_.chamber_c,
                                              &data_.since_power_on_s, &data_.compensated_dph,
                                              &data_.rate_in_dps, &rate_out_dps_, &data_.gyro_y_dph,
-                                             &data_.gyro_z_dph};
+                                             &data_.gyro_z_dph, &axis_temps_[0], &axis_temps_[1],
+                                             &axis_temps_[2], &axis_temps_[3]};
     for (int role = 0; role <= kLastDouble; ++role)
       if (field_of_[role] >= 0) doubles[role]->reserve(rows);
     if (field_of_[r_plateau] >= 0) plateau_.reserve(rows);
@@ -674,6 +689,15 @@ class Parser {
     plateau_.clear();
     return {};
   }
+  // The per-axis thermistors read (t1_y_c, t2_y_c, t1_z_c, t2_z_c) into the run's axis_t1_c,
+  // axis_t2_c, whose x is the recording's t1_c, t2_c.
+  void take_axis_thermistors() {
+    if (field_of_[r_t1_y] < 0) return;
+    data_.axis_t1_c = {data_.t1_c, std::move(axis_temps_[0]), std::move(axis_temps_[2])};
+    data_.axis_t2_c = {data_.t2_c, std::move(axis_temps_[1]), std::move(axis_temps_[3])};
+  }
+  std::array<std::vector<double>, 4> axis_temps_;  // rows' t1_y_c, t2_y_c, t1_z_c, t2_z_c, degC
+
   static constexpr int kNoPlateau = std::numeric_limits<int>::min();
   std::vector<double> rate_out_dps_;  // rows' rate_out_dps, deg/s, checked and dropped
   std::vector<int> plateau_;          // rows' plateau, kNoPlateau where empty
@@ -838,6 +862,11 @@ class Parser {
     if (in.has_power_on()) out.since_power_on_s.resize(m);
     if (in.has_compensated()) out.compensated_dph.resize(m);
     if (in.has_rate_in()) out.rate_in_dps.resize(m);
+    if (in.has_axis_thermistors())
+      for (std::size_t a = 0; a < 3; ++a) {
+        out.axis_t1_c[a].resize(m);
+        out.axis_t2_c[a].resize(m);
+      }
     out.flags.assign(m, 0);
     bool any_gap = false;
 
@@ -862,6 +891,14 @@ class Parser {
         (out.*numeric[c])[k] = v;
         touches_missing = touches_missing || !std::isfinite(v);
       }
+      if (in.has_axis_thermistors())
+        for (std::size_t a = 0; a < 3; ++a)
+          for (auto [src, dst] : {std::pair{&in.axis_t1_c[a], &out.axis_t1_c[a]}, std::pair{&in.axis_t2_c[a], &out.axis_t2_c[a]}}) {
+            const double x = (*src)[j];
+            const double v = w == 0 ? x : x + w * ((*src)[j + 1] - x);
+            (*dst)[k] = v;
+            touches_missing = touches_missing || !std::isfinite(v);
+          }
       if (in.has_power_on()) {
         // Time since power-on runs at 1 s per s from the sample before, unless the gyro powered
         // on (again) before the next one: then back from the next. Unknown stays unknown and
@@ -1028,6 +1065,9 @@ std::string to_csv(const model::RunData& run) {
   if (run.has_power_on()) out += ",since_power_on_s";
   if (run.has_compensated()) out += ",compensated_dph";
   if (run.has_axes()) out += ",gyro_y_dph,gyro_z_dph";  // a three-axis unit's y and z only
+  // Its axes' own thermistors, where they have them (x's are t1_c, t2_c).
+  const bool axis_temps = run.has_axes() && run.has_axis_thermistors();
+  if (axis_temps) out += ",t1_y_c,t2_y_c,t1_z_c,t2_z_c";
   // A run that drove the rate table: the rate-sequence columns of `fogctl scale-factor`
   // (cli/scale_factor.hpp), the plateau being the profile step. parse_csv reads them back.
   if (run.has_rate_in()) out += ",plateau,rate_in_dps,rate_out_dps";
@@ -1086,6 +1126,11 @@ std::string to_csv(const model::RunData& run) {
       out += ',';
       put(run.gyro_z_dph[i]);
     }
+    if (axis_temps)
+      for (const auto* col : {&run.axis_t1_c[1], &run.axis_t2_c[1], &run.axis_t1_c[2], &run.axis_t2_c[2]}) {
+        out += ',';
+        put((*col)[i]);  // empty where the thermistor was not read (flag missing)
+      }
     if (run.has_rate_in()) {
       out += ',';
       if (run.has_step()) put(run.step[i]);

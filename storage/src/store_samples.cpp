@@ -234,6 +234,10 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
   if (data.gyro_y_dph.size() != data.gyro_z_dph.size())
     return invalid("gyro_y_dph and gyro_z_dph go together (a three-axis unit's y and z): " +
                    std::to_string(data.gyro_y_dph.size()) + " and " + std::to_string(data.gyro_z_dph.size()) + " values");
+  // The samples table has no per-axis thermistor columns yet: refused rather than dropped.
+  if (data.has_axis_thermistors())
+    return invalid("the run has per-axis thermistors (t1_y_c, t2_y_c, t1_z_c, t2_z_c), which the store does not hold yet: "
+                   "analyse the CSV offline (fogctl fit/diagnose --axis), or import it without those columns");
   for (std::size_t i = 0; i < n; ++i)
     if (!std::isfinite(data.time_s[i]))
       return invalid("time_s[" + std::to_string(i) + "] is not finite");

@@ -153,7 +153,7 @@ TEST_CASE("term ops: the parser's messages name every function and signal of the
   auto e = parse_term("foo(T1)");
   REQUIRE_FALSE(e);
   CHECK(e.error().message ==
-        "unknown name 'foo': expected a signal (T1, T2, Ta, grad, ton, trun) or a function (d, dd, up, down, lp, warm)");
+        "unknown name 'foo': expected a signal (T1, T2, Ta, grad, ton, trun, T1x, T2x, T1y, T2y, T1z, T2z) or a function (d, dd, up, down, lp, warm)");
   for (const TermOp& op : kTermOps)
     if (op.syntax == OpSyntax::call || op.syntax == OpSyntax::call_tau || op.syntax == OpSyntax::tau_only)
       CHECK(function_names().find(op.name) != std::string::npos);
@@ -240,4 +240,26 @@ TEST_CASE("term ops: diagnose names a generated candidate outside the library by
   CHECK(by_expr["lp(T2,90)"].explanation.find("slower path") != std::string::npos);
   CHECK(by_expr["d(lp(Ta,160))"].explanation == by_expr["lp(T2,90)"].explanation);
   CHECK(by_expr["T1*d(T2)"].explanation == "found by the search over the term language; no physical name is attached to it");
+}
+
+TEST_CASE("term signals: an axis's own coil thermistors T1x..T2z, read where recorded and named where not", "[terms][cross_axis]") {
+  const std::vector<double> t1 = {1, 2, 3}, t2 = {0, 1, 2}, y1 = {5, 6, 7}, y2 = {4, 5, 6}, z1 = {8, 9, 10}, z2 = {7, 8, 9};
+  Signals s{t1, t2, {}, 1.0};
+  auto e = parse_terms("T1y + T2z");
+  REQUIRE(e);
+  // Without per-axis thermistors: the error names the signal and the columns.
+  auto none = evaluate(*e->terms[0].expr, s);
+  REQUIRE_FALSE(none);
+  CHECK_THAT(none.error(), Catch::Contains("T1y") && Catch::Contains("t1_y_c"));
+  s.axis_t1 = {t1, y1, z1};
+  s.axis_t2 = {t2, y2, z2};
+  CHECK(*evaluate(*e->terms[0].expr, s) == y1);
+  CHECK(*evaluate(*e->terms[1].expr, s) == z2);
+  CHECK(uses_axis_thermistor(*e->terms[0].expr));
+  CHECK_FALSE(uses_axis_thermistor(*parse_terms("d(T1)")->terms[0].expr));
+  CHECK(coef_unit(*e->terms[0].expr) == "deg/h per degC");
+  // The firmware form has one axis's inputs: refused with the table's reason.
+  const auto fw = firmware_vs_predict("T1y");
+  REQUIRE_FALSE(fw);
+  CHECK_THAT(fw.error(), Catch::Contains("cross-axis"));
 }

@@ -158,3 +158,37 @@ TEST_CASE("csv axes: an empty y or z cell on a row not flagged missing is an err
   CHECK(r.error().line == 3);
   CHECK(r.error().column == 6);
 }
+
+TEST_CASE("csv axes: per-axis thermistors come four together beside y and z, and resample with the run", "[csv][axes][cross_axis]") {
+  CsvOptions o;
+  o.source_name = "cross.csv";
+  // One of the four: refused, naming the three absent.
+  auto r = parse_csv("time_s,gyro_dph,t1_c,t2_c,gyro_y_dph,gyro_z_dph,t1_y_c\n0,1,2,3,4,5,6\n1,1,2,3,4,5,6\n", o);
+  REQUIRE_FALSE(r.has_value());
+  CHECK(r.error().code == CsvErrc::missing_column);
+  CHECK_THAT(r.error().message, Contains("'t2_y_c', 't1_z_c', 't2_z_c' not found"));
+  // All four without the y and z outputs: refused, naming those.
+  r = parse_csv("time_s,gyro_dph,t1_c,t2_c,t1_y_c,t2_y_c,t1_z_c,t2_z_c\n0,1,2,3,4,5,6,7\n1,1,2,3,4,5,6,7\n", o);
+  REQUIRE_FALSE(r.has_value());
+  CHECK_THAT(r.error().message, Contains("'gyro_y_dph', 'gyro_z_dph' not found"));
+  // Whole: x's are t1_c, t2_c; read and resampled to 0.5 s, each column interpolated with the run.
+  const std::string text =
+      "time_s,gyro_dph,t1_c,t2_c,gyro_y_dph,gyro_z_dph,t1_y_c,t2_y_c,t1_z_c,t2_z_c\n"
+      "0,1,20,21,4,5,22,23,24,25\n1,1,21,22,4,5,24,25,26,27\n2,1,22,23,4,5,26,27,28,29\n";
+  auto ok = parse_csv(text, o);
+  REQUIRE(ok);
+  REQUIRE(ok->has_axis_thermistors());
+  CHECK(ok->axis_t1_c[0] == std::vector<double>{20, 21, 22});
+  CHECK(ok->axis_t2_c[1] == std::vector<double>{23, 25, 27});
+  CHECK(ok->axis_t1_c[2] == std::vector<double>{24, 26, 28});
+  CsvOptions half = o;
+  half.resample_s = 0.5;
+  auto rs = parse_csv(text, half);
+  REQUIRE(rs);
+  REQUIRE(rs->size() == 5);
+  CHECK(rs->axis_t1_c[1][1] == Approx(23.0));
+  CHECK(rs->axis_t2_c[2][3] == Approx(28.0));
+  CHECK(rs->axis_t1_c[0] == rs->t1_c);
+  // Written back: the same four columns after gyro_z_dph.
+  CHECK(to_csv(*ok).rfind("time_s,gyro_dph,t1_c,t2_c,gyro_y_dph,gyro_z_dph,t1_y_c,t2_y_c,t1_z_c,t2_z_c\n", 0) == 0);
+}

@@ -236,7 +236,10 @@ std::vector<Phase> derive_phases(const RunData& run);
 struct RunSignals {
   std::vector<double> t1, t2, ta;
   std::vector<double> ton;  // time since power-on, s (empty when the run did not record it)
-  Signals view() const { return Signals{t1, t2, ta, 1.0, ton}; }
+  std::array<std::vector<double>, 3> axis_t1, axis_t2;  // per-axis coil thermistors, T - Tref, degC (empty: shared)
+  Signals view() const {
+    return Signals{t1, t2, ta, 1.0, ton, {axis_t1[0], axis_t1[1], axis_t1[2]}, {axis_t2[0], axis_t2[1], axis_t2[2]}};
+  }
 };
 std::expected<RunSignals, FitError> run_signals(const RunData& run, double tref_c);
 

@@ -1,6 +1,7 @@
 // A recorded thermal run of one gyro: the signals every model computation reads.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <expected>
@@ -60,6 +61,12 @@ struct RunData {
   // flagged missing). Not yet an input of any fit. CSV columns `gyro_y_dph`, `gyro_z_dph`.
   std::vector<double> gyro_y_dph;
   std::vector<double> gyro_z_dph;
+  // A three-axis unit whose axes each have their own coil thermistors: axis k's centre and
+  // outer wall (x, y, z), degC (optional: all empty when the axes share the unit's t1_c, t2_c;
+  // else all six filled, x's equal to the recording's t1_c, t2_c). Kept by select_axis, so an
+  // axis's model can read another axis's coil (the cross-axis signals T1x..T2z). CSV columns
+  // `t1_y_c`, `t2_y_c`, `t1_z_c`, `t2_z_c` (x's are `t1_c`, `t2_c`).
+  std::array<std::vector<double>, 3> axis_t1_c, axis_t2_c;
   // The axis gyro_dph holds when select_axis() picked it from a three-axis recording (its
   // gyro_y_dph, gyro_z_dph are then empty); unset: a one-axis run, or a three-axis one not
   // picked, whose gyro_dph is x.
@@ -75,6 +82,7 @@ struct RunData {
   bool has_compensated() const { return !compensated_dph.empty(); }
   bool has_rate_in() const { return !rate_in_dps.empty(); }
   bool has_axes() const { return !gyro_y_dph.empty(); }
+  bool has_axis_thermistors() const { return !axis_t1_c[1].empty(); }
   // True when sample i carries any quality flag.
   bool flagged(std::size_t i) const { return !flags.empty() && flags[i] != 0; }
   // The axis gyro_dph holds: `axis`, else x.
@@ -85,7 +93,8 @@ struct RunData {
 // gyro_z_dph for y, z), `axis` is set and the three-axis columns are dropped, so every fit,
 // prediction and check reads that axis exactly as it reads a one-axis gyro. compensated_dph is
 // dropped for y and z (the daemon's live compensation is of x). A one-axis run asked for x is
-// returned as it is (`axis` unset: it has no other). Errors, naming the run and the axis: y or
+// returned as it is (`axis` unset: it has no other). With per-axis thermistors, t1_c and t2_c
+// become the axis's own (axis_t1_c, axis_t2_c kept whole for the cross-axis signals). Errors, naming the run and the axis: y or
 // z of a run without those columns, another axis of a run already picked.
 std::expected<RunData, std::string> select_axis(RunData run, Axis axis);
 

@@ -141,6 +141,9 @@ struct TermSignal {
   int firmware_input;
   std::string_view firmware_refusal;
 };
+inline constexpr std::string_view kCrossAxisRefusal =
+    "a per-axis coil thermistor (T1x..T2z) is a cross-axis term found on a three-axis unit's runs; the firmware form has one axis's "
+    "inputs (T1, T2, Ta, ton): refit without it";
 inline constexpr std::array<TermSignal, kSignals> kTermSignals = {{
     {Signal::T1, "T1", 0, ""},
     {Signal::T2, "T2", 1, ""},
@@ -150,6 +153,12 @@ inline constexpr std::array<TermSignal, kSignals> kTermSignals = {{
     {Signal::trun, "trun", -1,
      "trun (time since the run's start) is a drift in time found on runs, not a compensation: the firmware has no run clock; refit "
      "without it"},
+    {Signal::T1x, "T1x", -1, kCrossAxisRefusal},
+    {Signal::T2x, "T2x", -1, kCrossAxisRefusal},
+    {Signal::T1y, "T1y", -1, kCrossAxisRefusal},
+    {Signal::T2y, "T2y", -1, kCrossAxisRefusal},
+    {Signal::T1z, "T1z", -1, kCrossAxisRefusal},
+    {Signal::T2z, "T2z", -1, kCrossAxisRefusal},
 }};
 constexpr const TermSignal& term_signal(Signal s) { return kTermSignals[static_cast<std::size_t>(s)]; }
 namespace detail {
@@ -158,6 +167,7 @@ namespace detail {
 constexpr bool is_signal(Signal s) {
   switch (s) {
     case Signal::T1: case Signal::T2: case Signal::Ta: case Signal::grad: case Signal::ton: case Signal::trun:
+    case Signal::T1x: case Signal::T2x: case Signal::T1y: case Signal::T2y: case Signal::T1z: case Signal::T2z:
       return true;
   }
   return false;

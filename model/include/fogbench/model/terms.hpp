@@ -13,6 +13,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace fogbench::model {
@@ -20,8 +21,11 @@ namespace fogbench::model {
 // ton: time since the gyro's last power-on, s (RunData::since_power_on_s, CSV since_power_on_s).
 // trun: time since the run's start, h (sample index x dt_s / 3600): a drift in time (ageing,
 // outgassing) on a run that has no power-on column.
-enum class Signal { T1, T2, Ta, grad, ton, trun };
-inline constexpr std::size_t kSignals = 6;  // enumerators of Signal (term_ops.hpp's table checks it)
+// T1x..T2z: one axis's own coil thermistors in a three-axis unit whose axes each have their own
+// (absolute axis names: T1y is axis y's coil centre whichever axis is analysed): the signals of
+// a cross-axis term (issue 29 point 3: an axis's drift driven by another axis's coil).
+enum class Signal { T1, T2, Ta, grad, ton, trun, T1x, T2x, T1y, T2y, T1z, T2z };
+inline constexpr std::size_t kSignals = 12;  // enumerators of Signal (term_ops.hpp's table checks it)
 
 // One node of an expression. Immutable once parsed; shared between copies of a model.
 struct Expr {
@@ -86,6 +90,9 @@ inline constexpr int kMaxPower = 4;            // x^N, N = 1..4
 inline constexpr int kMaxLag_s = 86400;        // x@N
 // Signals the expression reads (Ta needs the chamber temperature recorded, ton the power-on time).
 bool uses_signal(const Expr& e, Signal s);
+// For T1x..T2z: the axis (0 x, 1 y, 2 z) and whether it is the outer wall (T2); else nullopt.
+std::optional<std::pair<std::size_t, bool>> axis_thermistor(Signal s);
+bool uses_axis_thermistor(const Expr& e);  // any of T1x..T2z
 
 // The signals a term is evaluated over: temperatures as deviations from Tref, degC, at dt_s.
 struct Signals {
@@ -94,6 +101,9 @@ struct Signals {
   std::span<const double> ta;  // Ta - Tref, degC (empty when not recorded)
   double dt_s = 1.0;
   std::span<const double> ton = {};  // time since the gyro's power-on, s (empty when not recorded)
+  // A three-axis unit's per-axis coil thermistors (x, y, z), T - Tref in degC: T1x..T2z (empty
+  // when the axes share the unit's thermistors).
+  std::array<std::span<const double>, 3> axis_t1 = {}, axis_t2 = {};
   std::size_t size() const { return t1.size(); }
 };
 

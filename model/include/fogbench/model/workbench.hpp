@@ -27,6 +27,10 @@ struct Effect {
   std::string separated_by; // the profile step on which this term moves unlike its look-alikes
 };
 const std::vector<Effect>& effects_library();
+// The cross-axis entries diagnose adds on a three-axis unit whose axes have their own coil
+// thermistors (RunData::has_axis_thermistors): the other two axes' coil temperature and rate
+// (`T1y`, `d(T1y)` for an x analysis), coupling inside the housing.
+std::vector<Effect> cross_axis_effects(Axis own);
 // The library entry of a term (by canonical spelling), if any.
 const Effect* find_effect(std::string_view canonical_term);
 
