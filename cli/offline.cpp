@@ -3,6 +3,7 @@
 
 #include <CLI/CLI.hpp>
 #include <array>
+#include <charconv>
 #include <sstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -21,6 +22,38 @@ namespace fogbench::cli {
 
 namespace {
 // "; own drift y: 0.05*T1": each axis's own extra drift, as `simulate` says it.
+// A term as the term language writes it with its coefficient: "0.05*T1@30" (shortest digits
+// that read back the same double).
+std::string term_with_coef(const model::Term& t) {
+  char buf[32];
+  const auto res = std::to_chars(buf, buf + sizeof buf, t.coef);
+  return std::string(buf, res.ptr) + "*" + model::to_string(t);
+}
+
+// y's and z's coils deeper in a three-axis housing than x's: their paths from the air slower by
+// `factor` (lumped: the wall's; distributed: the film's and the mount's).
+void deeper_in_housing(sim::CoilParams& c, double factor) {
+  c.wall_tau_s *= factor;
+  c.distributed.film_tau_s *= factor;
+  c.distributed.mount_tau_s *= factor;
+}
+
+// Adds an axis's cross-axis terms (coefficient x term at its fixed lag, deg/h) to its gyro
+// column, evaluated on the unit's recorded per-axis thermistors (`with`'s axis_t1_c, axis_t2_c).
+std::expected<void, std::string> add_cross_terms(std::vector<double>& gyro_dph, const std::vector<model::Term>& terms,
+                                                 const model::RunData& with, double tref_c) {
+  if (terms.empty()) return {};
+  auto sig = model::run_signals(with, tref_c);
+  if (!sig) return std::unexpected(sig.error().message);
+  for (const auto& t : terms) {
+    auto v = model::evaluate(*t.expr, sig->view());
+    if (!v) return std::unexpected("'" + model::to_string(t) + "': " + v.error());
+    const std::size_t lag = static_cast<std::size_t>(std::max(0, t.lag.seconds));
+    for (std::size_t i = 0; i < gyro_dph.size() && i < v->size(); ++i) gyro_dph[i] += t.coef * (*v)[i >= lag ? i - lag : 0];
+  }
+  return {};
+}
+
 std::string axis_effects_text(const std::array<std::string, 3>& axis_effect) {
   std::string s;
   for (std::size_t k = 0; k < 3; ++k)
@@ -97,18 +130,37 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
     err << "fogctl simulate: --axis-effect needs --axes 3 (a one-axis gyro's drift is --effect)\n";
     return kExitError;
   }
-  const auto parsed_axis_effects = sim::parse_axis_effects(o.axis_effects);
+  if (o.axis_thermistors && o.axes != 3) {
+    err << "fogctl simulate: --axis-thermistors needs --axes 3 (a one-axis gyro has one coil)\n";
+    return kExitError;
+  }
+  if (o.axis_thermistors && rates) {
+    err << "fogctl simulate: --axis-thermistors with --rate-sequence: the rate-sequence CSV carries one axis\n";
+    return kExitError;
+  }
+  const auto parsed_axis_effects = sim::parse_axis_effects(o.axis_effects, o.axis_thermistors);
   if (!parsed_axis_effects) {
     err << "fogctl simulate: " << parsed_axis_effects.error() << "\n";
     return kExitError;
   }
   const std::array<std::string, 3>& axis_effect = *parsed_axis_effects;  // x, y, z: each axis's own extra drift
+  // An axis's cross-axis terms (another axis's coil) are added after the run, on the axes'
+  // recorded thermistors; the rest is the world's drift of that axis.
+  std::array<std::vector<model::Term>, 3> cross_terms;
   if (o.axes == 3) {
     const sim::UnitParams housing = cfg.units[0];
     cfg.units.assign(3, housing);
     for (std::size_t k = 0; k < 3; ++k) {
       if (k > 0) cfg.units[k].serial = housing.serial + "-" + std::string(model::to_string(static_cast<model::Axis>(k)));
-      if (!axis_effect[k].empty()) cfg.units[k].effects += (cfg.units[k].effects.empty() ? "" : " + ") + axis_effect[k];
+      if (o.axis_thermistors && k > 0) deeper_in_housing(cfg.units[k].coil, k == 1 ? 1.6 : 2.4);
+      if (axis_effect[k].empty()) continue;
+      std::string own;
+      auto parsed = model::parse_terms(axis_effect[k]);  // checked by parse_axis_effects
+      for (auto& t : parsed->terms) {
+        if (model::uses_axis_thermistor(*t.expr)) cross_terms[k].push_back(std::move(t));
+        else own += (own.empty() ? "" : " + ") + term_with_coef(t);
+      }
+      if (!own.empty()) cfg.units[k].effects += (cfg.units[k].effects.empty() ? "" : " + ") + own;
     }
   }
   // Redrawn on a terminal; in a file a line a minute (progress.hpp).
@@ -126,6 +178,16 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
     return kExitError;
   }
   if (o.axes == 3) {
+    if (o.axis_thermistors) {
+      model::RunData& x = r->units[0];
+      x.axis_t1_c = {x.t1_c, r->units[1].t1_c, r->units[2].t1_c};
+      x.axis_t2_c = {x.t2_c, r->units[1].t2_c, r->units[2].t2_c};
+      for (std::size_t k = 0; k < 3; ++k)
+        if (auto added = add_cross_terms(r->units[k].gyro_dph, cross_terms[k], x, cfg.units[k].gyro.tref_c); !added) {
+          err << "fogctl simulate: --axis-effect " << model::to_string(static_cast<model::Axis>(k)) << "=...: " << added.error() << "\n";
+          return kExitError;
+        }
+    }
     r->units[0].gyro_y_dph = std::move(r->units[1].gyro_dph);
     r->units[0].gyro_z_dph = std::move(r->units[2].gyro_dph);
     r->units.resize(1);
@@ -156,7 +218,13 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
                           {"rate_sequence", o.rate_sequence}};
     if (o.axes == 3) {
       summary["axes"] = 3;
-      summary["axis_effects"] = {{"x", cfg.units[0].effects}, {"y", cfg.units[1].effects}, {"z", cfg.units[2].effects}};
+      std::array<std::string, 3> drift;  // each axis's whole extra drift: the world's and the cross-axis terms
+      for (std::size_t k = 0; k < 3; ++k) {
+        drift[k] = cfg.units[k].effects;
+        for (const auto& t : cross_terms[k]) drift[k] += (drift[k].empty() ? "" : " + ") + term_with_coef(t);
+      }
+      summary["axis_effects"] = {{"x", drift[0]}, {"y", drift[1]}, {"z", drift[2]}};
+      summary["axis_thermistors"] = o.axis_thermistors;
     }
     out << summary.dump() << "\n";
   } else {
@@ -377,6 +445,9 @@ void add_offline_commands(CLI::App& app, int& code) {
   s->add_option("--axes", sim.axes, "Gyro axes of the unit: 1 (default), or 3 (columns gyro_y_dph, gyro_z_dph: y and z share the "
                                     "housing's drift and --effect, each with its own noise)")
       ->check(CLI::IsMember({1, 3}));
+  s->add_flag("--axis-thermistors", sim.axis_thermistors,
+              "With --axes 3: each axis's coil has its own thermistors (columns t1_y_c, t2_y_c, t1_z_c, t2_z_c), y's and z's "
+              "deeper in the housing; an --axis-effect may then read another axis's coil, e.g. \"x=0.05*T1y\"");
   s->add_option("--axis-effect", sim.axis_effects,
                 "With --axes 3: one axis's own extra drift, AXIS=TERMS, e.g. \"y=0.05*T1\" (repeatable); the other axes have none");
   s->add_option("--seed", sim.seed, "Random seed, 0 to 18446744073709551615 (same seed, same run)")

@@ -25,6 +25,10 @@ struct SimulateOptions {
   // (repeatable, an axis may take several).
   int axes = 1;
   std::vector<std::string> axis_effects;
+  // With axes 3: each axis's coil has its own thermistors (CSV t1_y_c, t2_y_c, t1_z_c, t2_z_c),
+  // y's and z's coils sitting deeper in the housing (their air paths 1.6 and 2.4 x x's), so an
+  // axis effect may read another axis's coil (T1y, d(T1z)...: a cross-axis term).
+  bool axis_thermistors = false;
   std::uint64_t seed = 1;
   std::string output;                  // -o run.csv
   std::string serial = "SIM-0001";

@@ -77,8 +77,41 @@ const std::vector<Effect>& effects_library() {
   return lib;
 }
 
+namespace {
+// Every axis's cross-axis entries (T1x, d(T1x), T1y, ...): find_effect names them whichever axis
+// is analysed; cross_axis_effects gives an axis the other two's.
+const std::vector<Effect>& all_cross_axis_effects() {
+  static const std::vector<Effect> lib = [] {
+    std::vector<Effect> v;
+    for (Axis other : {Axis::x, Axis::y, Axis::z}) {
+      const std::string a(to_string(other));
+      v.push_back({"T1" + a, "cross-axis coupling: axis " + a + "'s coil temperature",
+                   "the axes share a housing: heat from axis " + a + "'s coil, mount and electronics reaches this axis's coil or its "
+                   "electronics, so the bias follows axis " + a + "'s temperature besides its own",
+                   "a ramp whose heat reaches the axes' coils at different times (their thermistors apart)"});
+      v.push_back({"d(T1" + a + ")", "cross-axis coupling: rate of axis " + a + "'s coil temperature",
+                   "a gradient across the housing, set up as axis " + a + "'s coil warms, reaches this coil as a Shupe-like term "
+                   "following the other coil's rate",
+                   "ramps at two rates, where the axes' coils lag one another by different times"});
+    }
+    return v;
+  }();
+  return lib;
+}
+}  // namespace
+
+std::vector<Effect> cross_axis_effects(Axis own) {
+  std::vector<Effect> out;
+  const std::string mine = "T1" + std::string(to_string(own));
+  for (const auto& e : all_cross_axis_effects())
+    if (e.term.find(mine) == std::string::npos) out.push_back(e);
+  return out;
+}
+
 const Effect* find_effect(std::string_view canonical_term) {
   for (const auto& e : effects_library())
+    if (e.term == canonical_term) return &e;
+  for (const auto& e : all_cross_axis_effects())
     if (e.term == canonical_term) return &e;
   // The library spells terms as typed; compare canonical forms too (e.g. "lp(T1,300)").
   for (const auto& e : effects_library()) {

@@ -46,7 +46,8 @@ Refit refit_at(const StepContext& ctx, const Cand& cd, int lag_s, detail::FitCac
 // scan would pick one by noise (an ageing slope came out as trun@262). A term that reads no
 // temperature is refitted at lag 0, with no lag parameter.
 bool reads_temperature(const Expr& e) {
-  return uses_signal(e, Signal::T1) || uses_signal(e, Signal::T2) || uses_signal(e, Signal::Ta) || uses_signal(e, Signal::grad);
+  return uses_signal(e, Signal::T1) || uses_signal(e, Signal::T2) || uses_signal(e, Signal::Ta) || uses_signal(e, Signal::grad) ||
+         uses_axis_thermistor(e);
 }
 
 Refit refit_undelayed(const StepContext& ctx, const Cand& cd, detail::FitCache& fc) {

@@ -160,7 +160,8 @@ struct CandidateList {
   std::vector<Cand> cands;
   std::size_t n_fixed = 0;  // the first n_fixed are the library's, second lags and extras
 };
-std::expected<CandidateList, FitError> collect_candidates(const Model& base, const DiagnoseOptions& o, const std::vector<Generated>& gen) {
+std::expected<CandidateList, FitError> collect_candidates(const Model& base, const DiagnoseOptions& o, const std::vector<Generated>& gen,
+                                                          const RunData& fit_run) {
   std::vector<Cand> cands;
   auto push = [&](const std::string& text, std::string effect, std::string expl, bool repeat) {
     auto t = parse_term(text);
@@ -176,6 +177,12 @@ std::expected<CandidateList, FitError> collect_candidates(const Model& base, con
     auto t = parse_term(eff.term);
     if (t && !has_key(base, to_string(*t->expr))) push(eff.term, eff.name, eff.explanation, false);
   }
+  // A three-axis unit whose axes have their own coil thermistors: the other axes' coils too.
+  if (fit_run.has_axis_thermistors())
+    for (const auto& eff : cross_axis_effects(fit_run.gyro_axis())) {
+      auto t = parse_term(eff.term);
+      if (t && !has_key(base, to_string(*t->expr))) push(eff.term, eff.name, eff.explanation, false);
+    }
   if (o.second_lags)
     for (const auto& ft : base.terms) {
       const std::string k = term_key(ft.term);
@@ -453,6 +460,9 @@ std::string missing_signal_of(const Expr& e, const RunData& run) {
     return "needs Ta, the chamber air temperature, which " + run.name + " did not record (no chamber_c column)";
   if (uses_signal(e, Signal::ton) && !run.has_power_on())
     return "needs ton, the time since the gyro's power-on, which " + run.name + " did not record (no since_power_on_s column)";
+  if (uses_axis_thermistor(e) && !run.has_axis_thermistors())
+    return "needs a per-axis coil thermistor (T1x..T2z), which " + run.name +
+           " did not record (no t1_y_c, t2_y_c, t1_z_c, t2_z_c columns: its axes share the unit's thermistors)";
   return {};
 }
 
@@ -528,7 +538,7 @@ std::expected<Diagnosis, FitError> diagnose_once(const Model& m, const RunData& 
   std::vector<std::expected<double, std::string>> held_before;
   for (auto& h : held_scorers) held_before.push_back(h.comp_std(*base));
 
-  auto list = collect_candidates(*base, o, gen);
+  auto list = collect_candidates(*base, o, gen, fit_run);
   if (!list) {
     if (auto r = resid_done(); !r) return std::unexpected(r.error());
     return std::unexpected(list.error());

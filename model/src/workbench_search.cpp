@@ -60,6 +60,7 @@ std::string family_name(const Expr& e, const std::string& key) {
     if (contains(e, K::pow)) return "a nonlinear power (" + key + "), not in the library";
     return "an effect outside the library (" + key + ")";
   };
+  if (uses_axis_thermistor(e)) return "cross-axis coupling: another axis's coil (" + key + ")";
   switch (e.kind) {
     case K::warm: {
       const std::size_t open = term_op(K::warm).name.size() + 1;  // the tau between "warm(" and ")"

@@ -55,7 +55,7 @@ std::expected<DriftLaw, std::string> make_drift_law(const UnitParams& u) {
   return law;
 }
 
-std::expected<std::array<std::string, 3>, std::string> parse_axis_effects(std::span<const std::string> options) {
+std::expected<std::array<std::string, 3>, std::string> parse_axis_effects(std::span<const std::string> options, bool cross_axis) {
   std::array<std::string, 3> by_axis;  // x, y, z (model::Axis order)
   for (const auto& e : options) {
     const auto eq = e.find('=');
@@ -64,7 +64,14 @@ std::expected<std::array<std::string, 3>, std::string> parse_axis_effects(std::s
     UnitParams check;
     check.gyro.terms.clear();
     check.effects = e.substr(eq + 1);
-    if (auto law = make_drift_law(check); !law) return std::unexpected("--axis-effect " + e + ": " + law.error());
+    auto law = make_drift_law(check);
+    if (!law) return std::unexpected("--axis-effect " + e + ": " + law.error());
+    if (!cross_axis)
+      for (const auto& t : law->terms)
+        if (model::uses_axis_thermistor(*t.expr))
+          return std::unexpected("--axis-effect " + e + ": '" + model::to_string(t) +
+                                 "' reads an axis's own coil thermistor (T1x..T2z), which this simulation does not give its axes "
+                                 "(they share the unit's thermistors; fogctl simulate --axis-thermistors does)");
     auto& to = by_axis[static_cast<std::size_t>(*axis)];
     to += (to.empty() ? "" : " + ") + check.effects;
   }

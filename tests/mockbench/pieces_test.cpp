@@ -392,7 +392,7 @@ TEST_CASE("mock bench options --axis-effect: y or z of three-axis units, every u
   for (const auto& [axes, effect, says] :
        {std::tuple{1, "y=1*T1", "--axis-effect needs --axes 3"}, std::tuple{3, "x=1*T1", "AXIS y or z"},
         std::tuple{3, "1*T1", "expected AXIS=TERMS"}, std::tuple{3, "y=1*T9", "--axis-effect y=1*T9"},
-        std::tuple{3, "z=1*T1@auto", "fixed lag"}}) {
+        std::tuple{3, "z=1*T1@auto", "fixed lag"}, std::tuple{3, "y=1*T1x", "own coil thermistor"}}) {
     o.axes = axes;
     o.axis_effects = {effect};
     cfg = fogbench::mock::make_bench_config(o);

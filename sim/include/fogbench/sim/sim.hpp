@@ -109,9 +109,11 @@ struct DriftLaw {
 std::expected<DriftLaw, std::string> make_drift_law(const UnitParams& u);
 // The `--axis-effect AXIS=TERMS` options of fogctl simulate and fogbench-sim, one rule for both:
 // each axis's own extra drift (x, y, z; several for one axis are summed with " + "), each checked
-// as the simulator will read it (make_drift_law: fixed lags, no ton). An error names the option
-// as given and what is wrong with it.
-std::expected<std::array<std::string, 3>, std::string> parse_axis_effects(std::span<const std::string> options);
+// as the simulator will read it (make_drift_law: fixed lags, no ton). A term of another axis's
+// coil thermistor (T1x..T2z, a cross-axis term) only where cross_axis (fogctl simulate
+// --axis-thermistors adds it to the axis after the run; the world's axes share their unit's
+// thermistors). An error names the option as given and what is wrong with it.
+std::expected<std::array<std::string, 3>, std::string> parse_axis_effects(std::span<const std::string> options, bool cross_axis = false);
 // The deterministic drift (deg/h) at every sample of true temperatures (degC).
 std::expected<std::vector<double>, std::string> drift_series(const DriftLaw& law, std::span<const double> t1_c,
                                                              std::span<const double> t2_c, std::span<const double> ta_c);
