@@ -137,6 +137,17 @@ TEST_CASE("store axes: a three-axis unit exports gyro_y_dph and gyro_z_dph, a on
   auto x2 = store.export_run(*again, 0);
   REQUIRE(x2.has_value());
   CHECK(to_csv(*x2) == text);
+
+  // With per-axis thermistors, which the samples table has no columns for: refused, named, and
+  // nothing stored (not imported without them).
+  model::RunData cross = *back;
+  cross.axis_t1_c = {cross.t1_c, cross.t1_c, cross.t1_c};
+  cross.axis_t2_c = {cross.t2_c, cross.t2_c, cross.t2_c};
+  const auto runs_before = store.list_runs();
+  auto refused = store.import_run(cross, io);
+  REQUIRE_FALSE(refused.has_value());
+  CHECK_THAT(refused.error().message, Contains("per-axis thermistors") && Contains("t1_y_c"));
+  CHECK(store.list_runs()->size() == runs_before->size());
 }
 
 TEST_CASE("csv axes: gyro_y_dph without gyro_z_dph is refused, naming the missing column", "[csv][axes]") {
