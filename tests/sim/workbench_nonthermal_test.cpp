@@ -126,7 +126,13 @@ TEST_CASE("workbench: an ageing ramp with no power-on column is named as a drift
       }
     }
   INFO(why);
-  CHECK(named >= total - 1);
+  // At most 2 of 12 missed (1 before branch ntfloor): each run's slope is now judged against the
+  // slow noise the whole run's Allan curve shows at its best fit even where the floor keeps no
+  // slow law (issue 25 point 1: t 5 to 18 on clean ARW 0.01 runs with a hidden flicker or walk).
+  // The two it misses: seed 2110, 0.02 deg/h per h on white noise (t 4.8: the best fit reads a
+  // walk of 0.007 deg/h/sqrt(h) on the last octaves), and seed 2160, 0.1 under B 0.02, K 0.02,
+  // whose walk left exp2 a slope of +0.008 (t 2.8).
+  CHECK(named >= total - 2);
 }
 
 TEST_CASE("workbench: a periodic disturbance is named with its period and amplitude", "[nonthermal][sim]") {
@@ -301,4 +307,68 @@ TEST_CASE("workbench: an ageing ramp over a rate random walk is one trun term wi
   }
   INFO(why);
   CHECK(named >= total - 1);
+}
+
+TEST_CASE("workbench: slow noise hidden under white noise raises no drift in time or periodic line, and real ones stay found", "[nonthermal][sim]") {
+  // Issue 25 point 1: at ARW 0.01 deg/sqrt(h) (0.6 deg/h in 1 s) a flicker of B 0.02 deg/h or a
+  // walk of 0.05-0.1 deg/h/sqrt(h) hardly shows on the Allan curve (the floor keeps no slow
+  // law), yet over a 1.5-2.6 h run it moves each run's slope and the slow end of the
+  // periodogram. Judged against white noise alone, time_drift called "a drift in time" on such
+  // clean runs (t 6.8 to 18 on fogctl's grid, docs/workbench.md). Now each detector allows for
+  // the slow noise the curve cannot exclude. Lumped coil: the paper's model is exact, the
+  // residual is the gyro's noise.
+  const Truth noises[] = {{0.01, 0.02, 0.05}, {0.01, 0.0, 0.05}, {0.01, 0.02, 0.1}};
+  int alarms = 0, total = 0;
+  std::string why;
+  for (const auto& tr : noises)
+    for (std::uint64_t seed = 8000; seed < 8100; seed += 10) {
+      const auto r = runs(seed, tr);
+      auto m = model::fit(r[0], *model::parse_terms("paper"));
+      REQUIRE(m);
+      ++total;
+      const wb::TimeDrift td = wb::time_drift(*m, r);
+      bool alarm = td.found;
+      std::string what = td.found ? td.message : std::string();
+      for (const auto& x : r)
+        if (auto p = wb::find_periodic(*m, x)) {
+          alarm = true;
+          what += " " + p->message.substr(0, 120);
+        }
+      if (alarm) {
+        ++alarms;
+        why += "B " + std::to_string(tr.bi) + " K " + std::to_string(tr.rrw) + " seed " + std::to_string(seed) + ": " + what + "\n";
+      }
+    }
+  INFO(why);
+  CHECK(alarms <= 1);  // of 30
+
+  // Well above that noise, on the slowest mix: ageing of 0.5 deg/h per h on every run is a
+  // drift in time with its slope, and a line of 0.3 deg/h at 900 s on exp3 is named.
+  Truth slow{0.01, 0.02, 0.1};
+  int trends = 0, lines = 0, cases = 0;
+  std::string missed;
+  for (std::uint64_t seed = 8200; seed < 8240; seed += 10) {
+    ++cases;
+    Truth ageing = slow;
+    ageing.ageing_dph_per_h = 0.5;
+    const auto ra = runs(seed, ageing);
+    auto ma = model::fit(ra[0], *model::parse_terms("paper"));
+    REQUIRE(ma);
+    const wb::TimeDrift td = wb::time_drift(*ma, ra);
+    if (td.found && std::abs(td.slope_dph_per_h - 0.5) <= 3.0 * td.se_dph_per_h + 0.05) ++trends;
+    else missed += "ageing seed " + std::to_string(seed) + ": slope " + std::to_string(td.slope_dph_per_h) + " t " + std::to_string(td.t) + "\n";
+    Truth line = slow;
+    line.period_s = 900.0;
+    line.amplitude_dph = 0.3;
+    line.phase_rad = 0.4 * static_cast<double>(seed % 7);
+    const auto rl = runs(seed + 1, slow);
+    auto ml = model::fit(rl[0], *model::parse_terms("paper"));
+    REQUIRE(ml);
+    const auto p = wb::find_periodic(*ml, run("exp3", seed + 5, line));
+    if (p && std::abs(p->period_s - 900.0) <= 90.0 && std::abs(p->amplitude_dph - 0.3) <= 0.09) ++lines;
+    else missed += "line seed " + std::to_string(seed) + ": " + (p ? p->message.substr(0, 120) : std::string("none")) + "\n";
+  }
+  INFO(missed);
+  CHECK(trends == cases);
+  CHECK(lines == cases);
 }
