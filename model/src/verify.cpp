@@ -161,6 +161,7 @@ std::expected<Verification, FitError> verify(const Model& m, const RunData& run,
     v.noise_std = ys.noise_std_dph;
     v.noise_limit_factor = ys.limit_factor;
     v.threshold_dph = ys.threshold_dph;
+    v.acf_allowance = ys.acf_allowance;
   }
   v.noise_factor = v.noise_std > 0.0 ? v.run.comp_std / v.noise_std : std::numeric_limits<double>::infinity();
   {

@@ -265,19 +265,26 @@ TEST_CASE("noise floor: a walk the short holds cannot exclude is bounded and all
   REQUIRE(with.walk_allowance);
   CHECK(with.limit_factor > with.limit_factor_seen);
   CHECK(with.threshold_dph > with.threshold_seen_dph);
-  // The allowance is the bound's mean variance over the run: K^2 T / 21600 (deg/h)^2.
+  // The noise factor's allowance is the bound's mean variance over the run on top: K^2 T / 21600
+  // (deg/h)^2; the threshold's, k_slow^2 times its variance after the 61 s average, as a seen
+  // walk's (the floor with_walk_bound).
+  const NoiseFloor as_seen = with_walk_bound(with.floor);
+  CHECK(as_seen.walk_bound_h == 0.0);
+  CHECK(as_seen.walk_h == with.floor.walk_h + with.floor.walk_bound_h);
+  NoiseFloor seen_only = with.floor;
+  seen_only.walk_bound_h = 0.0;
   const double k = with.floor.rrw_bound_dph_per_sqrt_h;
   const double wv = k * k * static_cast<double>(run_s) / 21600.0;
   const double nv = with.noise_std_dph * with.noise_std_dph;
   CHECK(with.limit_factor == Approx(std::sqrt(with.limit_factor_seen * with.limit_factor_seen + wv / nv)).epsilon(0.05));
+  const double a = 3.0 * std::max(0.055, std::sqrt(with.floor.white_var_dph2));
+  CHECK(with.threshold_dph == Approx(std::sqrt(a * a + 49.0 * floor_variance(as_seen, run_s, 61).slow)).epsilon(1e-9));
   // The whiteness test's allowance counts the bound walk in too: more than the flicker alone
-  // allows, as much as a seen walk of the bound's size would.
-  NoiseFloor seen_only = with.floor, as_seen = with.floor;
-  seen_only.walk_bound_h = 0.0;
-  as_seen.walk_h = with.floor.walk_bound_h;
-  as_seen.walk_bound_h = 0.0;
-  CHECK(slow_acf_allowance(with.floor, run_s) > slow_acf_allowance(seen_only, run_s));
-  CHECK(slow_acf_allowance(with.floor, run_s) == Approx(slow_acf_allowance(as_seen, run_s)).epsilon(1e-12));
+  // allows, as much as a seen walk of the bound's size would; computed once, by the yardstick.
+  CHECK(with.acf_allowance > with.acf_allowance_seen);
+  CHECK(with.acf_allowance_seen == Approx(slow_acf_allowance(seen_only, run_s)).epsilon(1e-12));
+  CHECK(with.acf_allowance == Approx(slow_acf_allowance(as_seen, run_s)).epsilon(1e-12));
+  CHECK(with.acf_allowance == Approx(slow_acf_allowance(with.floor, run_s)).epsilon(1e-12));
   CHECK(slow_acf_allowance(NoiseFloor{}, run_s) == 0.0);
   rule.floor.walk_bound_chi2 = 0.0;
   const Yardstick without = yardstick(r, res, w, ar, 0.055, run_s, rule);

@@ -210,6 +210,9 @@ struct Verification {
   double noise_factor = 0.0;        // run.comp_std / noise_std
   double noise_limit_factor = 0.0;  // the factor allowed: the rule's, or more where the floor's slow noise may stray further
   double threshold_dph = 0.0;       // a failing interval's threshold on the smoothed residual, deg/h
+  // What the whiteness test's RMS of the ACF may exceed its white-noise allowance by on this run
+  // (Yardstick::acf_allowance): diagnose's adequacy reads it from here, not a second copy.
+  double acf_allowance = 0.0;
   NoiseFloor floor;                 // the floor as read off the run's settled holds
   double longest_fail_s = 0.0;      // the longest failing interval, s (0: none)
   bool noise_test = true;           // whether the second test was applied

@@ -129,7 +129,12 @@ double floor_avar(const NoiseFloor& f, double tau_s);
 // What the whiteness test's RMS of the autocorrelation may exceed its white-noise allowance by
 // on a run of `samples` samples: the slow noise's 99th-percentile share of the run's variance
 // (flicker, random walk, and the walk the holds cannot exclude); 0 with no slow noise seen.
+// The rule's (Yardstick::acf_allowance) is this, computed once by the yardstick.
 double slow_acf_allowance(const NoiseFloor& f, std::size_t samples);
+
+// The floor with the walk the holds cannot exclude (walk_bound_h) added to its laws as if seen,
+// the bound itself cleared: what the rule's limits are computed on (yardstick).
+NoiseFloor with_walk_bound(const NoiseFloor& f);
 
 // What a limit of the rule allows for beyond the floor as read, for its message: ", allowing
 // for a rate random walk up to K deg/h/sqrt(h) that the holds cannot exclude", or "".
@@ -166,15 +171,22 @@ struct NoiseRule {
   std::expected<void, std::string> validate() const;
 };
 
+// The rule's limits on one run, computed once (yardstick) and read by every verdict through
+// verify's Verification: verify's second test, compare's failing intervals, diagnose's adequacy.
 struct Yardstick {
   NoiseFloor floor;
   double noise_std_dph = 0.0;        // the floor's std over the run, deg/h
   double limit_factor = 0.0;         // the compensated std allowed, over noise_std
   double threshold_dph = 0.0;        // a failing interval's threshold on the smoothed residual, deg/h
-  // When the floor shows slow noise but no walk: limit_factor and threshold_dph allow for the
-  // walk the holds cannot exclude (NoiseFloor::walk_bound_h); these are the limits without it.
+  // What the whiteness test's RMS of the autocorrelation may exceed its white-noise allowance
+  // by (slow_acf_allowance; 0 with no slow noise seen).
+  double acf_allowance = 0.0;
+  // When the floor shows slow noise but no walk: the three limits above allow for the walk the
+  // holds cannot exclude (NoiseFloor::walk_bound_h): the threshold and the whiteness allowance
+  // as for a seen walk (on the floor with_walk_bound), the noise factor's limit by its mean
+  // variance over the run on top; these are the limits without it.
   bool walk_allowance = false;
-  double limit_factor_seen = 0.0, threshold_seen_dph = 0.0;
+  double limit_factor_seen = 0.0, threshold_seen_dph = 0.0, acf_allowance_seen = 0.0;
 };
 Yardstick yardstick(const RunData& run, std::span<const double> residual_dph, std::span<const double> weight,
                     std::span<const double> ar, double sigma_a_dph, std::size_t samples, const NoiseRule& rule = {});
