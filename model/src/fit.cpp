@@ -271,6 +271,12 @@ std::shared_ptr<const Spectrum> FitCache::spectrum(const std::string& key, const
   return spectra_.try_emplace(key, std::move(made)).first->second;
 }
 
+void FitCache::forget(const Term& t) {
+  const std::string key = term_key(t);
+  std::lock_guard lock(mu_);
+  cols_.erase(key);
+}
+
 void FitCache::trim() {
   std::lock_guard lock(mu_);
   pins_.erase(std::this_thread::get_id());

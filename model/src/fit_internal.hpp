@@ -187,6 +187,15 @@ class FitCache {
   // since its last trim (called by a thread between its fits only: the references handed out
   // stay valid within one fit).
   void trim();
+  // Drops the term's column (with its lag extensions and their spectra) now rather than when it
+  // is the least recently used beyond keep_columns: a candidate's, once it is scored. A thread
+  // still reading it holds it (pins_); asked for again, it is made again (the same numbers).
+  void forget(const Term& t);
+  // The columns kept (a test's view of forget and trim).
+  std::size_t columns() {
+    std::lock_guard lock(mu_);
+    return cols_.size();
+  }
   // check_collinear's sums of this run's columns (fit() checks every refit twice).
   CollinearMemo collinear;
   // A spectrum made from this run's columns, kept by the caller's key (diagnose's rescans: the
