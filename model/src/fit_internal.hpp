@@ -200,9 +200,10 @@ class FitCache {
   CollinearMemo collinear;
   // A spectrum made from this run's columns, kept by the caller's key (diagnose's rescans: the
   // weighted column of a term at its lag, CandidateScan), made by make() on first use; at most
-  // max_spectra are kept (dropped all at once beyond: each is about 9 bytes a sample).
+  // max_spectra are kept, the least recently used dropped first (each is about 9 bytes a sample:
+  // 2.3 MB on a 3-day run; 4 hold a rescan's three base columns and one more lag).
   std::shared_ptr<const Spectrum> spectrum(const std::string& key, const std::function<Spectrum()>& make);
-  static constexpr std::size_t max_spectra = 8;
+  static constexpr std::size_t max_spectra = 4;
 
  private:
   struct Entry {
@@ -223,7 +224,11 @@ class FitCache {
   // The entries each thread was handed since its last trim(): kept alive for it if dropped.
   std::map<std::thread::id, std::vector<std::shared_ptr<Entry>>> pins_;
   std::map<std::tuple<int, int, double, int, int>, std::expected<PaperPrep, FitError>> paper_;
-  std::map<std::string, std::shared_ptr<const Spectrum>> spectra_;
+  struct KeptSpectrum {
+    std::shared_ptr<const Spectrum> s;
+    std::uint64_t used = 0;  // clock_ at its last lookup
+  };
+  std::map<std::string, KeptSpectrum> spectra_;
 };
 
 // fit() with the run's shared parts from cache (cache.run() must be run).
