@@ -263,12 +263,31 @@ std::shared_ptr<const Spectrum> FitCache::spectrum(const std::string& key, const
   {
     std::lock_guard lock(mu_);
     auto it = spectra_.find(key);
-    if (it != spectra_.end()) return it->second;
+    if (it != spectra_.end()) {
+      it->second.used = ++clock_;
+      return it->second.s;
+    }
   }
   auto made = std::make_shared<const Spectrum>(make());
   std::lock_guard lock(mu_);
-  if (spectra_.size() >= max_spectra) spectra_.clear();
-  return spectra_.try_emplace(key, std::move(made)).first->second;
+  auto it = spectra_.find(key);  // another thread may have made it meanwhile: the first kept
+  if (it == spectra_.end()) {
+    while (spectra_.size() >= max_spectra) {
+      auto oldest = spectra_.begin();
+      for (auto o = spectra_.begin(); o != spectra_.end(); ++o)
+        if (o->second.used < oldest->second.used) oldest = o;
+      spectra_.erase(oldest);  // a scan holding it keeps it (shared)
+    }
+    it = spectra_.try_emplace(key, KeptSpectrum{std::move(made), 0}).first;
+  }
+  it->second.used = ++clock_;
+  return it->second.s;
+}
+
+void FitCache::forget(const Term& t) {
+  const std::string key = term_key(t);
+  std::lock_guard lock(mu_);
+  cols_.erase(key);
 }
 
 void FitCache::trim() {

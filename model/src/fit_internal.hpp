@@ -187,13 +187,23 @@ class FitCache {
   // since its last trim (called by a thread between its fits only: the references handed out
   // stay valid within one fit).
   void trim();
+  // Drops the term's column (with its lag extensions and their spectra) now rather than when it
+  // is the least recently used beyond keep_columns: a candidate's, once it is scored. A thread
+  // still reading it holds it (pins_); asked for again, it is made again (the same numbers).
+  void forget(const Term& t);
+  // The columns kept (a test's view of forget and trim).
+  std::size_t columns() {
+    std::lock_guard lock(mu_);
+    return cols_.size();
+  }
   // check_collinear's sums of this run's columns (fit() checks every refit twice).
   CollinearMemo collinear;
   // A spectrum made from this run's columns, kept by the caller's key (diagnose's rescans: the
   // weighted column of a term at its lag, CandidateScan), made by make() on first use; at most
-  // max_spectra are kept (dropped all at once beyond: each is about 9 bytes a sample).
+  // max_spectra are kept, the least recently used dropped first (each is about 9 bytes a sample:
+  // 2.3 MB on a 3-day run; 4 hold a rescan's three base columns and one more lag).
   std::shared_ptr<const Spectrum> spectrum(const std::string& key, const std::function<Spectrum()>& make);
-  static constexpr std::size_t max_spectra = 8;
+  static constexpr std::size_t max_spectra = 4;
 
  private:
   struct Entry {
@@ -214,7 +224,11 @@ class FitCache {
   // The entries each thread was handed since its last trim(): kept alive for it if dropped.
   std::map<std::thread::id, std::vector<std::shared_ptr<Entry>>> pins_;
   std::map<std::tuple<int, int, double, int, int>, std::expected<PaperPrep, FitError>> paper_;
-  std::map<std::string, std::shared_ptr<const Spectrum>> spectra_;
+  struct KeptSpectrum {
+    std::shared_ptr<const Spectrum> s;
+    std::uint64_t used = 0;  // clock_ at its last lookup
+  };
+  std::map<std::string, KeptSpectrum> spectra_;
 };
 
 // fit() with the run's shared parts from cache (cache.run() must be run).

@@ -30,6 +30,7 @@ struct Refit {
   std::expected<Model, FitError> model;    // the base's terms plus the candidate, refitted on the fit run
   int extra_params = 0;                    // lag parameters estimated outside the fit (BIC's count)
   bool inner_delay = false;                // a second path written (x@L) in the model (second_path)
+  std::vector<Term> fitted;                // the terms of the refits' columns made for the candidate (FitCache::forget)
 };
 
 // The model's terms plus the candidate at lag_s, refitted on the fit run (a copy of a model
@@ -38,7 +39,7 @@ Refit refit_at(const StepContext& ctx, const Cand& cd, int lag_s, detail::FitCac
   Term t = cd.term;
   t.lag = Lag{false, lag_s};
   auto [tl, extra_params] = extended_terms(ctx.base, t, true);
-  return Refit{t, detail::fit_with(ctx.fit_run, tl, ctx.fo, fc), extra_params};
+  return Refit{t, detail::fit_with(ctx.fit_run, tl, ctx.fo, fc), extra_params, false, {}};
 }
 
 // A clock (trun, ton) delayed by L s is the same clock less L s: a constant the model's mu0
@@ -54,7 +55,7 @@ Refit refit_undelayed(const StepContext& ctx, const Cand& cd, detail::FitCache& 
   Term t = cd.term;
   t.lag = Lag{false, 0};
   auto [tl, extra_params] = extended_terms(ctx.base, t, false);
-  return Refit{t, detail::fit_with(ctx.fit_run, tl, ctx.fo, fc), extra_params};
+  return Refit{t, detail::fit_with(ctx.fit_run, tl, ctx.fo, fc), extra_params, false, {}};
 }
 
 // The lag of x (the candidate evaluated on the fit run) starting at the scan's best, then
@@ -141,14 +142,30 @@ Refit refit_second_path(const StepContext& ctx, const Cand& cd, LazyPrepared& x,
   Refit r = refit_at(ctx, cd, first_lag, fc);
   if (auto_lag_params(base) == 0) return r;  // nothing to free
   int lag = first_lag;
+  // Each lag's copy is a column of its own in the fit cache (the delayed expression): one that
+  // is not, or no longer, the kept model's leaves it at once rather than at the candidate's end
+  // (issue 30's memory: both threads' second paths held up to 5 columns each at the 3-day run's peak).
+  auto drop = [&](const Term& t) {
+    if (!has_key(base, term_key(t))) fc.forget(t);
+  };
+  std::optional<Term> kept_copy;
   for (int it = 0; it < ctx.o.lag_iterations; ++it) {
     TermList free = terms_of(base);
     free.paper = false;
     free.terms.push_back(second_path(cd.term, lag));
+    r.fitted.push_back(free.terms.back());
     auto m2 = detail::fit_with(ctx.fit_run, free, ctx.fo, fc);
-    if (!m2) break;
+    if (!m2) {
+      drop(free.terms.back());
+      break;
+    }
     const int ep = 1;  // the copy's scanned lag; the model's own lags are the fit's
-    if (r.model && m2->fit.bic + ep * ctx.ln_n >= r.model->fit.bic + r.extra_params * ctx.ln_n) break;
+    if (r.model && m2->fit.bic + ep * ctx.ln_n >= r.model->fit.bic + r.extra_params * ctx.ln_n) {
+      drop(free.terms.back());
+      break;
+    }
+    if (kept_copy && term_key(*kept_copy) != term_key(free.terms.back())) drop(*kept_copy);
+    kept_copy = free.terms.back();
     r.model = std::move(m2);
     r.term.lag.seconds = lag;
     r.extra_params = ep;
@@ -265,9 +282,9 @@ EvaluatedCandidate evaluate_candidate(const StepContext& ctx, Cand& cd, Scorer& 
     c.skipped = why + " (the fit run)";
     return out;
   }
-  // The column on the fit run's signals: the screen's for a generated candidate it kept.
-  std::expected<std::vector<double>, std::string> x = std::move(cd.x);
-  if (!cd.screened || x->empty()) x = evaluate(*cd.term.expr, ctx.fr.sig->view());
+  // The column on the fit run's signals (for a generated candidate the screen's numbers: the
+  // same expression on the same signals).
+  auto x = evaluate(*cd.term.expr, ctx.fr.sig->view());
   if (!x) {
     c.skipped = x.error();
     return out;
@@ -312,6 +329,20 @@ EvaluatedCandidate evaluate_candidate(const StepContext& ctx, Cand& cd, Scorer& 
   Refit r = cd.repeat                          ? refit_second_path(ctx, cd, px, gain->lag, fc)
             : !reads_temperature(*cd.term.expr) ? refit_undelayed(ctx, cd, fc)
                                                 : refit_at_best_lag(ctx, cd, px, gain->lag, fc);
+  // The refits' columns of terms the base lacks (this candidate's: every other candidate is
+  // another expression) leave the fit cache when this evaluation ends, each with its lag
+  // extension and spectrum (6.6 MB on the 3-day run), instead of waiting to be the least
+  // recently used of its 8 (memory, issue 30; the same numbers).
+  r.fitted.push_back(cd.term);
+  struct ForgetAtEnd {
+    detail::FitCache& fc;
+    const Model& base;
+    const std::vector<Term>& terms;
+    ~ForgetAtEnd() {
+      for (const auto& t : terms)
+        if (!has_key(base, term_key(t))) fc.forget(t);
+    }
+  } forget_at_end{fc, ctx.base, r.fitted};
   if (r.model) detail::add_standard_errors(*r.model, fc);
   c.lag_s = r.term.lag.seconds;
   // What add_term is given to build the same model: a second path with the model's lags
@@ -327,7 +358,8 @@ EvaluatedCandidate evaluate_candidate(const StepContext& ctx, Cand& cd, Scorer& 
   // x is r.term's column unlagged (the same expression, evaluated on the same signals). Only the
   // detected are compared as look-alikes (mark_look_alikes, right after the step's evaluations):
   // the others' partial columns, one run-length vector each kept to the end of the step, are not made.
-  if (c.detected) out.partial = ctx.scan.partial(lagged(*x, r.term.lag.seconds));
+  // The step makes them (from this lag) after the refits, when their buffers are gone.
+  if (c.detected) out.partial_lag = r.term.lag.seconds;
   // The scorers' columns of terms the base model lacks are used by this candidate only: dropped,
   // so that memory does not grow with the candidates refitted (a 3-day run's column is 2 MB).
   for (const auto& ft : r.model->terms)
@@ -346,15 +378,31 @@ std::expected<CandidateScan, FitError> scan_beside(const Model& m, const RunData
 }
 
 std::expected<CandidateScan, FitError> scan_beside(const Model& m, detail::FitCache& cache, int max_lag_s, bool without_last_term) {
-  auto cols = detail::regressors_with(m, cache);
-  if (!cols) return std::unexpected(cols.error());
-  if (without_last_term && !cols->empty()) cols->pop_back();
-  // The columns are the cache's (its run and reference): their spectra are kept there by key.
+  // A cache of another reference: the columns made for this model (regressors_with's), no keys.
+  if (cache.tref_c() != m.tref_c) {
+    auto cols = detail::regressors_with(m, cache);
+    if (!cols) return std::unexpected(cols.error());
+    if (without_last_term && !cols->empty()) cols->pop_back();
+    return CandidateScan(cache.run().gyro_dph, std::move(*cols), detail::good_weights(cache.run()), max_lag_s, {}, nullptr,
+                         /*keep_columns=*/false);
+  }
+  // The columns are the cache's (its run and reference), read where they lie at their lags
+  // (pinned for this thread until its next fit: the scan is made before) rather than copied
+  // (a copy of each, 2.1 MB on the 3-day run, per rescan alive); their spectra are kept there by key.
+  const std::size_t k = m.terms.size() - (without_last_term && !m.terms.empty() ? 1 : 0);
+  std::vector<CandidateScan::BaseColumn> cols;
   std::vector<std::string> keys;
-  if (cache.tref_c() == m.tref_c)
-    for (std::size_t j = 0; j < cols->size(); ++j) keys.push_back(term_key(m.terms[j].term) + "@" + std::to_string(m.terms[j].term.lag.seconds));
-  return CandidateScan(cache.run().gyro_dph, std::move(*cols), detail::good_weights(cache.run()), max_lag_s, keys,
-                       keys.empty() ? nullptr : &cache);
+  cols.reserve(k);
+  for (std::size_t j = 0; j < k; ++j) {
+    const Term& t = m.terms[j].term;
+    auto x = cache.column(t);
+    if (!x) return std::unexpected(x.error());
+    cols.emplace_back(std::span<const double>(**x), static_cast<std::size_t>(t.lag.seconds));
+    keys.push_back(term_key(t) + "@" + std::to_string(t.lag.seconds));
+  }
+  // A rescan is only scanned (partial() is the step's scan's): its columns are not kept.
+  return CandidateScan(cache.run().gyro_dph, std::move(cols), detail::good_weights(cache.run()), max_lag_s, keys, &cache,
+                       /*keep_columns=*/false);
 }
 
 std::vector<Term> frozen_terms(const Model& m) {

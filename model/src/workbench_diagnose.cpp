@@ -166,7 +166,7 @@ std::expected<CandidateList, FitError> collect_candidates(const Model& base, con
   auto push = [&](const std::string& text, std::string effect, std::string expl, bool repeat) {
     auto t = parse_term(text);
     if (!t) return;
-    Cand c{*t, to_string(*t->expr), std::move(effect), std::move(expl), repeat, false, {}, {}};
+    Cand c{*t, to_string(*t->expr), std::move(effect), std::move(expl), repeat, false, {}};
     c.term.coef = 1.0;
     c.term.coef_given = false;
     for (const auto& x : cands)
@@ -213,7 +213,7 @@ std::expected<CandidateList, FitError> collect_candidates(const Model& base, con
     bool dup = false;
     for (const auto& x : cands) dup = dup || (x.expr == k && !x.repeat);
     if (dup) continue;
-    Cand c{*t, k, g.effect, g.explanation, false, true, {}, {}};
+    Cand c{*t, k, g.effect, g.explanation, false, true, {}};
     c.term.coef = 1.0;
     c.term.coef_given = false;
     cands.push_back(std::move(c));
@@ -279,9 +279,10 @@ void screen_generated(std::vector<Cand>& cands, std::size_t n_fixed, const Candi
       if (alike) continue;
       keep.push_back(x.i);
       kept_cols.push_back(std::move(partial));
-      // Its evaluation starts from this scan and column (the same scan, the same signals).
+      // Its evaluation starts from this scan (the same scan, the same signals). Its column is
+      // evaluated again there, not kept: up to refit_top run-length columns (21 MB on the 3-day
+      // run) would otherwise wait here through every candidate's refits.
       cands[x.i].screened = x.g;
-      cands[x.i].x = std::move(*v);
     }
     std::sort(keep.begin(), keep.end());
     std::vector<Cand> kept(cands.begin(), cands.begin() + static_cast<std::ptrdiff_t>(n_fixed));
@@ -559,11 +560,21 @@ std::expected<Diagnosis, FitError> diagnose_once(const Model& m, const RunData& 
   std::vector<double> slow_held;
   for (const auto& h : held_out) slow_held.push_back(slow_of(h));
   const StepContext ctx{*base, fit_run, held_out, o, fo, *fr, scan, d.rms_fit_dph, held_before, ln_n, slow_of(fit_run), &slow_held};
-  std::vector<std::vector<double>> partial_cols;
+  std::vector<std::optional<int>> partial_lag;
   for (auto& r : evaluate_all(ctx, cands, fit_scorer, held_scorers)) {
     if (stats) ++(r.pruned ? stats->pruned : stats->refitted);
     d.candidates.push_back(std::move(r.c));
-    partial_cols.push_back(std::move(r.partial));
+    partial_lag.push_back(r.partial_lag);
+  }
+  // The refits are done: their cache goes before the detected candidates' partial columns are
+  // made (the column as evaluate_candidate evaluated it, at the lag it kept), so that those (one
+  // run-length column each: 18 of 2.1 MB on the 3-day run's first step) are not held beside
+  // the refits' buffers on both threads (issue 30's memory; the same numbers).
+  fit_scorer.drop_fit_cache();
+  std::vector<std::vector<double>> partial_cols(cands.size());
+  for (std::size_t i = 0; i < cands.size(); ++i) {
+    if (!partial_lag[i]) continue;
+    if (auto x = evaluate(*cands[i].term.expr, fr->sig->view())) partial_cols[i] = scan.partial(lagged(*x, *partial_lag[i]));
   }
   mark_look_alikes(d, partial_cols, *fr, *base, o);
   rank_candidates(d, o);

@@ -5,6 +5,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <expected>
 #include <map>
@@ -40,31 +41,59 @@ inline std::vector<double> lagged(std::span<const double> x, int lag) {
 // and every sum over t is, for all lags at once, a cross-correlation by FFT (lagscan.hpp).
 class CandidateScan {
  public:
+  // A base column: x delayed by lag samples (its first value before the start), read where it
+  // lies (a run's fit cache's column, pinned for the calling thread while the scan is made) or
+  // held in own (x then views it). Moved, never copied (x would point into the original's own).
+  struct BaseColumn {
+    std::vector<double> own;
+    std::span<const double> x;
+    std::size_t lag = 0;
+    explicit BaseColumn(std::vector<double> v) : own(std::move(v)), x(own) {}
+    BaseColumn(std::span<const double> view, std::size_t lag_samples) : x(view), lag(lag_samples) {}
+    BaseColumn(BaseColumn&&) = default;
+    BaseColumn& operator=(BaseColumn&&) = default;
+    BaseColumn(const BaseColumn&) = delete;
+    BaseColumn& operator=(const BaseColumn&) = delete;
+    double at(std::size_t t) const { return x[t >= lag ? t - lag : 0]; }
+  };
+  static std::vector<BaseColumn> owned(std::vector<std::vector<double>> cols) {
+    std::vector<BaseColumn> out;
+    out.reserve(cols.size());
+    for (auto& c : cols) out.emplace_back(std::move(c));
+    return out;
+  }
   // keys and spectra (both or neither): each base column's key (its term's key at its lag) and
   // the run's cache of the weighted columns' spectra (FitCache::spectrum; w must be the run's
   // good_weights), so that the rescans beside models at the same lags transform them once.
-  // base_cols are kept (taken by value: a caller done with its columns moves them in, one
-  // run-length copy fewer each).
+  // base_cols are taken by value (a caller done with its columns moves them in, one run-length
+  // copy fewer each) and kept only for partial(): with keep_columns false they are dropped once
+  // their sums and spectra are made (a rescan's: 6.3 MB on the 3-day run, one per thread).
   CandidateScan(std::span<const double> y_in, std::vector<std::vector<double>> base_cols, std::vector<double> w, int max_lag,
-                std::span<const std::string> keys = {}, detail::FitCache* spectra = nullptr)
-      : sc_(y_in.size(), max_lag, w), w_(std::move(w)), L_(max_lag) {
+                std::span<const std::string> keys = {}, detail::FitCache* spectra = nullptr, bool keep_columns = true)
+      : CandidateScan(y_in, owned(std::move(base_cols)), std::move(w), max_lag, keys, spectra, keep_columns) {}
+  // The same with the base columns as views (BaseColumn: a rescan's, read in its run's fit cache
+  // rather than copied at their lags; the same values, the same sums).
+  CandidateScan(std::span<const double> y_in, std::vector<BaseColumn> base_cols, std::vector<double> w, int max_lag,
+                std::span<const std::string> keys = {}, detail::FitCache* spectra = nullptr, bool keep_columns = true)
+      : sc_(y_in.size(), max_lag, std::move(w)), L_(max_lag) {
+    const std::vector<double>& wv = sc_.weights();  // the weights are the scanner's (one copy)
     const std::size_t n = y_in.size();
     const std::size_t n_base = base_cols.size();
     // Samples of weight 0 may hold NaN (a missing gyro reading): 0 * NaN is NaN, so zero them.
     std::vector<double> y(y_in.begin(), y_in.end());
     for (std::size_t t = 0; t < n; ++t)
-      if (w_[t] == 0.0) y[t] = 0.0;
+      if (wv[t] == 0.0) y[t] = 0.0;
     cols_ = std::move(base_cols);
     const auto k = static_cast<Eigen::Index>(cols_.size() + 1);
     Eigen::MatrixXd G(k, k);
     Eigen::VectorXd b(k);
     for (Eigen::Index a = 0; a < k; ++a) {
       double s = 0.0;
-      for (std::size_t t = 0; t < n; ++t) s += w_[t] * col(static_cast<std::size_t>(a), t) * y[t];
+      for (std::size_t t = 0; t < n; ++t) s += wv[t] * col(static_cast<std::size_t>(a), t) * y[t];
       b(a) = s;
       for (Eigen::Index c = a; c < k; ++c) {
         double g = 0.0;
-        for (std::size_t t = 0; t < n; ++t) g += w_[t] * col(static_cast<std::size_t>(a), t) * col(static_cast<std::size_t>(c), t);
+        for (std::size_t t = 0; t < n; ++t) g += wv[t] * col(static_cast<std::size_t>(a), t) * col(static_cast<std::size_t>(c), t);
         G(a, c) = G(c, a) = g;
       }
     }
@@ -72,19 +101,21 @@ class CandidateScan {
     ok_ = ldlt_.info() == Eigen::Success && ldlt_.rcond() > 1e-14;
     if (!ok_) return;
     const Eigen::VectorXd th = ldlt_.solve(b);
-    u_ = std::move(y);
+    // The residual u = y - B theta, in y's place, then w * u in the same place (sse takes each
+    // u before it is weighted): only its spectrum is kept.
+    std::vector<double>& u = y;
     for (std::size_t t = 0; t < n; ++t)
-      for (Eigen::Index a = 0; a < k; ++a) u_[t] -= th(a) * col(static_cast<std::size_t>(a), t);
-    std::vector<double> wu(n);
+      for (Eigen::Index a = 0; a < k; ++a) u[t] -= th(a) * col(static_cast<std::size_t>(a), t);
     for (std::size_t t = 0; t < n; ++t) {
-      wu[t] = w_[t] * u_[t];
-      sse_ += wu[t] * u_[t];
+      const double ut = u[t];
+      u[t] = wv[t] * ut;
+      sse_ += u[t] * ut;
     }
-    u_spec_ = sc_.spectrum_of_target(wu);
+    u_spec_ = sc_.spectrum_of_target(u);
     for (std::size_t a = 1; a <= cols_.size(); ++a) {
       auto make = [&] {
         std::vector<double> wc(n);
-        for (std::size_t t = 0; t < n; ++t) wc[t] = w_[t] * col(a, t);
+        for (std::size_t t = 0; t < n; ++t) wc[t] = wv[t] * col(a, t);
         return sc_.spectrum_of_target(wc);
       };
       if (spectra && keys.size() == n_base)
@@ -92,9 +123,12 @@ class CandidateScan {
       else
         col_spec_.push_back(std::make_shared<const detail::Spectrum>(make()));
     }
+    if (!keep_columns) {
+      kept_ = false;
+      std::vector<BaseColumn>().swap(cols_);
+    }
   }
   bool ok() const { return ok_; }
-  const std::vector<double>& residual() const { return u_; }
 
   // The lag in [0, max_lag] of largest gain, skipping |lag - avoid| < avoid_half_width.
   std::optional<int> best_lag(std::span<const double> x, std::optional<int> avoid = {}, int avoid_half_width = 0) const {
@@ -125,7 +159,7 @@ class CandidateScan {
     std::vector<double> sq(p.lx.ext.size());
     for (std::size_t j = 0; j < sq.size(); ++j) sq[j] = p.lx.ext[j] * p.lx.ext[j];
     p.sxx = sc_.wsum(sq);
-    p.w = &w_;
+    p.w = &sc_.weights();
     p.max_lag = L_;
     return p;
   }
@@ -137,11 +171,11 @@ class CandidateScan {
   // with other weights or lags its sums are made again here).
   std::optional<Gain> scan(const Prepared& px, std::optional<int> avoid = {}, int avoid_half_width = 0) const {
     if (!ok_) return std::nullopt;
-    const bool same = px.max_lag == L_ && px.lx.ext.size() == w_.size() + static_cast<std::size_t>(L_) && px.w != nullptr &&
-                      (px.w == &w_ || *px.w == w_);
+    const bool same = px.max_lag == L_ && px.lx.ext.size() == sc_.weights().size() + static_cast<std::size_t>(L_) && px.w != nullptr &&
+                      (px.w == &sc_.weights() || *px.w == sc_.weights());
     if (!same) return scan(std::span<const double>(px.lx.ext).subspan(static_cast<std::size_t>(px.max_lag)), avoid, avoid_half_width);
     const detail::Lagged& lx = px.lx;
-    const std::size_t k = cols_.size() + 1;
+    const std::size_t k = col_spec_.size() + 1;  // the base columns (their spectra: the columns may be dropped)
     std::vector<std::vector<double>> cxb(k);
     cxb[0] = px.s1;
     for (std::size_t a = 1; a < k; ++a) cxb[a] = sc_.corr(lx, *col_spec_[a - 1]);
@@ -169,12 +203,15 @@ class CandidateScan {
   }
 
   // x with the base columns regressed out (for correlations between candidates).
+  // Only on a scan that kept its columns (keep_columns).
   std::vector<double> partial(std::span<const double> x) const {
+    assert(kept_);
     const std::size_t n = x.size(), k = cols_.size() + 1;
+    const std::vector<double>& wts = sc_.weights();
     Eigen::VectorXd b(static_cast<Eigen::Index>(k));
     for (std::size_t a = 0; a < k; ++a) {
       double s = 0.0;
-      for (std::size_t t = 0; t < n; ++t) s += w_[t] * col(a, t) * x[t];
+      for (std::size_t t = 0; t < n; ++t) s += wts[t] * col(a, t) * x[t];
       b(static_cast<Eigen::Index>(a)) = s;
     }
     const Eigen::VectorXd th = ldlt_.solve(b);
@@ -186,17 +223,16 @@ class CandidateScan {
 
  private:
   detail::LagScanner sc_;
-  std::vector<double> w_;
   int L_;
   // The base columns; column 0 of the regression is the intercept's, 1 everywhere, not stored
   // (col(0, t) is 1.0: w * 1.0 * y is w * y exactly, the same sums as a stored column of ones).
-  std::vector<std::vector<double>> cols_;
-  double col(std::size_t a, std::size_t t) const { return a == 0 ? 1.0 : cols_[a - 1][t]; }
+  std::vector<BaseColumn> cols_;
+  bool kept_ = true;  // cols_ kept for partial()
+  double col(std::size_t a, std::size_t t) const { return a == 0 ? 1.0 : cols_[a - 1].at(t); }
   Eigen::LDLT<Eigen::MatrixXd> ldlt_;
   bool ok_ = false;
   double sse_ = 0.0;
-  std::vector<double> u_;
-  detail::Spectrum u_spec_;
+  detail::Spectrum u_spec_;  // the weighted residual's (the residual itself is not kept)
   std::vector<std::shared_ptr<const detail::Spectrum>> col_spec_;
 };
 
@@ -288,6 +324,8 @@ class Scorer {
     }
     return *fit_cache_;
   }
+  // The refits' cache released (its columns, spectra and sums: the step's refits are done).
+  void drop_fit_cache() { fit_cache_.reset(); }
 
  private:
   struct Fixed {
@@ -356,11 +394,10 @@ struct Cand {
   bool repeat = false;
   bool generated = false;  // from the language search: screened by its lag scan's gain
   // What the screen found for a generated candidate it kept (the scan beside the base model,
-  // the step's CandidateScan), handed on so that its evaluation does not scan and evaluate it
-  // again: the gain at its best lag, and its column on the fit run's signals (moved out by
-  // evaluate_candidate).
+  // the step's CandidateScan), handed on so that its evaluation does not scan it again: the
+  // gain at its best lag. (Its column is evaluated again by evaluate_candidate: the same numbers,
+  // and no run-length column per kept candidate held until its turn.)
   std::optional<CandidateScan::Gain> screened;
-  std::vector<double> x;
 };
 
 // What every candidate's evaluation reads (shared by the threads, read only).
@@ -386,13 +423,14 @@ struct StepContext {
 struct EvaluatedCandidate {
   Candidate c;
   bool pruned = false;          // not refitted: its one-column update falls short (prune_fraction)
-  std::vector<double> partial;  // its column with the model's terms regressed out (empty if not evaluated or not detected)
+  // Detected: the lag of its column with the model's terms regressed out (the look-alikes' test),
+  // made by the step once every candidate is refitted (not held beside the refits).
+  std::optional<int> partial_lag;
 };
 
 // One candidate: its lag (scan, rescans as the refit moves the model's lags, lag 0 tried),
 // the refit, its score on the fit run and every held-out run, and the verdict. fs and held_sc
-// are this thread's scorers.
-// cd.x, when the screen left it there, is moved out. fc: the fit run's refits' cache (the fit
+// are this thread's scorers. fc: the fit run's refits' cache (the fit
 // run's scorer's fit_cache(), shared by the step's threads).
 EvaluatedCandidate evaluate_candidate(const StepContext& ctx, Cand& cd, Scorer& fs, std::vector<Scorer>& held_sc, detail::FitCache& fc);
 

@@ -156,3 +156,34 @@ TEST_CASE("fit_with through one FitCache shared by two threads gives fit()'s num
     }
   }
 }
+
+TEST_CASE("a FitCache that forgot a candidate's column keeps the others and refits with fit()'s numbers") {
+  // diagnose drops a candidate's column (with its lag extension and spectrum) from the refits'
+  // cache once the candidate is scored (FitCache::forget, issue 30's memory): the base's columns
+  // stay, and a refit that needs the forgotten column again makes it again, the same numbers.
+  const RunData run = run_of(6000, 6);
+  FitOptions fo;
+  fo.method = Method::paper;
+  fo.max_lag_s = 200;
+  FitCache cache(run, fo.tref_c);
+  cache.whole_run_whiteness = false;
+  auto tl = parse_terms("d(T1)@auto + grad@auto + T2@30 + lp(T1,600)@0");
+  REQUIRE(tl);
+  auto want = fit(run, *tl, fo);
+  REQUIRE(want);
+  auto first = fit_with(run, *tl, fo, cache);
+  REQUIRE(first);
+  same_model(*first, *want);
+  cache.trim();
+  REQUIRE(cache.columns() == 4);
+  cache.forget(tl->terms[2]);  // T2
+  CHECK(cache.columns() == 3);
+  cache.forget(tl->terms[2]);  // not there: nothing changes
+  CHECK(cache.columns() == 3);
+  // Two fixed columns beside the two varying ones: each fixed column's spectrum serves both
+  // varying columns before the next one's is made (fit_kernel.cpp's scan).
+  auto again = fit_with(run, *tl, fo, cache);
+  REQUIRE(again);
+  same_model(*again, *want);
+  CHECK(cache.columns() == 4);
+}

@@ -1,0 +1,188 @@
+// diagnose's peak heap (issue 30, point 1: under 3 x the input's size). The malloc family is
+// interposed (as bench_fit_alloc does) and the bytes live at once are followed
+// (malloc_usable_size of each block), so the figure is the heap's high-water mark during one
+// diagnose call above what was live before it, not the process's RSS; on one thread
+// (DiagnoseOptions::threads 1) it is the same on every run and machine, on two it depends on
+// how the threads meet. The input's size is the run as the CSV reader holds it in memory (its
+// columns' bytes: time, gyro, T1, T2, setpoint, chamber as doubles, phase, step and flags).
+// Usage:
+//   bench_diagnose_peak [--cycles 48] [--threads 1] [--search language|library] [--max-ratio R]
+// --cycles: the 3-day profile's 1 h 30 min cycles (48: 262,200 samples; 159: about 10 days);
+// --max-ratio: exit 1 when the peak is above R x the input (a watch, not a target).
+#include <malloc.h>
+
+#include <atomic>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <expected>
+#include <string>
+#include <vector>
+
+#include "fogbench/model/model.hpp"
+#include "fogbench/model/workbench.hpp"
+#include "fogbench/profiles/profile.hpp"
+#include "fogbench/sim/sim.hpp"
+
+extern "C" {
+void* __libc_malloc(std::size_t);
+void* __libc_calloc(std::size_t, std::size_t);
+void* __libc_realloc(void*, std::size_t);
+void* __libc_memalign(std::size_t, std::size_t);
+void __libc_free(void*);
+}
+
+namespace {
+
+std::atomic<long> live_bytes{0};
+std::atomic<long> peak_bytes{0};
+
+void grew(void* p) {
+  if (!p) return;
+  const long now = live_bytes.fetch_add(static_cast<long>(malloc_usable_size(p)), std::memory_order_relaxed) +
+                   static_cast<long>(malloc_usable_size(p));
+  long seen = peak_bytes.load(std::memory_order_relaxed);
+  while (now > seen && !peak_bytes.compare_exchange_weak(seen, now, std::memory_order_relaxed)) {
+  }
+}
+void shrank(void* p) {
+  if (p) live_bytes.fetch_sub(static_cast<long>(malloc_usable_size(p)), std::memory_order_relaxed);
+}
+
+}  // namespace
+
+// The executable's symbols come first: every allocation of the process (operator new, Eigen's
+// and FFTW's aligned ones) goes through these, then to glibc's own.
+extern "C" {
+void* malloc(std::size_t n) {
+  void* p = __libc_malloc(n);
+  grew(p);
+  return p;
+}
+void* calloc(std::size_t k, std::size_t n) {
+  void* p = __libc_calloc(k, n);
+  grew(p);
+  return p;
+}
+void* realloc(void* p, std::size_t n) {
+  shrank(p);
+  void* q = __libc_realloc(p, n);
+  grew(q ? q : (n ? p : nullptr));  // a failed realloc leaves p as it was
+  return q;
+}
+void free(void* p) {
+  shrank(p);
+  __libc_free(p);
+}
+void* memalign(std::size_t a, std::size_t n) {
+  void* p = __libc_memalign(a, n);
+  grew(p);
+  return p;
+}
+void* aligned_alloc(std::size_t a, std::size_t n) {
+  void* p = __libc_memalign(a, n);
+  grew(p);
+  return p;
+}
+int posix_memalign(void** out, std::size_t a, std::size_t n) {
+  void* p = __libc_memalign(a, n);
+  if (!p) return 12;  // ENOMEM
+  grew(p);
+  *out = p;
+  return 0;
+}
+}
+
+using namespace fogbench;
+
+namespace {
+
+// bench_diagnose's 3-day profile with `cycles` cycles of exp1's steps (48: 262,200 s at 1 Hz).
+std::string long_profile(int cycles) {
+  std::string t = "setpoint 20 C\nhold 10 min\n";
+  for (int i = 0; i < cycles; ++i)
+    t += "ramp to 10 C at 1 C/min\nhold 20 min\nramp to 30 C at 1 C/min\nhold 20 min\nramp to 20 C at 1 C/min\nhold 10 min\n";
+  return t + "hold 40 min\n";
+}
+
+std::expected<model::RunData, std::string> simulate(int cycles, std::uint64_t seed, const std::string& effect) {
+  auto p = profiles::parse_profile(long_profile(cycles), "long");
+  if (!p) return std::unexpected(std::string("the profile does not parse"));
+  std::vector<sim::SetpointSample> prog;
+  for (const auto& pt : profiles::nominal_setpoints(*p, 1.0)) {
+    if (pt.phase == profiles::Phase::settle) continue;
+    const model::Phase ph = pt.phase == profiles::Phase::heating   ? model::Phase::heating
+                            : pt.phase == profiles::Phase::cooling ? model::Phase::cooling
+                                                                   : model::Phase::hold;
+    prog.push_back({pt.setpoint_c, ph, static_cast<int>(pt.step_index)});
+  }
+  sim::SimConfig cfg;
+  cfg.seed = seed;
+  cfg.units[0].effects = effect;
+  auto r = sim::simulate(cfg, prog);
+  if (!r) return std::unexpected(r.error());
+  auto run = r->front();
+  run.name = "long" + std::to_string(cycles);
+  return run;
+}
+
+// The run's columns as held in memory (sizes, not capacities: what a reader of the CSV must hold).
+std::size_t input_bytes(const model::RunData& r) {
+  auto b = [](const auto& v) { return v.size() * sizeof(v[0]); };
+  return b(r.time_s) + b(r.gyro_dph) + b(r.t1_c) + b(r.t2_c) + b(r.setpoint_c) + b(r.chamber_c) + b(r.phase) + b(r.step) +
+         b(r.flags) + b(r.since_power_on_s) + b(r.compensated_dph) + b(r.rate_in_dps) + b(r.gyro_y_dph) + b(r.gyro_z_dph);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int cycles = 48, threads = 1;
+  double max_ratio = 0.0;
+  std::string search = "language";
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string a = argv[i], v = argv[i + 1];
+    if (a == "--cycles") cycles = std::atoi(v.c_str());
+    else if (a == "--threads") threads = std::atoi(v.c_str());
+    else if (a == "--max-ratio") max_ratio = std::atof(v.c_str());
+    else if (a == "--search") search = v;
+    else {
+      std::fprintf(stderr, "bench_diagnose_peak: unknown option %s (--cycles N, --threads N, --search language|library, --max-ratio R)\n",
+                   a.c_str());
+      return 2;
+    }
+  }
+  if (cycles < 1 || cycles > 400 || threads < 0 || (search != "language" && search != "library")) {
+    std::fprintf(stderr, "bench_diagnose_peak: --cycles must be 1 to 400, --threads 0 or more, --search language or library\n");
+    return 2;
+  }
+  auto run = simulate(cycles, 11, "0.05*T1");
+  if (!run) {
+    std::fprintf(stderr, "bench_diagnose_peak: simulate: %s\n", run.error().c_str());
+    return 2;
+  }
+  auto m = model::fit(*run, *model::parse_terms("paper"));
+  if (!m) {
+    std::fprintf(stderr, "bench_diagnose_peak: fit: %s\n", m.error().message.c_str());
+    return 2;
+  }
+  model::workbench::DiagnoseOptions o;
+  o.threads = threads;
+  o.search = search == "library" ? model::workbench::DiagnoseOptions::Search::library : model::workbench::DiagnoseOptions::Search::language;
+  const long before = live_bytes.load();
+  peak_bytes = before;
+  auto d = model::workbench::diagnose(*m, *run, {}, o);
+  const long peak = peak_bytes.load() - before;
+  if (!d) {
+    std::fprintf(stderr, "bench_diagnose_peak: diagnose: %s\n", d.error().message.c_str());
+    return 2;
+  }
+  const double in = static_cast<double>(input_bytes(*run));
+  const double ratio = static_cast<double>(peak) / in;
+  std::printf("diagnose (%s search, threads %d) on %zu samples: input %.1f MB in memory, peak heap above it %.1f MB = %.2f x the input\n",
+              search.c_str(), threads, run->size(), in / 1e6, static_cast<double>(peak) / 1e6, ratio);
+  if (max_ratio > 0.0 && ratio > max_ratio) {
+    std::printf("above --max-ratio %.2f\n", max_ratio);
+    return 1;
+  }
+  return 0;
+}
