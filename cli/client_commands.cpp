@@ -325,7 +325,16 @@ int cmd_model_get(const Common& o, const std::string& serial, std::int64_t model
   } else {
     out << "model " << (*m)["id"] << " for " << (*m)["serial"].get<std::string>() << ", version " << (*m)["version"]
         << ", fitted on run " << ((*m)["run_id"].is_null() ? std::string("-") : (*m)["run_id"].dump()) << " ("
-        << (*m)["method"].get<std::string>() << "): " << (*m)["terms"].get<std::string>() << "\n";
+        << (*m)["method"].get<std::string>() << "): " << (*m)["terms"].get<std::string>()
+        << (m->contains("axis") ? ", axis " + (*m)["axis"].get<std::string>() : std::string()) << "\n";
+    // A three-axis unit's serial: each axis' current model (the reply above is x's).
+    if (m->contains("axes") && (*m)["axes"].is_array()) {
+      out << "  by axis:";
+      for (const auto& a : (*m)["axes"])
+        out << " " << a.value("axis", std::string("?")) << " "
+            << (a.contains("id") && !a["id"].is_null() ? "model " + a["id"].dump() : std::string("none"));
+      out << "\n";
+    }
     const json& mj = (*m)["model"];
     if (mj.contains("mu0_dph")) out << "  mu0 " << num_text(mj["mu0_dph"], 3) << " deg/h";
     if (mj.contains("sigma_a_dph")) out << ", sigma_a " << num_text(mj["sigma_a_dph"], 3) << " deg/h";

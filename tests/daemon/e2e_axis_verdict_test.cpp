@@ -130,6 +130,14 @@ TEST_CASE("e2e axis verdict: y drifts with T1 alone, its verification fails, x a
   CHECK_THAT(shown.out, Catch::Contains(" y FAIL "));
   CHECK_THAT(shown.out, Catch::Contains(" z PASS "));
 
+  // fogctl model get: x's model, and each axis' own.
+  const auto model_shown = axis_fogctl(bench, "model get SIM-0001");
+  INFO(model_shown.out);
+  REQUIRE(model_shown.code == 0);
+  CHECK_THAT(model_shown.out, Catch::Contains(", axis x\n"));
+  CHECK_THAT(model_shown.out, Catch::Contains("by axis: x model " + mx["id"].dump() + " y model " + my["id"].dump() +
+                                                  " z model " + mz["id"].dump() + "\n"));
+
   // The export a report reads (its `verdict` comments): fail, by axis.
   const auto exported = axis_fogctl(bench, "run export " + std::to_string(vrun) + " --unit 0 -o v.csv");
   INFO(exported.out);
