@@ -167,6 +167,12 @@ std::string decided_by_text(const json& q) {
 // A judged limit as the verdict keeps it: a plan's "comp_raw < 0.05", an analysis check's
 // "compensated std / raw std < 0.2".
 std::string limit_text(const json& x) {
+  // A three-axis unit's verdict judges each axis: its checks name the axis.
+  if (x.contains("axis") && x["axis"].is_string()) {
+    json one = x;
+    one.erase("axis");
+    return "axis " + x["axis"].get<std::string>() + ": " + limit_text(one);
+  }
   if (x.contains("bound")) {  // an analysis check: {measurement, limit (the rule), bound}
     std::string rule = field_text(x, "limit");
     const std::string op = rule.find("<=") != std::string::npos ? "<=" : "<";

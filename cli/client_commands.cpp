@@ -225,10 +225,18 @@ int cmd_run_get(const Common& o, std::int64_t id, std::ostream& out, std::ostrea
   out << quality_table(run["units"], r->value("quality", json()), &(*r)["samples"]).str();
   print_identity(r->value("identity", json()), out);
   if (!(*r)["models"].empty()) {
-    Table t({"model", "serial", "version", "method", "terms", "parent"});
-    for (const auto& m : (*r)["models"])
-      t.add({std::to_string(m["id"].get<std::int64_t>()), m["serial"], std::to_string(m["version"].get<int>()),
-             m["method"], m["terms"], m["parent_id"].is_null() ? "-" : std::to_string(m["parent_id"].get<std::int64_t>())});
+    // A three-axis unit's models name their axis; a run of one-axis units has no axis column.
+    bool any_axis = false;
+    for (const auto& m : (*r)["models"]) any_axis = any_axis || m.contains("axis");
+    std::vector<std::string> head{"model", "serial", "version", "method", "terms", "parent"};
+    if (any_axis) head.insert(head.begin() + 2, "axis");
+    Table t(head);
+    for (const auto& m : (*r)["models"]) {
+      std::vector<std::string> row{std::to_string(m["id"].get<std::int64_t>()), m["serial"], std::to_string(m["version"].get<int>()),
+                                   m["method"], m["terms"], m["parent_id"].is_null() ? "-" : std::to_string(m["parent_id"].get<std::int64_t>())};
+      if (any_axis) row.insert(row.begin() + 2, m.value("axis", std::string("-")));
+      t.add(row);
+    }
     out << "models fitted on this run:\n" << t.str();
   }
   if (!(*r)["verifications"].empty()) {
@@ -246,6 +254,18 @@ int cmd_run_get(const Common& o, std::int64_t id, std::ostream& out, std::ostrea
             v.value("decided_at", std::string("-"))});
   }
   if (any_verdict) out << "verdicts:\n" << vt.str();
+  // A three-axis unit's verdict is the worst of its axes': each axis' own, with its model.
+  for (const auto& v : r->value("verdicts", json::array())) {
+    if (!v.is_object() || !v.contains("axes") || !v["axes"].is_array()) continue;
+    out << "  unit " << v.value("unit", 0) << " (" << v.value("serial", std::string()) << ") by axis:";
+    for (const auto& a : v["axes"])
+      out << " " << a.value("axis", std::string("?")) << " " << upper(a.value("verdict", std::string("-"))) << " (model "
+          << (a.contains("model_id") ? a["model_id"].dump() : std::string("-")) << ")";
+    out << "\n";
+    for (const auto& a : v["axes"])
+      for (const auto& why : a.value("reasons", json::array()))
+        out << "    axis " << a.value("axis", std::string("?")) << ": " << (why.is_string() ? why.get<std::string>() : why.dump()) << "\n";
+  }
   out << "events:\n" << events_table((*r)["events"]).str();
   return kExitOk;
 }
@@ -305,7 +325,16 @@ int cmd_model_get(const Common& o, const std::string& serial, std::int64_t model
   } else {
     out << "model " << (*m)["id"] << " for " << (*m)["serial"].get<std::string>() << ", version " << (*m)["version"]
         << ", fitted on run " << ((*m)["run_id"].is_null() ? std::string("-") : (*m)["run_id"].dump()) << " ("
-        << (*m)["method"].get<std::string>() << "): " << (*m)["terms"].get<std::string>() << "\n";
+        << (*m)["method"].get<std::string>() << "): " << (*m)["terms"].get<std::string>()
+        << (m->contains("axis") ? ", axis " + (*m)["axis"].get<std::string>() : std::string()) << "\n";
+    // A three-axis unit's serial: each axis' current model (the reply above is x's).
+    if (m->contains("axes") && (*m)["axes"].is_array()) {
+      out << "  by axis:";
+      for (const auto& a : (*m)["axes"])
+        out << " " << a.value("axis", std::string("?")) << " "
+            << (a.contains("id") && !a["id"].is_null() ? "model " + a["id"].dump() : std::string("none"));
+      out << "\n";
+    }
     const json& mj = (*m)["model"];
     if (mj.contains("mu0_dph")) out << "  mu0 " << num_text(mj["mu0_dph"], 3) << " deg/h";
     if (mj.contains("sigma_a_dph")) out << ", sigma_a " << num_text(mj["sigma_a_dph"], 3) << " deg/h";

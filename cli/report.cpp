@@ -118,7 +118,9 @@ std::string station_verdicts(const std::vector<std::string>& paths) {
     html += "<p><b>The serial's verdict</b> (" + html_escape(f["serial"]) + ", run " + html_escape(f["run"]) +
             ", recorded by the station): <span class=\"verdict " + std::string(v == "pass" ? "pass" : "failv") + "\">" +
             html_escape(shown) + "</span> decided by " + html_escape(f["verdict_by"]) + " on " + html_escape(f["verdict_decided_at"]) +
-            " (<code>fogctl cert " + html_escape(f["serial"]) + "</code>)</p>";
+            " (<code>fogctl cert " + html_escape(f["serial"]) + "</code>)" +
+            // A three-axis unit's verdict is the worst of its axes': each axis' own.
+            (f.contains("verdict_axes") ? ", by axis: " + html_escape(f["verdict_axes"]) : std::string()) + "</p>";
   }
   if (!html.empty())
     html += "<p class=\"note\">The qualification below is this report's analysis of these files (its threshold, the "

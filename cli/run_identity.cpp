@@ -59,6 +59,13 @@ std::string identity_csv_comments(const json& run_get, int unit) {
       fields.emplace_back("verdict", v["verdict"].get<std::string>());
       fields.emplace_back("verdict_by", verdict_by_text(v));
       fields.emplace_back("verdict_decided_at", v.value("decided_at", std::string()));
+      // A three-axis unit's: each axis' verdict, the unit's above being the worst of them.
+      if (v.contains("axes") && v["axes"].is_array()) {
+        std::string by_axis;
+        for (const auto& a : v["axes"])
+          by_axis += (by_axis.empty() ? "" : ", ") + a.value("axis", std::string("?")) + " " + a.value("verdict", std::string("-"));
+        fields.emplace_back("verdict_axes", by_axis);
+      }
     }
   }
   return storage::identity_comment_lines(fields);

@@ -46,7 +46,7 @@ ApiResult<std::string> serial_of(storage::Store& store, std::int64_t run_id, int
 // keeps the store's name ("run N unit U (SERIAL)": fit and verify record it); the workbench's
 // reports call it "run N SERIAL" (`workbench_name`).
 ApiResult<UnitRun> load_unit_run(storage::Store& store, std::int64_t run_id, int unit_index,
-                                 bool workbench_name = false) {
+                                 bool workbench_name = false, std::optional<model::Axis> axis = std::nullopt) {
   auto serial = serial_of(store, run_id, unit_index);
   if (!serial) return std::unexpected(serial.error());
   UnitRun u;
@@ -55,20 +55,33 @@ ApiResult<UnitRun> load_unit_run(storage::Store& store, std::int64_t run_id, int
   if (!data) return std::unexpected(from_store(data.error()));
   u.data = std::move(*data);
   if (workbench_name) u.data.name = "run " + std::to_string(run_id) + " " + u.serial;
+  if (axis) {
+    auto picked = model::select_axis(std::move(u.data), *axis);
+    if (!picked) return api_error(ErrorCode::bad_request, picked.error());
+    u.data = std::move(*picked);
+  }
   bridge_missing(u.data);
   return u;
 }
 
+// The storage name of an axis asked for; x when none is (a one-axis unit's model is x's).
+std::string axis_name(std::optional<model::Axis> axis) {
+  return std::string(model::to_string(axis.value_or(model::Axis::x)));
+}
+
 ApiResult<storage::ModelRecord> model_for(storage::Store& store, const std::string& serial,
-                                          std::optional<std::int64_t> model_id, const char* none) {
+                                          std::optional<std::int64_t> model_id, const char* none,
+                                          std::optional<model::Axis> axis = std::nullopt) {
   if (model_id) {
     auto r = store.get_model(*model_id);
     if (!r) return std::unexpected(from_store(r.error()));
     return *r;
   }
-  auto r = store.current_model(serial);
+  auto r = store.current_model(serial, axis_name(axis));
   if (!r) return std::unexpected(from_store(r.error()));
-  if (!*r) return api_error(ErrorCode::unknown_serial, "unit " + serial + ": " + none);
+  if (!*r)
+    return api_error(ErrorCode::unknown_serial,
+                     "unit " + serial + (axis ? " axis " + axis_name(axis) : std::string()) + ": " + none);
   return **r;
 }
 
@@ -82,10 +95,11 @@ struct UnitWithModel {
 ApiResult<UnitWithModel> load_unit_with_model(storage::Store& store, std::int64_t run_id, int unit_index,
                                               std::optional<std::int64_t> model_id,
                                               const char* none = "no model yet (fit one first)",
-                                              bool workbench_name = true) {
-  auto u = load_unit_run(store, run_id, unit_index, workbench_name);
+                                              bool workbench_name = true,
+                                              std::optional<model::Axis> axis = std::nullopt) {
+  auto u = load_unit_run(store, run_id, unit_index, workbench_name, axis);
   if (!u) return std::unexpected(u.error());
-  auto rec = model_for(store, u->serial, model_id, none);
+  auto rec = model_for(store, u->serial, model_id, none, axis);
   if (!rec) return std::unexpected(rec.error());
   auto m = model::model_from_text(rec->model_json);
   if (!m) return api_error(ErrorCode::internal, "model " + std::to_string(rec->id) + ": " + m.error());
@@ -101,8 +115,9 @@ Commit ready(json result) {
 }  // namespace
 
 ApiResult<Commit> fit(storage::Store& reader, const AnalysisConfig& config, std::int64_t run_id, int unit_index,
-                      const std::string& terms_text, const std::string& method_text, const std::string& created_at) {
-  auto unit = load_unit_run(reader, run_id, unit_index);
+                      const std::string& terms_text, const std::string& method_text, const std::string& created_at,
+                      std::optional<model::Axis> axis) {
+  auto unit = load_unit_run(reader, run_id, unit_index, false, axis);
   if (!unit) return std::unexpected(unit.error());
   const std::string tt = terms_text.empty() ? config.terms : terms_text;
   auto terms = model::parse_terms(tt);
@@ -125,10 +140,11 @@ ApiResult<Commit> fit(storage::Store& reader, const AnalysisConfig& config, std:
               (m->fit.iterations == 1 ? " iteration" : " iterations") + " (analysis.max_iterations " +
               std::to_string(config.max_iterations) + "): its coefficients may still move; check it before use";
   auto fitted = std::make_shared<const model::Model>(std::move(*m));
-  return Commit([fitted, warning, serial = unit->serial, run_id, unit_index](storage::Store& writer) -> ApiResult<json> {
+  return Commit([fitted, warning, serial = unit->serial, run_id, unit_index, axis](storage::Store& writer) -> ApiResult<json> {
     const model::Model& mo = *fitted;
-    // The parent is the serial's current model when this one is stored, not when the fit began.
-    auto parent = writer.current_model(serial);
+    // The parent is the serial's current model (of the axis) when this one is stored, not when
+    // the fit began.
+    auto parent = writer.current_model(serial, axis_name(axis));
     if (!parent) return std::unexpected(from_store(parent.error()));
     storage::NewModel nm;
     nm.serial = serial;
@@ -146,6 +162,7 @@ ApiResult<Commit> fit(storage::Store& reader, const AnalysisConfig& config, std:
                 {"terms", nm.terms}, {"method", nm.method},
                 // Samples the fit skipped for their quality flags (missing, frames lost, link gap, ...).
                 {"n_flagged", mo.fit.n_flagged}, {"model", mj}};
+    if (axis) result["axis"] = axis_name(axis);
     if (!warning.empty()) {
       result["warning"] = warning;
       spdlog::warn("model {} for {} (run {}): {}", ref->id, serial, run_id, warning);
@@ -155,8 +172,8 @@ ApiResult<Commit> fit(storage::Store& reader, const AnalysisConfig& config, std:
 }
 
 ApiResult<Commit> verify(storage::Store& reader, const AnalysisConfig& config, std::int64_t run_id, int unit_index,
-                         std::optional<std::int64_t> model_id) {
-  auto um = load_unit_with_model(reader, run_id, unit_index, model_id, "no model to verify", false);
+                         std::optional<std::int64_t> model_id, std::optional<model::Axis> axis) {
+  auto um = load_unit_with_model(reader, run_id, unit_index, model_id, "no model to verify", false, axis);
   if (!um) return std::unexpected(um.error());
   model::VerifyOptions vo;
   vo.threshold = config.verify_threshold;
@@ -169,6 +186,7 @@ ApiResult<Commit> verify(storage::Store& reader, const AnalysisConfig& config, s
   // these, not the configuration of the day it is printed (docs/cli.md, fogctl cert).
   stored["max_noise_factor"] = vo.noise.max_noise_factor;
   stored["max_fail_s"] = vo.noise.max_fail_s;
+  if (axis) stored["axis"] = axis_name(axis);  // a three-axis unit's: which of its axes
   auto vj = std::make_shared<const json>(std::move(stored));
   const bool pass = v->pass;
   const std::int64_t mid = um->record.id;

@@ -282,7 +282,24 @@ struct CommandHandlers {
     auto m = store.current_model(**serial);
     if (!m) return std::unexpected(from_store(m.error()));
     if (!*m) return api_error(ErrorCode::not_found, "no model for serial " + **serial);
-    return model_json(**m);
+    json out = model_json(**m);
+    // A three-axis unit's serial (one with a y or z model): the reply is x's, and `axes` each
+    // axis' current model; a one-axis unit's reply has no `axes`.
+    json axes = json::array();
+    bool three = false;
+    for (const char* axis : {"x", "y", "z"}) {
+      auto a = store.current_model(**serial, axis);
+      if (!a) return std::unexpected(from_store(a.error()));
+      if (!*a) {
+        axes.push_back({{"axis", axis}, {"id", nullptr}});
+        continue;
+      }
+      three = three || (*a)->axis == "y" || (*a)->axis == "z";
+      axes.push_back({{"axis", axis}, {"id", (*a)->id}, {"version", (*a)->version}, {"method", (*a)->method},
+                      {"terms", (*a)->terms}, {"run_id", (*a)->run_id ? json(*(*a)->run_id) : json(nullptr)}});
+    }
+    if (three) out["axes"] = std::move(axes);
+    return out;
   }
 
   // plan.* and queue.*: arguments checked and the work done in plan_commands.cpp.

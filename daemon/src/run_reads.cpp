@@ -40,11 +40,13 @@ json parse_or_string(const std::string& text) {
 }
 
 json model_json(const storage::ModelRecord& m) {
-  return {{"id", m.id}, {"serial", m.serial}, {"version", m.version},
-          {"run_id", m.run_id ? json(*m.run_id) : json(nullptr)},
-          {"parent_id", m.parent_id ? json(*m.parent_id) : json(nullptr)},
-          {"created_at", m.created_at}, {"method", m.method}, {"terms", m.terms},
-          {"model", parse_or_string(m.model_json)}};
+  json j = {{"id", m.id}, {"serial", m.serial}, {"version", m.version},
+            {"run_id", m.run_id ? json(*m.run_id) : json(nullptr)},
+            {"parent_id", m.parent_id ? json(*m.parent_id) : json(nullptr)},
+            {"created_at", m.created_at}, {"method", m.method}, {"terms", m.terms},
+            {"model", parse_or_string(m.model_json)}};
+  if (!m.axis.empty()) j["axis"] = m.axis;  // a three-axis unit's model
+  return j;
 }
 
 json sample_json(const storage::SampleRow& r, int axes) {
@@ -132,10 +134,13 @@ ApiResult<json> run_get(storage::Store& store, std::int64_t run_id, const json& 
     auto ms = store.list_models(u.serial);
     if (!ms) return std::unexpected(from_store(ms.error()));
     for (const auto& m : *ms)
-      if (m.run_id == run_id)
-        models.push_back({{"id", m.id}, {"serial", m.serial}, {"version", m.version},
-                          {"unit", u.unit_index}, {"terms", m.terms}, {"method", m.method},
-                          {"parent_id", m.parent_id ? json(*m.parent_id) : json(nullptr)}});
+      if (m.run_id == run_id) {
+        json one = {{"id", m.id}, {"serial", m.serial}, {"version", m.version},
+                    {"unit", u.unit_index}, {"terms", m.terms}, {"method", m.method},
+                    {"parent_id", m.parent_id ? json(*m.parent_id) : json(nullptr)}};
+        if (!m.axis.empty()) one["axis"] = m.axis;  // a three-axis unit's model of that axis
+        models.push_back(std::move(one));
+      }
   }
   auto vs = store.list_verifications(run_id);
   if (!vs) return std::unexpected(from_store(vs.error()));

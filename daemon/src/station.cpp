@@ -221,6 +221,15 @@ ApiResult<std::int64_t> Station::start_run_in_slots(const std::string& profile_n
       auto m = store_.current_model(serials[i]);
       if (!m) return std::unexpected(from_store(m.error()));
       if (!*m) return api_error(ErrorCode::unknown_serial, "unit " + serials[i] + ": no model to verify");
+      // A three-axis unit's y and z are verified against their own models: each needs one.
+      if (config_.drivers.units[units[i].config_index].gyro.axes == 3)
+        for (const char* axis : {"y", "z"}) {
+          auto a = store_.current_model(serials[i], axis);
+          if (!a) return std::unexpected(from_store(a.error()));
+          if (!*a)
+            return api_error(ErrorCode::unknown_serial, "unit " + serials[i] + " axis " + axis +
+                                                            ": no model to verify (a three-axis unit needs one per axis: fit a run of it first)");
+        }
     }
   }
 

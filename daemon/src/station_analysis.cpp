@@ -14,6 +14,15 @@ namespace fogbench::daemon {
 
 using nlohmann::json;
 
+namespace {
+// What a unit's analysis computed off the loop: one Commit per axis analysed (x, y, z of a
+// three-axis unit; a one-axis unit's single one, with no axis).
+struct UnitAxesAnalysis {
+  std::vector<std::optional<model::Axis>> axes;
+  std::vector<ApiResult<analysis::Commit>> commits;
+};
+}  // namespace
+
 void Station::analyse(std::int64_t run_id, storage::Purpose purpose,
                       const std::vector<std::string>& serials) {
   std::vector<int> units;
@@ -36,29 +45,71 @@ void Station::analyse_units(std::int64_t run_id, storage::Purpose purpose, const
   const AnalysisConfig config = started != run_analysis_.end() ? started->second : config_.analysis;
   const std::string created_at = wall_clock_();
   offload_->submit([this, run_id, purpose, serials, units, config, created_at](storage::Store& reader) -> Offload::Then {
-    auto computed = std::make_shared<std::vector<ApiResult<analysis::Commit>>>();
+    // A three-axis unit is analysed axis by axis (x, y, z), each against its own model; a
+    // one-axis unit (every unit of a run stored before three-axis units) as it always was.
+    auto computed = std::make_shared<std::vector<UnitAxesAnalysis>>();
+    const auto run_read = reader.get_run(run_id);
     for (const int unit : units) {
-      try {
-        computed->push_back(purpose == storage::Purpose::fit
-                                ? analysis::fit(reader, config, run_id, unit, "", "", created_at)
-                                : analysis::verify(reader, config, run_id, unit, std::nullopt));
-      } catch (const std::exception& e) {  // a bug: reported as the unit's failed analysis
-        computed->push_back(api_error(ErrorCode::internal, e.what()));
+      UnitAxesAnalysis ua;
+      const bool three = run_read && unit >= 0 && static_cast<std::size_t>(unit) < run_read->run.units.size() &&
+                         run_read->run.units[static_cast<std::size_t>(unit)].axes == 3;
+      if (three) ua.axes = {model::Axis::x, model::Axis::y, model::Axis::z};
+      else ua.axes = {std::nullopt};
+      for (const auto axis : ua.axes) {
+        try {
+          ua.commits.push_back(purpose == storage::Purpose::fit
+                                   ? analysis::fit(reader, config, run_id, unit, "", "", created_at, axis)
+                                   : analysis::verify(reader, config, run_id, unit, std::nullopt, axis));
+        } catch (const std::exception& e) {  // a bug: reported as the unit's failed analysis
+          ua.commits.push_back(api_error(ErrorCode::internal, e.what()));
+        }
       }
+      computed->push_back(std::move(ua));
     }
     return [this, run_id, purpose, serials, units, computed] {
       for (std::size_t k = 0; k < units.size(); ++k) {
         const auto i = static_cast<std::size_t>(units[k]);
+        const UnitAxesAnalysis& ua = (*computed)[k];
         json detail = {{"analysis", std::string(storage::to_string(purpose))}, {"unit", units[k]},
                        {"serial", serials[i]}};
-        ApiResult<json> r = (*computed)[k] ? (*(*computed)[k])(store_) : std::unexpected((*computed)[k].error());
+        std::vector<ApiResult<json>> stored;
+        for (const auto& c : ua.commits) stored.push_back(c ? (*c)(store_) : std::unexpected(c.error()));
+        // The unit's result: x's (a one-axis unit's only one); a three-axis unit's analysis fails
+        // when any axis' does, naming it, and its axes are in the note's `axes`.
+        ApiResult<json> r = stored.front();
+        const bool three = ua.axes.size() == 3;
+        json axes = json::array();
+        if (three) {
+          std::optional<ApiError> first_failure;
+          for (std::size_t a = 0; a < ua.axes.size(); ++a) {
+            const std::string name(model::to_string(*ua.axes[a]));
+            json one = {{"axis", name}, {"ok", stored[a].has_value()}};
+            if (!stored[a]) {
+              one["error"] = stored[a].error().message;
+              if (!first_failure) first_failure = ApiError{stored[a].error().code, "axis " + name + ": " + stored[a].error().message};
+            } else if (purpose == storage::Purpose::fit) {
+              one["model_id"] = (*stored[a])["model_id"];
+              one["n_flagged"] = (*stored[a])["n_flagged"];
+              if (stored[a]->contains("warning")) one["warning"] = (*stored[a])["warning"];
+            } else {
+              one["verification_id"] = (*stored[a])["verification_id"];
+              one["model_id"] = (*stored[a])["model_id"];
+              one["pass"] = (*stored[a])["pass"];
+            }
+            axes.push_back(std::move(one));
+          }
+          detail["axes"] = axes;
+          if (first_failure) r = std::unexpected(*first_failure);
+        }
         if (r && purpose == storage::Purpose::fit) {
           detail["model_id"] = (*r)["model_id"];
           detail["n_flagged"] = (*r)["n_flagged"];
           if (r->contains("warning")) detail["warning"] = (*r)["warning"];
         } else if (r) {
           detail["verification_id"] = (*r)["verification_id"];
-          detail["pass"] = (*r)["pass"];
+          bool pass = (*r)["pass"].get<bool>();
+          for (const auto& a : axes) pass = pass && a["pass"].get<bool>();
+          detail["pass"] = pass;  // a three-axis unit's: every axis'
           // A bare verify run decides the serial's verdict by the analysis settings; a plan's
           // step leaves it to the plan, decided when the plan is done with the unit.
           auto run = store_.get_run(run_id);
@@ -66,8 +117,17 @@ void Station::analyse_units(std::int64_t run_id, storage::Purpose purpose, const
           if (plan_id) {
             detail["verdict_by"] = "plan " + std::to_string(*plan_id);
           } else {
-            const auto v = verdict::from_verification(serials[i], run_id, units[k], (*r)["model_id"].get<std::int64_t>(),
-                                                      (*r)["result"]);
+            storage::NewVerdict v;
+            if (three) {
+              std::vector<verdict::AxisVerification> per_axis;
+              for (std::size_t a = 0; a < ua.axes.size(); ++a)
+                per_axis.push_back({std::string(model::to_string(*ua.axes[a])), (*stored[a])["model_id"].get<std::int64_t>(),
+                                    (*stored[a])["result"]});
+              v = verdict::from_axis_verifications(serials[i], run_id, units[k], per_axis);
+            } else {
+              v = verdict::from_verification(serials[i], run_id, units[k], (*r)["model_id"].get<std::int64_t>(),
+                                             (*r)["result"]);
+            }
             detail["verdict"] = v.verdict;
             try {
               auto cert = decide(v, false);  // queued below, once the run's notes are stored

@@ -62,6 +62,40 @@ storage::NewVerdict from_verification(const std::string& serial, std::int64_t ru
   return v;
 }
 
+std::string worst(const std::string& a, const std::string& b) {
+  auto rank = [](const std::string& v) { return v == "fail" ? 3 : v == "incomplete" ? 2 : v == "marginal" ? 1 : 0; };
+  return rank(b) > rank(a) ? b : a;
+}
+
+storage::NewVerdict from_axis_verifications(const std::string& serial, std::int64_t run_id, int unit_index,
+                                            const std::vector<AxisVerification>& axes) {
+  storage::NewVerdict v;
+  v.serial = serial;
+  v.run_id = run_id;
+  v.unit_index = unit_index;
+  v.rule = "analysis";
+  v.verdict = "pass";
+  json limits = json::array(), reasons = json::array(), evidence = json::array();
+  for (const auto& a : axes) {
+    const storage::NewVerdict one = from_verification(serial, run_id, unit_index, a.model_id, a.result);
+    v.verdict = worst(v.verdict, one.verdict);
+    if (a.axis == "x" || !v.model_id) v.model_id = a.model_id;
+    json axis_limits = parse_array(one.limits_json);
+    for (auto& l : axis_limits) {
+      l["axis"] = a.axis;
+      limits.push_back(l);
+    }
+    const json axis_reasons = parse_array(one.reasons_json);
+    for (const auto& r : axis_reasons) reasons.push_back("axis " + a.axis + ": " + (r.is_string() ? r.get<std::string>() : r.dump()));
+    evidence.push_back({{"axis", a.axis}, {"verdict", one.verdict}, {"model_id", a.model_id},
+                        {"limits", parse_array(one.limits_json)}, {"reasons", axis_reasons}});
+  }
+  v.limits_json = limits.dump();
+  v.reasons_json = reasons.dump();
+  v.axes_json = evidence.dump();
+  return v;
+}
+
 std::optional<storage::NewVerdict> from_plan(std::int64_t plan_id, const std::string& plan_name,
                                              const std::string& plan_text, const json& unit, const json& runs,
                                              std::optional<std::int64_t> model_id) {
@@ -98,17 +132,19 @@ std::optional<storage::NewVerdict> from_plan(std::int64_t plan_id, const std::st
 json to_json(const storage::VerdictRecord& v) {
   json plan = nullptr;
   if (v.plan_id) plan = {{"id", *v.plan_id}, {"name", v.plan_name}, {"sha256", v.plan_sha256}};
-  return {{"verdict_id", v.id},
-          {"serial", v.serial},
-          {"verdict", v.verdict},
-          {"rule", v.rule},
-          {"plan", plan},
-          {"run_id", v.run_id},
-          {"unit", v.unit_index},
-          {"model_id", v.model_id ? json(*v.model_id) : json(nullptr)},
-          {"limits", parse_array(v.limits_json)},
-          {"reasons", parse_array(v.reasons_json)},
-          {"decided_at", v.decided_at}};
+  json j = {{"verdict_id", v.id},
+            {"serial", v.serial},
+            {"verdict", v.verdict},
+            {"rule", v.rule},
+            {"plan", plan},
+            {"run_id", v.run_id},
+            {"unit", v.unit_index},
+            {"model_id", v.model_id ? json(*v.model_id) : json(nullptr)},
+            {"limits", parse_array(v.limits_json)},
+            {"reasons", parse_array(v.reasons_json)},
+            {"decided_at", v.decided_at}};
+  if (!v.axes_json.empty()) j["axes"] = parse_array(v.axes_json);  // a three-axis unit's only
+  return j;
 }
 
 Certified certified(const std::optional<storage::VerdictRecord>& latest, std::int64_t model_id) {

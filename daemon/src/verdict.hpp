@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -34,6 +35,25 @@ std::optional<std::int64_t> plan_of_run(const storage::RunDetail& run);
 storage::NewVerdict from_verification(const std::string& serial, std::int64_t run_id, int unit_index,
                                       std::int64_t model_id, const nlohmann::json& result);
 
+// One axis of a three-axis unit as verified: its axis ("x", "y", "z"), the model it was verified
+// against (its own) and its stored verification result.
+struct AxisVerification {
+  std::string axis;
+  std::int64_t model_id = 0;
+  nlohmann::json result;
+};
+
+// The worse of two verdicts: fail, incomplete, marginal, pass from worst to best.
+std::string worst(const std::string& a, const std::string& b);
+
+// The analysis rule's verdict of a bare verify run's three-axis unit: each axis judged as
+// from_verification judges a one-axis unit, the unit's verdict the worst of its axes. The row's
+// model is x's (the serial's current model, the one a certificate names); its limits are every
+// axis' checks, each with its `axis`, its reasons each axis' prefixed "axis y: ", and axes_json
+// each axis' {axis, verdict, model_id, limits, reasons}.
+storage::NewVerdict from_axis_verifications(const std::string& serial, std::int64_t run_id, int unit_index,
+                                            const std::vector<AxisVerification>& axes);
+
 // The plan rule's verdict of one unit: `unit` is the unit's entry of the plan runner's progress
 // (serial, verdict, measurements, reasons), `runs` the progress' runs ({run_id, units}). Empty
 // when the unit never ran (no run to attach it to).
@@ -41,7 +61,8 @@ std::optional<storage::NewVerdict> from_plan(std::int64_t plan_id, const std::st
                                              const std::string& plan_text, const nlohmann::json& unit,
                                              const nlohmann::json& runs, std::optional<std::int64_t> model_id);
 
-// A stored verdict as the socket, the certificate and the plant show it.
+// A stored verdict as the socket, the certificate and the plant show it; a three-axis unit's
+// with its `axes` (storage's axes_json), a one-axis unit's without.
 nlohmann::json to_json(const storage::VerdictRecord& v);
 
 // The verdict a certificate of `model_id` carries, and the decision it comes from (null when

@@ -301,6 +301,17 @@ SELECT run_id, unit_index, t_s, wall_time, setpoint_c, chamber_c, gyro_dph, fram
 FROM samples;
 )sql";
 
+// Version 14 (issue 29, three-axis units): per-axis models and verdicts. A model's axis ('x',
+// 'y' or 'z' for a three-axis unit's; NULL for a one-axis unit's, which is every model stored
+// before: the x axis, the only one such a unit has), and with a three-axis unit's verdict the
+// evidence of each axis it was the worst of (a JSON array; NULL for a one-axis unit's verdict).
+// Versions stay numbered per serial across its axes.
+constexpr const char* kAxisModels = R"sql(
+ALTER TABLE models ADD COLUMN axis TEXT CHECK (axis IS NULL OR axis IN ('x', 'y', 'z'));
+CREATE INDEX models_serial_axis ON models (serial, axis, version);
+ALTER TABLE verdicts ADD COLUMN axes_json TEXT CHECK (axes_json IS NULL OR json_valid(axes_json));
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "recording tables", kRecording},
     {2, "models and verifications", kModels},
@@ -315,6 +326,7 @@ constexpr Migration kMigrations[] = {
     {11, "pruned runs", kPrunedRuns},
     {12, "commanded table rate", kTableRate},
     {13, "three-axis units", kAxes},
+    {14, "per-axis models and verdicts", kAxisModels},
 };
 
 StoreResult<std::int64_t> query_int(Database& db, const std::string& sql, std::string_view what) {

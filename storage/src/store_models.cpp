@@ -12,6 +12,18 @@ namespace fogbench::storage {
 
 // ---------------------------------------------------------------- models
 
+namespace {
+// The axis a model's JSON names (NewModel::model_json): "" when it names none, nullopt when
+// its `axis` is not x, y or z.
+std::optional<std::string> model_axis_of(const std::string& model_json) {
+  const auto j = nlohmann::json::parse(model_json, nullptr, false);
+  if (!j.is_object() || !j.contains("axis")) return std::string();
+  const auto& a = j["axis"];
+  if (a.is_string() && (a == "x" || a == "y" || a == "z")) return a.get<std::string>();
+  return std::nullopt;
+}
+}  // namespace
+
 StoreResult<ModelRef> Store::put_model(const NewModel& m) {
   assert(db_);
   Database& db = *db_;
@@ -21,6 +33,10 @@ StoreResult<ModelRef> Store::put_model(const NewModel& m) {
   if (!is_json(m.model_json))
     return std::unexpected(
         db.error(StoreErrc::invalid_argument, what + ": model_json is not valid JSON"));
+  const auto axis = model_axis_of(m.model_json);
+  if (!axis)
+    return std::unexpected(db.error(StoreErrc::invalid_argument,
+                                    what + ": model_json's axis is not \"x\", \"y\" or \"z\""));
 
   // IMMEDIATE: the next version number is read and used under the write lock, so two writers
   // cannot both take version n.
@@ -46,7 +62,7 @@ StoreResult<ModelRef> Store::put_model(const NewModel& m) {
   {
     auto stmt = db.statement(
         "INSERT INTO models (serial, version, run_id, parent_id, created_at, model_json, method, "
-        "terms) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)");
+        "terms, axis) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9)");
     if (!stmt) return fail(std::move(stmt));
     Query q(db, *stmt);
     q.bind(1, m.serial)
@@ -57,6 +73,8 @@ StoreResult<ModelRef> Store::put_model(const NewModel& m) {
         .bind(6, m.model_json)
         .bind(7, m.method)
         .bind(8, m.terms);
+    if (axis->empty()) q.bind_null(9);
+    else q.bind(9, *axis);
     if (auto ok = run(db, q, what); !ok) return fail(std::move(ok));
   }
   const std::int64_t id = sqlite3_last_insert_rowid(db.handle());
@@ -78,15 +96,19 @@ StoreResult<ModelRecord> Store::get_model(std::int64_t model_id) {
   return read_model(q);
 }
 
-StoreResult<std::optional<ModelRecord>> Store::current_model(std::string_view serial) {
+StoreResult<std::optional<ModelRecord>> Store::current_model(std::string_view serial, std::string_view axis) {
   assert(db_);
   Database& db = *db_;
+  const std::string what = "read the current model of '" + std::string(serial) + "' axis " + std::string(axis);
+  if (axis != "x" && axis != "y" && axis != "z")
+    return std::unexpected(db.error(StoreErrc::invalid_argument, what + ": expected axis x, y or z"));
+  // A model stored without an axis is a one-axis unit's: its x.
   auto stmt = db.statement("SELECT " FOGBENCH_MODEL_COLUMNS
-                           " FROM models WHERE serial = ?1 ORDER BY version DESC LIMIT 1");
+                           " FROM models WHERE serial = ?1 AND COALESCE(axis, 'x') = ?2 ORDER BY version DESC LIMIT 1");
   if (!stmt) return fail(std::move(stmt));
   Query q(db, *stmt);
-  q.bind(1, serial);
-  auto found = row(db, q, "read the current model of '" + std::string(serial) + "'");
+  q.bind(1, serial).bind(2, axis);
+  auto found = row(db, q, what);
   if (!found) return fail(std::move(found));
   if (!*found) return std::optional<ModelRecord>();
   return std::optional<ModelRecord>(read_model(q));
@@ -119,7 +141,7 @@ StoreResult<std::vector<ModelRecord>> Store::model_lineage(std::int64_t model_id
       "  UNION ALL SELECT m.parent_id, c.depth + 1 FROM models m JOIN chain c ON m.id = c.id"
       "  WHERE m.parent_id IS NOT NULL AND c.depth < 100000) "
       "SELECT m.id, m.serial, m.version, m.run_id, m.parent_id, m.created_at, m.model_json, "
-      "m.method, m.terms FROM chain c JOIN models m ON m.id = c.id ORDER BY c.depth");
+      "m.method, m.terms, m.axis FROM chain c JOIN models m ON m.id = c.id ORDER BY c.depth");
   if (!stmt) return fail(std::move(stmt));
   Query q(db, *stmt);
   q.bind(1, model_id);

@@ -86,7 +86,7 @@ inline StoreResult<bool> row(Database& db, Query& q, std::string_view what) {
   "id, created_at, profile_name, profile_text, purpose, state, state_reason, config_json, " \
   "started_at, ended_at, time_scale, pruned_at, pruned_samples"
 #define FOGBENCH_MODEL_COLUMNS \
-  "id, serial, version, run_id, parent_id, created_at, model_json, method, terms"
+  "id, serial, version, run_id, parent_id, created_at, model_json, method, terms, axis"
 #define FOGBENCH_SAMPLE_COLUMNS                                                              \
   "unit_index, t_s, wall_time, setpoint_c, chamber_c, gyro_dph, frames, t1_c, t2_c, phase, " \
   "step, flags, since_power_on_s, compensated_dph, rate_in_dps, gyro_y_dph, gyro_z_dph"
@@ -134,6 +134,7 @@ inline ModelRecord read_model(const Query& q) {
   m.model_json = q.text(6);
   m.method = q.text(7);
   m.terms = q.text(8);
+  m.axis = q.opt_text(9).value_or("");
   return m;
 }
 

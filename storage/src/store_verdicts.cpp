@@ -16,7 +16,7 @@ namespace {
 
 constexpr std::string_view kVerdictColumns =
     "id, serial, run_id, unit_index, model_id, verdict, rule, plan_id, plan_name, plan_sha256, limits_json, "
-    "reasons_json, decided_at";
+    "reasons_json, decided_at, axes_json";
 
 VerdictRecord read_verdict(const Query& q) {
   VerdictRecord v;
@@ -33,6 +33,7 @@ VerdictRecord read_verdict(const Query& q) {
   v.limits_json = q.text(10);
   v.reasons_json = q.text(11);
   v.decided_at = q.text(12);
+  v.axes_json = q.opt_text(13).value_or("");
   return v;
 }
 
@@ -66,6 +67,7 @@ StoreResult<std::int64_t> Store::put_verdict(const NewVerdict& v) {
     return bad("a plan name or hash with rule " + v.rule);
   if (!is_json_array(v.limits_json)) return bad("limits_json is not a JSON array");
   if (!is_json_array(v.reasons_json)) return bad("reasons_json is not a JSON array");
+  if (!v.axes_json.empty() && !is_json_array(v.axes_json)) return bad("axes_json is not a JSON array");
   auto serial = require_unit(db, v.run_id, v.unit_index);
   if (!serial) return fail(std::move(serial));
   if (*serial != v.serial)
@@ -85,18 +87,21 @@ StoreResult<std::int64_t> Store::put_verdict(const NewVerdict& v) {
     const VerdictRecord& l = **latest;
     if (l.run_id == v.run_id && l.unit_index == v.unit_index && l.model_id == v.model_id && l.verdict == v.verdict &&
         l.rule == v.rule && l.plan_id == v.plan_id && l.plan_name == v.plan_name && l.plan_sha256 == v.plan_sha256 &&
-        l.limits_json == v.limits_json && l.reasons_json == v.reasons_json)
+        l.limits_json == v.limits_json && l.reasons_json == v.reasons_json && l.axes_json == v.axes_json)
       return l.id;
   }
   return with_reserve(db, [&]() -> StoreResult<std::int64_t> {
     auto stmt = db.statement(
         "INSERT INTO verdicts (serial, run_id, unit_index, model_id, verdict, rule, plan_id, plan_name, plan_sha256, "
-        "limits_json, reasons_json, decided_at) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12)");
+        "limits_json, reasons_json, decided_at, axes_json) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, "
+        "?13)");
     if (!stmt) return fail(std::move(stmt));
     Query q(db, *stmt);
     q.bind(1, v.serial).bind(2, v.run_id).bind(3, v.unit_index).bind(4, v.model_id).bind(5, v.verdict);
     q.bind(6, v.rule).bind(7, v.plan_id).bind(8, v.plan_name).bind(9, v.plan_sha256).bind(10, v.limits_json);
     q.bind(11, v.reasons_json).bind(12, db.now_iso());
+    if (v.axes_json.empty()) q.bind_null(13);
+    else q.bind(13, v.axes_json);
     if (auto ok = run(db, q, what); !ok) return fail(std::move(ok));
     return static_cast<std::int64_t>(sqlite3_last_insert_rowid(db.handle()));
   });

@@ -17,6 +17,7 @@
 
 #include "fogbench/daemon/config.hpp"
 #include "fogbench/daemon/station.hpp"
+#include "fogbench/model/run.hpp"
 #include "fogbench/storage/store.hpp"
 
 namespace fogbench::daemon::analysis {
@@ -25,13 +26,17 @@ namespace fogbench::daemon::analysis {
 using Commit = std::function<ApiResult<nlohmann::json>(storage::Store& writer)>;
 
 // Fits the unit's model (terms, method empty: the configured ones). Its parent is the serial's
-// current model when it is stored (looked up by the Commit, on the writer).
+// current model when it is stored (looked up by the Commit, on the writer). `axis`: one axis of
+// a three-axis unit (model::select_axis; the model carries it, the parent is that axis'
+// current model); empty: the unit's x as a one-axis unit's.
 ApiResult<Commit> fit(storage::Store& reader, const AnalysisConfig& config, std::int64_t run_id,
                       int unit_index, const std::string& terms, const std::string& method,
-                      const std::string& created_at);
-// Verifies the unit against model_id, or the serial's current model when empty.
+                      const std::string& created_at, std::optional<model::Axis> axis = std::nullopt);
+// Verifies the unit against model_id, or the serial's current model when empty (of `axis` when
+// given: that axis of a three-axis unit, its result stored with its `axis`).
 ApiResult<Commit> verify(storage::Store& reader, const AnalysisConfig& config, std::int64_t run_id,
-                         int unit_index, std::optional<std::int64_t> model_id);
+                         int unit_index, std::optional<std::int64_t> model_id,
+                         std::optional<model::Axis> axis = std::nullopt);
 ApiResult<Commit> compare(storage::Store& reader, std::int64_t run_id, int unit_index,
                           std::optional<std::int64_t> model_id);
 ApiResult<Commit> diagnose(storage::Store& reader, std::int64_t run_id, int unit_index,

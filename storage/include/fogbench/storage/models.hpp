@@ -11,7 +11,9 @@ struct NewModel {
   std::string serial;
   std::optional<std::int64_t> run_id;     // the run it was fitted on
   std::optional<std::int64_t> parent_id;  // the model it refines
-  std::string model_json;                 // opaque to storage, but must be JSON
+  // Opaque to storage, but must be JSON; an object's `axis` ("x", "y" or "z": a three-axis
+  // unit's model, model::to_json) is stored as the model's axis, none as a one-axis unit's.
+  std::string model_json;
   std::string method;
   std::string terms;
 };
@@ -31,6 +33,9 @@ struct ModelRecord {
   std::string model_json;
   std::string method;
   std::string terms;
+  // The axis of a three-axis unit it models: "x", "y" or "z" (its model_json's `axis`); empty
+  // for a one-axis unit's model (stored as NULL: the x axis, the unit's only one).
+  std::string axis;
 };
 
 struct NewVerification {

@@ -153,8 +153,10 @@ class Store {
   // Stores a model as the next version for its serial.
   StoreResult<ModelRef> put_model(const NewModel& m);
   StoreResult<ModelRecord> get_model(std::int64_t model_id);
-  // The highest version for the serial; empty when it has none.
-  StoreResult<std::optional<ModelRecord>> current_model(std::string_view serial);
+  // The serial's highest version of the axis' models; empty when it has none. Axis "x" (the
+  // default) is also a one-axis unit's model (stored without an axis); "y", "z" a three-axis
+  // unit's other axes. Another axis name is invalid_argument.
+  StoreResult<std::optional<ModelRecord>> current_model(std::string_view serial, std::string_view axis = "x");
   // Every version for the serial, oldest first.
   StoreResult<std::vector<ModelRecord>> list_models(std::string_view serial);
   // The model, its parent, its parent's parent... up to the root.

@@ -33,6 +33,9 @@ struct NewVerdict {
   // {limit, line (plans only), measurement, value, unit, met, on_fail, step, run_id}.
   std::string limits_json = "[]";
   std::string reasons_json = "[]";  // why it is not pass, as the plan or the verification said
+  // A three-axis unit's verdict, the worst of its axes: each axis' evidence, a JSON array of
+  // objects {axis, verdict, model_id, limits, reasons}. Empty (stored NULL) for a one-axis unit.
+  std::string axes_json;
 };
 
 struct VerdictRecord : NewVerdict {
