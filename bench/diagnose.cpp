@@ -18,55 +18,31 @@
 #include "fogbench/model/workbench.hpp"
 #include "fogbench/profiles/profile.hpp"
 #include "fogbench/sim/sim.hpp"
+#include "profile_run.hpp"
 
 using namespace fogbench;
 using Clock = std::chrono::steady_clock;
 
 namespace {
 
-// Three days (262,200 s at 1 Hz): 48 cycles of exp1's steps after a 10 min hold, 40 min hold at
-// the end (the issue-25 case; the same text as docs/performance.md's long3d.profile).
-std::string long_profile() {
-  std::string t = "setpoint 20 C\nhold 10 min\n";
-  for (int i = 0; i < 48; ++i)
-    t += "ramp to 10 C at 1 C/min\nhold 20 min\nramp to 30 C at 1 C/min\nhold 20 min\nramp to 20 C at 1 C/min\nhold 10 min\n";
-  return t + "hold 40 min\n";
-}
-
+// A shipped profile (profiles/NAME.profile) or "long3d" (three days, bench::long_profile),
+// simulated; exits 2 naming what failed.
 model::RunData simulate(const std::string& name, std::uint64_t seed, const std::string& effect) {
   std::string text;
   if (name == "long3d") {
-    text = long_profile();
+    text = bench::long_profile();
   } else {
     std::ifstream f(std::string(FOGBENCH_SOURCE_DIR) + "/profiles/" + name + ".profile");
     std::stringstream ss;
     ss << f.rdbuf();
     text = ss.str();
   }
-  auto p = profiles::parse_profile(text, name);
-  if (!p) {
-    std::fprintf(stderr, "profile %s: cannot parse\n", name.c_str());
+  auto run = bench::simulate_profile_text(text, name, seed, effect);
+  if (!run) {
+    std::fprintf(stderr, "%s\n", run.error().c_str());
     std::exit(2);
   }
-  std::vector<sim::SetpointSample> prog;
-  for (const auto& pt : profiles::nominal_setpoints(*p, 1.0)) {
-    if (pt.phase == profiles::Phase::settle) continue;
-    const model::Phase ph = pt.phase == profiles::Phase::heating   ? model::Phase::heating
-                            : pt.phase == profiles::Phase::cooling ? model::Phase::cooling
-                                                                   : model::Phase::hold;
-    prog.push_back({pt.setpoint_c, ph, static_cast<int>(pt.step_index)});
-  }
-  sim::SimConfig cfg;
-  cfg.seed = seed;
-  cfg.units[0].effects = effect;
-  auto r = sim::simulate(cfg, prog);
-  if (!r) {
-    std::fprintf(stderr, "simulate %s: %s\n", name.c_str(), r.error().c_str());
-    std::exit(2);
-  }
-  auto run = r->front();
-  run.name = name;
-  return run;
+  return std::move(*run);
 }
 
 // Median and minimum over `reps` calls of fn, in ms of wall time; the machine is shared, so

@@ -23,6 +23,7 @@
 #include "fogbench/model/workbench.hpp"
 #include "fogbench/profiles/profile.hpp"
 #include "fogbench/sim/sim.hpp"
+#include "profile_run.hpp"
 
 extern "C" {
 void* __libc_malloc(std::size_t);
@@ -98,32 +99,8 @@ using namespace fogbench;
 namespace {
 
 // bench_diagnose's 3-day profile with `cycles` cycles of exp1's steps (48: 262,200 s at 1 Hz).
-std::string long_profile(int cycles) {
-  std::string t = "setpoint 20 C\nhold 10 min\n";
-  for (int i = 0; i < cycles; ++i)
-    t += "ramp to 10 C at 1 C/min\nhold 20 min\nramp to 30 C at 1 C/min\nhold 20 min\nramp to 20 C at 1 C/min\nhold 10 min\n";
-  return t + "hold 40 min\n";
-}
-
 std::expected<model::RunData, std::string> simulate(int cycles, std::uint64_t seed, const std::string& effect) {
-  auto p = profiles::parse_profile(long_profile(cycles), "long");
-  if (!p) return std::unexpected(std::string("the profile does not parse"));
-  std::vector<sim::SetpointSample> prog;
-  for (const auto& pt : profiles::nominal_setpoints(*p, 1.0)) {
-    if (pt.phase == profiles::Phase::settle) continue;
-    const model::Phase ph = pt.phase == profiles::Phase::heating   ? model::Phase::heating
-                            : pt.phase == profiles::Phase::cooling ? model::Phase::cooling
-                                                                   : model::Phase::hold;
-    prog.push_back({pt.setpoint_c, ph, static_cast<int>(pt.step_index)});
-  }
-  sim::SimConfig cfg;
-  cfg.seed = seed;
-  cfg.units[0].effects = effect;
-  auto r = sim::simulate(cfg, prog);
-  if (!r) return std::unexpected(r.error());
-  auto run = r->front();
-  run.name = "long" + std::to_string(cycles);
-  return run;
+  return bench::simulate_profile_text(bench::long_profile(cycles), "long" + std::to_string(cycles), seed, effect);
 }
 
 // The run's columns as held in memory (sizes, not capacities: what a reader of the CSV must hold).
