@@ -86,13 +86,13 @@ PlantResult<Rows> insert_verdict(Connection& plant, const std::string& bench, co
                                  bool if_absent) {
   return plant.query(
       std::string("INSERT INTO fogbench.verdicts (bench_id, verdict_id, serial, run_id, unit_index, model_id, verdict, "
-                  "rule, plan_id, plan_name, plan_sha256, limits_json, reasons_json, decided_at) "
-                  "VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14)") +
+                  "rule, plan_id, plan_name, plan_sha256, limits_json, reasons_json, decided_at, axes_json) "
+                  "VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15)") +
           (if_absent ? " ON CONFLICT DO NOTHING" : ""),
       {bench, std::to_string(v.id), v.serial, std::to_string(v.run_id), std::to_string(v.unit_index),
        v.model_id ? std::optional(std::to_string(*v.model_id)) : std::nullopt, v.verdict, v.rule,
        v.plan_id ? std::optional(std::to_string(*v.plan_id)) : std::nullopt, v.plan_name, v.plan_sha256,
-       v.limits_json, v.reasons_json, v.decided_at},
+       v.limits_json, v.reasons_json, v.decided_at, v.axes_json.empty() ? std::nullopt : std::optional(v.axes_json)},
       "insert verdict " + std::to_string(v.id));
 }
 
@@ -301,10 +301,10 @@ PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& ben
       }
     if (auto ok = plant.query(
             "INSERT INTO fogbench.models (bench_id, model_id, run_id, unit_index, serial, version, parent_id, "
-            "created_at, method, terms, model_json) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11)",
+            "created_at, method, terms, model_json, axis) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12)",
             {b, std::to_string(m.id), rid, unit, m.serial, std::to_string(m.version),
              m.parent_id ? std::optional(std::to_string(*m.parent_id)) : std::nullopt, m.created_at, m.method, m.terms,
-             m.model_json},
+             m.model_json, m.axis.empty() ? std::nullopt : std::optional(m.axis)},
             "insert model " + std::to_string(m.id));
         !ok)
       return fail(ok.error());

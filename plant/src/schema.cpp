@@ -6,7 +6,8 @@
 // bring: version 2 adds the run identity (keyed the same way, with ON DELETE CASCADE from
 // fogbench.runs, so that a re-sent run replaces it too), the certificates and each sample's
 // compensated rate; version 3 the stations' public keys (station_keys); version 4 the verdicts;
-// version 5 the rate table's commanded rate, the y and z axes and each unit's axes.
+// version 5 the rate table's commanded rate, the y and z axes and each unit's axes; version 6 a
+// three-axis unit's per-axis models and verdicts (models.axis, verdicts.axes_json).
 #include <libpq-fe.h>
 
 #include "fogbench/plant/plant.hpp"
@@ -234,15 +235,25 @@ ALTER TABLE fogbench.samples ADD COLUMN rate_in_dps double precision,
 ALTER TABLE fogbench.units ADD COLUMN axes smallint NOT NULL DEFAULT 1 CHECK (axes IN (1, 3));
 )sql";
 
+// Version 6 (issue 29): the bench's schema 14. A model's axis ('x', 'y' or 'z' for a three-axis
+// unit's, NULL for a one-axis unit's; its model_json says the same) and a three-axis unit's
+// verdict's evidence per axis (a JSON array of {axis, verdict, model_id, limits, reasons}; NULL
+// for a one-axis unit's verdict). Rows replicated before read NULL: one-axis, as they were.
+constexpr const char* kV6 = R"sql(
+ALTER TABLE fogbench.models ADD COLUMN axis text CHECK (axis IN ('x', 'y', 'z'));
+ALTER TABLE fogbench.verdicts ADD COLUMN axes_json jsonb;
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "runs, units, samples, events, models, verifications, figures", kV1},
     {2, "samples.compensated_dph, run_identity, unit_identity, certificates", kV2},
     {3, "station_keys", kV3},
     {4, "verdicts", kV4},
     {5, "samples.rate_in_dps, gyro_y_dph, gyro_z_dph, units.axes", kV5},
+    {6, "models.axis, verdicts.axes_json", kV6},
 };
 
-constexpr int kCurrent = 5;
+constexpr int kCurrent = 6;
 
 // The version recorded, 0 when the schema is absent.
 PlantResult<int> read_version(Connection& c) {

@@ -337,7 +337,7 @@ TEST_CASE("a refused login, a newer schema and bad ids are clear errors and writ
       CHECK(c.error().code == plant::PlantErrc::schema_too_new);
       CHECK_THAT(c.error().message, Catch::Contains("schema version 99 is newer"));
     }
-    CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2,3,4,5,99");
+    CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2,3,4,5,6,99");
   }
   SECTION("a lot id with a control character, an empty bench id") {
     auto path = test::temp_store_path("badlot");
@@ -362,7 +362,7 @@ TEST_CASE("a refused login, a newer schema and bad ids are clear errors and writ
   }
 }
 
-TEST_CASE("a plant at schema 1 migrates to 5 on a bench's connection, keeping what it held") {
+TEST_CASE("a plant at schema 1 migrates to 6 on a bench's connection, keeping what it held") {
   PgServer pg;
   auto path = test::temp_store_path("migrate");
   auto bench = open_store(path);
@@ -396,8 +396,8 @@ TEST_CASE("a plant at schema 1 migrates to 5 on a bench's connection, keeping wh
   // rate NULL), and a run with identity and compensated rates then replicates in full.
   auto c = plant::Connection::open(pg.conninfo(), true);
   REQUIRE(c);
-  CHECK(c->schema_version() == 5);
-  CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2,3,4,5");
+  CHECK(c->schema_version() == 6);
+  CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2,3,4,5,6");
   const std::string old_rid = std::to_string(old_run);
   CHECK(count(*c, "SELECT count(*) FROM fogbench.samples WHERE run_id = " + old_rid) == *bench.count_samples(old_run));
   CHECK(count(*c, "SELECT count(compensated_dph) FROM fogbench.samples") == 0);
@@ -427,6 +427,23 @@ TEST_CASE("a plant at schema 1 migrates to 5 on a bench's connection, keeping wh
   CHECK(again->verdicts == 1);
   CHECK(pg.psql("SELECT verdict || ' ' || rule || ' ' || unit_index || ' ' || (limits_json->0->>'bound') FROM fogbench.verdicts "
                 "WHERE run_id = " + std::to_string(run)) == "marginal analysis 1 0.2");
+  // A one-axis unit's verdict has no per-axis evidence (version 6's column NULL).
+  CHECK(count(*c, "SELECT count(axes_json) FROM fogbench.verdicts WHERE run_id = " + std::to_string(run)) == 0);
+  // A three-axis unit's verdict travels with each axis' evidence (the bench's schema 14), so the
+  // plant holds which axis failed, not only that the unit did.
+  storage::NewVerdict three = v;
+  three.unit_index = 0;
+  three.serial = bench.get_run(run)->run.units[0].serial;
+  three.verdict = "fail";
+  three.axes_json = R"([{"axis":"x","verdict":"pass","model_id":null,"limits":[],"reasons":[]},)"
+                    R"({"axis":"y","verdict":"fail","model_id":null,"limits":[],"reasons":["noise factor 11.9"]},)"
+                    R"({"axis":"z","verdict":"pass","model_id":null,"limits":[],"reasons":[]}])";
+  REQUIRE(bench.put_verdict(three));
+  auto third = plant::replicate_run(*c, bench, "b1", run);
+  REQUIRE(third);
+  CHECK(third->verdicts == 2);
+  CHECK(pg.psql("SELECT (axes_json->1->>'axis') || ' ' || (axes_json->1->>'verdict') || ' ' || (axes_json->1->'reasons'->>0) "
+                "FROM fogbench.verdicts WHERE run_id = " + std::to_string(run) + " AND unit_index = 0") == "y fail noise factor 11.9");
   plant::FleetFilter f;
   f.serial = v.serial;
   auto values = plant::verdict_values(*c, f);
