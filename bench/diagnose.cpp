@@ -97,6 +97,22 @@ int long_only(int reps, int threads) {
 }
 
 int main(int argc, char** argv) {
+  if (argc >= 2 && (std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h")) {
+    std::printf(
+        "bench_diagnose: workbench::diagnose on exp1 (fit) with exp2, exp3 held out (library and language search, "
+        "wall and CPU per call), then the 3-day run (262,200 samples)\n"
+        "  bench_diagnose                     the whole benchmark\n"
+        "  bench_diagnose --long REPS [THREADS]  the 3-day run alone, REPS calls on THREADS threads (0: all cores)\n");
+    return 0;
+  }
+  if (argc == 2 && std::string(argv[1]) == "--long") {
+    std::fprintf(stderr, "bench_diagnose: --long needs REPS (see --help)\n");
+    return 2;
+  }
+  if (argc >= 2 && std::string(argv[1]) != "--long") {
+    std::fprintf(stderr, "bench_diagnose: unknown argument '%s' (see --help)\n", argv[1]);
+    return 2;
+  }
   if (argc >= 3 && std::string(argv[1]) == "--long") return long_only(std::max(1, std::atoi(argv[2])), argc >= 4 ? std::atoi(argv[3]) : 1);
   const std::string effect = "0.05*T1";
   std::vector<model::RunData> runs{simulate("exp1", 7, effect), simulate("exp2", 8, effect), simulate("exp3", 9, effect)};
