@@ -380,6 +380,7 @@ TEST_CASE("a plant at schema 1 migrates to 6 on a bench's connection, keeping wh
     CHECK(st->certificates_held == 0);
     REQUIRE(c->exec("ALTER TABLE fogbench.samples DROP COLUMN compensated_dph, DROP COLUMN rate_in_dps, "
                     "DROP COLUMN gyro_y_dph, DROP COLUMN gyro_z_dph; ALTER TABLE fogbench.units DROP COLUMN axes; "
+                    "ALTER TABLE fogbench.models DROP COLUMN axis; "
                     "DROP TABLE fogbench.run_identity, fogbench.unit_identity, fogbench.certificates, "
                     "fogbench.station_keys, fogbench.verdicts; DELETE FROM fogbench.schema_version WHERE version >= 2",
                     "back to schema 1"));
@@ -390,7 +391,7 @@ TEST_CASE("a plant at schema 1 migrates to 6 on a bench's connection, keeping wh
   auto reader = plant::Connection::open(pg.conninfo(), false);
   REQUIRE_FALSE(reader);
   CHECK(reader.error().code == plant::PlantErrc::schema_missing);
-  CHECK_THAT(reader.error().message, Catch::Contains("schema version 1 is older than 5"));
+  CHECK_THAT(reader.error().message, Catch::Contains("schema version 1 is older than 6"));
 
   // A bench migrates: version 2 recorded, the run held before kept (its samples' compensated
   // rate NULL), and a run with identity and compensated rates then replicates in full.
@@ -469,7 +470,8 @@ TEST_CASE("a plant at schema 1 migrates to 6 on a bench's connection, keeping wh
   CHECK(*sent == 1);
   CHECK(pg.psql("SELECT verdict || ' ' || unit_index FROM fogbench.verdicts WHERE run_id = " + old_rid) == "pass 0");
   CHECK(count(*c, "SELECT count(*) FROM fogbench.verdicts WHERE run_id = " + std::to_string(unsent)) == 0);
-  CHECK(count(*c, "SELECT count(*) FROM fogbench.verdicts") == 2);
+  // The run's two (unit 1's marginal, unit 0's three-axis fail) and the old run's one.
+  CHECK(count(*c, "SELECT count(*) FROM fogbench.verdicts") == 3);
   sent = plant::send_missing_verdicts(*c, bench, "b1");
   REQUIRE(sent);
   CHECK(*sent == 0);
