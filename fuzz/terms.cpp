@@ -19,6 +19,7 @@ namespace {
 struct Synthetic {
   static constexpr std::size_t n = 240;
   std::vector<double> t1, t2, ta, ton;
+  std::vector<double> y1, y2, z1, z2;  // the y and z axes' own coils, deeper in the housing (T1y..T2z)
   Synthetic() {
     for (std::size_t i = 0; i < n; ++i) {
       const double t_s = static_cast<double>(i);
@@ -26,23 +27,33 @@ struct Synthetic {
       ta.push_back(5.0 * std::sin(t_s / 40.0));
       t2.push_back(4.0 * std::sin((t_s - 10.0) / 40.0));
       t1.push_back(3.0 * std::sin((t_s - 30.0) / 40.0) + 0.01 * static_cast<double>(i % 7));
+      y2.push_back(3.5 * std::sin((t_s - 20.0) / 40.0));
+      y1.push_back(2.5 * std::sin((t_s - 45.0) / 40.0));
+      z2.push_back(3.0 * std::sin((t_s - 30.0) / 40.0));
+      z1.push_back(2.0 * std::sin((t_s - 60.0) / 40.0));
     }
   }
 };
 
 void check_evaluate(const Expr& e) {
   static const Synthetic syn;
-  const Signals with_ta{syn.t1, syn.t2, syn.ta, 1.0, syn.ton};
+  const Signals with_ta{syn.t1, syn.t2, syn.ta, 1.0, syn.ton, {syn.t1, syn.y1, syn.z1}, {syn.t2, syn.y2, syn.z2}};
   auto v = evaluate(e, with_ta);
   FUZZ_CHECK(v.has_value(), "evaluation failed with every signal present: %s", v.error().c_str());
   FUZZ_CHECK(v->size() == Synthetic::n, "%zu values for %zu samples", v->size(), Synthetic::n);
 
   // Without the chamber's air: only a term that reads Ta may fail.
-  const Signals without_ta{syn.t1, syn.t2, {}, 1.0, syn.ton};
+  const Signals without_ta{syn.t1, syn.t2, {}, 1.0, syn.ton, with_ta.axis_t1, with_ta.axis_t2};
   auto w = evaluate(e, without_ta);
   FUZZ_CHECK(w.has_value() || uses_signal(e, Signal::Ta), "failed without Ta but does not use it: %s",
              w.error().c_str());
   if (w) FUZZ_CHECK(w->size() == Synthetic::n, "%zu values for %zu samples", w->size(), Synthetic::n);
+
+  // Without per-axis thermistors (a unit whose axes share them): only a cross-axis term may fail.
+  const Signals shared{syn.t1, syn.t2, syn.ta, 1.0, syn.ton};
+  auto x = evaluate(e, shared);
+  FUZZ_CHECK(x.has_value() || uses_axis_thermistor(e), "failed without per-axis thermistors but reads none: %s",
+             x.error().c_str());
 }
 
 }  // namespace
