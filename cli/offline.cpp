@@ -21,7 +21,6 @@
 namespace fogbench::cli {
 
 namespace {
-// "; own drift y: 0.05*T1": each axis's own extra drift, as `simulate` says it.
 // A term as the term language writes it with its coefficient: "0.05*T1@30" (shortest digits
 // that read back the same double).
 std::string term_with_coef(const model::Term& t) {
@@ -54,6 +53,7 @@ std::expected<void, std::string> add_cross_terms(std::vector<double>& gyro_dph, 
   return {};
 }
 
+// "; own drift y: 0.05*T1": each axis's own extra drift, as `simulate` says it.
 std::string axis_effects_text(const std::array<std::string, 3>& axis_effect) {
   std::string s;
   for (std::size_t k = 0; k < 3; ++k)
