@@ -192,8 +192,13 @@ void LagScanner::weights_changed() {
 }
 
 const Spectrum& LagScanner::spec_of(const Lagged& x) const {
-  if (x.spec.empty()) forward_blocks(x.ext, m_, step_, step_ + static_cast<std::size_t>(max_lag_), blocks_, x.spec);
+  if (x.spec.empty()) lagged_spectrum(x.ext, x.spec);
   return x.spec;
+}
+
+void LagScanner::lagged_spectrum(std::span<const double> ext, Spectrum& out) const {
+  assert(ext.size() == n_ + static_cast<std::size_t>(max_lag_));
+  forward_blocks(ext, m_, step_, step_ + static_cast<std::size_t>(max_lag_), blocks_, out);
 }
 
 void LagScanner::spectrum_of_target(std::span<const double> u, Spectrum& out) const {

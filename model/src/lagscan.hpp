@@ -49,6 +49,9 @@ class LagScanner {
   // Computes x's spectrum now (corr() would on first use): a Lagged read by several threads
   // at once must have it before it is shared.
   void ready(const Lagged& x) const { (void)spec_of(x); }
+  // The spectrum corr() reads for an extension ext (a Lagged's ext: length N + L) into out
+  // (resized), for a caller that sets it into a Lagged shared by threads under its own lock.
+  void lagged_spectrum(std::span<const double> ext, Spectrum& out) const;
 
  private:
   const Spectrum& spec_of(const Lagged& x) const;

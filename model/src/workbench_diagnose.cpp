@@ -307,7 +307,7 @@ std::vector<EvaluatedCandidate> evaluate_all(const StepContext& ctx, std::vector
   report(0);
   // One cache of the fit run's refits for all the threads (made here, before they start): each
   // uses what the others computed (the base's columns, sums and first step), the same numbers.
-  detail::FitCache& fc = fit_scorer.fit_cache();
+  detail::FitCache& fc = fit_scorer.fit_cache(ctx.fo.max_lag_s);
   auto worker = [&](Scorer& fs, std::vector<Scorer>& hs, bool caller) {
     for (std::size_t ci = next++; ci < cands.size(); ci = next++) {
       results[ci] = evaluate_candidate(ctx, cands[ci], fs, hs, fc);

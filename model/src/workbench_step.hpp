@@ -316,9 +316,11 @@ class Scorer {
   // whole-run Ljung-Box is not computed (they are only scored) and they are compared by BIC,
   // without standard errors (add_standard_errors for the one kept). It reads this scorer's
   // signals (not a copy of its own).
-  detail::FitCache& fit_cache() {
+  // pad_lag_s: the max lag of the refits (FitOptions::max_lag_s), the lag extension each column
+  // is kept in (FitCache).
+  detail::FitCache& fit_cache(int pad_lag_s) {
     if (!fit_cache_) {
-      fit_cache_ = std::make_unique<detail::FitCache>(run_, tref_c_, 8, fixed_->sig);
+      fit_cache_ = std::make_unique<detail::FitCache>(run_, tref_c_, 8, fixed_->sig, pad_lag_s);
       fit_cache_->whole_run_whiteness = false;
       fit_cache_->standard_errors = false;
     }
