@@ -114,9 +114,10 @@ class CandidateScan {
     u_spec_ = sc_.spectrum_of_target(u);
     for (std::size_t a = 1; a <= cols_.size(); ++a) {
       auto make = [&] {
-        std::vector<double> wc(n);
-        for (std::size_t t = 0; t < n; ++t) wc[t] = wv[t] * col(a, t);
-        return sc_.spectrum_of_target(wc);
+        // w * the column at its lag, made block by block as it is transformed (no array of it).
+        detail::Spectrum s;
+        sc_.spectrum_of_lagged_product(wv, cols_[a - 1].x, cols_[a - 1].lag, s);
+        return s;
       };
       if (spectra && keys.size() == n_base)
         col_spec_.push_back(spectra->spectrum(keys[a - 1] + "/L" + std::to_string(L_), make));
@@ -156,9 +157,7 @@ class CandidateScan {
     Prepared p;
     p.lx = detail::make_lagged(x, L_);
     p.s1 = sc_.wsum(p.lx.ext);
-    std::vector<double> sq(p.lx.ext.size());
-    for (std::size_t j = 0; j < sq.size(); ++j) sq[j] = p.lx.ext[j] * p.lx.ext[j];
-    p.sxx = sc_.wsum(sq);
+    sc_.wsum_product(p.lx.ext, p.lx.ext, p.sxx);  // x(t - i)^2, no array of the squares
     p.w = &sc_.weights();
     p.max_lag = L_;
     return p;
