@@ -6,11 +6,15 @@
 // how the threads meet. The input's size is the run as the CSV reader holds it in memory (its
 // columns' bytes: time, gyro, T1, T2, setpoint, chamber as doubles, phase, step and flags).
 // Usage:
-//   bench_diagnose_peak [--cycles 48] [--threads 1] [--search language|library] [--max-ratio R]
+//   bench_diagnose_peak [--cycles 48] [--threads 1] [--search language|library] [--max-ratio R] [--stages 1]
 // --cycles: the 3-day profile's 1 h 30 min cycles (48: 262,200 samples; 159: about 10 days);
 // --max-ratio: exit 1 when the peak is above R x the input (a watch, not a target).
+// --stages 1: also the peak within each of diagnose's stages as its progress reports them (the
+// stage the calling thread last reported, with the search's step: on one thread each figure is
+// that stage's own; on two, a stage run beside the calling thread counts in the caller's).
 #include <malloc.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdio>
 #include <cstdlib>
@@ -37,14 +41,19 @@ namespace {
 
 std::atomic<long> live_bytes{0};
 std::atomic<long> peak_bytes{0};
+std::atomic<long> stage_peak_bytes{0};  // since the last stage reported (--stages)
 
+void raise(std::atomic<long>& peak, long now) {
+  long seen = peak.load(std::memory_order_relaxed);
+  while (now > seen && !peak.compare_exchange_weak(seen, now, std::memory_order_relaxed)) {
+  }
+}
 void grew(void* p) {
   if (!p) return;
   const long now = live_bytes.fetch_add(static_cast<long>(malloc_usable_size(p)), std::memory_order_relaxed) +
                    static_cast<long>(malloc_usable_size(p));
-  long seen = peak_bytes.load(std::memory_order_relaxed);
-  while (now > seen && !peak_bytes.compare_exchange_weak(seen, now, std::memory_order_relaxed)) {
-  }
+  raise(peak_bytes, now);
+  raise(stage_peak_bytes, now);
 }
 void shrank(void* p) {
   if (p) live_bytes.fetch_sub(static_cast<long>(malloc_usable_size(p)), std::memory_order_relaxed);
@@ -113,7 +122,7 @@ std::size_t input_bytes(const model::RunData& r) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  int cycles = 48, threads = 1;
+  int cycles = 48, threads = 1, stages = 0;
   double max_ratio = 0.0;
   std::string search = "language";
   for (int i = 1; i + 1 < argc; i += 2) {
@@ -122,8 +131,10 @@ int main(int argc, char** argv) {
     else if (a == "--threads") threads = std::atoi(v.c_str());
     else if (a == "--max-ratio") max_ratio = std::atof(v.c_str());
     else if (a == "--search") search = v;
+    else if (a == "--stages") stages = std::atoi(v.c_str());
     else {
-      std::fprintf(stderr, "bench_diagnose_peak: unknown option %s (--cycles N, --threads N, --search language|library, --max-ratio R)\n",
+      std::fprintf(stderr,
+                   "bench_diagnose_peak: unknown option %s (--cycles N, --threads N, --search language|library, --max-ratio R, --stages 1)\n",
                    a.c_str());
       return 2;
     }
@@ -145,10 +156,26 @@ int main(int argc, char** argv) {
   model::workbench::DiagnoseOptions o;
   o.threads = threads;
   o.search = search == "library" ? model::workbench::DiagnoseOptions::Search::library : model::workbench::DiagnoseOptions::Search::language;
+  // The stages in the order first reported, each with its peak (bytes above `before`).
+  std::vector<std::pair<std::string, long>> by_stage{{"(before the first report)", 0}};
+  std::size_t at = 0;
   const long before = live_bytes.load();
+  auto close_stage = [&] { by_stage[at].second = std::max(by_stage[at].second, stage_peak_bytes.load() - before); };
+  if (stages)
+    o.progress = [&](const model::workbench::DiagnoseProgress& p) {
+      const std::string key = p.stage + ", step " + std::to_string(p.step);
+      if (key == by_stage[at].first) return;
+      close_stage();
+      stage_peak_bytes = live_bytes.load();
+      auto it = std::find_if(by_stage.begin(), by_stage.end(), [&](const auto& e) { return e.first == key; });
+      if (it == by_stage.end()) it = by_stage.insert(by_stage.end(), {key, 0});
+      at = static_cast<std::size_t>(it - by_stage.begin());
+    };
   peak_bytes = before;
+  stage_peak_bytes = before;
   auto d = model::workbench::diagnose(*m, *run, {}, o);
   const long peak = peak_bytes.load() - before;
+  close_stage();
   if (!d) {
     std::fprintf(stderr, "bench_diagnose_peak: diagnose: %s\n", d.error().message.c_str());
     return 2;
@@ -157,6 +184,10 @@ int main(int argc, char** argv) {
   const double ratio = static_cast<double>(peak) / in;
   std::printf("diagnose (%s search, threads %d) on %zu samples: input %.1f MB in memory, peak heap above it %.1f MB = %.2f x the input\n",
               search.c_str(), threads, run->size(), in / 1e6, static_cast<double>(peak) / 1e6, ratio);
+  if (stages)
+    for (const auto& [stage, bytes] : by_stage)
+      std::printf("  %-32s peak %7.1f MB = %.2f x the input\n", stage.c_str(), static_cast<double>(bytes) / 1e6,
+                  static_cast<double>(bytes) / in);
   if (max_ratio > 0.0 && ratio > max_ratio) {
     std::printf("above --max-ratio %.2f\n", max_ratio);
     return 1;

@@ -142,7 +142,7 @@ std::expected<Evaluated, FitError> evaluate_terms_with(FitCache& cache, const st
   for (const auto& t : terms) {
     auto v = cache.column(t);
     if (!v) return std::unexpected(v.error());
-    ev.x.emplace_back(**v);  // the cache's column, pinned for this thread: not copied
+    ev.x.push_back(*v);  // the cache's column, pinned for this thread: not copied
     ev.names.push_back(to_string(t, false));
   }
   return ev;
@@ -163,8 +163,9 @@ std::expected<Evaluated, FitError> evaluate_terms(const RunData& run, const std:
   return ev;
 }
 
-FitCache::FitCache(const RunData& run, double tref_c, std::size_t keep_columns, std::shared_ptr<const RunSignals> sig)
-    : run_(run), tref_c_(tref_c), keep_(keep_columns), sig_(std::move(sig)) {}
+FitCache::FitCache(const RunData& run, double tref_c, std::size_t keep_columns, std::shared_ptr<const RunSignals> sig,
+                   int pad_lag_s)
+    : run_(run), tref_c_(tref_c), keep_(keep_columns), pad_(std::max(0, pad_lag_s)), sig_(std::move(sig)) {}
 
 std::expected<const RunSignals*, FitError> FitCache::signals() {
   std::lock_guard lock(mu_);
@@ -185,7 +186,7 @@ std::expected<FitCache::Entry*, FitError> FitCache::entry_locked(const Term& t, 
     lock.unlock();
     auto e = std::make_shared<Entry>();
     if (x) {
-      e->x.assign(x->begin(), x->end());
+      e->padded = make_lagged(*x, pad_);
     } else {
       auto s = signals();
       if (!s) {
@@ -197,7 +198,7 @@ std::expected<FitCache::Entry*, FitError> FitCache::entry_locked(const Term& t, 
         lock.lock();
         return fail(FitError::Code::missing_signal, "term '" + to_string(t, false) + "': " + v.error());
       }
-      e->x = std::move(*v);
+      e->padded = make_lagged(*v, pad_);
     }
     lock.lock();
     it = cols_.try_emplace(key, std::move(e)).first;
@@ -207,11 +208,11 @@ std::expected<FitCache::Entry*, FitError> FitCache::entry_locked(const Term& t, 
   return it->second.get();
 }
 
-std::expected<const std::vector<double>*, FitError> FitCache::column(const Term& t) {
+std::expected<std::span<const double>, FitError> FitCache::column(const Term& t) {
   std::unique_lock lock(mu_);
   auto e = entry_locked(t, nullptr, lock);
   if (!e) return std::unexpected(e.error());
-  return &(*e)->x;
+  return column_of(**e);
 }
 
 void FitCache::put(const Term& t, const std::vector<double>& x) {
@@ -225,11 +226,23 @@ const Lagged& FitCache::lagged(const Term& t, std::span<const double> x, int max
   // unless the caller evaluated it elsewhere, then x is kept.
   std::unique_lock lock(mu_);
   Entry* e = *entry_locked(t, &x, lock);  // with x given, no error
+  if (max_lag == pad_) {
+    // The entry's own array; its spectrum transformed without the lock (the entry is pinned),
+    // kept by the first thread that made it.
+    if (e->padded.spec.empty()) {
+      lock.unlock();
+      Spectrum s;
+      sc.lagged_spectrum(e->padded.ext, s);
+      lock.lock();
+      if (e->padded.spec.empty()) e->padded.spec = std::move(s);
+    }
+    return e->padded;
+  }
   auto l = e->lagged.find(max_lag);
   if (l == e->lagged.end()) {
     // Extended and transformed without the lock, from the entry's column (pinned: it stays).
     lock.unlock();
-    auto made = std::make_unique<const Lagged>(make_lagged(e->x, max_lag));
+    auto made = std::make_unique<const Lagged>(make_lagged(column_of(*e), max_lag));
     sc.ready(*made);
     lock.lock();
     l = e->lagged.try_emplace(max_lag, std::move(made)).first;
@@ -558,7 +571,7 @@ std::expected<std::vector<std::vector<double>>, FitError> regressors_with(const 
     if (!x) return std::unexpected(x.error());
     const auto lag = static_cast<std::size_t>(ft.term.lag.seconds);
     std::vector<double> c(n);
-    for (std::size_t t = 0; t < n; ++t) c[t] = (**x)[t >= lag ? t - lag : 0];
+    for (std::size_t t = 0; t < n; ++t) c[t] = (*x)[t >= lag ? t - lag : 0];
     cols.push_back(std::move(c));
   }
   return cols;

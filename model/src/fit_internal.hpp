@@ -160,8 +160,11 @@ struct PaperPrep {
 class FitCache {
  public:
   // sig: the run's signals at tref_c when the caller holds them (run_signals(run, tref_c)),
-  // read instead of a copy of its own.
-  FitCache(const RunData& run, double tref_c, std::size_t keep_columns = 8, std::shared_ptr<const RunSignals> sig = nullptr);
+  // read instead of a copy of its own. pad_lag_s: the max lag (s) the refits scan (their
+  // FitOptions::max_lag_s): each column is kept already extended for it (make_lagged's layout),
+  // so that a column and its lag extension are one array, not two.
+  FitCache(const RunData& run, double tref_c, std::size_t keep_columns = 8, std::shared_ptr<const RunSignals> sig = nullptr,
+           int pad_lag_s = 0);
   const RunData& run() const { return run_; }
   double tref_c() const { return tref_c_; }
   // fit()'s Ljung-Box over the whole run (Model::fit.ljung_box_q/p); off for refits that are
@@ -173,13 +176,16 @@ class FitCache {
 
   std::expected<const RunSignals*, FitError> signals();
   // The term's column, unlagged (evaluate on the run's signals); the error names the term.
-  std::expected<const std::vector<double>*, FitError> column(const Term& t);
+  // A view of the cache's array, valid like the lag extensions (until this thread's next trim()).
+  std::expected<std::span<const double>, FitError> column(const Term& t);
   // The term's column as the caller evaluated it on this run's signals (the same numbers
   // column() would make), kept unless the cache has it: a candidate's refits then do not
   // evaluate it again.
   void put(const Term& t, const std::vector<double>& x);
   // The column extended for lags up to max_lag (make_lagged), its spectrum for sc (the
   // scanner of this run and max_lag that reads it) made before it is handed out and kept with it.
+  // At the cache's pad_lag_s this is the array the column lies in (no copy); at another max lag
+  // an extension of its own.
   const Lagged& lagged(const Term& t, std::span<const double> x, int max_lag, const LagScanner& sc);
   // The paper method's first step for these options (w: good_weights of the run).
   const std::expected<PaperPrep, FitError>& paper_prep(const FitOptions& o, const std::vector<double>& w);
@@ -207,15 +213,22 @@ class FitCache {
 
  private:
   struct Entry {
-    std::vector<double> x;
-    std::map<int, std::unique_ptr<const Lagged>> lagged;  // by max lag (added under mu_, never removed)
+    // The column extended for lags up to pad_ (pad_ copies of its first value, then the column):
+    // the column is its tail; its spectrum is made when lagged() is first asked for pad_ (set
+    // once, under mu_, while empty: read only after lagged() has handed it out).
+    Lagged padded;
+    std::map<int, std::unique_ptr<const Lagged>> lagged;  // other max lags (added under mu_, never removed)
     std::uint64_t used = 0;
   };
+  std::span<const double> column_of(const Entry& e) const {
+    return std::span<const double>(e.padded.ext).subspan(static_cast<std::size_t>(pad_));
+  }
   // The entry of t (made from x, or evaluated when x is null), pinned for this thread; under mu_.
   std::expected<Entry*, FitError> entry_locked(const Term& t, const std::span<const double>* x, std::unique_lock<std::mutex>& lock);
   const RunData& run_;
   double tref_c_;
   std::size_t keep_;
+  int pad_;
   std::mutex mu_;  // guards every member below and the entries' maps
   std::uint64_t clock_ = 0;
   std::shared_ptr<const RunSignals> sig_;  // made on first use unless given

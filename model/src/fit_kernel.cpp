@@ -91,7 +91,7 @@ double l1_norm(const Eigen::MatrixXd& g) {
 // scan()'s work space, one per thread, kept between calls: a fit's iterations scan the same
 // shapes again and again, and fresh run-length buffers cost their page faults and zeroing.
 struct ScanBuffers {
-  std::vector<double> wy, wf, prod, ones;
+  std::vector<double> wy, ones;
   std::vector<std::vector<double>> cvy, cvf, gvv;  // [v], [v * nf + a], [v * nv + u]: all lags each
   Spectrum f_spec;                                 // w * one fixed column's spectrum (f_of: which)
   Spectrum own;                                    // w * y's spectrum when the caller has none
@@ -182,9 +182,8 @@ ScanResult scan(const LagScanner& sc, std::span<const double> y, const Spectrum*
     std::size_t f_of = nf;  // the fixed column B.f_spec holds (nf: none)
     auto fixed_spectrum = [&](std::size_t a) -> const Spectrum& {
       if (f_of != a) {
-        B.wf.resize(n);
-        for (std::size_t t = 0; t < n; ++t) B.wf[t] = w[t] * fixed[a].v[t];
-        sc.spectrum_of_target(B.wf, B.f_spec);
+        // w * the column, made block by block as the transform loads it (no run-length array).
+        sc.spectrum_of_product(w, std::span<const double>(fixed[a].v, n), B.f_spec);
         f_of = a;
       }
       return B.f_spec;
@@ -217,12 +216,7 @@ ScanResult scan(const LagScanner& sc, std::span<const double> y, const Spectrum*
       for (std::size_t u = v; u < nv; ++u) {
         const std::string ku = vkey(u);
         memoized(memo ? &memo->gvv : nullptr, mu, std::make_pair(kv, ku), !kv.empty() && !ku.empty(), gvv[v * nv + u],
-                 [&](std::vector<double>& out) {
-                   std::vector<double>& prod = B.prod;
-                   prod.resize(varying[v]->ext.size());
-                   for (std::size_t j = 0; j < prod.size(); ++j) prod[j] = varying[v]->ext[j] * varying[u]->ext[j];
-                   sc.wsum(prod, out);
-                 });
+                 [&](std::vector<double>& out) { sc.wsum_product(varying[v]->ext, varying[u]->ext, out); });
       }
     }
   }

@@ -87,11 +87,13 @@ Buffers& buffers_for(std::size_t m) {
   return *b;
 }
 
-// The FFT of each block of a series, laid end to end: block b is x[b*step, b*step + take),
-// zero-padded to m.
+// The FFT of each block of a series of `size` samples, laid end to end: block b is
+// x[b*step, b*step + take), zero-padded to m; load(lo, hi, dst) writes x[lo, hi) to dst (a series
+// held as an array, or a product of two made block by block: no run-length array for it).
 // s is resized (its capacity reused).
-void forward_blocks(std::span<const double> x, std::size_t m, std::size_t step, std::size_t take, std::size_t blocks,
-                    Spectrum& s) {
+template <class Load>
+void forward_blocks_of(std::size_t size, Load load, std::size_t m, std::size_t step, std::size_t take, std::size_t blocks,
+                       Spectrum& s) {
   assert(take <= m);
   Buffers& b = buffers_for(m);
   const Plans& plan = plans_for(m);
@@ -99,9 +101,9 @@ void forward_blocks(std::span<const double> x, std::size_t m, std::size_t step, 
   s.resize(blocks * bins);
   auto* packed = reinterpret_cast<fftw_complex*>(b.real);  // z[j] = x[2j] + i x[2j+1]
   for (std::size_t k = 0; k < blocks; ++k) {
-    const std::size_t lo = std::min(k * step, x.size());
-    const std::size_t hi = std::min(lo + take, x.size());
-    std::copy(x.begin() + static_cast<std::ptrdiff_t>(lo), x.begin() + static_cast<std::ptrdiff_t>(hi), b.real);
+    const std::size_t lo = std::min(k * step, size);
+    const std::size_t hi = std::min(lo + take, size);
+    load(lo, hi, b.real);
     std::fill(b.real + (hi - lo), b.real + m, 0.0);
     fftw_execute_dft(plan.forward, packed, b.cplx);
     // Z = E + i O, with E and O the transforms of the even and odd samples:
@@ -114,6 +116,40 @@ void forward_blocks(std::span<const double> x, std::size_t m, std::size_t step, 
       out[f] = even + plan.twiddle[f] * odd;
     }
   }
+}
+
+void forward_blocks(std::span<const double> x, std::size_t m, std::size_t step, std::size_t take, std::size_t blocks,
+                    Spectrum& s) {
+  forward_blocks_of(
+      x.size(),
+      [&](std::size_t lo, std::size_t hi, double* dst) {
+        std::copy(x.begin() + static_cast<std::ptrdiff_t>(lo), x.begin() + static_cast<std::ptrdiff_t>(hi), dst);
+      },
+      m, step, take, blocks, s);
+}
+
+// The same of the product a(t) b(t), each product made as it is loaded (the numbers of a
+// product array, without the array).
+void forward_blocks_product(std::span<const double> a, std::span<const double> b, std::size_t m, std::size_t step,
+                            std::size_t take, std::size_t blocks, Spectrum& s) {
+  assert(a.size() == b.size());
+  forward_blocks_of(
+      a.size(),
+      [&](std::size_t lo, std::size_t hi, double* dst) {
+        for (std::size_t t = lo; t < hi; ++t) dst[t - lo] = a[t] * b[t];
+      },
+      m, step, take, blocks, s);
+}
+
+// The same of a(t) b(t - lag), b's first value standing in before its start.
+void forward_blocks_lagged_product(std::span<const double> a, std::span<const double> b, std::size_t lag, std::size_t m,
+                                   std::size_t step, std::size_t take, std::size_t blocks, Spectrum& s) {
+  forward_blocks_of(
+      a.size(),
+      [&](std::size_t lo, std::size_t hi, double* dst) {
+        for (std::size_t t = lo; t < hi; ++t) dst[t - lo] = a[t] * b[t >= lag ? t - lag : 0];
+      },
+      m, step, take, blocks, s);
 }
 
 // c[k] = sum_t u(t) x(t + k) for k = 0..kmax, from the block spectra of x and u: the blocks'
@@ -192,13 +228,28 @@ void LagScanner::weights_changed() {
 }
 
 const Spectrum& LagScanner::spec_of(const Lagged& x) const {
-  if (x.spec.empty()) forward_blocks(x.ext, m_, step_, step_ + static_cast<std::size_t>(max_lag_), blocks_, x.spec);
+  if (x.spec.empty()) lagged_spectrum(x.ext, x.spec);
   return x.spec;
+}
+
+void LagScanner::lagged_spectrum(std::span<const double> ext, Spectrum& out) const {
+  forward_blocks(ext, m_, step_, step_ + static_cast<std::size_t>(max_lag_), blocks_, out);
 }
 
 void LagScanner::spectrum_of_target(std::span<const double> u, Spectrum& out) const {
   assert(u.size() == n_);
   forward_blocks(u, m_, step_, step_, blocks_, out);
+}
+
+void LagScanner::spectrum_of_product(std::span<const double> a, std::span<const double> b, Spectrum& out) const {
+  assert(a.size() == n_ && b.size() == n_);
+  forward_blocks_product(a, b, m_, step_, step_, blocks_, out);
+}
+
+void LagScanner::spectrum_of_lagged_product(std::span<const double> a, std::span<const double> b, std::size_t lag,
+                                            Spectrum& out) const {
+  assert(a.size() == n_ && (n_ == 0 || (!b.empty() && b.size() + lag >= n_)));
+  forward_blocks_lagged_product(a, b, lag, m_, step_, step_, blocks_, out);
 }
 
 Spectrum LagScanner::spectrum_of_target(std::span<const double> u) const {
@@ -236,16 +287,43 @@ void LagScanner::wsum(std::span<const double> v, std::vector<double>& out) const
     correlate_reversed(vs, w_spec_, m_, L, out);
     return;
   }
+  window_sums(v.size(), [&](std::size_t j) { return v[j]; }, out);
+}
+
+void LagScanner::wsum_product(std::span<const double> a, std::span<const double> b, std::vector<double>& out) const {
+  const auto L = static_cast<std::size_t>(max_lag_);
+  assert(a.size() == n_ + L && b.size() == a.size());
+  if (!sparse_zeros_) {
+    thread_local Spectrum vs;
+    forward_blocks_product(a, b, m_, step_, step_ + L, blocks_, vs);
+    correlate_reversed(vs, w_spec_, m_, L, out);
+    return;
+  }
+  window_sums(a.size(), [&](std::size_t j) { return a[j] * b[j]; }, out);
+}
+
+template <class At>
+void LagScanner::window_sums(std::size_t size, At v, std::vector<double>& out) const {
+  const auto L = static_cast<std::size_t>(max_lag_);
   out.resize(L + 1);
-  // All-ones window sums from prefix sums, minus the samples of weight zero.
-  thread_local std::vector<double> prefix;
-  prefix.resize(v.size() + 1);
-  prefix[0] = 0.0;
-  for (std::size_t j = 0; j < v.size(); ++j) prefix[j + 1] = prefix[j] + v[j];
+  // All-ones window sums from prefix sums, minus the samples of weight zero. Of the prefix sums
+  // (prefix[j] = v[0] + ... + v[j-1]) only those at j = k and j = k + N, k = 0..L, are read:
+  // one running sum passes them and they are kept (the same additions in the same order as a
+  // run-length array of them, without it).
+  thread_local std::vector<double> at_k, at_kn;  // prefix[k], prefix[k + N]
+  at_k.resize(L + 1);
+  at_kn.resize(L + 1);
+  double prefix = 0.0;
+  for (std::size_t j = 0;; ++j) {
+    if (j <= L) at_k[j] = prefix;
+    if (j >= n_ && j - n_ <= L) at_kn[j - n_] = prefix;
+    if (j == size) break;
+    prefix = prefix + v(j);
+  }
   for (std::size_t i = 0; i <= L; ++i) {
     const std::size_t k = L - i;
-    double s = prefix[k + n_] - prefix[k];
-    for (std::size_t t : zeros_) s -= v[t + k];
+    double s = at_kn[k] - at_k[k];
+    for (std::size_t t : zeros_) s -= v(t + k);
     out[i] = s;
   }
 }

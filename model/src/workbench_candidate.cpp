@@ -397,7 +397,7 @@ std::expected<CandidateScan, FitError> scan_beside(const Model& m, detail::FitCa
     const Term& t = m.terms[j].term;
     auto x = cache.column(t);
     if (!x) return std::unexpected(x.error());
-    cols.emplace_back(std::span<const double>(**x), static_cast<std::size_t>(t.lag.seconds));
+    cols.emplace_back(*x, static_cast<std::size_t>(t.lag.seconds));
     keys.push_back(term_key(t) + "@" + std::to_string(t.lag.seconds));
   }
   // A rescan is only scanned (partial() is the step's scan's): its columns are not kept.

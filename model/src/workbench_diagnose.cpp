@@ -307,7 +307,9 @@ std::vector<EvaluatedCandidate> evaluate_all(const StepContext& ctx, std::vector
   report(0);
   // One cache of the fit run's refits for all the threads (made here, before they start): each
   // uses what the others computed (the base's columns, sums and first step), the same numbers.
-  detail::FitCache& fc = fit_scorer.fit_cache();
+  detail::FitCache& fc = fit_scorer.fit_cache(ctx.fo.max_lag_s);
+  // The fit run's scorers read the term columns there (the refits hold them anyway).
+  fit_scorer.read_columns_from(&fc);
   auto worker = [&](Scorer& fs, std::vector<Scorer>& hs, bool caller) {
     for (std::size_t ci = next++; ci < cands.size(); ci = next++) {
       results[ci] = evaluate_candidate(ctx, cands[ci], fs, hs, fc);
@@ -320,12 +322,14 @@ std::vector<EvaluatedCandidate> evaluate_all(const StepContext& ctx, std::vector
   std::vector<std::vector<Scorer>> held_sets(threads);
   for (unsigned k = 1; k < threads; ++k) {
     fit_scorers.push_back(std::make_unique<Scorer>(fit_scorer.sibling()));
+    fit_scorers.back()->read_columns_from(&fc);
     held_sets[k].reserve(held_scorers.size());
     for (const auto& h : held_scorers) held_sets[k].push_back(h.sibling());
   }
   for (unsigned k = 1; k < threads; ++k) pool.emplace_back(worker, std::ref(*fit_scorers[k - 1]), std::ref(held_sets[k]), false);
   worker(fit_scorer, held_scorers, true);
   for (auto& th : pool) th.join();
+  fit_scorer.read_columns_from(nullptr);
   if (done.load() > 0) report(done.load());
   return results;
 }

@@ -114,9 +114,10 @@ class CandidateScan {
     u_spec_ = sc_.spectrum_of_target(u);
     for (std::size_t a = 1; a <= cols_.size(); ++a) {
       auto make = [&] {
-        std::vector<double> wc(n);
-        for (std::size_t t = 0; t < n; ++t) wc[t] = wv[t] * col(a, t);
-        return sc_.spectrum_of_target(wc);
+        // w * the column at its lag, made block by block as it is transformed (no array of it).
+        detail::Spectrum s;
+        sc_.spectrum_of_lagged_product(wv, cols_[a - 1].x, cols_[a - 1].lag, s);
+        return s;
       };
       if (spectra && keys.size() == n_base)
         col_spec_.push_back(spectra->spectrum(keys[a - 1] + "/L" + std::to_string(L_), make));
@@ -156,9 +157,7 @@ class CandidateScan {
     Prepared p;
     p.lx = detail::make_lagged(x, L_);
     p.s1 = sc_.wsum(p.lx.ext);
-    std::vector<double> sq(p.lx.ext.size());
-    for (std::size_t j = 0; j < sq.size(); ++j) sq[j] = p.lx.ext[j] * p.lx.ext[j];
-    p.sxx = sc_.wsum(sq);
+    sc_.wsum_product(p.lx.ext, p.lx.ext, p.sxx);  // x(t - i)^2, no array of the squares
     p.w = &sc_.weights();
     p.max_lag = L_;
     return p;
@@ -283,7 +282,7 @@ class Scorer {
       auto col = column(ft.term);
       if (!col) return std::unexpected(col.error());
       const auto lag = static_cast<std::size_t>(ft.term.lag.seconds);
-      const std::vector<double>& x = **col;
+      const std::span<const double> x = *col;
       for (std::size_t t = 0; t < n; ++t) mu[t] += ft.coef * x[t >= lag ? t - lag : 0];
     }
     std::vector<double> r;
@@ -306,9 +305,20 @@ class Scorer {
   // Drops the cached column of the expression key (a candidate's, once it is scored).
   void forget(const std::string& key) { cols_.erase(key); }
   // The term's column evaluated by the caller on this run's signals (run_signals of the run at
-  // this tref: the same numbers column() would make), kept unless it is there.
+  // this tref: the same numbers column() would make), kept unless it is there (or, while the
+  // scorer reads the fit cache's columns, left to the fit cache: the caller puts it there).
   void put(const Term& t, const std::vector<double>& x) {
-    if (fixed_->error.empty()) cols_.try_emplace(to_string(*t.expr), x);
+    if (fixed_->error.empty() && !shared_cols_) cols_.try_emplace(to_string(*t.expr), x);
+  }
+  // The term columns read in fc (this run's refits' cache, at this scorer's reference: made from
+  // the same signals, the same numbers) rather than kept here, until called with null: the
+  // scorers of the refits' threads then hold no copy of the columns the refits hold (the base's
+  // and the candidate's; 12.6 MB on the 3-day run's two threads). Its own columns are dropped.
+  // A column fc hands out stays valid for the calling thread until its next fit (FitCache::trim);
+  // comp_std reads it before it returns.
+  void read_columns_from(detail::FitCache* fc) {
+    shared_cols_ = fc && fc->tref_c() == tref_c_ && &fc->run() == &run_ ? fc : nullptr;
+    if (shared_cols_) cols_.clear();
   }
 
   // What the refits on this run share (the candidates' refits on the fit run: detail::fit_with),
@@ -316,16 +326,21 @@ class Scorer {
   // whole-run Ljung-Box is not computed (they are only scored) and they are compared by BIC,
   // without standard errors (add_standard_errors for the one kept). It reads this scorer's
   // signals (not a copy of its own).
-  detail::FitCache& fit_cache() {
+  // pad_lag_s: the max lag of the refits (FitOptions::max_lag_s), the lag extension each column
+  // is kept in (FitCache).
+  detail::FitCache& fit_cache(int pad_lag_s) {
     if (!fit_cache_) {
-      fit_cache_ = std::make_unique<detail::FitCache>(run_, tref_c_, 8, fixed_->sig);
+      fit_cache_ = std::make_unique<detail::FitCache>(run_, tref_c_, 8, fixed_->sig, pad_lag_s);
       fit_cache_->whole_run_whiteness = false;
       fit_cache_->standard_errors = false;
     }
     return *fit_cache_;
   }
   // The refits' cache released (its columns, spectra and sums: the step's refits are done).
-  void drop_fit_cache() { fit_cache_.reset(); }
+  void drop_fit_cache() {
+    if (shared_cols_ == fit_cache_.get()) shared_cols_ = nullptr;
+    fit_cache_.reset();
+  }
 
  private:
   struct Fixed {
@@ -349,19 +364,22 @@ class Scorer {
     }
     return f;
   }
-  std::expected<const std::vector<double>*, std::string> column(const Term& t) {
+  std::expected<std::span<const double>, std::string> column(const Term& t) {
     const std::string key = to_string(*t.expr);
     auto it = cols_.find(key);
-    if (it != cols_.end()) return &it->second;
+    if (it != cols_.end()) return std::span<const double>(it->second);
+    if (shared_cols_)
+      if (auto c = shared_cols_->column(t)) return *c;  // (an error: evaluated below, for its message)
     auto v = evaluate(*t.expr, fixed_->sig->view());
     if (!v) return std::unexpected("term '" + key + "': " + v.error());
-    return &cols_.emplace(key, std::move(*v)).first->second;
+    return std::span<const double>(cols_.emplace(key, std::move(*v)).first->second);
   }
   const RunData& run_;
   double tref_c_;
   std::shared_ptr<const Fixed> fixed_;
   std::map<std::string, std::vector<double>> cols_;
   std::unique_ptr<detail::FitCache> fit_cache_;
+  detail::FitCache* shared_cols_ = nullptr;  // read_columns_from
 };
 
 // The model's terms with @auto terms frozen at their fitted lags.

@@ -58,7 +58,11 @@ TEST_CASE("fit_with through a warmed FitCache gives fit()'s numbers exactly (pap
   FitOptions fo;
   fo.method = Method::paper;
   fo.max_lag_s = 300;
-  FitCache cache(run, fo.tref_c);
+  // Columns kept apart from their lag extensions (pad 0), or each in its extension for the
+  // fits' max lag (diagnose's cache: the column a view of the extension's tail).
+  const int pad_lag_s = GENERATE(0, 300);
+  INFO("pad " << pad_lag_s << " s");
+  FitCache cache(run, fo.tref_c, 8, nullptr, pad_lag_s);
   cache.whole_run_whiteness = false;
   // The base's terms beside one candidate after another, some at two lags, as diagnose's step
   // refits them: every sum the memos keep is used again by a later list.
@@ -120,7 +124,9 @@ TEST_CASE("fit_with through one FitCache shared by two threads gives fit()'s num
   FitOptions fo;
   fo.method = Method::paper;
   fo.max_lag_s = 200;
-  FitCache cache(run, fo.tref_c, 2);
+  const int pad_lag_s = GENERATE(0, 200);  // as in the first case; 200: each column in its extension
+  INFO("pad " << pad_lag_s << " s");
+  FitCache cache(run, fo.tref_c, 2, nullptr, pad_lag_s);
   cache.whole_run_whiteness = false;
   cache.standard_errors = false;
   const std::vector<std::string> lists{"d(T1)@auto + grad@auto + T2@0", "d(T1)@auto + grad@auto + T2@120", "d(T1)@auto + grad@auto + lp(T2,300)@10",
@@ -165,7 +171,7 @@ TEST_CASE("a FitCache that forgot a candidate's column keeps the others and refi
   FitOptions fo;
   fo.method = Method::paper;
   fo.max_lag_s = 200;
-  FitCache cache(run, fo.tref_c);
+  FitCache cache(run, fo.tref_c, 8, nullptr, GENERATE(0, 200));
   cache.whole_run_whiteness = false;
   auto tl = parse_terms("d(T1)@auto + grad@auto + T2@30 + lp(T1,600)@0");
   REQUIRE(tl);

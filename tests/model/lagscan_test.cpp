@@ -77,3 +77,45 @@ TEST_CASE("lag scan: sums for every lag equal the direct sums") {
   }
   SECTION("a long maximum lag makes a larger block") { check_against_direct(30000, 3000, 0.0, 6); }
 }
+
+// The product forms (wsum_product, spectrum_of_product, spectrum_of_lagged_product) make each
+// product as the sums or the transform load it, instead of from an array of the products: the
+// same multiplications and additions in the same order, so the numbers must be bit for bit
+// those of the array forms (diagnose's output is compared byte for byte), on both of wsum's
+// paths (few zeros: running sums; many: by FFT) and for a run shorter than its lags.
+namespace {
+
+void check_products_exact(std::size_t n, int max_lag, double zero_fraction, unsigned seed) {
+  const Case c = make_case(n, zero_fraction, seed);
+  const Case d = make_case(n, 0.0, seed + 100);
+  LagScanner sc(n, max_lag, c.w);
+  const Lagged lx = make_lagged(c.x, max_lag), ly = make_lagged(d.x, max_lag);
+  std::vector<double> prod(lx.ext.size());
+  for (std::size_t j = 0; j < prod.size(); ++j) prod[j] = lx.ext[j] * ly.ext[j];
+  std::vector<double> by_array, by_product;
+  sc.wsum(prod, by_array);
+  sc.wsum_product(lx.ext, ly.ext, by_product);
+  INFO("n " << n << ", max lag " << max_lag << ", zeros " << zero_fraction);
+  CHECK(by_product == by_array);
+  for (std::size_t lag : {std::size_t{0}, std::size_t{7}, static_cast<std::size_t>(max_lag)}) {
+    std::vector<double> wx(n);
+    for (std::size_t t = 0; t < n; ++t) wx[t] = c.w[t] * delayed(d.x, t, lag);
+    Spectrum s_array, s_product;
+    sc.spectrum_of_target(wx, s_array);
+    if (lag == 0) sc.spectrum_of_product(c.w, d.x, s_product);
+    else sc.spectrum_of_lagged_product(c.w, d.x, lag, s_product);
+    INFO("lag " << lag);
+    CHECK(s_product == s_array);
+    // and what the scan reads from it: the correlation with a lagged regressor
+    CHECK(sc.corr(lx, s_product) == sc.corr(lx, s_array));
+  }
+}
+
+}  // namespace
+
+TEST_CASE("lag scan: the product forms give the array forms' numbers exactly") {
+  SECTION("few skipped samples (running sums)") { check_products_exact(40000, 600, 0.001, 7); }
+  SECTION("many skipped samples (weights by FFT)") { check_products_exact(20000, 300, 0.3, 8); }
+  SECTION("a run shorter than its lags") { check_products_exact(200, 300, 0.01, 9); }
+  SECTION("a run shorter than one block") { check_products_exact(3000, 120, 0.0, 10); }
+}
