@@ -114,6 +114,24 @@ TEST_CASE("plan axes e2e: comp_raw judged on x, y and z, the plan fails the thre
   CHECK(cert["result"]["certificate"]["verdict"] == "fail");
   CHECK(cert["result"]["certificate"]["qualification"]["verdict_id"] == rv["verdict_id"]);
   CHECK(plan_axes_entry(cert["result"]["certificate"]["qualification"]["axes"], "axis", "y")["verdict"] == "fail");
+  // ... and each axis' current model and verdict for the page's axes table, signed with the rest.
+  const json& cert_axes = cert["result"]["certificate"]["axes"];
+  REQUIRE(cert_axes.size() == 3);
+  CHECK(plan_axes_entry(cert_axes, "axis", "x")["verdict"] == "pass");
+  CHECK(plan_axes_entry(cert_axes, "axis", "y")["verdict"] == "fail");
+  CHECK(plan_axes_entry(cert_axes, "axis", "y")["model"]["id"] == my["id"]);
+  CHECK(plan_axes_entry(cert_axes, "axis", "y")["decided_on_model"] == my["id"]);
+  CHECK(plan_axes_entry(cert_axes, "axis", "y")["reasons"].size() == 1);
+  CHECK(cert["result"]["certificate"].contains("signature"));
+  // fogctl draws it as page 7, its axes table included, and the page checks against its signature.
+  const auto [cert_code, cert_out] = plan_axes_fogctl(bench, "cert SIM-0001 -o c.html");
+  INFO(cert_out);
+  REQUIRE(cert_code == 0);
+  std::ifstream page_in(bench.dir / "c.html");
+  std::stringstream page;
+  page << page_in.rdbuf();
+  CHECK_THAT(page.str(), Catch::Contains("fogbench-certificate-page 7"));
+  CHECK_THAT(page.str(), Catch::Contains("<td>y</td><td>fail</td>"));
 
   // fogctl shows the same: run get by axis, plan status with each measurement's axis.
   const auto [run_code, run_out] = plan_axes_fogctl(bench, "run get " + std::to_string(verify_run));
