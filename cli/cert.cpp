@@ -42,11 +42,23 @@ constexpr const char* kScriptOpen = "<script type=\"application/json\" id=\"fogb
 // once in their column (`2026-11-29 13:44:50Z`, not `2026-11-29T13:44:50.889Z` broken anywhere
 // over three lines), and an empty station or operator named, never an empty cell or "by station
 // with key".
-constexpr int kPageLatest = 6;
+// Page 7: page 6 for a three-axis unit's certificate (one that has `axes`): a section "Axes"
+// with each axis' verdict in the serial's decision, its current model and its reasons, and the
+// runs' table with the software column wide enough that the 12-digit git hash stays on one line
+// (it broke over two on page 6). A certificate without `axes` (a one-axis unit's, or one issued
+// before) is still drawn as page 6, and a three-axis certificate only as page 7: a page drawn
+// without its axes table does not check.
+constexpr int kPageLatest = 7;
 bool one_verdict_layout(const json& cert) { return cert.contains("verifications") || cert.contains("qualification"); }
+bool has_axes(const json& cert) { return cert.contains("axes") && cert["axes"].is_array() && !cert["axes"].empty(); }
 int latest_page_of(const json& cert) {
   if (!one_verdict_layout(cert)) return 2;
-  return kPageLatest;
+  return has_axes(cert) ? 7 : 6;
+}
+// The lowest page this fogctl draws for this content: 2 before the one verdict, 7 with axes.
+int first_page_of(const json& cert) {
+  if (!one_verdict_layout(cert)) return 2;
+  return has_axes(cert) ? 7 : 3;
 }
 std::string renderer_name(int page) { return "fogbench-certificate-page " + std::to_string(page); }
 constexpr const char* kRendererMeta = "<meta name=\"generator\" content=\"";
@@ -181,6 +193,25 @@ std::string limit_text(const json& x) {
   return field_text(x, "limit");
 }
 
+// Page 7's axes table: per axis its verdict as decided, the model it was decided on, its
+// current model and the axis' reasons.
+const std::vector<std::string> kAxesHead = {"axis", "verdict", "decided on model", "current model", "terms", "reasons"};
+std::vector<std::vector<std::string>> axis_rows(const json& cert) {
+  std::vector<std::vector<std::string>> rows;
+  for (const auto& a : cert.value("axes", json::array())) {
+    if (!a.is_object()) continue;
+    const json model = a.value("model", json(nullptr));
+    std::string reasons;
+    for (const auto& r : a.value("reasons", json::array())) reasons += (reasons.empty() ? "" : "; ") + text_of(r);
+    rows.push_back({field_text(a, "axis"), field_text(a, "verdict"), field_text(a, "decided_on_model"),
+                    model.is_object() ? field_text(model, "id") + " (version " + field_text(model, "version") + ", " +
+                                            field_text(model, "method") + ")"
+                                      : std::string("none"),
+                    model.is_object() ? field_text(model, "terms") : std::string("-"), reasons.empty() ? "-" : reasons});
+  }
+  return rows;
+}
+
 int print_summary(const json& cert, std::ostream& out) {
   const json& m = cert["model"];
   out << "certificate of " << field_text(cert, "serial") << ": " << field_text(cert, "verdict") << "\n  model " << field_text(m, "id") << " version "
@@ -213,6 +244,12 @@ int print_summary(const json& cert, std::ostream& out) {
     for (const auto& r : q.value("reasons", json::array())) out << "  " << text_of(r) << "\n";
   } else {
     out << "  no verdict decided on this model\n";
+  }
+  if (has_axes(cert)) {
+    out << "  axes (three-axis unit: the verdict is the worst axis')\n";
+    Table a(kAxesHead);
+    for (auto& r : axis_rows(cert)) a.add(r);
+    out << a.str();
   }
   if (cert.contains("scale_factor")) {
     out << "  scale factor over temperature (IEEE Std 952)\n";
@@ -253,6 +290,16 @@ std::string run_time_text(const std::string& ts) {
 
 // Page 6's name of who or where: the text, or `none` when it is empty.
 std::string named_or(const std::string& text, const char* none) { return text.empty() ? std::string(none) : text; }
+
+// Page 7's runs table: fixed column widths (percent of the table) that give the software cell
+// room for the version and the 12-digit hash, which then breaks only between the two.
+std::string runs_table_p7(const std::vector<std::string>& head, const std::vector<std::vector<std::string>>& rows) {
+  static constexpr int kWidthPct[] = {7, 8, 11, 14, 14, 14, 10, 22};
+  std::string s = "<table class=\"runs\"><colgroup>";
+  for (const int w : kWidthPct) s += "<col style=\"width:" + std::to_string(w) + "%\">";
+  s += "</colgroup>";
+  return s + table(head, rows, true).substr(std::string("<table>").size());
+}
 
 std::string render_certificate(const json& cert, int page) {
   // Page 4 keeps each section on one sheet when it fits (a <section> per heading) and repeats
@@ -309,6 +356,11 @@ std::string render_certificate(const json& cert, int page) {
       for (const auto& r : q.value("reasons", json::array())) reasons += "<li>" + html_escape(text_of(r)) + "</li>";
       if (!reasons.empty()) b += "<ul>" + reasons + "</ul>";
     }
+    if (page >= 7 && has_axes(cert)) {
+      // A three-axis unit: its verdict is the worst of its axes'; each axis as decided.
+      b += h2 + "Axes (three-axis unit: the verdict is the worst axis')</h2>";
+      b += tbl(kAxesHead, axis_rows(cert));
+    }
     b += h2 + "Verifications of this model (evidence)</h2>";
     rows.clear();
     for (const auto& x : cert.value("verifications", json::array()))
@@ -351,8 +403,11 @@ std::string render_certificate(const json& cert, int page) {
     row.push_back(id.is_object() ? field_text(id, "software_version") + " " + field_text(id, "git_hash").substr(0, 12) : "-");
     rows.push_back(std::move(row));
   }
-  b += v3 ? tbl({"run", "role", "profile", "ended", "station", "operator", "lot", "software"}, rows)
-          : tbl({"run", "role", "profile", "ended", "station", "operator", "software"}, rows);
+  if (page >= 7)  // the software column wide enough for "0.1.0 62756e985c7e" with the hash on one line
+    b += runs_table_p7({"run", "role", "profile", "ended", "station", "operator", "lot", "software"}, rows);
+  else
+    b += v3 ? tbl({"run", "role", "profile", "ended", "station", "operator", "lot", "software"}, rows)
+            : tbl({"run", "role", "profile", "ended", "station", "operator", "software"}, rows);
   b += h2 + "Integrity</h2><p class=\"hash\">SHA-256 " + html_escape(field_text(cert, "sha256")) + "</p>";
   if (cert.contains("signed_by") && cert["signed_by"].is_object())
     b += "<p class=\"hash\">Signed (Ed25519) by " + html_escape(station_text(field_text(cert["signed_by"], "station_id"))) + " with key " +
@@ -377,7 +432,8 @@ std::string render_certificate(const json& cert, int page) {
                               "@bottom-left{content:" + css_string("SHA-256 " + field_text(cert, "sha256").substr(0, 16) + "...") +
                               ";font:8pt monospace;color:#5a6472}" +
                               "@bottom-right{content:\"page \" counter(page) \" of \" counter(pages);font:9pt system-ui,sans-serif}}"
-                              "section{break-inside:avoid}thead{display:table-header-group}p,li{orphans:3;widows:3}";
+                              "section{break-inside:avoid}thead{display:table-header-group}p,li{orphans:3;widows:3}" +
+                              (page >= 7 ? std::string(".runs td:last-child{overflow-wrap:normal}") : std::string());
   return head + "<title>" + html_escape(title) + "</title><style>" + kStyle + margins + "</style></head><body>" + "<section>" + b + "</section>" + kScriptOpen +
          safe + "</script></body></html>\n";
 }
@@ -430,7 +486,7 @@ std::expected<std::string, std::string> visible_difference(const std::string& ht
   // The pages this fogctl can draw for this content: page 2 for a certificate of per-verification
   // verdicts, pages 3 and 4 for one with the one verdict.
   int page = 0;
-  for (int p = one_verdict_layout(cert) ? 3 : 2; p <= latest_page_of(cert); ++p)
+  for (int p = first_page_of(cert); p <= latest_page_of(cert); ++p)
     if (version == renderer_name(p)) page = p;
   if (page == 0)
     return std::unexpected("the page was drawn by " + (version.empty() ? std::string("an older fogctl") : "'" + version + "'") +

@@ -73,6 +73,10 @@ std::expected<json, int> validate_offline(const std::string& name) {
 }
 
 std::string cell_text(const json& v) { return v.is_string() ? v.get<std::string>() : v.is_null() ? "-" : v.dump(); }
+// A measurement's name, with its axis for a three-axis unit's ("comp_raw (y)"); a one-axis unit's as it is.
+std::string plan_measurement_label(const json& m) {
+  return cell_text(m["measurement"]) + (m.contains("axis") ? " (" + cell_text(m["axis"]) + ")" : std::string());
+}
 
 // A plan's operator ("-" when nobody was recorded) and its units' lots ("SIM-0001=L7 ...", "-").
 std::string operator_text(const json& p) {
@@ -106,7 +110,7 @@ void print_status(const json& s, std::ostream& out) {
       bool first = true;
       const std::string verdict = u["verdict"].is_null() ? (u["active"].get<bool>() ? "running" : "-") : cell_text(u["verdict"]);
       for (const auto& m : u["measurements"]) {
-        units.add({first ? cell_text(u["serial"]) : "", first ? verdict : "", cell_text(m["measurement"]), cell_text(m["step"]),
+        units.add({first ? cell_text(u["serial"]) : "", first ? verdict : "", plan_measurement_label(m), cell_text(m["step"]),
                    m["value"].is_number() ? num_text(m["value"], 4) : "-", cell_text(m["limit"]),
                    m["met"].get<bool>() ? "yes" : "NO", cell_text(m["on_fail"])});
         first = false;
@@ -239,7 +243,7 @@ std::string plan_report_html(const json& s) {
     for (const auto& m : u["measurements"]) {
       const bool met = m["met"].get<bool>();
       h << "<tr class=\"" << (met ? "" : "no") << "\"><td>" << html_escape(cell_text(u["serial"])) << "</td><td>" << m["step"]
-        << "</td><td>" << m["run_id"] << "</td><td>" << html_escape(cell_text(m["measurement"])) << "</td><td>"
+        << "</td><td>" << m["run_id"] << "</td><td>" << html_escape(plan_measurement_label(m)) << "</td><td>"
         << (m["value"].is_number() ? num_text(m["value"], 4) + " " + html_escape(cell_text(m["unit"])) : "not measured")
         << "</td><td>" << html_escape(cell_text(m["limit"])) << " (line " << m["line"] << ")</td><td>" << (met ? "yes" : "no")
         << "</td><td>" << html_escape(cell_text(m["on_fail"])) << "</td><td>" << html_escape(m.value("note", "")) << "</td></tr>\n";

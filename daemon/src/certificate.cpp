@@ -239,6 +239,39 @@ ApiResult<json> build(storage::Store& store, const AnalysisConfig& /*config*/, c
                             {"git_describe", std::string(info.git_describe)}}}};
   // Only when a run had rate steps: a certificate without them is what it was before.
   if (!scale_factors.empty()) cert["scale_factor"] = scale_factors;
+  // A three-axis unit (a y model on file): each axis' current model and what the serial's
+  // decision says of that axis (its qualification's `axes`), signed with the rest; a one-axis
+  // unit's certificate has no `axes` and is what it was before.
+  auto y_model = store.current_model(serial, "y");
+  if (!y_model) return std::unexpected(from_store(y_model.error()));
+  if (*y_model) {
+    json axes = json::array();
+    for (const char* axis : {"x", "y", "z"}) {
+      std::optional<storage::ModelRecord> am;
+      if (std::string_view(axis) == "x") {
+        am = mr;
+      } else {
+        auto r = store.current_model(serial, axis);
+        if (!r) return std::unexpected(from_store(r.error()));
+        am = *r;
+      }
+      json e = {{"axis", axis}, {"model", nullptr}, {"verdict", "not verified"}, {"decided_on_model", nullptr},
+                {"reasons", json::array()}};
+      if (am)
+        e["model"] = {{"id", am->id}, {"version", am->version}, {"method", am->method}, {"terms", am->terms},
+                      {"fitted_on_run", am->run_id ? json(*am->run_id) : json(nullptr)}};
+      const json& q = decided.qualification;
+      if (q.is_object() && q.contains("axes") && q["axes"].is_array())
+        for (const auto& d : q["axes"])
+          if (d.is_object() && d.value("axis", "") == axis) {
+            e["verdict"] = d.value("verdict", json("not verified"));
+            e["decided_on_model"] = d.value("model_id", json(nullptr));
+            e["reasons"] = d.contains("reasons") && d["reasons"].is_array() ? d["reasons"] : json::array();
+          }
+      axes.push_back(std::move(e));
+    }
+    cert["axes"] = axes;
+  }
   return cert;
 }
 

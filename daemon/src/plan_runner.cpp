@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <map>
 
 #include "fogbench/model/firmware.hpp"
 #include "fogbench/model/json.hpp"
@@ -279,7 +280,12 @@ void PlanRunner::decide_unit(std::int64_t plan_id, json& progress, json& unit) {
   const std::string serial = unit.value("serial", "");
   std::optional<std::int64_t> model_id;
   if (auto m = store.current_model(serial); m && *m) model_id = (*m)->id;
-  auto v = verdict::from_plan(plan_id, rec->name, rec->plan_text, unit, progress["runs"], model_id);
+  // A three-axis unit's axes each name their own current model in the verdict's evidence.
+  std::map<std::string, std::int64_t> axis_models;
+  if (unit.contains("axis_evidence"))
+    for (const char* axis : {"x", "y", "z"})
+      if (auto m = store.current_model(serial, axis); m && *m) axis_models[axis] = (*m)->id;
+  auto v = verdict::from_plan(plan_id, rec->name, rec->plan_text, unit, progress["runs"], model_id, axis_models);
   if (!v) return;  // the unit never ran: the plan's status says incomplete, nothing to certify
   auto cert = runs_.decide(*v, true);  // the run again to the plant, with its verdict
   if (cert) unit["certificate_sha256"] = *cert;
@@ -497,149 +503,229 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
   const plans::Step& step = plan.steps[step_index];
   const bool retest_attempt = progress["attempt"].get<int>() > 0;
   auto& store = store_;
+  const auto run_rec = store.get_run(run_id);
+  // Whether this step's run had rate steps: its profile as run (stored with the run).
+  const bool rate_run = run_rec && has_rate_steps(run_rec->run.profile_text, step.profile + ".profile");
+  std::optional<std::vector<storage::VerificationRecord>> verifications;
   for (const auto& note : notes) {
     const int unit_index = note["unit"].get<int>();
     const std::string serial = note.value("serial", "");
     json* u = find_unit(progress, serial);
     if (!u) continue;
+    // A three-axis unit is judged on each of its axes against every limit (its progress keeps
+    // each axis' evidence: axis_evidence); a one-axis unit on its only one, as it always was.
+    const bool three = run_rec && unit_index >= 0 && static_cast<std::size_t>(unit_index) < run_rec->run.units.size() &&
+                       run_rec->run.units[static_cast<std::size_t>(unit_index)].axes == 3;
+    if (three && !u->contains("axis_evidence")) {
+      (*u)["axis_evidence"] = json::object();
+      for (const char* a : {"x", "y", "z"}) (*u)["axis_evidence"][a] = {{"verdict", "pass"}, {"reasons", json::array()}};
+    }
+    // What a failure on an axis makes of that axis (the unit's own verdict follows the plan's flow
+    // below; the two agree: an axis fails exactly when its failure drops the unit).
+    auto axis_outcome = [&](const std::string& axis, const std::string& verdict_of_axis, const std::string& why) {
+      json& e = (*u)["axis_evidence"][axis];
+      if (!verdict_of_axis.empty()) e["verdict"] = verdict::worst(e["verdict"].get<std::string>(), verdict_of_axis);
+      e["reasons"].push_back(why);
+    };
     auto drop = [&](const std::string& why) {
       (*u)["active"] = false;
       (*u)["verdict"] = "fail";
       (*u)["reasons"].push_back(why);
       plan_event(plan_id, "plan.unit", {{"run_id", run_id}, {"serial", serial}, {"verdict", "fail"}, {"why", why}});
-      decide_unit(plan_id, progress, *u);  // its verdict is final: certified fail from now
+      // Its verdict is final: certified fail from now; a three-axis unit's once every limit of the
+      // step has been judged on each axis (below), so that its axes' evidence is whole.
+      if (!three) decide_unit(plan_id, progress, *u);
     };
     const std::string where = "step " + std::to_string(step_index + 1) + " (" + step.profile + ", run " +
                               std::to_string(run_id) + ")";
     if (!note.value("ok", false) && (step.purpose == plans::StepPurpose::fit || step.purpose == plans::StepPurpose::verify)) {
-      drop(where + ": the " + note.value("analysis", std::string("analysis")) + " failed: " + note.value("error", ""));
+      const std::string why =
+          where + ": the " + note.value("analysis", std::string("analysis")) + " failed: " + note.value("error", "");
+      if (three) {  // the axes whose analysis failed, each; every axis when the note names none
+        bool named = false;
+        if (note.contains("axes") && note["axes"].is_array())
+          for (const auto& a : note["axes"])
+            if (a.is_object() && a.value("ok", true) == false && a.contains("axis") && a["axis"].is_string() &&
+                (*u)["axis_evidence"].contains(a["axis"].get<std::string>())) {
+              named = true;
+              axis_outcome(a["axis"].get<std::string>(), "fail",
+                           where + ": the " + note.value("analysis", std::string("analysis")) + " failed: " + a.value("error", ""));
+            }
+        if (!named)
+          for (const char* a : {"x", "y", "z"}) axis_outcome(a, "fail", why);
+      }
+      drop(why);
+      if (three) decide_unit(plan_id, progress, *u);
       continue;
     }
-    // The measurements of this step for this unit.
-    std::optional<model::Model> fitted;
-    json verification;
-    std::optional<model::RunData> data;
-    auto load_data = [&]() -> const model::RunData* {
-      if (!data) {
-        auto d = store.export_run(run_id, unit_index);
-        if (d) data = std::move(*d);
-      }
-      return data ? &*data : nullptr;
+    // The measurements of this step for this unit, on each axis judged.
+    struct AxisMeasures {
+      std::optional<model::Axis> axis;  // none: a one-axis unit
+      std::optional<model::Model> fitted, verified_model;
+      json verification;
+      std::optional<model::RunData> data;
+      bool data_read = false;
+      std::optional<plan_figures::AllanFigures> allan;
+      std::optional<plan_figures::SfFigures> sf;  // the run's scale-factor fit, made once for every sf_* limit
     };
-    std::optional<model::Model> verified_model;
-    if (step.purpose == plans::StepPurpose::fit && note.contains("model_id")) {
-      auto m = store.get_model(note["model_id"].get<std::int64_t>());
-      if (m) {
-        auto mm = model::model_from_text(m->model_json);
-        if (mm) fitted = std::move(*mm);
-      }
+    std::vector<AxisMeasures> measures;
+    if (three) {
+      for (const auto a : {model::Axis::x, model::Axis::y, model::Axis::z}) measures.push_back({a, {}, {}, {}, {}, false, {}, {}});
+    } else {
+      measures.push_back({});
     }
-    if (step.purpose == plans::StepPurpose::verify && note.contains("verification_id")) {
-      auto vs = store.list_verifications(run_id);
-      if (vs)
-        for (const auto& v : *vs)
-          if (v.id == note["verification_id"].get<std::int64_t>()) {
-            verification = json::parse(v.result_json, nullptr, false);
-            auto m = store.get_model(v.model_id);
-            if (m) {
-              auto mm = model::model_from_text(m->model_json);
-              if (mm) verified_model = std::move(*mm);
+    std::optional<model::RunData> whole;  // the unit's run as stored, read once
+    bool whole_read = false;
+    for (auto& am : measures) {
+      // The note's figures of this axis: a three-axis unit's in its `axes`, a one-axis unit's at its top.
+      json of_axis = note;
+      if (am.axis && note.contains("axes") && note["axes"].is_array())
+        for (const auto& a : note["axes"])
+          if (a.is_object() && a.value("axis", "") == model::to_string(*am.axis)) of_axis = a;
+      if (am.axis && of_axis.value("axis", "") != model::to_string(*am.axis)) of_axis = json::object();  // not in the note
+      if (step.purpose == plans::StepPurpose::fit && of_axis.contains("model_id") && of_axis["model_id"].is_number_integer()) {
+        auto m = store.get_model(of_axis["model_id"].get<std::int64_t>());
+        if (m) {
+          auto mm = model::model_from_text(m->model_json);
+          if (mm) am.fitted = std::move(*mm);
+        }
+      }
+      if (step.purpose == plans::StepPurpose::verify && of_axis.contains("verification_id") &&
+          of_axis["verification_id"].is_number_integer()) {
+        if (!verifications)
+          if (auto vs = store.list_verifications(run_id)) verifications = std::move(*vs);
+        if (verifications)
+          for (const auto& v : *verifications)
+            if (v.id == of_axis["verification_id"].get<std::int64_t>()) {
+              am.verification = json::parse(v.result_json, nullptr, false);
+              auto m = store.get_model(v.model_id);
+              if (m) {
+                auto mm = model::model_from_text(m->model_json);
+                if (mm) am.verified_model = std::move(*mm);
+              }
             }
-          }
-    }
-    std::optional<plan_figures::AllanFigures> allan;
-    std::optional<plan_figures::SfFigures> sf;  // the run's scale-factor fit, made once for every sf_* limit
-    // Whether this step's run had rate steps: its profile as run (stored with the run).
-    std::optional<bool> rate_run;
-    auto run_had_rate_steps = [&]() {
-      if (!rate_run) {
-        auto r = store.get_run(run_id);
-        rate_run = r && has_rate_steps(r->run.profile_text, step.profile + ".profile");
       }
-      return *rate_run;
+    }
+    // The axis' samples: the unit's run, and of a three-axis unit that axis read as a one-axis
+    // gyro's output (model::select_axis, as its analysis read it).
+    auto load_data = [&](AxisMeasures& am) -> const model::RunData* {
+      if (!am.data_read) {
+        am.data_read = true;
+        if (!whole_read) {
+          whole_read = true;
+          if (auto d = store.export_run(run_id, unit_index)) whole = std::move(*d);
+        }
+        if (whole) {
+          if (!am.axis) am.data = *whole;
+          else if (auto s = model::select_axis(*whole, *am.axis)) am.data = std::move(*s);
+        }
+      }
+      return am.data ? &*am.data : nullptr;
     };
     for (const plans::Limit& l : plan.limits) {
       if (!plans::measured_in(l.measurement, step.purpose)) continue;
       // Measured only where the table turned (a profile without rate steps has no scale factor).
-      if (plans::needs_rate_steps(l.measurement) && !run_had_rate_steps()) continue;
-      std::optional<double> value;
-      std::string note_text;
-      switch (l.measurement) {
-        case plans::Measurement::comp_raw:
-          if (verification.contains("ratio") && verification["ratio"].is_number()) value = verification["ratio"].get<double>();
-          break;
-        case plans::Measurement::noise_factor:
-          if (verification.contains("noise_factor") && verification["noise_factor"].is_number())
-            value = verification["noise_factor"].get<double>();
-          break;
-        case plans::Measurement::fail_s:
-          if (verification.contains("longest_fail_s") && verification["longest_fail_s"].is_number())
-            value = verification["longest_fail_s"].get<double>();
-          break;
-        case plans::Measurement::peak_excursion:
-          if (verified_model)
-            if (const auto* d = load_data()) value = plan_figures::peak_excursion_dph(*verified_model, *d);
-          break;
-        case plans::Measurement::sensitivity:
-          if (fitted) {
-            for (const auto& t : fitted->terms)
-              if (t.name() == l.term) value = t.coef;
-            if (!value) note_text = "the model has no term " + l.term + " (terms: " + fitted->terms_string() + ")";
-          }
-          break;
-        case plans::Measurement::arw:
-        case plans::Measurement::bias_instability:
-          if (!allan)
-            if (const auto* d = load_data()) allan = plan_figures::allan_figures(*d);
-          if (allan) {
-            value = l.measurement == plans::Measurement::arw ? allan->arw : allan->bias_instability;
-            if (!value) note_text = allan->note;
-          }
-          break;
-        case plans::Measurement::firmware:
-          // The fitted model compiles to the firmware form (lags the firmware can meet); why not
-          // is the note (the term and its lag).
-          if (fitted) {
-            auto program = model::firmware::compile(*fitted);
-            value = program ? 1.0 : 0.0;
-            if (!program) note_text = program.error();
-          }
-          break;
-        case plans::Measurement::sf_tc_ppm_per_c:
-        case plans::Measurement::sf_nonlinearity_ppm:
-        case plans::Measurement::sf_asymmetry_ppm:
-          // A fit that fails (no rate data, too few plateaus) gives no value: the limit is not met
-          // and the note says why.
-          if (!sf)
-            if (const auto* d = load_data()) sf = plan_figures::sf_figures(*d);
-          if (!sf) {
-            note_text = "the run's samples could not be read";
-          } else if (l.measurement == plans::Measurement::sf_tc_ppm_per_c) {
-            value = sf->abs_tc_ppm_per_c;
-            note_text = sf->tc_note;
-          } else if (l.measurement == plans::Measurement::sf_nonlinearity_ppm) {
-            value = sf->nonlinearity_ppm;
-            note_text = sf->nonlinearity_note;
-          } else {
-            value = sf->abs_asymmetry_ppm;
-            note_text = sf->asymmetry_note;
-          }
-          break;
+      if (plans::needs_rate_steps(l.measurement) && !rate_run) continue;
+      std::vector<std::string> failed_on;  // what failed, per axis: "axis y: comp_raw = 0.8212"
+      for (auto& am : measures) {
+        // The scale factor is the table's axis': a three-axis unit's x (its y and z lie across the
+        // table's axis and see no rate).
+        if (plans::needs_rate_steps(l.measurement) && am.axis && *am.axis != model::Axis::x) continue;
+        const json& verification = am.verification;
+        std::optional<double> value;
+        std::string note_text;
+        switch (l.measurement) {
+          case plans::Measurement::comp_raw:
+            if (verification.contains("ratio") && verification["ratio"].is_number()) value = verification["ratio"].get<double>();
+            break;
+          case plans::Measurement::noise_factor:
+            if (verification.contains("noise_factor") && verification["noise_factor"].is_number())
+              value = verification["noise_factor"].get<double>();
+            break;
+          case plans::Measurement::fail_s:
+            if (verification.contains("longest_fail_s") && verification["longest_fail_s"].is_number())
+              value = verification["longest_fail_s"].get<double>();
+            break;
+          case plans::Measurement::peak_excursion:
+            if (am.verified_model)
+              if (const auto* d = load_data(am)) value = plan_figures::peak_excursion_dph(*am.verified_model, *d);
+            break;
+          case plans::Measurement::sensitivity:
+            if (am.fitted) {
+              for (const auto& t : am.fitted->terms)
+                if (t.name() == l.term) value = t.coef;
+              if (!value) note_text = "the model has no term " + l.term + " (terms: " + am.fitted->terms_string() + ")";
+            }
+            break;
+          case plans::Measurement::arw:
+          case plans::Measurement::bias_instability:
+            if (!am.allan)
+              if (const auto* d = load_data(am)) am.allan = plan_figures::allan_figures(*d);
+            if (am.allan) {
+              value = l.measurement == plans::Measurement::arw ? am.allan->arw : am.allan->bias_instability;
+              if (!value) note_text = am.allan->note;
+            }
+            break;
+          case plans::Measurement::firmware:
+            // The fitted model compiles to the firmware form (lags the firmware can meet); why not
+            // is the note (the term and its lag).
+            if (am.fitted) {
+              auto program = model::firmware::compile(*am.fitted);
+              value = program ? 1.0 : 0.0;
+              if (!program) note_text = program.error();
+            }
+            break;
+          case plans::Measurement::sf_tc_ppm_per_c:
+          case plans::Measurement::sf_nonlinearity_ppm:
+          case plans::Measurement::sf_asymmetry_ppm:
+            // A fit that fails (no rate data, too few plateaus) gives no value: the limit is not met
+            // and the note says why.
+            if (!am.sf)
+              if (const auto* d = load_data(am)) am.sf = plan_figures::sf_figures(*d);
+            if (!am.sf) {
+              note_text = "the run's samples could not be read";
+            } else if (l.measurement == plans::Measurement::sf_tc_ppm_per_c) {
+              value = am.sf->abs_tc_ppm_per_c;
+              note_text = am.sf->tc_note;
+            } else if (l.measurement == plans::Measurement::sf_nonlinearity_ppm) {
+              value = am.sf->nonlinearity_ppm;
+              note_text = am.sf->nonlinearity_note;
+            } else {
+              value = am.sf->abs_asymmetry_ppm;
+              note_text = am.sf->asymmetry_note;
+            }
+            break;
+        }
+        const bool met = value && l.met(*value);
+        json m = {{"step", step_index + 1}, {"profile", step.profile}, {"run_id", run_id}, {"measurement", l.name()},
+                  {"value", value ? json(*value) : json(nullptr)}, {"unit", std::string(plans::unit_of(l.measurement))},
+                  {"limit", l.describe()}, {"line", l.line}, {"met", met},
+                  {"on_fail", std::string(plans::to_string(l.on_fail))}, {"attempt", retest_attempt ? 2 : 1}};
+        if (!note_text.empty()) m["note"] = note_text;
+        if (am.axis) m["axis"] = std::string(model::to_string(*am.axis));
+        (*u)["measurements"].push_back(m);
+        if (met) continue;
+        const std::string measured =
+            l.measurement == plans::Measurement::firmware
+                ? (value ? "no firmware form (" + note_text + ")" : std::string("no model"))
+                : l.name() + " = " + (value ? plan_figures::short_number(*value) : std::string("not measured")) +
+                      (plans::needs_rate_steps(l.measurement) && !note_text.empty() ? " (" + note_text + ")" : std::string());
+        if (am.axis) {
+          // The axis' own evidence, judged whether or not the unit is still active: what its
+          // failure makes of the axis by the limit's on_fail, as it makes of the unit below.
+          const std::string axis(model::to_string(*am.axis));
+          const std::string axis_why = where + ": " + measured + ", limit " + l.describe() + " (line " + std::to_string(l.line) + ")";
+          if (l.on_fail == plans::OnFail::go_on) axis_outcome(axis, "marginal", axis_why + ": marginal");
+          else if (l.on_fail == plans::OnFail::retest && !retest_attempt) axis_outcome(axis, "", axis_why + ": retest once");
+          else axis_outcome(axis, "fail", axis_why + (l.on_fail == plans::OnFail::retest ? ": failed its retest too" : ""));
+          failed_on.push_back("axis " + axis + ": " + measured);
+        } else {
+          failed_on.push_back(measured);
+        }
       }
-      const bool met = value && l.met(*value);
-      json m = {{"step", step_index + 1}, {"profile", step.profile}, {"run_id", run_id}, {"measurement", l.name()},
-                {"value", value ? json(*value) : json(nullptr)}, {"unit", std::string(plans::unit_of(l.measurement))},
-                {"limit", l.describe()}, {"line", l.line}, {"met", met},
-                {"on_fail", std::string(plans::to_string(l.on_fail))}, {"attempt", retest_attempt ? 2 : 1}};
-      if (!note_text.empty()) m["note"] = note_text;
-      (*u)["measurements"].push_back(m);
-      if (met || !(*u)["active"].get<bool>()) continue;
-      const std::string measured = l.measurement == plans::Measurement::firmware
-                                       ? (value ? "no firmware form (" + note_text + ")" : std::string("no model"))
-                                       : l.name() + " = " + (value ? plan_figures::short_number(*value) : std::string("not measured")) +
-                                             (plans::needs_rate_steps(l.measurement) && !note_text.empty()
-                                                  ? " (" + note_text + ")"
-                                                  : std::string());
+      if (failed_on.empty() || !(*u)["active"].get<bool>()) continue;
+      std::string measured;
+      for (const auto& f : failed_on) measured += (measured.empty() ? "" : "; ") + f;
       const std::string why = where + ": " + measured + ", limit " + l.describe() + " (line " + std::to_string(l.line) + ")";
       if (l.on_fail == plans::OnFail::go_on) {
         (*u)["marginal"] = true;
@@ -653,6 +739,7 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
     }
     // A unit that was to retest but then hit a stop-limit is not retested.
     if (!(*u)["active"].get<bool>()) u->erase("retest_step");
+    if (three && !(*u)["active"].get<bool>()) decide_unit(plan_id, progress, *u);
   }
 }
 

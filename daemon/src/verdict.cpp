@@ -98,7 +98,8 @@ storage::NewVerdict from_axis_verifications(const std::string& serial, std::int6
 
 std::optional<storage::NewVerdict> from_plan(std::int64_t plan_id, const std::string& plan_name,
                                              const std::string& plan_text, const json& unit, const json& runs,
-                                             std::optional<std::int64_t> model_id) {
+                                             std::optional<std::int64_t> model_id,
+                                             const std::map<std::string, std::int64_t>& axis_models) {
   const std::string serial = unit.value("serial", std::string());
   // The unit's last run in the plan decides it; its index there is its place in the run's units.
   std::optional<std::int64_t> run_id;
@@ -126,6 +127,28 @@ std::optional<storage::NewVerdict> from_plan(std::int64_t plan_id, const std::st
   v.plan_sha256 = model::sha256_hex(plan_text);
   v.limits_json = (unit.contains("measurements") && unit["measurements"].is_array() ? unit["measurements"] : json::array()).dump();
   v.reasons_json = (unit.contains("reasons") && unit["reasons"].is_array() ? unit["reasons"] : json::array()).dump();
+  if (unit.contains("axis_evidence") && unit["axis_evidence"].is_object()) {
+    const json& evidence = unit["axis_evidence"];
+    json axes = json::array();
+    for (const char* axis : {"x", "y", "z"}) {
+      const json e = evidence.contains(axis) && evidence[axis].is_object() ? evidence[axis] : json::object();
+      const json said_axis = e.value("verdict", json(nullptr));
+      std::string axis_verdict =
+          said_axis.is_string() && storage::is_verdict_name(said_axis.get<std::string>()) ? said_axis.get<std::string>() : "pass";
+      if (v.verdict == "incomplete") axis_verdict = worst(axis_verdict, "incomplete");
+      json limits = json::array();
+      if (unit.contains("measurements") && unit["measurements"].is_array())
+        for (const auto& m : unit["measurements"])
+          if (m.is_object() && m.value("axis", "") == axis) limits.push_back(m);
+      const auto model = axis_models.find(axis);
+      axes.push_back({{"axis", axis},
+                      {"verdict", axis_verdict},
+                      {"model_id", model != axis_models.end() ? json(model->second) : json(nullptr)},
+                      {"limits", limits},
+                      {"reasons", e.contains("reasons") && e["reasons"].is_array() ? e["reasons"] : json::array()}});
+    }
+    v.axes_json = axes.dump();
+  }
   return v;
 }
 

@@ -12,6 +12,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -57,9 +58,16 @@ storage::NewVerdict from_axis_verifications(const std::string& serial, std::int6
 // The plan rule's verdict of one unit: `unit` is the unit's entry of the plan runner's progress
 // (serial, verdict, measurements, reasons), `runs` the progress' runs ({run_id, units}). Empty
 // when the unit never ran (no run to attach it to).
+// A three-axis unit's entry also has `axis_evidence` ({x|y|z: {verdict, reasons}}: what the
+// plan runner judged on each axis, every limit on x, y and z, its measurements each with their
+// `axis`): its axes_json is then each axis' {axis, verdict, model_id (axis_models'), limits (its
+// measurements), reasons}, as from_axis_verifications' are; an axis is incomplete when the unit
+// is (the plan ended first) unless it failed. The unit's verdict is the plan's, which is the
+// worst of its axes' (the runner drops the unit exactly when a failure makes an axis fail).
 std::optional<storage::NewVerdict> from_plan(std::int64_t plan_id, const std::string& plan_name,
                                              const std::string& plan_text, const nlohmann::json& unit,
-                                             const nlohmann::json& runs, std::optional<std::int64_t> model_id);
+                                             const nlohmann::json& runs, std::optional<std::int64_t> model_id,
+                                             const std::map<std::string, std::int64_t>& axis_models = {});
 
 // A stored verdict as the socket, the certificate and the plant show it; a three-axis unit's
 // with its `axes` (storage's axes_json), a one-axis unit's without.

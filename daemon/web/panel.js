@@ -299,6 +299,9 @@
           span.textContent = x.serial + ": " + (x.pending || "no verdict");
         }
         parts.push(span.outerHTML);
+        // A three-axis unit: each axis' verdict beside the unit's (the worst of them).
+        const axes = axisVerdicts(x.axes);
+        if (axes.length) parts.push(axesElement(axes, "axes-line", x.serial).outerHTML);
       });
       (run.models || []).forEach((m) => parts.push(m.serial + " model v" + m.version));
       v.innerHTML = parts.join(", ");
@@ -309,6 +312,37 @@
     table.replaceChild(body, table.querySelector("tbody"));
     recentRuns = runs;
     showBoard();
+  }
+
+  // --- a three-axis unit's axes (docs/web.md "Three-axis units"): [{axis, verdict}] from a
+  // verdict's `axes` (run.get) or a plan unit's `axis_evidence` (plan.status, while it runs).
+  function axisVerdicts(axes) {
+    if (Array.isArray(axes))
+      return axes.filter((a) => a && a.axis && a.verdict).map((a) => ({ axis: String(a.axis), verdict: String(a.verdict) }));
+    if (axes && typeof axes === "object")
+      return ["x", "y", "z"].filter((k) => axes[k] && axes[k].verdict).map((k) => ({ axis: k, verdict: String(axes[k].verdict) }));
+    return [];
+  }
+  function axesElement(axes, className, serial) {
+    const div = document.createElement("span");
+    div.className = className;
+    div.dataset.serial = serial;
+    axes.forEach((a) => {
+      const span = document.createElement("span");
+      span.className = "axis " + a.verdict + " v-" + a.verdict;
+      span.dataset.axis = a.axis;
+      span.dataset.verdict = a.verdict;
+      span.textContent = a.axis + " " + a.verdict.toUpperCase();
+      div.appendChild(span);
+    });
+    return div;
+  }
+  // The stored verdict of `serial` in the runs shown (newest first), if one was decided there.
+  function storedVerdict(serial, planId) {
+    for (const run of recentRuns)
+      for (const v of run.verdicts || [])
+        if (v && v.serial === serial && v.verdict && (planId === undefined || (v.plan && v.plan.id === planId))) return v;
+    return null;
   }
 
   // --- the board: each unit of what ran last, its slot, serial and verdict, large (docs/web.md).
@@ -322,7 +356,10 @@
     const planTiles = () => (pr.units || []).map((u) => {
       const inRun = activeRun && (activeRun.units || []).includes(u.serial);
       const verdict = u.verdict || (p.state === "running" ? (inRun ? "testing" : "pending") : "pending");
+      // The axes as decided (the stored verdict of this plan), else as judged so far.
+      const stored = u.verdict ? storedVerdict(u.serial, p.plan_id) : null;
       return { slot: (p.slots || {})[u.serial] || "", serial: u.serial, verdict: verdict,
+               axes: axisVerdicts(stored && stored.axes ? stored.axes : u.axis_evidence),
                note: "plan " + p.plan_id + " " + p.name + (u.verdict ? "" : (u.marginal ? ", marginal so far" : "")) +
                      (inRun ? ", run " + activeRun.id : "") };
     });
@@ -342,6 +379,7 @@
       else if (x && x.pending) verdict = "pending";
       else verdict = "none";
       return { slot: (newest.slots || [])[i] || "", serial: serial, verdict: verdict,
+               axes: newest.state === "completed" && x ? axisVerdicts(x.axes) : [],
                note: "run " + newest.id + " " + newest.profile + " (" + newest.purpose + ")" +
                      (x && x.plan ? ", plan " + (x.plan.name || x.plan.id) : "") };
     });
@@ -365,7 +403,9 @@
       const note = document.createElement("div");
       note.className = "what";
       note.textContent = u.note;
-      tile.appendChild(head); tile.appendChild(big); tile.appendChild(note);
+      tile.appendChild(head); tile.appendChild(big);
+      if (u.axes && u.axes.length) tile.appendChild(axesElement(u.axes, "axes", u.serial));
+      tile.appendChild(note);
       board.appendChild(tile);
     });
     $("board-empty").style.display = units.length ? "none" : "";

@@ -15,9 +15,11 @@
   let busy = false;
 
   function fmtValue(m) {
-    if (m.value === null || m.value === undefined) return m.measurement + " not measured";
+    // A three-axis unit's measurement names its axis: "comp_raw (y) 0.821".
+    const name = m.measurement + (m.axis ? " (" + m.axis + ")" : "");
+    if (m.value === null || m.value === undefined) return name + " not measured";
     const v = Math.abs(m.value) >= 100 || m.value === 0 ? Number(m.value).toPrecision(4) : Number(m.value).toPrecision(3);
-    return m.measurement + " " + v + (m.unit ? " " + m.unit : "");
+    return name + " " + v + (m.unit ? " " + m.unit : "");
   }
 
   function showPlan(p) {
@@ -93,6 +95,7 @@
           if (k) td.appendChild(document.createTextNode(", "));
           const span = el("span", fmtValue(m) + (m.met ? " ok" : " NOT " + m.limit), m.met ? "pass" : (m.on_fail === "continue" ? "marginal" : "fail"));
           span.title = m.limit + " (line " + m.line + ", " + m.on_fail + ")" + (m.note ? ": " + m.note : "");
+          if (m.axis) span.dataset.axis = m.axis;
           td.appendChild(span);
         });
         tr.appendChild(td);

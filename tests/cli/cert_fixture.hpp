@@ -5,6 +5,8 @@
 #include <catch2/catch.hpp>
 
 #include <string>
+#include <tuple>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -44,6 +46,41 @@ inline json one_verdict_cert(const std::string& serial, const std::string& verdi
   c["qualification"] = {{"verdict_id", 4}, {"serial", serial}, {"verdict", verdict}, {"rule", "analysis"},
                         {"run_id", 10}, {"unit", 0}, {"model_id", 1}, {"decided_at", "2026-11-27 10:00:00"},
                         {"limits", json::array()}, {"reasons", json::array()}};
+  REQUIRE(signing::sign_certificate(c, station_key(), c["station_id"]).has_value());
+  return c;
+}
+
+// A three-axis unit's certificate as the daemon issues it (certificate.cpp): y failed, x and z
+// passed, each axis' model and the decision's evidence per axis (`axes`, and the qualification's
+// `axes`); a run whose identity carries a 16-digit git hash; signed by the station's key.
+inline json three_axis_cert(const std::string& serial) {
+  json c = one_verdict_cert(serial, "fail", 1);
+  c.erase("sha256");
+  c.erase("signature");
+  c.erase("signed_by");
+  json evidence = json::array(), axes = json::array();
+  for (const auto& [axis, id, ratio] : std::vector<std::tuple<std::string, int, double>>{{"x", 1, 0.126}, {"y", 2, 0.821}, {"z", 3, 0.127}}) {
+    const bool y = axis == "y";
+    const json reasons = y ? json::array({"step 2 (exp2, run 11): comp_raw = 0.821, limit comp_raw < 0.2 (line 4)"}) : json::array();
+    evidence.push_back({{"axis", axis}, {"verdict", y ? "fail" : "pass"}, {"model_id", id},
+                        {"limits", {{{"measurement", "comp_raw"}, {"limit", "comp_raw < 0.2"}, {"line", 4}, {"value", ratio},
+                                     {"met", !y}, {"on_fail", "stop"}, {"run_id", 11}, {"axis", axis}}}},
+                        {"reasons", reasons}});
+    axes.push_back({{"axis", axis}, {"verdict", y ? "fail" : "pass"}, {"decided_on_model", id},
+                    {"model", {{"id", id}, {"version", id}, {"method", "paper"}, {"terms", y ? "d(T1)@600 + grad@600" : "d(T1)@38 + grad@38"},
+                               {"fitted_on_run", 10}}},
+                    {"reasons", reasons}});
+  }
+  c["qualification"]["axes"] = evidence;
+  c["qualification"]["limits"] = json::array();
+  for (const auto& e : evidence) c["qualification"]["limits"].push_back(e["limits"][0]);
+  c["qualification"]["reasons"] = json::array({"step 2 (exp2, run 11): axis y: comp_raw = 0.821, limit comp_raw < 0.2 (line 4)"});
+  c["qualification"]["rule"] = "plan";
+  c["qualification"]["plan"] = {{"id", 1}, {"name", "axes"}, {"sha256", std::string(64, 'b')}};
+  c["axes"] = axes;
+  c["runs"] = json::array({{{"id", 10}, {"role", "fit"}, {"profile", "exp1"}, {"ended_at", "2026-11-30T00:10:00.000Z"},
+                            {"identity", {{"station_id", "line 2"}, {"operator", "Ada"}, {"software_version", "0.1.0"},
+                                          {"git_hash", "62756e985c7e4dfb"}}}}});
   REQUIRE(signing::sign_certificate(c, station_key(), c["station_id"]).has_value());
   return c;
 }

@@ -390,3 +390,54 @@ TEST_CASE("fogctl cert: page 6 draws a run's end as date and time to the second 
   CHECK(has(p4, "by station  with fogbench"));
   CHECK(check(d.write("p4.html", p4), {pub}).code == 0);
 }
+
+TEST_CASE("fogctl cert: a three-axis unit's certificate draws page 7 with a table of its axes, a forged axis entry fails the check, and a one-axis one stays page 6", "[cli][cert]") {
+  Dir d;
+  const std::string pub = d.write("station.pub", station_key().public_key().pem());
+  CHECK(has(certificate_html(one_verdict_cert("FOG-7", "pass", 1)), "fogbench-certificate-page 6"));  // one axis: as before
+  const json c = three_axis_cert("FOG-3X");
+  const std::string html = certificate_html(c);
+  CHECK(has(html, "fogbench-certificate-page 7"));
+  CHECK(has(html, "Axes (three-axis unit: the verdict is the worst axis')"));
+  CHECK(has(html, "<td>x</td><td>pass</td><td>1</td><td>1 (version 1, paper)</td>"));
+  CHECK(has(html, "<td>y</td><td>fail</td><td>2</td><td>2 (version 2, paper)</td><td>d(T1)@600 + grad@600</td>"
+                  "<td>step 2 (exp2, run 11): comp_raw = 0.821, limit comp_raw &lt; 0.2 (line 4)</td>"));
+  CHECK(has(html, "<td>axis y: comp_raw &lt; 0.2</td>"));  // the decision's limits name their axis
+  // The runs' table gives the software its width, the hash breaking only from its version.
+  CHECK(has(html, "<table class=\"runs\"><colgroup>"));
+  CHECK(has(html, ".runs td:last-child{overflow-wrap:normal}"));
+  CHECK(has(html, "<td>0.1.0 62756e985c7e</td>"));
+  auto ok = check(d.write("p7.html", html), {pub});
+  CHECK(ok.code == 0);
+  CHECK(has(ok.out, "visible page matches"));
+
+  // A forged axis entry in the signed JSON: y made a pass (in the table, or in the decision's
+  // evidence), its hash recomputed or not: altered, exit 1.
+  for (const char* where : {"axes", "qualification"}) {
+    json forged = c;
+    json& entry = std::string(where) == "axes" ? forged["axes"][1] : forged["qualification"]["axes"][1];
+    REQUIRE(entry["axis"] == "y");
+    entry["verdict"] = "pass";
+    std::ofstream(d.file("forged.json")) << forged.dump();
+    INFO(where);
+    CHECK(check(d.file("forged.json"), {pub}).code == 1);
+    forged["sha256"] = signing::content_sha256(forged);
+    std::ofstream(d.file("forged2.json")) << forged.dump();
+    CHECK(check(d.file("forged2.json"), {pub}).code == 1);
+  }
+  // An axis left out of the JSON: altered too.
+  json dropped = c;
+  dropped["axes"].erase(1);
+  std::ofstream(d.file("dropped.json")) << dropped.dump();
+  CHECK(check(d.file("dropped.json"), {pub}).code == 1);
+  // y's verdict edited in the visible page only: edited, exit 1.
+  std::string e = html;
+  const auto at = e.find("<td>y</td><td>fail</td>");
+  REQUIRE(at != std::string::npos);
+  e.replace(at, 23, "<td>y</td><td>pass</td>");
+  CHECK(check(d.write("e.html", e), {pub}).code == 1);
+  // The same content drawn as page 6 (without its axes table) does not check: cannot tell.
+  const std::string p6 = certificate_html(c, 6);
+  CHECK_FALSE(has(p6, "Axes (three-axis"));
+  CHECK(check(d.write("p6.html", p6), {pub}).code == 2);
+}

@@ -1,6 +1,7 @@
 // The analysis rule's verdict of a three-axis unit (verdict.cpp, from_axis_verifications): the
 // worst of its axes, each judged as a one-axis unit is, stored once with each axis' evidence;
-// a one-axis unit's verdict has no axes and reads as before.
+// a one-axis unit's verdict has no axes and reads as before. The plan rule's (from_plan) carries
+// a three-axis unit's evidence per axis the same way.
 #include <catch2/catch.hpp>
 
 #include "../../daemon/src/verdict.hpp"
@@ -79,4 +80,76 @@ TEST_CASE("verdict axes: every axis passing passes, and a one-axis verdict shows
   static_cast<storage::NewVerdict&>(rec) = one;
   CHECK_FALSE(verdict::to_json(rec).contains("axes"));
   for (const auto& l : json::parse(one.limits_json)) CHECK_FALSE(l.contains("axis"));
+}
+
+namespace {
+// A plan runner's progress entry of a three-axis unit after a verify step (plan_runner.cpp's
+// judge): comp_raw judged on x, y and z, each with its `axis`, and each axis' evidence.
+json plan_unit_three_axes(const char* unit_verdict, const char* y_verdict, double y_ratio) {
+  json measurements = json::array();
+  for (const auto& [axis, ratio] : std::vector<std::pair<const char*, double>>{{"x", 0.12}, {"y", y_ratio}, {"z", 0.13}})
+    measurements.push_back({{"step", 2}, {"profile", "exp2"}, {"run_id", 9}, {"measurement", "comp_raw"}, {"value", ratio},
+                            {"limit", "comp_raw < 0.2"}, {"line", 4}, {"met", ratio < 0.2}, {"on_fail", "stop"},
+                            {"attempt", 1}, {"axis", axis}});
+  const json y_reasons = std::string(y_verdict) == "fail"
+                             ? json::array({"step 2 (exp2, run 9): comp_raw = 0.82, limit comp_raw < 0.2 (line 4)"})
+                             : json::array();
+  return {{"serial", "FOG-3"},
+          {"verdict", unit_verdict},
+          {"measurements", measurements},
+          {"reasons", std::string(y_verdict) == "fail"
+                          ? json::array({"step 2 (exp2, run 9): axis y: comp_raw = 0.82, limit comp_raw < 0.2 (line 4)"})
+                          : json::array()},
+          {"axis_evidence",
+           {{"x", {{"verdict", "pass"}, {"reasons", json::array()}}},
+            {"y", {{"verdict", y_verdict}, {"reasons", y_reasons}}},
+            {"z", {{"verdict", "pass"}, {"reasons", json::array()}}}}}};
+}
+const json kPlanRuns = json::array({{{"run_id", 8}, {"units", {"FOG-3"}}}, {{"run_id", 9}, {"units", {"FOG-3"}}}});
+}  // namespace
+
+TEST_CASE("verdict axes: a plan's three-axis unit failed on y carries each axis' evidence, its worst the plan's verdict") {
+  const auto v = verdict::from_plan(5, "axes", "plan axes\n", plan_unit_three_axes("fail", "fail", 0.82), kPlanRuns, 21,
+                                    {{"x", 21}, {"y", 22}, {"z", 23}});
+  REQUIRE(v.has_value());
+  CHECK(v->verdict == "fail");
+  CHECK(v->rule == "plan");
+  CHECK(v->run_id == 9);
+  const json axes = json::parse(v->axes_json);
+  REQUIRE(axes.size() == 3);
+  std::string worst_of_axes = "pass";
+  for (const auto& a : axes) worst_of_axes = verdict::worst(worst_of_axes, a["verdict"].get<std::string>());
+  CHECK(worst_of_axes == v->verdict);  // one rule: the unit's verdict is the worst of its axes'
+  CHECK(axes[0]["axis"] == "x");
+  CHECK(axes[0]["verdict"] == "pass");
+  CHECK(axes[1]["verdict"] == "fail");
+  CHECK(axes[1]["model_id"] == 22);  // y's own model, not x's
+  CHECK(axes[2]["model_id"] == 23);
+  // Each axis' limits are its own measurements only.
+  REQUIRE(axes[1]["limits"].size() == 1);
+  CHECK(axes[1]["limits"][0]["value"] == 0.82);
+  CHECK(axes[1]["limits"][0]["met"] == false);
+  CHECK(axes[1]["reasons"].size() == 1);
+  CHECK(axes[0]["reasons"].empty());
+  // The unit's limits are every axis' (three measurements), as the analysis rule's are.
+  CHECK(json::parse(v->limits_json).size() == 3);
+}
+
+TEST_CASE("verdict axes: a plan that ended first leaves a three-axis unit's unfailed axes incomplete, and a one-axis plan unit has no axes") {
+  const auto v = verdict::from_plan(5, "axes", "plan axes\n", plan_unit_three_axes("incomplete", "marginal", 0.1), kPlanRuns,
+                                    21, {{"x", 21}});
+  REQUIRE(v.has_value());
+  CHECK(v->verdict == "incomplete");
+  const json axes = json::parse(v->axes_json);
+  REQUIRE(axes.size() == 3);
+  for (const auto& a : axes) CHECK(a["verdict"] == "incomplete");  // marginal y too: the plan did not finish it
+  CHECK(axes[1]["model_id"].is_null());  // no y model given: shown as none, never x's
+
+  json one = plan_unit_three_axes("pass", "pass", 0.1);
+  one.erase("axis_evidence");
+  for (auto& m : one["measurements"]) m.erase("axis");
+  const auto v1 = verdict::from_plan(5, "axes", "plan axes\n", one, kPlanRuns, 21);
+  REQUIRE(v1.has_value());
+  CHECK(v1->verdict == "pass");
+  CHECK(v1->axes_json.empty());
 }
