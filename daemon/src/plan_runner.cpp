@@ -739,7 +739,11 @@ void PlanRunner::judge(std::int64_t plan_id, json& progress, const plans::Plan& 
     }
     // A unit that was to retest but then hit a stop-limit is not retested.
     if (!(*u)["active"].get<bool>()) u->erase("retest_step");
-    if (three && !(*u)["active"].get<bool>()) decide_unit(plan_id, progress, *u);
+    if (three && !(*u)["active"].get<bool>()) {
+      // Steps left after this one: the axes that met every limit were not measured to the end.
+      if (step_index + 1 < progress["steps"].get<std::size_t>()) (*u)["dropped_at_step"] = static_cast<int>(step_index + 1);
+      decide_unit(plan_id, progress, *u);
+    }
   }
 }
 

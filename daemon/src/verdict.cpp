@@ -136,6 +136,14 @@ std::optional<storage::NewVerdict> from_plan(std::int64_t plan_id, const std::st
       std::string axis_verdict =
           said_axis.is_string() && storage::is_verdict_name(said_axis.get<std::string>()) ? said_axis.get<std::string>() : "pass";
       if (v.verdict == "incomplete") axis_verdict = worst(axis_verdict, "incomplete");
+      json axis_reasons = e.contains("reasons") && e["reasons"].is_array() ? e["reasons"] : json::array();
+      // Dropped on another axis before the plan's last step: the steps after it never ran, so an
+      // axis that had met every limit so far is not a pass, it was not measured to the end.
+      if (const json at = unit.value("dropped_at_step", json(nullptr)); at.is_number_integer() && axis_verdict != "fail") {
+        axis_verdict = worst(axis_verdict, "incomplete");
+        axis_reasons.push_back("the unit was dropped at step " + std::to_string(at.get<int>()) +
+                               " on another axis: the steps after it did not run");
+      }
       json limits = json::array();
       if (unit.contains("measurements") && unit["measurements"].is_array())
         for (const auto& m : unit["measurements"])
@@ -145,7 +153,7 @@ std::optional<storage::NewVerdict> from_plan(std::int64_t plan_id, const std::st
                       {"verdict", axis_verdict},
                       {"model_id", model != axis_models.end() ? json(model->second) : json(nullptr)},
                       {"limits", limits},
-                      {"reasons", e.contains("reasons") && e["reasons"].is_array() ? e["reasons"] : json::array()}});
+                      {"reasons", axis_reasons}});
     }
     v.axes_json = axes.dump();
   }

@@ -62,7 +62,8 @@ storage::NewVerdict from_axis_verifications(const std::string& serial, std::int6
 // plan runner judged on each axis, every limit on x, y and z, its measurements each with their
 // `axis`): its axes_json is then each axis' {axis, verdict, model_id (axis_models'), limits (its
 // measurements), reasons}, as from_axis_verifications' are; an axis is incomplete when the unit
-// is (the plan ended first) unless it failed. The unit's verdict is the plan's, which is the
+// is (the plan ended first) unless it failed, and also when the unit carries `dropped_at_step`
+// (dropped on another axis before the plan's last step: the later steps never ran). The unit's verdict is the plan's, which is the
 // worst of its axes' (the runner drops the unit exactly when a failure makes an axis fail).
 std::optional<storage::NewVerdict> from_plan(std::int64_t plan_id, const std::string& plan_name,
                                              const std::string& plan_text, const nlohmann::json& unit,

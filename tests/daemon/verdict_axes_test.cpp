@@ -153,3 +153,20 @@ TEST_CASE("verdict axes: a plan that ended first leaves a three-axis unit's unfa
   CHECK(v1->verdict == "pass");
   CHECK(v1->axes_json.empty());
 }
+
+TEST_CASE("verdict axes: a three-axis unit dropped on y before the plan's last step leaves x and z incomplete, not pass") {
+  json unit = plan_unit_three_axes("fail", "fail", 0.82);
+  unit["axis_evidence"]["z"]["verdict"] = "marginal";
+  unit["dropped_at_step"] = 2;  // the plan runner's mark: steps after 2 did not run
+  const auto v = verdict::from_plan(5, "axes", "plan axes\n", unit, kPlanRuns, 21, {{"x", 21}, {"y", 22}, {"z", 23}});
+  REQUIRE(v.has_value());
+  CHECK(v->verdict == "fail");
+  const json axes = json::parse(v->axes_json);
+  REQUIRE(axes.size() == 3);
+  CHECK(axes[0]["verdict"] == "incomplete");
+  CHECK(axes[1]["verdict"] == "fail");  // the axis that failed keeps its fail
+  CHECK(axes[2]["verdict"] == "incomplete");  // marginal so far, not finished either
+  REQUIRE(axes[0]["reasons"].size() == 1);
+  CHECK_THAT(axes[0]["reasons"][0].get<std::string>(), Catch::Contains("dropped at step 2"));
+  CHECK(axes[1]["reasons"].size() == 1);  // y's own reason only
+}
