@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <numbers>
 #include <random>
+#include <string>
 
 #include "fogbench/model/model.hpp"
 #include "fogbench/model/noise.hpp"
@@ -165,10 +166,15 @@ TEST_CASE("noise floor: a flat curve over a white level too small to read gives 
   // coefficient a hair below 0 and the walk's overshoot at the long taus weighted down by its
   // own values. The dominated taus' check (the walk as read must fit the taus it dominates no
   // worse than no walk) left a walk read for the short taus' shape in 9 of these 40 seeds (0.31
-  // to 0.54). Now a walk must also be borne out by the curve's last six octaves (the other laws
-  // refitted there): a free walk lowering their deviance by 4, or the walk as read fitting them
-  // no worse than none. Measured 2026-11-29 in 4 of 40 (0.38 to 0.54), allowed here in 4,
-  // below 0.6 (a partial fix: the issue asks for none).
+  // to 0.54). Then a walk had also to be borne out by the curve's last six octaves (the other
+  // laws refitted there): a free walk lowering their deviance by 4, or the walk as read fitting
+  // them no worse than none: 4 of 40 (gains 4.2, 5.2, 6.6 and 16.4). That deviance counted the
+  // points as independent; under flicker they move together (half-octave neighbours correlate
+  // 0.9), and its gain is now scaled by the ratio of the walk's score variance as counted to
+  // its variance under the estimates' covariance (walk_test_dof_scale: 0.58 to 0.77 on these
+  // seeds): 3 of 40 (measured 2026-11-30: seed 40 by its gain, 9.5; seeds 12 and 18, gains 3.8
+  // and 3.0, through the walk as read, 1.4 and 0.7), all below 0.6. The issue asks for at most 2:
+  // not reached (walk_read_min_gain 1 reaches it and loses real walks: docs/workbench.md).
   // Flicker is read within a factor 1.6; the walk not excluded stays within 1 deg/h/sqrt(h).
   int walks = 0, flicker = 0;
   for (std::uint64_t seed = 1; seed <= 40; ++seed) {
@@ -177,8 +183,10 @@ TEST_CASE("noise floor: a flat curve over a white level too small to read gives 
     if (f.walk_h > 0.0) {
       ++walks;
       CHECK(f.rrw_dph_per_sqrt_h < 0.6);
-      CHECK(f.walk_test_gain >= NoiseFloorOptions{}.walk_min_gain);
+      CHECK((f.walk_test_gain >= NoiseFloorOptions{}.walk_min_gain || f.walk_read_gain >= 0.0));
     }
+    // The flicker's correlated points count for fewer degrees of freedom than the deviance's.
+    if (f.walk_test_gain > 0.0) CHECK(f.walk_test_dof_scale < 0.85);
     if (f.flicker_h > 0.0) {
       ++flicker;
       CHECK(f.bias_instability_dph > 0.05 / 1.6);
@@ -186,8 +194,16 @@ TEST_CASE("noise floor: a flat curve over a white level too small to read gives 
     }
     CHECK(f.rrw_bound_dph_per_sqrt_h < 1.0);
   }
-  CHECK(walks <= 4);
+  CHECK(walks <= 3);
   CHECK(flicker >= 38);
+  // Under white noise alone the points correlate less and the deviance's count (half of each
+  // point's N / m - 1) is cautious: no scale down (measured 1.06 to 1.54 at white 0.6 deg/h
+  // under flicker it does not resolve in 30 min).
+  for (std::uint64_t seed = 1; seed <= 10; ++seed) {
+    const NoiseFloor f = read_floor(noise(1800, 0.6, 0.0, 0.0, seed), 0.6);
+    INFO("white seed " << seed << ": " << f.note);
+    CHECK(f.walk_test_dof_scale > 0.95);
+  }
   // The test itself: with no gain asked of the long taus (walk_min_gain 0) the same seeds read
   // the 9 walks of before.
   NoiseFloorOptions lax;
@@ -479,15 +495,18 @@ TEST_CASE("noise floor explore: walks read over many seeds", "[.noise_explore]")
                         {"walk 2.6 h under ARW 0.01 (white 0.6, K 0.05)", 9300, 0.6, 0.0, 0.05}};
   NoiseFloorOptions o;
   if (const char* g = std::getenv("NOISE_EXPLORE_GAIN")) o.walk_min_gain = std::atof(g);
+  if (const char* g = std::getenv("NOISE_EXPLORE_READ_GAIN")) o.walk_read_min_gain = std::atof(g);
   std::printf("walk_min_gain %.1f\n", o.walk_min_gain);
   for (const Case& c : cases) {
     int walks = 0, flick = 0, covered = 0;
-    double kmin = 1e9, kmax = 0.0, bmax = 0.0;
+    double kmin = 1e9, kmax = 0.0, bmax = 0.0, scale_min = 1e9, scale_max = 0.0;
+    std::string read_gains;
     std::vector<double> gains;
     for (int s = 1; s <= seeds; ++s) {
       const NoiseFloor f = read_floor(noise(c.n, c.white, c.b, c.k, static_cast<std::uint64_t>(s)), c.white, o);
       if (f.walk_h > 0.0) {
         ++walks;
+        read_gains += " " + std::to_string(s) + ":" + std::to_string(f.walk_test_gain).substr(0, 4) + "/" + std::to_string(f.walk_read_gain).substr(0, 4);
         kmin = std::min(kmin, f.rrw_dph_per_sqrt_h);
         kmax = std::max(kmax, f.rrw_dph_per_sqrt_h);
       }
@@ -495,11 +514,14 @@ TEST_CASE("noise floor explore: walks read over many seeds", "[.noise_explore]")
       bmax = std::max(bmax, f.rrw_bound_dph_per_sqrt_h);
       covered += f.walk_h > 0.0 || f.rrw_bound_dph_per_sqrt_h >= c.k;
       gains.push_back(f.walk_test_gain);
+      scale_min = std::min(scale_min, f.walk_test_dof_scale);
+      scale_max = std::max(scale_max, f.walk_test_dof_scale);
     }
     std::sort(gains.begin(), gains.end());
-    std::printf("  walk test gains:");
+    std::printf("  walk test gains (scaled for the points' correlation):");
     for (double g : gains) std::printf(" %.1f", g);
-    std::printf("\n");
+    std::printf("\n  the gains' scale for the points' correlation %.2f..%.2f\n", scale_min, scale_max);
+    if (walks <= 12) std::printf("  walks read (seed: test gain / the walk as read's gain):%s\n", read_gains.c_str());
     std::printf("%-50s walk read %2d/%d (K %.3f..%.3f), flicker %2d, walk seen or bound >= true %2d, bound up to %.3f\n", c.name, walks, seeds,
                 walks ? kmin : 0.0, kmax, flick, covered, bmax);
   }

@@ -47,9 +47,15 @@ struct NoiseFloorOptions {
   // A rate random walk read off the whole curve is kept only when, on the curve's last six
   // octaves (tau >= the longest / 64, where a walk is identifiable), the laws refitted there
   // with a free walk lower the deviance by at least this against the same laws without one (a
-  // likelihood-ratio test of one parameter held >= 0: 4 is about 2.3 % under no walk), or the
+  // likelihood-ratio test of one parameter held >= 0, its gain scaled for the Allan points'
+  // correlation (NoiseFloor::walk_test_dof_scale): 4 is about 2.3 % under no walk), or the
   // walk as read fits those taus no worse than no walk. docs/workbench.md "The noise floor".
   double walk_min_gain = 4.0;
+  // ... or when the walk as read (held at its value, the other laws refitted there) lowers that
+  // deviance by at least this, in the same scaled units. 0: it fits them no worse than no walk.
+  // 1 reads fewer walks off flat flicker curves (3 -> 2 of 40) but loses real ones (docs/
+  // workbench.md "Walks read off flat curves").
+  double walk_read_min_gain = 0.0;
 };
 
 // One-sided power spectral density of the floor at 1 s samples, (deg/h)^2/Hz:
@@ -73,6 +79,15 @@ struct NoiseFloor {
   // The walk's test on the curve's last six octaves (NoiseFloorOptions::walk_min_gain): how much
   // a free walk lowered the deviance there (0: it came out 0, or no walk was asked of the holds).
   double walk_test_gain = 0.0;
+  // The scale on that gain for the Allan points' correlation, already applied to it: the walk's
+  // score variance as the deviance counts it (each point independent, half its N / m - 1
+  // degrees of freedom) over its variance under the estimates' covariance under the null law
+  // (about 0.6 under flicker in 30 min holds, 1 to 1.5 under white noise; 1 when not computed).
+  double walk_test_dof_scale = 1.0;
+  // When a walk is read off the whole curve: how much that walk, held as read, lowers the long
+  // taus' deviance (the other laws refitted there), in the same scaled units (negative: it fits
+  // them worse than no walk).
+  double walk_read_gain = 0.0;
   std::size_t hold_samples = 0;         // settled hold samples the curve was read on
   std::size_t stretches = 0;
   double longest_tau_s = 0.0;           // the longest cluster time of the curve, s
