@@ -216,7 +216,7 @@ std::expected<Verification, FitError> verify(const Model& m, const RunData& run,
   return v;
 }
 
-std::expected<RunWhiteness, FitError> run_whiteness(const Model& m, const RunData& run, int lags) {
+std::expected<RunWhiteness, FitError> run_whiteness(const Model& m, const RunData& run, int lags, int highpass_s) {
   auto mu = predict(m, run);
   if (!mu) return std::unexpected(FitError{mu.error().code, run.name + ": " + mu.error().message});
   const std::size_t n = run.size();
@@ -239,6 +239,12 @@ std::expected<RunWhiteness, FitError> run_whiteness(const Model& m, const RunDat
       w[t] = 0.0;
       r[t] = 0.0;
     }
+  // The high-pass (model.hpp): the residual less its centred highpass_s average.
+  if (highpass_s > 1) {
+    const std::vector<double> s1 = moving_average(r, w, highpass_s);
+    for (std::size_t t = 0; t < n; ++t)
+      if (w[t] != 0.0) r[t] -= s1[t];
+  }
   const std::vector<double> a = ar_filter(r, m.ar);
   std::vector<double> used;
   const std::size_t p = m.ar.size();

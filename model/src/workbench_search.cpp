@@ -239,9 +239,13 @@ RunCheck check_run(const Model& m, const RunData& run, bool held_out, const Diag
   // variance, up to its 99th percentile. The yardstick's, as verify computed it (noise.hpp).
   c.acf_allowed = o.min_acf_rms + ver.acf_allowance;
   if (!(c.ljung_box_p >= o.adequacy_alpha) && c.acf_rms >= c.acf_allowed)
-    c.reasons.push_back("the prewhitened residual is not white (Ljung-Box over " + std::to_string(o.whiteness_lags) + " lags: Q " +
+    c.reasons.push_back("the prewhitened residual is not white (its " + std::to_string(kWhitenessHighpassS) + " s average removed; Ljung-Box over " +
+                        std::to_string(o.whiteness_lags) + " lags: Q " +
                         fmt(c.ljung_box_q, 1) + ", p " + (c.ljung_box_p < 1e-4 ? std::string("< 0.0001") : fmt(c.ljung_box_p, 4)) +
                         " < " + fmt(o.adequacy_alpha, 3) + ", RMS of the ACF " + fmt(c.acf_rms, 3) + " >= " + fmt(c.acf_allowed, 2) + ")");
+  // The same test before the high-pass: slow structure, for backfit alone (workbench.hpp).
+  if (auto raw = run_whiteness(m, run, o.whiteness_lags, 0))
+    c.slow_structure = !(raw->wh.lb.p_value >= o.adequacy_alpha) && raw->acf_rms >= c.acf_allowed;
   if (!(c.noise_factor <= c.noise_limit_factor))
     c.reasons.push_back(noise_factor_reason(c.comp_std_dph, c.noise_std_dph, c.noise_factor, c.noise_limit_factor, ver.floor));
   if (!c.failures.empty()) {
@@ -556,6 +560,10 @@ std::expected<Diagnosis, FitError> diagnose(const Model& m, const RunData& fit_r
     {
       std::vector<RunCheck> fc = given ? std::move(*given) : checks_of(cur, f, h);
       passing = passes(fc);
+      // Structure slower than the whiteness test's high-pass left after the steps: the checks
+      // pass, but a slow effect may remain beside a first step (a slow path beside a product,
+      // workbench_multi_test.cpp): backfit tries the other orders as when they fail.
+      for (const auto& c : fc) passing = passing && !c.slow_structure;
       cur_checks = std::move(fc);  // cur's checks while cur stays (reset below when it is replaced)
     }
     // Passing the checks is not proof that the first step was right: the floor is read under

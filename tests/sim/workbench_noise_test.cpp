@@ -120,6 +120,62 @@ TEST_CASE("workbench: flicker with a rate random walk the holds cannot see raise
   CHECK(alarms <= 1);  // the goal: at most 5 %
 }
 
+TEST_CASE("workbench: a rate random walk the holds cannot see does not fail the whiteness test", "[noise]") {
+  // ARW 0.001 deg/sqrt(h) (0.06 deg/h a second) with a rate random walk of 0.05 deg/h/sqrt(h)
+  // and no flicker: the holds' clusters (up to 181 s) see white noise alone, so no slow noise is
+  // allowed for, while over a 2.6 h run the walk is up to 0.4 of the residual's variance and
+  // lifted every short lag of the ACF alike (RMS 0.34-0.42 on the worst runs against 0.05
+  // allowed): 3 of these 20 seeds NOT ADEQUATE for whiteness alone on the unfiltered
+  // statistic (705, 717; and 709, where the search also takes a walk for a slow path). The
+  // statistic is now taken on the residual less its 301 s average (model.hpp's
+  // kWhitenessHighpassS). The seeds are fogctl simulate's (--seed 10 s + N for expN),
+  // docs/workbench.md "Slow noise and the whiteness statistic".
+  const Noise nz{0.001, 0.0, 0.05};
+  int alarms = 0, whiteness = 0, diagnoses = 0;
+  std::string why;
+  for (std::uint64_t s = 700; s <= 719; ++s) {
+    const std::vector<model::RunData> r = {run("exp1", 10 * s + 1, nz, ""), run("exp2", 10 * s + 2, nz, ""), run("exp3", 10 * s + 3, nz, "")};
+    auto m = model::fit(r[0], *model::parse_terms("paper"));
+    REQUIRE(m);
+    auto d = wb::diagnose(*m, r[0], std::span<const model::RunData>(r).subspan(1));
+    REQUIRE(d);
+    ++diagnoses;
+    for (const auto& c : d->checks)
+      for (const auto& x : c.reasons) whiteness += x.find("not white") != std::string::npos;
+    if (!d->adequate) {
+      ++alarms;
+      why += "seed " + std::to_string(s) + ":";
+      for (const auto& x : d->reasons) why += " [" + x + "]";
+      why += "\n";
+    }
+  }
+  CHECK(diagnoses == 20);
+  INFO(why);
+  CHECK(whiteness == 0);
+  CHECK(alarms <= 1);  // the goal: at most 5 %
+}
+
+TEST_CASE("workbench: a slow effect of the noise's size beside flicker is still found", "[noise]") {
+  // The detection table's weakest row (docs/workbench.md "Whiteness and noise-factor alarms"):
+  // a second thermal path 0.04*lp(T1,1600), about the size of the noise, hidden in every run of
+  // a gyro with ARW 0.001 deg/sqrt(h) and bias instability 0.05 deg/h, seeds 600..605: NOT
+  // ADEQUATE in 4 of 6 through fogctl (simulate, fit, diagnose) before and after the whiteness
+  // statistic was high-passed; 3 of 6 here, in process, after. Slower than the test's 301 s,
+  // it is the noise factor's and the search's.
+  const Noise nz{0.001, 0.05, 0.0};
+  int found = 0;
+  for (std::uint64_t s = 600; s <= 605; ++s) {
+    const std::vector<model::RunData> r = {run("exp1", 10 * s + 1, nz, "0.04*lp(T1,1600)"), run("exp2", 10 * s + 2, nz, "0.04*lp(T1,1600)"),
+                                           run("exp3", 10 * s + 3, nz, "0.04*lp(T1,1600)")};
+    auto m = model::fit(r[0], *model::parse_terms("paper"));
+    REQUIRE(m);
+    auto d = wb::diagnose(*m, r[0], std::span<const model::RunData>(r).subspan(1));
+    REQUIRE(d);
+    found += !d->adequate;
+  }
+  CHECK(found >= 3);
+}
+
 TEST_CASE("workbench: a hidden effect above the gyro's slow noise is still found", "[noise]") {
   // 0.05 deg/h per degC of absolute-temperature sensitivity (tests/sim/workbench_hidden_effect_test:
   // 2.1 x the no-effect level with AR noise) on a gyro with a rate random walk of 0.05

@@ -246,6 +246,11 @@ struct RunCheck {
   double acf_allowed = 0.0;         // the whiteness test's RMS of the ACF allowed (min_acf_rms + slow noise share)
   double ljung_box_q = 0.0, ljung_box_p = 1.0;  // of the prewhitened residual
   double acf_rms = 0.0;             // sqrt(Q / (N h)): the size of its structure
+  // The same whiteness test fails on the residual before the high-pass (run_whiteness with
+  // highpass_s 0): structure slower than the test's high-pass, a walk or a slow missed effect.
+  // Not a reason of the verdict; the search's backfit takes it as a sign to look further (a
+  // first step that left a slow effect behind passes the high-passed test).
+  bool slow_structure = false;
   std::vector<FailInterval> failures;
   std::vector<std::string> reasons; // the tests it failed, one line each
 };
