@@ -202,8 +202,8 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
   // gyro_dph, which y and z share, so an x of its own would be theirs too (use --effect).
   const auto axis_effects = sim::parse_axis_effects(o.axis_effects);
   if (!axis_effects) return std::unexpected(axis_effects.error());
-  if (!(*axis_effects)[0].empty()) {
-    return std::unexpected("--axis-effect x=" + (*axis_effects)[0] +
+  if (!axis_effects->text[0].empty()) {
+    return std::unexpected("--axis-effect x=" + axis_effects->text[0] +
                            ": the mock bench gives y and z their own drift only, AXIS y or z (x's drift is the unit's, which y and z share: --effect)");
   }
   if (!std::isfinite(o.warmup_dph)) return std::unexpected(std::string("--warmup-dph: expected a number"));
@@ -300,7 +300,7 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
     effects.insert(effects.end(), o.effects.begin(), o.effects.end());
     p.effects = join_effects(effects);
     if (auto law = sim::make_drift_law(p); !law) return std::unexpected("unit " + p.serial + ": " + law.error());
-    p.axis_effects = {(*axis_effects)[1], (*axis_effects)[2]};
+    p.axis_effects = {axis_effects->text[1], axis_effects->text[2]};
     if (!serials.insert(p.serial).second) return std::unexpected("two units have serial " + p.serial);
     layout->serial = p.serial;
     layout->frame_rate_hz = rate;
