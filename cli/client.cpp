@@ -284,6 +284,7 @@ std::expected<model::RunData, ClientError> fetch_run(Client& c, std::int64_t run
   bool any_power_on = false;     // since_power_on_s (the term language's ton): a column only if any
   bool any_rate_in = false;      // the commanded table rate: a column only if any
   bool three_axis = false;       // a three-axis unit: its y and z columns
+  bool axis_thermistors = false; // with thermistors per axis: y's and z's columns
   for (;;) {
     auto r = c.call("run.samples", {{"run_id", run_id}, {"unit", unit}, {"offset", offset}, {"limit", page}});
     if (!r) return std::unexpected(r.error());
@@ -312,6 +313,11 @@ std::expected<model::RunData, ClientError> fetch_run(Client& c, std::int64_t run
       d.gyro_y_dph.push_back(val(s->gyro_y_dph));
       d.gyro_z_dph.push_back(val(s->gyro_z_dph));
       three_axis |= s->three_axis;  // the daemon sends y and z for a three-axis unit only
+      d.axis_t1_c[1].push_back(val(s->t1_y_c));
+      d.axis_t2_c[1].push_back(val(s->t2_y_c));
+      d.axis_t1_c[2].push_back(val(s->t1_z_c));
+      d.axis_t2_c[2].push_back(val(s->t2_z_c));
+      axis_thermistors |= s->axis_thermistors;  // and y's and z's thermistors where it has them
     }
     offset += static_cast<std::int64_t>(rows.size());
     if (rows.size() < static_cast<std::size_t>(page) || offset >= (*r)["total"].get<std::int64_t>()) break;
@@ -325,6 +331,15 @@ std::expected<model::RunData, ClientError> fetch_run(Client& c, std::int64_t run
   if (!three_axis) {
     d.gyro_y_dph.clear();
     d.gyro_z_dph.clear();
+  }
+  if (three_axis && axis_thermistors) {
+    d.axis_t1_c[0] = d.t1_c;
+    d.axis_t2_c[0] = d.t2_c;
+  } else {
+    for (std::size_t k = 1; k < 3; ++k) {
+      d.axis_t1_c[k].clear();
+      d.axis_t2_c[k].clear();
+    }
   }
   if (gaps == Gaps::bridge) {
     // A value not read takes its neighbour's, and the sample keeps (or gets) the missing flag

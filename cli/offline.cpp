@@ -29,30 +29,6 @@ std::string term_with_coef(const model::Term& t) {
   return std::string(buf, res.ptr) + "*" + model::to_string(t);
 }
 
-// y's and z's coils deeper in a three-axis housing than x's: their paths from the air slower by
-// `factor` (lumped: the wall's; distributed: the film's and the mount's).
-void deeper_in_housing(sim::CoilParams& c, double factor) {
-  c.wall_tau_s *= factor;
-  c.distributed.film_tau_s *= factor;
-  c.distributed.mount_tau_s *= factor;
-}
-
-// Adds an axis's cross-axis terms (coefficient x term at its fixed lag, deg/h) to its gyro
-// column, evaluated on the unit's recorded per-axis thermistors (`with`'s axis_t1_c, axis_t2_c).
-std::expected<void, std::string> add_cross_terms(std::vector<double>& gyro_dph, const std::vector<model::Term>& terms,
-                                                 const model::RunData& with, double tref_c) {
-  if (terms.empty()) return {};
-  auto sig = model::run_signals(with, tref_c);
-  if (!sig) return std::unexpected(sig.error().message);
-  for (const auto& t : terms) {
-    auto v = model::evaluate(*t.expr, sig->view());
-    if (!v) return std::unexpected("'" + model::to_string(t) + "': " + v.error());
-    const std::size_t lag = static_cast<std::size_t>(std::max(0, t.lag.seconds));
-    for (std::size_t i = 0; i < gyro_dph.size() && i < v->size(); ++i) gyro_dph[i] += t.coef * (*v)[i >= lag ? i - lag : 0];
-  }
-  return {};
-}
-
 // "; own drift y: 0.05*T1": each axis's own extra drift, as `simulate` says it.
 std::string axis_effects_text(const std::array<std::string, 3>& axis_effect) {
   std::string s;
@@ -143,8 +119,8 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
     err << "fogctl simulate: " << parsed_axis_effects.error() << "\n";
     return kExitError;
   }
-  const std::array<std::string, 3>& axis_effect = *parsed_axis_effects;  // x, y, z: each axis's own extra drift
-  // An axis's cross-axis terms (another axis's coil) are added after the run, on the axes'
+  const std::array<std::string, 3>& axis_effect = parsed_axis_effects->text;  // x, y, z: each axis's own extra drift
+  // An axis's cross-axis terms (another axis's coil) are evaluated after the run, on the axes'
   // recorded thermistors; the rest is the world's drift of that axis.
   std::array<std::vector<model::Term>, 3> cross_terms;
   if (o.axes == 3) {
@@ -152,12 +128,10 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
     cfg.units.assign(3, housing);
     for (std::size_t k = 0; k < 3; ++k) {
       if (k > 0) cfg.units[k].serial = housing.serial + "-" + std::string(model::to_string(static_cast<model::Axis>(k)));
-      if (o.axis_thermistors && k > 0) deeper_in_housing(cfg.units[k].coil, k == 1 ? 1.6 : 2.4);
-      if (axis_effect[k].empty()) continue;
+      if (o.axis_thermistors && k > 0) cfg.units[k].coil = sim::deeper_in_housing(cfg.units[k].coil, k);
       std::string own;
-      auto parsed = model::parse_terms(axis_effect[k]);  // checked by parse_axis_effects
-      for (auto& t : parsed->terms) {
-        if (model::uses_axis_thermistor(*t.expr)) cross_terms[k].push_back(std::move(t));
+      for (const auto& t : parsed_axis_effects->terms[k]) {
+        if (model::uses_axis_thermistor(*t.expr)) cross_terms[k].push_back(t);
         else own += (own.empty() ? "" : " + ") + term_with_coef(t);
       }
       if (!own.empty()) cfg.units[k].effects += (cfg.units[k].effects.empty() ? "" : " + ") + own;
@@ -182,11 +156,25 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
       model::RunData& x = r->units[0];
       x.axis_t1_c = {x.t1_c, r->units[1].t1_c, r->units[2].t1_c};
       x.axis_t2_c = {x.t2_c, r->units[1].t2_c, r->units[2].t2_c};
-      for (std::size_t k = 0; k < 3; ++k)
-        if (auto added = add_cross_terms(r->units[k].gyro_dph, cross_terms[k], x, cfg.units[k].gyro.tref_c); !added) {
-          err << "fogctl simulate: --axis-effect " << model::to_string(static_cast<model::Axis>(k)) << "=...: " << added.error() << "\n";
+      // As the recording reads them: x's thermistors and chamber reading, each axis's own.
+      sim::AxisCoilTemps axes;
+      for (std::size_t k = 0; k < 3; ++k) {
+        axes.t1_c[k] = x.axis_t1_c[k];
+        axes.t2_c[k] = x.axis_t2_c[k];
+      }
+      for (std::size_t k = 0; k < 3; ++k) {
+        if (cross_terms[k].empty()) continue;
+        sim::DriftLaw cross;  // the cross-axis terms alone: no mu0
+        cross.tref_c = cfg.units[k].gyro.tref_c;
+        cross.terms = cross_terms[k];
+        auto d = sim::drift_series(cross, x.t1_c, x.t2_c, x.chamber_c, axes);
+        if (!d) {
+          err << "fogctl simulate: --axis-effect " << model::to_string(static_cast<model::Axis>(k)) << "=...: " << d.error() << "\n";
           return kExitError;
         }
+        auto& out_dph = r->units[k].gyro_dph;
+        for (std::size_t i = 0; i < out_dph.size() && i < d->size(); ++i) out_dph[i] += (*d)[i];
+      }
     }
     r->units[0].gyro_y_dph = std::move(r->units[1].gyro_dph);
     r->units[0].gyro_z_dph = std::move(r->units[2].gyro_dph);

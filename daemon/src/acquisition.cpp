@@ -283,6 +283,13 @@ struct Acquisition::Impl {
         };
         take(c.t1_c, d.coils[i].t1_c);
         take(c.t2_c, d.coils[i].t2_c);
+        // y's and z's own coil, where configured per axis.
+        d.coils[i].axis_t1_c.assign(c.axis_t1_c.size(), std::nullopt);
+        d.coils[i].axis_t2_c.assign(c.axis_t2_c.size(), std::nullopt);
+        for (std::size_t a = 0; a < c.axis_t1_c.size() && a < c.axis_t2_c.size(); ++a) {
+          take(c.axis_t1_c[a], d.coils[i].axis_t1_c[a]);
+          take(c.axis_t2_c[a], d.coils[i].axis_t2_c[a]);
+        }
       }
     } else {
       d.thermistor_error = t.error().to_string();
@@ -448,6 +455,8 @@ struct Acquisition::Impl {
     for (std::size_t i = 0; i < in.units.size() && i < d.coils.size(); ++i) {
       in.units[i].t1_c = d.coils[i].t1_c;
       in.units[i].t2_c = d.coils[i].t2_c;
+      in.units[i].axis_t1_c = d.coils[i].axis_t1_c;
+      in.units[i].axis_t2_c = d.coils[i].axis_t2_c;
       in.units[i].out_of_range = d.coils[i].out_of_range;
     }
   }

@@ -70,6 +70,13 @@ json sample_json(const storage::SampleRow& r, int axes) {
   if (s.three_axis) {
     s.gyro_y_dph = finite(r.gyro_y_dph);
     s.gyro_z_dph = finite(r.gyro_z_dph);
+    s.axis_thermistors = std::isfinite(r.t1_y_c) || std::isfinite(r.t2_y_c) || std::isfinite(r.t1_z_c) || std::isfinite(r.t2_z_c);
+    if (s.axis_thermistors) {
+      s.t1_y_c = finite(r.t1_y_c);
+      s.t2_y_c = finite(r.t2_y_c);
+      s.t1_z_c = finite(r.t1_z_c);
+      s.t2_z_c = finite(r.t2_z_c);
+    }
   }
   return protocol::to_json(s);
 }

@@ -21,6 +21,12 @@ std::uint8_t quality_flags(const UnitReading& u, const TickInput& in, bool pv_fr
   bool oor = u.out_of_range || u.frames_saturated > 0;
   for (auto t : {u.t1_c, u.t2_c})
     if (t && (*t < kCoilMinC || *t > kCoilMaxC)) oor = true;
+  // Per-axis thermistors count as the unit's: one not read is a missing second.
+  for (const auto* axis : {&u.axis_t1_c, &u.axis_t2_c})
+    for (const auto& t : *axis) {
+      if (!t) f |= model::flag::missing;
+      else if (*t < kCoilMinC || *t > kCoilMaxC) oor = true;
+    }
   if (u.gyro_dph && std::abs(*u.gyro_dph) > kGyroMaxAbsDph + 3600.0 * std::abs(table_max_abs_dps)) oor = true;
   // A three-axis unit's y and z count as its gyro: an axis without a usable frame is a missing
   // second, its lost frames are the second's.
@@ -50,6 +56,12 @@ storage::SampleRow sample_row(int unit_index, const UnitReading& u, const TickIn
   r.frames = u.frames;
   r.t1_c = or_nan(u.t1_c);
   r.t2_c = or_nan(u.t2_c);
+  if (u.axis_t1_c.size() == 2 && u.axis_t2_c.size() == 2) {
+    r.t1_y_c = or_nan(u.axis_t1_c[0]);
+    r.t2_y_c = or_nan(u.axis_t2_c[0]);
+    r.t1_z_c = or_nan(u.axis_t1_c[1]);
+    r.t2_z_c = or_nan(u.axis_t2_c[1]);
+  }
   r.phase = storage::model_phase(st.phase);
   r.step = static_cast<int>(st.step_index);
   r.flags = quality_flags(u, in, pv_frozen, table_max_abs_dps);
@@ -84,6 +96,14 @@ protocol::SampleMessage sample_message(const storage::SampleRow& r, std::int64_t
   if (m.three_axis) {
     m.gyro_y_dph = finite(r.gyro_y_dph);
     m.gyro_z_dph = finite(r.gyro_z_dph);
+    // Per-axis thermistors where the unit has them: a second with any of them.
+    m.axis_thermistors = std::isfinite(r.t1_y_c) || std::isfinite(r.t2_y_c) || std::isfinite(r.t1_z_c) || std::isfinite(r.t2_z_c);
+    if (m.axis_thermistors) {
+      m.t1_y_c = finite(r.t1_y_c);
+      m.t2_y_c = finite(r.t2_y_c);
+      m.t1_z_c = finite(r.t1_z_c);
+      m.t2_z_c = finite(r.t2_z_c);
+    }
   }
   return m;
 }

@@ -344,14 +344,45 @@ Result<UnitConfig> parse_unit_config(const json& value, const std::string& path,
   auto th = value.find("thermistors");
   if (th == value.end()) return config_error(tp, "missing (expected {\"t1\": ..., \"t2\": ...})");
   if (auto ok = detail::expect_object(*th, tp); !ok) return std::unexpected(ok.error());
-  if (auto ok = detail::expect_known_keys(*th, tp, {"t1", "t2"}); !ok) {
+  if (auto ok = detail::expect_known_keys(*th, tp, {"t1", "t2", "x", "y", "z"}); !ok) {
     return std::unexpected(ok.error());
   }
-  for (auto [key, target] : {std::pair{"t1", &unit.t1}, std::pair{"t2", &unit.t2}}) {
-    const auto cp = join_path(tp, key);
-    if (!th->contains(key)) return config_error(cp, "missing (expected an object)");
-    FOGBENCH_TRY(ch, parse_thermistor_channel((*th)[key], cp));
-    *target = *ch;
+  // A pair of channels {t1, t2} at `at`, both required.
+  auto pair_of = [](const json& obj, const std::string& at, ThermistorChannelConfig& t1, ThermistorChannelConfig& t2) -> Result<void> {
+    for (auto [key, target] : {std::pair{"t1", &t1}, std::pair{"t2", &t2}}) {
+      const auto cp = join_path(at, key);
+      if (!obj.contains(key)) return config_error(cp, "missing (expected an object)");
+      FOGBENCH_TRY(ch, parse_thermistor_channel(obj[key], cp));
+      *target = *ch;
+    }
+    return {};
+  };
+  const bool per_axis = th->contains("x") || th->contains("y") || th->contains("z");
+  if (!per_axis) {
+    if (auto ok = pair_of(*th, tp, unit.t1, unit.t2); !ok) return std::unexpected(ok.error());
+    return unit;
+  }
+  // Per axis: each of x, y and z names its own coil's two channels.
+  for (auto key : {"t1", "t2"})
+    if (th->contains(key))
+      return config_error(join_path(tp, key), "beside per-axis thermistors (x, y, z): give each axis its {\"t1\", \"t2\"} "
+                                               "(x's are the unit's), or only t1 and t2 for thermistors the axes share");
+  if (unit.gyro.axes != 3)
+    return config_error(tp, "per-axis thermistors (x, y, z) need a three-axis gyro (gyro.axes 3); this unit's has " +
+                                std::to_string(unit.gyro.axes));
+  unit.axis_thermistors.resize(2);
+  for (std::size_t k = 0; k < 3; ++k) {
+    const char* axis = k == 0 ? "x" : k == 1 ? "y" : "z";
+    const auto ap = join_path(tp, axis);
+    if (!th->contains(axis))
+      return config_error(ap, std::string("missing: a three-axis unit's thermistors per axis name every axis, x, y and z (axis ") + axis +
+                                  " has none here); or give t1 and t2 alone for thermistors the axes share");
+    const json& a = (*th)[axis];
+    if (auto ok = detail::expect_object(a, ap); !ok) return std::unexpected(ok.error());
+    if (auto ok = detail::expect_known_keys(a, ap, {"t1", "t2"}); !ok) return std::unexpected(ok.error());
+    auto& t1 = k == 0 ? unit.t1 : unit.axis_thermistors[k - 1][0];
+    auto& t2 = k == 0 ? unit.t2 : unit.axis_thermistors[k - 1][1];
+    if (auto ok = pair_of(a, ap, t1, t2); !ok) return std::unexpected(ok.error());
   }
   return unit;
 }
@@ -491,8 +522,18 @@ Result<DriversConfig> parse_drivers_config(const json& value, const std::filesys
                                 " (a three-axis unit sends on node_id, node_id + 1 and node_id + 2)");
       }
     }
-    for (auto [key, ch] : {std::pair{"t1", &unit->t1}, std::pair{"t2", &unit->t2}}) {
-      const auto cp = join_path(join_path(p, "thermistors"), key);
+    // Every channel, per axis too, on registers of its own.
+    std::vector<std::pair<std::string, const ThermistorChannelConfig*>> unit_channels;
+    const auto thp = join_path(p, "thermistors");
+    const std::string xp = unit->has_axis_thermistors() ? join_path(thp, "x") : thp;
+    unit_channels.emplace_back(join_path(xp, "t1"), &unit->t1);
+    unit_channels.emplace_back(join_path(xp, "t2"), &unit->t2);
+    for (std::size_t k = 0; k < unit->axis_thermistors.size(); ++k) {
+      const auto ap = join_path(thp, k == 0 ? "y" : "z");
+      unit_channels.emplace_back(join_path(ap, "t1"), &unit->axis_thermistors[k][0]);
+      unit_channels.emplace_back(join_path(ap, "t2"), &unit->axis_thermistors[k][1]);
+    }
+    for (const auto& [cp, ch] : unit_channels) {
       for (const auto& other : channels) {
         const RegisterSpec& a = ch->reg;
         const RegisterSpec& b = other.reg;

@@ -15,12 +15,12 @@ ThermistorModule::ThermistorModule(ThermistorModuleConfig config, std::vector<Un
       units_(std::move(units)),
       link_(config_.modbus, "thermistor module", std::move(clock)) {
   for (std::size_t u = 0; u < units_.size(); ++u) {
-    sensors_.push_back({u, 1, 0, 0});
-    sensors_.push_back({u, 2, 0, 0});
+    for (std::size_t k = 0; k <= units_[u].axis_thermistors.size(); ++k) {
+      sensors_.push_back({u, 1, k, 0, 0});
+      sensors_.push_back({u, 2, k, 0, 0});
+    }
   }
-  auto reg = [&](const Sensor& s) -> const RegisterSpec& {
-    return s.which == 1 ? units_[s.unit].t1.reg : units_[s.unit].t2.reg;
-  };
+  auto reg = [&](const Sensor& s) -> const RegisterSpec& { return channel(s).reg; };
   // Sort by table and address and merge touching registers: reading 16 sensors costs one round
   // trip instead of 16. Only touching ones, since a gap may hold addresses the module refuses.
   std::vector<std::size_t> order(sensors_.size());
@@ -43,6 +43,12 @@ ThermistorModule::ThermistorModule(ThermistorModuleConfig config, std::vector<Un
   }
 }
 
+const ThermistorChannelConfig& ThermistorModule::channel(const Sensor& s) const {
+  const UnitConfig& u = units_[s.unit];
+  if (s.axis == 0) return s.which == 1 ? u.t1 : u.t2;
+  return u.axis_thermistors[s.axis - 1][s.which == 1 ? 0 : 1];
+}
+
 Result<std::vector<CoilTemperatures>> ThermistorModule::read_all() {
   std::vector<std::vector<std::uint16_t>> words(blocks_.size());
   std::vector<std::optional<DriverError>> block_error(blocks_.size());
@@ -61,11 +67,15 @@ Result<std::vector<CoilTemperatures>> ThermistorModule::read_all() {
   out.reserve(units_.size());
   for (const auto& u : units_) {
     out.push_back({u.serial, fail(ErrorCode::io, "not read"), fail(ErrorCode::io, "not read")});
+    out.back().axis_t1_c.assign(u.axis_thermistors.size(), fail(ErrorCode::io, "not read"));
+    out.back().axis_t2_c.assign(u.axis_thermistors.size(), fail(ErrorCode::io, "not read"));
   }
   for (const Sensor& s : sensors_) {
     const UnitConfig& unit = units_[s.unit];
-    const ThermistorChannelConfig& ch = s.which == 1 ? unit.t1 : unit.t2;
-    const std::string who = "unit " + unit.serial + (s.which == 1 ? " T1" : " T2");
+    const ThermistorChannelConfig& ch = channel(s);
+    // Per axis the sensor's name says whose coil: "T1y"; a unit's shared pair is "T1", "T2".
+    const std::string who = "unit " + unit.serial + (s.which == 1 ? " T1" : " T2") +
+                            (unit.has_axis_thermistors() ? std::string(1, "xyz"[s.axis]) : std::string());
     Result<double> value = [&]() -> Result<double> {
       if (block_error[s.block]) {
         return fail(block_error[s.block]->code, who + ": " + block_error[s.block]->message);
@@ -73,7 +83,9 @@ Result<std::vector<CoilTemperatures>> ThermistorModule::read_all() {
       return convert_thermistor(
           ch, std::span<const std::uint16_t>(words[s.block].data() + s.offset, ch.reg.width()), who);
     }();
-    (s.which == 1 ? out[s.unit].t1_c : out[s.unit].t2_c) = std::move(value);
+    CoilTemperatures& to = out[s.unit];
+    if (s.axis == 0) (s.which == 1 ? to.t1_c : to.t2_c) = std::move(value);
+    else (s.which == 1 ? to.axis_t1_c : to.axis_t2_c)[s.axis - 1] = std::move(value);
   }
   return out;
 }

@@ -129,6 +129,23 @@ void put_axes(json& j, bool three_axis, std::optional<double> y_dph, std::option
   j["gyro_y_dph"] = number_or_null(y_dph);
   j["gyro_z_dph"] = number_or_null(z_dph);
 }
+// Per-axis coil thermistors, likewise only on the samples of a unit that has them.
+template <class S>
+void put_axis_thermistors(json& j, const S& s) {
+  if (!s.axis_thermistors) return;
+  j["t1_y_c"] = number_or_null(s.t1_y_c);
+  j["t2_y_c"] = number_or_null(s.t2_y_c);
+  j["t1_z_c"] = number_or_null(s.t1_z_c);
+  j["t2_z_c"] = number_or_null(s.t2_z_c);
+}
+template <class S>
+void read_axis_thermistors(const json& j, Reader& r, S& s) {
+  s.axis_thermistors = j.contains("t1_y_c") || j.contains("t2_y_c") || j.contains("t1_z_c") || j.contains("t2_z_c");
+  s.t1_y_c = r.opt_number("t1_y_c");
+  s.t2_y_c = r.opt_number("t2_y_c");
+  s.t1_z_c = r.opt_number("t1_z_c");
+  s.t2_z_c = r.opt_number("t2_z_c");
+}
 }  // namespace
 
 json to_json(const Sample& s) {
@@ -142,6 +159,7 @@ json to_json(const Sample& s) {
   // sample's fields as before (the golden transcripts, clients that list fields).
   if (s.rate_in_dps) j["rate_in_dps"] = *s.rate_in_dps;
   put_axes(j, s.three_axis, s.gyro_y_dph, s.gyro_z_dph);
+  put_axis_thermistors(j, s);
   return j;
 }
 
@@ -166,6 +184,7 @@ std::expected<Sample, std::string> sample_from_json(const json& j) {
   s.three_axis = j.contains("gyro_y_dph") || j.contains("gyro_z_dph");
   s.gyro_y_dph = r.opt_number("gyro_y_dph");
   s.gyro_z_dph = r.opt_number("gyro_z_dph");
+  read_axis_thermistors(j, r, s);
   if (!r.ok()) return std::unexpected(r.error());
   return s;
 }
@@ -181,6 +200,7 @@ json to_json(const SampleMessage& s) {
   // As in run.samples: only where a rate table ran (the golden transcripts of other runs as before).
   if (s.rate_in_dps) j["rate_in_dps"] = *s.rate_in_dps;
   put_axes(j, s.three_axis, s.gyro_y_dph, s.gyro_z_dph);
+  put_axis_thermistors(j, s);
   return j;
 }
 
@@ -211,6 +231,7 @@ std::expected<SampleMessage, std::string> sample_message_from_json(const json& j
   s.three_axis = j.contains("gyro_y_dph") || j.contains("gyro_z_dph");
   s.gyro_y_dph = r.opt_number("gyro_y_dph");
   s.gyro_z_dph = r.opt_number("gyro_z_dph");
+  read_axis_thermistors(j, r, s);
   if (!r.ok()) return std::unexpected(r.error());
   return s;
 }

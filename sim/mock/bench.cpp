@@ -359,8 +359,11 @@ json Bench::ready_line() const {
     if (u.gyro.axes != 1) {
       units.back()["axes"] = u.gyro.axes;
       units.back()["axis_bias_dph"] = u.axis_bias_dph;  // per axis, added to the unit's drift
-      const auto& own = c.sim.units[units.size() - 1].axis_effects;
-      if (!own[0].empty() || !own[1].empty()) units.back()["axis_effects"] = {{"y", own[0]}, {"z", own[1]}};
+      const auto& p = c.sim.units[units.size() - 1];
+      const auto& own = p.axis_effects;
+      if (!own[0].empty() || !own[1].empty() || !p.x_effects.empty())
+        units.back()["axis_effects"] = {{"x", p.x_effects}, {"y", own[0]}, {"z", own[1]}};
+      units.back()["axis_thermistors"] = p.axis_coils.has_value();
     }
   }
   return {{"event", "ready"},

@@ -185,11 +185,13 @@ void BenchClock::step(Batch& b, std::int64_t second, double& last_setpoint_c, st
     streams_[u].second(second, s.gyro_dph - s.noise_dph + spike + turn_dph, {f.power_off_from_s, f.power_on_at_s}, rng,
                        b.frames[u]);
     gyro_dph[u] = streams_[u].last_mean_dph();
-    // The other axes: the same housing's drift plus each axis's own bias, its own drift
-    // (--axis-effect) and its own noise.
+    // The other axes: the same housing's drift (without x's own; with coils per axis, read on
+    // the axis's own coil) plus each axis's own bias, its own drift (--axis-effect) and its
+    // own noise.
     for (std::size_t k = 0; k < axis_streams_[u].size(); ++k) {
       axis_streams_[u][k].second(second,
-                                 s.gyro_dph - s.noise_dph + spike + cfg_.units[u].axis_bias_dph[k + 1] + world_->axis_drift_dph(u, k + 1),
+                                 s.gyro_dph - s.noise_dph - world_->axis_drift_dph(u, 0) + spike + cfg_.units[u].axis_bias_dph[k + 1] +
+                                     world_->axis_drift_dph(u, k + 1),
                                  {f.power_off_from_s, f.power_on_at_s}, axis_rngs_[u][k], b.axis_frames[u][k]);
     }
     b.next[u] = 0;
@@ -213,6 +215,11 @@ void BenchClock::step(Batch& b, std::int64_t second, double& last_setpoint_c, st
     const auto s = world_->sample(u);
     shared_.thermistors->show(u, 1, s.t1_c, faults.units[u].open_t1);
     shared_.thermistors->show(u, 2, s.t2_c, faults.units[u].open_t2);
+    if (world_->has_axis_coils(u))
+      for (std::size_t k = 1; k < 3; ++k) {
+        shared_.thermistors->show(u, 1, s.axis_t1_c[k - 1], false, k);
+        shared_.thermistors->show(u, 2, s.axis_t2_c[k - 1], false, k);
+      }
     auto& us = snap.units[u];
     us.t1_c = s.t1_c;
     us.t2_c = s.t2_c;

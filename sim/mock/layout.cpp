@@ -26,8 +26,9 @@ std::expected<drivers::ThermistorChannelConfig, std::string> parse_channel(const
 
 }  // namespace
 
-std::expected<UnitLayout, std::string> default_unit_layout(std::size_t i, int frame_rate_hz, int axes) {
+std::expected<UnitLayout, std::string> default_unit_layout(std::size_t i, int frame_rate_hz, int axes, bool axis_thermistors) {
   if (axes != 1 && axes != 3) return std::unexpected("axes must be 1 or 3 (got " + std::to_string(axes) + ")");
+  if (axis_thermistors && axes != 3) return std::unexpected(std::string("thermistors per axis need three axes"));
   if (i >= max_units) return std::unexpected("at most " + std::to_string(max_units) + " units");
   if (frame_rate_hz < 1 || frame_rate_hz > max_frame_rate_hz) {
     return std::unexpected("frame rate must be 1.." + std::to_string(max_frame_rate_hz) + " Hz");
@@ -50,6 +51,7 @@ std::expected<UnitLayout, std::string> default_unit_layout(std::size_t i, int fr
     };
     u.t1_json = channel(a);
     u.t2_json = channel(a + 1);
+    if (axis_thermistors) u.axis_json = {{channel(200 + a), channel(201 + a)}, {channel(264 + a), channel(265 + a)}};
   } else {
     u.gyro.mode = drivers::GyroMode::increment;
     u.gyro.scale_deg_per_count = 1e-7;
@@ -61,6 +63,10 @@ std::expected<UnitLayout, std::string> default_unit_layout(std::size_t i, int fr
     };
     u.t1_json = channel(100 + 2 * (a - 1));
     u.t2_json = channel(102 + 2 * (a - 1));
+    if (axis_thermistors) {
+      u.axis_json = {{channel(400 + 2 * (a - 1)), channel(402 + 2 * (a - 1))},
+                     {channel(500 + 2 * (a - 1)), channel(502 + 2 * (a - 1))}};
+    }
   }
   auto t1 = parse_channel(u.t1_json, "t1");
   if (!t1) return std::unexpected(t1.error());
@@ -68,6 +74,15 @@ std::expected<UnitLayout, std::string> default_unit_layout(std::size_t i, int fr
   if (!t2) return std::unexpected(t2.error());
   u.t1 = *t1;
   u.t2 = *t2;
+  for (std::size_t k = 0; k < u.axis_json.size(); ++k) {
+    std::array<drivers::ThermistorChannelConfig, 2> pair;
+    for (std::size_t s = 0; s < 2; ++s) {
+      auto ch = parse_channel(u.axis_json[k][s], std::string(k == 0 ? "y." : "z.") + (s == 0 ? "t1" : "t2"));
+      if (!ch) return std::unexpected(ch.error());
+      pair[s] = *ch;
+    }
+    u.axis_thermistors.push_back(pair);
+  }
   return u;
 }
 
@@ -111,8 +126,13 @@ json drivers_config(const Endpoints& where, const ServedMap& map, const std::vec
       gyro["scale_deg_per_count"] = u.gyro.scale_deg_per_count;
       gyro["frame_rate_hz"] = u.gyro.frame_rate_hz;
     }
-    out["units"].push_back({{"serial", u.serial}, {"gyro", gyro},
-                            {"thermistors", {{"t1", u.t1_json}, {"t2", u.t2_json}}}});
+    json thermistors = {{"t1", u.t1_json}, {"t2", u.t2_json}};
+    if (!u.axis_json.empty()) {
+      thermistors = {{"x", thermistors},
+                     {"y", {{"t1", u.axis_json[0][0]}, {"t2", u.axis_json[0][1]}}},
+                     {"z", {{"t1", u.axis_json[1][0]}, {"t2", u.axis_json[1][1]}}}};
+    }
+    out["units"].push_back({{"serial", u.serial}, {"gyro", gyro}, {"thermistors", thermistors}});
   }
   return out;
 }

@@ -35,6 +35,10 @@ struct UnitLayout {
   std::vector<double> axis_bias_dph = {0.0};
   nlohmann::json t1_json, t2_json;  // the channels as a drivers configuration spells them
   drivers::ThermistorChannelConfig t1, t2;
+  // A three-axis unit with thermistors per axis: y's and z's channels ([0] y, [1] z, each
+  // {T1, T2}), t1 and t2 being x's; empty when the axes share t1 and t2.
+  std::vector<std::array<nlohmann::json, 2>> axis_json;
+  std::vector<std::array<drivers::ThermistorChannelConfig, 2>> axis_thermistors;
 
   // Counts of one frame per deg/h of rate, by the drivers' own conversion (in increment mode
   // the increment of one nominal frame period: see docs/mock-bench.md).
@@ -55,8 +59,11 @@ static_assert(default_rate_scale_dph_per_count * 2147483647.0 > served_table_max
 // int16 centi-degC at input i and i+1 (open circuit 32767). Odd units: increment counts of
 // 1e-7 deg at a nominal 8000 frames/s, NTC resistances as float32 at input 100+2(i-1) and
 // 102+2(i-1). Node id 257 + i; with `axes` 3, 257 + 4i (axis k on 257 + 4i + k: the units'
-// ids never meet).
-std::expected<UnitLayout, std::string> default_unit_layout(std::size_t i, int frame_rate_hz, int axes = 1);
+// ids never meet). With `axis_thermistors` (axes 3 only) y's and z's channels of the same type
+// follow at 200 + i, 201 + i (y) and 264 + i, 265 + i (z) for even units, at 400+2(i-1),
+// 402+2(i-1) (y) and 500+2(i-1), 502+2(i-1) (z) for odd ones.
+std::expected<UnitLayout, std::string> default_unit_layout(std::size_t i, int frame_rate_hz, int axes = 1,
+                                                           bool axis_thermistors = false);
 
 // The built-in chamber map: drivers/maps/mock.json as it was when fogbench-sim was built.
 const char* builtin_map_json() noexcept;

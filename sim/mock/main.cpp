@@ -60,6 +60,10 @@ int main(int argc, char** argv) {
   app.add_option("--axis-effect", o.axis_effects,
                  "with --axes 3: drift of the y or z axis alone, AXIS=EXPR in the term language, e.g. \"y=0.5*T1\"; every unit; "
                  "repeatable");
+  app.add_flag("--axis-thermistors", o.axis_thermistors,
+               "with --axes 3: each axis a coil and thermistors of its own (the module's six channels per unit; y's and z's coils "
+               "deeper in the housing, as fogctl simulate's); --axis-effect may then give x a drift of its own and read another "
+               "axis's coil, e.g. \"x=0.3*T1y\"");
   app.add_option("--frame-noise-dph", o.frame_noise_dph,
                  "extra white noise per frame (1 sigma, deg/h), on top of the gyro's own noise made at the frame rate")
       ->capture_default_str();

@@ -198,13 +198,17 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
   if (!o.axis_effects.empty() && o.axes != 3) {
     return std::unexpected(std::string("--axis-effect needs --axes 3 (a one-axis unit's drift is --effect)"));
   }
-  // Read by fogctl simulate's rule; here only y and z: the mock's axis 0 (x) frames are the unit's
-  // gyro_dph, which y and z share, so an x of its own would be theirs too (use --effect).
-  const auto axis_effects = sim::parse_axis_effects(o.axis_effects);
+  if (o.axis_thermistors && o.axes != 3) {
+    return std::unexpected(std::string("--axis-thermistors needs --axes 3 (a one-axis unit has one coil)"));
+  }
+  // Read by fogctl simulate's rule. x's own drift (one y and z do not share) and a term of
+  // another axis's coil (T1y, ...) only with coils per axis.
+  const auto axis_effects = sim::parse_axis_effects(o.axis_effects, o.axis_thermistors);
   if (!axis_effects) return std::unexpected(axis_effects.error());
-  if (!(*axis_effects)[0].empty()) {
-    return std::unexpected("--axis-effect x=" + (*axis_effects)[0] +
-                           ": the mock bench gives y and z their own drift only, AXIS y or z (x's drift is the unit's, which y and z share: --effect)");
+  if (!axis_effects->text[0].empty() && !o.axis_thermistors) {
+    return std::unexpected("--axis-effect x=" + axis_effects->text[0] +
+                           ": without --axis-thermistors the mock bench gives y and z their own drift only, AXIS y or z (x's drift is "
+                           "the unit's, which y and z share: --effect)");
   }
   if (!std::isfinite(o.warmup_dph)) return std::unexpected(std::string("--warmup-dph: expected a number"));
   if (!(o.warmup_tau_s > 0) || !std::isfinite(o.warmup_tau_s)) return std::unexpected(std::string("--warmup-tau-s: expected a positive number"));
@@ -284,7 +288,7 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
   std::normal_distribution<double> bias(0.0, 1.0);
   for (std::size_t i = 0; i < n; ++i) {
     int rate = o.frame_rate_hz;
-    auto layout = default_unit_layout(i, rate, o.axes);
+    auto layout = default_unit_layout(i, rate, o.axes, o.axis_thermistors);
     if (!layout) return std::unexpected("--frame-rate-hz: " + layout.error());
     for (std::size_t k = 1; k < layout->axis_bias_dph.size(); ++k) layout->axis_bias_dph[k] = o.axis_bias_dph * bias(bias_rng);
     sim::UnitParams p;
@@ -300,7 +304,11 @@ std::expected<BenchConfig, std::string> make_bench_config(const Options& o) {
     effects.insert(effects.end(), o.effects.begin(), o.effects.end());
     p.effects = join_effects(effects);
     if (auto law = sim::make_drift_law(p); !law) return std::unexpected("unit " + p.serial + ": " + law.error());
-    p.axis_effects = {(*axis_effects)[1], (*axis_effects)[2]};
+    p.axis_effects = {axis_effects->text[1], axis_effects->text[2]};
+    if (o.axis_thermistors) {
+      p.axis_coils = std::array{sim::deeper_in_housing(p.coil, 1), sim::deeper_in_housing(p.coil, 2)};
+      p.x_effects = axis_effects->text[0];
+    }
     if (!serials.insert(p.serial).second) return std::unexpected("two units have serial " + p.serial);
     layout->serial = p.serial;
     layout->frame_rate_hz = rate;

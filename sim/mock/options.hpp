@@ -37,6 +37,7 @@ struct Options {
   int axes = 1;                      // every unit's gyro axes: 1, or 3 (axis k on node id + k)
   double axis_bias_dph = 1.0;        // 1 sigma of the y and z axes' own biases (seeded), deg/h
   std::vector<std::string> axis_effects;  // with axes 3: "y=0.5*T1", an axis's own drift, every unit
+  bool axis_thermistors = false;     // with axes 3: each axis a coil and thermistors of its own (y's, z's deeper in the housing)
   bool no_startup_flag = false;      // a gyro kind without the warm-up status bit: no frame carries `warming_up`
   double frame_noise_dph = 0;        // extra white noise per frame, on top of the gyro's own
   double warmup_dph = 0;             // every unit's warm-up after power-on: A*exp(-t/tau)

@@ -185,6 +185,8 @@ std::expected<ThermistorRegisters, std::string> ThermistorRegisters::create(cons
   for (const auto& u : units) {
     specs.push_back(u.t1.reg);
     specs.push_back(u.t2.reg);
+    for (const auto& a : u.axis_thermistors)
+      for (const auto& ch : a) specs.push_back(ch.reg);
   }
   auto regs = DeviceMapping::create(specs);
   if (!regs) return std::unexpected(regs.error());
@@ -194,8 +196,10 @@ std::expected<ThermistorRegisters, std::string> ThermistorRegisters::create(cons
   return t;
 }
 
-void ThermistorRegisters::show(std::size_t unit, int sensor, double temp_c, bool open) {
-  const auto& ch = sensor == 1 ? units_[unit].t1 : units_[unit].t2;
+void ThermistorRegisters::show(std::size_t unit, int sensor, double temp_c, bool open, std::size_t axis) {
+  const UnitLayout& u = units_[unit];
+  if (axis > u.axis_thermistors.size()) return;  // the unit has no such axis's channels
+  const auto& ch = axis == 0 ? (sensor == 1 ? u.t1 : u.t2) : u.axis_thermistors[axis - 1][sensor == 1 ? 0 : 1];
   if (open) {
     regs_.write(ch.reg, encode_open_circuit(ch));
     return;

@@ -78,8 +78,9 @@ class ThermistorRegisters {
   static std::expected<ThermistorRegisters, std::string> create(const std::vector<UnitLayout>& units);
 
   modbus_mapping_t* mapping() const noexcept { return regs_.get(); }
-  // One sensor (1 = T1, 2 = T2) of one unit: its temperature, or an open circuit.
-  void show(std::size_t unit, int sensor, double temp_c, bool open);
+  // One sensor (1 = T1, 2 = T2) of one unit's axis (0: the unit's, x's with thermistors per
+  // axis; 1 y, 2 z: UnitLayout::axis_thermistors): its temperature, or an open circuit.
+  void show(std::size_t unit, int sensor, double temp_c, bool open, std::size_t axis = 0);
 
  private:
   std::vector<UnitLayout> units_;

@@ -55,8 +55,8 @@ std::expected<DriftLaw, std::string> make_drift_law(const UnitParams& u) {
   return law;
 }
 
-std::expected<std::array<std::string, 3>, std::string> parse_axis_effects(std::span<const std::string> options, bool cross_axis) {
-  std::array<std::string, 3> by_axis;  // x, y, z (model::Axis order)
+std::expected<AxisEffects, std::string> parse_axis_effects(std::span<const std::string> options, bool cross_axis) {
+  AxisEffects by_axis;
   for (const auto& e : options) {
     const auto eq = e.find('=');
     const auto axis = eq == std::string::npos ? std::nullopt : model::axis_from_string(e.substr(0, eq));
@@ -71,15 +71,17 @@ std::expected<std::array<std::string, 3>, std::string> parse_axis_effects(std::s
         if (model::uses_axis_thermistor(*t.expr))
           return std::unexpected("--axis-effect " + e + ": '" + model::to_string(t) +
                                  "' reads an axis's own coil thermistor (T1x..T2z), which this simulation does not give its axes "
-                                 "(they share the unit's thermistors; fogctl simulate --axis-thermistors does)");
-    auto& to = by_axis[static_cast<std::size_t>(*axis)];
-    to += (to.empty() ? "" : " + ") + check.effects;
+                                 "(they share the unit's thermistors; --axis-thermistors gives each its own)");
+    const auto k = static_cast<std::size_t>(*axis);
+    by_axis.text[k] += (by_axis.text[k].empty() ? "" : " + ") + check.effects;
+    for (auto& t : law->terms) by_axis.terms[k].push_back(std::move(t));
   }
   return by_axis;
 }
 
 std::expected<std::vector<double>, std::string> drift_series(const DriftLaw& law, std::span<const double> t1_c,
-                                                             std::span<const double> t2_c, std::span<const double> ta_c) {
+                                                             std::span<const double> t2_c, std::span<const double> ta_c,
+                                                             const AxisCoilTemps& axes) {
   const std::size_t n = t1_c.size();
   std::vector<double> t1(n), t2(n), ta(ta_c.size());
   for (std::size_t i = 0; i < n; ++i) {
@@ -87,11 +89,29 @@ std::expected<std::vector<double>, std::string> drift_series(const DriftLaw& law
     t2[i] = t2_c[i] - law.tref_c;
   }
   for (std::size_t i = 0; i < ta.size(); ++i) ta[i] = ta_c[i] - law.tref_c;
-  const model::Signals s{t1, t2, ta, 1.0};
+  model::Signals s{t1, t2, ta, 1.0};
+  // Per-axis thermistors as deviations from Tref, as the unit's own are (all six or none).
+  std::array<std::vector<double>, 3> at1, at2;
+  if (!axes.t1_c[0].empty() || !axes.t1_c[1].empty() || !axes.t1_c[2].empty()) {
+    for (std::size_t k = 0; k < 3; ++k) {
+      if (axes.t1_c[k].size() != n || axes.t2_c[k].size() != n)
+        return std::unexpected(std::string("the per-axis thermistors of axis ") + "xyz"[k] + " are not one per sample (" +
+                               std::to_string(axes.t1_c[k].size()) + " and " + std::to_string(axes.t2_c[k].size()) + " for " +
+                               std::to_string(n) + " samples)");
+      at1[k].resize(n);
+      at2[k].resize(n);
+      for (std::size_t i = 0; i < n; ++i) {
+        at1[k][i] = axes.t1_c[k][i] - law.tref_c;
+        at2[k][i] = axes.t2_c[k][i] - law.tref_c;
+      }
+      s.axis_t1[k] = at1[k];
+      s.axis_t2[k] = at2[k];
+    }
+  }
   std::vector<double> d(n, law.mu0_dph);
   for (const auto& t : law.terms) {
     auto v = model::evaluate(*t.expr, s);
-    if (!v) return std::unexpected(v.error());
+    if (!v) return std::unexpected("'" + model::to_string(t) + "': " + v.error());
     const auto lag = static_cast<std::size_t>(t.lag.seconds);
     for (std::size_t i = 0; i < n; ++i) d[i] += t.coef * (*v)[i >= lag ? i - lag : 0];
   }
@@ -125,22 +145,64 @@ std::expected<World, std::string> World::create(const SimConfig& cfg) {
       st.field = std::move(*f);
     }
     int history_s = st.law.history_s;
-    for (std::size_t k = 0; k < 2; ++k) {
-      if (u.axis_effects[k].empty()) continue;
+    for (std::size_t k = 0; k < 3; ++k) {
+      const std::string& text = k == 0 ? u.x_effects : u.axis_effects[k - 1];
+      if (text.empty()) continue;
       UnitParams own;  // the axis's effect alone: no mu0, no truth terms
       own.gyro.mu0_dph = 0.0;
       own.gyro.tref_c = u.gyro.tref_c;
       own.gyro.terms.clear();
-      own.effects = u.axis_effects[k];
+      own.effects = text;
       auto al = make_drift_law(own);
-      if (!al) return std::unexpected("unit " + u.serial + ": axis " + std::string(1, "yz"[k]) + ": " + al.error());
+      if (!al) return std::unexpected("unit " + u.serial + ": axis " + std::string(1, "xyz"[k]) + ": " + al.error());
+      if (!u.axis_coils)
+        for (const auto& t : al->terms)
+          if (model::uses_axis_thermistor(*t.expr))
+            return std::unexpected("unit " + u.serial + ": axis " + std::string(1, "xyz"[k]) + ": '" + model::to_string(t) +
+                                   "' reads an axis's own coil (T1x..T2z), and this unit's axes share one coil");
       history_s = std::max(history_s, al->history_s);
       st.axis_law[k] = std::move(*al);
+    }
+    if (u.axis_coils) {
+      for (std::size_t k = 0; k < 2; ++k) {
+        const CoilParams& c = (*u.axis_coils)[k];
+        if (c.wall_tau_s <= 0 || c.core_tau_s <= 0)
+          return std::unexpected("unit " + u.serial + ": axis " + std::string(1, "yz"[k]) + "'s coil: time constants must be positive");
+        UnitState::AxisCoil ac;
+        ac.t1 = ac.t2 = cfg.start_c;
+        if (c.model == CoilModel::distributed) {
+          auto f = CoilField::create(c.distributed, cfg.start_c);
+          if (!f) return std::unexpected("unit " + u.serial + ": axis " + std::string(1, "yz"[k]) + "'s coil: " + f.error());
+          ac.field = std::move(*f);
+        }
+        st.axis_coils.push_back(std::move(ac));
+      }
+    } else {
+      for (const auto& t : st.law.terms)
+        if (model::uses_axis_thermistor(*t.expr))
+          return std::unexpected("unit " + u.serial + ": '" + model::to_string(t) +
+                                 "' reads an axis's own coil (T1x..T2z), and this unit's axes share one coil");
     }
     w.window_ = std::max<std::size_t>(w.window_, static_cast<std::size_t>(history_s) + 2 * model::kDerivativeHalfWidth + 64);
     w.units_.push_back(std::move(st));
   }
   return w;
+}
+
+AxisCoilTemps World::axis_history(const UnitState& u) const {
+  AxisCoilTemps a;
+  if (u.axis_coils.empty()) return a;
+  a.t1_c = {std::span<const double>(u.h1), std::span<const double>(u.axis_coils[0].h1), std::span<const double>(u.axis_coils[1].h1)};
+  a.t2_c = {std::span<const double>(u.h2), std::span<const double>(u.axis_coils[0].h2), std::span<const double>(u.axis_coils[1].h2)};
+  return a;
+}
+
+CoilParams deeper_in_housing(CoilParams c, std::size_t axis) {
+  const double factor = axis == 1 ? 1.6 : axis == 2 ? 2.4 : 1.0;
+  c.wall_tau_s *= factor;
+  c.distributed.film_tau_s *= factor;
+  c.distributed.mount_tau_s *= factor;
+  return c;
 }
 
 double World::gyro_noise(UnitState& u, const UnitParams& p) {
@@ -199,35 +261,73 @@ void World::step(double setpoint_c) {
       u.t2 = lag_step(u.t2, air_c_, p.coil.wall_tau_s, 1.0);
       u.t1 = lag_step(u.t1, u.t2, p.coil.core_tau_s, 1.0);
     }
+    for (std::size_t k = 0; k < u.axis_coils.size(); ++k) {
+      auto& ac = u.axis_coils[k];
+      const CoilParams& c = (*p.axis_coils)[k];
+      if (ac.field) {
+        ac.field->step(air_c_);
+        ac.t1 = ac.field->at(c.distributed.t1_at);
+        ac.t2 = ac.field->at(c.distributed.t2_at);
+        ac.field_drift = ac.field->drift_dph(p.gyro.tref_c);
+      } else {
+        ac.t2 = lag_step(ac.t2, air_c_, c.wall_tau_s, 1.0);
+        ac.t1 = lag_step(ac.t1, ac.t2, c.core_tau_s, 1.0);
+      }
+    }
     u.h1.push_back(u.t1);
     u.h2.push_back(u.t2);
     u.ha.push_back(air_c_);
+    for (auto& ac : u.axis_coils) {
+      ac.h1.push_back(ac.t1);
+      ac.h2.push_back(ac.t2);
+    }
     if (!streaming_drift_) {
       u.h1.clear();
       u.h2.clear();
       u.ha.clear();
+      for (auto& ac : u.axis_coils) {
+        ac.h1.clear();
+        ac.h2.clear();
+      }
     } else if (u.h1.size() > 2 * window_) {  // keep a trailing window: amortised O(1) per step
       const auto drop = static_cast<std::ptrdiff_t>(u.h1.size() - window_);
       for (auto* h : {&u.h1, &u.h2, &u.ha}) h->erase(h->begin(), h->begin() + drop);
+      for (auto& ac : u.axis_coils)
+        for (auto* h : {&ac.h1, &ac.h2}) h->erase(h->begin(), h->begin() + drop);
     }
     // The drift of the newest second from the trailing window; terms whose lag is shorter
     // than a centred filter's half-width see the window's one-sided edge (as a run's end does).
+    const AxisCoilTemps axes = axis_history(u);
     double drift = u.law.mu0_dph;
     if (!streaming_drift_) {
       drift = 0.0;
-    } else if (auto d = drift_series(u.law, u.h1, u.h2, u.ha)) {
+    } else if (auto d = drift_series(u.law, u.h1, u.h2, u.ha, axes)) {
       drift = d->back();
     }
-    for (std::size_t k = 0; k < 2; ++k) {
+    for (std::size_t k = 0; k < 3; ++k) {
       u.axis_drift[k] = 0.0;
-      if (!streaming_drift_ || !u.axis_law[k]) continue;
-      if (auto d = drift_series(*u.axis_law[k], u.h1, u.h2, u.ha)) u.axis_drift[k] = d->back();
+      if (!streaming_drift_) continue;
+      if (u.axis_law[k])
+        if (auto d = drift_series(*u.axis_law[k], u.h1, u.h2, u.ha, axes)) u.axis_drift[k] = d->back();
+      // An axis with a coil of its own: the unit's drift read on that coil, less x's.
+      if (k > 0 && !u.axis_coils.empty()) {
+        const auto& ac = u.axis_coils[k - 1];
+        if (auto d = drift_series(u.law, ac.h1, ac.h2, u.ha, axes)) u.axis_drift[k] += d->back() - drift;
+        if (ac.field) u.axis_drift[k] += ac.field_drift - u.field_drift;
+      }
     }
+    drift += u.axis_drift[0];
     if (u.field) drift += u.field_drift;
     drift += nonthermal_drift(p.gyro, time_s_ - 1.0);
     std::normal_distribution<double> tn(0.0, p.coil.t_noise_c);
     u.last.t1_c = u.t1 + tn(rng_);
     u.last.t2_c = u.t2 + tn(rng_);
+    // Drawn only for axis coils, so a unit without them draws the numbers it always did.
+    for (std::size_t k = 0; k < u.axis_coils.size(); ++k) {
+      std::normal_distribution<double> an(0.0, (*p.axis_coils)[k].t_noise_c);
+      u.last.axis_t1_c[k] = u.axis_coils[k].t1 + an(rng_);
+      u.last.axis_t2_c[k] = u.axis_coils[k].t2 + an(rng_);
+    }
     u.last.noise_dph = gyro_noise(u, p);
     u.last.gyro_dph = drift + u.last.noise_dph;
   }

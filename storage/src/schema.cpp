@@ -312,6 +312,26 @@ CREATE INDEX models_serial_axis ON models (serial, axis, version);
 ALTER TABLE verdicts ADD COLUMN axes_json TEXT CHECK (axes_json IS NULL OR json_valid(axes_json));
 )sql";
 
+// Version 15 (issue 29, three-axis units): a three-axis unit whose axes have their own coil
+// thermistors, y's and z's centre and outer wall per second, degC (t1_c, t2_c are then x's).
+// Nullable columns as version 13's: a row without them (every one-axis unit's, a three-axis
+// unit's whose axes share t1_c, t2_c, every sample recorded before version 15) stores four NULLs
+// in its record header and nothing in its body.
+constexpr const char* kAxisThermistors = R"sql(
+ALTER TABLE samples ADD COLUMN t1_y_c REAL;
+ALTER TABLE samples ADD COLUMN t2_y_c REAL;
+ALTER TABLE samples ADD COLUMN t1_z_c REAL;
+ALTER TABLE samples ADD COLUMN t2_z_c REAL;
+DROP VIEW sample_view;
+CREATE VIEW sample_view AS
+SELECT run_id, unit_index, t_s, wall_time, setpoint_c, chamber_c, gyro_dph, frames, t1_c, t2_c,
+       CASE phase WHEN 0 THEN 'unknown' WHEN 1 THEN 'settle' WHEN 2 THEN 'hold'
+                  WHEN 3 THEN 'heating' WHEN 4 THEN 'cooling' END AS phase,
+       step, flags, since_power_on_s, compensated_dph, rate_in_dps, gyro_y_dph, gyro_z_dph,
+       t1_y_c, t2_y_c, t1_z_c, t2_z_c
+FROM samples;
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "recording tables", kRecording},
     {2, "models and verifications", kModels},
@@ -327,6 +347,7 @@ constexpr Migration kMigrations[] = {
     {12, "commanded table rate", kTableRate},
     {13, "three-axis units", kAxes},
     {14, "per-axis models and verdicts", kAxisModels},
+    {15, "per-axis thermistors", kAxisThermistors},
 };
 
 StoreResult<std::int64_t> query_int(Database& db, const std::string& sql, std::string_view what) {

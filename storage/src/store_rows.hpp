@@ -89,11 +89,12 @@ inline StoreResult<bool> row(Database& db, Query& q, std::string_view what) {
   "id, serial, version, run_id, parent_id, created_at, model_json, method, terms, axis"
 #define FOGBENCH_SAMPLE_COLUMNS                                                              \
   "unit_index, t_s, wall_time, setpoint_c, chamber_c, gyro_dph, frames, t1_c, t2_c, phase, " \
-  "step, flags, since_power_on_s, compensated_dph, rate_in_dps, gyro_y_dph, gyro_z_dph"
+  "step, flags, since_power_on_s, compensated_dph, rate_in_dps, gyro_y_dph, gyro_z_dph, "  \
+  "t1_y_c, t2_y_c, t1_z_c, t2_z_c"
 
 constexpr std::string_view kInsertSample =
     "INSERT INTO samples (run_id, " FOGBENCH_SAMPLE_COLUMNS
-    ") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18)";
+    ") VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20, ?21, ?22)";
 constexpr std::string_view kInsertEvent =
     "INSERT INTO run_events (run_id, t_s, at, kind, detail) VALUES (?1, ?2, ?3, ?4, ?5)";
 constexpr std::string_view kRunExists = "SELECT 1 FROM runs WHERE id = ?1";
@@ -157,6 +158,10 @@ inline SampleRow read_sample(const Query& q) {
   s.rate_in_dps = q.real(14);
   s.gyro_y_dph = q.real(15);
   s.gyro_z_dph = q.real(16);
+  s.t1_y_c = q.real(17);
+  s.t2_y_c = q.real(18);
+  s.t1_z_c = q.real(19);
+  s.t2_z_c = q.real(20);
   return s;
 }
 
@@ -227,7 +232,7 @@ inline StoreResult<std::int64_t> insert_event(Database& db, std::int64_t run_id,
   return sqlite3_last_insert_rowid(db.handle());
 }
 
-// Binds one sample to the insert statement (parameters 2..18; 1 is the run id).
+// Binds one sample to the insert statement (parameters 2..22; 1 is the run id).
 inline void bind_sample(Query& q, const SampleRow& s) {
   q.bind(2, s.unit_index)
       .bind(3, s.t_s)
@@ -245,7 +250,11 @@ inline void bind_sample(Query& q, const SampleRow& s) {
       .bind(15, s.compensated_dph)
       .bind(16, s.rate_in_dps)
       .bind(17, s.gyro_y_dph)
-      .bind(18, s.gyro_z_dph);
+      .bind(18, s.gyro_z_dph)
+      .bind(19, s.t1_y_c)
+      .bind(20, s.t2_y_c)
+      .bind(21, s.t1_z_c)
+      .bind(22, s.t2_z_c);
 }
 
 // The error of a failed sample insert, in the caller's terms when it is a constraint.

@@ -125,13 +125,14 @@ StoreResult<model::RunData> Store::export_run(std::int64_t run_id, int unit_inde
   d.flags.reserve(n);
   bool has_setpoint = false, has_chamber = false, has_phase = false, has_step = false,
        has_flags = false, has_power_on = false, has_compensated = false,
-       has_rate_in = false;
+       has_rate_in = false, has_axis_thermistors = false;
   std::size_t settle_skipped = 0;
   bool in_leading_settle = !options.include_settle;
 
   auto stmt = db.statement(
       "SELECT t_s, gyro_dph, t1_c, t2_c, setpoint_c, chamber_c, phase, step, flags, since_power_on_s, "
-      "compensated_dph, rate_in_dps, gyro_y_dph, gyro_z_dph FROM samples WHERE run_id = ?1 AND unit_index = ?2 "
+      "compensated_dph, rate_in_dps, gyro_y_dph, gyro_z_dph, t1_y_c, t2_y_c, t1_z_c, t2_z_c FROM samples "
+      "WHERE run_id = ?1 AND unit_index = ?2 "
       "ORDER BY t_s");
   if (!stmt) return fail(std::move(stmt));
   Query q(db, *stmt);
@@ -170,6 +171,12 @@ StoreResult<model::RunData> Store::export_run(std::int64_t run_id, int unit_inde
     if (three_axis) {
       d.gyro_y_dph.push_back(q.real(12));
       d.gyro_z_dph.push_back(q.real(13));
+      // y's and z's own thermistors, where recorded (x's are t1_c, t2_c).
+      for (int c = 14; c < 18; ++c) has_axis_thermistors |= !q.is_null(c);
+      d.axis_t1_c[1].push_back(q.real(14));
+      d.axis_t2_c[1].push_back(q.real(15));
+      d.axis_t1_c[2].push_back(q.real(16));
+      d.axis_t2_c[2].push_back(q.real(17));
     }
   }
   if (rc != SQLITE_DONE) return std::unexpected(db.error(rc, "export " + label));
@@ -195,6 +202,15 @@ StoreResult<model::RunData> Store::export_run(std::int64_t run_id, int unit_inde
   drop(has_power_on, d.since_power_on_s);
   drop(has_compensated, d.compensated_dph);
   drop(has_rate_in, d.rate_in_dps);
+  if (has_axis_thermistors) {
+    d.axis_t1_c[0] = d.t1_c;
+    d.axis_t2_c[0] = d.t2_c;
+  } else {
+    for (std::size_t k = 1; k < 3; ++k) {
+      drop(false, d.axis_t1_c[k]);
+      drop(false, d.axis_t2_c[k]);
+    }
+  }
   return d;
 }
 
@@ -234,10 +250,20 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
   if (data.gyro_y_dph.size() != data.gyro_z_dph.size())
     return invalid("gyro_y_dph and gyro_z_dph go together (a three-axis unit's y and z): " +
                    std::to_string(data.gyro_y_dph.size()) + " and " + std::to_string(data.gyro_z_dph.size()) + " values");
-  // The samples table has no per-axis thermistor columns yet: refused rather than dropped.
-  if (data.has_axis_thermistors())
-    return invalid("the run has per-axis thermistors (t1_y_c, t2_y_c, t1_z_c, t2_z_c), which the store does not hold yet: "
-                   "analyse the CSV offline (fogctl fit/diagnose --axis), or import it without those columns");
+  // Per-axis thermistors: a three-axis unit's, all six one per sample (x's the run's t1_c, t2_c).
+  if (data.has_axis_thermistors()) {
+    if (!data.has_axes())
+      return invalid("the run has per-axis thermistors (t1_y_c, t2_y_c, t1_z_c, t2_z_c) but no y and z outputs "
+                     "(gyro_y_dph, gyro_z_dph): per-axis thermistors belong to a three-axis unit");
+    static constexpr const char* kAxisColumns[2][3] = {{"t1_c", "t1_y_c", "t1_z_c"}, {"t2_c", "t2_y_c", "t2_z_c"}};
+    for (std::size_t k = 1; k < 3; ++k)
+      for (std::size_t w = 0; w < 2; ++w) {
+        const auto& col = w == 0 ? data.axis_t1_c[k] : data.axis_t2_c[k];
+        if (col.size() != n)
+          return invalid(std::string(kAxisColumns[w][k]) + " has " + std::to_string(col.size()) + " values but time_s has " +
+                         std::to_string(n));
+      }
+  }
   for (std::size_t i = 0; i < n; ++i)
     if (!std::isfinite(data.time_s[i]))
       return invalid("time_s[" + std::to_string(i) + "] is not finite");
@@ -275,7 +301,7 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
     if (!stmt) return fail(std::move(stmt));
     Query q(db, *stmt);
     // Columns the data lacks stay NULL, so export_run gives back the same columns.
-    q.bind(1, id).bind(2, 0).bind_null(4).bind_null(8);
+    q.bind(1, id).bind(2, 0).bind_null(4).bind_null(8).bind_null(19).bind_null(20).bind_null(21).bind_null(22);
     for (std::size_t i = 0; i < n; ++i) {
       q.bind(3, data.time_s[i]).bind(7, data.gyro_dph[i]).bind(9, data.t1_c[i]).bind(10, data.t2_c[i]);
       if (data.has_setpoint()) q.bind(5, data.setpoint_c[i]);
@@ -287,6 +313,10 @@ StoreResult<std::int64_t> Store::import_run(const model::RunData& data,
       if (data.has_compensated()) q.bind(15, data.compensated_dph[i]);
       if (data.has_rate_in()) q.bind(16, data.rate_in_dps[i]);
       if (data.has_axes()) q.bind(17, data.gyro_y_dph[i]).bind(18, data.gyro_z_dph[i]);
+      if (data.has_axis_thermistors()) {
+        q.bind(19, data.axis_t1_c[1][i]).bind(20, data.axis_t2_c[1][i]);
+        q.bind(21, data.axis_t1_c[2][i]).bind(22, data.axis_t2_c[2][i]);
+      }
       if (int rc = q.step(); rc != SQLITE_DONE)
         return std::unexpected(sample_error(db, rc, id, 0, data.time_s[i], what));
       q.reset();

@@ -86,3 +86,39 @@ TEST_CASE("sample rows: the row records the profile's setpoint and phase, values
   CHECK(m.gyro_dph == -8.0);
   CHECK(m.remaining_s == 100.0);
 }
+
+TEST_CASE("sample rows: a three-axis unit's per-axis thermistors are stored and sent, one not read flags the second") {
+  profiles::ExecutorStatus st;
+  UnitReading u = good_unit();
+  u.extra_axes.resize(2);
+  u.extra_axes[0].rate_dph = 1.0;
+  u.extra_axes[1].rate_dph = 2.0;
+  u.axis_t1_c = {24.0, 23.0};  // y, z
+  u.axis_t2_c = {24.5, 23.5};
+  CHECK(quality_flags(u, good_input(), false) == 0);
+  auto r = sample_row(0, u, good_input(), 10.0, st, false, std::nullopt);
+  CHECK(r.t1_y_c == 24.0);
+  CHECK(r.t2_y_c == 24.5);
+  CHECK(r.t1_z_c == 23.0);
+  CHECK(r.t2_z_c == 23.5);
+  auto m = sample_message(r, 1, "FOG-3AX", storage::RunState::running, st, good_input().chamber_c, 3);
+  CHECK(m.axis_thermistors);
+  CHECK(m.t1_z_c == 23.0);
+
+  u.axis_t2_c[1].reset();  // z's outer wall not read
+  CHECK(quality_flags(u, good_input(), false) == model::flag::missing);
+  r = sample_row(0, u, good_input(), 11.0, st, false, std::nullopt);
+  CHECK(std::isnan(r.t2_z_c));
+  m = sample_message(r, 1, "FOG-3AX", storage::RunState::running, st, good_input().chamber_c, 3);
+  CHECK(m.axis_thermistors);
+  CHECK_FALSE(m.t2_z_c.has_value());
+  u.axis_t2_c[1] = kCoilMaxC + 1.0;
+  CHECK(quality_flags(u, good_input(), false) == model::flag::out_of_range);
+
+  // A unit whose axes share its thermistors: no such columns, no such fields.
+  UnitReading shared = good_unit();
+  shared.extra_axes = u.extra_axes;
+  r = sample_row(0, shared, good_input(), 12.0, st, false, std::nullopt);
+  CHECK(std::isnan(r.t1_y_c));
+  CHECK_FALSE(sample_message(r, 1, "FOG-3AX", storage::RunState::running, st, good_input().chamber_c, 3).axis_thermistors);
+}

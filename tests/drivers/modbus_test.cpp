@@ -317,3 +317,45 @@ TEST_CASE("thermistor module: every unit's T1 and T2 in few requests, errors per
   CHECK(down.error().code == ErrorCode::connection);
   CHECK(down.error().message.starts_with("thermistor module (tcp 127.0.0.1:"));
 }
+
+TEST_CASE("thermistor module: a three-axis unit's thermistors per axis, each sensor read and named by its axis", "[axis_thermistors]") {
+  ModbusTestServer server(0, 0, 0, 32);
+  auto channel = [](int address) {
+    return json{{"function", "input"}, {"address", address}, {"type", "int16"}, {"scale", 0.01},
+                {"kind", "temperature"}, {"open_circuit_raw", 32767}};
+  };
+  const json cfg = {{"serial", "FOG-3AX"},
+                    {"gyro", {{"node_id", 257}, {"axes", 3}, {"scale_dph_per_count", 1e-4}}},
+                    {"thermistors", {{"x", {{"t1", channel(0)}, {"t2", channel(1)}}},
+                                     {"y", {{"t1", channel(2)}, {"t2", channel(3)}}},
+                                     {"z", {{"t1", channel(20)}, {"t2", channel(21)}}}}}};
+  auto unit = parse_unit_config(cfg, "units[0]");
+  REQUIRE(unit.has_value());
+  ThermistorModuleConfig mcfg{local(server.port())};
+  mcfg.modbus.unit_id = 2;
+  ThermistorModule module(mcfg, {*unit});
+  CHECK(module.request_count() == 2);  // input 0..3 (x's and y's) and input 20..21 (z's)
+  server.with_mapping([](modbus_mapping_t& m) {
+    m.tab_input_registers[0] = 2500;   // x T1 25.00 degC
+    m.tab_input_registers[1] = 2510;   // x T2
+    m.tab_input_registers[2] = 2420;   // y T1
+    m.tab_input_registers[3] = 2430;   // y T2
+    m.tab_input_registers[20] = 2310;  // z T1
+    m.tab_input_registers[21] = 32767; // z T2: open circuit
+  });
+  auto r = module.read_all();
+  REQUIRE(r.has_value());
+  REQUIRE(r->size() == 1);
+  const CoilTemperatures& c = (*r)[0];
+  REQUIRE(c.t1_c.has_value());
+  CHECK(*c.t1_c == Approx(25.00));
+  CHECK(*c.t2_c == Approx(25.10));
+  REQUIRE(c.axis_t1_c.size() == 2);
+  REQUIRE(c.axis_t2_c.size() == 2);
+  CHECK(*c.axis_t1_c[0] == Approx(24.20));
+  CHECK(*c.axis_t2_c[0] == Approx(24.30));
+  CHECK(*c.axis_t1_c[1] == Approx(23.10));
+  REQUIRE_FALSE(c.axis_t2_c[1].has_value());
+  CHECK(c.axis_t2_c[1].error().code == ErrorCode::open_circuit);
+  CHECK(c.axis_t2_c[1].error().message.starts_with("unit FOG-3AX T2z: open circuit"));
+}

@@ -278,3 +278,57 @@ TEST_CASE("one-axis units: the bus sample is as before, no extra axes", "[three_
   CHECK(s.frames_foreign == 1);
   fs::remove(empty);
 }
+
+namespace {
+
+// An int16 centi-degC channel at input `address`, as the example's unit 0 has.
+json axis_channel(int address) {
+  return {{"function", "input"}, {"address", address}, {"type", "int16"}, {"scale", 0.01},
+          {"kind", "temperature"}, {"open_circuit_raw", 32767}};
+}
+
+// The example with unit 0 a three-axis unit whose axes have thermistors of their own.
+json per_axis_example() {
+  json j = example();
+  j["units"][0]["gyro"]["node_id"] = 300;
+  j["units"][0]["gyro"]["axes"] = 3;
+  j["units"][0]["thermistors"] = {{"x", {{"t1", axis_channel(0)}, {"t2", axis_channel(1)}}},
+                                  {"y", {{"t1", axis_channel(10)}, {"t2", axis_channel(11)}}},
+                                  {"z", {{"t1", axis_channel(12)}, {"t2", axis_channel(13)}}}};
+  return j;
+}
+
+}  // namespace
+
+TEST_CASE("thermistors per axis in the configuration: x, y and z each a channel per sensor", "[three_axis][axis_thermistors]") {
+  auto cfg = parse_drivers_config(per_axis_example(), map_dir);
+  REQUIRE(cfg.has_value());
+  const UnitConfig& u = cfg->units[0];
+  REQUIRE(u.has_axis_thermistors());
+  // x's are the unit's t1, t2; y's and z's in axis_thermistors.
+  CHECK(u.t1.reg.address == 0);
+  CHECK(u.t2.reg.address == 1);
+  CHECK(u.axis_thermistors[0][0].reg.address == 10);
+  CHECK(u.axis_thermistors[0][1].reg.address == 11);
+  CHECK(u.axis_thermistors[1][0].reg.address == 12);
+  CHECK(u.axis_thermistors[1][1].reg.address == 13);
+  CHECK_FALSE(cfg->units[1].has_axis_thermistors());  // the shared form reads as before
+}
+
+TEST_CASE("thermistors per axis: a missing axis, a mix with t1 and t2, a one-axis gyro, an overlap are named", "[three_axis][axis_thermistors]") {
+  json j = per_axis_example();
+  j["units"][0]["thermistors"].erase("z");
+  CHECK_THAT(error_of(j), Catch::StartsWith("units[0].thermistors.z: missing: a three-axis unit's thermistors per axis name every axis"));
+  j = per_axis_example();
+  j["units"][0]["thermistors"]["y"].erase("t2");
+  CHECK(error_of(j) == "units[0].thermistors.y.t2: missing (expected an object)");
+  j = per_axis_example();
+  j["units"][0]["thermistors"]["t1"] = axis_channel(20);
+  CHECK_THAT(error_of(j), Catch::StartsWith("units[0].thermistors.t1: beside per-axis thermistors (x, y, z)"));
+  j = per_axis_example();
+  j["units"][0]["gyro"]["axes"] = 1;
+  CHECK(error_of(j) == "units[0].thermistors: per-axis thermistors (x, y, z) need a three-axis gyro (gyro.axes 3); this unit's has 1");
+  j = per_axis_example();
+  j["units"][0]["thermistors"]["z"]["t2"] = axis_channel(10);  // on y's T1
+  CHECK(error_of(j) == "units[0].thermistors.z.t2.address: input 10 (int16) overlaps units[0].thermistors.y.t1 (input 10 (int16))");
+}

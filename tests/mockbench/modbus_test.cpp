@@ -257,3 +257,39 @@ TEST_CASE("the gateway mode serves the thermistor module on the chamber's port b
   CHECK(e.error().code == ErrorCode::protocol);
   CHECK(stranger.link().is_connected());
 }
+
+TEST_CASE("fogbench-sim --axis-thermistors: the module serves each axis's coil, y's and z's lagging x's on a ramp", "[three_axis][axis_thermistors]") {
+  MockProcess mock({"--time-scale", "100", "--coil", "lumped", "--units", "2", "--axes", "3", "--axis-thermistors"});
+  CHECK(mock.ready()["units"][0]["axis_thermistors"] == true);
+  // The ready line's drivers configuration names the six channels of each unit.
+  auto cfg = parse_drivers_config(mock.ready()["drivers_config"], FOGBENCH_SOURCE_DIR "/drivers/maps");
+  INFO((cfg ? std::string() : cfg.error().to_string()));
+  REQUIRE(cfg.has_value());
+  ThermistorModule module(cfg->thermistors, cfg->units);
+  auto r = module.read_all();
+  REQUIRE(r.has_value());
+  REQUIRE(r->size() == 2);
+  for (const auto& u : *r) {  // at rest at 20 degC, both encodings (int16, NTC float32): as above
+    INFO(u.serial);
+    REQUIRE(u.axis_t1_c.size() == 2);
+    for (const auto* v : {&u.t1_c, &u.t2_c, &u.axis_t1_c[0], &u.axis_t2_c[0], &u.axis_t1_c[1], &u.axis_t2_c[1]}) {
+      REQUIRE(v->has_value());
+      CHECK(**v == Approx(20.0).margin(0.05));
+    }
+  }
+  // Heating: y's coil (paths 1.6x x's) behind x's, z's (2.4x) behind y's.
+  ModbusChamber chamber(cfg->chamber);
+  REQUIRE(chamber.write_setpoint_c(60.0).has_value());
+  REQUIRE(chamber.set_running(true).has_value());
+  mock.wait_sim_time(mock.sim_time() + 300);
+  auto up = module.read_all();
+  REQUIRE(up.has_value());
+  for (const auto& u : *up) {
+    INFO(u.serial);
+    REQUIRE(u.t1_c.has_value());
+    REQUIRE(u.axis_t1_c[0].has_value());
+    REQUIRE(u.axis_t1_c[1].has_value());
+    CHECK(*u.t1_c > *u.axis_t1_c[0] + 0.3);
+    CHECK(*u.axis_t1_c[0] > *u.axis_t1_c[1] + 0.3);
+  }
+}

@@ -483,3 +483,58 @@ TEST_CASE("the served rate unit's int32 counts carry the served table's largest 
     }
   }
 }
+
+TEST_CASE("mock bench options --axis-thermistors: coils per axis deeper in the housing, six channels a unit, x's own drift", "[three_axis][axis_thermistors]") {
+  fogbench::mock::Options o;
+  o.axes = 3;
+  o.units = 3;
+  o.coil = "lumped";
+  o.axis_thermistors = true;
+  o.axis_effects = {"x=0.3*T1y@20", "z=0.1*T1"};
+  auto cfg = fogbench::mock::make_bench_config(o);
+  INFO((cfg ? std::string() : cfg.error()));
+  REQUIRE(cfg.has_value());
+  for (const auto& u : cfg->sim.units) {
+    REQUIRE(u.axis_coils.has_value());
+    // y's and z's paths from the air 1.6 and 2.4 times x's (fogctl simulate's housing).
+    CHECK((*u.axis_coils)[0].wall_tau_s == Approx(1.6 * u.coil.wall_tau_s));
+    CHECK((*u.axis_coils)[1].wall_tau_s == Approx(2.4 * u.coil.wall_tau_s));
+    CHECK(u.x_effects == "0.3*T1y@20");
+    CHECK(u.axis_effects[1] == "0.1*T1");
+  }
+  // The served drivers configuration names the six channels per unit, on registers of their own
+  // (the drivers' parser refuses overlaps), in both encodings.
+  auto served = fogbench::mock::load_served_map("");
+  REQUIRE(served);
+  const json dj = fogbench::mock::drivers_config(fogbench::mock::Endpoints{}, *served, cfg->units);
+  auto parsed = fogbench::drivers::parse_drivers_config(dj, FOGBENCH_SOURCE_DIR "/drivers/maps");
+  INFO((parsed ? std::string() : parsed.error().to_string()));
+  REQUIRE(parsed);
+  REQUIRE(parsed->units.size() == 3);
+  for (const auto& u : parsed->units) CHECK(u.has_axis_thermistors());
+  CHECK(parsed->units[0].axis_thermistors[0][0].reg.address == 200);
+  CHECK(parsed->units[0].axis_thermistors[1][1].reg.address == 265);
+  CHECK(parsed->units[1].axis_thermistors[0][0].kind == fogbench::drivers::ThermistorKind::ntc);
+  CHECK(parsed->units[1].axis_thermistors[1][0].reg.address == 500);
+  CHECK(parsed->units[2].axis_thermistors[0][1].reg.address == 203);
+  // The words the module serves for a temperature convert back on the axis's channel.
+  auto words = encode_thermistor(cfg->units[1].axis_thermistors[1][1], 31.5);
+  REQUIRE(words);
+  auto back = fogbench::drivers::convert_thermistor(cfg->units[1].axis_thermistors[1][1],
+                                                    std::span<const std::uint16_t>(words->data(), 2), "z T2");
+  REQUIRE(back);
+  CHECK(*back == Approx(31.5).margin(1e-3));
+
+  // Refused: the flag without three axes; x's own drift, or a term of another axis's coil, without it.
+  o.axes = 1;
+  o.axis_effects.clear();
+  cfg = fogbench::mock::make_bench_config(o);
+  REQUIRE_FALSE(cfg.has_value());
+  CHECK(cfg.error() == "--axis-thermistors needs --axes 3 (a one-axis unit has one coil)");
+  o.axes = 3;
+  o.axis_thermistors = false;
+  o.axis_effects = {"x=0.3*T1y"};
+  cfg = fogbench::mock::make_bench_config(o);
+  REQUIRE_FALSE(cfg.has_value());
+  CHECK_THAT(cfg.error(), Catch::Contains("own coil thermistor"));
+}

@@ -207,3 +207,45 @@ TEST_CASE("protocol: a three-axis unit's y and z are fields of its samples only,
   CHECK(mb->gyro_y_dph == -2.0);
   CHECK(mb->gyro_z_dph == 3.0);
 }
+
+TEST_CASE("protocol: a three-axis unit's per-axis thermistors are fields of its samples only, null where not read") {
+  Sample s;
+  s.t_s = 5.0;
+  s.three_axis = true;
+  s.gyro_y_dph = 1.0;
+  s.gyro_z_dph = 2.0;
+  CHECK_FALSE(to_json(s).contains("t1_y_c"));  // axes sharing the unit's thermistors: as before
+  CHECK_FALSE(sample_from_json(to_json(s))->axis_thermistors);
+  s.axis_thermistors = true;
+  s.t1_y_c = 24.5;
+  s.t2_y_c = 24.75;
+  s.t1_z_c = 23.5;  // z's outer wall not read this second
+  const json j = to_json(s);
+  CHECK(j["t1_y_c"] == 24.5);
+  CHECK(j["t2_z_c"].is_null());
+  auto back = sample_from_json(json::parse(j.dump()));
+  REQUIRE(back.has_value());
+  CHECK(back->axis_thermistors);
+  CHECK(back->t2_y_c == 24.75);
+  CHECK(back->t1_z_c == 23.5);
+  CHECK_FALSE(back->t2_z_c.has_value());
+  json bad = j;
+  bad["t1_z_c"] = "warm";
+  auto refused = sample_from_json(bad);
+  REQUIRE_FALSE(refused.has_value());
+  CHECK(refused.error().find("t1_z_c") != std::string::npos);
+
+  SampleMessage m;
+  m.state = "running";
+  m.phase = "hold";
+  m.serial = "FOG-0001";
+  m.three_axis = true;
+  CHECK_FALSE(to_json(m).contains("t1_y_c"));
+  m.axis_thermistors = true;
+  m.t1_y_c = 30.0;
+  auto mb = sample_message_from_json(json::parse(to_json(m).dump()));
+  REQUIRE(mb.has_value());
+  CHECK(mb->axis_thermistors);
+  CHECK(mb->t1_y_c == 30.0);
+  CHECK_FALSE(mb->t2_y_c.has_value());
+}

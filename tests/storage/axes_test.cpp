@@ -70,8 +70,12 @@ TEST_CASE("store axes: a version 12 file upgrades with its runs one-axis and the
     REQUIRE(store.append_samples(id, std::vector<SampleRow>{sample(0, 0), sample(0, 1)}).has_value());
   }
   {
-    // Back to what version 12 had: no axes columns (nor version 14's per-axis models).
+    // Back to what version 12 had: no axes columns (nor version 14's per-axis models, nor
+    // version 15's per-axis thermistors).
     Raw raw(path);
+    raw.exec("DROP VIEW sample_view");
+    for (const char* c : {"t1_y_c", "t2_y_c", "t1_z_c", "t2_z_c"}) raw.exec(std::string("ALTER TABLE samples DROP COLUMN ") + c);
+    raw.exec("CREATE VIEW sample_view AS SELECT * FROM samples");
     raw.exec("DROP INDEX models_serial_axis");
     raw.exec("ALTER TABLE models DROP COLUMN axis");
     raw.exec("ALTER TABLE verdicts DROP COLUMN axes_json");
@@ -141,16 +145,106 @@ TEST_CASE("store axes: a three-axis unit exports gyro_y_dph and gyro_z_dph, a on
   REQUIRE(x2.has_value());
   CHECK(to_csv(*x2) == text);
 
-  // With per-axis thermistors, which the samples table has no columns for: refused, named, and
-  // nothing stored (not imported without them).
-  model::RunData cross = *back;
-  cross.axis_t1_c = {cross.t1_c, cross.t1_c, cross.t1_c};
-  cross.axis_t2_c = {cross.t2_c, cross.t2_c, cross.t2_c};
+}
+
+TEST_CASE("store axes: per-axis thermistors stored per second, exported as their CSV columns, imported back", "[store][axes][cross_axis]") {
+  TempDir tmp;
+  auto store = open_ok(tmp / "a.db");
+  NewRun r = two_unit_run();
+  r.unit_axes = {3, 1};
+  const auto id = store.create_run(r).value();
+  std::vector<SampleRow> rows;
+  for (int t = 0; t < 4; ++t) {
+    SampleRow a = sample(0, t);
+    a.gyro_y_dph = 100.0 + t;
+    a.gyro_z_dph = 200.0 + t;
+    a.t1_y_c = 31.0 + t;
+    a.t2_y_c = 32.0 + t;
+    a.t1_z_c = 33.0 + t;
+    a.t2_z_c = t == 2 ? kNoValue : 34.0 + t;  // z's outer wall not read that second
+    if (t == 2) a.flags = model::flag::missing;
+    rows.push_back(a);
+    rows.push_back(sample(1, t));
+  }
+  REQUIRE(store.append_samples(id, rows).has_value());
+  auto got = store.get_samples(id, 0, 0, 10);
+  REQUIRE(got->size() == 4);
+  CHECK(got->at(1).t1_y_c == 32.0);
+  CHECK(got->at(1).t2_z_c == 35.0);
+  CHECK(std::isnan(got->at(2).t2_z_c));
+  CHECK(std::isnan(store.get_samples(id, 1, 0, 10)->at(0).t1_y_c));  // the one-axis unit: NULL
+  Raw raw(tmp / "a.db");
+  CHECK(raw.integer("SELECT count(*) FROM sample_view WHERE t1_y_c IS NOT NULL") == 4);
+  CHECK(raw.integer("SELECT count(*) FROM samples WHERE unit_index = 1 AND t1_y_c IS NULL AND t2_z_c IS NULL") == 4);
+
+  // Exported: the four columns, x's being t1_c, t2_c; the one-axis unit without them.
+  auto x = store.export_run(id, 0);
+  REQUIRE(x.has_value());
+  REQUIRE(x->has_axis_thermistors());
+  CHECK(x->axis_t1_c[0] == x->t1_c);
+  CHECK(x->axis_t1_c[1] == std::vector<double>{31.0, 32.0, 33.0, 34.0});
+  const std::string text = to_csv(*x);
+  CHECK_THAT(text, Contains("gyro_y_dph,gyro_z_dph,t1_y_c,t2_y_c,t1_z_c,t2_z_c\n"));
+  CHECK_FALSE(store.export_run(id, 1)->has_axis_thermistors());
+  CHECK(to_csv(*store.export_run(id, 1)).find("t1_y_c") == std::string::npos);
+
+  // Imported again (the refusal of earlier versions gone): the same file comes back.
+  CsvOptions o;
+  o.source_name = "x.csv";
+  auto back = parse_csv(text, o);
+  REQUIRE(back.has_value());
+  REQUIRE(back->has_axis_thermistors());
+  ImportOptions io;
+  io.serial = "FOG-001";
+  auto again = store.import_run(*back, io);
+  INFO((again ? std::string() : again.error().message));
+  REQUIRE(again.has_value());
+  auto x2 = store.export_run(*again, 0);
+  REQUIRE(x2.has_value());
+  CHECK(to_csv(*x2) == text);
+
+  // Per-axis thermistors without y and z outputs, or a short column: refused, named, nothing stored.
   const auto runs_before = store.list_runs();
-  auto refused = store.import_run(cross, io);
+  model::RunData no_axes = *back;
+  no_axes.gyro_y_dph.clear();
+  no_axes.gyro_z_dph.clear();
+  auto refused = store.import_run(no_axes, io);
   REQUIRE_FALSE(refused.has_value());
-  CHECK_THAT(refused.error().message, Contains("per-axis thermistors") && Contains("t1_y_c"));
+  CHECK_THAT(refused.error().message, Contains("per-axis thermistors") && Contains("gyro_y_dph"));
+  model::RunData short_z = *back;
+  short_z.axis_t2_c[2].pop_back();
+  refused = store.import_run(short_z, io);
+  REQUIRE_FALSE(refused.has_value());
+  CHECK_THAT(refused.error().message, Contains("t2_z_c has 3 values but time_s has 4"));
   CHECK(store.list_runs()->size() == runs_before->size());
+}
+
+TEST_CASE("store axes: a version 14 file upgrades to per-axis thermistors with its rows unchanged", "[store][axes][schema]") {
+  TempDir tmp;
+  const auto path = tmp / "old.db";
+  std::int64_t id = 0;
+  {
+    auto store = open_ok(path);
+    id = three_axis_run(store);
+  }
+  {
+    Raw raw(path);
+    raw.exec("DROP VIEW sample_view");
+    for (const char* c : {"t1_y_c", "t2_y_c", "t1_z_c", "t2_z_c"}) raw.exec(std::string("ALTER TABLE samples DROP COLUMN ") + c);
+    raw.exec("CREATE VIEW sample_view AS SELECT * FROM samples");
+    raw.exec("PRAGMA user_version = 14");
+  }
+  auto store = open_ok(path);
+  {
+    Raw raw(path);
+    CHECK(raw.integer("PRAGMA user_version") == Store::current_schema_version());
+    CHECK(raw.integer("SELECT count(*) FROM sample_view WHERE t1_y_c IS NULL") == 8);
+  }
+  auto x = store.export_run(id, 0);
+  REQUIRE(x.has_value());
+  CHECK(x->has_axes());
+  CHECK_FALSE(x->has_axis_thermistors());  // recorded before: the axes shared t1_c, t2_c
+  CHECK(x->gyro_y_dph[1] == 101.0);
 }
 
 TEST_CASE("csv axes: gyro_y_dph without gyro_z_dph is refused, naming the missing column", "[csv][axes]") {

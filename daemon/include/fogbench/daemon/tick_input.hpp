@@ -30,8 +30,12 @@ struct UnitReading {
   // Averaged frames whose counts were at the int32 limit (drivers::GyroSample::frames_saturated):
   // the rate beyond what the unit's scale carries, so gyro_dph is clipped.
   std::uint32_t frames_saturated = 0;
-  std::optional<double> t1_c;
+  std::optional<double> t1_c;  // with thermistors per axis: x's
   std::optional<double> t2_c;
+  // A three-axis unit whose axes have their own coil thermistors (drivers::UnitConfig::
+  // axis_thermistors): y's and z's centre and outer wall, [0] y and [1] z, each empty where the
+  // sensor could not be read; both vectors empty for a unit whose axes share t1_c, t2_c.
+  std::vector<std::optional<double>> axis_t1_c, axis_t2_c;
   bool out_of_range = false;  // a sensor or the gyro reported a value outside its range
   // A three-axis unit's axes 1 and 2 (y, z) when the bus was read; empty for a one-axis unit
   // (gyro_dph and the frame counts above are axis 0's, x).

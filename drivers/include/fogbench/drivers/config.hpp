@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <optional>
+#include <array>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -87,8 +88,14 @@ struct UnitConfig {
   std::string slot;    // the position's name: "A", "B", ... by index unless configured
   std::string serial;  // the default serial, or 
   GyroChannelConfig gyro;
-  ThermistorChannelConfig t1;  // coil centre
-  ThermistorChannelConfig t2;  // coil outer wall
+  ThermistorChannelConfig t1;  // coil centre (a three-axis unit with thermistors per axis: x's)
+  ThermistorChannelConfig t2;  // coil outer wall (idem)
+  // A three-axis unit whose axes have their own coil thermistors (configuration
+  // "thermistors": {"x": {"t1", "t2"}, "y": {...}, "z": {...}}): y's and z's centre and outer
+  // wall, [0] y and [1] z, each {t1, t2}; t1 and t2 above are x's. Empty when the axes share t1
+  // and t2 (configuration "thermistors": {"t1", "t2"}).
+  std::vector<std::array<ThermistorChannelConfig, 2>> axis_thermistors;
+  bool has_axis_thermistors() const noexcept { return !axis_thermistors.empty(); }
 };
 
 // A unit's gyro on a serial line of its own (a unit's "gyro_line"), beside the bus the others

@@ -17,8 +17,11 @@ namespace fogbench::drivers {
 // error value naming the unit and the sensor, never a number.
 struct CoilTemperatures {
   std::string serial;
-  Result<double> t1_c;  // coil centre
-  Result<double> t2_c;  // coil outer wall
+  Result<double> t1_c;  // coil centre (a unit with thermistors per axis: x's)
+  Result<double> t2_c;  // coil outer wall (idem)
+  // A three-axis unit with thermistors per axis (UnitConfig::axis_thermistors): y's and z's coil
+  // centre and outer wall, [0] y and [1] z; empty when its axes share t1_c, t2_c.
+  std::vector<Result<double>> axis_t1_c = {}, axis_t2_c = {};
 };
 
 // What the daemon needs of the coil thermistors: every unit's two sensors, in unit order. An
@@ -37,7 +40,7 @@ class ThermistorModule final : public ThermistorSource {
   ThermistorModule(ThermistorModuleConfig config, std::vector<UnitConfig> units,
                    ModbusLink::Clock clock = {});
 
-  // Reads every unit's two sensors, in unit order. Contiguous registers go in one request. A
+  // Reads every unit's two sensors (six with thermistors per axis), in unit order. Contiguous registers go in one request. A
   // link failure (timeout, connection) fails the whole call; a request the module refuses fails
   // only the sensors it covers.
   Result<std::vector<CoilTemperatures>> read_all() override;
@@ -49,7 +52,8 @@ class ThermistorModule final : public ThermistorSource {
  private:
   struct Sensor {
     std::size_t unit = 0;
-    int which = 1;  // 1 or 2
+    int which = 1;         // 1 or 2
+    std::size_t axis = 0;  // 0: the unit's t1, t2 (x's); 1 y, 2 z: UnitConfig::axis_thermistors
     std::size_t block = 0;
     std::size_t offset = 0;  // of its first word in the block
   };
@@ -58,6 +62,7 @@ class ThermistorModule final : public ThermistorSource {
     std::uint16_t address = 0;
     std::uint16_t count = 0;
   };
+  const ThermistorChannelConfig& channel(const Sensor& s) const;
 
   ThermistorModuleConfig config_;
   std::vector<UnitConfig> units_;

@@ -87,6 +87,11 @@ struct Sample {
   // null where the axis sent nothing usable that second; a one-axis unit's have no such fields.
   bool three_axis = false;
   std::optional<double> gyro_y_dph, gyro_z_dph;
+  // A three-axis unit whose axes have their own coil thermistors: y's and z's centre and outer
+  // wall, degC (t1_c, t2_c are x's). On the wire only for such a unit (axis_thermistors; read
+  // back from the presence of t1_y_c), each a number or null where the sensor was not read.
+  bool axis_thermistors = false;
+  std::optional<double> t1_y_c, t2_y_c, t1_z_c, t2_z_c;
 };
 nlohmann::json to_json(const Sample& s);
 // A row of run.samples as received; the error names the field.
@@ -120,6 +125,11 @@ struct SampleMessage {
   // null where the axis sent nothing usable that second; a one-axis unit's have no such fields.
   bool three_axis = false;
   std::optional<double> gyro_y_dph, gyro_z_dph;
+  // A three-axis unit whose axes have their own coil thermistors: y's and z's centre and outer
+  // wall, degC (t1_c, t2_c are x's). On the wire only for such a unit (axis_thermistors; read
+  // back from the presence of t1_y_c), each a number or null where the sensor was not read.
+  bool axis_thermistors = false;
+  std::optional<double> t1_y_c, t2_y_c, t1_z_c, t2_z_c;
 };
 nlohmann::json to_json(const SampleMessage& s);
 std::expected<SampleMessage, std::string> sample_message_from_json(const nlohmann::json& j);

@@ -83,7 +83,20 @@ struct UnitParams {
   // language with fixed lags (empty: none). World::axis_drift_dph gives it each second (the
   // mock bench adds it to those axes' frames); the unit's own gyro_dph (axis 0, x) never has it.
   std::array<std::string, 2> axis_effects;
+  // A three-axis unit whose axes have coils (and thermistors) of their own: y's and z's coils
+  // (coil above is x's), stepped in the same air (World only: simulate() records the unit's
+  // one coil; fogctl simulate gives each axis a unit of its own). Each axis's drift then reads
+  // its own coil, and a term of T1x..T2z (a cross-axis term) reads the named axis's.
+  std::optional<std::array<CoilParams, 2>> axis_coils;
+  // Axis 0's (x's) own drift beyond the unit's, which y and z do not share (term language,
+  // fixed lags); with axis_coils it may read another axis's coil, e.g. "0.3*T1y".
+  std::string x_effects;
 };
+
+// A coil deeper in a three-axis housing than x's (axis 1 y, 2 z): its paths from the air slower
+// by 1.6 (y) and 2.4 (z): the lumped wall's, the distributed coil's film and mount. What
+// fogctl simulate --axis-thermistors and fogbench-sim --axis-thermistors give y and z.
+CoilParams deeper_in_housing(CoilParams c, std::size_t axis);
 
 struct SimConfig {
   ChamberParams chamber;
@@ -110,13 +123,25 @@ std::expected<DriftLaw, std::string> make_drift_law(const UnitParams& u);
 // The `--axis-effect AXIS=TERMS` options of fogctl simulate and fogbench-sim, one rule for both:
 // each axis's own extra drift (x, y, z; several for one axis are summed with " + "), each checked
 // as the simulator will read it (make_drift_law: fixed lags, no ton). A term of another axis's
-// coil thermistor (T1x..T2z, a cross-axis term) only where cross_axis (fogctl simulate
-// --axis-thermistors adds it to the axis after the run; the world's axes share their unit's
-// thermistors). An error names the option as given and what is wrong with it.
-std::expected<std::array<std::string, 3>, std::string> parse_axis_effects(std::span<const std::string> options, bool cross_axis = false);
-// The deterministic drift (deg/h) at every sample of true temperatures (degC).
+// coil thermistor (T1x..T2z, a cross-axis term) only where cross_axis (the simulation gives each
+// axis its own thermistors: fogctl simulate --axis-thermistors). An error names the option as
+// given and what is wrong with it.
+struct AxisEffects {
+  std::array<std::string, 3> text;                // x, y, z (model::Axis order): the terms as given
+  std::array<std::vector<model::Term>, 3> terms;  // the same parsed: coefficient (deg/h per unit) and fixed lag each
+};
+std::expected<AxisEffects, std::string> parse_axis_effects(std::span<const std::string> options, bool cross_axis = false);
+// A three-axis unit's per-axis coil thermistors, degC, one per sample each (x, y, z): what the
+// cross-axis signals T1x..T2z read. Empty: the axes share the unit's thermistors, and a term of
+// T1x..T2z is an error naming it.
+struct AxisCoilTemps {
+  std::array<std::span<const double>, 3> t1_c, t2_c;
+};
+// The deterministic drift (deg/h) at every sample of the temperatures given (degC), each term
+// evaluated by the model's own evaluate() and shifted by its lag (s, at 1 s per sample).
 std::expected<std::vector<double>, std::string> drift_series(const DriftLaw& law, std::span<const double> t1_c,
-                                                             std::span<const double> t2_c, std::span<const double> ta_c);
+                                                             std::span<const double> t2_c, std::span<const double> ta_c,
+                                                             const AxisCoilTemps& axes = {});
 
 // The world stepped one second at a time: what the mock bench serves.
 class World {
@@ -132,7 +157,8 @@ class World {
   void set_streaming_drift(bool on) { streaming_drift_ = on; }
 
   struct UnitSample {
-    double t1_c, t2_c;   // measured thermistors, degC (with noise)
+    double t1_c, t2_c;   // measured thermistors, degC (with noise); x's with axis coils
+    std::array<double, 2> axis_t1_c{}, axis_t2_c{};  // y's, z's measured thermistors, degC (axis coils only)
     double gyro_dph;     // the gyro's mean output over the last second, deg/h
     double noise_dph;    // the part of gyro_dph that is AR noise and outliers, deg/h
   };
@@ -149,9 +175,14 @@ class World {
   // second just stepped, deg/h without mu0 (0 for a lumped coil).
   const CoilField* field(std::size_t u) const { return units_[u].field ? &*units_[u].field : nullptr; }
   double field_drift_dph(std::size_t u) const { return units_[u].field_drift; }
-  // Axis k's (1 y, 2 z) own drift over the second just stepped, deg/h: UnitParams::axis_effects
-  // on the trailing window, as the unit's drift is (0 when it has none, or streaming is off).
-  double axis_drift_dph(std::size_t u, std::size_t k) const { return units_[u].axis_drift[k - 1]; }
+  // Over the second just stepped, deg/h, on the trailing window as the unit's drift is (0 when
+  // there is none, or streaming is off): for axis 0 (x) its own drift (UnitParams::x_effects),
+  // already in sample().gyro_dph; for axis k (1 y, 2 z) what its output differs from the
+  // unit's drift without x's own: UnitParams::axis_effects and, with axis coils, the unit's
+  // drift read on the axis's own coil less that read on x's.
+  double axis_drift_dph(std::size_t u, std::size_t k) const { return units_[u].axis_drift[k]; }
+  bool has_axis_coils(std::size_t u) const { return !units_[u].axis_coils.empty(); }
+  double true_axis_t1_c(std::size_t u, std::size_t k) const { return k == 0 ? units_[u].t1 : units_[u].axis_coils[k - 1].t1; }
 
  private:
   struct UnitState {
@@ -164,9 +195,17 @@ class World {
     std::vector<double> flicker;      // the flicker's Markov processes, deg/h (empty: none)
     double walk = 0.0;                // the rate random walk, deg/h
     UnitSample last{};
-    std::array<std::optional<DriftLaw>, 2> axis_law;  // axes 1, 2: their own drift (none: empty)
-    std::array<double, 2> axis_drift{};               // deg/h, of the last second
+    std::array<std::optional<DriftLaw>, 3> axis_law;  // x's, y's, z's own drift (none: empty)
+    std::array<double, 3> axis_drift{};               // deg/h, of the last second (axis_drift_dph)
+    struct AxisCoil {
+      double t1 = 20.0, t2 = 20.0;    // true, degC
+      std::optional<CoilField> field;
+      double field_drift = 0.0;
+      std::vector<double> h1, h2;     // as the unit's h1, h2
+    };
+    std::vector<AxisCoil> axis_coils;  // y, z (empty: the axes share the unit's coil)
   };
+  AxisCoilTemps axis_history(const UnitState& u) const;
   World() = default;
   double gyro_noise(UnitState& u, const UnitParams& p);
 

@@ -43,6 +43,13 @@ struct SampleRow {
   // one-axis unit, and for an axis that sent nothing usable that second (flag missing).
   double gyro_y_dph = kNoValue;
   double gyro_z_dph = kNoValue;
+  // A three-axis unit whose axes have their own coil thermistors: y's and z's centre and outer
+  // wall, degC (t1_c, t2_c are then x's); kNoValue otherwise, and for a sensor not read that
+  // second (flag missing).
+  double t1_y_c = kNoValue;
+  double t2_y_c = kNoValue;
+  double t1_z_c = kNoValue;
+  double t2_z_c = kNoValue;
 };
 
 struct ExportOptions {
