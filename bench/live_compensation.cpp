@@ -18,6 +18,7 @@
 #include "fogbench/daemon/station.hpp"
 #include "fogbench/model/json.hpp"
 #include "fogbench/storage/models.hpp"
+#include "fogbench/storage/store.hpp"
 
 #include <spdlog/spdlog.h>
 

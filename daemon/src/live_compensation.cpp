@@ -8,6 +8,7 @@
 #include "fogbench/model/json.hpp"
 #include "fogbench/model/run.hpp"
 #include "fogbench/storage/models.hpp"
+#include "fogbench/storage/store.hpp"
 
 namespace fogbench::daemon {
 

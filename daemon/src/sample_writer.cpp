@@ -8,6 +8,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include "fogbench/storage/store.hpp"
+
 namespace fogbench::daemon {
 
 namespace {
@@ -103,7 +105,8 @@ storage::StoreResult<std::unique_ptr<ThreadedSampleWriter>> ThreadedSampleWriter
   return std::unique_ptr<ThreadedSampleWriter>(new ThreadedSampleWriter(std::move(*store)));
 }
 
-ThreadedSampleWriter::ThreadedSampleWriter(storage::Store store) : store_(std::move(store)) {
+ThreadedSampleWriter::ThreadedSampleWriter(storage::Store store)
+    : store_(std::make_unique<storage::Store>(std::move(store))) {
   thread_ = std::thread([this] { run(); });
 }
 
@@ -232,7 +235,7 @@ void ThreadedSampleWriter::run() {
       const bool more = to_s < gap.to_s;
       lock.unlock();
       const auto began = std::chrono::steady_clock::now();
-      auto ok = store_.append_samples(run_id, rows);
+      auto ok = store_->append_samples(run_id, rows);
       const auto took = std::chrono::steady_clock::now() - began;
       lock.lock();
       if (!ok) refuse(run_id, rows, ok.error());
@@ -266,7 +269,7 @@ void ThreadedSampleWriter::run() {
       record_failure(run_id, rows, *first);
     } else {
       lock.unlock();
-      auto ok = store_.append_samples(run_id, rows);
+      auto ok = store_->append_samples(run_id, rows);
       lock.lock();
       if (!ok) refuse(run_id, rows, ok.error());
     }

@@ -10,6 +10,7 @@
 #include "fogbench/daemon/sample_rows.hpp"
 #include "fogbench/storage/models.hpp"
 #include "fogbench/storage/run_data.hpp"
+#include "fogbench/storage/store.hpp"
 
 #include <algorithm>
 #include <cassert>

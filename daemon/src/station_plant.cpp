@@ -8,6 +8,7 @@
 #include "fogbench/daemon/station.hpp"
 #include "fogbench/plant/plant.hpp"
 #include "fogbench/storage/outbox.hpp"
+#include "fogbench/storage/store.hpp"
 
 namespace fogbench::daemon {
 

@@ -5,6 +5,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include "fogbench/storage/store.hpp"
+
 namespace fogbench::daemon {
 
 namespace {
@@ -17,6 +19,12 @@ std::string what_of(const WriteJournal::Write& w) {
                   : std::string(storage::to_string(w.kind)) + " event");
 }
 }  // namespace
+
+WriteJournal::NoBusyWait::NoBusyWait(storage::Store& store) : store_(store), wait_ms_(store.busy_timeout_ms()) {
+  store_.set_busy_timeout_ms(0);
+}
+
+WriteJournal::NoBusyWait::~NoBusyWait() { store_.set_busy_timeout_ms(wait_ms_); }
 
 bool WriteJournal::may_pass(storage::StoreErrc c) {
   using storage::StoreErrc;

@@ -281,7 +281,7 @@ TEST_CASE("e2e listener limits: connections that send nothing are closed after s
 TEST_CASE("e2e listener limits: network clients asking for diagnoses do not hold up a finished run's fit") {
   require_sim();
   const auto port = free_port();
-  LiveBench bench(100.0, {{"socket", {{"tcp", {{"port", port}, {"token", kToken}}}, {"max_analyses_per_address", 4}}}});
+  LiveBench bench(100.0, {{"socket", {{"tcp", {{"port", port}, {"token", kToken}}}, {"max_analyses_per_address", 4}}}}, true);
   LineClient c(bench.socket());
   REQUIRE(c.ok());
   const auto first = bench.start_run(c, "short", {"SIM-0001"});

@@ -18,7 +18,7 @@ using namespace fogbench::daemon::test::live;
 
 TEST_CASE("e2e: an accelerated exp1 fit run is stored and fitted, an exp2 verify run passes") {
   require_sim();
-  LiveBench bench(100.0);
+  LiveBench bench(100.0, json::object(), true);
   INFO("test dir " << bench.dir);
   LineClient c(bench.socket());
   REQUIRE(c.ok());

@@ -30,7 +30,7 @@ int analysis_notes(const fogbench::storage::RunDetail& d, int unit) {
 
 TEST_CASE("plan e2e: SIGKILL between a fit run's end and its analysis, the restarted daemon analyses it and the plan completes") {
   require_sim();
-  LiveBench bench(100.0);
+  LiveBench bench(100.0, json::object(), true);
   INFO("test dir " << bench.dir);
   std::ofstream(bench.dir / "profiles" / "pfit.profile")
       << "setpoint 20 C\nhold 10 min\nramp to 30 C at 1 C/min\nhold 15 min\nramp to 20 C at 1 C/min\nhold 15 min\n";

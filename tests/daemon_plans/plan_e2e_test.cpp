@@ -57,7 +57,7 @@ TEST_CASE("plan e2e: three steps for two units, the unit with a hidden effect fa
   // SIM-0002 has a static sensitivity the paper's model lacks (0.8 deg/h per degC of T1): its
   // verification misses the 20% rule. SIM-0001 is the model's exact truth.
   json sim = {{"units", {{{"serial", "SIM-0001"}}, {{"serial", "SIM-0002"}, {"effects", "0.8*T1"}}}}};
-  LiveBench bench(100.0, json::object(), false, sim);
+  LiveBench bench(100.0, json::object(), true, sim);
   INFO("test dir " << bench.dir);
   write_profiles(bench);
   LineClient c(bench.socket());
@@ -130,7 +130,7 @@ TEST_CASE("plan e2e: three steps for two units, the unit with a hidden effect fa
 
 TEST_CASE("plan e2e: SIGKILL in the middle of the second step, the restarted daemon resumes the step and the plan completes") {
   require_sim();
-  LiveBench bench(100.0);
+  LiveBench bench(100.0, json::object(), true);
   INFO("test dir " << bench.dir);
   write_profiles(bench);
   std::int64_t plan_id = 0, step2_run = 0;
@@ -180,7 +180,7 @@ TEST_CASE("plan e2e: SIGKILL in the middle of the second step, the restarted dae
 
 TEST_CASE("plan e2e: a queue of two plans runs back to back, every change audited, edits of the running plan refused") {
   require_sim();
-  LiveBench bench(100.0);
+  LiveBench bench(100.0, json::object(), true);
   INFO("test dir " << bench.dir);
   write_profiles(bench);
   LineClient c(bench.socket());
@@ -305,7 +305,7 @@ TEST_CASE("plan e2e: bad plans are refused naming the line or field, and nothing
 TEST_CASE("plan e2e: a retest-limit runs the step once more for the failing unit only, a second failure drops it") {
   require_sim();
   json sim = {{"units", {{{"serial", "SIM-0001"}}, {{"serial", "SIM-0002"}, {"effects", "0.8*T1"}}}}};
-  LiveBench bench(100.0, json::object(), false, sim);
+  LiveBench bench(100.0, json::object(), true, sim);
   INFO("test dir " << bench.dir);
   write_profiles(bench);
   LineClient c(bench.socket());

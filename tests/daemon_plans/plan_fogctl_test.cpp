@@ -42,7 +42,7 @@ Out fogctl(const LiveBench& bench, const std::string& args) {
 TEST_CASE("plan fogctl: validate names the bad line, start --wait follows to the verdict, report writes one page") {
   require_sim();
   require_fogctl();
-  LiveBench bench(100.0);
+  LiveBench bench(100.0, json::object(), true);
   INFO("test dir " << bench.dir);
   std::ofstream(bench.dir / "profiles" / "pshort.profile") << "setpoint 20 C\nhold 3 min\n";
   std::ofstream(bench.dir / "bad.plan") << "plan bad\nstep pshort soak\nlimit arw < 1 deg/h\n";

@@ -81,7 +81,7 @@ const char* kFitVerify = "plan traced\nstep pfit fit\nstep pver verify\n";
 TEST_CASE("plan trace: plan start --operator --lot gives every run the operator and every unit its lot, and the certificate names both") {
   require_sim();
   require_fogctl();
-  LiveBench bench(100.0);
+  LiveBench bench(100.0, json::object(), true);
   INFO("test dir " << bench.dir);
   // A fit run of 40 min and a verify run of 25 min (at K = 100: under a minute together).
   std::ofstream(bench.dir / "profiles" / "pfit.profile")
@@ -172,7 +172,7 @@ TEST_CASE("plan trace: plan start --operator --lot gives every run the operator 
 
 TEST_CASE("plan trace: a queued plan keeps its operator and lot when it starts, the operator defaults to the peer's user") {
   require_sim();
-  LiveBench bench(100.0);
+  LiveBench bench(100.0, json::object(), true);
   INFO("test dir " << bench.dir);
   std::ofstream(bench.dir / "profiles" / "pshort.profile") << "setpoint 20 C\nhold 3 min\n";
   std::ofstream(bench.dir / "profiles" / "plong.profile") << "setpoint 20 C\nhold 300 min\n";

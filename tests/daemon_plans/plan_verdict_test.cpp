@@ -26,7 +26,7 @@ const char* kStrict =
 TEST_CASE("plan verdict e2e: a plan's stricter limit fails the unit, and the certificate, run get and plan status all say fail by the plan") {
   require_sim();
   json sim = {{"units", {{{"serial", "SIM-0001"}}, {{"serial", "SIM-0002"}}}}};
-  LiveBench bench(100.0, json::object(), false, sim);
+  LiveBench bench(100.0, json::object(), true, sim);
   INFO("test dir " << bench.dir);
   std::ofstream(bench.dir / "profiles" / "vfit.profile")
       << "setpoint 20 C\nhold 10 min\nramp to 30 C at 1 C/min\nhold 15 min\nramp to 20 C at 1 C/min\nhold 15 min\n";

@@ -44,7 +44,7 @@ Out fogctl(const LiveBench& bench, const std::string& args, const std::string& t
 TEST_CASE("e2e fogctl: a run followed into files, as NDJSON with --raw, its events as a table, --unit by serial") {
   require_sim();
   require_fogctl();
-  LiveBench bench(60.0);
+  LiveBench bench(60.0, json::object(), true);
   auto start = fogctl(bench, "run start --profile short --unit SIM-0001 --unit SIM-0002 --json");
   INFO(start.err);
   REQUIRE(start.code == 0);

@@ -28,7 +28,10 @@
 #include "fogbench/model/firmware.hpp"
 #include "fogbench/storage/runs.hpp"
 #include "fogbench/storage/samples.hpp"
-#include "fogbench/storage/store.hpp"
+
+namespace fogbench::storage {
+class Store;  // store.hpp: load() reads it, in live_compensation.cpp
+}
 
 namespace fogbench::daemon {
 

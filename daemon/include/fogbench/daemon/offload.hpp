@@ -15,7 +15,9 @@
 #include <string>
 #include <string_view>
 
-#include "fogbench/storage/store.hpp"
+namespace fogbench::storage {
+class Store;  // store.hpp: a job is handed a connection by reference
+}
 
 namespace fogbench::daemon {
 

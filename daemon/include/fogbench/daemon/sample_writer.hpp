@@ -31,7 +31,11 @@
 
 #include "fogbench/storage/errors.hpp"
 #include "fogbench/storage/samples.hpp"
-#include "fogbench/storage/store.hpp"
+
+namespace fogbench::storage {
+class Store;  // store.hpp: the writers use it in sample_writer.cpp only
+struct OpenOptions;
+}  // namespace fogbench::storage
 
 namespace fogbench::daemon {
 
@@ -156,7 +160,7 @@ class ThreadedSampleWriter final : public SampleWriter {
   // A refusal by the store: the run is refused from now on (RefusedRuns), and the rows recorded.
   void refuse(std::int64_t run_id, const std::vector<storage::SampleRow>& rows, const storage::StoreError& e);
 
-  storage::Store store_;
+  std::unique_ptr<storage::Store> store_;  // the thread's own connection (a pointer: see the includes)
   mutable std::mutex mutex_;
   std::condition_variable work_;      // a batch queued, stop asked, hold released
   std::condition_variable progress_;  // a batch committed or refused

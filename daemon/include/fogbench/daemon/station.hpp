@@ -42,8 +42,11 @@
 #include "fogbench/protocol/protocol.hpp"
 #include "fogbench/signing/signing.hpp"
 #include "fogbench/storage/runs.hpp"
-#include "fogbench/storage/store.hpp"
 #include "fogbench/storage/verdict.hpp"
+
+namespace fogbench::storage {
+class Store;  // store.hpp: the station holds it by reference; a user of its calls includes it
+}
 
 namespace fogbench::daemon {
 

@@ -13,7 +13,10 @@
 
 #include "fogbench/storage/errors.hpp"
 #include "fogbench/storage/runs.hpp"
-#include "fogbench/storage/store.hpp"
+
+namespace fogbench::storage {
+class Store;  // store.hpp: held by reference, used in write_journal.cpp only
+}
 
 namespace fogbench::daemon {
 
@@ -55,14 +58,25 @@ class WriteJournal {
   template <class Call>
   auto without_waiting_if_refused(Call&& call) {
     if (!refused_) return call();
-    const int wait_ms = store_.busy_timeout_ms();
-    store_.set_busy_timeout_ms(0);
-    auto r = call();
-    store_.set_busy_timeout_ms(wait_ms);
-    return r;
+    const NoBusyWait no_wait(store_);
+    return call();
   }
 
  private:
+  // The store's busy timeout set to 0 for its lifetime, then put back (write_journal.cpp, so
+  // that this header needs no more of the store than its name).
+  class NoBusyWait {
+   public:
+    explicit NoBusyWait(storage::Store& store);
+    ~NoBusyWait();
+    NoBusyWait(const NoBusyWait&) = delete;
+    NoBusyWait& operator=(const NoBusyWait&) = delete;
+
+   private:
+    storage::Store& store_;
+    int wait_ms_;
+  };
+
   storage::StoreResult<void> write(const Write& w);
 
   storage::Store& store_;
