@@ -268,7 +268,7 @@ PlantResult<ReplicateStats> replicate_run(Connection& plant, storage::Store& ben
     if (auto ok = plant.copy_begin(
             "COPY fogbench.samples (bench_id, run_id, unit_index, t_s, wall_time, setpoint_c, chamber_c, gyro_dph, "
             "frames, t1_c, t2_c, phase, step, flags, since_power_on_s, compensated_dph, rate_in_dps, gyro_y_dph, "
-            "gyro_z_dph) FROM STDIN (FORMAT binary)",
+            "gyro_z_dph, t1_y_c, t2_y_c, t1_z_c, t2_z_c) FROM STDIN (FORMAT binary)",
             "copy the samples");
         !ok)
       return fail(ok.error());

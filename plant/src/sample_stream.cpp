@@ -56,7 +56,7 @@ void SampleStream::run() {
         break;
       }
       for (const auto& s : *rows) {
-        out.row(19);
+        out.row(23);
         out.text(bench_id_);
         out.int8(run_id_);
         out.int4(unit);
@@ -71,6 +71,7 @@ void SampleStream::run() {
         out.int2(static_cast<std::int16_t>(s.flags));
         out.float8(s.since_power_on_s);
         for (double v : {s.compensated_dph, s.rate_in_dps, s.gyro_y_dph, s.gyro_z_dph}) out.float8(v);
+        for (double v : {s.t1_y_c, s.t2_y_c, s.t1_z_c, s.t2_z_c}) out.float8(v);  // per-axis coils, degC
       }
       const auto n = static_cast<std::int64_t>(rows->size());
       const bool last_page = n < page_;

@@ -244,6 +244,16 @@ ALTER TABLE fogbench.models ADD COLUMN axis text CHECK (axis IN ('x', 'y', 'z'))
 ALTER TABLE fogbench.verdicts ADD COLUMN axes_json jsonb;
 )sql";
 
+// Version 7 (issue 29): the bench's schema 15. A three-axis unit's coil thermistors per axis
+// (degC; t1 at the coil's centre, t2 at its outer wall, as t1_c and t2_c; NULL where the unit's
+// thermistors are shared or the bench recorded none). Samples replicated before read NULL.
+constexpr const char* kV7 = R"sql(
+ALTER TABLE fogbench.samples ADD COLUMN t1_y_c double precision,
+                             ADD COLUMN t2_y_c double precision,
+                             ADD COLUMN t1_z_c double precision,
+                             ADD COLUMN t2_z_c double precision;
+)sql";
+
 constexpr Migration kMigrations[] = {
     {1, "runs, units, samples, events, models, verifications, figures", kV1},
     {2, "samples.compensated_dph, run_identity, unit_identity, certificates", kV2},
@@ -251,9 +261,10 @@ constexpr Migration kMigrations[] = {
     {4, "verdicts", kV4},
     {5, "samples.rate_in_dps, gyro_y_dph, gyro_z_dph, units.axes", kV5},
     {6, "models.axis, verdicts.axes_json", kV6},
+    {7, "samples.t1_y_c, t2_y_c, t1_z_c, t2_z_c", kV7},
 };
 
-constexpr int kCurrent = 6;
+constexpr int kCurrent = 7;
 
 // The version recorded, 0 when the schema is absent.
 PlantResult<int> read_version(Connection& c) {

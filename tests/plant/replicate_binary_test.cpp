@@ -58,6 +58,10 @@ TEST_CASE("binary COPY: whole pages, a unit without samples, extreme values and 
   hi.rate_in_dps = -123.5;  // the rate table's commanded rate, deg/s
   hi.gyro_y_dph = std::numeric_limits<double>::min();
   hi.gyro_z_dph = -0.1;
+  hi.t1_y_c = 25.125;  // a three-axis unit's per-axis coil thermistors, degC
+  hi.t2_y_c = -40.5;
+  hi.t1_z_c = std::numeric_limits<double>::denorm_min();
+  hi.t2_z_c = 1e300;
   none.t_s = 0.25;  // every optional signal left out: NULL
   rows.push_back(lo);
   rows.push_back(hi);
@@ -97,6 +101,14 @@ TEST_CASE("binary COPY: whole pages, a unit without samples, extreme values and 
   };
   CHECK(axes(1e15) == "-123.5 2.2250738585072014e-308 -0.1");
   CHECK(axes(0.5) == "null null null");
+  // The per-axis coil thermistors (the bench's schema 15): exact where recorded, NULL elsewhere.
+  auto coils = [&](double t) {
+    return pg.psql("SELECT concat_ws(' ', coalesce(t1_y_c::text, 'null'), coalesce(t2_y_c::text, 'null'), "
+                   "coalesce(t1_z_c::text, 'null'), coalesce(t2_z_c::text, 'null')) FROM fogbench.samples "
+                   "WHERE unit_index = 2 AND t_s = " + std::to_string(t));
+  };
+  CHECK(coils(1e15) == "25.125 -40.5 5e-324 1e+300");
+  CHECK(coils(0.5) == "null null null null");
   CHECK(pg.psql("SELECT count(rate_in_dps) + count(gyro_y_dph) + count(gyro_z_dph) FROM fogbench.samples WHERE unit_index = 0") == "0");
   CHECK(pg.psql("SELECT string_agg(unit_index || ':' || axes, ',' ORDER BY unit_index) FROM fogbench.units") == "0:1,1:1,2:3");
   CHECK(pg.psql("SELECT concat_ws(' ', coalesce(gyro_dph::text, 'null'), coalesce(frames::text, 'null'), "

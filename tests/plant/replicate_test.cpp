@@ -337,7 +337,7 @@ TEST_CASE("a refused login, a newer schema and bad ids are clear errors and writ
       CHECK(c.error().code == plant::PlantErrc::schema_too_new);
       CHECK_THAT(c.error().message, Catch::Contains("schema version 99 is newer"));
     }
-    CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2,3,4,5,6,99");
+    CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2,3,4,5,6,7,99");
   }
   SECTION("a lot id with a control character, an empty bench id") {
     auto path = test::temp_store_path("badlot");
@@ -379,7 +379,8 @@ TEST_CASE("a plant at schema 1 migrates to 6 on a bench's connection, keeping wh
     CHECK(st->certificates == 0);
     CHECK(st->certificates_held == 0);
     REQUIRE(c->exec("ALTER TABLE fogbench.samples DROP COLUMN compensated_dph, DROP COLUMN rate_in_dps, "
-                    "DROP COLUMN gyro_y_dph, DROP COLUMN gyro_z_dph; ALTER TABLE fogbench.units DROP COLUMN axes; "
+                    "DROP COLUMN gyro_y_dph, DROP COLUMN gyro_z_dph, DROP COLUMN t1_y_c, DROP COLUMN t2_y_c, "
+                    "DROP COLUMN t1_z_c, DROP COLUMN t2_z_c; ALTER TABLE fogbench.units DROP COLUMN axes; "
                     "ALTER TABLE fogbench.models DROP COLUMN axis; "
                     "DROP TABLE fogbench.run_identity, fogbench.unit_identity, fogbench.certificates, "
                     "fogbench.station_keys, fogbench.verdicts; DELETE FROM fogbench.schema_version WHERE version >= 2",
@@ -391,14 +392,14 @@ TEST_CASE("a plant at schema 1 migrates to 6 on a bench's connection, keeping wh
   auto reader = plant::Connection::open(pg.conninfo(), false);
   REQUIRE_FALSE(reader);
   CHECK(reader.error().code == plant::PlantErrc::schema_missing);
-  CHECK_THAT(reader.error().message, Catch::Contains("schema version 1 is older than 6"));
+  CHECK_THAT(reader.error().message, Catch::Contains("schema version 1 is older than 7"));
 
   // A bench migrates: version 2 recorded, the run held before kept (its samples' compensated
   // rate NULL), and a run with identity and compensated rates then replicates in full.
   auto c = plant::Connection::open(pg.conninfo(), true);
   REQUIRE(c);
-  CHECK(c->schema_version() == 6);
-  CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2,3,4,5,6");
+  CHECK(c->schema_version() == 7);
+  CHECK(pg.psql("SELECT string_agg(version::text, ',' ORDER BY version) FROM fogbench.schema_version") == "1,2,3,4,5,6,7");
   const std::string old_rid = std::to_string(old_run);
   CHECK(count(*c, "SELECT count(*) FROM fogbench.samples WHERE run_id = " + old_rid) == *bench.count_samples(old_run));
   CHECK(count(*c, "SELECT count(compensated_dph) FROM fogbench.samples") == 0);
