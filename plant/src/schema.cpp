@@ -7,7 +7,8 @@
 // fogbench.runs, so that a re-sent run replaces it too), the certificates and each sample's
 // compensated rate; version 3 the stations' public keys (station_keys); version 4 the verdicts;
 // version 5 the rate table's commanded rate, the y and z axes and each unit's axes; version 6 a
-// three-axis unit's per-axis models and verdicts (models.axis, verdicts.axes_json).
+// three-axis unit's per-axis models and verdicts (models.axis, verdicts.axes_json); version 7 its
+// coil thermistors per axis (samples.t1_y_c .. t2_z_c).
 #include <libpq-fe.h>
 
 #include "fogbench/plant/plant.hpp"
